@@ -1,0 +1,1 @@
+"""The ``thermonet`` command: one module per subcommand, each with ``add_args`` and ``handle``."""

@@ -1,0 +1,51 @@
+"""Entry point of the ``thermonet`` command.
+
+Exit codes: 0 success; 1 unexpected thermonet error; 2 bad input (scene, mesh, parameters,
+names); 3 the simulation had to stop (non-physical state, solver failure); 130 interrupted.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from ..errors import ThermonetError
+from . import run as run_cmd
+
+SUBCOMMANDS = {"run": run_cmd}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="thermonet",
+        description="Structure-preserving simulation of thermo-elastic spring nets (Mata & Lew 2011).",
+    )
+    parser.add_argument("--debug", action="store_true", help="show a traceback on errors")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name, module in SUBCOMMANDS.items():
+        p = sub.add_parser(name, help=module.HELP, description=module.HELP)
+        module.add_args(p)
+        p.set_defaults(handler=module.handle)
+    return parser
+
+
+def main(argv=None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if args.command is None:
+        parser.print_help()
+        return 0
+    try:
+        return int(args.handler(args) or 0)
+    except ThermonetError as exc:
+        if args.debug:
+            raise
+        print(f"thermonet: error: {exc}", file=sys.stderr)
+        return exc.exit_code
+    except KeyboardInterrupt:
+        print("thermonet: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,9 @@
+"""Time integrators, registered by name. Each declares its ``order`` and whether it is explicit."""
+
+from .base import Integrator, Stepper, StepFailure, available_integrators, get_integrator, register_integrator
+from .splitting import CO2, CO4, CO6, F10, GTR0, GTR1, NM2, Splitting, compose
+
+__all__ = [
+    "Integrator", "Stepper", "StepFailure", "Splitting", "compose", "get_integrator", "register_integrator",
+    "available_integrators", "GTR0", "GTR1", "CO2", "F10", "NM2", "CO4", "CO6",
+]

@@ -1,0 +1,79 @@
+"""The integrator interface and the name registry.
+
+An :class:`Integrator` is a description (name, order, explicit or not); ``make_stepper(system)``
+binds it to a :class:`~thermonet.system.System` and returns a :class:`Stepper` whose
+``advance(state, n_steps, h)`` moves a :class:`~thermonet.system.State` forward in place.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from typing import Any
+
+from ..errors import SimulationError, UnknownNameError
+
+
+class Stepper(ABC):
+    """An integrator bound to one system."""
+
+    @abstractmethod
+    def advance(self, state, n_steps: int, h: float) -> dict[str, Any] | None:
+        """Advance ``state`` in place by ``n_steps`` steps of size ``h``.
+
+        Returns per-chunk statistics to record with the diagnostics (e.g. Newton iterations), or
+        None. On failure raises :class:`StepFailure` with ``steps_done`` set, leaving ``state`` at
+        the last completed step.
+        """
+
+
+class Integrator(ABC):
+    """A time integrator: name, order of accuracy, and how to build its stepper."""
+
+    name: str
+    order: int
+    explicit: bool
+    description: str = ""
+
+    @abstractmethod
+    def make_stepper(self, system, **options) -> Stepper: ...
+
+    def __repr__(self) -> str:
+        return f"<integrator {self.name}: order {self.order}, {'explicit' if self.explicit else 'implicit'}>"
+
+
+class StepFailure(SimulationError):
+    """A step could not be completed; ``steps_done`` steps of the chunk were (the state is there)."""
+
+    def __init__(self, message: str, steps_done: int = 0, details: dict | None = None):
+        super().__init__(message)
+        self.steps_done = steps_done
+        self.details = details or {}
+
+
+_REGISTRY: dict[str, Any] = {}
+
+
+def register_integrator(integrator_or_factory, name: str | None = None):
+    """Register an :class:`Integrator` (or a factory ``f(**options) -> Integrator``) by name."""
+    key = (name or integrator_or_factory.name).lower()
+    _REGISTRY[key] = integrator_or_factory
+    return integrator_or_factory
+
+
+def get_integrator(name_or_integrator, **options) -> Integrator:
+    """The integrator of that name (case-insensitive; options go to factories such as GTR-α)."""
+    if isinstance(name_or_integrator, Integrator):
+        return name_or_integrator
+    key = str(name_or_integrator).lower().replace("_", "-")
+    if key not in _REGISTRY:
+        raise UnknownNameError("integrator", str(name_or_integrator), _REGISTRY)
+    entry = _REGISTRY[key]
+    if isinstance(entry, Integrator):
+        if options:
+            raise UnknownNameError("option for integrator " + key, ", ".join(options), ["(none)"])
+        return entry
+    return entry(**options)
+
+
+def available_integrators() -> list[str]:
+    return sorted(_REGISTRY)

@@ -1,0 +1,130 @@
+"""Explicit integrators as kick/drift splittings (spec §2.1 GTR-0/1, §2.3 CO2/F10, §2.4 NM2),
+and higher-order compositions of CO2 (CO4, CO6).
+
+A scheme ``K(k0) D(d0) K(k1) … D(d_{S−1}) K(k_S)`` is data: the ``kicks`` (S+1) and ``drifts`` (S)
+coefficients, as fractions of h. See :mod:`thermonet.kernels.splitting` for what a kick and a
+drift do. A kick never changes η, so every splitting conserves each spring's entropy exactly;
+kicks and drifts are symplectic and equivariant under rigid motions, so linear and angular
+momenta are conserved to round-off. Symmetric compositions of the symmetric CO2 keep all of this
+and raise the order.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .base import Integrator, Stepper, register_integrator
+
+
+@dataclass(frozen=True, repr=False)
+class Splitting(Integrator):
+    """An explicit splitting integrator.
+
+    kicks: (S+1,) kick coefficients; drifts: (S,) drift coefficients (fractions of h).
+    track_phi: False for NM2, which treats η as a parameter and does not integrate Φ.
+    """
+
+    name: str
+    order: int
+    kicks: tuple[float, ...]
+    drifts: tuple[float, ...]
+    track_phi: bool = True
+    description: str = ""
+    explicit: bool = True
+
+    def __post_init__(self):
+        assert len(self.kicks) == len(self.drifts) + 1
+        assert abs(sum(self.kicks) - 1.0) < 1e-13 and abs(sum(self.drifts) - 1.0) < 1e-13
+
+    @property
+    def force_evaluations(self) -> int:
+        """Force evaluations per step in a long run (the first and last kick share one)."""
+        inner = sum(1 for k in self.kicks[1:-1] if k != 0.0)
+        return inner + (1 if (self.kicks[0] != 0.0 or self.kicks[-1] != 0.0) else 0)
+
+    def make_stepper(self, system, parallel: bool = False, **options) -> "SplittingStepper":
+        return SplittingStepper(self, system, parallel)
+
+
+def compose(base: Splitting, gammas, name: str, order: int, description: str) -> Splitting:
+    """The composition ``base(γ_1 h) ∘ … ∘ base(γ_s h)``, adjacent kicks merged."""
+    kicks: list[float] = [0.0]
+    drifts: list[float] = []
+    for g in gammas:
+        kicks[-1] += g * base.kicks[0]
+        for k, d in zip(base.kicks[1:], base.drifts):
+            drifts.append(g * d)
+            kicks.append(g * k)
+    return Splitting(name, order, tuple(kicks), tuple(drifts), base.track_phi, description)
+
+
+GTR0 = register_integrator(
+    Splitting("gtr-0", 1, (0.0, 1.0), (1.0,), description="GTR-α with α = 0: drift then kick (symplectic Euler A), paper (51)")
+)
+GTR1 = register_integrator(
+    Splitting("gtr-1", 1, (1.0, 0.0), (1.0,), description="GTR-α with α = 1: kick then drift (symplectic Euler B), paper (52)")
+)
+CO2 = register_integrator(
+    Splitting("co2", 2, (0.5, 0.5), (1.0,), description="GTR-1 then GTR-0 half steps (F01), kick-drift-kick, paper (64)/(66)")
+)
+register_integrator(CO2, "f01")
+F10 = register_integrator(
+    Splitting("f10", 2, (0.0, 1.0, 0.0), (0.5, 0.5), description="GTR-0 then GTR-1 half steps, drift-kick-drift, paper (65)")
+)
+NM2 = register_integrator(
+    Splitting(
+        "nm2", 2, (0.5, 0.5), (1.0,), track_phi=False,
+        description="velocity Verlet on H(x, p; η) with η a parameter (Newmark explicit), paper (41)-(44); no Φ",
+    )
+)
+
+# Yoshida, "Construction of higher order symplectic integrators", Phys. Lett. A 150 (1990) 262-268:
+# the triple jump, eq. (4.14)-(4.16).
+_CBRT2 = 2.0 ** (1.0 / 3.0)
+YOSHIDA4 = (1.0 / (2.0 - _CBRT2), -_CBRT2 / (2.0 - _CBRT2), 1.0 / (2.0 - _CBRT2))
+CO4 = register_integrator(
+    compose(CO2, YOSHIDA4, "co4", 4, "Yoshida's 4th-order triple jump of CO2 (Phys. Lett. A 150 (1990) 262)")
+)
+
+# Yoshida (1990), Table 1, solution A: w1, w2, w3; w0 = 1 − 2(w1 + w2 + w3); 7 substeps
+# w3 w2 w1 w0 w1 w2 w3.
+_W1, _W2, _W3 = -1.17767998417887, 0.235573213359357, 0.784513610477560
+_W0 = 1.0 - 2.0 * (_W1 + _W2 + _W3)
+YOSHIDA6A = (_W3, _W2, _W1, _W0, _W1, _W2, _W3)
+CO6 = register_integrator(
+    compose(CO2, YOSHIDA6A, "co6", 6, "Yoshida's 6th-order composition of CO2, solution A (Phys. Lett. A 150 (1990) 262)")
+)
+
+
+class SplittingStepper(Stepper):
+    """A :class:`Splitting` bound to a system: owns the scratch buffers, calls the fused kernel."""
+
+    def __init__(self, integrator: Splitting, system, parallel: bool = False):
+        from ..kernels.splitting import splitting_kernels
+
+        self.integrator = integrator
+        self.system = system
+        self._advance = splitting_kernels(system.model, parallel)
+        self._kicks = np.asarray(integrator.kicks, dtype=np.float64)
+        self._drifts = np.asarray(integrator.drifts, dtype=np.float64)
+        n, m = system.n_nodes, system.n_springs
+        self._x_buf = np.empty((n, 3))
+        self._s = np.empty(m)
+        self._gravity = np.zeros(3) if system.gravity is None else np.asarray(system.gravity, dtype=np.float64)
+        lay = system.layout
+        self._static = (system.rest_lengths, system.parameters, lay.edges, lay.inc_ptr, lay.inc_spring,
+                        lay.inc_other, system.masses, system.inv_mass, system.anchored)
+
+    def advance(self, state, n_steps: int, h: float):
+        if n_steps <= 0:
+            return None
+        l0, P, edges, inc_ptr, inc_spring, inc_other, masses, inv_mass, anchored = self._static
+        self._advance(
+            state.positions, self._x_buf, state.momenta, state.thermal_displacement, state.entropy, self._s,
+            l0, P, edges, inc_ptr, inc_spring, inc_other, masses, inv_mass, anchored,
+            self._kicks, self._drifts, float(h), int(n_steps), self.integrator.track_phi,
+            self._gravity, self.system.gravity is not None,
+        )
+        return None

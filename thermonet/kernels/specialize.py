@@ -1,0 +1,62 @@
+"""Compile a kernel template for one model, with an on-disk cache that survives new processes.
+
+A template is a plain Python function at module level that calls model functions by global
+name (``temperature``, ``tension``, …). :func:`specialize` binds those names to a model's Numba
+functions and compiles it. Numba's disk cache keys a closure by pickling its cells, which for
+Numba functions differs in every process, so closures would recompile on every start; instead the
+template's code object is rebound to new globals and given a qualified name that carries the
+model's fingerprint (a hash of its functions' bytecode and constants), which keeps cache entries of
+different models, or of an edited user model, apart.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import types
+
+from numba import njit
+
+MODEL_FUNCTIONS = ("free_energy", "tension", "entropy", "temperature", "internal_energy",
+                   "d2F_dl2", "d2F_dl_dtheta", "d2F_dtheta2")
+
+
+def _code_digest(code: types.CodeType, h) -> None:
+    h.update(code.co_code)
+    for const in code.co_consts:
+        if isinstance(const, types.CodeType):
+            _code_digest(const, h)
+        else:
+            h.update(repr(const).encode())
+    h.update(repr(code.co_names).encode())
+
+
+def model_fingerprint(model) -> str:
+    """A short stable hash of the model's name, parameters and function bytecode."""
+    h = hashlib.sha256(model.name.encode())
+    h.update(repr(model.parameters).encode())
+    for name in MODEL_FUNCTIONS:
+        fn = getattr(model, name, None)
+        py = getattr(fn, "py_func", fn)
+        if py is not None and hasattr(py, "__code__"):
+            _code_digest(py.__code__, h)
+    return h.hexdigest()[:12]
+
+
+def model_namespace(model) -> dict:
+    """Global names a template may use for the model's functions."""
+    return {name: getattr(model, name) for name in MODEL_FUNCTIONS}
+
+
+def specialize(template, tag: str, namespace: dict, **jit_options):
+    """``njit(**jit_options)`` of ``template`` with ``namespace`` overriding its globals.
+
+    tag: made part of the qualified name (so of the cache file name); must identify everything
+    in ``namespace`` and in the jit options that changes the compiled code.
+    """
+    glb = dict(template.__globals__)
+    glb.update(namespace)
+    fn = types.FunctionType(template.__code__, glb, template.__name__, template.__defaults__, template.__closure__)
+    fn.__qualname__ = f"{template.__qualname__}__{tag}"
+    fn.__module__ = template.__module__
+    fn.__doc__ = template.__doc__
+    return njit(**jit_options)(fn)

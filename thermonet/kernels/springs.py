@@ -1,0 +1,54 @@
+"""Per-spring fields (length, temperature, tension, internal energy) for diagnostics and output,
+and element-wise maps of one model function. Run at the diagnostics cadence, outside the loop."""
+
+from __future__ import annotations
+
+import math
+
+from .specialize import MODEL_FUNCTIONS, model_fingerprint, model_namespace, specialize
+
+temperature = tension = internal_energy = scalar = None  # bound per model by specialize()
+
+_CACHE: dict = {}
+_OPTIONS = dict(cache=True, error_model="numpy")
+
+
+def spring_field_kernel(model):
+    """``spring_fields(x, eta, l0, P, edges, length, theta, tension, energy)`` for ``model``:
+    fills the four (m,) output arrays from positions x (n, 3) and entropies eta (m,)."""
+    key = ("fields", model_fingerprint(model))
+    if key not in _CACHE:
+        _CACHE[key] = specialize(_spring_fields, f"{model.name}_{key[1]}", model_namespace(model), **_OPTIONS)
+    return _CACHE[key]
+
+
+def map_springs(model, function: str):
+    """A compiled loop ``f(l, s, l0, P, out)`` applying ``model.<function>`` to every spring:
+    l, s, l0, out are (m,) arrays (s is θ or η, as the function expects), P is (k, m)."""
+    if function not in MODEL_FUNCTIONS:
+        raise ValueError(f"not a model function: {function}")
+    key = (function, model_fingerprint(model))
+    if key not in _CACHE:
+        ns = {"scalar": getattr(model, function)}
+        _CACHE[key] = specialize(_mapped, f"{model.name}_{function}_{key[1]}", ns, **_OPTIONS)
+    return _CACHE[key]
+
+
+def _spring_fields(x, eta, l0, P, edges, length, theta, tens, energy):
+    for e in range(edges.shape[0]):
+        a = edges[e, 0]
+        b = edges[e, 1]
+        dx = x[b, 0] - x[a, 0]
+        dy = x[b, 1] - x[a, 1]
+        dz = x[b, 2] - x[a, 2]
+        l = math.sqrt(dx * dx + dy * dy + dz * dz)
+        th = temperature(l, eta[e], l0[e], P, e)
+        length[e] = l
+        theta[e] = th
+        tens[e] = tension(l, th, l0[e], P, e)
+        energy[e] = internal_energy(l, eta[e], l0[e], P, e)
+
+
+def _mapped(l, s, l0, P, out):
+    for e in range(l.shape[0]):
+        out[e] = scalar(l[e], s[e], l0[e], P, e)

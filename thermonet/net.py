@@ -1,0 +1,172 @@
+"""The spring net: point masses joined by springs, as a struct of arrays in the user's numbering."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .errors import InputError
+
+
+@dataclass
+class Net:
+    """Nodes (point masses) and springs (edges between two nodes).
+
+    Attributes
+    ----------
+    positions: (n, 3) float64, initial node positions.
+    edges: (m, 2) int32, node indices of each spring's ends (spring e joins edges[e, 0] to edges[e, 1]).
+    masses: (n,) float64, node masses (> 0; ignored for anchored nodes).
+    anchored: (n,) bool, nodes fixed in space.
+    rest_lengths: (m,) float64, l0 per spring (> 0). Defaults to the initial lengths.
+    node_groups: named node sets (e.g. a mesh's physical groups), name -> int array of node indices.
+    spring_groups: named spring sets (material regions), name -> int array of spring indices.
+    source: where the net came from (a file path or a generator), for messages.
+    point_ids: (n,) int, for nets read from a mesh: the mesh point index of each node.
+    """
+
+    positions: np.ndarray
+    edges: np.ndarray
+    masses: np.ndarray | None = None
+    anchored: np.ndarray | None = None
+    rest_lengths: np.ndarray | None = None
+    node_groups: dict[str, np.ndarray] = field(default_factory=dict)
+    spring_groups: dict[str, np.ndarray] = field(default_factory=dict)
+    source: str = "<net>"
+    point_ids: np.ndarray | None = None
+
+    def __post_init__(self):
+        where = self.source
+        try:
+            x = np.array(self.positions, dtype=np.float64)
+        except (TypeError, ValueError) as exc:
+            raise InputError(f"{where}: positions are not numbers ({exc})") from None
+        if x.ndim != 2 or x.shape[1] not in (2, 3):
+            raise InputError(f"{where}: positions must have shape (n, 3) (or (n, 2)), got {x.shape}")
+        if x.shape[1] == 2:
+            x = np.column_stack([x, np.zeros(len(x))])
+        n = len(x)
+        if n == 0:
+            raise InputError(f"{where}: the net has no nodes")
+        bad = ~np.isfinite(x).all(axis=1)
+        if bad.any():
+            a = int(np.flatnonzero(bad)[0])
+            raise InputError(f"{where}: node {a} has a non-finite coordinate {x[a].tolist()}")
+        self.positions = x
+
+        try:
+            edges = np.asarray(self.edges)
+            if edges.size == 0:
+                raise InputError(f"{where}: the net has no springs (no edges)")
+            if not np.issubdtype(edges.dtype, np.integer):
+                if not np.all(np.equal(np.mod(edges, 1), 0)):
+                    raise InputError(f"{where}: spring node indices must be integers")
+            edges = edges.astype(np.int64)
+        except (TypeError, ValueError) as exc:
+            raise InputError(f"{where}: edges are not integers ({exc})") from None
+        if edges.ndim != 2 or edges.shape[1] != 2:
+            raise InputError(f"{where}: edges must have shape (m, 2), got {edges.shape}")
+        bad = (edges < 0) | (edges >= n)
+        if bad.any():
+            e = int(np.flatnonzero(bad.any(axis=1))[0])
+            raise InputError(f"{where}: spring {e} joins nodes {edges[e].tolist()} but node indices run 0..{n - 1}")
+        same = edges[:, 0] == edges[:, 1]
+        if same.any():
+            e = int(np.flatnonzero(same)[0])
+            raise InputError(f"{where}: spring {e} has both ends on node {edges[e, 0]}")
+        key = np.sort(edges, axis=1)
+        _, first, counts = np.unique(key, axis=0, return_index=True, return_counts=True)
+        if (counts > 1).any():
+            k = int(np.flatnonzero(counts > 1)[0])
+            dup = np.flatnonzero((key == key[first[k]]).all(axis=1))
+            raise InputError(
+                f"{where}: springs {dup[0]} and {dup[1]} both join nodes {key[first[k]].tolist()} (duplicate spring)"
+            )
+        self.edges = edges.astype(np.int32)
+        m = len(edges)
+
+        lengths = self.lengths()
+        zero = lengths <= 0
+        if zero.any():
+            e = int(np.flatnonzero(zero)[0])
+            raise InputError(
+                f"{where}: spring {e} (nodes {self.edges[e].tolist()}) has zero length: its two nodes coincide"
+            )
+
+        if self.masses is None:
+            self.masses = np.ones(n)
+        masses = np.asarray(self.masses, dtype=np.float64)
+        if masses.ndim == 0:
+            masses = np.full(n, float(masses))
+        if masses.shape != (n,):
+            raise InputError(f"{where}: masses must have one value per node ({n}), got shape {masses.shape}")
+        if self.anchored is None:
+            self.anchored = np.zeros(n, dtype=bool)
+        anchored = np.asarray(self.anchored)
+        if anchored.dtype != bool:
+            idx = anchored.astype(np.int64).ravel()
+            if idx.size and (idx.min() < 0 or idx.max() >= n):
+                raise InputError(f"{where}: anchored node index out of range 0..{n - 1}")
+            anchored = np.zeros(n, dtype=bool)
+            anchored[idx] = True
+        if anchored.shape != (n,):
+            raise InputError(f"{where}: anchored must be a boolean mask of {n} nodes or a list of node indices")
+        self.anchored = anchored
+        bad = ~(np.isfinite(masses) & (masses > 0)) & ~anchored
+        if bad.any():
+            a = int(np.flatnonzero(bad)[0])
+            raise InputError(f"{where}: node {a} has mass {masses[a]}; masses must be finite and > 0")
+        masses = np.where(anchored & ~(masses > 0), 1.0, masses)
+        self.masses = masses
+
+        if self.rest_lengths is None:
+            self.rest_lengths = lengths.copy()
+        l0 = np.asarray(self.rest_lengths, dtype=np.float64)
+        if l0.ndim == 0:
+            l0 = np.full(m, float(l0))
+        if l0.shape != (m,):
+            raise InputError(f"{where}: rest_lengths must have one value per spring ({m}), got shape {l0.shape}")
+        bad = ~(np.isfinite(l0) & (l0 > 0))
+        if bad.any():
+            e = int(np.flatnonzero(bad)[0])
+            raise InputError(f"{where}: spring {e} has rest length {l0[e]}; rest lengths must be finite and > 0")
+        self.rest_lengths = l0
+
+        for kind, groups, size in (("node", self.node_groups, n), ("spring", self.spring_groups, m)):
+            for name, idx in list(groups.items()):
+                idx = np.asarray(idx, dtype=np.int64).ravel()
+                if idx.size and (idx.min() < 0 or idx.max() >= size):
+                    raise InputError(f"{where}: {kind} group {name!r} has indices outside 0..{size - 1}")
+                groups[name] = idx
+
+    @property
+    def n_nodes(self) -> int:
+        return len(self.positions)
+
+    @property
+    def n_springs(self) -> int:
+        return len(self.edges)
+
+    def lengths(self, positions: np.ndarray | None = None) -> np.ndarray:
+        """(m,) spring lengths at ``positions`` ((n, 3), default the initial positions)."""
+        x = self.positions if positions is None else positions
+        d = x[self.edges[:, 1]] - x[self.edges[:, 0]]
+        return np.sqrt(np.einsum("ij,ij->i", d, d))
+
+    def anchor_point(self) -> np.ndarray | None:
+        """The common position of all anchored nodes if they coincide (angular momentum is taken
+        about it), the origin if there are no anchors, ``None`` if anchors are spread out."""
+        if not self.anchored.any():
+            return np.zeros(3)
+        pts = self.positions[self.anchored]
+        if np.all(pts == pts[0]):
+            return pts[0].copy()
+        return None
+
+    def summary(self) -> str:
+        n_anch = int(self.anchored.sum())
+        return (
+            f"{self.n_nodes} nodes ({n_anch} anchored), {self.n_springs} springs, "
+            f"total mass {self.masses[~self.anchored].sum():.6g}, from {self.source}"
+        )

@@ -1,0 +1,353 @@
+"""The notebook-facing API: a net, a model, an initial state and an integrator, run in time.
+
+    >>> import thermonet as tn
+    >>> sim = tn.Simulation(tn.chain(), model="hencky", parameters=dict(c=100, beta=0.2, C0=5, theta0=300),
+    ...                     temperatures=[800, 1200, 400], momenta=[[0, 0, 0], [20, 10, 10], [10, 20, 10], [0, 10, 0]],
+    ...                     integrator="co2", h=0.01)
+    >>> diag = sim.run(t_end=1.0)
+    >>> sim.state.positions, sim.temperatures(), diag.energy
+
+Everything a user passes in or reads back is in the net's own numbering; the engine's internal
+numbering (chosen for memory locality) never shows.
+"""
+
+from __future__ import annotations
+
+import math
+import time as _time
+from typing import Callable, Iterable, Mapping
+
+import numpy as np
+
+from .diagnostics import Diagnostics, measure, spring_fields
+from .errors import InputError, SimulationError
+from .integrators import get_integrator
+from .integrators.base import StepFailure
+from .layout import build_layout
+from .models import get_model
+from .net import Net
+from .system import State, System
+
+#: nets with at least this many springs use the multi-threaded kernels
+PARALLEL_MIN_SPRINGS = 16384
+
+
+class Simulation:
+    """A run of a thermo-elastic spring net.
+
+    Parameters
+    ----------
+    net: the :class:`~thermonet.net.Net`.
+    model: a model name ("hencky", "quadratic") or a :class:`~thermonet.models.Model`.
+    parameters: model parameters, name -> scalar or (m,) array (user spring numbering);
+        missing ones take the model's defaults.
+    temperatures: initial temperature per spring θ(0), scalar or (m,); default: each spring's
+        reference temperature. Entropies are η = Γ(l(0), θ(0)) (spec §1.3).
+    momenta / velocities: initial (n, 3) momenta or velocities (give at most one; default rest).
+    integrator: a name (see ``thermonet.available_integrators()``) or an Integrator.
+    h: time step.
+    gravity: optional (3,) uniform acceleration (an external potential; energy includes it).
+    threads: number of threads for the parallel kernels (default: Numba's default, all cores).
+    parallel: force the multi-threaded (True) or serial (False) kernels; default by net size.
+    renumber: reorder nodes/springs internally for locality (results are reported in user order).
+    integrator_options: passed to the integrator factory / stepper (e.g. ``alpha`` for GTR-α).
+    """
+
+    def __init__(
+        self,
+        net: Net,
+        model="hencky",
+        parameters: Mapping | None = None,
+        temperatures=None,
+        momenta=None,
+        velocities=None,
+        integrator="co2",
+        h: float = 1e-3,
+        gravity=None,
+        threads: int | None = None,
+        parallel: bool | None = None,
+        renumber: bool = True,
+        integrator_options: Mapping | None = None,
+    ):
+        if not isinstance(net, Net):
+            raise InputError(f"net must be a thermonet.Net, got {type(net).__name__}")
+        self.net = net
+        self.model = get_model(model)
+        self.h = _check_step(h)
+        integrator_options = dict(integrator_options or {})
+        stepper_keys = {"tolerance", "max_iterations", "retry", "linear_solver", "rtol", "atol"}
+        stepper_options = {k: integrator_options.pop(k) for k in list(integrator_options) if k in stepper_keys}
+        self.integrator = get_integrator(integrator, **integrator_options)
+        self.threads = threads
+        n, m = net.n_nodes, net.n_springs
+        layout = build_layout(net, renumber=renumber)
+        self.layout = layout
+
+        P_user = self.model.parameter_array(parameters or {}, m)
+        gravity_vec = None
+        if gravity is not None:
+            gravity_vec = np.asarray(gravity, dtype=np.float64).reshape(-1)
+            if gravity_vec.shape != (3,) or not np.isfinite(gravity_vec).all():
+                raise InputError(f"gravity must be a finite 3-vector, got {gravity!r}")
+        ref = net.anchor_point()
+        self.angular_momentum_about = "anchor point" if (ref is not None and net.anchored.any()) else (
+            "origin" if ref is not None else "origin (anchors do not coincide: angular momentum is not conserved)")
+        masses = layout.nodes_to_internal(net.masses)
+        anchored = layout.nodes_to_internal(net.anchored)
+        self.system = System(
+            model=self.model,
+            layout=layout,
+            rest_lengths=np.ascontiguousarray(layout.springs_to_internal(net.rest_lengths)),
+            parameters=np.ascontiguousarray(P_user[:, layout.spring_order]),
+            masses=np.ascontiguousarray(masses),
+            inv_mass=np.where(anchored, 0.0, 1.0 / masses),
+            anchored=np.ascontiguousarray(anchored),
+            reference_point=np.zeros(3) if ref is None else ref,
+            gravity=gravity_vec,
+        )
+
+        x0 = layout.nodes_to_internal(net.positions).copy()
+        p0 = self._initial_momenta(momenta, velocities)
+        theta0 = self._initial_temperatures(temperatures, P_user)
+        lengths = net.lengths()
+        eta_user = np.empty(m)
+        from .kernels.springs import map_springs
+
+        map_springs(self.model, "entropy")(lengths, theta0, net.rest_lengths, P_user, eta_user)
+        bad = ~np.isfinite(eta_user)
+        if bad.any():
+            e = int(np.flatnonzero(bad)[0])
+            raise InputError(f"spring {e}: initial entropy is not finite (θ = {theta0[e]}, l = {lengths[e]})")
+        self._state = State(
+            positions=np.ascontiguousarray(x0),
+            momenta=np.ascontiguousarray(layout.nodes_to_internal(p0)),
+            thermal_displacement=np.zeros(m),
+            entropy=np.ascontiguousarray(layout.springs_to_internal(eta_user)),
+        )
+        if parallel is None:
+            parallel = threads != 1 and m >= PARALLEL_MIN_SPRINGS
+        self.parallel = bool(parallel)
+        self.stepper = self.integrator.make_stepper(self.system, parallel=self.parallel, **stepper_options)
+        self.diagnostics = Diagnostics()
+        self.wall_time = 0.0
+        self.steps_run = 0
+
+    # ------------------------------------------------------------------------------------------
+    # initial data
+
+    def _initial_momenta(self, momenta, velocities) -> np.ndarray:
+        net = self.net
+        n = net.n_nodes
+        if momenta is not None and velocities is not None:
+            raise InputError("give either momenta or velocities, not both")
+        if momenta is None and velocities is None:
+            return np.zeros((n, 3))
+        given = momenta if momenta is not None else velocities
+        what = "momenta" if momenta is not None else "velocities"
+        arr = np.asarray(given, dtype=np.float64)
+        if arr.shape == (3,):
+            arr = np.broadcast_to(arr, (n, 3)).copy()
+            arr[net.anchored] = 0.0
+        if arr.shape == (n, 2):
+            arr = np.column_stack([arr, np.zeros(n)])
+        if arr.shape != (n, 3):
+            raise InputError(f"initial {what} must have shape ({n}, 3), got {arr.shape}")
+        bad = ~np.isfinite(arr).all(axis=1)
+        if bad.any():
+            a = int(np.flatnonzero(bad)[0])
+            raise InputError(f"node {a}: initial {what[:-1] if what == 'momenta' else 'velocity'} is not finite: {arr[a].tolist()}")
+        moving = net.anchored & (np.abs(arr).sum(axis=1) > 0)
+        if moving.any():
+            a = int(np.flatnonzero(moving)[0])
+            raise InputError(f"node {a} is anchored but has initial {what} {arr[a].tolist()}")
+        if velocities is not None:
+            arr = arr * net.masses[:, None]
+        return arr
+
+    def _initial_temperatures(self, temperatures, P_user) -> np.ndarray:
+        m = self.net.n_springs
+        if temperatures is None:
+            return P_user[self.model.parameter_index(self.model.reference_temperature)].copy()
+        theta = np.asarray(temperatures, dtype=np.float64)
+        if theta.ndim == 0:
+            theta = np.full(m, float(theta))
+        if theta.shape != (m,):
+            raise InputError(f"initial temperatures must be a scalar or one per spring ({m}), got shape {theta.shape}")
+        bad = ~(np.isfinite(theta) & (theta > 0))
+        if bad.any():
+            e = int(np.flatnonzero(bad)[0])
+            raise InputError(f"spring {e}: initial temperature must be finite and > 0, got {theta[e]}")
+        return theta
+
+    # ------------------------------------------------------------------------------------------
+    # running
+
+    @property
+    def time(self) -> float:
+        return self._state.time
+
+    @property
+    def step(self) -> int:
+        return self._state.step
+
+    def steps_until(self, t_end: float) -> int:
+        """Whole steps from the current time to ``t_end`` (rounded up, with a tolerance)."""
+        n = (t_end - self._state.time) / self.h
+        return max(0, int(math.ceil(n - 1e-9 * max(1.0, abs(n)))))
+
+    def run(
+        self,
+        t_end: float | None = None,
+        steps: int | None = None,
+        diagnostics_every: int | None = None,
+        observers: Iterable[tuple[int, Callable]] = (),
+        progress: Callable[[int, int, float], None] | None = None,
+    ) -> Diagnostics:
+        """Advance by ``steps`` steps, or to ``t_end``.
+
+        diagnostics_every: a diagnostics row every k steps (and at the start and end);
+            default: about 1000 rows over the run.
+        observers: (k, callback) pairs; ``callback(sim)`` is called every k steps (at multiples of
+            k in the global step count) and at the end of the run.
+        progress: called as ``progress(done, total, elapsed_seconds)`` at each stop.
+        Returns the diagnostics series (``sim.diagnostics``, accumulated over runs).
+        """
+        if (t_end is None) == (steps is None):
+            raise InputError("run: give exactly one of t_end or steps")
+        if steps is None:
+            if not math.isfinite(t_end):
+                raise InputError(f"run: t_end must be finite, got {t_end}")
+            steps = self.steps_until(t_end)
+        steps = int(steps)
+        if steps < 0:
+            raise InputError(f"run: steps must be >= 0, got {steps}")
+        if diagnostics_every is None:
+            diagnostics_every = max(1, steps // 1000)
+        if diagnostics_every < 1:
+            raise InputError(f"run: diagnostics_every must be >= 1, got {diagnostics_every}")
+        cadences = [(int(diagnostics_every), self._record)] + [(int(k), cb) for k, cb in observers]
+        for k, _ in cadences:
+            if k < 1:
+                raise InputError(f"run: observer cadence must be >= 1, got {k}")
+        if not self.diagnostics.rows or self.diagnostics.rows[-1]["step"] != self._state.step:
+            self._record(self)
+        for k, cb in cadences[1:]:
+            if self._state.step % k == 0:
+                cb(self)
+        if self.threads:
+            import numba
+
+            numba.set_num_threads(int(self.threads))
+        start = self._state.step
+        end = start + steps
+        t0 = _time.perf_counter()
+        while self._state.step < end:
+            cur = self._state.step
+            stop = min([end] + [(cur // k + 1) * k for k, _ in cadences])
+            self._advance(stop - cur)
+            done = self._state.step
+            for k, cb in cadences:
+                if done % k == 0 or done == end:
+                    if cb is self._record and self.diagnostics.rows and self.diagnostics.rows[-1]["step"] == done:
+                        continue
+                    cb(self)
+            if progress is not None:
+                progress(done - start, steps, _time.perf_counter() - t0)
+        self.wall_time += _time.perf_counter() - t0
+        self.steps_run += steps
+        return self.diagnostics
+
+    def _advance(self, n: int) -> None:
+        state = self._state
+        step0, time0 = state.step, state.time
+        try:
+            stats = self.stepper.advance(state, n, self.h)
+        except StepFailure as exc:
+            state.step = step0 + exc.steps_done
+            state.time = time0 + exc.steps_done * self.h
+            self._record(self)
+            raise
+        state.step = step0 + n
+        state.time = time0 + n * self.h
+        self._last_stats = stats or {}
+
+    def _record(self, _sim=None) -> None:
+        row = measure(self.system, self._state)
+        row.update(getattr(self, "_last_stats", {}) or {})
+        self.diagnostics.append(row)
+
+    # ------------------------------------------------------------------------------------------
+    # reading back (user numbering)
+
+    @property
+    def state(self) -> State:
+        """A copy of the current state in the user's numbering."""
+        s, lay = self._state, self.layout
+        return State(
+            positions=lay.nodes_to_user(s.positions),
+            momenta=lay.nodes_to_user(s.momenta),
+            thermal_displacement=lay.springs_to_user(s.thermal_displacement),
+            entropy=lay.springs_to_user(s.entropy),
+            time=s.time,
+            step=s.step,
+        )
+
+    def load_state(self, state: State) -> None:
+        """Replace the current state by ``state`` (user numbering), e.g. from a checkpoint."""
+        lay = self.layout
+        self._state = State(
+            positions=np.ascontiguousarray(lay.nodes_to_internal(np.asarray(state.positions, dtype=np.float64))),
+            momenta=np.ascontiguousarray(lay.nodes_to_internal(np.asarray(state.momenta, dtype=np.float64))),
+            thermal_displacement=np.ascontiguousarray(lay.springs_to_internal(np.asarray(state.thermal_displacement, dtype=np.float64))),
+            entropy=np.ascontiguousarray(lay.springs_to_internal(np.asarray(state.entropy, dtype=np.float64))),
+            time=float(state.time),
+            step=int(state.step),
+        )
+
+    def _fields(self):
+        return spring_fields(self.system, self._state.positions, self._state.entropy)
+
+    def temperatures(self) -> np.ndarray:
+        """(m,) spring temperatures θ(l, η) now (spec (18b))."""
+        return self.layout.springs_to_user(self._fields().temperature)
+
+    def lengths(self) -> np.ndarray:
+        return self.layout.springs_to_user(self._fields().length)
+
+    def strains(self) -> np.ndarray:
+        """(m,) logarithmic strains ln(l / l0)."""
+        return np.log(self.lengths() / self.net.rest_lengths)
+
+    def tensions(self) -> np.ndarray:
+        return self.layout.springs_to_user(self._fields().tension)
+
+    def velocities(self) -> np.ndarray:
+        return self.state.momenta / self.net.masses[:, None]
+
+    def conservation_summary(self) -> dict:
+        """Initial value and maximal deviation of each conserved quantity, plus speed."""
+        out = self.diagnostics.summary()
+        out["_run"] = {
+            "steps": self.steps_run,
+            "wall_time_s": self.wall_time,
+            "steps_per_s": self.steps_run / self.wall_time if self.wall_time > 0 else float("nan"),
+            "spring_steps_per_s": self.steps_run * self.net.n_springs / self.wall_time if self.wall_time > 0 else float("nan"),
+        }
+        return out
+
+    def __repr__(self) -> str:
+        return (f"<Simulation {self.net.n_nodes} nodes, {self.net.n_springs} springs, model {self.model.name}, "
+                f"{self.integrator.name} h={self.h}, t={self.time:.6g}, step {self.step}>")
+
+
+def _check_step(h) -> float:
+    try:
+        h = float(h)
+    except (TypeError, ValueError):
+        raise InputError(f"time step h must be a number, got {h!r}") from None
+    if not (math.isfinite(h) and h > 0):
+        raise InputError(f"time step h must be finite and > 0, got {h}")
+    return h
+
+
+__all__ = ["Simulation", "SimulationError"]

@@ -1,0 +1,86 @@
+"""What a stepper works on: the fixed :class:`System` and the evolving :class:`State`.
+
+Both are in the engine's internal numbering (see :mod:`thermonet.layout`); the
+:class:`~thermonet.simulation.Simulation` maps them to and from the user's numbering.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .layout import Layout
+from .models.base import Model
+
+
+@dataclass(frozen=True, eq=False)
+class System:
+    """Everything that does not change during a run, in internal numbering.
+
+    model: the constitutive law.
+    layout: numbering and incidence (edges (m, 2) int32, CSR node→spring lists).
+    rest_lengths: (m,) l0.
+    parameters: (k, m) per-spring model parameters in ``model.parameters`` order.
+    masses: (n,) node masses; inv_mass: (n,) 1/m on free nodes, 0 on anchored ones.
+    anchored: (n,) bool.
+    reference_point: (3,) point about which angular momentum is measured.
+    gravity: (3,) uniform acceleration, or None when the scene has no external field.
+    thermal: False for a purely mechanical run (every spring held at its reference temperature;
+        no entropies or thermal displacements exist).
+    """
+
+    model: Model
+    layout: Layout
+    rest_lengths: np.ndarray
+    parameters: np.ndarray
+    masses: np.ndarray
+    inv_mass: np.ndarray
+    anchored: np.ndarray
+    reference_point: np.ndarray
+    gravity: np.ndarray | None = None
+    thermal: bool = True
+
+    @property
+    def edges(self) -> np.ndarray:
+        return self.layout.edges
+
+    @property
+    def n_nodes(self) -> int:
+        return self.layout.n_nodes
+
+    @property
+    def n_springs(self) -> int:
+        return self.layout.n_springs
+
+    @property
+    def free(self) -> np.ndarray:
+        return ~self.anchored
+
+
+@dataclass(eq=False)
+class State:
+    """The integrator state after ``step`` steps, at time ``time``.
+
+    positions, momenta: (n, 3) float64. thermal_displacement Φ, entropy η: (m,) float64
+    (η is constant in time for every integrator here, but it is state, not a parameter).
+    """
+
+    positions: np.ndarray
+    momenta: np.ndarray
+    thermal_displacement: np.ndarray
+    entropy: np.ndarray
+    time: float = 0.0
+    step: int = 0
+    extra: dict = field(default_factory=dict)
+
+    def copy(self) -> "State":
+        return State(
+            self.positions.copy(),
+            self.momenta.copy(),
+            self.thermal_displacement.copy(),
+            self.entropy.copy(),
+            self.time,
+            self.step,
+            {k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in self.extra.items()},
+        )
