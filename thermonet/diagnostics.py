@@ -22,7 +22,7 @@ CONSERVED = ("energy", "entropy", "px", "py", "pz", "Lx", "Ly", "Lz")
 @dataclass
 class SpringFields:
     """Per-spring fields at one state, internal numbering: length, temperature, tension,
-    internal energy U; all (m,)."""
+    internal energy U (free energy F(l, θ0) when thermal coupling is off); all (m,)."""
 
     length: np.ndarray
     temperature: np.ndarray
@@ -33,7 +33,9 @@ class SpringFields:
 def spring_fields(system, positions: np.ndarray, entropy: np.ndarray) -> SpringFields:
     m = system.n_springs
     out = SpringFields(np.empty(m), np.empty(m), np.empty(m), np.empty(m))
-    kernel = spring_field_kernel(system.model)
+    kernel = spring_field_kernel(system.model, system.thermal)
+    if entropy is None:
+        entropy = np.empty(0)
     kernel(positions, entropy, system.rest_lengths, system.parameters, system.edges,
            out.length, out.temperature, out.tension, out.internal_energy)
     return out
@@ -51,19 +53,22 @@ def measure(system, state) -> dict[str, float]:
         potential = -float(np.sum(system.masses[free] * (x[free] @ system.gravity)))
     P = p[free].sum(axis=0)
     L = np.cross(x[free] - system.reference_point, p[free]).sum(axis=0)
-    return {
+    row = {
         "step": state.step,
         "time": state.time,
         "energy": kinetic + internal + potential,
         "kinetic": kinetic,
         "internal": internal,
         "potential": potential,
-        "entropy": float(math.fsum(state.entropy)),
-        "px": float(P[0]), "py": float(P[1]), "pz": float(P[2]),
-        "Lx": float(L[0]), "Ly": float(L[1]), "Lz": float(L[2]),
-        "theta_min": float(fields.temperature.min()),
-        "theta_max": float(fields.temperature.max()),
     }
+    if system.thermal:
+        row["entropy"] = float(math.fsum(state.entropy))
+    row.update({"px": float(P[0]), "py": float(P[1]), "pz": float(P[2]),
+                "Lx": float(L[0]), "Ly": float(L[1]), "Lz": float(L[2])})
+    if system.thermal:
+        row["theta_min"] = float(fields.temperature.min())
+        row["theta_max"] = float(fields.temperature.max())
+    return row
 
 
 @dataclass
@@ -108,9 +113,9 @@ class Diagnostics:
         component magnitude seen, so a zero component is judged against a meaningful size)."""
         out = {}
         for name in CONSERVED:
-            v = self.column(name)
-            if v.size == 0:
+            if not self.rows or name not in self.rows[0]:
                 continue
+            v = self.column(name)
             dev = float(np.max(np.abs(v - v[0])))
             if name in ("px", "py", "pz", "Lx", "Ly", "Lz"):
                 group = ("px", "py", "pz") if name.startswith("p") else ("Lx", "Ly", "Lz")

@@ -47,6 +47,8 @@ class Simulation:
     integrator: a name (see ``thermonet.available_integrators()``) or an Integrator.
     h: time step.
     gravity: optional (3,) uniform acceleration (an external potential; energy includes it).
+    thermal: thermal coupling on (default). Off: a purely mechanical run, every spring held at
+        its reference temperature; no temperatures, entropies or Φ are allocated or computed.
     threads: number of threads for the parallel kernels (default: Numba's default, all cores).
     parallel: force the multi-threaded (True) or serial (False) kernels; default by net size.
     renumber: reorder nodes/springs internally for locality (results are reported in user order).
@@ -64,6 +66,7 @@ class Simulation:
         integrator="co2",
         h: float = 1e-3,
         gravity=None,
+        thermal: bool = True,
         threads: int | None = None,
         parallel: bool | None = None,
         renumber: bool = True,
@@ -104,25 +107,22 @@ class Simulation:
             anchored=np.ascontiguousarray(anchored),
             reference_point=np.zeros(3) if ref is None else ref,
             gravity=gravity_vec,
+            thermal=bool(thermal),
         )
 
         x0 = layout.nodes_to_internal(net.positions).copy()
         p0 = self._initial_momenta(momenta, velocities)
-        theta0 = self._initial_temperatures(temperatures, P_user)
-        lengths = net.lengths()
-        eta_user = np.empty(m)
-        from .kernels.springs import map_springs
-
-        map_springs(self.model, "entropy")(lengths, theta0, net.rest_lengths, P_user, eta_user)
-        bad = ~np.isfinite(eta_user)
-        if bad.any():
-            e = int(np.flatnonzero(bad)[0])
-            raise InputError(f"spring {e}: initial entropy is not finite (θ = {theta0[e]}, l = {lengths[e]})")
+        phi, eta = None, None
+        if thermal:
+            eta = np.ascontiguousarray(layout.springs_to_internal(self._initial_entropies(temperatures, P_user)))
+            phi = np.zeros(m)
+        elif temperatures is not None:
+            raise InputError("initial temperatures given but thermal coupling is off (thermal=False)")
         self._state = State(
             positions=np.ascontiguousarray(x0),
             momenta=np.ascontiguousarray(layout.nodes_to_internal(p0)),
-            thermal_displacement=np.zeros(m),
-            entropy=np.ascontiguousarray(layout.springs_to_internal(eta_user)),
+            thermal_displacement=phi,
+            entropy=eta,
         )
         if parallel is None:
             parallel = threads != 1 and m >= PARALLEL_MIN_SPRINGS
@@ -163,6 +163,20 @@ class Simulation:
         if velocities is not None:
             arr = arr * net.masses[:, None]
         return arr
+
+    def _initial_entropies(self, temperatures, P_user) -> np.ndarray:
+        """η = Γ(l(0), θ(0)) per spring (user numbering)."""
+        from .kernels.springs import map_springs
+
+        theta0 = self._initial_temperatures(temperatures, P_user)
+        lengths = self.net.lengths()
+        eta = np.empty(self.net.n_springs)
+        map_springs(self.model, "entropy")(lengths, theta0, self.net.rest_lengths, P_user, eta)
+        bad = ~np.isfinite(eta)
+        if bad.any():
+            e = int(np.flatnonzero(bad)[0])
+            raise InputError(f"spring {e}: initial entropy is not finite (θ = {theta0[e]}, l = {lengths[e]})")
+        return eta
 
     def _initial_temperatures(self, temperatures, P_user) -> np.ndarray:
         m = self.net.n_springs
@@ -286,8 +300,8 @@ class Simulation:
         return State(
             positions=lay.nodes_to_user(s.positions),
             momenta=lay.nodes_to_user(s.momenta),
-            thermal_displacement=lay.springs_to_user(s.thermal_displacement),
-            entropy=lay.springs_to_user(s.entropy),
+            thermal_displacement=None if s.thermal_displacement is None else lay.springs_to_user(s.thermal_displacement),
+            entropy=None if s.entropy is None else lay.springs_to_user(s.entropy),
             time=s.time,
             step=s.step,
         )
@@ -295,11 +309,20 @@ class Simulation:
     def load_state(self, state: State) -> None:
         """Replace the current state by ``state`` (user numbering), e.g. from a checkpoint."""
         lay = self.layout
+
+        def nodes(a):
+            return np.ascontiguousarray(lay.nodes_to_internal(np.asarray(a, dtype=np.float64)))
+
+        def springs(a):
+            if not self.system.thermal:
+                return None
+            return np.ascontiguousarray(lay.springs_to_internal(np.asarray(a, dtype=np.float64)))
+
         self._state = State(
-            positions=np.ascontiguousarray(lay.nodes_to_internal(np.asarray(state.positions, dtype=np.float64))),
-            momenta=np.ascontiguousarray(lay.nodes_to_internal(np.asarray(state.momenta, dtype=np.float64))),
-            thermal_displacement=np.ascontiguousarray(lay.springs_to_internal(np.asarray(state.thermal_displacement, dtype=np.float64))),
-            entropy=np.ascontiguousarray(lay.springs_to_internal(np.asarray(state.entropy, dtype=np.float64))),
+            positions=nodes(state.positions),
+            momenta=nodes(state.momenta),
+            thermal_displacement=springs(state.thermal_displacement),
+            entropy=springs(state.entropy),
             time=float(state.time),
             step=int(state.step),
         )

@@ -63,13 +63,14 @@ class State:
     """The integrator state after ``step`` steps, at time ``time``.
 
     positions, momenta: (n, 3) float64. thermal_displacement Φ, entropy η: (m,) float64
-    (η is constant in time for every integrator here, but it is state, not a parameter).
+    (η is constant in time for every integrator here, but it is state, not a parameter);
+    both None in a purely mechanical run (thermal coupling off).
     """
 
     positions: np.ndarray
     momenta: np.ndarray
-    thermal_displacement: np.ndarray
-    entropy: np.ndarray
+    thermal_displacement: np.ndarray | None
+    entropy: np.ndarray | None
     time: float = 0.0
     step: int = 0
     extra: dict = field(default_factory=dict)
@@ -78,8 +79,8 @@ class State:
         return State(
             self.positions.copy(),
             self.momenta.copy(),
-            self.thermal_displacement.copy(),
-            self.entropy.copy(),
+            None if self.thermal_displacement is None else self.thermal_displacement.copy(),
+            None if self.entropy is None else self.entropy.copy(),
             self.time,
             self.step,
             {k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in self.extra.items()},

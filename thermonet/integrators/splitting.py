@@ -106,7 +106,7 @@ class SplittingStepper(Stepper):
 
         self.integrator = integrator
         self.system = system
-        self._advance = splitting_kernels(system.model, parallel)
+        self._advance = splitting_kernels(system.model, parallel, system.thermal)
         self._kicks = np.asarray(integrator.kicks, dtype=np.float64)
         self._drifts = np.asarray(integrator.drifts, dtype=np.float64)
         n, m = system.n_nodes, system.n_springs
@@ -114,6 +114,7 @@ class SplittingStepper(Stepper):
         self._s = np.empty(m)
         self._gravity = np.zeros(3) if system.gravity is None else np.asarray(system.gravity, dtype=np.float64)
         lay = system.layout
+        self._no_thermal = np.empty(0)
         self._static = (system.rest_lengths, system.parameters, lay.edges, lay.inc_ptr, lay.inc_spring,
                         lay.inc_other, system.masses, system.inv_mass, system.anchored)
 
@@ -121,8 +122,10 @@ class SplittingStepper(Stepper):
         if n_steps <= 0:
             return None
         l0, P, edges, inc_ptr, inc_spring, inc_other, masses, inv_mass, anchored = self._static
+        phi = state.thermal_displacement if self.system.thermal else self._no_thermal
+        eta = state.entropy if self.system.thermal else self._no_thermal
         self._advance(
-            state.positions, self._x_buf, state.momenta, state.thermal_displacement, state.entropy, self._s,
+            state.positions, self._x_buf, state.momenta, phi, eta, self._s,
             l0, P, edges, inc_ptr, inc_spring, inc_other, masses, inv_mass, anchored,
             self._kicks, self._drifts, float(h), int(n_steps), self.integrator.track_phi,
             self._gravity, self.system.gravity is not None,

@@ -28,20 +28,28 @@ from numba import prange
 
 from .specialize import model_fingerprint, model_namespace, specialize
 
-# Bound per model by specialize(); listed so the templates read as ordinary code.
+# Bound per model by specialize(); listed so the templates read as ordinary code. THERMAL and
+# REFERENCE_TEMPERATURE are compile-time constants: with THERMAL False the kernel is the purely
+# mechanical one (every spring at its reference temperature, parameter row REFERENCE_TEMPERATURE;
+# no η, θ or Φ is read or written).
 temperature = tension = spring_pass = node_pass = None
+THERMAL = True
+REFERENCE_TEMPERATURE = 0
 
 _CACHE: dict = {}
 
 _OPTIONS = dict(cache=True, error_model="numpy", boundscheck=False)
 
 
-def splitting_kernels(model, parallel: bool):
-    """``advance(...)`` compiled for ``model`` (multi-threaded when ``parallel``)."""
-    key = (model_fingerprint(model), bool(parallel))
+def splitting_kernels(model, parallel: bool, thermal: bool = True):
+    """``advance(...)`` compiled for ``model`` (multi-threaded when ``parallel``; purely mechanical
+    when not ``thermal``, in which case ``phi`` and ``eta`` may be empty arrays)."""
+    key = (model_fingerprint(model), bool(parallel), bool(thermal))
     if key not in _CACHE:
-        tag = f"{model.name}_{key[0]}_{'par' if parallel else 'ser'}"
+        tag = f"{model.name}_{key[0]}_{'par' if parallel else 'ser'}_{'thermal' if thermal else 'mech'}"
         ns = model_namespace(model)
+        ns["THERMAL"] = bool(thermal)
+        ns["REFERENCE_TEMPERATURE"] = model.parameter_index(model.reference_temperature)
         ns["spring_pass"] = specialize(_spring_pass, tag, ns, parallel=parallel, **_OPTIONS)
         ns["node_pass"] = specialize(_node_pass, tag, ns, parallel=parallel, **_OPTIONS)
         _CACHE[key] = specialize(_advance, tag, ns, **_OPTIONS)
@@ -57,9 +65,12 @@ def _spring_pass(x, eta, l0, P, edges, s, phi, phi_h1, phi_h2, track_phi):
         dy = x[b, 1] - x[a, 1]
         dz = x[b, 2] - x[a, 2]
         l = math.sqrt(dx * dx + dy * dy + dz * dz)
-        theta = temperature(l, eta[e], l0[e], P, e)
+        if THERMAL:
+            theta = temperature(l, eta[e], l0[e], P, e)
+        else:
+            theta = P[REFERENCE_TEMPERATURE, e]
         s[e] = tension(l, theta, l0[e], P, e) / l
-        if track_phi:
+        if THERMAL and track_phi:
             if phi_h1 != 0.0:
                 phi[e] += phi_h1 * theta
             phi[e] += phi_h2 * theta

@@ -7,18 +7,27 @@ import math
 
 from .specialize import MODEL_FUNCTIONS, model_fingerprint, model_namespace, specialize
 
-temperature = tension = internal_energy = scalar = None  # bound per model by specialize()
+# Bound per model by specialize(); THERMAL False: every spring at its reference temperature
+# (parameter row REFERENCE_TEMPERATURE) and "energy" is the free energy F(l, θ0).
+temperature = tension = internal_energy = free_energy = scalar = None
+THERMAL = True
+REFERENCE_TEMPERATURE = 0
 
 _CACHE: dict = {}
 _OPTIONS = dict(cache=True, error_model="numpy")
 
 
-def spring_field_kernel(model):
+def spring_field_kernel(model, thermal: bool = True):
     """``spring_fields(x, eta, l0, P, edges, length, theta, tension, energy)`` for ``model``:
-    fills the four (m,) output arrays from positions x (n, 3) and entropies eta (m,)."""
-    key = ("fields", model_fingerprint(model))
+    fills the four (m,) output arrays from positions x (n, 3) and entropies eta (m,)
+    (eta unused and may be empty when not ``thermal``)."""
+    key = ("fields", model_fingerprint(model), bool(thermal))
     if key not in _CACHE:
-        _CACHE[key] = specialize(_spring_fields, f"{model.name}_{key[1]}", model_namespace(model), **_OPTIONS)
+        ns = model_namespace(model)
+        ns["THERMAL"] = bool(thermal)
+        ns["REFERENCE_TEMPERATURE"] = model.parameter_index(model.reference_temperature)
+        tag = f"{model.name}_{key[1]}_{'thermal' if thermal else 'mech'}"
+        _CACHE[key] = specialize(_spring_fields, tag, ns, **_OPTIONS)
     return _CACHE[key]
 
 
@@ -42,11 +51,15 @@ def _spring_fields(x, eta, l0, P, edges, length, theta, tens, energy):
         dy = x[b, 1] - x[a, 1]
         dz = x[b, 2] - x[a, 2]
         l = math.sqrt(dx * dx + dy * dy + dz * dz)
-        th = temperature(l, eta[e], l0[e], P, e)
         length[e] = l
+        if THERMAL:
+            th = temperature(l, eta[e], l0[e], P, e)
+            energy[e] = internal_energy(l, eta[e], l0[e], P, e)
+        else:
+            th = P[REFERENCE_TEMPERATURE, e]
+            energy[e] = free_energy(l, th, l0[e], P, e)
         theta[e] = th
         tens[e] = tension(l, th, l0[e], P, e)
-        energy[e] = internal_energy(l, eta[e], l0[e], P, e)
 
 
 def _mapped(l, s, l0, P, out):
