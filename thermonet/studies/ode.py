@@ -1,0 +1,115 @@
+"""Hamilton's equations (spec (18)) of any simulation's net, for SciPy's ``solve_ivp``.
+
+The state is y = [x_free (3k), p_free (3k), Φ (m)] (see :class:`thermonet.reference.HamiltonRHS`),
+η constant. For the built-in models the right-hand side uses the NumPy laws of
+:mod:`thermonet.reference` (code independent of the engine's kernels, so a reference solution
+built on it checks the engine rather than repeating it); any other model goes through its own
+scalar functions mapped over the springs (:func:`thermonet.kernels.springs.map_springs`).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..reference import LAWS, HamiltonRHS, ReferenceNet
+from .snapshot import Snapshot
+
+
+class _MappedLaw:
+    """A model's compiled scalar functions behind the NumPy-law interface of the reference
+    (``temperature(l, η, l0, P)``, ``tension(l, θ, l0, P)``; P is the (k, m) parameter array)."""
+
+    def __init__(self, model):
+        from ..kernels.springs import map_springs
+
+        self._temperature = map_springs(model, "temperature")
+        self._tension = map_springs(model, "tension")
+
+    def temperature(self, l, eta, l0, P):
+        out = np.empty_like(l)
+        self._temperature(l, eta, l0, P, out)
+        return out
+
+    def tension(self, l, theta, l0, P):
+        out = np.empty_like(l)
+        self._tension(l, theta, l0, P, out)
+        return out
+
+
+class _GravityRHS(HamiltonRHS):
+    """Hamilton's equations with a uniform acceleration g: ṗ = f_η(x) + m g on free nodes."""
+
+    def __init__(self, net, x_anchor, eta, gravity):
+        super().__init__(net, x_anchor, eta)
+        self.weight = (net.masses[self.free][:, None] * np.asarray(gravity)[None, :]).ravel()
+
+    def __call__(self, t, y):
+        dy = super().__call__(t, y)
+        dy[3 * self.k:6 * self.k] += self.weight
+        return dy
+
+
+def hamilton_rhs(sim) -> tuple[HamiltonRHS, np.ndarray]:
+    """The right-hand side for ``sim``'s net and model, and y(0) from its *initial* state.
+
+    ``sim`` must not have been run (its state is the initial data).
+    """
+    from ..models import get_model
+
+    net, system = sim.net, sim.system
+    state = sim.state
+    # parameters back in the user's spring numbering: (k, m)
+    P_user = sim.layout.springs_to_user(system.parameters.T).T
+    builtin = sim.model.name in LAWS and get_model(sim.model.name) is sim.model
+    if builtin:
+        law = LAWS[sim.model.name]
+        parameters = {name: P_user[i].copy() for i, name in enumerate(sim.model.parameters)}
+    else:
+        law, parameters = _MappedLaw(sim.model), np.ascontiguousarray(P_user)
+    ref_net = ReferenceNet(np.asarray(net.edges), np.asarray(net.rest_lengths, dtype=np.float64),
+                           np.asarray(net.masses, dtype=np.float64), np.asarray(net.anchored, dtype=bool),
+                           law, parameters)
+    if system.gravity is not None:
+        rhs = _GravityRHS(ref_net, state.positions, state.entropy, system.gravity)
+    else:
+        rhs = HamiltonRHS(ref_net, state.positions, state.entropy)
+    return rhs, rhs.pack(state.positions, state.momenta, state.thermal_displacement)
+
+
+@dataclass
+class ODEResult:
+    """The end state of one ``solve_ivp`` run and what it cost.
+
+    snapshot: the state at t_end; wall_time: seconds for ``solve_ivp`` alone; nfev: right-hand
+    side evaluations; t: (k,) output times and y: (len(y0), k) states when dense output was asked.
+    """
+
+    snapshot: Snapshot
+    wall_time: float
+    nfev: int
+    t: np.ndarray | None = None
+    y: np.ndarray | None = None
+
+
+def solve_hamilton(sim, t_end: float, method: str = "DOP853", rtol: float = 1e-13, atol: float = 1e-13,
+                   t_eval=None) -> ODEResult:
+    """Integrate Hamilton's equations of ``sim`` (not yet run) from 0 to ``t_end``."""
+    from scipy.integrate import solve_ivp
+
+    rhs, y0 = hamilton_rhs(sim)
+    start = time.perf_counter()
+    sol = solve_ivp(rhs, (0.0, float(t_end)), y0, method=method, rtol=rtol, atol=atol, t_eval=t_eval)
+    wall = time.perf_counter() - start
+    if not sol.success:
+        from ..errors import SimulationError
+
+        raise SimulationError(f"solve_ivp {method} (rtol={rtol:g}) failed: {sol.message}")
+    x, p, _phi = rhs.unpack(sol.y[:, -1])
+    free = rhs.free
+    theta = rhs.net.temperatures(x, rhs.eta)
+    snap = Snapshot(positions=x[free], momenta=p[free], temperatures=theta)
+    return ODEResult(snap, wall, int(sol.nfev), sol.t if t_eval is not None else None,
+                     sol.y if t_eval is not None else None)

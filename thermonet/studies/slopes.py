@@ -1,0 +1,64 @@
+"""Convergence slopes fitted over the asymptotic range of an error-versus-step curve.
+
+How the range is chosen (no knowledge of the expected order is used):
+
+1. Points are dropped that are not finite, that lie below the *floor* (errors there measure the
+   reference solution or round-off, not the integrator: the caller passes e.g. 100× the
+   reference's estimated error), or whose error is at least ``max_relative`` (10 %) of the
+   quantity's size (no longer a small perturbation of the solution).
+2. Of what remains, the contiguous run of time steps that contains the smallest kept step is
+   taken.
+3. Going from the smallest step towards larger ones, points are added while the local slope
+   (log-log slope between a point and its smaller neighbour) stays within ``tolerance`` (0.25)
+   of the median of the local slopes already accepted. The first coarse point that bends the
+   curve away ends the range: the pre-asymptotic regime.
+4. The slope is the least-squares fit of log(error) on log(h) over the range (at least two points).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class SlopeFit:
+    """slope: fitted order (nan without two usable points); constant: error ≈ constant·h^slope;
+    h_min, h_max: the range fitted; n_points: how many points it holds."""
+
+    slope: float
+    constant: float
+    h_min: float
+    h_max: float
+    n_points: int
+
+
+def asymptotic_slope(h, error, floor: float = 0.0, scale: float = np.inf, max_relative: float = 0.1,
+                     tolerance: float = 0.25) -> SlopeFit:
+    """Fit error ≈ C h^p over the asymptotic range (see the module docstring).
+
+    h, error: (n,) time steps and errors (any order); floor: errors at or below it are not
+    used; scale: the size of the quantity (errors ≥ max_relative·scale are not used).
+    """
+    h = np.asarray(h, dtype=np.float64)
+    error = np.asarray(error, dtype=np.float64)
+    order = np.argsort(h)
+    h, error = h[order], error[order]
+    usable = np.isfinite(error) & (error > floor) & (error < max_relative * scale) & (error > 0)
+    if usable.sum() < 2:
+        return SlopeFit(float("nan"), float("nan"), float("nan"), float("nan"), int(usable.sum()))
+    first = int(np.flatnonzero(usable)[0])
+    last = first
+    while last + 1 < len(h) and usable[last + 1]:
+        last += 1
+    logh, loge = np.log(h[first:last + 1]), np.log(error[first:last + 1])
+    local = np.diff(loge) / np.diff(logh)
+    accepted = [local[0]]
+    for s in local[1:]:
+        if abs(s - np.median(accepted)) > tolerance:
+            break
+        accepted.append(s)
+    n = len(accepted) + 1
+    p, logc = np.polyfit(logh[:n], loge[:n], 1)
+    return SlopeFit(float(p), float(np.exp(logc)), float(h[first]), float(h[first + n - 1]), n)
