@@ -10,9 +10,9 @@ import argparse
 import sys
 
 from ..errors import ThermonetError
-from . import run as run_cmd
+from . import run as run_cmd, study as study_cmd
 
-SUBCOMMANDS = {"run": run_cmd}
+SUBCOMMANDS = {"run": run_cmd, "study": study_cmd}
 
 
 def build_parser() -> argparse.ArgumentParser:
