@@ -125,8 +125,11 @@ def read_mesh(
         raise MeshError(f"{path}: no such mesh file")
     try:
         mesh = meshio.read(path)
-    except Exception as exc:  # meshio raises many kinds; the user needs the file and the reason
-        raise MeshError(f"{path}: meshio cannot read it: {exc}") from None
+    # meshio raises many kinds, and calls sys.exit() on a file no reader accepts; the user needs
+    # the file and the reason, and a notebook must not be shut down
+    except (Exception, SystemExit) as exc:
+        reason = str(exc) if not isinstance(exc, SystemExit) else "no meshio reader accepts it"
+        raise MeshError(f"{path}: meshio cannot read it: {reason}") from None
     return from_meshio(mesh, cell_types=cell_types, mass=mass, density=density, anchors=anchors, source=path)
 
 

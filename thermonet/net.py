@@ -57,14 +57,17 @@ class Net:
 
         try:
             edges = np.asarray(self.edges)
-            if edges.size == 0:
-                raise InputError(f"{where}: the net has no springs (no edges)")
-            if not np.issubdtype(edges.dtype, np.integer):
-                if not np.all(np.equal(np.mod(edges, 1), 0)):
-                    raise InputError(f"{where}: spring node indices must be integers")
+        except (TypeError, ValueError) as exc:
+            raise InputError(f"{where}: edges are not integers ({exc})") from None
+        if edges.size == 0:
+            raise InputError(f"{where}: the net has no springs (no edges)")
+        try:
+            integral = np.issubdtype(edges.dtype, np.integer) or bool(np.all(np.equal(np.mod(edges, 1), 0)))
             edges = edges.astype(np.int64)
         except (TypeError, ValueError) as exc:
             raise InputError(f"{where}: edges are not integers ({exc})") from None
+        if not integral:
+            raise InputError(f"{where}: spring node indices must be integers")
         if edges.ndim != 2 or edges.shape[1] != 2:
             raise InputError(f"{where}: edges must have shape (m, 2), got {edges.shape}")
         bad = (edges < 0) | (edges >= n)
@@ -96,7 +99,7 @@ class Net:
 
         if self.masses is None:
             self.masses = np.ones(n)
-        masses = np.asarray(self.masses, dtype=np.float64)
+        masses = _floats(self.masses, "masses", where)
         if masses.ndim == 0:
             masses = np.full(n, float(masses))
         if masses.shape != (n,):
@@ -122,7 +125,7 @@ class Net:
 
         if self.rest_lengths is None:
             self.rest_lengths = lengths.copy()
-        l0 = np.asarray(self.rest_lengths, dtype=np.float64)
+        l0 = _floats(self.rest_lengths, "rest_lengths", where)
         if l0.ndim == 0:
             l0 = np.full(m, float(l0))
         if l0.shape != (m,):
@@ -170,3 +173,11 @@ class Net:
             f"{self.n_nodes} nodes ({n_anch} anchored), {self.n_springs} springs, "
             f"total mass {self.masses[~self.anchored].sum():.6g}, from {self.source}"
         )
+
+
+def _floats(values, what: str, where: str) -> np.ndarray:
+    """``values`` as float64, or an :class:`InputError` naming ``what``."""
+    try:
+        return np.asarray(values, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"{where}: {what} are not numbers ({exc})") from None

@@ -289,6 +289,32 @@ class Simulation:
         row = measure(self.system, self._state)
         row.update(getattr(self, "_last_stats", {}) or {})
         self.diagnostics.append(row)
+        self._check_physical(row)
+
+    def _check_physical(self, row: dict) -> None:
+        """Stop with a :class:`SimulationError` naming the node or spring once the state is no
+        longer physical: a non-finite value (typically h above the stability limit) or a
+        temperature θ ≤ 0 (possible in models such as "quadratic"). Checked at the diagnostics
+        cadence and at the end of every run, so a run never silently returns such a state."""
+        if math.isfinite(row["energy"]) and row.get("theta_min", 1.0) > 0:
+            return
+        s, lay = self._state, self.layout
+        where = f"at step {s.step} (t = {s.time:.6g})"
+        unstable = f"; h = {self.h} may be above the stability limit"
+        bad = ~(np.isfinite(s.positions).all(axis=1) & np.isfinite(s.momenta).all(axis=1))
+        if bad.any():
+            a = int(lay.node_order[np.flatnonzero(bad)[0]])
+            raise SimulationError(f"node {a} has a non-finite position or momentum {where}{unstable}")
+        if self.system.thermal:
+            theta = self.temperatures()
+            bad = ~(np.isfinite(theta) & (theta > 0))
+            if bad.any():
+                e = int(np.flatnonzero(bad)[0])
+                raise SimulationError(
+                    f"spring {e} has temperature {theta[e]:.6g} {where}: the state left the range of model "
+                    f"{self.model.name!r}, where θ must stay > 0, or h = {self.h} is too large"
+                )
+        raise SimulationError(f"the energy is not finite {where}{unstable}")
 
     # ------------------------------------------------------------------------------------------
     # reading back (user numbering)
