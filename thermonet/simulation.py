@@ -285,6 +285,12 @@ class Simulation:
         state.time = time0 + n * self.h
         self._last_stats = stats or {}
 
+    def record_diagnostics(self) -> None:
+        """Record a diagnostics row for the current state unless the last row is of this step
+        (checkpoints call it so that a resumed run's rows equal an uninterrupted run's)."""
+        if not self.diagnostics.rows or self.diagnostics.rows[-1]["step"] != self._state.step:
+            self._record(self)
+
     def _record(self, _sim=None) -> None:
         row = measure(self.system, self._state)
         row.update(getattr(self, "_last_stats", {}) or {})
@@ -355,6 +361,12 @@ class Simulation:
 
     def _fields(self):
         return spring_fields(self.system, self._state.positions, self._state.entropy)
+
+    def spring_fields(self):
+        """Length, temperature, tension and internal energy of every spring now, each (m,),
+        user numbering (one pass over the springs; what output frames use)."""
+        f, lay = self._fields(), self.layout
+        return type(f)(*(lay.springs_to_user(a) for a in (f.length, f.temperature, f.tension, f.internal_energy)))
 
     def temperatures(self) -> np.ndarray:
         """(m,) spring temperatures θ(l, η) now (spec (18b))."""

@@ -1,7 +1,12 @@
 """Entry point of the ``thermonet`` command.
 
+Subcommands: ``run [SCENE]`` (run a scene, write ParaView output), ``info MESH|SCENE`` (what a
+mesh or scene holds, memory, stable step), ``render OUTDIR`` (a picture of a frame, needs
+PyVista), ``study`` (convergence and cost studies). ``--debug`` shows a traceback instead of the one-line error.
+
 Exit codes: 0 success; 1 unexpected thermonet error; 2 bad input (scene, mesh, parameters,
-names); 3 the simulation had to stop (non-physical state, solver failure); 130 interrupted.
+names, checkpoint, missing optional dependency); 3 the simulation had to stop (non-physical
+state, solver failure); 130 interrupted (Ctrl-C; a run can continue with ``--resume``).
 """
 
 from __future__ import annotations
@@ -10,9 +15,9 @@ import argparse
 import sys
 
 from ..errors import ThermonetError
-from . import run as run_cmd, study as study_cmd
+from . import info as info_cmd, render as render_cmd, run as run_cmd, study as study_cmd
 
-SUBCOMMANDS = {"run": run_cmd, "study": study_cmd}
+SUBCOMMANDS = {"run": run_cmd, "info": info_cmd, "render": render_cmd, "study": study_cmd}
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -24,6 +29,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name, module in SUBCOMMANDS.items():
         p = sub.add_parser(name, help=module.HELP, description=module.HELP)
+        p.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help="show a traceback on errors")
         module.add_args(p)
         p.set_defaults(handler=module.handle)
     return parser

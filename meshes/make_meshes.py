@@ -1,0 +1,124 @@
+"""Generate the meshes shipped in meshes/ with gmsh (``python meshes/make_meshes.py``).
+
+- chain.msh: the paper's chain of three springs (spec §3.1): nodes 0..3, node 0 the anchor.
+- triangle.msh: the paper's triangle net (spec §3.2).
+- lattice2d.msh: a 2D triangulated 8×4 lattice, clamped on its left edge, two materials.
+- truss_block.msh: a 3D tetrahedral truss block 4×1×1 made of four unit slabs: materials
+  "soft" (x < 2) and "stiff" (x > 2), a "hot" tip slab (x > 3), a clamped face "clamp" (x = 0)
+  and the free end face "tip" (x = 4).
+
+Physical groups become node groups (anchors, masses, velocities) and spring groups (materials,
+temperatures) in scenes. Files are gmsh 4.1 ASCII, small enough to read in a diff.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+
+import gmsh
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+
+
+def _start(name: str) -> None:
+    gmsh.initialize()
+    gmsh.option.setNumber("General.Terminal", 0)
+    gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
+    gmsh.option.setNumber("Mesh.Binary", 0)
+    gmsh.model.add(name)
+
+
+def _finish(filename: str) -> None:
+    gmsh.write(os.path.join(HERE, filename))
+    gmsh.finalize()
+
+
+def _springs(points, pairs, names) -> None:
+    """Straight springs between gmsh points, each one mesh line element, each its own group."""
+    geo = gmsh.model.geo
+    lines = []
+    for (a, b) in pairs:
+        line = geo.addLine(points[a], points[b])
+        geo.mesh.setTransfiniteCurve(line, 2)
+        lines.append(line)
+    geo.synchronize()
+    for line, name in zip(lines, names):
+        gmsh.model.addPhysicalGroup(1, [line], name=name)
+    gmsh.model.addPhysicalGroup(1, lines, name="springs")
+    for i, p in enumerate(points):
+        gmsh.model.addPhysicalGroup(0, [p], name=f"m{i}")
+
+
+def chain() -> None:
+    _start("chain")
+    xyz = [(0, 0, 0), (1, 0, 0), (1, 1, 0), (1, 1, 1)]
+    points = [gmsh.model.geo.addPoint(*p) for p in xyz]
+    _springs(points, [(0, 1), (1, 2), (2, 3)], ["spring1", "spring2", "spring3"])
+    gmsh.model.addPhysicalGroup(0, [points[0]], name="anchor")
+    gmsh.model.mesh.generate(1)
+    _finish("chain.msh")
+
+
+def triangle() -> None:
+    _start("triangle")
+    xyz = [(-0.5, 0, 0), (0.5, 0, 0), (0, math.sqrt(3) / 2, 0)]
+    points = [gmsh.model.geo.addPoint(*p) for p in xyz]
+    # the paper's spring 1 joins masses 1–3, spring 2 joins 1–2, spring 3 joins 2–3
+    _springs(points, [(0, 2), (0, 1), (1, 2)], ["spring1", "spring2", "spring3"])
+    gmsh.model.mesh.generate(1)
+    _finish("triangle.msh")
+
+
+def lattice2d(nx: int = 8, ny: int = 4) -> None:
+    _start("lattice2d")
+    occ = gmsh.model.occ
+    left = occ.addRectangle(0, 0, 0, nx / 2, ny)
+    right = occ.addRectangle(nx / 2, 0, 0, nx / 2, ny)
+    occ.fragment([(2, left)], [(2, right)])
+    occ.synchronize()
+    for dim, tag in gmsh.model.getEntities(1):
+        x0, y0, _, x1, y1, _ = gmsh.model.getBoundingBox(dim, tag)
+        n = round(max(x1 - x0, y1 - y0)) + 1
+        gmsh.model.mesh.setTransfiniteCurve(tag, n)
+    for _, tag in gmsh.model.getEntities(2):
+        gmsh.model.mesh.setTransfiniteSurface(tag, "Alternate")
+    gmsh.model.addPhysicalGroup(2, [left], name="soft")
+    gmsh.model.addPhysicalGroup(2, [right], name="stiff")
+    edge = [t for d, t in gmsh.model.getEntitiesInBoundingBox(-0.1, -0.1, -0.1, 0.1, ny + 0.1, 0.1, dim=1)]
+    gmsh.model.addPhysicalGroup(1, edge, name="clamp")
+    gmsh.model.mesh.generate(2)
+    _finish("lattice2d.msh")
+
+
+def truss_block(size: float = 0.25) -> None:
+    _start("truss_block")
+    occ = gmsh.model.occ
+    slabs = [occ.addBox(i, 0, 0, 1, 1, 1) for i in range(4)]
+    occ.fragment([(3, slabs[0])], [(3, s) for s in slabs[1:]])
+    occ.synchronize()
+    gmsh.option.setNumber("Mesh.MeshSizeMin", size)
+    gmsh.option.setNumber("Mesh.MeshSizeMax", size)
+    volumes = sorted(gmsh.model.getEntities(3), key=lambda e: gmsh.model.occ.getCenterOfMass(*e)[0])
+    tags = [t for _, t in volumes]
+    gmsh.model.addPhysicalGroup(3, tags[:2], name="soft")
+    gmsh.model.addPhysicalGroup(3, tags[2:], name="stiff")
+    gmsh.model.addPhysicalGroup(3, tags[3:], name="hot")
+
+    def face_at(x):
+        return [t for d, t in gmsh.model.getEntitiesInBoundingBox(x - 1e-3, -1e-3, -1e-3, x + 1e-3, 1.001, 1.001, dim=2)]
+
+    gmsh.model.addPhysicalGroup(2, face_at(0.0), name="clamp")
+    gmsh.model.addPhysicalGroup(2, face_at(4.0), name="tip")
+    gmsh.option.setNumber("Mesh.Algorithm3D", 1)
+    gmsh.option.setNumber("Mesh.RandomSeed", 1)
+    gmsh.model.mesh.generate(3)
+    _finish("truss_block.msh")
+
+
+if __name__ == "__main__":
+    chain()
+    triangle()
+    lattice2d()
+    truss_block()
+    print("wrote", ", ".join(f for f in sorted(os.listdir(HERE)) if f.endswith(".msh")))

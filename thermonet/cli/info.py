@@ -1,0 +1,135 @@
+"""``thermonet info MESH|SCENE``: what a mesh or scene holds (nodes, springs, cell types,
+groups, materials), the memory a run of it needs, and the explicit integrators' stable step."""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+HELP = "describe a mesh or a scene: nodes, springs, cell types, groups, materials, memory, stable step"
+
+
+def add_args(p) -> None:
+    p.add_argument("target", metavar="MESH|SCENE", help="a mesh file (.msh, .vtu, ...) or a scene (.toml)")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", dest="overrides",
+                   help="override a scene key (scenes only)")
+
+
+def engine_bytes(n_nodes: int, n_springs: int, n_parameters: int, thermal: bool) -> int:
+    """Bytes the engine holds for a run: per node positions (two buffers), momenta, masses,
+    inverse masses, anchored flag, incidence pointer; per spring edges, rest length, parameters,
+    force scratch, two incidence entries, and Φ, η when thermal."""
+    per_node = 3 * 8 * 3 + 8 + 8 + 1 + 8
+    per_spring = 8 + 8 + 8 * n_parameters + 8 + 2 * 8 + (16 if thermal else 0)
+    return n_nodes * per_node + n_springs * per_spring
+
+
+def _mb(b: float) -> str:
+    return f"{b / 2**20:.3g} MiB"
+
+
+def handle(args) -> int:
+    target = args.target
+    if not os.path.exists(target):
+        from ..errors import InputError
+
+        raise InputError(f"{target}: no such file")
+    lines = describe_scene(target, args.overrides) if target.endswith(".toml") else describe_mesh(target)
+    print("\n".join(lines))
+    return 0
+
+
+def describe_mesh(path: str) -> list[str]:
+    import meshio
+
+    from ..builders import from_meshio
+    from ..errors import MeshError
+    from ..simulation import Simulation
+
+    try:
+        mesh = meshio.read(path)
+    except Exception as exc:  # meshio raises many kinds
+        raise MeshError(f"{path}: meshio cannot read it: {exc}") from None
+    net = from_meshio(mesh, source=path)
+    cells = {}
+    for block in mesh.cells:
+        cells[block.type] = cells.get(block.type, 0) + len(block.data)
+    out = [f"{path}: mesh with {len(mesh.points)} points",
+           "  cells: " + ", ".join(f"{n} {t}" for t, n in cells.items()),
+           f"  spring net: {net.n_nodes} nodes, {net.n_springs} springs "
+           f"(lengths {net.lengths().min():.4g} .. {net.lengths().max():.4g})"]
+    out += _groups(net)
+    if mesh.point_data:
+        out.append("  point data: " + ", ".join(f"{k} {np.shape(v)}" for k, v in mesh.point_data.items()))
+    out.append(f"  memory of a run: about {_mb(engine_bytes(net.n_nodes, net.n_springs, 4, True))} "
+               f"(hencky, thermal; {_mb(engine_bytes(net.n_nodes, net.n_springs, 4, False))} purely mechanical)")
+    sim = Simulation(net, model="hencky", integrator="co2", h=1.0)
+    out.append(_stable_step(sim, "hencky default parameters, unit masses, at rest"))
+    return out
+
+
+def describe_scene(path: str, overrides) -> list[str]:
+    from ..scenes import load_scene
+
+    scene = load_scene(path, overrides)
+    built = scene.build()
+    net, sim = built.net, built.simulation
+    d = scene.data
+    source = scene.mesh_path() or f"generator {d['net']['generator']}"
+    total = scene.total_steps()
+    out = [f"{path}: scene {scene.name!r} (hash {scene.hash[:12]})",
+           f"  net: {net.n_nodes} nodes ({int(net.anchored.sum())} anchored), {net.n_springs} springs, "
+           f"total mass {net.masses[~net.anchored].sum():.6g}, from {source}"]
+    if scene.mesh_path():
+        import meshio
+
+        mesh = built.mesh if built.mesh is not None else meshio.read(scene.mesh_path())
+        cells = {}
+        for block in mesh.cells:
+            cells[block.type] = cells.get(block.type, 0) + len(block.data)
+        out.append("  cells: " + ", ".join(f"{n} {t}" for t, n in cells.items()))
+    out += _groups(net)
+    out.append(f"  model {sim.model.name}; materials (id: region, springs, parameters):")
+    for i, region in enumerate(built.material_names):
+        count = int((built.material_id == i).sum())
+        params = ", ".join(f"{k}={v:g}" for k, v in d["materials"][region].items() if k != "model")
+        out.append(f"    {i}: {region}, {count} springs, {params or 'model defaults'}")
+    if (built.material_id < 0).any():
+        out.append(f"    -1: (no region), {int((built.material_id < 0).sum())} springs, model defaults")
+    e = d["effects"]
+    out.append(f"  effects: thermal {'on' if e['thermal'] else 'off'}, gravity {e['gravity'] or 'off'}, "
+               f"{int(net.anchored.sum())} anchored nodes")
+    out.append(f"  integrator {sim.integrator.name} (order {sim.integrator.order}), h = {sim.h:g}, {total} steps "
+               f"to t = {total * sim.h:g}")
+    out.append(f"  output every {scene.cadence('frames_every', total)} steps (frames), "
+               f"{scene.cadence('diagnostics_every', total)} (diagnostics), "
+               f"{scene.cadence('checkpoint_every', total)} (checkpoints); fields {', '.join(scene.output_fields())}")
+    out.append(f"  memory of the run: about "
+               f"{_mb(engine_bytes(net.n_nodes, net.n_springs, len(sim.model.parameters), e['thermal']))}")
+    out.append(_stable_step(sim, "initial state"))
+    return out
+
+
+def _groups(net) -> list[str]:
+    out = []
+    if net.node_groups:
+        out.append("  node groups: " + ", ".join(f"{k} ({len(v)})" for k, v in sorted(net.node_groups.items())))
+    if net.spring_groups:
+        out.append("  spring groups: " + ", ".join(f"{k} ({len(v)})" for k, v in sorted(net.spring_groups.items())))
+    if not out:
+        out.append("  groups: none")
+    return out
+
+
+def _stable_step(sim, where: str) -> str:
+    from ..stability import stable_step
+
+    if not sim.integrator.explicit:
+        return f"  stable step: not estimated for the implicit integrator {sim.integrator.name}"
+    s = stable_step(sim)
+    text = (f"  stable step of {s['integrator']}: h_max ≈ {s['h_max']:.4g} (ω_max {s['omega_max']:.4g}, "
+            f"{s['method']}; {where})")
+    if sim.h > s["h_max"] and sim.h != 1.0:
+        text += f"\n  warning: h = {sim.h:g} exceeds the estimated limit; the run will blow up"
+    return text

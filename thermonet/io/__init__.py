@@ -1,0 +1,13 @@
+"""Output a ParaView user expects, and what a restart needs: VTU frames + a PVD index, the
+diagnostics CSV, ``summary.json`` and checkpoints. Every file is written atomically."""
+
+from .atomic import atomic_write
+from .checkpoint import load_checkpoint, save_checkpoint
+from .pvd import PVDIndex, read_pvd
+from .series import FIELDS, THERMAL_FIELDS, RunOutput, frame_data
+from .vtu import VTUWriter
+
+__all__ = [
+    "atomic_write", "save_checkpoint", "load_checkpoint", "PVDIndex", "read_pvd", "VTUWriter",
+    "RunOutput", "frame_data", "FIELDS", "THERMAL_FIELDS",
+]

@@ -1,0 +1,59 @@
+"""Checkpoints: the full integrator state (user numbering, exact float64), the step counter, the
+scene hash and what the outputs need to continue (diagnostics rows, frames written so far).
+
+A ``.npz`` file written atomically; resuming from it continues a run bit for bit.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+
+import numpy as np
+
+from ..errors import InputError
+from ..system import State
+from .atomic import atomic_write
+
+FORMAT = "thermonet-checkpoint-1"
+
+
+def save_checkpoint(path, state: State, meta: dict) -> None:
+    """Write ``state`` (user numbering) and ``meta`` (JSON-serialisable; floats are kept exactly,
+    since JSON writes ``repr`` of a float) to ``path`` atomically."""
+    arrays = {
+        "positions": state.positions,
+        "momenta": state.momenta,
+        "time": np.float64(state.time),
+        "step": np.int64(state.step),
+        "meta": np.frombuffer(json.dumps({"format": FORMAT, **meta}).encode(), dtype=np.uint8),
+    }
+    if state.entropy is not None:
+        arrays["entropy"] = state.entropy
+        arrays["thermal_displacement"] = state.thermal_displacement
+    with atomic_write(path) as f:
+        np.savez(f, **arrays)
+
+
+def load_checkpoint(path) -> tuple[State, dict]:
+    """The state and metadata saved by :func:`save_checkpoint`. Errors name the file."""
+    path = os.fspath(path)
+    if not os.path.isfile(path):
+        raise InputError(f"{path}: no such checkpoint file")
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            meta = json.loads(bytes(z["meta"]).decode())
+            thermal = "entropy" in z.files
+            state = State(
+                positions=z["positions"].copy(),
+                momenta=z["momenta"].copy(),
+                thermal_displacement=z["thermal_displacement"].copy() if thermal else None,
+                entropy=z["entropy"].copy() if thermal else None,
+                time=float(z["time"]),
+                step=int(z["step"]),
+            )
+    except (OSError, ValueError, KeyError) as exc:
+        raise InputError(f"{path}: not a readable thermonet checkpoint ({exc})") from None
+    if meta.get("format") != FORMAT:
+        raise InputError(f"{path}: not a thermonet checkpoint (format {meta.get('format')!r}, expected {FORMAT})")
+    return state, meta

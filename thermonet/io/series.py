@@ -1,0 +1,193 @@
+"""The files of one run, written by observers outside the time-stepping loop.
+
+``OUTDIR/<name>.pvd`` indexes ``OUTDIR/<name>_NNNNNN.vtu`` frames; ``OUTDIR/diagnostics.csv``;
+``OUTDIR/summary.json``; ``OUTDIR/<name>.checkpoint.npz`` (the latest checkpoint). Everything is
+in the user's numbering and written atomically.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import platform
+import time as _time
+
+import numpy as np
+
+from .atomic import atomic_write
+from .checkpoint import save_checkpoint
+from .pvd import PVDIndex
+from .vtu import VTUWriter
+
+#: output field -> (point or cell data, needs thermal coupling, meaning)
+FIELDS: dict[str, tuple[str, bool, str]] = {
+    "displacement": ("point", False, "x − x(0), (n, 3)"),
+    "velocity": ("point", False, "p / m, (n, 3) (0 on anchored nodes)"),
+    "momentum": ("point", False, "p, (n, 3)"),
+    "anchored": ("point", False, "1 on anchored nodes, else 0 (UInt8)"),
+    "node_temperature": ("point", True, "mean temperature of the springs meeting at a node, for smooth colouring"),
+    "temperature": ("cell", True, "spring temperature θ(l, η)"),
+    "entropy": ("cell", True, "spring entropy η"),
+    "strain": ("cell", False, "logarithmic strain ln(l / l0)"),
+    "tension": ("cell", False, "spring tension T = ∂F/∂l"),
+    "thermal_displacement": ("cell", True, "thermal displacement Φ"),
+    "material": ("cell", False, "material region id (Int32; the order of the [materials.*] tables)"),
+}
+THERMAL_FIELDS = tuple(k for k, v in FIELDS.items() if v[1])
+
+
+def frame_data(sim, fields, material_id: np.ndarray) -> tuple[np.ndarray, dict, dict]:
+    """Positions (n, 3), point data and cell data of ``sim`` now, user numbering."""
+    net = sim.net
+    state = sim.state
+    sf = sim.spring_fields()
+    point, cell = {}, {}
+    for name in fields:
+        if name == "displacement":
+            point[name] = state.positions - net.positions
+        elif name == "velocity":
+            point[name] = state.momenta / net.masses[:, None]
+        elif name == "momentum":
+            point[name] = state.momenta
+        elif name == "anchored":
+            point[name] = net.anchored.astype(np.uint8)
+        elif name == "node_temperature":
+            ends = net.edges.reshape(-1)
+            total = np.bincount(ends, weights=np.repeat(sf.temperature, 2), minlength=net.n_nodes)
+            degree = np.bincount(ends, minlength=net.n_nodes)
+            point[name] = total / np.maximum(degree, 1)
+        elif name == "temperature":
+            cell[name] = sf.temperature
+        elif name == "entropy":
+            cell[name] = state.entropy
+        elif name == "strain":
+            cell[name] = np.log(sf.length / net.rest_lengths)
+        elif name == "tension":
+            cell[name] = sf.tension
+        elif name == "thermal_displacement":
+            cell[name] = state.thermal_displacement
+        elif name == "material":
+            cell[name] = np.asarray(material_id, dtype=np.int32)
+    return state.positions, point, cell
+
+
+class RunOutput:
+    """Observers that write the run's files, and the state a checkpoint must carry.
+
+    sim: the Simulation. folder: output folder. name: file stem.
+    fields: output field names (see :data:`FIELDS`). frames_every, checkpoint_every: cadences in
+    steps (0: never). material_id: (m,) int. scene: JSON-serialisable description stored in
+    checkpoints and summary.json (must hold ``hash``).
+    """
+
+    #: rewrite the CSV at most this often (seconds) between checkpoints
+    CSV_INTERVAL = 2.0
+
+    def __init__(self, sim, folder, name: str, *, fields, frames_every: int, diagnostics_every: int,
+                 checkpoint_every: int, material_id, scene: dict):
+        self.sim = sim
+        self.folder = os.fspath(folder)
+        self.name = name
+        self.fields = list(fields)
+        self.frames_every = int(frames_every)
+        self.diagnostics_every = int(diagnostics_every)
+        self.checkpoint_every = int(checkpoint_every)
+        self.material_id = np.asarray(material_id, dtype=np.int32)
+        self.scene = scene
+        os.makedirs(self.folder, exist_ok=True)
+        self.pvd = PVDIndex(os.path.join(self.folder, f"{name}.pvd"))
+        self.csv_path = os.path.join(self.folder, "diagnostics.csv")
+        self.checkpoint_path = os.path.join(self.folder, f"{name}.checkpoint.npz")
+        self.summary_path = os.path.join(self.folder, "summary.json")
+        self._writer = VTUWriter(sim.net.edges, sim.net.n_nodes) if self.frames_every else None
+        self._csv_written = -np.inf
+        self.frame_seconds = 0.0
+
+    # ------------------------------------------------------------------------------------------
+    def observers(self) -> list:
+        """(cadence, callback) pairs for ``Simulation.run``; checkpoints come last so that they
+        include the frame and diagnostics row of their own step."""
+        obs = []
+        if self.frames_every:
+            obs.append((self.frames_every, self.write_frame))
+        obs.append((self.diagnostics_every, self._maybe_write_csv))
+        if self.checkpoint_every:
+            obs.append((self.checkpoint_every, self.write_checkpoint))
+        return obs
+
+    def restore(self, meta: dict) -> None:
+        """Take back what a checkpoint recorded: diagnostics rows, frames, run time."""
+        self.sim.diagnostics.rows = list(meta["diagnostics"])
+        self.pvd.frames = {int(s): (float(t), f) for s, t, f in meta["frames"]}
+        self.sim.wall_time = float(meta["wall_time_s"])
+        self.sim.steps_run = int(meta["steps_run"])
+
+    # ------------------------------------------------------------------------------------------
+    def write_frame(self, sim) -> None:
+        t0 = _time.perf_counter()
+        step = sim.step
+        if step in self.pvd.frames:
+            filename = self.pvd.frames[step][1]
+        else:
+            filename = f"{self.name}_{len(self.pvd.frames):06d}.vtu"
+        points, point, cell = frame_data(sim, self.fields, self.material_id)
+        self._writer.write(os.path.join(self.folder, filename), points, point, cell)
+        self.pvd.add(step, sim.time, filename)  # only after the frame file is complete
+        self.frame_seconds += _time.perf_counter() - t0
+
+    def _maybe_write_csv(self, sim) -> None:
+        if _time.monotonic() - self._csv_written >= self.CSV_INTERVAL:
+            self.write_csv()
+
+    def write_csv(self) -> None:
+        self.sim.diagnostics.to_csv(self.csv_path)
+        self._csv_written = _time.monotonic()
+
+    def write_checkpoint(self, sim) -> None:
+        sim.record_diagnostics()
+        meta = {
+            "scene": self.scene,
+            "diagnostics": sim.diagnostics.rows,
+            "frames": [[s, t, f] for s, (t, f) in sorted(self.pvd.frames.items())],
+            "wall_time_s": sim.wall_time,
+            "steps_run": sim.steps_run,
+        }
+        save_checkpoint(self.checkpoint_path, sim.state, meta)
+        self.write_csv()
+
+    def write_summary(self, sim, extra: dict | None = None) -> dict:
+        """``summary.json``: scene hash, versions, steps, wall time, steps/s, and the initial value
+        and max deviation of each conserved quantity."""
+        summary = sim.conservation_summary()
+        run = summary.pop("_run")
+        out = {
+            "scene": self.scene.get("name"),
+            "scene_hash": self.scene.get("hash"),
+            "versions": versions(),
+            "nodes": sim.net.n_nodes,
+            "springs": sim.net.n_springs,
+            "integrator": sim.integrator.name,
+            "h": sim.h,
+            "steps": sim.step,
+            "time": sim.time,
+            "wall_time_s": run["wall_time_s"],
+            "steps_per_s": run["steps_per_s"],
+            "frames": len(self.pvd.frames),
+            "conserved": summary,
+            **(extra or {}),
+        }
+        with atomic_write(self.summary_path, "w") as f:
+            json.dump(out, f, indent=2, allow_nan=True)
+            f.write("\n")
+        return out
+
+
+def versions() -> dict:
+    import meshio
+    import numba
+    import scipy
+
+    from .. import __version__
+
+    return {"thermonet": __version__, "python": platform.python_version(), "numpy": np.__version__,
+            "numba": numba.__version__, "scipy": scipy.__version__, "meshio": meshio.__version__}

@@ -1,0 +1,243 @@
+"""Turning a validated :class:`~thermonet.scenes.scene.Scene` into the objects the Python API
+takes: a :class:`~thermonet.net.Net`, model parameters, an initial state, a Simulation."""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..builders import chain, from_meshio, lattice, triangle
+from ..errors import InputError
+from ..models import get_model
+from ..net import Net
+from .scene import Scene
+
+#: integrator keys of a scene that go to the integrator (and its stepper) as options
+INTEGRATOR_OPTIONS = ("alpha", "tolerance", "max_iterations", "retry", "linear_solver")
+
+
+@dataclass
+class BuiltScene:
+    """What a scene builds: the net, the simulation, and per-spring material ids (m,) int32
+    (the index of the [materials.*] table that set each spring; -1: model defaults)."""
+
+    scene: Scene
+    net: Net
+    simulation: object
+    material_id: np.ndarray
+    material_names: list
+    mesh: object = None
+
+
+def build_scene(scene: Scene) -> BuiltScene:
+    from ..simulation import Simulation
+
+    d = scene.data
+    net, mesh = build_net(scene)
+    model = get_model(next((r["model"] for r in d["materials"].values() if "model" in r), "hencky"))
+    parameters, material_id, names = material_parameters(scene, net, model)
+    integ = d["integrator"]
+    options = {k: integ[k] for k in INTEGRATOR_OPTIONS if integ.get(k) is not None}
+    options.update(integ.get("options") or {})
+    init = d["initial"]
+    kind = "momentum" if init["momentum"] is not None else "velocity"
+    motion = node_vectors(scene, net, mesh, kind)
+    try:
+        sim = Simulation(
+            net,
+            model=model,
+            parameters=parameters,
+            temperatures=initial_temperatures(scene, net, model, parameters) if d["effects"]["thermal"] else None,
+            momenta=motion if kind == "momentum" else None,
+            velocities=motion if kind == "velocity" else None,
+            integrator=integ["name"],
+            h=integ["h"],
+            gravity=d["effects"]["gravity"],
+            thermal=d["effects"]["thermal"],
+            threads=integ.get("threads"),
+            parallel=None if integ["parallel"] == "auto" else integ["parallel"],
+            renumber=integ["renumber"],
+            integrator_options=options,
+        )
+    except InputError as exc:
+        raise scene.error("", str(exc)) from None
+    except TypeError as exc:  # an option the integrator does not take
+        raise scene.error("integrator", f"integrator {integ['name']!r} does not accept these options: {exc}") from None
+    return BuiltScene(scene, net, sim, material_id, names, mesh)
+
+
+# ----------------------------------------------------------------------------------------------
+# net
+
+
+def build_net(scene: Scene) -> tuple[Net, object]:
+    """The net with the scene's masses, anchors and rest lengths, and the meshio mesh (or None)."""
+    d = scene.data
+    spec, init = d["net"], d["initial"]
+    mass = init["mass"] or {}
+    mesh = None
+    if spec.get("mesh") is not None:
+        import meshio
+
+        path = scene.mesh_path()
+        if not os.path.isfile(path):
+            raise scene.error("net.mesh", f"mesh file {path} does not exist")
+        try:
+            mesh = meshio.read(path)
+        except Exception as exc:  # meshio raises many kinds; say which file and why
+            raise scene.error("net.mesh", f"meshio cannot read {path}: {exc}") from None
+        mass_arg = mass.get("uniform") if mass.get("uniform") is not None else mass.get("point_data")
+        if mass.get("point_data") is not None and mass["point_data"] not in mesh.point_data:
+            raise scene.error("initial.mass.point_data", _no_field(mass["point_data"], mesh))
+        try:
+            net = from_meshio(mesh, cell_types=spec.get("cells"), mass=mass_arg, density=mass.get("density"), source=path)
+        except InputError as exc:
+            raise scene.error("net.mesh", str(exc)) from None
+    else:
+        gen = spec["generator"]
+        if gen == "lattice":
+            p = spec.get("lattice") or {"shape": [10, 10, 10], "spacing": 1.0, "neighbours": 6, "jitter": 0.0, "seed": 0}
+            if len(p["shape"]) != 3 or max(p["shape"]) < 1:
+                raise scene.error("net.lattice.shape", f"must be 3 cell counts, at least one > 0, got {p['shape']}")
+            net = lattice(tuple(p["shape"]), p["spacing"], p["neighbours"], p["jitter"], p["seed"])
+            net.node_groups.update(_lattice_faces(net.positions, p["spacing"]))
+        else:
+            net = chain() if gen == "chain" else triangle()
+        if mass.get("uniform") is not None:
+            net.masses = np.full(net.n_nodes, mass["uniform"])
+
+    masses = net.masses.copy()
+    for group, value in (mass.get("regions") or {}).items():
+        masses[_node_group(scene, net, group, f"initial.mass.regions.{group}")] = value
+    anchored = net.anchored.copy()
+    if d["effects"].get("anchors") is not None:
+        anchored[:] = False
+        for i, item in enumerate(d["effects"]["anchors"]):
+            if isinstance(item, str):
+                anchored[_node_group(scene, net, item, "effects.anchors")] = True
+            elif item >= net.n_nodes:
+                raise scene.error("effects.anchors", f"node index {item} is out of range 0..{net.n_nodes - 1}")
+            else:
+                anchored[item] = True
+    rest = net.rest_lengths if spec["rest_lengths"] == "initial" else np.full(net.n_springs, spec["rest_lengths"])
+    try:
+        net = dataclasses.replace(net, masses=masses, anchored=anchored, rest_lengths=rest)
+    except InputError as exc:
+        raise scene.error("net", str(exc)) from None
+    return net, mesh
+
+
+def _lattice_faces(x: np.ndarray, spacing: float) -> dict[str, np.ndarray]:
+    groups = {}
+    for axis, name in enumerate("xyz"):
+        lo, hi = x[:, axis].min(), x[:, axis].max()
+        tol = 0.5 * spacing
+        groups[f"{name}min"] = np.flatnonzero(x[:, axis] <= lo + tol)
+        groups[f"{name}max"] = np.flatnonzero(x[:, axis] >= hi - tol)
+    return groups
+
+
+def _node_group(scene, net, name, key) -> np.ndarray:
+    if name not in net.node_groups:
+        raise scene.error(key, f"no node group {name!r} in {net.source}; node groups: {', '.join(sorted(net.node_groups)) or 'none'}")
+    return net.node_groups[name]
+
+
+def _spring_group(scene, net, name, key) -> np.ndarray:
+    if name == "all":
+        return np.arange(net.n_springs)
+    if name not in net.spring_groups:
+        raise scene.error(key, f"no spring group {name!r} in {net.source}; spring groups: "
+                          f"{', '.join(['all'] + sorted(net.spring_groups))}")
+    return net.spring_groups[name]
+
+
+def _no_field(name, mesh) -> str:
+    return f"no point-data field {name!r} in the mesh; fields: {', '.join(mesh.point_data) or 'none'}"
+
+
+# ----------------------------------------------------------------------------------------------
+# materials and initial state
+
+
+def material_parameters(scene: Scene, net: Net, model) -> tuple[dict, np.ndarray, list]:
+    """Per-spring parameter arrays (name -> (m,)), material ids (m,) and region names."""
+    m = net.n_springs
+    values = {p: np.full(m, float(model.defaults.get(p, np.nan))) for p in model.parameters}
+    material_id = np.full(m, -1, dtype=np.int32)
+    names = list(scene.data["materials"])
+    for i, (region, params) in enumerate(scene.data["materials"].items()):
+        springs = _spring_group(scene, net, region, f"materials.{region}")
+        material_id[springs] = i
+        for k, v in params.items():
+            if k != "model":
+                values[k][springs] = v
+    for p, arr in values.items():
+        if np.isnan(arr).any():
+            e = int(np.flatnonzero(np.isnan(arr))[0])
+            raise scene.error("materials", f"spring {e} has no value for parameter {p!r} of model {model.name!r} "
+                              "(it has no default): set it in [materials.all] or in a region covering that spring")
+    return values, material_id, names
+
+
+def initial_temperatures(scene: Scene, net: Net, model, parameters) -> np.ndarray | None:
+    """(m,) θ(0): uniform (default: each spring's reference temperature), then regions, then
+    the seeded perturbation."""
+    spec = scene.data["initial"]["temperature"]
+    if spec is None:
+        return None
+    theta = np.array(parameters[model.reference_temperature], dtype=np.float64)
+    if spec.get("uniform") is not None:
+        theta[:] = spec["uniform"]
+    for group, value in spec["regions"].items():
+        theta[_spring_group(scene, net, group, f"initial.temperature.regions.{group}")] = value
+    if spec["perturbation"] > 0:
+        rng = np.random.default_rng(spec["seed"])
+        theta = theta + rng.uniform(-spec["perturbation"], spec["perturbation"], net.n_springs)
+        if (theta <= 0).any():
+            e = int(np.flatnonzero(theta <= 0)[0])
+            raise scene.error("initial.temperature.perturbation",
+                              f"makes spring {e}'s temperature {theta[e]:g} <= 0; use a smaller perturbation")
+    return theta
+
+
+def node_vectors(scene: Scene, net: Net, mesh, kind: str) -> np.ndarray | None:
+    """(n, 3) initial velocities or momenta (``kind``): the sum of the parts the scene gives;
+    anchored nodes at rest."""
+    spec = scene.data["initial"][kind]
+    if spec is None:
+        return None
+    key = f"initial.{kind}"
+    x = net.positions
+    v = np.zeros((net.n_nodes, 3))
+    if spec.get("uniform") is not None:
+        v += np.asarray(spec["uniform"])
+    for group, value in spec["regions"].items():
+        v[_node_group(scene, net, group, f"{key}.regions.{group}")] += np.asarray(value)
+    if spec.get("rotation") is not None:
+        r = spec["rotation"]
+        axis = np.asarray(r["axis"])
+        norm = np.linalg.norm(axis)
+        if norm == 0:
+            raise scene.error(f"{key}.rotation.axis", "must not be the zero vector")
+        v += np.cross(r["omega"] * axis / norm, x - np.asarray(r["origin"]))
+    if spec.get("gradient") is not None:
+        g = spec["gradient"]
+        v += (x - np.asarray(g["origin"])) @ np.asarray(g["matrix"]).T
+    if spec.get("point_data") is not None:
+        name = spec["point_data"]
+        if name not in mesh.point_data:
+            raise scene.error(f"{key}.point_data", _no_field(name, mesh))
+        data = np.asarray(mesh.point_data[name], dtype=np.float64)
+        if data.ndim != 2 or data.shape[1] not in (2, 3):
+            raise scene.error(f"{key}.point_data", f"field {name!r} must have 2 or 3 components per point, got shape {data.shape}")
+        data = data[net.point_ids]
+        v[:, : data.shape[1]] += data
+    if spec.get("random") is not None:
+        r = spec["random"]
+        v += np.random.default_rng(r["seed"]).uniform(-r["amplitude"], r["amplitude"], v.shape)
+    v[net.anchored] = 0.0
+    return v

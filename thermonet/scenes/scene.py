@@ -1,0 +1,197 @@
+"""A scene: a validated TOML description of one run, and where each of its keys came from."""
+
+from __future__ import annotations
+
+import copy
+import hashlib
+import json
+import math
+import os
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from .schema import FIELD_NAMES, Invalid, validate
+from .source import SceneError, apply_overrides, key_lines, parse_toml
+
+#: the scene ``thermonet run`` runs when given none (a 3D truss block from meshes/)
+DEFAULT_SCENE = Path(__file__).resolve().parents[2] / "scenes" / "default.toml"
+
+THERMAL_OUTPUTS = ("temperature", "node_temperature", "entropy", "thermal_displacement")
+
+
+@dataclass
+class Scene:
+    """A validated scene.
+
+    data: the normalized scene (every key of the schema, defaults filled in).
+    file: the scene file (for messages). base_dir: folder that relative paths start from.
+    text: the TOML text. overrides: the ``KEY=VALUE`` strings applied on top of it.
+    """
+
+    data: dict
+    file: str
+    base_dir: str
+    text: str
+    overrides: tuple[str, ...] = ()
+    _lines: dict = field(default_factory=dict, repr=False)
+    _overridden: set = field(default_factory=set, repr=False)
+
+    # ------------------------------------------------------------------------------------------
+    def error(self, path, message: str) -> SceneError:
+        """A :class:`SceneError` for key ``path`` (tuple or dotted string), with its line."""
+        if isinstance(path, str):
+            path = tuple(path.split(".")) if path else ()
+        key = ".".join(path) or None
+        for i in range(len(path), 0, -1):
+            if path[:i] in self._overridden:
+                return SceneError(message, file=f"--set {'.'.join(path[:i])}", key=key)
+        line = None
+        for i in range(len(path), 0, -1):
+            if path[:i] in self._lines:
+                line = self._lines[path[:i]]
+                break
+        return SceneError(message, file=self.file, line=line, key=key)
+
+    def __getitem__(self, key: str):
+        return self.data[key]
+
+    @property
+    def name(self) -> str:
+        name = self.data.get("name") or Path(self.file).stem
+        return re.sub(r"[^A-Za-z0-9_.-]+", "_", name) or "scene"
+
+    def mesh_path(self) -> str | None:
+        mesh = self.data["net"].get("mesh")
+        return None if mesh is None else os.path.normpath(os.path.join(self.base_dir, mesh))
+
+    @property
+    def hash(self) -> str:
+        """SHA-256 of what determines the trajectory: net (and the mesh file's bytes), materials,
+        initial state, effects and integrator (not t_end/steps, not the outputs)."""
+        physics = {k: v for k, v in self.data.items() if k not in ("output", "name", "description")}
+        physics["integrator"] = {k: v for k, v in physics["integrator"].items() if k not in ("t_end", "steps")}
+        h = hashlib.sha256(json.dumps(physics, sort_keys=True, default=str).encode())
+        mesh = self.mesh_path()
+        if mesh is not None and os.path.isfile(mesh):
+            with open(mesh, "rb") as f:
+                h.update(hashlib.sha256(f.read()).digest())
+        return h.hexdigest()
+
+    def total_steps(self) -> int:
+        """Steps from t = 0 to the scene's end (t_end rounded up to whole steps, with a tolerance)."""
+        integ = self.data["integrator"]
+        if integ.get("steps") is not None:
+            return int(integ["steps"])
+        n = integ["t_end"] / integ["h"]
+        return max(0, int(math.ceil(n - 1e-9 * max(1.0, abs(n)))))
+
+    def cadence(self, key: str, total: int) -> int:
+        """output.<key> in steps ("auto" resolved against ``total`` steps)."""
+        value = self.data["output"][key]
+        if value != "auto":
+            return int(value)
+        per = {"frames_every": 100, "diagnostics_every": 1000, "checkpoint_every": 10}[key]
+        return max(1, total // per)
+
+    def output_fields(self) -> list[str]:
+        fields = self.data["output"].get("fields")
+        if fields is None:
+            fields = [f for f in FIELD_NAMES if self.data["effects"]["thermal"] or f not in THERMAL_OUTPUTS]
+        return fields
+
+    def describe(self) -> dict:
+        """What a checkpoint stores to rebuild this scene."""
+        return {"name": self.name, "hash": self.hash, "file": os.path.abspath(self.file) if os.path.exists(self.file) else self.file,
+                "base_dir": os.path.abspath(self.base_dir), "text": self.text, "overrides": list(self.overrides)}
+
+    def build(self):
+        """The :class:`~thermonet.scenes.build.BuiltScene` (net, simulation, material ids)."""
+        from .build import build_scene
+
+        return build_scene(self)
+
+
+# ----------------------------------------------------------------------------------------------
+
+
+def load_scene(path=None, overrides=()) -> Scene:
+    """Read and validate a scene file (default: the built-in default scene)."""
+    path = os.fspath(path) if path is not None else str(DEFAULT_SCENE)
+    if not os.path.isfile(path):
+        where = "the built-in default scene" if path == str(DEFAULT_SCENE) else "scene file"
+        raise SceneError(f"{where} {path} does not exist")
+    with open(path, encoding="utf-8") as f:
+        text = f.read()
+    return scene_from_text(text, file=path, base_dir=os.path.dirname(os.path.abspath(path)), overrides=overrides)
+
+
+def scene_from_text(text: str, file: str = "<scene>", base_dir: str = ".", overrides=()) -> Scene:
+    """Parse, override and validate a scene given as TOML text."""
+    raw = parse_toml(text, file)
+    overridden = apply_overrides(raw, overrides)
+    for given, other in ((("integrator", "t_end"), "steps"), (("integrator", "steps"), "t_end")):
+        if given in overridden and ("integrator", other) not in overridden:
+            raw.get("integrator", {}).pop(other, None)  # setting one end condition replaces the other
+    scene = Scene({}, file, base_dir, text, tuple(overrides), key_lines(text), overridden)
+    try:
+        scene.data = validate(copy.deepcopy(raw))
+    except Invalid as exc:
+        raise scene.error(exc.path, exc.message) from None
+    check(scene)
+    return scene
+
+
+def check(scene: Scene) -> None:
+    """Rules across keys: one of mesh/generator, one of t_end/steps, and so on."""
+    d = scene.data
+    net, init, effects, integ, out = d["net"], d["initial"], d["effects"], d["integrator"], d["output"]
+    if (net.get("mesh") is None) == (net.get("generator") is None):
+        raise scene.error("net", "give exactly one of net.mesh (a mesh file) or net.generator (chain, triangle, lattice)")
+    if net.get("lattice") is not None and net.get("generator") != "lattice":
+        raise scene.error("net.lattice", 'parameters for the lattice generator, but net.generator is not "lattice"')
+    if net.get("cells") is not None and net.get("mesh") is None:
+        raise scene.error("net.cells", "selects mesh cell blocks, but the scene has no net.mesh")
+    if (integ.get("t_end") is None) == (integ.get("steps") is None):
+        raise scene.error("integrator", "give exactly one of integrator.t_end or integrator.steps")
+    if init["velocity"] is not None and init["momentum"] is not None:
+        raise scene.error("initial.momentum", "give initial.velocity or initial.momentum, not both")
+    mass = init["mass"]
+    if mass is not None:
+        given = [k for k in ("uniform", "density", "point_data") if mass.get(k) is not None]
+        if len(given) > 1:
+            raise scene.error(f"initial.mass.{given[1]}", f"give at most one of initial.mass.uniform, density, point_data (got {', '.join(given)})")
+        for k in ("density", "point_data"):
+            if mass.get(k) is not None and net.get("mesh") is None:
+                raise scene.error(f"initial.mass.{k}", "needs a mesh (net.mesh)")
+    for kind in ("velocity", "momentum"):
+        if init[kind] is not None and init[kind].get("point_data") is not None and net.get("mesh") is None:
+            raise scene.error(f"initial.{kind}.point_data", "needs a mesh (net.mesh)")
+    if not effects["thermal"]:
+        if init["temperature"] is not None:
+            raise scene.error("initial.temperature", "initial temperatures given but effects.thermal is false "
+                              "(a purely mechanical run has no temperatures)")
+        for f in out.get("fields") or ():
+            if f in THERMAL_OUTPUTS:
+                raise scene.error("output.fields", f"field {f!r} needs effects.thermal = true")
+    if out["diagnostics_every"] == 0:
+        raise scene.error("output.diagnostics_every", 'must be >= 1 or "auto" (diagnostics cannot be switched off)')
+    models = {r.get("model", "hencky"): region for region, r in d["materials"].items()}
+    if len(models) > 1:
+        listing = ", ".join(f"{m} in materials.{r}" for m, r in models.items())
+        second = list(models.values())[1]
+        raise scene.error(f"materials.{second}.model",
+                          f"a run uses one model, but the scene names several ({listing}); "
+                          "per-region materials are per-region parameter values of one model")
+    from ..models import get_model
+
+    model = get_model(next(iter(models), "hencky"))
+    for region, params in d["materials"].items():
+        for k, v in params.items():
+            if k == "model":
+                continue
+            if k not in model.parameters:
+                raise scene.error(f"materials.{region}.{k}",
+                                  f"model {model.name!r} has no parameter {k!r}; its parameters: {', '.join(model.parameters)}")
+            if k in model.positive and not v > 0:
+                raise scene.error(f"materials.{region}.{k}", f"must be > 0, got {v:g}")
