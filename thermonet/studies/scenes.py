@@ -2,7 +2,9 @@
 
 A scene is named by a string so that it can travel to Dask workers: the built-in names
 ``"chain"`` and ``"triangle"`` (the paper's examples, :mod:`thermonet.paper`), or the path of a
-scene file, read by :mod:`thermonet.scene` (imported only when a path is given).
+scene file, read by :mod:`thermonet.scenes` (imported only when a path is given) with the
+study's integrator and step as overrides. A scene file must be readable by the Dask workers
+(same path on every machine).
 """
 
 from __future__ import annotations
@@ -42,22 +44,17 @@ def check_scene(scene: str) -> None:
 
 def _scene_loader():
     try:
-        from .. import scene as scene_module
+        from .. import scenes as scene_module
     except ImportError:
         raise InputError(
-            "scene files need thermonet.scene, which this installation does not have; "
+            "scene files need thermonet.scenes, which this installation does not have; "
             f"use a built-in scene ({', '.join(BUILTIN)})") from None
     return scene_module
 
 
-def _scene_file_simulation(path: str, integrator: str, h: float, **options) -> Simulation:
+def _scene_file_simulation(path: str, integrator: str, h: float, threads: int | None = None) -> Simulation:
     check_scene(path)
-    scene_module = _scene_loader()
-    load = getattr(scene_module, "load_scene", None) or getattr(scene_module, "load", None)
-    if load is None:
-        raise InputError("thermonet.scene has no load_scene(path): cannot read scene files")
-    scene = load(path)
-    build = getattr(scene, "build_simulation", None) or getattr(scene, "simulation", None)
-    if build is None:
-        raise InputError(f"{path}: the loaded scene cannot build a Simulation")
-    return build(integrator=integrator, h=h, **options)
+    overrides = [f'integrator.name="{integrator}"', f"integrator.h={float(h)!r}"]
+    if threads is not None:
+        overrides.append(f"integrator.threads={int(threads)}")
+    return _scene_loader().load_scene(path, overrides=overrides).build().simulation
