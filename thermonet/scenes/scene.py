@@ -126,7 +126,7 @@ def load_scene(path=None, overrides=()) -> Scene:
     return scene_from_text(text, file=path, base_dir=os.path.dirname(os.path.abspath(path)), overrides=overrides)
 
 
-def scene_from_text(text: str, file: str = "<scene>", base_dir: str = ".", overrides=()) -> Scene:
+def scene_from_text(text: str, overrides=(), *, file: str = "<scene>", base_dir: str = ".") -> Scene:
     """Parse, override and validate a scene given as TOML text."""
     raw = parse_toml(text, file)
     overridden = apply_overrides(raw, overrides)

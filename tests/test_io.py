@@ -1,0 +1,227 @@
+"""VTU frames and PVD index: exact round trips through two readers nobody here wrote (meshio and
+VTK via PyVista), every frame listed with its time, atomic writes that survive a kill."""
+
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import meshio
+import numpy as np
+import pytest
+
+from thermonet.io import PVDIndex, VTUWriter, load_checkpoint, read_pvd, save_checkpoint
+from thermonet.io import atomic as atomic_module
+from thermonet.scenes import load_scene
+from thermonet.system import State
+
+pv = pytest.importorskip("pyvista")
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+def _random_net(rng, n=40, m=90):
+    pairs = set()
+    while len(pairs) < m:
+        a, b = rng.integers(0, n, 2)
+        if a != b:
+            pairs.add((int(a), int(b)))
+    return np.array(sorted(pairs), dtype=np.int64)
+
+
+def _fields(rng, n, m):
+    point = {"displacement": rng.normal(size=(n, 3)), "anchored": rng.integers(0, 2, n).astype(np.uint8),
+             "node_temperature": rng.uniform(100, 900, n)}
+    cell = {"temperature": rng.uniform(100, 900, m), "strain": rng.normal(size=m) * 1e-3,
+            "material": rng.integers(-1, 3, m).astype(np.int32), "tiny": rng.normal(size=m) * 1e-300}
+    return point, cell
+
+
+def _check_meshio(path, points, edges, point, cell):
+    mesh = meshio.read(path)
+    np.testing.assert_array_equal(mesh.points, points)
+    assert [b.type for b in mesh.cells] == ["line"]
+    np.testing.assert_array_equal(mesh.cells[0].data, edges)
+    for k, v in point.items():
+        assert mesh.point_data[k].shape == v.shape
+        np.testing.assert_array_equal(mesh.point_data[k], v)
+    for k, v in cell.items():
+        assert mesh.cell_data[k][0].shape == v.shape
+        np.testing.assert_array_equal(mesh.cell_data[k][0], v)
+
+
+def _check_vtk(path, points, edges, point, cell):
+    grid = pv.read(path)
+    np.testing.assert_array_equal(grid.points, points)
+    assert set(np.asarray(grid.celltypes).tolist()) == {pv.CellType.LINE}
+    np.testing.assert_array_equal(grid.cells_dict[pv.CellType.LINE], edges)
+    for k, v in point.items():
+        np.testing.assert_array_equal(np.asarray(grid.point_data[k]), v)
+    for k, v in cell.items():
+        np.testing.assert_array_equal(np.asarray(grid.cell_data[k]), v)
+
+
+def test_frames_round_trip_exactly_through_meshio_and_vtk(tmp_path):
+    rng = np.random.default_rng(0)
+    edges = _random_net(rng)
+    n, m = 40, len(edges)
+    writer = VTUWriter(edges, n)
+    x = rng.normal(size=(n, 3))
+    for frame in range(3):
+        x = x + 1e-3 * rng.normal(size=(n, 3))  # moving points
+        point, cell = _fields(rng, n, m)
+        path = str(tmp_path / f"f_{frame}.vtu")
+        writer.write(path, x, point, cell)
+        _check_meshio(path, x, edges, point, cell)
+        _check_vtk(path, x, edges, point, cell)
+
+
+def _run_scene(tmp_path, overrides=()):
+    from thermonet.io import RunOutput
+
+    scene = load_scene(os.path.join(ROOT, "scenes", "default.toml"),
+                       ["integrator.steps=60", "output.frames_every=20", "output.diagnostics_every=10",
+                        "output.checkpoint_every=0", *overrides])
+    built = scene.build()
+    sim = built.simulation
+    out = RunOutput(sim, tmp_path, scene.name, fields=scene.output_fields(), frames_every=20,
+                    diagnostics_every=10, checkpoint_every=0, material_id=built.material_id, scene=scene.describe())
+    sim.run(steps=scene.total_steps(), diagnostics_every=10, observers=out.observers())
+    return scene, built, sim
+
+
+def test_run_frames_hold_the_simulation_fields_and_the_pvd_lists_every_frame_with_its_time(tmp_path):
+    scene, built, sim = _run_scene(tmp_path)
+    frames = read_pvd(tmp_path / f"{scene.name}.pvd")
+    rows = {r["step"]: r["time"] for r in sim.diagnostics.rows}
+    assert [t for t, _ in frames] == [rows[s] for s in (0, 20, 40, 60)]
+    assert [os.path.basename(f) for _, f in frames] == [f"truss_block_{i:06d}.vtu" for i in range(4)]
+    net = built.net
+    mesh = meshio.read(frames[-1][1])
+    grid = pv.read(frames[-1][1])
+    state = sim.state
+    expected_cell = {"temperature": sim.temperatures(), "entropy": state.entropy, "strain": sim.strains(),
+                     "tension": sim.tensions(), "thermal_displacement": state.thermal_displacement,
+                     "material": built.material_id}
+    expected_point = {"displacement": state.positions - net.positions, "momentum": state.momenta,
+                      "velocity": state.momenta / net.masses[:, None], "anchored": net.anchored.astype(np.uint8)}
+    for reader in (lambda k: mesh.cell_data[k][0], lambda k: np.asarray(grid.cell_data[k])):
+        for k, v in expected_cell.items():
+            np.testing.assert_array_equal(reader(k), v)
+    for k, v in expected_point.items():
+        np.testing.assert_array_equal(mesh.point_data[k], v)
+        np.testing.assert_array_equal(np.asarray(grid.point_data[k]), v)
+    np.testing.assert_array_equal(mesh.points, state.positions)
+    np.testing.assert_array_equal(mesh.cells[0].data, net.edges)
+    theta = sim.temperatures()
+    a = 0
+    incident = np.flatnonzero((net.edges == a).any(axis=1))
+    assert mesh.point_data["node_temperature"][a] == pytest.approx(theta[incident].mean(), rel=1e-14)
+
+
+def test_thermal_off_frames_have_no_thermal_fields(tmp_path):
+    text = open(os.path.join(ROOT, "scenes", "default.toml")).read()
+    text = text.replace("temperature = { uniform = 300.0, regions = { hot = 900.0 } }\n", "")
+    path = tmp_path / "mech.toml"
+    path.write_text(text.replace('mesh = "../meshes/', f'mesh = "{ROOT}/meshes/'))
+    from thermonet.cli.main import main
+
+    assert main(["run", str(path), "--out", str(tmp_path / "out"), "--quiet", "--set", "effects.thermal=false",
+                 "--set", "integrator.steps=40", "--set", "output.frames_every=20"]) == 0
+    frames = read_pvd(tmp_path / "out" / "truss_block.pvd")
+    mesh = meshio.read(frames[-1][1])
+    assert set(mesh.cell_data) == {"strain", "tension", "material"}
+    assert set(mesh.point_data) == {"displacement", "velocity", "momentum", "anchored"}
+    state, _ = load_checkpoint(tmp_path / "out" / "truss_block.checkpoint.npz")
+    assert state.entropy is None and state.thermal_displacement is None
+    with np.load(tmp_path / "out" / "truss_block.checkpoint.npz") as z:
+        assert "entropy" not in z.files and "thermal_displacement" not in z.files
+
+
+class _Killed(BaseException):
+    pass
+
+
+def test_a_kill_during_a_frame_write_leaves_only_complete_frames_listed(tmp_path, monkeypatch):
+    real_open = open
+    written = {"frames": 0}
+
+    class TornFile:
+        """Writes half of what it is given, then the process 'dies'."""
+
+        def __init__(self, f):
+            self.f = f
+
+        def write(self, data):
+            self.f.write(data[: len(data) // 2])
+            raise _Killed()
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            self.f.close()
+
+    def faulty_open(path, mode="r", **kw):
+        f = real_open(path, mode, **kw)
+        if str(path).endswith(".vtu.tmp-%d" % os.getpid()):
+            written["frames"] += 1
+            if written["frames"] == 3:
+                return TornFile(f)
+        return f
+
+    monkeypatch.setattr(atomic_module, "open", faulty_open, raising=False)
+    with pytest.raises(_Killed):
+        _run_scene(tmp_path)
+    frames = read_pvd(tmp_path / "truss_block.pvd")
+    assert len(frames) == 2
+    for _, f in frames:
+        meshio.read(f)
+        pv.read(f)
+    assert not (tmp_path / "truss_block_000002.vtu").exists()
+
+
+def test_a_kill_during_the_index_rewrite_keeps_the_previous_index(tmp_path, monkeypatch):
+    index = PVDIndex(tmp_path / "x.pvd")
+    index.add(0, 0.0, "x_000000.vtu")
+    index.add(10, 0.5, "x_000001.vtu")
+    before = (tmp_path / "x.pvd").read_bytes()
+
+    def dying_replace(src, dst):
+        raise _Killed()
+
+    monkeypatch.setattr(atomic_module.os, "replace", dying_replace)
+    with pytest.raises(_Killed):
+        index.add(20, 1.0, "x_000002.vtu")
+    monkeypatch.undo()
+    assert (tmp_path / "x.pvd").read_bytes() == before
+    assert [t for t, _ in read_pvd(tmp_path / "x.pvd")] == [0.0, 0.5]
+
+
+def test_a_process_killed_at_a_random_moment_leaves_a_readable_series(tmp_path):
+    out = tmp_path / "out"
+    cmd = [sys.executable, "-m", "thermonet.cli.main", "run", "--out", str(out), "--quiet",
+           "--set", "output.frames_every=5", "--set", "integrator.steps=100000", "--set", "output.diagnostics_every=5"]
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    pvd = out / "truss_block.pvd"
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline and (not pvd.exists() or len(read_pvd(pvd)) < 8):
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    frames = read_pvd(pvd)
+    assert len(frames) >= 8
+    for _, f in frames:
+        assert meshio.read(f).points.shape[0] == 491
+    np.genfromtxt(out / "diagnostics.csv", delimiter=",", names=True)
+
+
+def test_checkpoints_keep_the_state_exactly(tmp_path):
+    rng = np.random.default_rng(1)
+    state = State(rng.normal(size=(7, 3)), rng.normal(size=(7, 3)), rng.normal(size=11), rng.normal(size=11),
+                  time=0.1 + 0.2, step=3)
+    save_checkpoint(tmp_path / "c.npz", state, {"diagnostics": [{"step": 3, "energy": 1 / 3}]})
+    back, meta = load_checkpoint(tmp_path / "c.npz")
+    for k in ("positions", "momenta", "thermal_displacement", "entropy"):
+        np.testing.assert_array_equal(getattr(back, k), getattr(state, k))
+    assert back.time == state.time and back.step == 3 and meta["diagnostics"][0]["energy"] == 1 / 3
