@@ -108,3 +108,17 @@ def test_slope_fit_skips_floor_and_preasymptotic_points():
 def test_unknown_scene_is_a_clear_input_error():
     with pytest.raises(InputError, match="neither a built-in scene"):
         check_scene("no-such-scene.toml")
+
+
+def test_a_scene_file_gives_the_same_errors_as_the_builtin_chain():
+    import pathlib
+
+    path = pathlib.Path(__file__).resolve().parent.parent / "scenes" / "chain.toml"
+    if not path.exists():
+        pytest.skip("no scenes/chain.toml")
+    kwargs = dict(integrators=["co2"], dt=0.1, halvings=2, t_end=1.0)
+    from_file = convergence_study(str(path), **kwargs)
+    builtin = convergence_study("chain", **kwargs)
+    for a, b in zip(from_file.error_table(), builtin.error_table()):
+        assert a[:2] == b[:2]
+        assert np.allclose(a[2:], b[2:], rtol=1e-8, atol=1e-12)
