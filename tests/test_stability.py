@@ -23,8 +23,11 @@ def energy_growth(integ, h, steps=4000):
     net, _ = linear_spring()
     sim = tn.Simulation(net, model="quadratic", parameters=dict(E=100.0, beta=0.0),
                         momenta=[[0, 0, 0], [0.01, 0, 0]], integrator=integ, h=h)
-    with np.errstate(all="ignore"):
-        e = sim.run(steps=steps, diagnostics_every=10).energy
+    try:
+        with np.errstate(all="ignore"):
+            e = sim.run(steps=steps, diagnostics_every=10).energy
+    except tn.SimulationError:  # the run stopped on a non-finite state: unbounded
+        return np.inf
     if not np.isfinite(e).all():
         return np.inf
     half = len(e) // 2
