@@ -219,3 +219,10 @@ def test_every_schema_key_is_in_the_reference():
     docs = open(os.path.join(ROOT, "docs", "scenes.md")).read()
     missing = [k for k in all_key_paths() if f"`{k}`" not in docs and f"`[{k}]`" not in docs]
     assert not missing
+
+
+def test_the_annotated_scene_in_the_docs_is_valid():
+    docs = open(os.path.join(ROOT, "docs", "scenes.md")).read()
+    text = docs.split("```toml")[1].split("```")[0]
+    built = scene_from_text(text, file="docs/scenes.md", base_dir=os.path.join(ROOT, "scenes")).build()
+    assert built.net.n_springs == 2492 and built.simulation.system.gravity is not None
