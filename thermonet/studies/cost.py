@@ -49,13 +49,16 @@ class CostStudy:
     runner: str = ""
 
     def curves(self) -> list[tuple[str, list[dict]]]:
-        """(label, rows) per integrator or SciPy method, each sorted by time."""
+        """(label, rows) per integrator or SciPy method, from the coarsest step or loosest
+        tolerance to the finest."""
         labels: list[str] = []
         for r in self.rows:
             if r["solver"] not in labels:
                 labels.append(r["solver"])
-        return [(label, sorted((r for r in self.rows if r["solver"] == label), key=lambda r: r["time"]))
-                for label in labels]
+        def coarse_first(r):
+            return -(r["rtol"] if r["solver"].startswith("scipy") else r["h"])
+
+        return [(label, sorted((r for r in self.rows if r["solver"] == label), key=coarse_first)) for label in labels]
 
     def to_csv(self, path) -> None:
         cols = ["solver", "h", "rtol", "work", "time_median_s", "time_min_s", "time_max_s", "repeats"]

@@ -91,7 +91,7 @@ def energy_figures(study, out_dir, prefix: str = "energy") -> list[str]:
     paths = []
     window = study.window
 
-    def draw(names, t_range, tag, title):
+    def draw(names, t_range, tag, title, ylim=None):
         fig, ax = plt.subplots(figsize=(6.0, 3.6), dpi=100)
         for name in names:
             c = study.histories[name]
@@ -99,6 +99,8 @@ def energy_figures(study, out_dir, prefix: str = "energy") -> list[str]:
             sel = np.ones_like(t, dtype=bool) if t_range is None else (t >= t_range[0]) & (t <= t_range[1])
             ax.plot(t[sel], e[sel], lw=0.8, label=display_name(name))
         ax.ticklabel_format(axis="y", useOffset=False, style="plain")
+        if ylim is not None:
+            ax.set_ylim(*ylim)
         ax.set_xlabel("time")
         ax.set_ylabel("total energy")
         ax.set_title(title, fontsize=10)
@@ -113,7 +115,9 @@ def energy_figures(study, out_dir, prefix: str = "energy") -> list[str]:
     names = study.integrators
     e0 = study.initial_energy
     fig_a_title = f"(a) full scale (initial energy {e0:.3f})"
-    draw(names, None, "a_full", fig_a_title)
+    # full scale: an axis as wide as the paper's Fig. 15(a) (7000-8500 around 7983), so that
+    # only a change of the energy's own size would show
+    draw(names, None, "a_full", fig_a_title, ylim=(0.875 * e0, 1.0625 * e0) if e0 > 0 else None)
     draw(names, window, "b_zoom", f"(b) t in [{window[0]:g}, {window[1]:g}]")
     best = study.highest_order()
     draw([best], window, "c_zoom", f"(c) {display_name(best)} alone, t in [{window[0]:g}, {window[1]:g}]")
