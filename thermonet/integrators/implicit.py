@@ -1,0 +1,235 @@
+"""What every implicit stepper does around its step equations: predictor, Newton solve, update,
+checks, loud and safe failure, opt-in retry with substeps, and the statistics it reports.
+
+A subclass (GTR-α, HO4) supplies the scheme: the block size, the kernels, the predictor and
+its per-spring scratch. A step is computed from the current state into separate buffers and
+copied into the state only once it has converged and passed the checks, so a failed step leaves
+the state exactly at the last good step.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from abc import abstractmethod
+
+import numpy as np
+
+from ..errors import InputError
+from ..kernels.implicit import STATUS_TEXT, implicit_kernels
+from .base import Stepper, StepFailure
+from .newton import BlockPattern, NewtonOptions, NewtonResult, NewtonTimers, make_linear_solver, newton
+
+
+class _StepError(Exception):
+    """A step that did not produce a valid next state (internal; becomes a StepFailure)."""
+
+    def __init__(self, reason: str, result: NewtonResult | None, status: int = 0, spring: int = -1):
+        super().__init__(reason)
+        self.reason = reason
+        self.result = result
+        self.status = status
+        self.spring = spring
+
+
+class ImplicitStepper(Stepper):
+    """Shared driver of an implicit integrator bound to one system (internal numbering).
+
+    Attributes a subclass relies on: ``x0, p0, eta0`` the step's start (n, 3), (n, 3), (m,);
+    ``h``; ``len0`` (m,), ``dir0`` (m, 3), ``f0`` (n, 3) from the start kernel; ``R``, ``Rabs``
+    (size,); ``data`` (nnz,) the Jacobian values; ``pattern``, ``kernels``.
+    """
+
+    block: int
+    scheme: str
+
+    def __init__(self, integrator, system, options: NewtonOptions):
+        if not system.thermal:
+            raise InputError(f"integrator {integrator.name} needs thermal coupling (thermal=True)")
+        self.integrator = integrator
+        self.system = system
+        self.options = options
+        self.kernels = implicit_kernels(system.model, self.scheme)
+        self.pattern = BlockPattern.build(system.edges, system.anchored, self.block)
+        self.solver = make_linear_solver(options.linear_solver, self.pattern)
+        n, m, size = system.n_nodes, system.n_springs, self.pattern.size
+        self.free_index = self.pattern.free_index
+        free = np.flatnonzero(self.free_index >= 0)
+        self._free_nodes = free
+        self._free_blocks = self.free_index[free]
+        self.node_of_block = np.empty(self.pattern.n_free, dtype=np.int64)
+        self.node_of_block[self._free_blocks] = free
+        self.R = np.zeros(size)
+        self.Rabs = np.zeros(size)
+        self.u = np.zeros(size)
+        self.data = np.zeros(self.pattern.nnz)
+        self.len0 = np.empty(m)
+        self.dir0 = np.empty((m, 3))
+        self.f0 = np.empty((n, 3))
+        self._new = (np.empty((n, 3)), np.empty((n, 3)), np.empty(m), np.empty(m))
+        self.gravity = np.zeros(3) if system.gravity is None else np.asarray(system.gravity, dtype=np.float64)
+        self.with_gravity = system.gravity is not None
+        self.timers = NewtonTimers()
+        self.totals = dict(steps=0, iterations=0, iterations_max=0, residual_max=0.0, retried_steps=0,
+                           substeps_max=1)
+        self._allocate(n, m)
+
+    # -- scheme hooks ---------------------------------------------------------------------------
+    @abstractmethod
+    def _allocate(self, n: int, m: int) -> None:
+        """Per-spring scratch of the scheme."""
+
+    @abstractmethod
+    def predict(self, u: np.ndarray) -> None:
+        """Fill the unknowns u with an explicit guess from the step's start."""
+
+    @abstractmethod
+    def residual(self, u: np.ndarray) -> tuple[int, int]:
+        """Fill R, Rabs (and scratch) at u; (status, spring)."""
+
+    @abstractmethod
+    def jacobian(self, data: np.ndarray) -> None:
+        """Fill the Jacobian values at the last residual's point."""
+
+    @abstractmethod
+    def finish(self, phi0, x_new, p_new, phi_new, eta_new) -> tuple[int, int]:
+        """The next state from the converged unknowns; (status, spring)."""
+
+    # -- one step ---------------------------------------------------------------------------------
+    def begin(self, x, p, eta, h: float) -> None:
+        """Start a step at (x, p, η) with step h: geometry and explicit forces at x."""
+        s = self.system
+        self.x0, self.p0, self.eta0, self.h = x, p, eta, float(h)
+        status, spring = self.kernels.start(x, eta, s.rest_lengths, s.parameters, s.edges, self.len0, self.dir0, self.f0)
+        if status != 0:
+            raise _StepError("invalid state at the start of the step", None, status, spring)
+
+    def attempt(self, x, p, phi, eta, h: float):
+        """One step from (x, p, Φ, η); returns the new (x, p, Φ, η) buffers and the Newton
+        record, or raises _StepError. Never modifies its inputs."""
+        self.begin(x, p, eta, h)
+        self.predict(self.u)
+        result = newton(self, self.u, self.options, self.solver, self.timers)
+        if not result.converged:
+            raise _StepError(result.reason, result, result.status, result.spring)
+        status, spring = self.finish(phi, *self._new)
+        if status != 0:
+            raise _StepError("non-physical state after the step", result, status, spring)
+        return self._new, result
+
+    # -- the Stepper interface --------------------------------------------------------------------
+    def advance(self, state, n_steps: int, h: float):
+        if n_steps <= 0:
+            return None
+        iters, finals = [], []
+        retried = 0
+        substeps_max = 1
+        for i in range(n_steps):
+            x, p, phi, eta = state.positions, state.momenta, state.thermal_displacement, state.entropy
+            try:
+                new, result = self.attempt(x, p, phi, eta, h)
+                it, final, substeps = result.iterations, result.history[-1], 1
+                x[:], p[:], phi[:], eta[:] = new
+            except _StepError as err:
+                it, final, substeps = self._retry(state, h, err, i)
+                retried += 1
+                substeps_max = max(substeps_max, substeps)
+            iters.append(it)
+            finals.append(final)
+        t = self.totals
+        t["steps"] += n_steps
+        t["iterations"] += int(sum(iters))
+        t["iterations_max"] = max(t["iterations_max"], max(iters))
+        t["residual_max"] = max(t["residual_max"], max(finals))
+        t["retried_steps"] += retried
+        t["substeps_max"] = max(t["substeps_max"], substeps_max)
+        if retried:
+            warnings.warn(f"{self.integrator.name}: {retried} step(s) of h = {h:g} near t = {state.time:.6g} "
+                          f"needed up to {substeps_max} substeps (retry policy)", RuntimeWarning, stacklevel=2)
+        return {
+            "newton_iterations": iters[-1],
+            "newton_iterations_max": max(iters),
+            "newton_iterations_mean": float(np.mean(iters)),
+            "newton_residual": finals[-1],
+            "newton_residual_max": max(finals),
+            "retried_steps": retried,
+            "substeps_max": substeps_max,
+        }
+
+    def _retry(self, state, h: float, err: _StepError, i: int):
+        """Redo the failed step as 2, 4, … substeps (as many levels as options.retry); commit
+        the first level that succeeds. Returns (Newton iterations, final residual, substeps)."""
+        x, p, phi, eta = state.positions, state.momenta, state.thermal_displacement, state.entropy
+        tried = []
+        for level in range(1, self.options.retry + 1):
+            substeps = 2 ** level
+            xs, ps, phis, etas = x.copy(), p.copy(), phi.copy(), eta.copy()
+            its, final = 0, 0.0
+            try:
+                for _ in range(substeps):
+                    new, result = self.attempt(xs, ps, phis, etas, h / substeps)
+                    xs[:], ps[:], phis[:], etas[:] = new
+                    its = max(its, result.iterations)
+                    final = max(final, result.history[-1])
+            except _StepError as sub:
+                tried.append(f"{substeps} substeps: {sub.reason}")
+                continue
+            x[:], p[:], phi[:], eta[:] = xs, ps, phis, etas
+            return its, final, substeps
+        raise self._failure(state, h, err, i, tried)
+
+    def _failure(self, state, h: float, err: _StepError, i: int, tried: list) -> StepFailure:
+        """The StepFailure for step i of the chunk, naming step, time, residual history and the
+        worst node and spring in the user's numbering."""
+        lay = self.system.layout
+        k = state.step + i
+        t = state.time + i * h
+        history = err.result.history if err.result is not None else []
+        details = dict(step=k, time=t, h=h, reason=err.reason, residual_history=list(history),
+                       worst_node=None, worst_spring=None, retries=tried)
+        parts = [f"{self.integrator.name}: step {k} -> {k + 1} (t = {t:.10g} -> {t + h:.10g}, h = {h:g}) failed: {err.reason}"]
+        if err.status:
+            parts.append(STATUS_TEXT.get(err.status, f"status {err.status}"))
+        if history:
+            parts.append("scaled residual history [" + ", ".join(f"{r:.3e}" for r in history) + "]")
+        if err.spring >= 0:
+            e = err.spring
+            details["worst_spring"] = int(lay.spring_order[e])
+            a, b = self.system.edges[e]
+            details["worst_node"] = int(lay.node_order[a if self.free_index[a] >= 0 else b])
+            parts.append(f"worst spring {details['worst_spring']} (nodes {int(lay.node_order[a])}, {int(lay.node_order[b])})")
+        elif history and self.pattern.size:
+            per_node = np.abs(self.R).reshape(-1, self.block).max(axis=1)
+            kb = int(np.argmax(per_node))
+            details["worst_node"] = int(lay.node_order[self.node_of_block[kb]])
+            strain = np.abs(self.len_end() / self.len0 - 1.0)
+            strain = np.where(np.isfinite(strain), strain, np.inf)
+            e = int(np.argmax(strain))
+            details["worst_spring"] = int(lay.spring_order[e])
+            parts.append(f"worst node {details['worst_node']} (|R| = {per_node[kb]:.3e}), worst spring "
+                         f"{details['worst_spring']} (relative length change {strain[e]:.3g} over the step)")
+        if tried:
+            parts.append("retries: " + "; ".join(tried))
+        parts.append(f"state left at step {k}, t = {t:.10g}")
+        return StepFailure("; ".join(parts), steps_done=i, details=details)
+
+    def len_end(self) -> np.ndarray:
+        """(m,) spring lengths at the end of the step, at the last iterate."""
+        return self.len1
+
+    # -- summaries --------------------------------------------------------------------------------
+    def summary(self) -> dict:
+        """Totals over the stepper's life: steps, Newton iterations (total, mean, max), the
+        largest final scaled residual, retried steps, and seconds per phase."""
+        t = dict(self.totals)
+        t["iterations_mean"] = t["iterations"] / t["steps"] if t["steps"] else math.nan
+        t["linear_solver"] = self.solver.name
+        t["unknowns"] = self.pattern.size
+        t["jacobian_nnz"] = self.pattern.nnz
+        t.update({f"time_{k}": v for k, v in self.timers.as_dict().items() if isinstance(v, float)})
+        return t
+
+
+def newton_options(options: dict) -> NewtonOptions:
+    """The stepper options accepted by the implicit integrators (see NewtonOptions)."""
+    return NewtonOptions.from_options(**options)
