@@ -8,7 +8,6 @@ P = Σ p, L = Σ (x − x_ref) × p over free nodes.
 from __future__ import annotations
 
 import csv
-import math
 import os
 from dataclasses import dataclass, field
 
@@ -41,18 +40,17 @@ def spring_fields(system, positions: np.ndarray, entropy: np.ndarray) -> SpringF
     return out
 
 
-def measure(system, state) -> dict[str, float]:
-    """One diagnostics row for ``state`` (internal numbering)."""
-    x, p = state.positions, state.momenta
-    free = system.free
-    kinetic = 0.5 * float(np.sum(np.einsum("ij,ij->i", p[free], p[free]) / system.masses[free]))
-    fields = spring_fields(system, x, state.entropy)
-    internal = float(math.fsum(fields.internal_energy))
-    potential = 0.0
-    if system.gravity is not None:
-        potential = -float(np.sum(system.masses[free] * (x[free] @ system.gravity)))
-    P = p[free].sum(axis=0)
-    L = np.cross(x[free] - system.reference_point, p[free]).sum(axis=0)
+def measure(system, state, parallel: bool = False) -> dict[str, float]:
+    """One diagnostics row for ``state`` (internal numbering): two fused passes, no temporaries."""
+    from .kernels.reductions import diagnostic_sums_kernel
+
+    spring_sums, node_sums = diagnostic_sums_kernel(system.model, system.thermal, parallel)
+    eta = state.entropy if system.thermal else _EMPTY
+    internal, theta_min, theta_max = spring_sums(state.positions, eta, system.rest_lengths,
+                                                 system.parameters, system.edges)
+    gravity = _ZERO3 if system.gravity is None else system.gravity
+    kinetic, potential, px, py, pz, Lx, Ly, Lz = node_sums(
+        state.positions, state.momenta, system.masses, system.anchored, system.reference_point, gravity)
     row = {
         "step": state.step,
         "time": state.time,
@@ -62,13 +60,16 @@ def measure(system, state) -> dict[str, float]:
         "potential": potential,
     }
     if system.thermal:
-        row["entropy"] = float(math.fsum(state.entropy))
-    row.update({"px": float(P[0]), "py": float(P[1]), "pz": float(P[2]),
-                "Lx": float(L[0]), "Ly": float(L[1]), "Lz": float(L[2])})
+        row["entropy"] = float(np.sum(state.entropy))
+    row.update({"px": px, "py": py, "pz": pz, "Lx": Lx, "Ly": Ly, "Lz": Lz})
     if system.thermal:
-        row["theta_min"] = float(fields.temperature.min())
-        row["theta_max"] = float(fields.temperature.max())
+        row["theta_min"] = theta_min
+        row["theta_max"] = theta_max
     return row
+
+
+_EMPTY = np.empty(0)
+_ZERO3 = np.zeros(3)
 
 
 @dataclass

@@ -271,18 +271,34 @@ class Simulation:
         self.steps_run += steps
         return self.diagnostics
 
-    def _advance(self, n: int) -> None:
+    @property
+    def h(self) -> float:
+        """The time step. Setting it starts a new time origin at the current step."""
+        return self._h
+
+    @h.setter
+    def h(self, value) -> None:
+        self._h = _check_step(value)
+        state = getattr(self, "_state", None)
+        self._time_origin = (0, 0.0) if state is None else (state.step, state.time)
+
+    def _set_step(self, step: int) -> None:
+        """Move the step counter; time is origin + (steps since origin)·h, so it does not depend
+        on how the run was cut into chunks."""
         state = self._state
-        step0, time0 = state.step, state.time
+        origin_step, origin_time = self._time_origin
+        state.step = step
+        state.time = origin_time + (step - origin_step) * self._h
+
+    def _advance(self, n: int) -> None:
+        step0 = self._state.step
         try:
-            stats = self.stepper.advance(state, n, self.h)
+            stats = self.stepper.advance(self._state, n, self._h)
         except StepFailure as exc:
-            state.step = step0 + exc.steps_done
-            state.time = time0 + exc.steps_done * self.h
+            self._set_step(step0 + exc.steps_done)
             self._record(self)
             raise
-        state.step = step0 + n
-        state.time = time0 + n * self.h
+        self._set_step(step0 + n)
         self._last_stats = stats or {}
 
     def record_diagnostics(self) -> None:
@@ -292,7 +308,7 @@ class Simulation:
             self._record(self)
 
     def _record(self, _sim=None) -> None:
-        row = measure(self.system, self._state)
+        row = measure(self.system, self._state, self.parallel)
         row.update(getattr(self, "_last_stats", {}) or {})
         self.diagnostics.append(row)
         self._check_physical(row)
@@ -358,6 +374,11 @@ class Simulation:
             time=float(state.time),
             step=int(state.step),
         )
+        step, time = self._state.step, self._state.time
+        # a state of a run that started at t = 0 with this h keeps time = step·h exactly (resume is
+        # then bit-identical); any other state starts a new time origin
+        on_grid = abs(time - step * self._h) <= 1e-12 * max(1.0, abs(time))
+        self._time_origin = (0, 0.0) if on_grid else (step, time)
 
     def _fields(self):
         return spring_fields(self.system, self._state.positions, self._state.entropy)

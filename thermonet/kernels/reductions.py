@@ -1,0 +1,84 @@
+"""Fused reductions for one diagnostics row: one pass over springs, one over nodes, no
+per-spring temporaries. Multi-threaded for large nets (sums then depend on the thread count in
+their last bits; the state never does)."""
+
+from __future__ import annotations
+
+import math
+
+from numba import prange
+
+from .specialize import model_fingerprint, model_namespace, specialize
+
+# Bound per model by specialize(); see kernels/splitting.py for THERMAL / REFERENCE_TEMPERATURE.
+temperature = internal_energy = free_energy = None
+THERMAL = True
+REFERENCE_TEMPERATURE = 0
+
+_CACHE: dict = {}
+
+
+def diagnostic_sums_kernel(model, thermal: bool, parallel: bool):
+    """``spring_sums(x, eta, l0, P, edges) -> (Σ U, θ_min, θ_max)`` and
+    ``node_sums(x, p, masses, anchored, ref, gravity) -> (K, V, px, py, pz, Lx, Ly, Lz)``."""
+    key = (model_fingerprint(model), bool(thermal), bool(parallel))
+    if key not in _CACHE:
+        ns = model_namespace(model)
+        ns["THERMAL"] = bool(thermal)
+        ns["REFERENCE_TEMPERATURE"] = model.parameter_index(model.reference_temperature)
+        tag = f"{model.name}_{key[0]}_{'thermal' if thermal else 'mech'}_{'par' if parallel else 'ser'}"
+        opts = dict(cache=True, error_model="numpy", parallel=bool(parallel))
+        _CACHE[key] = (specialize(_spring_sums, tag, ns, **opts), specialize(_node_sums, tag, ns, **opts))
+    return _CACHE[key]
+
+
+def _spring_sums(x, eta, l0, P, edges):
+    """Σ_e U(l_e, η_e) (Σ F(l_e, θ0) when not THERMAL), min and max of θ_e."""
+    energy = 0.0
+    theta_min = math.inf
+    theta_max = -math.inf
+    for e in prange(edges.shape[0]):
+        a = edges[e, 0]
+        b = edges[e, 1]
+        dx = x[b, 0] - x[a, 0]
+        dy = x[b, 1] - x[a, 1]
+        dz = x[b, 2] - x[a, 2]
+        l = math.sqrt(dx * dx + dy * dy + dz * dz)
+        if THERMAL:
+            th = temperature(l, eta[e], l0[e], P, e)
+            energy += internal_energy(l, eta[e], l0[e], P, e)
+        else:
+            th = P[REFERENCE_TEMPERATURE, e]
+            energy += free_energy(l, th, l0[e], P, e)
+        theta_min = min(theta_min, th)
+        theta_max = max(theta_max, th)
+    return energy, theta_min, theta_max
+
+
+def _node_sums(x, p, masses, anchored, ref, gravity):
+    """Kinetic energy, gravity potential −Σ m g·x, Σ p and Σ (x − ref) × p over free nodes."""
+    kinetic = 0.0
+    potential = 0.0
+    px = 0.0
+    py = 0.0
+    pz = 0.0
+    lx = 0.0
+    ly = 0.0
+    lz = 0.0
+    for a in prange(x.shape[0]):
+        if not anchored[a]:
+            p0 = p[a, 0]
+            p1 = p[a, 1]
+            p2 = p[a, 2]
+            r0 = x[a, 0] - ref[0]
+            r1 = x[a, 1] - ref[1]
+            r2 = x[a, 2] - ref[2]
+            kinetic += 0.5 * (p0 * p0 + p1 * p1 + p2 * p2) / masses[a]
+            potential -= masses[a] * (gravity[0] * x[a, 0] + gravity[1] * x[a, 1] + gravity[2] * x[a, 2])
+            px += p0
+            py += p1
+            pz += p2
+            lx += r1 * p2 - r2 * p1
+            ly += r2 * p0 - r0 * p2
+            lz += r0 * p1 - r1 * p0
+    return kinetic, potential, px, py, pz, lx, ly, lz
