@@ -1,0 +1,176 @@
+"""The Newton machinery of the implicit integrators: exact Jacobian, quadratic convergence,
+loud and safe failure, retry, options, and availability by name (API and CLI)."""
+
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import thermonet as tn
+from thermonet.integrators.newton import NewtonOptions, NewtonTimers, newton
+from thermonet.paper import CHAIN_MOMENTA, CHAIN_TEMPERATURES
+
+
+def random_simulation(integrator, h, seed=3, **options):
+    """A jittered 3×2×2 lattice with face diagonals, one anchored node, random masses, rest
+    lengths (pre-stress), temperatures and momenta, and a strong thermal coupling so the
+    Jacobian's thermal terms are large."""
+    rng = np.random.default_rng(seed)
+    base = tn.lattice((3, 2, 2), neighbours=18, jitter=0.2, seed=seed)
+    anchored = np.zeros(base.n_nodes, dtype=bool)
+    anchored[5] = True
+    net = tn.Net(base.positions, base.edges, rng.uniform(0.5, 2.0, base.n_nodes), anchored,
+                 rest_lengths=base.lengths() * rng.uniform(0.8, 1.2, base.n_springs))
+    momenta = rng.normal(0.0, 3.0, (net.n_nodes, 3))
+    momenta[anchored] = 0.0
+    return tn.Simulation(net, model="hencky", parameters=dict(c=rng.uniform(50, 150, net.n_springs), beta=2.0, C0=1.0,
+                                                              theta0=300.0),
+                         temperatures=rng.uniform(200.0, 900.0, net.n_springs), momenta=momenta,
+                         integrator=integrator, h=h, integrator_options=options)
+
+
+def residual_at(stepper, u):
+    status, spring = stepper.residual(u)
+    assert status == 0
+    return stepper.R.copy()
+
+
+@pytest.mark.parametrize("integrator, options", [("gtr-1/2", {}), ("gtr-alpha", {"alpha": 0.3}), ("ho4", {})])
+def test_jacobian_matches_finite_differences(integrator, options):
+    sim = random_simulation(integrator, h=0.05, **options)
+    st, s = sim.stepper, sim._state
+    st.begin(s.positions, s.momenta, s.entropy, sim.h)
+    st.predict(st.u)
+    rng = np.random.default_rng(0)
+    u = st.u + rng.normal(0.0, 0.02, st.u.shape)  # away from the solution
+    residual_at(st, u)
+    st.jacobian(st.data)
+    J = st.pattern.matrix(st.data.copy()).toarray()
+    eps = 1e-6
+    J_fd = np.empty_like(J)
+    for j in range(len(u)):
+        up, um = u.copy(), u.copy()
+        up[j] += eps
+        um[j] -= eps
+        J_fd[:, j] = (residual_at(st, up) - residual_at(st, um)) / (2 * eps)
+    # the blocks coupling different nodes (springs' thermal and elastic terms) must be sizeable
+    coupling = J.copy()
+    for k in range(st.pattern.n_free):
+        b = st.pattern.block
+        coupling[b * k:b * (k + 1), b * k:b * (k + 1)] = 0.0
+    assert np.abs(coupling).max() > 1e-2 * np.abs(J).max()
+    assert np.abs(J - J_fd).max() <= 1e-6 * np.abs(J).max()
+
+
+@pytest.mark.parametrize("integrator", ["gtr-1/2", "ho4"])
+def test_newton_converges_quadratically(integrator):
+    """From the crude guess x¹ = x⁰ (so several iterates lie above round-off), the scaled
+    residuals fall as ρ_{k+1} ≤ ρ_k² until they reach the round-off floor."""
+    sim = tn.chain_simulation(integrator, h=0.05)
+    sim.run(steps=3, diagnostics_every=10**9)
+    st, s = sim.stepper, sim._state
+    st.begin(s.positions, s.momenta, s.entropy, sim.h)
+    st.u[:] = 0.0
+    result = newton(st, st.u, NewtonOptions(tolerance=1e-15), st.solver, NewtonTimers())
+    assert result.converged
+    rho = np.array(result.history)
+    above = [(a, b) for a, b in zip(rho[:-1], rho[1:]) if b > 1e-14]
+    assert len(above) >= 2, rho
+    for a, b in above:
+        assert b <= a**2, rho
+    assert rho[-1] < 1e-15
+
+
+def test_absurd_step_fails_loudly_and_keeps_the_state():
+    """Quadratic model (whose temperature can reach zero) on the chain with h = 10."""
+    sim = tn.Simulation(tn.chain(), model="quadratic", parameters=dict(E=100, beta=0.2, C0=5, theta0=300),
+                        temperatures=CHAIN_TEMPERATURES, momenta=CHAIN_MOMENTA, integrator="gtr-1/2", h=10.0)
+    before = sim.state
+    with pytest.raises(tn.SimulationError) as info:
+        sim.run(steps=3)
+    err = info.value
+    assert isinstance(err, tn.integrators.StepFailure)
+    assert err.steps_done == 0
+    msg = str(err)
+    assert "step 0 -> 1" in msg and "t = 0 -> 10" in msg and "temperature" in msg
+    assert err.details["worst_spring"] == 2 and "worst spring 2" in msg
+    assert err.details["worst_node"] in (2, 3)
+    after = sim.state
+    assert sim.step == 0 and sim.time == 0.0
+    for name in ("positions", "momenta", "thermal_displacement", "entropy"):
+        assert np.array_equal(getattr(after, name), getattr(before, name)), name
+
+
+def test_failure_at_a_later_step_keeps_the_last_good_state():
+    def make():
+        return tn.Simulation(tn.chain(), model="quadratic", parameters=dict(E=100, beta=0.2, C0=5, theta0=300),
+                             temperatures=CHAIN_TEMPERATURES, momenta=CHAIN_MOMENTA, integrator="gtr-1/2", h=1.0)
+
+    sim = make()
+    with pytest.raises(tn.SimulationError) as info:
+        sim.run(steps=5, diagnostics_every=10**9)  # one chunk of 5 steps
+    assert info.value.steps_done == 1 and sim.step == 1 and sim.time == 1.0
+    assert "step 1 -> 2" in str(info.value)
+    good = make()
+    good.run(steps=1)
+    assert np.array_equal(sim.state.positions, good.state.positions)
+    assert np.array_equal(sim.state.momenta, good.state.momenta)
+    assert sim.diagnostics.rows[-1]["step"] == 1
+
+
+def test_non_convergence_names_the_residual_history_then_retry_recovers():
+    """HO4 at h = 0.3 on the chain needs more than 2 Newton iterations per step."""
+    sim = tn.chain_simulation("ho4", h=0.3, integrator_options=dict(max_iterations=2))
+    with pytest.raises(tn.SimulationError) as info:
+        sim.run(steps=2)
+    err = info.value
+    history = err.details["residual_history"]
+    assert len(history) == 3 and history[-1] > 1e-12
+    assert "no convergence in 2 iterations" in str(err) and "scaled residual history" in str(err)
+    assert err.details["worst_node"] in (1, 2, 3)  # free nodes of the chain, user numbering
+    assert sim.step == 0
+
+    sim = tn.chain_simulation("ho4", h=0.3, integrator_options=dict(max_iterations=2, retry=3))
+    with pytest.warns(RuntimeWarning, match="substeps"):
+        diag = sim.run(steps=1, diagnostics_every=1)
+    substeps = int(diag.substeps_max[-1])
+    assert diag.retried_steps[-1] == 1 and substeps >= 2
+    assert sim.stepper.summary()["retried_steps"] == 1 and sim.step == 1
+    # the substeps are steps of the same method: the same as a run at the substep size
+    fine = tn.chain_simulation("ho4", h=0.3 / substeps)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        fine.run(steps=substeps)
+    assert np.abs(fine.state.positions - sim.state.positions).max() < 1e-10
+
+
+def test_options_are_checked():
+    with pytest.raises(tn.InputError):
+        tn.chain_simulation("ho4", h=0.01, integrator_options=dict(tolerance=-1.0))
+    with pytest.raises(tn.InputError):
+        tn.chain_simulation("ho4", h=0.01, integrator_options=dict(linear_solver="cholesky"))
+    with pytest.raises(tn.InputError):
+        tn.get_integrator("gtr-alpha", alpha=1.5)
+    assert tn.get_integrator("gtr-half") is tn.get_integrator("gtr-1/2")
+    assert not tn.get_integrator("ho4").explicit and tn.get_integrator("ho4").order == 4
+
+
+def test_gmres_and_splu_agree():
+    runs = {}
+    for solver in ("splu", "gmres"):
+        sim = random_simulation("ho4", h=0.01, seed=5, linear_solver=solver)
+        sim.run(steps=10, diagnostics_every=10**9)
+        runs[solver] = sim.state
+        assert sim.stepper.summary()["linear_solver"] == solver
+    scale = np.abs(runs["splu"].momenta).max()
+    assert np.abs(runs["splu"].momenta - runs["gmres"].momenta).max() <= 1e-11 * scale
+
+
+def test_cli_runs_an_implicit_integrator(tmp_path):
+    from thermonet.cli.main import main
+
+    scene = Path(__file__).resolve().parents[1] / "scenes" / "chain.toml"
+    assert main(["run", str(scene), "--integrator", "ho4", "--out", str(tmp_path), "--quiet", "--t-end", "0.05"]) == 0
+    data = np.genfromtxt(tmp_path / "diagnostics.csv", delimiter=",", names=True)
+    assert "newton_iterations" in data.dtype.names
