@@ -5,12 +5,15 @@
 Per-spring parameters, in this order: ``c`` (elastic modulus), ``beta`` (thermo-mechanical
 coupling), ``C0`` (heat capacity), ``theta0`` (reference temperature). θ(l, η) is an exponential,
 so temperatures stay positive.
-"""
 
-import math
+``exp`` and ``log`` are :mod:`thermonet.kernels.fastmath`'s (within about an ulp of libm's):
+libm calls keep the explicit kernel's per-spring loop from vectorizing, and they were most of its
+cost.
+"""
 
 from numba import njit
 
+from ..kernels.fastmath import exp, log
 from .base import Model, register_model
 
 C, BETA, C0, THETA0 = 0, 1, 2, 3
@@ -18,39 +21,39 @@ C, BETA, C0, THETA0 = 0, 1, 2, 3
 
 @njit(inline="always", error_model="numpy")
 def free_energy(l, theta, l0, P, e):
-    L = math.log(l / l0)
+    L = log(l / l0)
     th0 = P[THETA0, e]
-    return 0.5 * P[C, e] * L * L - P[BETA, e] * (theta - th0) * L + P[C0, e] * (theta - th0 - theta * math.log(theta / th0))
+    return 0.5 * P[C, e] * L * L - P[BETA, e] * (theta - th0) * L + P[C0, e] * (theta - th0 - theta * log(theta / th0))
 
 
 @njit(inline="always", error_model="numpy")
 def tension(l, theta, l0, P, e):
-    L = math.log(l / l0)
+    L = log(l / l0)
     return (P[C, e] * L - P[BETA, e] * (theta - P[THETA0, e])) / l
 
 
 @njit(inline="always", error_model="numpy")
 def entropy(l, theta, l0, P, e):
-    return P[BETA, e] * math.log(l / l0) + P[C0, e] * math.log(theta / P[THETA0, e])
+    return P[BETA, e] * log(l / l0) + P[C0, e] * log(theta / P[THETA0, e])
 
 
 @njit(inline="always", error_model="numpy")
 def temperature(l, eta, l0, P, e):
-    L = math.log(l / l0)
-    return P[THETA0, e] * math.exp((eta - P[BETA, e] * L) / P[C0, e])
+    L = log(l / l0)
+    return P[THETA0, e] * exp((eta - P[BETA, e] * L) / P[C0, e])
 
 
 @njit(inline="always", error_model="numpy")
 def internal_energy(l, eta, l0, P, e):
-    L = math.log(l / l0)
+    L = log(l / l0)
     th0 = P[THETA0, e]
-    theta = th0 * math.exp((eta - P[BETA, e] * L) / P[C0, e])
+    theta = th0 * exp((eta - P[BETA, e] * L) / P[C0, e])
     return 0.5 * P[C, e] * L * L + P[BETA, e] * th0 * L + P[C0, e] * (theta - th0)
 
 
 @njit(inline="always", error_model="numpy")
 def d2F_dl2(l, theta, l0, P, e):
-    L = math.log(l / l0)
+    L = log(l / l0)
     c = P[C, e]
     return (c - c * L + P[BETA, e] * (theta - P[THETA0, e])) / (l * l)
 
