@@ -102,11 +102,12 @@ class SplittingStepper(Stepper):
     """A :class:`Splitting` bound to a system: owns the scratch buffers, calls the fused kernel."""
 
     def __init__(self, integrator: Splitting, system, parallel: bool = False):
-        from ..kernels.splitting import splitting_kernels
+        from ..kernels.splitting import kernel_parameters, splitting_kernels
 
         self.integrator = integrator
         self.system = system
-        self._advance = splitting_kernels(system.model, parallel, system.thermal)
+        P, uniform = kernel_parameters(system.parameters)
+        self._advance = splitting_kernels(system.model, parallel, system.thermal, uniform)
         self._kicks = np.asarray(integrator.kicks, dtype=np.float64)
         self._drifts = np.asarray(integrator.drifts, dtype=np.float64)
         n, m = system.n_nodes, system.n_springs
@@ -115,7 +116,7 @@ class SplittingStepper(Stepper):
         self._gravity = np.zeros(3) if system.gravity is None else np.asarray(system.gravity, dtype=np.float64)
         lay = system.layout
         self._no_thermal = np.empty(0)
-        self._static = (system.rest_lengths, system.parameters, lay.edges, lay.inc_ptr, lay.inc_spring,
+        self._static = (system.rest_lengths, P, lay.edges, lay.inc_ptr, lay.inc_spring,
                         lay.inc_other, system.masses, system.inv_mass, system.anchored)
 
     def advance(self, state, n_steps: int, h: float):

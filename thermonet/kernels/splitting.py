@@ -1,6 +1,6 @@
 """Fused Numba kernels for the explicit integrators, all written as kick/drift splittings.
 
-Every explicit integrator of thermonet is a sequence ``K(k0) D(d0) K(k1) D(d1) … D(d_{S−1}) K(k_S)``
+Every explicit integrator of thermonet is a sequence ``K(k0) D(d0) K(k1) … D(d_{S−1}) K(k_S)``
 of sub-flows with coefficients (fractions of h):
 
 - kick ``K(k)``: at the current positions x, per spring θ = θ(l, η) and T = T(l, θ);
@@ -9,47 +9,80 @@ of sub-flows with coefficients (fractions of h):
 
 One *stage* is a kick followed by a drift and costs two passes over memory:
 
-1. per spring (parallel over springs, no scattered writes so it vectorizes): length, θ, T/l into
-   ``s``, Φ update;
+1. per spring, in blocks of ``BLOCK`` springs (parallel over blocks): a scalar loop gathers the
+   squared lengths |x_b − x_a|² into ``s``; a second loop over the same block, now reading only
+   contiguous arrays, computes l, θ, T/l into ``s`` and updates Φ. The second loop carries all the
+   arithmetic (sqrt, the model's exp/log, divisions) and LLVM vectorizes it, which it does not do
+   for a loop that also gathers; the block is still in L1 when the second loop reads it back.
 2. per node (parallel over nodes): gather ``f_a = Σ_e s_e (x_b − x_a)`` over the incident springs
    (CSR lists), kick, drift into a second position buffer (others still read the old one).
 
+Indices are read as unsigned (zero-copy views of the int32 arrays): Numba wraps negative signed
+indices around with a compare-and-select per access, which costs about a third of the gather
+pass and blocks vectorization; an unsigned index has no negative case.
+
 The last kick of one step and the first kick of the next act at the same positions and share one
 force evaluation; they are still applied as two separate additions, so a run cut into chunks at
-any step boundary gives bit-for-bit the same numbers as one long call. Node sums run in a fixed
-order, so results do not depend on the number of threads.
+any step boundary gives bit-for-bit the same numbers as one long call. Every spring and every
+node is computed by one thread with a fixed summation order, so results do not depend on the
+number of threads.
+
+When every spring has the same model parameters (a common case), :func:`kernel_parameters`
+returns a ``(k, 1)`` array and the kernels are compiled with ``UNIFORM``: the model functions are
+called with column ``e = 0``, so the loop reads the parameters once instead of ``8 k`` bytes per
+spring and force evaluation.
 """
 
 from __future__ import annotations
 
 import math
 
+import numpy as np
 from numba import prange
 
 from .specialize import model_fingerprint, model_namespace, specialize
 
-# Bound per model by specialize(); listed so the templates read as ordinary code. THERMAL and
-# REFERENCE_TEMPERATURE are compile-time constants: with THERMAL False the kernel is the purely
-# mechanical one (every spring at its reference temperature, parameter row REFERENCE_TEMPERATURE;
-# no η, θ or Φ is read or written).
+# Bound per model by specialize(); listed so the templates read as ordinary code. THERMAL,
+# REFERENCE_TEMPERATURE and UNIFORM are compile-time constants: with THERMAL False the kernel is
+# the purely mechanical one (every spring at its reference temperature, parameter row
+# REFERENCE_TEMPERATURE; no η, θ or Φ is read or written); with UNIFORM, P is (k, 1) and shared.
 temperature = tension = spring_pass = node_pass = None
 THERMAL = True
 REFERENCE_TEMPERATURE = 0
+UNIFORM = False
+
+#: springs per block of the spring pass: small enough that a block of s, η, l0, Φ stays in L1
+BLOCK = 512
 
 _CACHE: dict = {}
 
 _OPTIONS = dict(cache=True, error_model="numpy", boundscheck=False)
 
 
-def splitting_kernels(model, parallel: bool, thermal: bool = True):
+def kernel_parameters(P: np.ndarray) -> tuple[np.ndarray, bool]:
+    """The parameter array the kernels should read, and whether it is shared by all springs.
+
+    P: (k, m) per-spring parameters. Returns ``(P[:, :1] copy, True)`` when every row is
+    constant, else ``(P, False)``; pass the flag to :func:`splitting_kernels` as ``uniform``.
+    """
+    P = np.ascontiguousarray(P, dtype=np.float64)
+    if P.shape[1] > 0 and bool(np.all(P == P[:, :1])):
+        return np.ascontiguousarray(P[:, :1]), True
+    return P, False
+
+
+def splitting_kernels(model, parallel: bool, thermal: bool = True, uniform: bool = False):
     """``advance(...)`` compiled for ``model`` (multi-threaded when ``parallel``; purely mechanical
-    when not ``thermal``, in which case ``phi`` and ``eta`` may be empty arrays)."""
-    key = (model_fingerprint(model), bool(parallel), bool(thermal))
+    when not ``thermal``, in which case ``phi`` and ``eta`` may be empty arrays; for a ``(k, 1)``
+    parameter array shared by all springs when ``uniform``, see :func:`kernel_parameters`)."""
+    key = (model_fingerprint(model), bool(parallel), bool(thermal), bool(uniform))
     if key not in _CACHE:
-        tag = f"{model.name}_{key[0]}_{'par' if parallel else 'ser'}_{'thermal' if thermal else 'mech'}"
+        tag = (f"{model.name}_{key[0]}_{'par' if parallel else 'ser'}_{'thermal' if thermal else 'mech'}"
+               f"{'_uniform' if uniform else ''}")
         ns = model_namespace(model)
         ns["THERMAL"] = bool(thermal)
         ns["REFERENCE_TEMPERATURE"] = model.parameter_index(model.reference_temperature)
+        ns["UNIFORM"] = bool(uniform)
         ns["spring_pass"] = specialize(_spring_pass, tag, ns, parallel=parallel, **_OPTIONS)
         ns["node_pass"] = specialize(_node_pass, tag, ns, parallel=parallel, **_OPTIONS)
         _CACHE[key] = specialize(_advance, tag, ns, **_OPTIONS)
@@ -57,28 +90,43 @@ def splitting_kernels(model, parallel: bool, thermal: bool = True):
 
 
 def _spring_pass(x, eta, l0, P, edges, s, phi, phi_h1, phi_h2, track_phi):
-    """Per spring e: s[e] = T/l at x; Φ[e] += (phi_h1 + phi_h2) θ as two additions."""
-    for e in prange(edges.shape[0]):
-        a = edges[e, 0]
-        b = edges[e, 1]
-        dx = x[b, 0] - x[a, 0]
-        dy = x[b, 1] - x[a, 1]
-        dz = x[b, 2] - x[a, 2]
-        l = math.sqrt(dx * dx + dy * dy + dz * dz)
-        if THERMAL:
-            theta = temperature(l, eta[e], l0[e], P, e)
-        else:
-            theta = P[REFERENCE_TEMPERATURE, e]
-        s[e] = tension(l, theta, l0[e], P, e) / l
-        if THERMAL and track_phi:
-            if phi_h1 != 0.0:
-                phi[e] += phi_h1 * theta
-            phi[e] += phi_h2 * theta
+    """Per spring e: s[e] = T/l at x; Φ[e] += (phi_h1 + phi_h2) θ as two additions.
+
+    edges: (m, 2) uint32. P: (k, m), or (k, 1) when UNIFORM.
+    """
+    m = edges.shape[0]
+    for blk in prange((m + BLOCK - 1) // BLOCK):
+        lo = blk * BLOCK
+        n = min(BLOCK, m - lo)
+        for i in range(n):
+            e = np.uint64(lo + i)
+            a = edges[e, 0]
+            b = edges[e, 1]
+            dx = x[b, 0] - x[a, 0]
+            dy = x[b, 1] - x[a, 1]
+            dz = x[b, 2] - x[a, 2]
+            s[e] = dx * dx + dy * dy + dz * dz
+        for i in range(n):
+            e = np.uint64(lo + i)
+            c = np.uint64(0) if UNIFORM else e
+            l = math.sqrt(s[e])
+            if THERMAL:
+                theta = temperature(l, eta[e], l0[e], P, c)
+            else:
+                theta = P[REFERENCE_TEMPERATURE, c]
+            s[e] = tension(l, theta, l0[e], P, c) / l
+            if THERMAL and track_phi:
+                if phi_h1 != 0.0:
+                    phi[e] += phi_h1 * theta
+                phi[e] += phi_h2 * theta
 
 
 def _node_pass(x, x_new, p, s, inc_ptr, inc_spring, inc_other, masses, inv_mass, anchored,
                kick1, kick2, drift, with_force, gravity, with_gravity):
-    """Per node a: f = Σ s_e (x_b − x_a) (+ m g); p += kick1 f; p += kick2 f; x_new = x + drift p/m."""
+    """Per node a: f = Σ s_e (x_b − x_a) (+ m g); p += kick1 f; p += kick2 f; x_new = x + drift p/m.
+
+    inc_spring, inc_other: (2m,) uint32.
+    """
     for a in prange(x.shape[0]):
         xa0 = x[a, 0]
         xa1 = x[a, 1]
@@ -96,8 +144,9 @@ def _node_pass(x, x_new, p, s, inc_ptr, inc_spring, inc_other, masses, inv_mass,
             f1 = 0.0
             f2 = 0.0
             for j in range(inc_ptr[a], inc_ptr[a + 1]):
-                se = s[inc_spring[j]]
-                b = inc_other[j]
+                ju = np.uint64(j)
+                se = s[inc_spring[ju]]
+                b = inc_other[ju]
                 f0 += se * (x[b, 0] - xa0)
                 f1 += se * (x[b, 1] - xa1)
                 f2 += se * (x[b, 2] - xa2)
@@ -125,10 +174,14 @@ def _advance(x, x_buf, p, phi, eta, s, l0, P, edges, inc_ptr, inc_spring, inc_ot
              anchored, kicks, drifts, h, n_steps, track_phi, gravity, with_gravity):
     """Advance (x, p, Φ) in place by ``n_steps`` steps of the scheme (kicks (S+1,), drifts (S,)).
 
-    x, x_buf, p: (n, 3); phi, eta, s, l0: (m,); P: (k, m); edges: (m, 2) int32; inc_*: CSR
-    incidence; masses, inv_mass: (n,) (inv_mass 0 on anchors); anchored: (n,) bool;
+    x, x_buf, p: (n, 3); phi, eta, s, l0: (m,); P: (k, m), or (k, 1) for the UNIFORM variant;
+    edges: (m, 2) int32; inc_*: CSR incidence (inc_ptr (n+1,) int64, inc_spring and inc_other
+    (2m,) int32); masses, inv_mass: (n,) (inv_mass 0 on anchors); anchored: (n,) bool;
     gravity: (3,) acceleration, used when with_gravity. x_buf and s are scratch.
     """
+    edges_u = edges.view(np.uint32)
+    inc_spring_u = inc_spring.view(np.uint32)
+    inc_other_u = inc_other.view(np.uint32)
     n_stages = drifts.shape[0]
     cur = x
     nxt = x_buf
@@ -140,15 +193,15 @@ def _advance(x, x_buf, p, phi, eta, s, l0, P, edges, inc_ptr, inc_spring, inc_ot
             k2 = kicks[i]
             with_force = k1 != 0.0 or k2 != 0.0
             if with_force:
-                spring_pass(cur, eta, l0, P, edges, s, phi, k1 * h, k2 * h, track_phi)
-            node_pass(cur, nxt, p, s, inc_ptr, inc_spring, inc_other, masses, inv_mass, anchored,
+                spring_pass(cur, eta, l0, P, edges_u, s, phi, k1 * h, k2 * h, track_phi)
+            node_pass(cur, nxt, p, s, inc_ptr, inc_spring_u, inc_other_u, masses, inv_mass, anchored,
                       k1 * h, k2 * h, drifts[i] * h, with_force, gravity, with_gravity)
             cur, nxt = nxt, cur
             swaps += 1
         pending = kicks[n_stages]
     if pending != 0.0:
-        spring_pass(cur, eta, l0, P, edges, s, phi, 0.0, pending * h, track_phi)
-        node_pass(cur, nxt, p, s, inc_ptr, inc_spring, inc_other, masses, inv_mass, anchored,
+        spring_pass(cur, eta, l0, P, edges_u, s, phi, 0.0, pending * h, track_phi)
+        node_pass(cur, nxt, p, s, inc_ptr, inc_spring_u, inc_other_u, masses, inv_mass, anchored,
                   0.0, pending * h, 0.0, True, gravity, with_gravity)
         cur, nxt = nxt, cur
         swaps += 1
