@@ -1,6 +1,7 @@
 """The Newton machinery of the implicit integrators: exact Jacobian, quadratic convergence,
 loud and safe failure, retry, options, and availability by name (API and CLI)."""
 
+import json
 import warnings
 from pathlib import Path
 
@@ -173,4 +174,6 @@ def test_cli_runs_an_implicit_integrator(tmp_path):
     scene = Path(__file__).resolve().parents[1] / "scenes" / "chain.toml"
     assert main(["run", str(scene), "--integrator", "ho4", "--out", str(tmp_path), "--quiet", "--t-end", "0.05"]) == 0
     data = np.genfromtxt(tmp_path / "diagnostics.csv", delimiter=",", names=True)
-    assert "newton_iterations" in data.dtype.names
+    assert "newton_iterations" in data.dtype.names and "newton_residual" in data.dtype.names
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["newton"]["iterations_max"] <= 3 and summary["newton"]["residual_max"] <= 1e-12

@@ -415,6 +415,9 @@ class Simulation:
             "steps_per_s": self.steps_run / self.wall_time if self.wall_time > 0 else float("nan"),
             "spring_steps_per_s": self.steps_run * self.net.n_springs / self.wall_time if self.wall_time > 0 else float("nan"),
         }
+        solver_summary = getattr(self.stepper, "summary", None)  # implicit integrators: Newton totals
+        if solver_summary is not None:
+            out["_run"]["newton"] = solver_summary()
         return out
 
     def __repr__(self) -> str:

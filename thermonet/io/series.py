@@ -174,6 +174,7 @@ class RunOutput:
             "steps_per_s": run["steps_per_s"],
             "frames": len(self.pvd.frames),
             "conserved": summary,
+            **({"newton": run["newton"]} if "newton" in run else {}),
             **(extra or {}),
         }
         with atomic_write(self.summary_path, "w") as f:
