@@ -1,0 +1,129 @@
+"""What the implicit integrators cost (issue 3).
+
+Part 1, scaling: jittered 6-neighbour 3D lattices of about 1e2 … 1e5 springs, random momenta and
+temperatures, h = 0.01 (about a fifth of CO2's stability limit there). For GTR-1/2 and HO4 with
+each linear solver: seconds per step, Newton iterations per step, the split of a step's time
+into residual evaluations, Jacobian assembly, factorization (or preconditioner set-up) and solve,
+and the ratio to a CO2 step of the same net in the same process.
+
+Part 2, the paper's chain: Newton iterations per step at h ≤ 0.01, and error in positions at
+t = 100 against wall time for every integrator (the paper's Fig. 9), to find where HO4 starts
+to pay off. The reference is DOP853 at rtol = atol = 1e-13 on Hamilton's equations.
+
+    python benchmarks/implicit_cost.py                    # both parts
+    python benchmarks/implicit_cost.py --part scaling --sizes 3 7 15 32
+    python benchmarks/implicit_cost.py --part chain
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+import thermonet as tn
+
+
+def lattice_simulation(cells: int, integrator: str, h: float, **options) -> tn.Simulation:
+    net = tn.lattice((cells, cells, cells), jitter=0.1, seed=1)
+    rng = np.random.default_rng(0)
+    return tn.Simulation(
+        net, model="hencky", parameters=dict(c=100.0, beta=0.2, C0=5.0, theta0=300.0),
+        temperatures=rng.uniform(300.0, 600.0, net.n_springs), momenta=rng.normal(0.0, 1.0, (net.n_nodes, 3)),
+        integrator=integrator, h=h, integrator_options=options,
+    )
+
+
+def seconds_per_step(sim: tn.Simulation, steps: int) -> float:
+    sim.run(steps=1, diagnostics_every=10**9)  # compile, first factorization, caches
+    if hasattr(sim.stepper, "timers"):
+        sim.stepper.timers.__init__()
+        sim.stepper.totals.update(steps=0, iterations=0)
+    t0 = time.perf_counter()
+    sim.run(steps=steps, diagnostics_every=10**9)
+    return (time.perf_counter() - t0) / steps
+
+
+def scaling(sizes, steps, h, direct_max_springs):
+    print(f"lattice (k³ cells, 6 neighbours, jitter 0.1), h = {h}, {steps} steps per run\n")
+    print("| springs | method | solver | ms/step | × CO2 | Newton it./step | residual ms | assembly ms | factor. ms | solve ms |")
+    print("|---:|---|---|---:|---:|---:|---:|---:|---:|---:|")
+    for k in sizes:
+        co2 = lattice_simulation(k, "co2", h)
+        m = co2.net.n_springs
+        n_steps = max(3, min(steps, int(2e6 / m)))
+        t_co2 = seconds_per_step(co2, max(n_steps, 50))
+        print(f"| {m} | co2 | – | {1e3 * t_co2:.3f} | 1 | – | – | – | – | – |", flush=True)
+        for method in ("gtr-1/2", "ho4"):
+            for solver in ("splu", "gmres"):
+                if solver == "splu" and m > direct_max_springs:
+                    continue
+                sim = lattice_simulation(k, method, h, linear_solver=solver)
+                t = seconds_per_step(sim, 3 if (solver == "splu" and m > 5000) else n_steps)
+                s = sim.stepper.summary()
+                per = {key: 1e3 * s[f"time_{key}"] / s["steps"] for key in ("residual", "assembly", "factorization", "solve")}
+                print(f"| {m} | {method} | {solver} | {1e3 * t:.2f} | {t / t_co2:.0f} | {s['iterations_mean']:.2f} | "
+                      f"{per['residual']:.2f} | {per['assembly']:.2f} | {per['factorization']:.2f} | {per['solve']:.2f} |",
+                      flush=True)
+
+
+def chain(t_end):
+    from thermonet import reference as ref
+    from thermonet.paper import CHAIN_MOMENTA, CHAIN_PARAMETERS, CHAIN_TEMPERATURES
+
+    print("chain: Newton iterations per step to t = 10")
+    print("| method | h | mean | max |\n|---|---:|---:|---:|")
+    for method in ("gtr-1/2", "ho4"):
+        for h in (0.01, 0.005, 0.001):
+            sim = tn.chain_simulation(method, h=h)
+            sim.run(t_end=10.0, diagnostics_every=10**9)
+            s = sim.stepper.summary()
+            print(f"| {method} | {h} | {s['iterations_mean']:.2f} | {s['iterations_max']} |", flush=True)
+
+    net = tn.chain()
+    rnet = ref.ReferenceNet.build(net, "hencky", CHAIN_PARAMETERS)
+    eta = rnet.entropies(net.positions, CHAIN_TEMPERATURES)
+    start = ref.ReferenceState(net.positions.copy(), CHAIN_MOMENTA.copy(), np.zeros(3), eta)
+    t0 = time.perf_counter()
+    x_ref = ref.hamilton_solution(rnet, start, t_end, rtol=1e-13, atol=1e-13).x
+    print(f"\nreference (DOP853, rtol = atol = 1e-13) to t = {t_end}: {time.perf_counter() - t0:.1f} s")
+    print(f"\nchain: max error in positions at t = {t_end} against wall time")
+    print("| method | h | error | wall s |\n|---|---:|---:|---:|")
+    for method, exps in (("gtr-0", range(4, 10)), ("gtr-1", range(4, 10)), ("co2", range(1, 8)),
+                         ("co4", range(1, 7)), ("co6", range(1, 6)), ("gtr-1/2", range(1, 8)), ("ho4", range(0, 6))):
+        for i in exps:
+            h = 0.1 * 2.0**-i
+            sim = tn.chain_simulation(method, h=h)
+            sim.run(steps=1, diagnostics_every=10**9)  # compile outside the timing
+            sim = tn.chain_simulation(method, h=h)
+            t0 = time.perf_counter()
+            try:
+                sim.run(t_end=t_end, diagnostics_every=10**9)
+            except tn.SimulationError as exc:
+                print(f"| {method} | {h:.3g} | failed: {str(exc)[:60]} | |")
+                continue
+            wall = time.perf_counter() - t0
+            err = np.abs(sim.state.positions - x_ref).max()
+            print(f"| {method} | {h:.4g} | {err:.2e} | {wall:.3f} |", flush=True)
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--part", choices=("scaling", "chain", "all"), default="all")
+    ap.add_argument("--sizes", type=int, nargs="+", default=[3, 7, 15, 32], help="lattice cells per side")
+    ap.add_argument("--steps", type=int, default=20)
+    ap.add_argument("--h", type=float, default=0.01)
+    ap.add_argument("--direct-max-springs", type=int, default=12000,
+                    help="skip the direct solver above this many springs (3D fill-in)")
+    ap.add_argument("--t-end", type=float, default=100.0)
+    args = ap.parse_args(argv)
+    if args.part in ("scaling", "all"):
+        scaling(args.sizes, args.steps, args.h, args.direct_max_springs)
+        print()
+    if args.part in ("chain", "all"):
+        chain(args.t_end)
+
+
+if __name__ == "__main__":
+    main()
