@@ -8,10 +8,14 @@ How the range is chosen (no knowledge of the expected order is used):
    quantity's size (no longer a small perturbation of the solution).
 2. Of what remains, the contiguous run of time steps that contains the smallest kept step is
    taken.
-3. Going from the smallest step towards larger ones, points are added while the local slope
-   (log-log slope between a point and its smaller neighbour) stays within ``tolerance`` (0.25)
-   of the median of the local slopes already accepted. The first coarse point that bends the
-   curve away ends the range: the pre-asymptotic regime.
+3. Starting from each point of that run in turn (smallest step first), points towards larger
+   steps are added while the local slope (log-log slope between a point and its smaller
+   neighbour) stays within ``tolerance`` (0.25) of the median of the local slopes already
+   accepted; the first coarse point that bends the curve away ends the range (the
+   pre-asymptotic regime). The longest such range wins, the one at smaller steps on ties. Starting
+   anywhere, not only at the smallest step, lets the range skip a finest point that has reached
+   the integrator's own round-off or solver-tolerance floor (seen with HO4's temperatures: the
+   error stops falling at ~1e-13 of θ after thousands of steps), which no reference floor catches.
 4. The slope is the least-squares fit of log(error) on log(h) over the range (at least two points).
 """
 
@@ -54,11 +58,15 @@ def asymptotic_slope(h, error, floor: float = 0.0, scale: float = np.inf, max_re
         last += 1
     logh, loge = np.log(h[first:last + 1]), np.log(error[first:last + 1])
     local = np.diff(loge) / np.diff(logh)
-    accepted = [local[0]]
-    for s in local[1:]:
-        if abs(s - np.median(accepted)) > tolerance:
-            break
-        accepted.append(s)
-    n = len(accepted) + 1
-    p, logc = np.polyfit(logh[:n], loge[:n], 1)
-    return SlopeFit(float(p), float(np.exp(logc)), float(h[first]), float(h[first + n - 1]), n)
+    best_start, best_n = 0, 0
+    for start in range(len(local)):
+        accepted = [local[start]]
+        for s in local[start + 1:]:
+            if abs(s - np.median(accepted)) > tolerance:
+                break
+            accepted.append(s)
+        if len(accepted) + 1 > best_n:
+            best_start, best_n = start, len(accepted) + 1
+    i, n = best_start, best_n
+    p, logc = np.polyfit(logh[i:i + n], loge[i:i + n], 1)
+    return SlopeFit(float(p), float(np.exp(logc)), float(h[first + i]), float(h[first + i + n - 1]), n)
