@@ -253,6 +253,17 @@ def measure_size(target: float, args, threads: int, bandwidth: float) -> dict:
     )
 
 
+def cpu_name() -> str:
+    try:
+        with open("/proc/cpuinfo") as fh:
+            for line in fh:
+                if line.startswith("model name"):
+                    return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
 def available_memory() -> float:
     try:
         with open("/proc/meminfo") as fh:
@@ -282,10 +293,11 @@ def main(argv=None) -> int:
 
     print(f"# CO2 throughput, hencky springs, {NEIGHBOURS}-neighbour jittered lattices"
           f"{', per-spring parameters' if args.varied else ', shared parameters'}")
-    print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} CPUs; numba {numba.__version__} "
+    print(f"machine: {cpu_name()}, {os.cpu_count()} CPUs, {available_memory() / 2**30:.0f} GiB available; numba {numba.__version__} "
           f"({numba.threading_layer() if hasattr(numba, 'threading_layer') else '?'}), numpy {np.__version__}; "
           f"parallel kernel on {threads} threads")
-    print(f"STREAM triad (all threads, 24 B/element): {bandwidth / 1e9:.1f} GB/s\n")
+    print(f"STREAM triad (all threads, 24 B/element): {bandwidth / 1e9:.1f} GB/s; "
+          f"load average (1 min) at start: {os.getloadavg()[0]:.2f}\n")
     print("| springs | nodes | thermonet 1 thread (M/s) | thermonet parallel (M/s) | NumPy (M/s) | ratio | "
           "bytes/spring-step | GB/s moved | % of bandwidth bound | bytes/spring | agree |")
     print("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
@@ -302,7 +314,9 @@ def main(argv=None) -> int:
               f"{r['ratio']:.1f}× | {r['bytes_per_spring_step']:.0f} | {r['achieved_gbs']:.1f} | "
               f"{100 * r['bandwidth_fraction']:.0f} % | {r['memory_per_spring']:.0f} | {r['agreement']:.0e} |",
               flush=True)
-    print("\nbold: the kernel the Simulation picks by default at that size (used for ratio, GB/s and %); "
+    print(f"\nload average (1 min) at end: {os.getloadavg()[0]:.2f} (other jobs on these {os.cpu_count()} CPUs "
+          "slow the parallel kernel most: each pass waits for its slowest thread).")
+    print("bold: the kernel the Simulation picks by default at that size (used for ratio, GB/s and %); "
           "agree: largest relative difference of x and p between thermonet and NumPy after 5 steps from one state.")
     return 0
 
