@@ -10,8 +10,8 @@ random velocities) of about each requested number of springs, prints a markdown 
   median over repeats, each repeat long enough (``--seconds``) to make call overheads small;
 - the same for a NumPy implementation of the same CO2 step (one force evaluation per step,
   vectorized per-spring arithmetic, ``np.bincount`` scatter, same node numbering), and the ratio
-  of thermonet's rate with the engine's default kernel choice to it; before timing, both are run
-  a few steps from one state and must agree to round-off;
+  of thermonet's rate with the engine's default kernel choice to it; before timing, both run a
+  few steps from one state and their agreement is reported (round-off: ~1e-15);
 - the bytes per spring-step the kernel moves and the fraction of the bandwidth bound reached:
   the bound is (STREAM triad bandwidth measured in this run) / (bytes per spring-step). Bytes
   are *compulsory traffic*: every array a pass reads counts its full size once per pass, every
@@ -22,7 +22,9 @@ random velocities) of about each requested number of springs, prints a markdown 
 - bytes of memory per spring: every array the Simulation holds in its internal numbering
   (System, Layout, State, the stepper's scratch), divided by the number of springs.
 
-The machine is shared: rates are medians of interleaved repeats; expect ±10–20 % between runs.
+On a shared machine rates are medians of interleaved repeats, and the load average is printed:
+another CPU-bound job on one of two cores slows the parallel kernel by 2–4× (every pass waits for
+its slowest thread) and small nets' parallel runs far more; compare runs only at low load.
 """
 
 from __future__ import annotations
@@ -106,15 +108,23 @@ def _triad(a, b, c, scalar):
 
 
 def triad_bandwidth(n: int = 20_000_000, repeats: int = 10) -> float:
-    """STREAM triad a = b + s c on all threads, bytes/s counted as STREAM does (24 per element:
-    two reads, one write); the best of ``repeats``, as STREAM reports."""
+    """STREAM triad a = b + s c, bytes/s counted as STREAM does (24 per element: two reads, one
+    write); the best of ``repeats``, as STREAM reports, on all threads or on one thread, whichever
+    is higher (with another job on one core, the all-thread triad waits for its slow thread and
+    understates the machine). The table uses the best over one such measurement before every size."""
     a, b, c = np.zeros(n), np.ones(n), np.full(n, 2.0)
-    _triad(a, b, c, 3.0)
+    threads = numba.get_num_threads()
     best = np.inf
-    for _ in range(repeats):
-        t = time.perf_counter()
-        _triad(a, b, c, 3.0)
-        best = min(best, time.perf_counter() - t)
+    try:
+        for t in sorted({1, threads}):
+            numba.set_num_threads(t)
+            _triad(a, b, c, 3.0)
+            for _ in range(repeats):
+                t0 = time.perf_counter()
+                _triad(a, b, c, 3.0)
+                best = min(best, time.perf_counter() - t0)
+    finally:
+        numba.set_num_threads(threads)
     return 24.0 * n / best
 
 
@@ -216,7 +226,7 @@ def check_agreement(sim, steps: int = 5) -> float:
                float(np.abs(ref.p - s.momenta).max() / np.abs(ref.p).max()))
 
 
-def measure_size(target: float, args, threads: int, bandwidth: float) -> dict:
+def measure_size(target: float, args, threads: int) -> dict:
     """One row of the table. One Simulation (its default kernel choice recorded) runs with a
     serial and a parallel stepper in turn; the NumPy step runs on a copy of its state."""
     sim = make_simulation(lattice_cells(target), None, threads, args.varied)
@@ -248,7 +258,7 @@ def measure_size(target: float, args, threads: int, bandwidth: float) -> dict:
     return dict(
         springs=m, nodes=n, serial=rates["serial"], parallel=rates["parallel"], default=default_kind,
         numpy=numpy_rate, ratio=best / numpy_rate, bytes_per_spring_step=bytes_step / m,
-        bandwidth_fraction=best * bytes_step / m / bandwidth, achieved_gbs=best * bytes_step / m / 1e9,
+        achieved_gbs=best * bytes_step / m / 1e9,
         memory_per_spring=resident_bytes(sim) / m, agreement=agreement,
     )
 
@@ -289,35 +299,48 @@ def main(argv=None) -> int:
     if args.quick:
         args.sizes, args.repeats, args.seconds = "1e3,1e4,1e5", 3, 0.2
     threads = args.threads or numba.config.NUMBA_NUM_THREADS
-    bandwidth = triad_bandwidth(5_000_000 if args.quick else 20_000_000)
+    triad_elements = 5_000_000 if args.quick else 20_000_000
+    bandwidth = triad_bandwidth(triad_elements)
 
-    print(f"# CO2 throughput, hencky springs, {NEIGHBOURS}-neighbour jittered lattices"
-          f"{', per-spring parameters' if args.varied else ', shared parameters'}")
-    print(f"machine: {cpu_name()}, {os.cpu_count()} CPUs, {available_memory() / 2**30:.0f} GiB available; numba {numba.__version__} "
-          f"({numba.threading_layer() if hasattr(numba, 'threading_layer') else '?'}), numpy {np.__version__}; "
-          f"parallel kernel on {threads} threads")
-    print(f"STREAM triad (all threads, 24 B/element): {bandwidth / 1e9:.1f} GB/s; "
-          f"load average (1 min) at start: {os.getloadavg()[0]:.2f}\n")
-    print("| springs | nodes | thermonet 1 thread (M/s) | thermonet parallel (M/s) | NumPy (M/s) | ratio | "
-          "bytes/spring-step | GB/s moved | % of bandwidth bound | bytes/spring | agree |")
-    print("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    load_start = os.getloadavg()[0]
+    rows = []
     for token in args.sizes.split(","):
         target = float(token)
         need = 700.0 * target  # net, layout construction, engine, the NumPy step's temporaries
         if need > 0.8 * available_memory():
-            print(f"| ~{target:.0e} | skipped: needs about {need / 2**30:.0f} GiB | | | | | | | | | |")
+            rows.append(f"| ~{target:.0e} | skipped: needs about {need / 2**30:.0f} GiB | | | | | | | | | |")
             continue
-        r = measure_size(target, args, threads, bandwidth)
+        bandwidth = max(bandwidth, triad_bandwidth(triad_elements))
+        rows.append(measure_size(target, args, threads))
+        r = rows[-1]
+        print(f"{r['springs']:,} springs: {r['serial'] / 1e6:.1f} / {r['parallel'] / 1e6:.1f} M/s (1 thread / "
+              f"parallel), NumPy {r['numpy'] / 1e6:.2f} M/s", file=sys.stderr, flush=True)
+
+    print(f"# CO2 throughput, hencky springs, {NEIGHBOURS}-neighbour jittered lattices"
+          f"{', per-spring parameters' if args.varied else ', shared parameters'}")
+    print(f"machine: {cpu_name()}, {os.cpu_count()} CPUs, {available_memory() / 2**30:.0f} GiB available; "
+          f"numba {numba.__version__} ({numba.threading_layer()}), numpy {np.__version__}; "
+          f"parallel kernel on {threads} threads")
+    print(f"STREAM triad (24 B/element, best over the run): {bandwidth / 1e9:.1f} GB/s; "
+          f"load average (1 min) at start {load_start:.2f}, at end {os.getloadavg()[0]:.2f}\n")
+    print("| springs | nodes | thermonet 1 thread (M/s) | thermonet parallel (M/s) | NumPy (M/s) | ratio | "
+          "bytes/spring-step | GB/s moved | % of bandwidth bound | bytes/spring | agree |")
+    print("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    for r in rows:
+        if isinstance(r, str):
+            print(r)
+            continue
         mark = lambda kind: "**" if r["default"] == kind else ""  # noqa: E731
+        best = r[r["default"]]
         print(f"| {r['springs']:,} | {r['nodes']:,} | {mark('serial')}{r['serial'] / 1e6:.1f}{mark('serial')} | "
               f"{mark('parallel')}{r['parallel'] / 1e6:.1f}{mark('parallel')} | {r['numpy'] / 1e6:.2f} | "
               f"{r['ratio']:.1f}× | {r['bytes_per_spring_step']:.0f} | {r['achieved_gbs']:.1f} | "
-              f"{100 * r['bandwidth_fraction']:.0f} % | {r['memory_per_spring']:.0f} | {r['agreement']:.0e} |",
-              flush=True)
-    print(f"\nload average (1 min) at end: {os.getloadavg()[0]:.2f} (other jobs on these {os.cpu_count()} CPUs "
-          "slow the parallel kernel most: each pass waits for its slowest thread).")
-    print("bold: the kernel the Simulation picks by default at that size (used for ratio, GB/s and %); "
-          "agree: largest relative difference of x and p between thermonet and NumPy after 5 steps from one state.")
+              f"{100 * best * r['bytes_per_spring_step'] / bandwidth:.0f} % | {r['memory_per_spring']:.0f} | "
+              f"{r['agreement']:.0e} |")
+    print("\nbold: the kernel the Simulation picks by default at that size (used for ratio, GB/s and %); "
+          "agree: largest relative difference of x and p between thermonet and NumPy after 5 steps from one "
+          "state. Other jobs on the machine slow the parallel kernel most (each pass waits for its slowest "
+          "thread): compare the load averages.")
     return 0
 
 
