@@ -39,7 +39,7 @@ class GTRAlpha(Integrator):
                             f"order {self.order}, paper (48)")
 
     def make_stepper(self, system, parallel: bool = False, **options) -> "GTRAlphaStepper":
-        return GTRAlphaStepper(self, system, newton_options(options))
+        return GTRAlphaStepper(self, system, newton_options(options), parallel)
 
 
 class GTRAlphaStepper(ImplicitStepper):
@@ -54,6 +54,7 @@ class GTRAlphaStepper(ImplicitStepper):
         self.dir1 = np.empty((m, 3))
         self.theta = np.empty(m)
         self.dtheta = np.empty(m)
+        self.jc = np.empty(m)
 
     def predict(self, u: np.ndarray) -> None:
         """d = h M⁻¹ (p + α h f(x⁰, θ(l⁰, η))): (48a) with θ̄ frozen at the start temperature,
@@ -65,11 +66,26 @@ class GTRAlphaStepper(ImplicitStepper):
 
     def residual(self, u: np.ndarray):
         s = self.system
-        return self.kernels.residual(
-            self.x0, u, self.p0, self.eta0, s.rest_lengths, s.parameters, s.edges, self.free_index, s.masses,
-            self.alpha, self.h, self.gravity, self.with_gravity, self.len0, self.dir0, self.len1, self.dir1,
-            self.theta, self.dtheta, self.R, self.Rabs,
+        status, spring = self.kernels.residual(
+            self.x0, u, self.p0, self.eta0, s.rest_lengths, s.parameters, s.edges, self.free_index, *self.incidence,
+            s.masses, self.alpha, self.h, self.gravity, self.with_gravity, self.len0, self.dir0, self.len1,
+            self.dir1, self.theta, self.dtheta, self.warm, self.fs, self.code, self.R, self.Rabs,
         )
+        self.warm = status == 0
+        return status, spring
+
+    def linearize(self) -> None:
+        s = self.system
+        self.kernels.linearize(self.alpha, self.h, s.rest_lengths, s.parameters, self.len0, self.theta, self.dtheta,
+                               self.jc)
+
+    def sweep(self, du, rhs, r, update, first=False):
+        return self.sweeper(du, rhs, r, self.sweep_scratch, self.jc, self.dir0, self.dir1, self.system.edges,
+                            self.free_index, *self.incidence, self.system.masses, self.h, update, first)
+
+    def apply_inverse_inertia(self, v):
+        """(h/m) v per free node."""
+        return (np.asarray(v).reshape(-1, 3) * (self.h / self.block_mass)[:, None]).ravel()
 
     def jacobian(self, data: np.ndarray) -> None:
         s, p = self.system, self.pattern
@@ -83,8 +99,8 @@ class GTRAlphaStepper(ImplicitStepper):
         s = self.system
         return self.kernels.finish(
             self.x0, self.u, self.p0, phi0, self.eta0, s.rest_lengths, s.parameters, s.edges, self.free_index,
-            s.masses, self.alpha, self.h, self.gravity, self.with_gravity, self.len0, self.dir0, self.len1,
-            self.dir1, self.theta, x_new, p_new, phi_new, eta_new,
+            *self.incidence, s.masses, self.alpha, self.h, self.gravity, self.with_gravity, self.len0, self.dir0,
+            self.len1, self.dir1, self.theta, self.fs, self.code, x_new, p_new, phi_new, eta_new,
         )
 
 

@@ -30,7 +30,7 @@ class HO4(Integrator):
     description = "quadratic trajectories + Lobatto quadrature (Lobatto IIIA-IIIB), implicit, paper (58)"
 
     def make_stepper(self, system, parallel: bool = False, **options) -> "HO4Stepper":
-        return HO4Stepper(self, system, newton_options(options))
+        return HO4Stepper(self, system, newton_options(options), parallel)
 
 
 class HO4Stepper(ImplicitStepper):
@@ -47,24 +47,53 @@ class HO4Stepper(ImplicitStepper):
         self.th0 = np.empty(m)
         self.th1 = np.empty(m)
         self.dth = np.empty((m, 4))
+        self.jc = np.empty((m, 5))
+        self.gs = np.empty(m)
+
+    with_rate = True
 
     def predict(self, u: np.ndarray) -> None:
-        """d¹ from a CO2 step; d^½ from the quadratic through x⁰ with velocity p/m and x¹."""
+        """d^½, d¹ from the third-order Taylor expansion of the exact flow at (x⁰, p⁰):
+        d(t) = t v + t²/2 a + t³/6 ȧ, a = f/m, ȧ from the start kernel's fdot0. Against the
+        second-order guess (a CO2 step and the quadratic through it) this cuts the predictor's
+        scaled residual by about 10× on the benchmark lattices, which saves a Newton iteration."""
         s, h, a = self.system, self.h, self._free_nodes
         force = self.f0[a] + (s.masses[a, None] * self.gravity if self.with_gravity else 0.0)
-        v0 = s.inv_mass[a, None] * self.p0[a]
-        d1 = h * (v0 + 0.5 * h * s.inv_mass[a, None] * force)
+        w = s.inv_mass[a, None]
+        v0 = w * self.p0[a]
+        acc = w * force
+        jerk = w * self.fdot0[a]
         blocks = u.reshape(-1, 6)
-        blocks[self._free_blocks, 3:] = d1
-        blocks[self._free_blocks, :3] = 0.25 * d1 + 0.25 * h * v0
+        blocks[self._free_blocks, 3:] = h * (v0 + h * (0.5 * acc + h / 6.0 * jerk))
+        blocks[self._free_blocks, :3] = 0.5 * h * (v0 + 0.5 * h * (0.5 * acc + h / 6.0 * jerk))
 
     def residual(self, u: np.ndarray):
         s = self.system
-        return self.kernels.residual(
-            self.x0, u, self.p0, self.eta0, s.rest_lengths, s.parameters, s.edges, self.free_index, s.masses,
-            self.h, self.gravity, self.with_gravity, self.len0, self.dir0, self.lenh, self.dirh, self.len1,
-            self.dir1, self.th0, self.th1, self.dth, self.R, self.Rabs,
+        status, spring = self.kernels.residual(
+            self.x0, u, self.p0, self.eta0, s.rest_lengths, s.parameters, s.edges, self.free_index, *self.incidence,
+            s.masses, self.h, self.gravity, self.with_gravity, self.len0, self.dir0, self.lenh, self.dirh, self.len1,
+            self.dir1, self.th0, self.th1, self.dth, self.gs, self.warm, self.fs, self.code, self.R, self.Rabs,
         )
+        self.warm = status == 0
+        return status, spring
+
+    def linearize(self) -> None:
+        s = self.system
+        self.kernels.linearize(self.h, s.rest_lengths, s.parameters, self.len0, self.lenh, self.th0, self.th1,
+                               self.dth, self.jc)
+
+    def sweep(self, du, rhs, r, update, first=False):
+        return self.sweeper(du, rhs, r, self.sweep_scratch, self.jc, self.dir0, self.dirh, self.dir1,
+                            self.system.edges, self.free_index, *self.incidence, self.system.masses, self.h, update, first)
+
+    def apply_inverse_inertia(self, v):
+        """Per free node, (h/m) ½ [[1, 1/3], [2, 8/3]] applied to (v^½, v¹)."""
+        b = np.asarray(v).reshape(-1, 2, 3)
+        q = (0.5 * self.h / self.block_mass)[:, None]
+        out = np.empty_like(b)
+        out[:, 0] = q * (b[:, 0] + b[:, 1] / 3.0)
+        out[:, 1] = q * (2.0 * b[:, 0] + 8.0 / 3.0 * b[:, 1])
+        return out.ravel()
 
     def jacobian(self, data: np.ndarray) -> None:
         s, p = self.system, self.pattern
@@ -78,8 +107,8 @@ class HO4Stepper(ImplicitStepper):
         s = self.system
         return self.kernels.finish(
             self.x0, self.u, self.p0, phi0, self.eta0, s.rest_lengths, s.parameters, s.edges, self.free_index,
-            s.masses, self.h, self.gravity, self.with_gravity, self.len0, self.dir0, self.lenh, self.dirh,
-            self.len1, self.dir1, self.th0, self.th1, x_new, p_new, phi_new, eta_new,
+            *self.incidence, s.masses, self.h, self.gravity, self.with_gravity, self.len0, self.dir0, self.lenh,
+            self.dirh, self.len1, self.dir1, self.th0, self.th1, self.fs, self.code, x_new, p_new, phi_new, eta_new,
         )
 
 

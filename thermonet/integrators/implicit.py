@@ -17,6 +17,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..kernels.implicit import STATUS_TEXT, implicit_kernels
+from ..kernels.implicit_operator import operator_kernels
 from .base import Stepper, StepFailure
 from .newton import BlockPattern, NewtonOptions, NewtonResult, NewtonTimers, make_linear_solver, newton
 
@@ -37,21 +38,28 @@ class ImplicitStepper(Stepper):
 
     Attributes a subclass relies on: ``x0, p0, eta0`` the step's start (n, 3), (n, 3), (m,);
     ``h``; ``len0`` (m,), ``dir0`` (m, 3), ``f0`` (n, 3) from the start kernel; ``R``, ``Rabs``
-    (size,); ``data`` (nnz,) the Jacobian values; ``pattern``, ``kernels``.
+    (size,); ``data`` (nnz,) the Jacobian values; ``jc`` the per-spring coefficients of the
+    matrix-free Jacobian; ``fs`` (m, B) and ``code`` (m,) kernel scratch; ``warm``: whether the
+    per-spring temperatures of the last residual may seed the next one (same step);
+    ``incidence`` the node→spring CSR (inc_ptr, inc_spring); ``pattern``, ``kernels``, ``sweeper``.
     """
 
     block: int
     scheme: str
+    #: whether the predictor uses the forces' time derivative (start kernel's fdot0)
+    with_rate: bool = False
 
-    def __init__(self, integrator, system, options: NewtonOptions):
+    def __init__(self, integrator, system, options: NewtonOptions, parallel: bool = False):
         if not system.thermal:
             raise InputError(f"integrator {integrator.name} needs thermal coupling (thermal=True)")
         self.integrator = integrator
         self.system = system
         self.options = options
-        self.kernels = implicit_kernels(system.model, self.scheme)
+        self.kernels = implicit_kernels(system.model, self.scheme, parallel)
+        self.sweeper = operator_kernels(self.scheme, parallel)
+        self.incidence = (system.layout.inc_ptr, system.layout.inc_spring)
         self.pattern = BlockPattern.build(system.edges, system.anchored, self.block)
-        self.solver = make_linear_solver(options.linear_solver, self.pattern)
+        self.solver = make_linear_solver(options.linear_solver, self.pattern, self)
         n, m, size = system.n_nodes, system.n_springs, self.pattern.size
         self.free_index = self.pattern.free_index
         free = np.flatnonzero(self.free_index >= 0)
@@ -59,13 +67,19 @@ class ImplicitStepper(Stepper):
         self._free_blocks = self.free_index[free]
         self.node_of_block = np.empty(self.pattern.n_free, dtype=np.int64)
         self.node_of_block[self._free_blocks] = free
+        self.block_mass = system.masses[self.node_of_block]  # (n_free,)
         self.R = np.zeros(size)
         self.Rabs = np.zeros(size)
         self.u = np.zeros(size)
-        self.data = np.zeros(self.pattern.nnz)
+        self.data = np.zeros(self.pattern.nnz if self.solver.assembled else 0)
+        self.fs = np.empty((m, self.block))
+        self.sweep_scratch = np.empty((m, self.block))
+        self.code = np.zeros(m, dtype=np.int64)
+        self.warm = False
         self.len0 = np.empty(m)
         self.dir0 = np.empty((m, 3))
         self.f0 = np.empty((n, 3))
+        self.fdot0 = np.empty((n, 3))
         self._new = (np.empty((n, 3)), np.empty((n, 3)), np.empty(m), np.empty(m))
         self.gravity = np.zeros(3) if system.gravity is None else np.asarray(system.gravity, dtype=np.float64)
         self.with_gravity = system.gravity is not None
@@ -92,6 +106,19 @@ class ImplicitStepper(Stepper):
         """Fill the Jacobian values at the last residual's point."""
 
     @abstractmethod
+    def linearize(self) -> None:
+        """Fill ``jc``, the matrix-free Jacobian's coefficients at the last residual's point."""
+
+    @abstractmethod
+    def sweep(self, du: np.ndarray, rhs: np.ndarray, r: np.ndarray, update: bool, first: bool = False) -> float:
+        """r = rhs − J du, then (update) du += D⁻¹ r; returns max |r| (matrix-free J). ``first``:
+        du is zero."""
+
+    @abstractmethod
+    def apply_inverse_inertia(self, v: np.ndarray) -> np.ndarray:
+        """D⁻¹ v for the nodal inertia blocks D (a new array)."""
+
+    @abstractmethod
     def finish(self, phi0, x_new, p_new, phi_new, eta_new) -> tuple[int, int]:
         """The next state from the converged unknowns; (status, spring)."""
 
@@ -100,7 +127,10 @@ class ImplicitStepper(Stepper):
         """Start a step at (x, p, η) with step h: geometry and explicit forces at x."""
         s = self.system
         self.x0, self.p0, self.eta0, self.h = x, p, eta, float(h)
-        status, spring = self.kernels.start(x, eta, s.rest_lengths, s.parameters, s.edges, self.len0, self.dir0, self.f0)
+        self.warm = False
+        status, spring = self.kernels.start(x, p, s.inv_mass, eta, s.rest_lengths, s.parameters, s.edges,
+                                            *self.incidence, self.len0, self.dir0, self.fs, self.code,
+                                            self.with_rate, self.f0, self.fdot0)
         if status != 0:
             raise _StepError("invalid state at the start of the step", None, status, spring)
 

@@ -10,8 +10,11 @@ node graph. Three pieces, each with one job:
 - :class:`SparseLU` (``linear_solver="splu"``): SciPy's SuperLU. The fill-reducing ordering
   is computed once (minimum degree on AᵀA + A of the node graph) and baked into the pattern, so
   each factorization runs with the NATURAL ordering and skips the ordering phase; pivoting
-  prefers the (dominant) diagonal. :class:`Krylov` (``"gmres"``) is the alternative for large
-  3D nets, where a direct factorization fills in superlinearly;
+  prefers the (dominant) diagonal. :class:`MatrixFree` (``"matfree"``) never forms the matrix:
+  inertia-preconditioned sweeps of matrix-free products (Numba, threaded), with SciPy GMRES on
+  the same product as fallback; it is the one for large nets, where a direct factorization of a
+  3D net fills in superlinearly and an assembled Krylov solve (:class:`Krylov`, ``"gmres"``)
+  spends its time filling and reading a matrix of 36 entries per spring-block;
 - :func:`newton`: the iteration, its convergence test, its record and its timings.
 """
 
@@ -39,11 +42,12 @@ class NewtonOptions:
         have reached their round-off floor.
     max_iterations: linear solves allowed per step before the step fails.
     retry: on a failed step, retry it as 2, 4, …, 2**retry substeps (0: never; reported).
-    linear_solver: "splu" (SciPy SuperLU), "gmres" (SciPy GMRES with a nodal block-Jacobi
-        preconditioner, relative tolerance 1e-10 per solve: an inexact Newton step whose
-        error is far below the quadratic term once the predictor's residual is small), or
-        "auto" (default: splu up to DIRECT_MAX_UNKNOWNS unknowns, gmres above, where a direct
-        factorization of a 3D net fills in superlinearly; see benchmarks/README.md).
+    linear_solver: "splu" (SciPy SuperLU), "matfree" (matrix-free inertia-preconditioned
+        sweeps, GMRES fallback; each solve ends when the linear residual is below
+        LINEAR_FRACTION × tolerance in the Newton scaling, so the inexact step cannot hold
+        Newton above its tolerance), "gmres" (SciPy GMRES on the assembled matrix with a nodal
+        block-Jacobi preconditioner, relative tolerance 1e-10 per solve), or "auto" (default:
+        splu up to DIRECT_MAX_UNKNOWNS unknowns, matfree above; see benchmarks/README.md).
     """
 
     tolerance: float = 1e-12
@@ -203,14 +207,16 @@ def _node_ordering(ra: np.ndarray, rb: np.ndarray, nf: int, ordering: str) -> np
 
 
 class SparseLU:
-    """SuperLU on the pattern's (already fill-reduced) ordering.
+    """SuperLU on the pattern's (already fill-reduced) ordering. ``assembled``: it needs the
+    CSR values (``factorize(data)``); ``solve(rhs, target)`` ignores the target (exact).
 
     The kernels fill a CSR matrix A; its arrays read as CSC are Aᵀ, which is factorized without
     copying, and A x = b is solved as the transposed system."""
 
     name = "splu"
+    assembled = True
 
-    def __init__(self, pattern: BlockPattern):
+    def __init__(self, pattern: BlockPattern, problem=None):
         self.pattern = pattern
         self._lu = None
 
@@ -220,7 +226,7 @@ class SparseLU:
         self._lu = spla.splu(At, permc_spec="NATURAL", diag_pivot_thresh=0.1,
                              options=dict(SymmetricMode=True))
 
-    def solve(self, rhs: np.ndarray) -> np.ndarray:
+    def solve(self, rhs: np.ndarray, target: float = 0.0) -> np.ndarray:
         return self._lu.solve(rhs, trans="T")
 
 
@@ -230,8 +236,9 @@ class Krylov:
     below the explicit stability limit; costs O(nnz) per iteration at any net size."""
 
     name = "gmres"
+    assembled = True
 
-    def __init__(self, pattern: BlockPattern, rtol: float = 1e-10, maxiter: int = 200):
+    def __init__(self, pattern: BlockPattern, problem=None, rtol: float = 1e-10, maxiter: int = 200):
         self.pattern = pattern
         self.rtol = rtol
         self.maxiter = maxiter
@@ -251,7 +258,7 @@ class Krylov:
                                shape=(p.size, p.size), blocksize=(B, B))
         self._M = blocks
 
-    def solve(self, rhs: np.ndarray) -> np.ndarray:
+    def solve(self, rhs: np.ndarray, target: float = 0.0) -> np.ndarray:
         count = [0]
 
         def callback(_):
@@ -263,21 +270,92 @@ class Krylov:
         return x
 
 
-LINEAR_SOLVERS = {"splu": SparseLU, "gmres": Krylov}
+class MatrixFree:
+    """Inertia-preconditioned Richardson sweeps on matrix-free products (see
+    :mod:`thermonet.kernels.implicit_operator`), until the linear residual's max norm is below
+    the target; SciPy GMRES on the same product when the sweeps stall (a step so large that
+    the springs rival the inertia). Needs from the problem: ``linearize()`` (per-spring
+    coefficients at the last residual's point), ``sweep(du, rhs, r, update, first) -> max|r|`` and
+    ``apply_inverse_inertia(v) -> D⁻¹ v``."""
+
+    name = "matfree"
+    assembled = False
+    #: sweeps allowed before GMRES takes over
+    MAX_SWEEPS = 40
+    #: the sweeps have stalled when a sweep reduces the residual by less than this factor
+    STALL = 0.5
+
+    def __init__(self, pattern: BlockPattern, problem):
+        self.pattern = pattern
+        self.problem = problem
+        self._du = np.zeros(pattern.size)
+        self._r = np.zeros(pattern.size)
+        self._zero = np.zeros(pattern.size)
+        self.iterations = 0  # sweeps, and GMRES iterations of the fallback
+        self.fallbacks = 0
+
+    def factorize(self, data: np.ndarray) -> None:  # nothing to factorize
+        pass
+
+    def solve(self, rhs: np.ndarray, target: float = 0.0) -> np.ndarray:
+        du = self._du
+        du[:] = 0.0
+        previous = math.inf
+        for k in range(self.MAX_SWEEPS):
+            rmax = self.problem.sweep(du, rhs, self._r, True, k == 0)
+            self.iterations += 1
+            if rmax <= target:
+                return du
+            if not math.isfinite(rmax) or rmax > self.STALL * previous:
+                break
+            previous = rmax
+        return self._gmres(rhs, target)
+
+    def _gmres(self, rhs: np.ndarray, target: float) -> np.ndarray:
+        self.fallbacks += 1
+        size = self.pattern.size
+        problem, r, zero = self.problem, self._r, self._zero
+
+        def matvec(v):
+            problem.sweep(np.ascontiguousarray(v, dtype=np.float64).ravel(), zero, r, False, False)
+            return -r
+
+        A = spla.LinearOperator((size, size), matvec=matvec, dtype=np.float64)
+        M = spla.LinearOperator((size, size), matvec=problem.apply_inverse_inertia, dtype=np.float64)
+        count = [0]
+
+        def callback(_):
+            count[0] += 1
+
+        x, _ = spla.gmres(A, rhs, M=M, rtol=0.0, atol=target, restart=50, maxiter=20,
+                          callback=callback, callback_type="pr_norm")
+        self.iterations += count[0]
+        self._du[:] = x
+        return self._du
+
+
+LINEAR_SOLVERS = {"splu": SparseLU, "matfree": MatrixFree, "gmres": Krylov}
 
 #: "auto" uses the direct solver up to this many unknowns (measured crossover on 3D lattices:
-#: at ~200 unknowns SuperLU and GMRES cost the same, at ~1000 SuperLU is 10× slower)
+#: at ~200 unknowns SuperLU and an iterative solve cost the same, at ~1000 SuperLU is 10× slower)
 DIRECT_MAX_UNKNOWNS = 500
 
 
-def make_linear_solver(name: str, pattern: BlockPattern):
+def make_linear_solver(name: str, pattern: BlockPattern, problem=None):
+    """The linear solver ``name`` for ``pattern`` (``problem``: the stepper, for matfree)."""
     if name == "auto":
-        name = "splu" if pattern.size <= DIRECT_MAX_UNKNOWNS else "gmres"
-    return LINEAR_SOLVERS[name](pattern)
+        name = "splu" if pattern.size <= DIRECT_MAX_UNKNOWNS else "matfree"
+    return LINEAR_SOLVERS[name](pattern, problem)
 
 
 # ---------------------------------------------------------------------------------------------
 # the iteration
+
+
+#: an inexact linear solve leaves a residual below this fraction of max(tolerance, ρ²) (in the
+#: Newton scaling, ρ the current scaled residual): Newton stays quadratic and the last linear
+#: error cannot keep the next Newton residual above the tolerance
+LINEAR_FRACTION = 0.1
 
 
 @dataclass
@@ -314,7 +392,8 @@ def newton(problem, u: np.ndarray, options: NewtonOptions, solver, timers: Newto
 
     problem: ``residual(u) -> (status, spring)`` fills ``problem.R`` and ``problem.Rabs`` and
     whatever the Jacobian needs; ``jacobian(data)`` fills the CSR values at the last residual's
-    point; ``data`` its value array. The residual is always evaluated last at the returned ``u``.
+    point, ``data`` its value array (assembled solvers); ``linearize()`` the per-spring
+    coefficients of a matrix-free product (:class:`MatrixFree`). The residual is always evaluated last at the returned ``u``.
     """
     history: list[float] = []
     increment = math.inf
@@ -337,11 +416,17 @@ def newton(problem, u: np.ndarray, options: NewtonOptions, solver, timers: Newto
         if it == options.max_iterations:
             break
         t0 = time.perf_counter()
-        problem.jacobian(problem.data)
-        t1 = time.perf_counter()
-        solver.factorize(problem.data)
+        if solver.assembled:
+            problem.jacobian(problem.data)
+            t1 = time.perf_counter()
+            solver.factorize(problem.data)
+        else:
+            problem.linearize()
+            t1 = time.perf_counter()
         t2 = time.perf_counter()
-        du = solver.solve(problem.R)
+        # forcing term ∝ ρ (Eisenstat–Walker): the linear error stays below Newton's own
+        # quadratic term, so an early, far-from-converged step is not solved to round-off
+        du = solver.solve(problem.R, LINEAR_FRACTION * max(options.tolerance, rho * rho) * scale)
         t3 = time.perf_counter()
         timers.assembly += t1 - t0
         timers.factorization += t2 - t1

@@ -1,6 +1,7 @@
 """Numba templates for the implicit integrators' step equations (spec §2.1 GTR-α, §2.2 HO4):
-the mechanical residuals, the values of their exact sparse Jacobian, and the update that
-turns converged unknowns into the next state.
+the mechanical residuals, the values of their exact sparse Jacobian (assembled, or as per-spring
+coefficients for a matrix-free product, :mod:`.implicit_operator`), and the update that turns
+converged unknowns into the next state.
 
 The unknowns are per free node: the displacement over the step ``d = x¹ − x⁰`` for GTR-α
 (block of 3), and ``d^½ = x^½ − x⁰, d¹ = x¹ − x⁰`` for HO4 (block of 6). Working with
@@ -12,7 +13,9 @@ The thermal unknowns (θ̄ for GTR-α; θ⁰, θ¹ — equivalently Φ^½, Φ¹ 
 equations of their own spring, so each residual evaluation solves them exactly (to round-off)
 per spring given the spring's lengths, and the Jacobian carries their derivatives with respect
 to those lengths (implicit function theorem). This condensation is exact: the converged step
-satisfies every equation of the monolithic system.
+satisfies every equation of the monolithic system. Within a Newton solve the previous iterate's
+temperatures, moved along those derivatives, seed the per-spring solves, which then stop after
+one or two corrections instead of four or five.
 
 Residual rows are in momentum units. Next to the residual ``R`` a kernel fills ``Rabs``, the sum
 of the magnitudes of the terms of each row, so the Newton test can judge ``|R|`` against the size
@@ -31,7 +34,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 from .specialize import model_fingerprint, model_namespace, specialize
 
@@ -42,10 +45,9 @@ gtr_thermal = ho4_thermal = None
 _CACHE: dict = {}
 _OPTIONS = dict(cache=True, error_model="numpy", boundscheck=False)
 
-#: relative change of a temperature at which a per-spring Newton solve has reached round-off
-THETA_ROUNDOFF = 8 * 2.220446049250313e-16
-#: a per-spring solve whose last relative correction exceeds this did not converge
-THETA_FAILED = 1e-10
+#: a per-spring Newton solve stops after a correction of ln θ this small: its error is then of
+#: the order of the correction squared (quadratic convergence), below round-off
+THETA_STOP = 1e-9
 LOCAL_ITERATIONS = 60
 
 OK, COLLAPSED, NO_TEMPERATURE, NOT_FINITE = 0, 1, 2, 3
@@ -63,28 +65,32 @@ class ImplicitKernels:
         self.__dict__.update(kernels)
 
 
-def implicit_kernels(model, scheme: str) -> ImplicitKernels:
-    """Kernels for ``scheme`` ("gtr" or "ho4") compiled for ``model`` (cached on disk)."""
-    key = (scheme, model_fingerprint(model))
+def implicit_kernels(model, scheme: str, parallel: bool = False) -> ImplicitKernels:
+    """Kernels for ``scheme`` ("gtr" or "ho4") compiled for ``model`` (cached on disk); the
+    residual, linearization, start and finish kernels multi-threaded when ``parallel``."""
+    key = (scheme, model_fingerprint(model), bool(parallel))
     if key not in _CACHE:
         tag = f"{model.name}_{key[1]}"
+        ptag = f"{tag}_{'par' if parallel else 'ser'}"
         ns = model_namespace(model)
-        start = specialize(_start, tag, ns, **_OPTIONS)
+        start = specialize(_start, ptag, ns, parallel=parallel, **_OPTIONS)
         if scheme == "gtr":
             ns["gtr_thermal"] = specialize(_gtr_thermal, tag, ns, **_OPTIONS)
             _CACHE[key] = ImplicitKernels(
                 start=start,
-                residual=specialize(_gtr_residual, tag, ns, **_OPTIONS),
+                residual=specialize(_gtr_residual, ptag, ns, parallel=parallel, **_OPTIONS),
+                linearize=specialize(_gtr_linearize, ptag, ns, parallel=parallel, **_OPTIONS),
                 jacobian=specialize(_gtr_jacobian, tag, ns, **_OPTIONS),
-                finish=specialize(_gtr_finish, tag, ns, **_OPTIONS),
+                finish=specialize(_gtr_finish, ptag, ns, parallel=parallel, **_OPTIONS),
             )
         elif scheme == "ho4":
             ns["ho4_thermal"] = specialize(_ho4_thermal, tag, ns, **_OPTIONS)
             _CACHE[key] = ImplicitKernels(
                 start=start,
-                residual=specialize(_ho4_residual, tag, ns, **_OPTIONS),
+                residual=specialize(_ho4_residual, ptag, ns, parallel=parallel, **_OPTIONS),
+                linearize=specialize(_ho4_linearize, ptag, ns, parallel=parallel, **_OPTIONS),
                 jacobian=specialize(_ho4_jacobian, tag, ns, **_OPTIONS),
-                finish=specialize(_ho4_finish, tag, ns, **_OPTIONS),
+                finish=specialize(_ho4_finish, ptag, ns, parallel=parallel, **_OPTIONS),
             )
         else:
             raise ValueError(f"unknown implicit scheme {scheme!r}")
@@ -110,11 +116,90 @@ def _log_step(s):
     return s
 
 
-def _start(x0, eta, l0, P, edges, len0, dir0, f0):
+@njit(cache=True, inline="always")
+def _usable(t):
+    """A warm-start temperature that can seed a thermal solve."""
+    return t > 0.0 and t < math.inf
+
+
+@njit(cache=True, inline="always")
+def _gather3(a, edges, inc_ptr, inc_spring, fs):
+    """(F, S) over the springs of node a: F (3,) = Σ_e s_e fs[e, :3], S (3,) = Σ_e |fs[e, :3]|,
+    s_e = −1 where a is the spring's first end, +1 where it is the second (a residual's sign:
+    R_a −= v, R_b += v); one pass over the incidence list, sums in its order."""
+    f0 = f1 = f2 = s0 = s1 = s2 = 0.0
+    for j in range(inc_ptr[a], inc_ptr[a + 1]):
+        e = inc_spring[j]
+        v0 = fs[e, 0]
+        v1 = fs[e, 1]
+        v2 = fs[e, 2]
+        if edges[e, 0] == a:
+            f0 -= v0
+            f1 -= v1
+            f2 -= v2
+        else:
+            f0 += v0
+            f1 += v1
+            f2 += v2
+        s0 += abs(v0)
+        s1 += abs(v1)
+        s2 += abs(v2)
+    return (f0, f1, f2), (s0, s1, s2)
+
+
+@njit(cache=True, inline="always")
+def _gather6(a, edges, inc_ptr, inc_spring, fs):
+    """:func:`_gather3` for fs[e, :6]: (F (6,), S (6,))."""
+    f0 = f1 = f2 = f3 = f4 = f5 = 0.0
+    s0 = s1 = s2 = s3 = s4 = s5 = 0.0
+    for j in range(inc_ptr[a], inc_ptr[a + 1]):
+        e = inc_spring[j]
+        v0 = fs[e, 0]
+        v1 = fs[e, 1]
+        v2 = fs[e, 2]
+        v3 = fs[e, 3]
+        v4 = fs[e, 4]
+        v5 = fs[e, 5]
+        if edges[e, 0] == a:
+            f0 -= v0
+            f1 -= v1
+            f2 -= v2
+            f3 -= v3
+            f4 -= v4
+            f5 -= v5
+        else:
+            f0 += v0
+            f1 += v1
+            f2 += v2
+            f3 += v3
+            f4 += v4
+            f5 += v5
+        s0 += abs(v0)
+        s1 += abs(v1)
+        s2 += abs(v2)
+        s3 += abs(v3)
+        s4 += abs(v4)
+        s5 += abs(v5)
+    return (f0, f1, f2, f3, f4, f5), (s0, s1, s2, s3, s4, s5)
+
+
+# Every kernel below is two loops, each parallel when compiled with parallel=True: a spring
+# loop writes per-spring results (lengths, temperatures, the spring's force contribution ``fs``)
+# and a node loop gathers them over the node's incident springs (CSR ``inc_ptr``/``inc_spring``).
+# No two threads write the same element, and each node sums its springs in a fixed order, so the
+# results do not depend on the number of threads. A spring loop cannot return early: a failing
+# spring stores its status in ``code`` and the smallest failing index is kept by a min-reduction.
+
+
+def _start(x0, p, inv_mass, eta, l0, P, edges, inc_ptr, inc_spring, len0, dir0, fs, code, with_rate, f0, fdot0):
     """Lengths len0 (m,) and unit vectors dir0 (m, 3) at x0 (n, 3), and the spring forces
-    f0 (n, 3) at (x0, θ(l0, η)), the explicit force a predictor uses. Returns (status, spring)."""
-    f0[:, :] = 0.0
-    for e in range(edges.shape[0]):
+    f0 (n, 3) at (x0, θ(l0, η)), the explicit force a predictor uses; ``with_rate``: also
+    fdot0 (n, 3), the forces' time derivative along the exact (adiabatic) flow at (x0, p0), for
+    a third-order Taylor predictor. fs (m, 6 if with_rate else ≥3), code (m,) scratch.
+    Returns (status, spring)."""
+    m = edges.shape[0]
+    bad = m
+    for e in prange(m):
         a = edges[e, 0]
         b = edges[e, 1]
         dx = x0[b, 0] - x0[a, 0]
@@ -122,19 +207,49 @@ def _start(x0, eta, l0, P, edges, len0, dir0, f0):
         dz = x0[b, 2] - x0[a, 2]
         l = math.sqrt(dx * dx + dy * dy + dz * dz)
         if not (l > 0.0 and l < math.inf):
-            return 1, e
+            code[e] = COLLAPSED
+            bad = min(bad, e)
+            continue
         len0[e] = l
-        dir0[e, 0] = dx / l
-        dir0[e, 1] = dy / l
-        dir0[e, 2] = dz / l
+        nx = dx / l
+        ny = dy / l
+        nz = dz / l
+        dir0[e, 0] = nx
+        dir0[e, 1] = ny
+        dir0[e, 2] = nz
         th = temperature(l, eta[e], l0[e], P, e)
         if not (th > 0.0 and th < math.inf):
-            return 2, e
+            code[e] = NO_TEMPERATURE
+            bad = min(bad, e)
+            continue
         T = tension(l, th, l0[e], P, e)
-        for i in range(3):
-            v = T * dir0[e, i]
-            f0[a, i] += v
-            f0[b, i] -= v
+        fs[e, 0] = T * nx
+        fs[e, 1] = T * ny
+        fs[e, 2] = T * nz
+        if with_rate:
+            # d(T n)/dt with dT/dl at constant η (the adiabatic stiffness) and dn/dt = (v − n l̇)/l
+            vx = p[b, 0] * inv_mass[b] - p[a, 0] * inv_mass[a]
+            vy = p[b, 1] * inv_mass[b] - p[a, 1] * inv_mass[a]
+            vz = p[b, 2] * inv_mass[b] - p[a, 2] * inv_mass[a]
+            ldot = nx * vx + ny * vy + nz * vz
+            flt = d2F_dl_dtheta(l, th, l0[e], P, e)
+            Tdot = (d2F_dl2(l, th, l0[e], P, e) - flt * flt / d2F_dtheta2(l, th, l0[e], P, e)) * ldot
+            q = T / l
+            fs[e, 3] = Tdot * nx + q * (vx - nx * ldot)
+            fs[e, 4] = Tdot * ny + q * (vy - ny * ldot)
+            fs[e, 5] = Tdot * nz + q * (vz - nz * ldot)
+    if bad < m:
+        return code[bad], bad
+    for a in prange(x0.shape[0]):
+        if with_rate:
+            F, _ = _gather6(a, edges, inc_ptr, inc_spring, fs)
+            for i in range(3):
+                f0[a, i] = -F[i]
+                fdot0[a, i] = -F[3 + i]
+        else:
+            G, _ = _gather3(a, edges, inc_ptr, inc_spring, fs)
+            for i in range(3):
+                f0[a, i] = -G[i]
     return 0, -1
 
 
@@ -144,44 +259,39 @@ def _start(x0, eta, l0, P, edges, len0, dir0, f0):
 #   α Γ(l⁰, θ̄) + (1 − α) Γ(l¹, θ̄) = η                                     per spring (48c)
 
 
-def _gtr_thermal(la, lb, eta, l0, P, e, alpha):
+def _gtr_thermal(la, lb, eta, l0, P, e, alpha, guess):
     """θ̄ with α Γ(la, θ̄) + (1 − α) Γ(lb, θ̄) = η, its derivative dθ̄/dlb, and success.
 
-    Newton in ln θ from θ(α la + (1 − α) lb, η), which is the answer itself when α is 0 or 1."""
+    Newton in ln θ from ``guess`` when usable, else from θ(α la + (1 − α) lb, η) (the answer
+    itself when α is 0 or 1)."""
     beta = 1.0 - alpha
-    th = temperature(alpha * la + beta * lb, eta, l0, P, e)
-    if not (th > 0.0 and th < math.inf):
+    th = guess if _usable(guess) else temperature(alpha * la + beta * lb, eta, l0, P, e)
+    if not _usable(th):
         return th, 0.0, False
-    change = 0.0
+    done = False
     for _ in range(LOCAL_ITERATIONS):
         G = alpha * entropy(la, th, l0, P, e) + beta * entropy(lb, th, l0, P, e) - eta
         Gt = -(alpha * d2F_dtheta2(la, th, l0, P, e) + beta * d2F_dtheta2(lb, th, l0, P, e))
         step = _log_step(G / (Gt * th))
         th = th * math.exp(-step)
-        change = abs(step)
-        if change <= THETA_ROUNDOFF:
+        if abs(step) <= THETA_STOP:
+            done = True
             break
-    if not (th > 0.0 and th < math.inf and change <= THETA_FAILED):
+    if not (done and _usable(th)):
         return th, 0.0, False
     Gt = -(alpha * d2F_dtheta2(la, th, l0, P, e) + beta * d2F_dtheta2(lb, th, l0, P, e))
     return th, beta * d2F_dl_dtheta(lb, th, l0, P, e) / Gt, True
 
 
-def _gtr_residual(x0, u, p, eta, l0, P, edges, free_index, masses, alpha, h, gravity, with_gravity,
-                  len0, dir0, len1, dir1, theta, dtheta, R, Rabs):
+def _gtr_residual(x0, u, p, eta, l0, P, edges, free_index, inc_ptr, inc_spring, masses, alpha, h, gravity,
+                  with_gravity, len0, dir0, len1, dir1, theta, dtheta, warm, fs, code, R, Rabs):
     """R, Rabs (3 n_free,) at unknowns u (3 n_free,); fills len1 (m,), dir1 (m, 3), θ̄ and
-    dθ̄/dl¹ (m,) for the Jacobian and the finish. Returns (status, spring)."""
-    for a in range(x0.shape[0]):
-        k = free_index[a]
-        if k < 0:
-            continue
-        w = masses[a] / h
-        for i in range(3):
-            inertia = w * u[3 * k + i]
-            g = alpha * h * masses[a] * gravity[i] if with_gravity else 0.0
-            R[3 * k + i] = inertia - p[a, i] - g
-            Rabs[3 * k + i] = abs(inertia) + abs(p[a, i]) + abs(g)
-    for e in range(edges.shape[0]):
+    dθ̄/dl¹ (m,) for the Jacobian and the finish. With ``warm``, the θ̄ of the previous call
+    (at nearby u), moved along dθ̄/dl¹, seeds each thermal solve. fs (m, ≥3), code (m,) scratch.
+    Returns (status, spring)."""
+    m = edges.shape[0]
+    bad = m
+    for e in prange(m):
         a = edges[e, 0]
         b = edges[e, 1]
         ka = free_index[a]
@@ -199,26 +309,46 @@ def _gtr_residual(x0, u, p, eta, l0, P, edges, free_index, masses, alpha, h, gra
             dz -= u[3 * ka + 2]
         l1 = math.sqrt(dx * dx + dy * dy + dz * dz)
         if not (l1 > 0.0 and l1 < math.inf):
-            return 1, e
+            code[e] = COLLAPSED
+            bad = min(bad, e)
+            continue
+        guess = theta[e] + dtheta[e] * (l1 - len1[e]) if warm else -1.0
         len1[e] = l1
         dir1[e, 0] = dx / l1
         dir1[e, 1] = dy / l1
         dir1[e, 2] = dz / l1
-        th, dth, ok = gtr_thermal(len0[e], l1, eta[e], l0[e], P, e, alpha)
+        th, dth, ok = gtr_thermal(len0[e], l1, eta[e], l0[e], P, e, alpha, guess)
         if not ok:
-            return 2, e
+            code[e] = NO_TEMPERATURE
+            bad = min(bad, e)
+            continue
         theta[e] = th
         dtheta[e] = dth
         c = alpha * h * tension(len0[e], th, l0[e], P, e)
+        fs[e, 0] = c * dir0[e, 0]
+        fs[e, 1] = c * dir0[e, 1]
+        fs[e, 2] = c * dir0[e, 2]
+    if bad < m:
+        return code[bad], bad
+    for a in prange(x0.shape[0]):
+        k = free_index[a]
+        if k < 0:
+            continue
+        F, S = _gather3(a, edges, inc_ptr, inc_spring, fs)
+        w = masses[a] / h
         for i in range(3):
-            v = c * dir0[e, i]
-            if ka >= 0:
-                R[3 * ka + i] -= v
-                Rabs[3 * ka + i] += abs(v)
-            if kb >= 0:
-                R[3 * kb + i] += v
-                Rabs[3 * kb + i] += abs(v)
+            inertia = w * u[3 * k + i]
+            g = alpha * h * masses[a] * gravity[i] if with_gravity else 0.0
+            R[3 * k + i] = inertia - p[a, i] - g + F[i]
+            Rabs[3 * k + i] = abs(inertia) + abs(p[a, i]) + abs(g) + S[i]
     return 0, -1
+
+
+def _gtr_linearize(alpha, h, l0, P, len0, theta, dtheta, jc):
+    """Per-spring coefficient of the Jacobian at the last residual's point (matrix-free use):
+    spring e's block is jc[e] n⁰ n¹ᵀ, jc[e] = α h F_lθ(l⁰, θ̄) dθ̄/dl¹ (m,)."""
+    for e in prange(len0.shape[0]):
+        jc[e] = alpha * h * d2F_dl_dtheta(len0[e], theta[e], l0[e], P, e) * dtheta[e]
 
 
 def _gtr_jacobian(free_index, masses, alpha, h, l0, P, edges, len0, dir0, dir1, theta, dtheta,
@@ -253,48 +383,52 @@ def _gtr_jacobian(free_index, masses, alpha, h, l0, P, edges, len0, dir0, dir1, 
                     data[base + i * stride + j] += sign * B[i, j]
 
 
-def _gtr_finish(x0, u, p, phi, eta, l0, P, edges, free_index, masses, alpha, h, gravity, with_gravity,
-                len0, dir0, len1, dir1, theta, x_new, p_new, phi_new, eta_new):
+def _gtr_finish(x0, u, p, phi, eta, l0, P, edges, free_index, inc_ptr, inc_spring, masses, alpha, h, gravity,
+                with_gravity, len0, dir0, len1, dir1, theta, fs, code, x_new, p_new, phi_new, eta_new):
     """The next state from converged unknowns: x¹ = x⁰ + d; Φ¹ = Φ⁰ + h θ̄;
     η¹ = α Γ(l⁰, θ̄) + (1 − α) Γ(l¹, θ̄) measured (48d); and
     p¹ = p⁰ + h [α f(x⁰, θ̄) + (1 − α) f(x¹, θ̄)], which is (48b) given (48a) and, forces being
     central pairs, conserves linear momentum to round-off whatever the solver residual.
+    fs must hold the last residual's per-spring terms (that residual was evaluated at u).
     Returns (status, spring)."""
-    for a in range(x0.shape[0]):
-        k = free_index[a]
-        for i in range(3):
-            if k < 0:
-                x_new[a, i] = x0[a, i]
-                p_new[a, i] = p[a, i]
-            else:
-                x_new[a, i] = x0[a, i] + u[3 * k + i]
-                p_new[a, i] = p[a, i] + (h * masses[a] * gravity[i] if with_gravity else 0.0)
-    for e in range(edges.shape[0]):
-        a = edges[e, 0]
-        b = edges[e, 1]
+    m = edges.shape[0]
+    bad = m
+    for e in prange(m):
         th = theta[e]
         phi_new[e] = phi[e] + h * th
         eta1 = alpha * entropy(len0[e], th, l0[e], P, e) + (1.0 - alpha) * entropy(len1[e], th, l0[e], P, e)
         eta_new[e] = eta1
         if not (abs(eta1) < math.inf):
-            return 3, e
+            code[e] = NOT_FINITE
+            bad = min(bad, e)
+            continue
         th1 = temperature(len1[e], eta1, l0[e], P, e)
         if not (th1 > 0.0 and th1 < math.inf):
-            return 2, e
-        c0 = alpha * h * tension(len0[e], th, l0[e], P, e)
+            code[e] = NO_TEMPERATURE
+            bad = min(bad, e)
+            continue
         c1 = (1.0 - alpha) * h * tension(len1[e], th, l0[e], P, e)
-        free_a = free_index[a] >= 0
-        free_b = free_index[b] >= 0
         for i in range(3):
-            v = c0 * dir0[e, i] + c1 * dir1[e, i]
-            if free_a:
-                p_new[a, i] += v
-            if free_b:
-                p_new[b, i] -= v
-    for a in range(x0.shape[0]):
+            fs[e, i] += c1 * dir1[e, i]  # fs holds α h T(l⁰, θ̄) n⁰ from the last residual
+    if bad < m:
+        return code[bad], bad
+    n = x0.shape[0]
+    bad_node = n
+    for a in prange(n):
+        k = free_index[a]
+        F, _ = _gather3(a, edges, inc_ptr, inc_spring, fs)
         for i in range(3):
-            if not (abs(p_new[a, i]) < math.inf):
-                return 3, -1
+            if k < 0:
+                x_new[a, i] = x0[a, i]
+                p_new[a, i] = p[a, i]
+                continue
+            x_new[a, i] = x0[a, i] + u[3 * k + i]
+            q = p[a, i] + (h * masses[a] * gravity[i] if with_gravity else 0.0) - F[i]
+            p_new[a, i] = q
+            if not (abs(q) < math.inf):
+                bad_node = min(bad_node, a)
+    if bad_node < n:
+        return NOT_FINITE, -1
     return 0, -1
 
 
@@ -305,49 +439,55 @@ def _gtr_finish(x0, u, p, phi, eta, l0, P, edges, free_index, masses, alpha, h, 
 #   Γ⁰ = Γ¹,  (3Γ⁰ + 4Γ^½ − Γ¹)/6 = η                                 per spring (57b), (58c)
 
 
-def _ho4_thermal(la, lh, lb, eta, l0, P, e):
+def _ho4_thermal(la, lh, lb, eta, l0, P, e, guess, warm):
     """θ⁰, θ¹ solving Γ(la, θ⁰) = Γ(lb, θ¹) and (3Γ(la, θ⁰) + 4Γ(lh, θ^½) − Γ(lb, θ¹))/6 = η,
-    θ^½ = (θ⁰ + θ¹)/2, by a 2×2 Newton in ln θ from θ(la, η), θ(lb, η); then the derivatives
-    dθ⁰/dl^½, dθ⁰/dl¹, dθ¹/dl^½, dθ¹/dl¹ and success."""
-    t0 = temperature(la, eta, l0, P, e)
-    t1 = temperature(lb, eta, l0, P, e)
-    if not (t0 > 0.0 and t0 < math.inf and t1 > 0.0 and t1 < math.inf):
-        return t0, t1, 0.0, 0.0, 0.0, 0.0, False
-    change = 0.0
+    θ^½ = (θ⁰ + θ¹)/2; returns (G, θ⁰, θ¹, dθ⁰/dl^½, dθ⁰/dl¹, dθ¹/dl^½, dθ¹/dl¹, success).
+
+    The unknown is the common value G = Γ⁰ = Γ¹ (so θ⁰ = θ(la, G), θ¹ = θ(lb, G) satisfy (57b)
+    exactly), and (58c) becomes the scalar equation (2G + 4Γ(lh, θ^½))/6 = η, solved by Newton
+    from ``guess`` when ``warm``, else from G = η. For an entropy affine in ln θ (model "hencky")
+    Γ(lh, θ^½) − G does not depend on G, so one correction is exact."""
+    G = guess if (warm and abs(guess) < math.inf) else eta
+    t0 = temperature(la, G, l0, P, e)
+    t1 = temperature(lb, G, l0, P, e)
+    if not (_usable(t0) and _usable(t1)):
+        return G, t0, t1, 0.0, 0.0, 0.0, 0.0, False
+    done = False
     for _ in range(LOCAL_ITERATIONS):
         th = 0.5 * (t0 + t1)
-        G0 = entropy(la, t0, l0, P, e)
-        Gh = entropy(lh, th, l0, P, e)
-        G1 = entropy(lb, t1, l0, P, e)
-        g0 = -d2F_dtheta2(la, t0, l0, P, e)
+        r = (2.0 * G + 4.0 * entropy(lh, th, l0, P, e)) / 6.0 - eta
+        g0 = -d2F_dtheta2(la, t0, l0, P, e)  # Γ_θ, so dθ/dG = 1/Γ_θ
         gh = -d2F_dtheta2(lh, th, l0, P, e)
         g1 = -d2F_dtheta2(lb, t1, l0, P, e)
-        r1 = G0 - G1
-        r2 = (3.0 * G0 + 4.0 * Gh - G1) / 6.0 - eta
-        J00 = g0
-        J01 = -g1
-        J10 = (3.0 * g0 + 2.0 * gh) / 6.0
-        J11 = (2.0 * gh - g1) / 6.0
-        det = J00 * J11 - J01 * J10
-        s0 = _log_step((J11 * r1 - J01 * r2) / (det * t0))
-        s1 = _log_step((J00 * r2 - J10 * r1) / (det * t1))
-        t0 = t0 * math.exp(-s0)
-        t1 = t1 * math.exp(-s1)
-        change = max(abs(s0), abs(s1))
-        if change <= THETA_ROUNDOFF:
+        dG = r / ((2.0 + 2.0 * gh * (1.0 / g0 + 1.0 / g1)) / 6.0)
+        # the change of ln θ⁰ and ln θ¹ this causes, bounded so exp() cannot overflow
+        s0 = dG / (g0 * t0)
+        s1 = dG / (g1 * t1)
+        big = max(abs(s0), abs(s1))
+        if big > MAX_LOG_STEP:
+            dG *= MAX_LOG_STEP / big
+        G -= dG
+        if big <= THETA_STOP:
+            # dθ = −dG/Γ_θ to second order (the neglected term is ~ big², below round-off)
+            t0 *= 1.0 - s0 + 0.5 * s0 * s0
+            t1 *= 1.0 - s1 + 0.5 * s1 * s1
+            done = True
             break
-    if not (t0 > 0.0 and t0 < math.inf and t1 > 0.0 and t1 < math.inf and change <= THETA_FAILED):
-        return t0, t1, 0.0, 0.0, 0.0, 0.0, False
+        t0 = temperature(la, G, l0, P, e)
+        t1 = temperature(lb, G, l0, P, e)
+    if not (done and _usable(t0) and _usable(t1)):
+        return G, t0, t1, 0.0, 0.0, 0.0, 0.0, False
     th = 0.5 * (t0 + t1)
     g0 = -d2F_dtheta2(la, t0, l0, P, e)
     gh = -d2F_dtheta2(lh, th, l0, P, e)
     g1 = -d2F_dtheta2(lb, t1, l0, P, e)
+    # implicit derivatives of the 2×2 system (57b), (58c) in (θ⁰, θ¹), with Γ_l = −F_lθ:
+    # ∂(G1, G2)/∂l^½ = (0, 4Γ_l(lh, θ^½)/6); ∂(G1, G2)/∂l¹ = (−Γ_l(lb, θ¹), −Γ_l(lb, θ¹)/6)
     J00 = g0
     J01 = -g1
     J10 = (3.0 * g0 + 2.0 * gh) / 6.0
     J11 = (2.0 * gh - g1) / 6.0
     det = J00 * J11 - J01 * J10
-    # ∂(G1, G2)/∂l^½ = (0, 4Γ_l(lh, θ^½)/6); ∂(G1, G2)/∂l¹ = (−Γ_l(lb, θ¹), −Γ_l(lb, θ¹)/6); Γ_l = −F_lθ
     qh = -4.0 * d2F_dl_dtheta(lh, th, l0, P, e) / 6.0
     w1 = d2F_dl_dtheta(lb, t1, l0, P, e)
     q1a = w1
@@ -356,17 +496,84 @@ def _ho4_thermal(la, lh, lb, eta, l0, P, e):
     d1h = -(J00 * qh) / det
     d01 = -(J11 * q1a - J01 * q1b) / det
     d11 = -(J00 * q1b - J10 * q1a) / det
-    return t0, t1, d0h, d01, d1h, d11, True
+    return G, t0, t1, d0h, d01, d1h, d11, True
 
 
-def _ho4_residual(x0, u, p, eta, l0, P, edges, free_index, masses, h, gravity, with_gravity,
-                  len0, dir0, lenh, dirh, len1, dir1, th0, th1, dth, R, Rabs):
+def _ho4_residual(x0, u, p, eta, l0, P, edges, free_index, inc_ptr, inc_spring, masses, h, gravity, with_gravity,
+                  len0, dir0, lenh, dirh, len1, dir1, th0, th1, dth, gs, warm, fs, code, R, Rabs):
     """R, Rabs (6 n_free,) at unknowns u (6 n_free,); fills lengths/unit vectors at x^½ and x¹,
-    θ⁰, θ¹ (m,) and dth (m, 4) = dθ⁰/dl^½, dθ⁰/dl¹, dθ¹/dl^½, dθ¹/dl¹. Returns (status, spring)."""
-    for a in range(x0.shape[0]):
+    θ⁰, θ¹ (m,), dth (m, 4) = dθ⁰/dl^½, dθ⁰/dl¹, dθ¹/dl^½, dθ¹/dl¹ and gs (m,) = Γ⁰ = Γ¹. With
+    ``warm``, the previous call's gs (at nearby u), moved along its length derivatives, seeds the
+    thermal solves. fs (m, 6), code (m,) scratch. Returns (status, spring)."""
+    m = edges.shape[0]
+    bad = m
+    for e in prange(m):
+        a = edges[e, 0]
+        b = edges[e, 1]
+        ka = free_index[a]
+        kb = free_index[b]
+        ex = x0[b, 0] - x0[a, 0]
+        ey = x0[b, 1] - x0[a, 1]
+        ez = x0[b, 2] - x0[a, 2]
+        hx = ex
+        hy = ey
+        hz = ez
+        if kb >= 0:
+            hx += u[6 * kb]
+            hy += u[6 * kb + 1]
+            hz += u[6 * kb + 2]
+            ex += u[6 * kb + 3]
+            ey += u[6 * kb + 4]
+            ez += u[6 * kb + 5]
+        if ka >= 0:
+            hx -= u[6 * ka]
+            hy -= u[6 * ka + 1]
+            hz -= u[6 * ka + 2]
+            ex -= u[6 * ka + 3]
+            ey -= u[6 * ka + 4]
+            ez -= u[6 * ka + 5]
+        lh = math.sqrt(hx * hx + hy * hy + hz * hz)
+        l1 = math.sqrt(ex * ex + ey * ey + ez * ez)
+        if not (lh > 0.0 and lh < math.inf and l1 > 0.0 and l1 < math.inf):
+            code[e] = COLLAPSED
+            bad = min(bad, e)
+            continue
+        guess = 0.0
+        if warm:  # G = Γ(l⁰, θ⁰) moved along dG/dl = Γ_θ(l⁰, θ⁰) dθ⁰/dl
+            guess = gs[e] - d2F_dtheta2(len0[e], th0[e], l0[e], P, e) * (
+                dth[e, 0] * (lh - lenh[e]) + dth[e, 1] * (l1 - len1[e]))
+        lenh[e] = lh
+        dirh[e, 0] = hx / lh
+        dirh[e, 1] = hy / lh
+        dirh[e, 2] = hz / lh
+        len1[e] = l1
+        dir1[e, 0] = ex / l1
+        dir1[e, 1] = ey / l1
+        dir1[e, 2] = ez / l1
+        G, t0, t1, d0h, d01, d1h, d11, ok = ho4_thermal(len0[e], lh, l1, eta[e], l0[e], P, e, guess, warm)
+        gs[e] = G
+        if not ok:
+            code[e] = NO_TEMPERATURE
+            bad = min(bad, e)
+            continue
+        th0[e] = t0
+        th1[e] = t1
+        dth[e, 0] = d0h
+        dth[e, 1] = d01
+        dth[e, 2] = d1h
+        dth[e, 3] = d11
+        c0 = h / 6.0 * tension(len0[e], t0, l0[e], P, e)
+        ch = h / 4.0 * tension(lh, 0.5 * (t0 + t1), l0[e], P, e)
+        for i in range(3):
+            fs[e, i] = c0 * dir0[e, i]
+            fs[e, 3 + i] = ch * dirh[e, i]
+    if bad < m:
+        return code[bad], bad
+    for a in prange(x0.shape[0]):
         k = free_index[a]
         if k < 0:
             continue
+        F, S = _gather6(a, edges, inc_ptr, inc_spring, fs)
         w = masses[a] / h
         for i in range(3):
             dh = u[6 * k + i]
@@ -375,66 +582,31 @@ def _ho4_residual(x0, u, p, eta, l0, P, edges, free_index, masses, h, gravity, w
             gh = h / 4.0 * masses[a] * gravity[i] if with_gravity else 0.0
             i1 = w * (8.0 * dh - d1) / 3.0
             i2 = w * (d1 - 2.0 * dh)
-            R[6 * k + i] = i1 - p[a, i] - g0
-            Rabs[6 * k + i] = abs(i1) + abs(p[a, i]) + abs(g0)
-            R[6 * k + 3 + i] = i2 - gh
-            Rabs[6 * k + 3 + i] = abs(i2) + abs(gh)
-    for e in range(edges.shape[0]):
-        a = edges[e, 0]
-        b = edges[e, 1]
-        ka = free_index[a]
-        kb = free_index[b]
-        for stage in range(2):
-            dx = x0[b, 0] - x0[a, 0]
-            dy = x0[b, 1] - x0[a, 1]
-            dz = x0[b, 2] - x0[a, 2]
-            off = 3 * stage
-            if kb >= 0:
-                dx += u[6 * kb + off]
-                dy += u[6 * kb + off + 1]
-                dz += u[6 * kb + off + 2]
-            if ka >= 0:
-                dx -= u[6 * ka + off]
-                dy -= u[6 * ka + off + 1]
-                dz -= u[6 * ka + off + 2]
-            l = math.sqrt(dx * dx + dy * dy + dz * dz)
-            if not (l > 0.0 and l < math.inf):
-                return 1, e
-            if stage == 0:
-                lenh[e] = l
-                dirh[e, 0] = dx / l
-                dirh[e, 1] = dy / l
-                dirh[e, 2] = dz / l
-            else:
-                len1[e] = l
-                dir1[e, 0] = dx / l
-                dir1[e, 1] = dy / l
-                dir1[e, 2] = dz / l
-        t0, t1, d0h, d01, d1h, d11, ok = ho4_thermal(len0[e], lenh[e], len1[e], eta[e], l0[e], P, e)
-        if not ok:
-            return 2, e
-        th0[e] = t0
-        th1[e] = t1
-        dth[e, 0] = d0h
-        dth[e, 1] = d01
-        dth[e, 2] = d1h
-        dth[e, 3] = d11
-        c0 = h / 6.0 * tension(len0[e], t0, l0[e], P, e)
-        ch = h / 4.0 * tension(lenh[e], 0.5 * (t0 + t1), l0[e], P, e)
-        for i in range(3):
-            v0 = c0 * dir0[e, i]
-            vh = ch * dirh[e, i]
-            if ka >= 0:
-                R[6 * ka + i] -= v0
-                Rabs[6 * ka + i] += abs(v0)
-                R[6 * ka + 3 + i] -= vh
-                Rabs[6 * ka + 3 + i] += abs(vh)
-            if kb >= 0:
-                R[6 * kb + i] += v0
-                Rabs[6 * kb + i] += abs(v0)
-                R[6 * kb + 3 + i] += vh
-                Rabs[6 * kb + 3 + i] += abs(vh)
+            R[6 * k + i] = i1 - p[a, i] - g0 + F[i]
+            Rabs[6 * k + i] = abs(i1) + abs(p[a, i]) + abs(g0) + S[i]
+            R[6 * k + 3 + i] = i2 - gh + F[3 + i]
+            Rabs[6 * k + 3 + i] = abs(i2) + abs(gh) + S[3 + i]
     return 0, -1
+
+
+def _ho4_linearize(h, l0, P, len0, lenh, th0, th1, dth, jc):
+    """Per-spring coefficients of the Jacobian at the last residual's point (matrix-free use),
+    jc (m, 5): spring e's block (rows R1, R2; columns d^½, d¹) is
+      [[a₁ n⁰ n^½ᵀ, a₂ n⁰ n¹ᵀ], [(k − t) n^½ n^½ᵀ + t I, c n^½ n¹ᵀ]],   jc[e] = (a₁, a₂, k − t, t, c)
+    with the terms of :func:`_ho4_jacobian`."""
+    for e in prange(len0.shape[0]):
+        t0 = th0[e]
+        th = 0.5 * (t0 + th1[e])
+        lh = lenh[e]
+        c0 = h / 6.0 * d2F_dl_dtheta(len0[e], t0, l0[e], P, e)
+        flt = d2F_dl_dtheta(lh, th, l0[e], P, e)
+        axial = h / 4.0 * (d2F_dl2(lh, th, l0[e], P, e) + flt * 0.5 * (dth[e, 0] + dth[e, 2]))
+        lateral = h / 4.0 * tension(lh, th, l0[e], P, e) / lh
+        jc[e, 0] = c0 * dth[e, 0]
+        jc[e, 1] = c0 * dth[e, 1]
+        jc[e, 2] = axial - lateral
+        jc[e, 3] = lateral
+        jc[e, 4] = h / 4.0 * flt * 0.5 * (dth[e, 1] + dth[e, 3])
 
 
 def _ho4_jacobian(free_index, masses, h, l0, P, edges, len0, dir0, lenh, dirh, dir1, th0, th1, dth,
@@ -489,24 +661,16 @@ def _ho4_jacobian(free_index, masses, h, l0, P, edges, len0, dir0, lenh, dirh, d
                     data[base + i * stride + j] += sign * B[i, j]
 
 
-def _ho4_finish(x0, u, p, phi, eta, l0, P, edges, free_index, masses, h, gravity, with_gravity,
-                len0, dir0, lenh, dirh, len1, dir1, th0, th1, x_new, p_new, phi_new, eta_new):
+def _ho4_finish(x0, u, p, phi, eta, l0, P, edges, free_index, inc_ptr, inc_spring, masses, h, gravity, with_gravity,
+                len0, dir0, lenh, dirh, len1, dir1, th0, th1, fs, code, x_new, p_new, phi_new, eta_new):
     """The next state from converged unknowns: x¹ = x⁰ + d¹; Φ¹ = Φ⁰ + h (θ⁰ + θ¹)/2;
     η¹ = (−Γ⁰ + 4Γ^½ + 3Γ¹)/6 measured (58d); and p¹ = p⁰ + h (f⁰ + 4 f^½ + f¹)/6, which is
     (58b) given (58a) and (57a) and conserves linear momentum to round-off whatever the solver
-    residual. Returns (status, spring)."""
-    for a in range(x0.shape[0]):
-        k = free_index[a]
-        for i in range(3):
-            if k < 0:
-                x_new[a, i] = x0[a, i]
-                p_new[a, i] = p[a, i]
-            else:
-                x_new[a, i] = x0[a, i] + u[6 * k + 3 + i]
-                p_new[a, i] = p[a, i] + (h * masses[a] * gravity[i] if with_gravity else 0.0)
-    for e in range(edges.shape[0]):
-        a = edges[e, 0]
-        b = edges[e, 1]
+    residual. fs must hold the last residual's per-spring terms (that residual was evaluated at
+    u). Returns (status, spring)."""
+    m = edges.shape[0]
+    bad = m
+    for e in prange(m):
         t0 = th0[e]
         t1 = th1[e]
         th = 0.5 * (t0 + t1)
@@ -517,23 +681,35 @@ def _ho4_finish(x0, u, p, phi, eta, l0, P, edges, free_index, masses, h, gravity
         eta1 = (-G0 + 4.0 * Gh + 3.0 * G1) / 6.0
         eta_new[e] = eta1
         if not (abs(eta1) < math.inf):
-            return 3, e
+            code[e] = NOT_FINITE
+            bad = min(bad, e)
+            continue
         th_end = temperature(len1[e], eta1, l0[e], P, e)
         if not (th_end > 0.0 and th_end < math.inf):
-            return 2, e
-        c0 = h / 6.0 * tension(len0[e], t0, l0[e], P, e)
-        ch = 4.0 * h / 6.0 * tension(lenh[e], th, l0[e], P, e)
+            code[e] = NO_TEMPERATURE
+            bad = min(bad, e)
+            continue
         c1 = h / 6.0 * tension(len1[e], t1, l0[e], P, e)
-        free_a = free_index[a] >= 0
-        free_b = free_index[b] >= 0
         for i in range(3):
-            v = c0 * dir0[e, i] + ch * dirh[e, i] + c1 * dir1[e, i]
-            if free_a:
-                p_new[a, i] += v
-            if free_b:
-                p_new[b, i] -= v
-    for a in range(x0.shape[0]):
+            # fs holds (h/6) T⁰ n⁰ and (h/4) T^½ n^½ from the last residual
+            fs[e, i] = fs[e, i] + 8.0 / 3.0 * fs[e, 3 + i] + c1 * dir1[e, i]
+    if bad < m:
+        return code[bad], bad
+    n = x0.shape[0]
+    bad_node = n
+    for a in prange(n):
+        k = free_index[a]
+        F, _ = _gather3(a, edges, inc_ptr, inc_spring, fs)
         for i in range(3):
-            if not (abs(p_new[a, i]) < math.inf):
-                return 3, -1
+            if k < 0:
+                x_new[a, i] = x0[a, i]
+                p_new[a, i] = p[a, i]
+                continue
+            x_new[a, i] = x0[a, i] + u[6 * k + 3 + i]
+            q = p[a, i] + (h * masses[a] * gravity[i] if with_gravity else 0.0) - F[i]
+            p_new[a, i] = q
+            if not (abs(q) < math.inf):
+                bad_node = min(bad_node, a)
+    if bad_node < n:
+        return NOT_FINITE, -1
     return 0, -1
