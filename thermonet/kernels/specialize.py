@@ -53,10 +53,17 @@ def specialize(template, tag: str, namespace: dict, **jit_options):
     tag: made part of the qualified name (so of the cache file name); must identify everything
     in ``namespace`` and in the jit options that changes the compiled code.
     """
+    return njit(**jit_options)(rebind(template, tag, namespace))
+
+
+def rebind(template, tag: str, namespace: dict):
+    """A copy of the Python function ``template`` whose globals are overridden by ``namespace``
+    and whose qualified name carries ``tag`` (for any compiler's disk cache: Numba's CPU and
+    CUDA targets alike)."""
     glb = dict(template.__globals__)
     glb.update(namespace)
     fn = types.FunctionType(template.__code__, glb, template.__name__, template.__defaults__, template.__closure__)
     fn.__qualname__ = f"{template.__qualname__}__{tag}"
     fn.__module__ = template.__module__
     fn.__doc__ = template.__doc__
-    return njit(**jit_options)(fn)
+    return fn

@@ -1,0 +1,57 @@
+"""GPU backend of the explicit integrators (``backend="cuda"``), on NVIDIA's numba-cuda.
+
+The same kick/drift stages as :mod:`thermonet.kernels.splitting`, as two CUDA kernels per stage,
+with the state resident on the device across steps (:mod:`.stepper`); the kernels are compiled per
+model from the model's own ``@njit`` scalar functions (:mod:`.kernels`). Importing this package
+imports no CUDA code: :func:`require_cuda` says whether the backend can run, and why not.
+
+Without a GPU, Numba's CUDA simulator runs the same kernels as Python (slowly) when the
+environment variable ``NUMBA_ENABLE_CUDASIM=1`` is set before Numba is first imported; the
+tests use it.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import os
+
+from ..errors import InputError
+
+INSTALL_HINT = "pip install 'thermonet[cuda]' (numba-cuda >= 0.30)"
+
+
+def simulator_enabled() -> bool:
+    """True when Numba's CUDA simulator is switched on (it must be before numba is imported)."""
+    from numba.core import config
+
+    return bool(config.ENABLE_CUDASIM)
+
+
+def cuda_problem() -> str | None:
+    """Why the CUDA backend cannot run here, or None when it can."""
+    if importlib.util.find_spec("numba_cuda") is None:
+        return f"numba-cuda is not installed ({INSTALL_HINT})"
+    try:
+        from numba import cuda
+    except Exception as exc:  # a broken install must say what broke, not only "not available"
+        return f"numba-cuda is installed but numba.cuda does not import: {exc}"
+    if getattr(cuda, "implementation", "") == "Built-in":
+        return f"numba.cuda is Numba's deprecated built-in target, not numba-cuda ({INSTALL_HINT})"
+    if simulator_enabled():
+        return None
+    if not cuda.is_available():
+        env = "NUMBA_ENABLE_CUDASIM" in os.environ
+        return ("no CUDA GPU is visible to numba-cuda (numba.cuda.is_available() is False: no NVIDIA GPU or "
+                "driver)" + ("" if env else "; to run the CUDA kernels without a GPU, slowly, start Python with "
+                             "NUMBA_ENABLE_CUDASIM=1 (Numba's CUDA simulator)"))
+    return None
+
+
+def require_cuda() -> None:
+    """Raise :class:`~thermonet.errors.InputError` naming what is missing for the CUDA backend."""
+    problem = cuda_problem()
+    if problem is not None:
+        raise InputError(f"backend 'cuda' is not available: {problem}")
+
+
+__all__ = ["cuda_problem", "require_cuda", "simulator_enabled"]
