@@ -53,6 +53,8 @@ class Simulation:
     parallel: force the multi-threaded (True) or serial (False) kernels; default by net size.
     renumber: reorder nodes/springs internally for locality (results are reported in user order).
     integrator_options: passed to the integrator factory / stepper (e.g. ``alpha`` for GTR-α).
+    backend: "cpu" (default) or "cuda": the explicit integrators on an NVIDIA GPU through
+        numba-cuda, the state resident on the device (see :mod:`thermonet.cuda`).
     """
 
     def __init__(
@@ -71,6 +73,7 @@ class Simulation:
         parallel: bool | None = None,
         renumber: bool = True,
         integrator_options: Mapping | None = None,
+        backend: str = "cpu",
     ):
         if not isinstance(net, Net):
             raise InputError(f"net must be a thermonet.Net, got {type(net).__name__}")
@@ -81,6 +84,9 @@ class Simulation:
         stepper_keys = {"tolerance", "max_iterations", "retry", "linear_solver", "rtol", "atol"}
         stepper_options = {k: integrator_options.pop(k) for k in list(integrator_options) if k in stepper_keys}
         self.integrator = get_integrator(integrator, **integrator_options)
+        self.backend = _check_backend(backend, self.integrator)
+        if self.backend != "cpu":
+            stepper_options["backend"] = self.backend
         self.threads = threads
         n, m = net.n_nodes, net.n_springs
         layout = build_layout(net, renumber=renumber)
@@ -308,7 +314,11 @@ class Simulation:
             self._record(self)
 
     def _record(self, _sim=None) -> None:
-        row = measure(self.system, self._state, self.parallel)
+        device_measure = getattr(self.stepper, "measure", None)  # a device-resident state
+        if device_measure is not None:
+            row = device_measure(self.system, self._state)
+        else:
+            row = measure(self.system, self._state, self.parallel)
         row.update(getattr(self, "_last_stats", {}) or {})
         self.diagnostics.append(row)
         self._check_physical(row)
@@ -320,7 +330,7 @@ class Simulation:
         cadence and at the end of every run, so a run never silently returns such a state."""
         if math.isfinite(row["energy"]) and row.get("theta_min", 1.0) > 0:
             return
-        s, lay = self._state, self.layout
+        s, lay = self._host_state(), self.layout
         where = f"at step {s.step} (t = {s.time:.6g})"
         unstable = f"; h = {self.h} may be above the stability limit"
         bad = ~(np.isfinite(s.positions).all(axis=1) & np.isfinite(s.momenta).all(axis=1))
@@ -344,7 +354,7 @@ class Simulation:
     @property
     def state(self) -> State:
         """A copy of the current state in the user's numbering."""
-        s, lay = self._state, self.layout
+        s, lay = self._host_state(), self.layout
         return State(
             positions=lay.nodes_to_user(s.positions),
             momenta=lay.nodes_to_user(s.momenta),
@@ -380,8 +390,17 @@ class Simulation:
         on_grid = abs(time - step * self._h) <= 1e-12 * max(1.0, abs(time))
         self._time_origin = (0, 0.0) if on_grid else (step, time)
 
+    def _host_state(self) -> State:
+        """The current state (internal numbering) with its arrays up to date on the host: a
+        device-resident stepper (backend "cuda") copies its state back first."""
+        sync = getattr(self.stepper, "sync", None)
+        if sync is not None:
+            sync(self._state)
+        return self._state
+
     def _fields(self):
-        return spring_fields(self.system, self._state.positions, self._state.entropy)
+        s = self._host_state()
+        return spring_fields(self.system, s.positions, s.entropy)
 
     def spring_fields(self):
         """Length, temperature, tension and internal energy of every spring now, each (m,),
@@ -423,6 +442,20 @@ class Simulation:
     def __repr__(self) -> str:
         return (f"<Simulation {self.net.n_nodes} nodes, {self.net.n_springs} springs, model {self.model.name}, "
                 f"{self.integrator.name} h={self.h}, t={self.time:.6g}, step {self.step}>")
+
+
+def _check_backend(backend, integrator) -> str:
+    name = str(backend).lower()
+    if name not in ("cpu", "cuda"):
+        raise InputError(f"unknown backend {backend!r}; known: cpu, cuda")
+    if name == "cuda":
+        if not integrator.explicit:
+            raise InputError(f"integrator {integrator.name!r} is implicit; backend 'cuda' runs only the explicit "
+                             "integrators (gtr-0, gtr-1, co2, f10, nm2, co4, co6)")
+        from .cuda import require_cuda
+
+        require_cuda()
+    return name
 
 
 def _check_step(h) -> float:

@@ -44,7 +44,13 @@ class Splitting(Integrator):
         inner = sum(1 for k in self.kicks[1:-1] if k != 0.0)
         return inner + (1 if (self.kicks[0] != 0.0 or self.kicks[-1] != 0.0) else 0)
 
-    def make_stepper(self, system, parallel: bool = False, **options) -> "SplittingStepper":
+    def make_stepper(self, system, parallel: bool = False, backend: str = "cpu", **options) -> Stepper:
+        """The CPU :class:`SplittingStepper`, or for ``backend="cuda"`` the GPU one
+        (:class:`thermonet.cuda.stepper.CudaSplittingStepper`, state resident on the device)."""
+        if backend == "cuda":
+            from ..cuda.stepper import CudaSplittingStepper
+
+            return CudaSplittingStepper(self, system)
         return SplittingStepper(self, system, parallel)
 
 

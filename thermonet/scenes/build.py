@@ -61,6 +61,7 @@ def build_scene(scene: Scene) -> BuiltScene:
             parallel=None if integ["parallel"] == "auto" else integ["parallel"],
             renumber=integ["renumber"],
             integrator_options=options,
+            backend=integ["backend"],
         )
     except InputError as exc:
         raise scene.error("", str(exc)) from None

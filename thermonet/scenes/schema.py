@@ -241,9 +241,8 @@ def _backends():
     return BACKENDS
 
 
-#: compute backends a scene may name; "cuda" is reserved for a later GPU backend
-BACKENDS = ("cpu",)
-PLANNED_BACKENDS = ("cuda",)
+#: compute backends a scene may name ("cuda": explicit integrators on a GPU, see thermonet.cuda)
+BACKENDS = ("cpu", "cuda")
 
 GENERATORS = ("chain", "triangle", "lattice")
 FIELD_NAMES = ("displacement", "velocity", "momentum", "anchored", "node_temperature", "temperature",
@@ -336,7 +335,7 @@ SCHEMA = Table({
         "h": Key(number(above=0), "number > 0", "time step", required=True),
         "t_end": Key(number(above=0), "number > 0", "final time (or give steps)"),
         "steps": Key(integer(0), "integer >= 0", "number of steps (or give t_end)"),
-        "backend": Key(lambda v: _backend(v), "string", "compute backend: cpu", "cpu"),
+        "backend": Key(choice(_backends), "string", "compute backend: cpu, or cuda (explicit integrators on a GPU)", "cpu"),
         "threads": Key(integer(1), "integer >= 1", "threads of the parallel kernels (default: all cores)"),
         "parallel": Key(auto_or_bool, 'true | false | "auto"', "multi-threaded kernels; auto: by net size", "auto"),
         "renumber": Key(boolean, "boolean", "reorder nodes/springs internally for memory locality", True),
@@ -357,12 +356,6 @@ SCHEMA = Table({
                       "fields written to the frames (default: all that exist; thermal ones need effects.thermal)"),
     }, "what is written, and how often"),
 }, "a scene")
-
-
-def _backend(v):
-    if isinstance(v, str) and v.lower() in PLANNED_BACKENDS:
-        raise Invalid(f"backend {v!r} is not available yet; available: {', '.join(BACKENDS)}")
-    return choice(_backends)(v)
 
 
 # ----------------------------------------------------------------------------------------------
