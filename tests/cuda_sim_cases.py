@@ -1,0 +1,113 @@
+"""Runs tiny nets on the CPU backend and on the CUDA backend and saves both, for
+``tests/test_cuda_sim.py``. Run as a script in a process of its own, so that the environment
+(``NUMBA_ENABLE_CUDASIM=1`` for the simulator) is set before Numba is first imported:
+
+    python tests/cuda_sim_cases.py OUT.npz
+
+For each case ``<name>`` the archive holds ``<name>/<backend>/<field>`` arrays: the final
+positions, momenta, Φ, η (user numbering) and the diagnostics columns.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+
+import numpy as np
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, os.path.join(ROOT, "examples"))
+
+import thermonet as tn  # noqa: E402
+
+EXPLICIT = ("gtr-0", "gtr-1", "co2", "f10", "nm2", "co4", "co6")
+COLUMNS = ("energy", "kinetic", "internal", "potential", "entropy", "px", "py", "pz", "Lx", "Ly", "Lz",
+           "theta_min", "theta_max")
+STEPS = 3
+
+
+def free_net():
+    """A free-floating jittered cube (8 nodes, 24 springs), shaken and heated."""
+    net = tn.lattice((1, 1, 1), neighbours=18, jitter=0.1, seed=5)
+    rng = np.random.default_rng(5)
+    return net, rng.normal(0.0, 1.0, (net.n_nodes, 3)), 300.0 + 400.0 * rng.random(net.n_springs)
+
+
+def quadratic_parameters():
+    return dict(E=100.0, beta=0.5, C0=5.0, theta0=300.0, eta0=0.0)
+
+
+def cases():
+    net, v, temps = free_net()
+    for model in ("hencky", "quadratic"):
+        params = quadratic_parameters() if model == "quadratic" else None
+        for name in EXPLICIT:
+            yield f"{model}-{name}", lambda b, name=name, model=model, params=params: tn.Simulation(
+                net, model=model, parameters=params, temperatures=temps, velocities=v, integrator=name,
+                h=2e-3, backend=b)
+    # per-spring parameters (not the shared-parameter kernel variant)
+    c = np.linspace(80.0, 120.0, net.n_springs)
+    yield "hencky-per-spring-co2", lambda b: tn.Simulation(
+        net, parameters=dict(c=c), temperatures=temps, velocities=v, integrator="co2", h=2e-3, backend=b)
+    from custom_model import build_simulation
+    yield "user-model-co2", lambda b: _with_backend(build_simulation("co2", h=2e-3), b)
+    yield "thermal-off-co2", lambda b: tn.Simulation(net, velocities=v, thermal=False, integrator="co2",
+                                                     h=2e-3, backend=b)
+    chain = tn.chain()
+    p = [[0, 0, 0], [20, 10, 10], [10, 20, 10], [0, 10, 0]]
+    yield "gravity-chain-f10", lambda b: tn.Simulation(chain, temperatures=[800, 1200, 400], momenta=p,
+                                                       gravity=[0, 0, -9.81], integrator="f10", h=1e-2,
+                                                       backend=b)
+
+
+def _with_backend(sim, backend):
+    """The example's simulation rebuilt on ``backend`` (same net, model and initial state)."""
+    if backend == "cpu":
+        return sim
+    other = tn.Simulation(sim.net, model=sim.model, parameters={"softening": 0.05}, integrator=sim.integrator,
+                          h=sim.h, backend=backend)
+    other.load_state(sim.state)
+    return other
+
+
+def record(out, key, sim):
+    s = sim.state
+    out[f"{key}/positions"] = s.positions
+    out[f"{key}/momenta"] = s.momenta
+    if s.entropy is not None:
+        out[f"{key}/phi"] = s.thermal_displacement
+        out[f"{key}/eta"] = s.entropy
+    for c in COLUMNS:
+        out[f"{key}/{c}"] = sim.diagnostics.column(c)
+
+
+def main(path):
+    out = {}
+    for name, make in cases():
+        for backend in ("cpu", "cuda"):
+            sim = make(backend)
+            out[f"{name}/{backend}/eta0"] = sim.state.entropy if sim.system.thermal else np.empty(0)
+            out[f"{name}/{backend}/positions0"] = sim.state.positions
+            sim.run(steps=STEPS, diagnostics_every=STEPS)
+            record(out, f"{name}/{backend}", sim)
+    # chunks: 1 + 2 steps, with a frame-style read of the state in between, equal 3 steps at once
+    net, v, temps = free_net()
+    sim = tn.Simulation(net, temperatures=temps, velocities=v, integrator="co4", h=2e-3, backend="cuda")
+    sim.run(steps=1, diagnostics_every=1)
+    sim.spring_fields()
+    sim.run(steps=2, diagnostics_every=2)
+    record(out, "chunks/cuda", sim)
+    # a state loaded between runs is uploaded; the device must not overwrite it with its own
+    for backend in ("cpu", "cuda"):
+        sim = tn.Simulation(net, temperatures=temps, velocities=v, integrator="co2", h=2e-3, backend=backend)
+        sim.run(steps=2, diagnostics_every=2)
+        state = sim.state
+        state.momenta = -state.momenta
+        sim.load_state(state)
+        sim.run(steps=2, diagnostics_every=2)
+        record(out, f"reload/{backend}", sim)
+    np.savez(path, **out)
+
+
+if __name__ == "__main__":
+    main(sys.argv[1])

@@ -1,0 +1,214 @@
+"""The CUDA backend against the CPU backend.
+
+Under Numba's CUDA simulator (no GPU needed): ``tests/cuda_sim_cases.py`` runs tiny nets on both
+backends in a process of its own with ``NUMBA_ENABLE_CUDASIM=1`` (the variable must be set before
+Numba is imported, so not in this process). Tolerances: the GPU path performs the CPU's
+operations in the CPU's order per spring and per node, so states agree to round-off
+(``STATE_RTOL`` of the quantity's scale); diagnostics are tree sums on the device and agree to
+round-off of the sum; η is never written, so it is bit-exact. On a real GPU (tests marked
+``gpu``, skipped without one) fused multiply-adds change the last bits of each step, so the
+tolerance there is looser.
+
+Without numba-cuda the simulator tests skip; the error paths run either way.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import thermonet as tn
+from thermonet.errors import InputError
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+HAVE_NUMBA_CUDA = importlib.util.find_spec("numba_cuda") is not None
+needs_numba_cuda = pytest.mark.skipif(not HAVE_NUMBA_CUDA, reason="numba-cuda is not installed (pip install '.[cuda]')")
+
+sys.path.insert(0, os.path.join(ROOT, "tests"))
+from cuda_sim_cases import EXPLICIT  # noqa: E402
+
+CASES = [f"{m}-{i}" for m in ("hencky", "quadratic") for i in EXPLICIT] + [
+    "hencky-per-spring-co2", "user-model-co2", "thermal-off-co2", "gravity-chain-f10"]
+FREE = [c for c in CASES if not c.startswith("gravity")]  # no anchors, no external field
+STATE_RTOL = 1e-13
+DIAG_RTOL = 1e-12
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory):
+    if not HAVE_NUMBA_CUDA:
+        pytest.skip("numba-cuda is not installed (pip install '.[cuda]')")
+    path = str(tmp_path_factory.mktemp("cuda") / "cases.npz")
+    env = dict(os.environ, NUMBA_ENABLE_CUDASIM="1")
+    proc = subprocess.run([sys.executable, os.path.join(ROOT, "tests", "cuda_sim_cases.py"), path],
+                          env=env, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    with np.load(path) as data:
+        return dict(data)
+
+
+def _close(a, b, rtol):
+    scale = max(float(np.max(np.abs(a))), 1e-300)
+    return float(np.max(np.abs(a - b))) <= rtol * scale
+
+
+@pytest.mark.parametrize("case", CASES)
+def test_state_equals_cpu_to_round_off(runs, case):
+    cpu, gpu = f"{case}/cpu", f"{case}/cuda"
+    assert not np.array_equal(runs[f"{gpu}/positions"], runs[f"{gpu}/positions0"])  # it moved
+    for field in ("positions", "momenta", "phi"):
+        if f"{cpu}/{field}" in runs:
+            assert _close(runs[f"{cpu}/{field}"], runs[f"{gpu}/{field}"], STATE_RTOL), field
+
+
+@pytest.mark.parametrize("case", [c for c in CASES if c != "thermal-off-co2"])
+def test_entropy_bit_exact(runs, case):
+    eta = runs[f"{case}/cuda/eta"]
+    assert np.array_equal(eta, runs[f"{case}/cuda/eta0"])
+    assert np.array_equal(eta, runs[f"{case}/cpu/eta"])
+
+
+@pytest.mark.parametrize("case", FREE)
+def test_momenta_conserved(runs, case):
+    for group in (("px", "py", "pz"), ("Lx", "Ly", "Lz")):
+        cols = np.array([runs[f"{case}/cuda/{c}"] for c in group])
+        scale = max(float(np.max(np.abs(cols))), 1.0)
+        assert float(np.max(np.abs(cols - cols[:, :1]))) <= 1e-12 * scale, group
+
+
+@pytest.mark.parametrize("case", CASES)
+def test_diagnostics_equal_cpu(runs, case):
+    for c in ("energy", "kinetic", "internal", "potential", "entropy", "px", "Lz", "theta_min", "theta_max"):
+        a, b = runs[f"{case}/cpu/{c}"], runs[f"{case}/cuda/{c}"]
+        assert np.array_equal(np.isnan(a), np.isnan(b)), c
+        ok = ~np.isnan(a)
+        scale = max(float(np.max(np.abs(a[ok]), initial=0.0)), 1e-300)
+        assert np.all(np.abs(a[ok] - b[ok]) <= DIAG_RTOL * max(scale, 1.0)), c
+
+
+def test_thermal_off_has_no_thermal_state(runs):
+    assert "thermal-off-co2/cuda/phi" not in runs
+    assert np.isnan(runs["thermal-off-co2/cuda/theta_min"]).all()
+
+
+def test_gravity_acts_on_the_device(runs):
+    potential = runs["gravity-chain-f10/cuda/potential"]
+    assert potential[-1] != potential[0]
+    assert _close(runs["gravity-chain-f10/cpu/positions"], runs["gravity-chain-f10/cuda/positions"], STATE_RTOL)
+
+
+def test_chunked_run_is_bit_identical(runs):
+    for field in ("positions", "momenta", "phi"):
+        assert np.array_equal(runs[f"chunks/cuda/{field}"], runs[f"hencky-co4/cuda/{field}"]), field
+
+
+def test_loaded_state_replaces_the_device_state(runs):
+    for field in ("positions", "momenta", "phi"):
+        assert _close(runs[f"reload/cpu/{field}"], runs[f"reload/cuda/{field}"], STATE_RTOL), field
+
+
+# ----------------------------------------------------------------------------------------------
+# errors (no simulator needed)
+
+
+def test_implicit_integrator_is_refused():
+    with pytest.raises(InputError, match="implicit; backend 'cuda' runs only the explicit"):
+        tn.Simulation(tn.chain(), integrator="ho4", h=0.01, backend="cuda")
+
+
+def test_unknown_backend_is_refused():
+    with pytest.raises(InputError, match="unknown backend 'opencl'"):
+        tn.Simulation(tn.chain(), integrator="co2", h=0.01, backend="opencl")
+
+
+def test_missing_numba_cuda_is_named(monkeypatch):
+    import thermonet.cuda as tc
+
+    real = importlib.util.find_spec
+    monkeypatch.setattr(tc.importlib.util, "find_spec", lambda name, *a: None if name == "numba_cuda" else real(name, *a))
+    with pytest.raises(InputError, match="numba-cuda is not installed"):
+        tn.Simulation(tn.chain(), integrator="co2", h=0.01, backend="cuda")
+
+
+@needs_numba_cuda
+def test_no_gpu_names_the_simulator():
+    from numba import cuda
+
+    from thermonet.cuda import simulator_enabled
+
+    if simulator_enabled() or cuda.is_available():
+        pytest.skip("a GPU (or the simulator) is available here")
+    with pytest.raises(InputError, match="no CUDA GPU is visible.*NUMBA_ENABLE_CUDASIM=1"):
+        tn.Simulation(tn.chain(), integrator="co2", h=0.01, backend="cuda")
+
+
+# ----------------------------------------------------------------------------------------------
+# compiled for a real device
+
+
+def _nvvm_available() -> bool:
+    if not HAVE_NUMBA_CUDA:
+        return False
+    try:
+        from numba.cuda.cudadrv import nvvm
+
+        return bool(nvvm.is_available())
+    except Exception:
+        return False
+
+
+@pytest.mark.skipif(not _nvvm_available(), reason="needs numba-cuda's NVVM (CUDA toolkit); no GPU needed")
+@pytest.mark.parametrize("model", ["hencky", "quadratic"])
+def test_kernels_compile_to_ptx_for_h100(model):
+    from thermonet.cuda.kernels import compile_ptx
+
+    for thermal in (True, False):
+        ptx = compile_ptx(tn.get_model(model), thermal=thermal, uniform=True, cc=(9, 0))
+        assert set(ptx) == {"spring", "node", "spring_sums", "node_sums", "finish"}
+        assert all(".target sm_90" in text for text in ptx.values())
+
+
+def _gpu_available() -> bool:
+    if not HAVE_NUMBA_CUDA:
+        return False
+    try:
+        from numba import cuda
+
+        from thermonet.cuda import simulator_enabled
+
+        return not simulator_enabled() and cuda.is_available()
+    except Exception:
+        return False
+
+
+@pytest.mark.gpu
+@pytest.mark.skipif(not _gpu_available(), reason="needs a CUDA GPU")
+@pytest.mark.parametrize("integrator", EXPLICIT)
+@pytest.mark.parametrize("model", ["hencky", "quadratic", "user"])
+def test_gpu_equals_cpu(integrator, model):
+    sys.path.insert(0, os.path.join(ROOT, "examples"))
+    from custom_model import SOFTENING_HENCKY
+
+    net = tn.lattice((6, 6, 6), neighbours=18, jitter=0.1, seed=2)
+    rng = np.random.default_rng(2)
+    v, temps = rng.normal(0, 1.0, (net.n_nodes, 3)), 300 + 400 * rng.random(net.n_springs)
+    m = {"user": SOFTENING_HENCKY}.get(model, model)
+    params = dict(E=100.0, beta=0.5, C0=5.0, theta0=300.0, eta0=0.0) if model == "quadratic" else None
+    out = {}
+    for backend in ("cpu", "cuda"):
+        sim = tn.Simulation(net, model=m, parameters=params, temperatures=temps, velocities=v,
+                            integrator=integrator, h=1e-3, backend=backend)
+        sim.run(steps=50, diagnostics_every=10)
+        out[backend] = sim
+    a, b = out["cpu"].state, out["cuda"].state
+    assert np.array_equal(a.entropy, b.entropy)
+    for field in ("positions", "momenta", "thermal_displacement"):
+        assert _close(getattr(a, field), getattr(b, field), 1e-10), field
+    d = out["cuda"].diagnostics
+    for cols in (d.linear_momentum, d.angular_momentum):
+        assert np.max(np.abs(cols - cols[0])) <= 1e-12 * max(np.max(np.abs(cols)), 1.0)
