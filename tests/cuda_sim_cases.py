@@ -16,7 +16,7 @@ import sys
 import numpy as np
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-sys.path.insert(0, os.path.join(ROOT, "examples"))
+sys.path[:0] = [ROOT, os.path.join(ROOT, "examples")]  # this checkout's thermonet, whatever is installed
 
 import thermonet as tn  # noqa: E402
 
