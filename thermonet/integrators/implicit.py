@@ -39,7 +39,7 @@ class ImplicitStepper(Stepper):
     Attributes a subclass relies on: ``x0, p0, eta0`` the step's start (n, 3), (n, 3), (m,);
     ``h``; ``len0`` (m,), ``dir0`` (m, 3), ``f0`` (n, 3) from the start kernel; ``R``, ``Rabs``
     (size,); ``data`` (nnz,) the Jacobian values; ``jc`` the per-spring coefficients of the
-    matrix-free Jacobian; ``fs`` (m, B) and ``code`` (m,) kernel scratch; ``warm``: whether the
+    matrix-free Jacobian; ``fs`` (m, 6) and ``code`` (m,) kernel scratch; ``warm``: whether the
     per-spring temperatures of the last residual may seed the next one (same step);
     ``incidence`` the node→spring CSR (inc_ptr, inc_spring); ``pattern``, ``kernels``, ``sweeper``.
     """
@@ -72,7 +72,7 @@ class ImplicitStepper(Stepper):
         self.Rabs = np.zeros(size)
         self.u = np.zeros(size)
         self.data = np.zeros(self.pattern.nnz if self.solver.assembled else 0)
-        self.fs = np.empty((m, self.block))
+        self.fs = np.empty((m, 6))
         self.sweep_scratch = np.empty((m, self.block))
         self.code = np.zeros(m, dtype=np.int64)
         self.warm = False

@@ -123,64 +123,18 @@ def _usable(t):
 
 
 @njit(cache=True, inline="always")
-def _gather3(a, edges, inc_ptr, inc_spring, fs):
-    """(F, S) over the springs of node a: F (3,) = Σ_e s_e fs[e, :3], S (3,) = Σ_e |fs[e, :3]|,
-    s_e = −1 where a is the spring's first end, +1 where it is the second (a residual's sign:
-    R_a −= v, R_b += v); one pass over the incidence list, sums in its order."""
-    f0 = f1 = f2 = s0 = s1 = s2 = 0.0
+def _gather_add(a, edges, inc_ptr, inc_spring, fs, B, out, base, mag, with_mag):
+    """out[base:base+B] += Σ_e s_e fs[e, :B] (and, with_mag, mag[base:base+B] += Σ_e |fs[e, :B]|)
+    over the springs of node a, s_e = −1 where a is the spring's first end and +1 where it is
+    the second (a residual's sign: R_a −= v, R_b += v); in the incidence list's order."""
     for j in range(inc_ptr[a], inc_ptr[a + 1]):
         e = inc_spring[j]
-        v0 = fs[e, 0]
-        v1 = fs[e, 1]
-        v2 = fs[e, 2]
-        if edges[e, 0] == a:
-            f0 -= v0
-            f1 -= v1
-            f2 -= v2
-        else:
-            f0 += v0
-            f1 += v1
-            f2 += v2
-        s0 += abs(v0)
-        s1 += abs(v1)
-        s2 += abs(v2)
-    return (f0, f1, f2), (s0, s1, s2)
-
-
-@njit(cache=True, inline="always")
-def _gather6(a, edges, inc_ptr, inc_spring, fs):
-    """:func:`_gather3` for fs[e, :6]: (F (6,), S (6,))."""
-    f0 = f1 = f2 = f3 = f4 = f5 = 0.0
-    s0 = s1 = s2 = s3 = s4 = s5 = 0.0
-    for j in range(inc_ptr[a], inc_ptr[a + 1]):
-        e = inc_spring[j]
-        v0 = fs[e, 0]
-        v1 = fs[e, 1]
-        v2 = fs[e, 2]
-        v3 = fs[e, 3]
-        v4 = fs[e, 4]
-        v5 = fs[e, 5]
-        if edges[e, 0] == a:
-            f0 -= v0
-            f1 -= v1
-            f2 -= v2
-            f3 -= v3
-            f4 -= v4
-            f5 -= v5
-        else:
-            f0 += v0
-            f1 += v1
-            f2 += v2
-            f3 += v3
-            f4 += v4
-            f5 += v5
-        s0 += abs(v0)
-        s1 += abs(v1)
-        s2 += abs(v2)
-        s3 += abs(v3)
-        s4 += abs(v4)
-        s5 += abs(v5)
-    return (f0, f1, f2, f3, f4, f5), (s0, s1, s2, s3, s4, s5)
+        sg = -1.0 if edges[e, 0] == a else 1.0
+        for i in range(B):
+            v = fs[e, i]
+            out[base + i] += sg * v
+            if with_mag:
+                mag[base + i] += abs(v)
 
 
 # Every kernel below is two loops, each parallel when compiled with parallel=True: a spring
@@ -195,7 +149,7 @@ def _start(x0, p, inv_mass, eta, l0, P, edges, inc_ptr, inc_spring, len0, dir0, 
     """Lengths len0 (m,) and unit vectors dir0 (m, 3) at x0 (n, 3), and the spring forces
     f0 (n, 3) at (x0, θ(l0, η)), the explicit force a predictor uses; ``with_rate``: also
     fdot0 (n, 3), the forces' time derivative along the exact (adiabatic) flow at (x0, p0), for
-    a third-order Taylor predictor. fs (m, 6 if with_rate else ≥3), code (m,) scratch.
+    a third-order Taylor predictor (else fdot0 = 0). fs (m, 6), code (m,) scratch.
     Returns (status, spring)."""
     m = edges.shape[0]
     bad = m
@@ -238,18 +192,22 @@ def _start(x0, p, inv_mass, eta, l0, P, edges, inc_ptr, inc_spring, len0, dir0, 
             fs[e, 3] = Tdot * nx + q * (vx - nx * ldot)
             fs[e, 4] = Tdot * ny + q * (vy - ny * ldot)
             fs[e, 5] = Tdot * nz + q * (vz - nz * ldot)
+        else:
+            fs[e, 3] = 0.0
+            fs[e, 4] = 0.0
+            fs[e, 5] = 0.0
     if bad < m:
         return code[bad], bad
     for a in prange(x0.shape[0]):
-        if with_rate:
-            F, _ = _gather6(a, edges, inc_ptr, inc_spring, fs)
+        for i in range(3):
+            f0[a, i] = 0.0
+            fdot0[a, i] = 0.0
+        for j in range(inc_ptr[a], inc_ptr[a + 1]):
+            e = inc_spring[j]
+            sg = 1.0 if edges[e, 0] == a else -1.0
             for i in range(3):
-                f0[a, i] = -F[i]
-                fdot0[a, i] = -F[3 + i]
-        else:
-            G, _ = _gather3(a, edges, inc_ptr, inc_spring, fs)
-            for i in range(3):
-                f0[a, i] = -G[i]
+                f0[a, i] += sg * fs[e, i]
+                fdot0[a, i] += sg * fs[e, 3 + i]
     return 0, -1
 
 
@@ -334,13 +292,13 @@ def _gtr_residual(x0, u, p, eta, l0, P, edges, free_index, inc_ptr, inc_spring, 
         k = free_index[a]
         if k < 0:
             continue
-        F, S = _gather3(a, edges, inc_ptr, inc_spring, fs)
         w = masses[a] / h
         for i in range(3):
             inertia = w * u[3 * k + i]
             g = alpha * h * masses[a] * gravity[i] if with_gravity else 0.0
-            R[3 * k + i] = inertia - p[a, i] - g + F[i]
-            Rabs[3 * k + i] = abs(inertia) + abs(p[a, i]) + abs(g) + S[i]
+            R[3 * k + i] = inertia - p[a, i] - g
+            Rabs[3 * k + i] = abs(inertia) + abs(p[a, i]) + abs(g)
+        _gather_add(a, edges, inc_ptr, inc_spring, fs, 3, R, 3 * k, Rabs, True)
     return 0, -1
 
 
@@ -416,14 +374,23 @@ def _gtr_finish(x0, u, p, phi, eta, l0, P, edges, free_index, inc_ptr, inc_sprin
     bad_node = n
     for a in prange(n):
         k = free_index[a]
-        F, _ = _gather3(a, edges, inc_ptr, inc_spring, fs)
+        F0 = 0.0
+        F1 = 0.0
+        F2 = 0.0
+        for j in range(inc_ptr[a], inc_ptr[a + 1]):
+            e = inc_spring[j]
+            sg = -1.0 if edges[e, 0] == a else 1.0
+            F0 += sg * fs[e, 0]
+            F1 += sg * fs[e, 1]
+            F2 += sg * fs[e, 2]
         for i in range(3):
+            F = F0 if i == 0 else (F1 if i == 1 else F2)
             if k < 0:
                 x_new[a, i] = x0[a, i]
                 p_new[a, i] = p[a, i]
                 continue
             x_new[a, i] = x0[a, i] + u[3 * k + i]
-            q = p[a, i] + (h * masses[a] * gravity[i] if with_gravity else 0.0) - F[i]
+            q = p[a, i] + (h * masses[a] * gravity[i] if with_gravity else 0.0) - F
             p_new[a, i] = q
             if not (abs(q) < math.inf):
                 bad_node = min(bad_node, a)
@@ -573,7 +540,6 @@ def _ho4_residual(x0, u, p, eta, l0, P, edges, free_index, inc_ptr, inc_spring, 
         k = free_index[a]
         if k < 0:
             continue
-        F, S = _gather6(a, edges, inc_ptr, inc_spring, fs)
         w = masses[a] / h
         for i in range(3):
             dh = u[6 * k + i]
@@ -582,10 +548,11 @@ def _ho4_residual(x0, u, p, eta, l0, P, edges, free_index, inc_ptr, inc_spring, 
             gh = h / 4.0 * masses[a] * gravity[i] if with_gravity else 0.0
             i1 = w * (8.0 * dh - d1) / 3.0
             i2 = w * (d1 - 2.0 * dh)
-            R[6 * k + i] = i1 - p[a, i] - g0 + F[i]
-            Rabs[6 * k + i] = abs(i1) + abs(p[a, i]) + abs(g0) + S[i]
-            R[6 * k + 3 + i] = i2 - gh + F[3 + i]
-            Rabs[6 * k + 3 + i] = abs(i2) + abs(gh) + S[3 + i]
+            R[6 * k + i] = i1 - p[a, i] - g0
+            Rabs[6 * k + i] = abs(i1) + abs(p[a, i]) + abs(g0)
+            R[6 * k + 3 + i] = i2 - gh
+            Rabs[6 * k + 3 + i] = abs(i2) + abs(gh)
+        _gather_add(a, edges, inc_ptr, inc_spring, fs, 6, R, 6 * k, Rabs, True)
     return 0, -1
 
 
@@ -699,14 +666,23 @@ def _ho4_finish(x0, u, p, phi, eta, l0, P, edges, free_index, inc_ptr, inc_sprin
     bad_node = n
     for a in prange(n):
         k = free_index[a]
-        F, _ = _gather3(a, edges, inc_ptr, inc_spring, fs)
+        F0 = 0.0
+        F1 = 0.0
+        F2 = 0.0
+        for j in range(inc_ptr[a], inc_ptr[a + 1]):
+            e = inc_spring[j]
+            sg = -1.0 if edges[e, 0] == a else 1.0
+            F0 += sg * fs[e, 0]
+            F1 += sg * fs[e, 1]
+            F2 += sg * fs[e, 2]
         for i in range(3):
+            F = F0 if i == 0 else (F1 if i == 1 else F2)
             if k < 0:
                 x_new[a, i] = x0[a, i]
                 p_new[a, i] = p[a, i]
                 continue
             x_new[a, i] = x0[a, i] + u[6 * k + 3 + i]
-            q = p[a, i] + (h * masses[a] * gravity[i] if with_gravity else 0.0) - F[i]
+            q = p[a, i] + (h * masses[a] * gravity[i] if with_gravity else 0.0) - F
             p_new[a, i] = q
             if not (abs(q) < math.inf):
                 bad_node = min(bad_node, a)

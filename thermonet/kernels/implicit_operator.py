@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 from numba import prange
 
-from .implicit import _gather3, _gather6
+from .implicit import _gather_add
 from .specialize import specialize
 
 _OPTIONS = dict(cache=True, error_model="numpy", boundscheck=False)
@@ -66,13 +66,13 @@ def _gtr_sweep(du, R, r, w, jc, dir0, dir1, edges, free_index, inc_ptr, inc_spri
         k = free_index[a]
         if k < 0:
             continue
-        F = (0.0, 0.0, 0.0)
-        if not first:
-            F, _ = _gather3(a, edges, inc_ptr, inc_spring, w)
         wm = masses[a] / h
         for i in range(3):
-            acc = R[3 * k + i] - wm * du[3 * k + i] + F[i]
-            r[3 * k + i] = acc
+            r[3 * k + i] = R[3 * k + i] - wm * du[3 * k + i]
+        if not first:
+            _gather_add(a, edges, inc_ptr, inc_spring, w, 3, r, 3 * k, r, False)
+        for i in range(3):
+            acc = r[3 * k + i]
             rmax = max(rmax, abs(acc))
             if update:
                 du[3 * k + i] += acc / wm
@@ -125,18 +125,20 @@ def _ho4_sweep(du, R, r, w, jc, dir0, dirh, dir1, edges, free_index, inc_ptr, in
         k = free_index[a]
         if k < 0:
             continue
-        F = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
-        if not first:
-            F, _ = _gather6(a, edges, inc_ptr, inc_spring, w)
         wm = masses[a] / h
         q = 0.5 / wm
         for i in range(3):
             dh = du[6 * k + i]
             d1 = du[6 * k + 3 + i]
-            r1 = R[6 * k + i] - wm * (8.0 * dh - d1) / 3.0 + F[i]
-            r2 = R[6 * k + 3 + i] - wm * (d1 - 2.0 * dh) + F[3 + i]
-            r[6 * k + i] = r1
-            r[6 * k + 3 + i] = r2
+            r[6 * k + i] = R[6 * k + i] - wm * (8.0 * dh - d1) / 3.0
+            r[6 * k + 3 + i] = R[6 * k + 3 + i] - wm * (d1 - 2.0 * dh)
+        if not first:
+            _gather_add(a, edges, inc_ptr, inc_spring, w, 6, r, 6 * k, r, False)
+        for i in range(3):
+            dh = du[6 * k + i]
+            d1 = du[6 * k + 3 + i]
+            r1 = r[6 * k + i]
+            r2 = r[6 * k + 3 + i]
             rmax = max(rmax, max(abs(r1), abs(r2)))
             if update:
                 # D⁻¹ = h/m · ½ [[1, 1/3], [2, 8/3]]
