@@ -29,10 +29,11 @@ class SpringFields:
     internal_energy: np.ndarray
 
 
-def spring_fields(system, positions: np.ndarray, entropy: np.ndarray) -> SpringFields:
+def spring_fields(system, positions: np.ndarray, entropy: np.ndarray, parallel: bool = False) -> SpringFields:
+    """Per-spring fields at (positions (n, 3), entropy (m,) or None), internal numbering."""
     m = system.n_springs
     out = SpringFields(np.empty(m), np.empty(m), np.empty(m), np.empty(m))
-    kernel = spring_field_kernel(system.model, system.thermal)
+    kernel = spring_field_kernel(system.model, system.thermal, parallel)
     if entropy is None:
         entropy = np.empty(0)
     kernel(positions, entropy, system.rest_lengths, system.parameters, system.edges,

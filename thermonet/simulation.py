@@ -400,7 +400,7 @@ class Simulation:
 
     def _fields(self):
         s = self._host_state()
-        return spring_fields(self.system, s.positions, s.entropy)
+        return spring_fields(self.system, s.positions, s.entropy, self.parallel)
 
     def spring_fields(self):
         """Length, temperature, tension and internal energy of every spring now, each (m,),

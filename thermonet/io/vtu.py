@@ -21,9 +21,11 @@ _VTK_TYPES = {
 }
 
 
-def _block(array: np.ndarray) -> bytes:
-    data = np.ascontiguousarray(array).tobytes()
-    return np.array(len(data), dtype="<u8").tobytes() + data
+def _block(array: np.ndarray) -> tuple[bytes, memoryview]:
+    """An appended-data block: its UInt64 byte count and the array's bytes (no copy when the
+    array is already contiguous little-endian)."""
+    data = np.ascontiguousarray(array)
+    return np.array(data.nbytes, dtype="<u8").tobytes(), memoryview(data).cast("B")
 
 
 class VTUWriter:
@@ -52,7 +54,7 @@ class VTUWriter:
         points = np.asarray(points, dtype="<f8")
         if points.shape != (self.n_nodes, 3):
             raise ValueError(f"points must have shape ({self.n_nodes}, 3), got {points.shape}")
-        blocks: list[bytes] = []
+        blocks: list[tuple[bytes, memoryview]] = []
         offset = 0
 
         def array_tag(name: str, array: np.ndarray, rows: int) -> str:
@@ -71,14 +73,14 @@ class VTUWriter:
             tag = (f'<DataArray type="{_VTK_TYPES[dtype]}" Name="{name}"{components} '
                    f'format="appended" offset="{offset}"/>')
             blocks.append(block)
-            offset += len(block)
+            offset += len(block[0]) + len(block[1])
             return tag
 
         def topology_tag(name: str, block: bytes, vtk_type: str) -> str:
             nonlocal offset
             tag = f'<DataArray type="{vtk_type}" Name="{name}" format="appended" offset="{offset}"/>'
             blocks.append(block)
-            offset += len(block)
+            offset += len(block[0]) + len(block[1])
             return tag
 
         xml = [
@@ -96,6 +98,7 @@ class VTUWriter:
         ]
         with atomic_write(path) as f:
             f.write("\n".join(xml).encode() + b"\n_")
-            for block in blocks:
-                f.write(block)
+            for header, data in blocks:
+                f.write(header)
+                f.write(data)
             f.write(b"\n</AppendedData>\n</VTKFile>\n")

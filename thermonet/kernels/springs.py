@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import math
 
+from numba import prange
+
 from .specialize import MODEL_FUNCTIONS, model_fingerprint, model_namespace, specialize
 
 # Bound per model by specialize(); THERMAL False: every spring at its reference temperature
@@ -17,17 +19,17 @@ _CACHE: dict = {}
 _OPTIONS = dict(cache=True, error_model="numpy")
 
 
-def spring_field_kernel(model, thermal: bool = True):
+def spring_field_kernel(model, thermal: bool = True, parallel: bool = False):
     """``spring_fields(x, eta, l0, P, edges, length, theta, tension, energy)`` for ``model``:
     fills the four (m,) output arrays from positions x (n, 3) and entropies eta (m,)
-    (eta unused and may be empty when not ``thermal``)."""
-    key = ("fields", model_fingerprint(model), bool(thermal))
+    (eta unused and may be empty when not ``thermal``); multi-threaded when ``parallel``."""
+    key = ("fields", model_fingerprint(model), bool(thermal), bool(parallel))
     if key not in _CACHE:
         ns = model_namespace(model)
         ns["THERMAL"] = bool(thermal)
         ns["REFERENCE_TEMPERATURE"] = model.parameter_index(model.reference_temperature)
-        tag = f"{model.name}_{key[1]}_{'thermal' if thermal else 'mech'}"
-        _CACHE[key] = specialize(_spring_fields, tag, ns, **_OPTIONS)
+        tag = f"{model.name}_{key[1]}_{'thermal' if thermal else 'mech'}_{'par' if parallel else 'ser'}"
+        _CACHE[key] = specialize(_spring_fields, tag, ns, parallel=bool(parallel), **_OPTIONS)
     return _CACHE[key]
 
 
@@ -44,7 +46,7 @@ def map_springs(model, function: str):
 
 
 def _spring_fields(x, eta, l0, P, edges, length, theta, tens, energy):
-    for e in range(edges.shape[0]):
+    for e in prange(edges.shape[0]):
         a = edges[e, 0]
         b = edges[e, 1]
         dx = x[b, 0] - x[a, 0]
