@@ -12,6 +12,11 @@ interval on the harmonic oscillator (its largest h·ω with bounded energy).
   the spring and a geometric term ``T/l`` across it. It is found with a few Lanczos iterations
   (SciPy ``eigsh``) on the symmetric M^{-1/2} K M^{-1/2}; the Gershgorin bound (rigorous, cheap,
   pessimistic) is used when Lanczos does not converge and is always reported alongside.
+- Large nets (≥ ``MATFREE_MIN_SPRINGS`` springs) never assemble K: a fixed number
+  (``LANCZOS_STEPS``) of plain Lanczos steps with a matrix-free product, and the Gershgorin bound
+  from per-spring row sums; both cost a few passes over the springs. A Ritz value never exceeds
+  the true λ_max, so this estimate errs towards a larger h_max (the step policy's safety fraction
+  covers the little it may miss; see docs/robustness.md).
 """
 
 from __future__ import annotations
@@ -20,14 +25,23 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
+from numba import njit
 from scipy.sparse.linalg import ArpackNoConvergence, eigsh
 
 from .diagnostics import spring_fields
 from .kernels.springs import map_springs
 
 #: the implicit integrators' stability intervals, measured on a linear spring (h·ω), used when an
-#: integrator does not declare ``stability_interval`` itself.
-MEASURED_INTERVALS: dict[str, float] = {}
+#: integrator does not declare ``stability_interval`` itself (tests/test_hard_cases.py re-measures
+#: them; docs/robustness.md has the table). GTR-α's discrete Euler–Lagrange equations of a purely
+#: mechanical spring are central differences for every α, hence 2; HO4's limit is where the trace
+#: of its step matrix on the oscillator reaches −2 (2√2 in closed form, measured 2.828).
+MEASURED_INTERVALS: dict[str, float] = {"gtr-1/2": 2.0, "gtr-alpha": 2.0, "ho4": 2.8284}
+
+#: from this many springs on, ω_max is estimated without assembling the stiffness matrix
+MATFREE_MIN_SPRINGS = 100_000
+#: Lanczos steps of the matrix-free estimate
+LANCZOS_STEPS = 40
 
 
 def splitting_stability_interval(kicks, drifts, hw_max: float = 20.0, resolution: int = 20000) -> float:
@@ -71,13 +85,15 @@ def stability_interval(integrator) -> float:
         return float(declared)
     if hasattr(integrator, "kicks") and hasattr(integrator, "drifts"):
         return float(splitting_stability_interval(integrator.kicks, integrator.drifts))
-    if integrator.name in MEASURED_INTERVALS:
-        return MEASURED_INTERVALS[integrator.name]
+    for key in (integrator.name, integrator.name.split("(")[0]):  # "gtr-alpha(0.3)" -> "gtr-alpha"
+        if key in MEASURED_INTERVALS:
+            return MEASURED_INTERVALS[key]
     return float("inf")
 
 
-def stiffness_matrix(system, positions: np.ndarray, entropy: np.ndarray | None) -> sp.csr_matrix:
-    """(3n, 3n) adiabatic stiffness K = ∂²H/∂x² at fixed η (internal numbering, all nodes)."""
+def spring_stiffness(system, positions: np.ndarray, entropy: np.ndarray | None):
+    """Per-spring stiffness parts: axial (m,) = dT/dl at fixed η, geometric (m,) = T/l and unit
+    vectors n (m, 3); spring e's 3×3 block is axial n⊗n + geometric (I − n⊗n)."""
     fields = spring_fields(system, positions, entropy)
     l, theta, T = fields.length, fields.temperature, fields.tension
     l0, P = system.rest_lengths, system.parameters
@@ -93,7 +109,13 @@ def stiffness_matrix(system, positions: np.ndarray, entropy: np.ndarray | None) 
         axial = F_ll - F_lt * F_lt / F_tt
     edges = system.edges
     n_vec = (positions[edges[:, 1]] - positions[edges[:, 0]]) / l[:, None]
-    geometric = T / l
+    return axial, T / l, n_vec
+
+
+def stiffness_matrix(system, positions: np.ndarray, entropy: np.ndarray | None) -> sp.csr_matrix:
+    """(3n, 3n) adiabatic stiffness K = ∂²H/∂x² at fixed η (internal numbering, all nodes)."""
+    axial, geometric, n_vec = spring_stiffness(system, positions, entropy)
+    edges = system.edges
     # per-spring 3x3 block k = axial n⊗n + geometric (I − n⊗n); K_aa += k, K_bb += k, K_ab = K_ba −= k
     nn = n_vec[:, :, None] * n_vec[:, None, :]
     block = axial[:, None, None] * nn + geometric[:, None, None] * (np.eye(3)[None] - nn)
@@ -119,6 +141,8 @@ class FrequencyEstimate:
 
 def max_frequency(system, positions: np.ndarray, entropy: np.ndarray | None) -> FrequencyEstimate:
     """ω_max of the free nodes of ``system`` linearized at ``positions`` (internal numbering)."""
+    if system.n_springs >= MATFREE_MIN_SPRINGS:
+        return _matfree_frequency(system, *spring_stiffness(system, positions, entropy))
     K = stiffness_matrix(system, positions, entropy)
     free3 = np.repeat(~system.anchored, 3)
     w = 1.0 / np.sqrt(np.repeat(system.masses, 3)[free3])
@@ -138,6 +162,85 @@ def max_frequency(system, positions: np.ndarray, entropy: np.ndarray | None) -> 
             lam = gersh
             method = "Gershgorin bound (Lanczos did not converge)"
     return FrequencyEstimate(float(np.sqrt(max(lam, 0.0))), float(np.sqrt(gersh)), method)
+
+
+@njit(cache=True)
+def _stiffness_product(edges, axial, geometric, n_vec, w, v, out):
+    """out += W K W v for (n, 3) v; spring e adds k_e (u_b − u_a) at b and subtracts it at a."""
+    for e in range(edges.shape[0]):
+        a, b = edges[e, 0], edges[e, 1]
+        wa, wb = w[a], w[b]
+        d0 = wb * v[b, 0] - wa * v[a, 0]
+        d1 = wb * v[b, 1] - wa * v[a, 1]
+        d2 = wb * v[b, 2] - wa * v[a, 2]
+        n0, n1, n2 = n_vec[e, 0], n_vec[e, 1], n_vec[e, 2]
+        s = (axial[e] - geometric[e]) * (n0 * d0 + n1 * d1 + n2 * d2)
+        g = geometric[e]
+        f0, f1, f2 = g * d0 + s * n0, g * d1 + s * n1, g * d2 + s * n2
+        out[b, 0] += wb * f0
+        out[b, 1] += wb * f1
+        out[b, 2] += wb * f2
+        out[a, 0] -= wa * f0
+        out[a, 1] -= wa * f1
+        out[a, 2] -= wa * f2
+
+
+@njit(cache=True)
+def _gershgorin_rows(edges, axial, geometric, n_vec, w):
+    """(n, 3) Gershgorin radii of W K W: row (a, r) sums |k_e[r, s]| (w_a² + w_a w_b) over the
+    springs at a (a bound: a node's diagonal block is not summed before taking magnitudes)."""
+    out = np.zeros((w.shape[0], 3))
+    for e in range(edges.shape[0]):
+        a, b = edges[e, 0], edges[e, 1]
+        cross = w[a] * w[b]
+        sh = axial[e] - geometric[e]
+        for r in range(3):
+            row = 0.0
+            for c in range(3):
+                k = sh * n_vec[e, r] * n_vec[e, c] + (geometric[e] if r == c else 0.0)
+                row += abs(k)
+            out[a, r] += row * (w[a] * w[a] + cross)
+            out[b, r] += row * (w[b] * w[b] + cross)
+    return out
+
+
+def _matfree_frequency(system, axial, geometric, n_vec, steps: int = LANCZOS_STEPS) -> FrequencyEstimate:
+    """ω_max by ``steps`` plain Lanczos steps on W K W (W = M^{-1/2} on free nodes, 0 on anchored
+    ones) applied spring by spring, and the Gershgorin bound from per-spring absolute row sums.
+    Memory: a few (n, 3) vectors; no reorthogonalization (only the largest Ritz value is used,
+    and it stays inside the spectrum)."""
+    edges = system.edges
+    w = np.where(system.anchored, 0.0, 1.0 / np.sqrt(system.masses))
+    if not w.any():
+        return FrequencyEstimate(0.0, 0.0, "no free nodes")
+    n = system.n_nodes
+    gersh = float(_gershgorin_rows(edges, axial, geometric, n_vec, w).max())
+
+    def apply(v):  # (n, 3) -> W K W v
+        out = np.zeros_like(v)
+        _stiffness_product(edges, axial, geometric, n_vec, w, v, out)
+        return out
+
+    q = np.random.default_rng(0).standard_normal((n, 3)) * (w > 0)[:, None]
+    q /= np.linalg.norm(q)
+    q_prev = np.zeros_like(q)
+    alphas, betas = [], []
+    beta = 0.0
+    for _ in range(min(steps, 3 * int((w > 0).sum()))):
+        r = apply(q) - beta * q_prev
+        alpha = float(np.vdot(q, r))
+        r -= alpha * q
+        alphas.append(alpha)
+        beta = float(np.linalg.norm(r))
+        if beta <= 1e-12 * max(abs(alpha), 1e-300):
+            break
+        betas.append(beta)
+        q_prev, q = q, r / beta
+    k = len(alphas)
+    T = np.diag(alphas) + np.diag(betas[: k - 1], 1) + np.diag(betas[: k - 1], -1)
+    lam = float(np.linalg.eigvalsh(T).max())
+    return FrequencyEstimate(float(np.sqrt(max(lam, 0.0))), float(np.sqrt(gersh)),
+                             f"Lanczos ({k} matrix-free steps)")
 
 
 def stable_step(sim, integrator=None) -> dict:

@@ -23,6 +23,9 @@ def add_args(p) -> None:
     p.add_argument("--integrator", default=None, help="shorthand for --set integrator.name=NAME")
     p.add_argument("--h", type=float, default=None, help="shorthand for --set integrator.h=H")
     p.add_argument("--t-end", type=float, default=None, help="shorthand for --set integrator.t_end=T")
+    p.add_argument("--allow-unstable-step", action="store_true",
+                   help="run even when h is far above the estimated stability limit (> 1.5 h_max; "
+                        "same as --set integrator.check_step=false); it is still warned about")
     p.add_argument("--quiet", action="store_true", help="print nothing but errors")
 
 
@@ -74,6 +77,8 @@ def handle(args) -> int:
 
     built = scene.build()
     sim = built.simulation
+    if state is None:
+        _check_step(sim, scene, args)
     total = scene.total_steps()
     output = RunOutput(
         sim, folder, scene.name,
@@ -110,3 +115,18 @@ def handle(args) -> int:
                  os.path.basename(output.checkpoint_path) if output.checkpoint_every else None]
         print(f"  wrote {', '.join(f for f in files if f)}")
     return 0
+
+
+def _check_step(sim, scene, args) -> None:
+    """The step-limit policy (thermonet.step_policy) at the initial state: refuse (an InputError)
+    or warn on stderr."""
+    import warnings
+
+    from ..step_policy import StepWarning, check_step
+
+    allow = args.allow_unstable_step or not scene["integrator"]["check_step"]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", StepWarning)
+        verdict = check_step(sim, allow_unstable=allow, warn=False)
+    if verdict.message and not args.quiet:
+        print(f"thermonet: warning: {verdict.message}", file=sys.stderr)

@@ -70,7 +70,7 @@ class Scene:
         """SHA-256 of what determines the trajectory: net (and the mesh file's bytes), materials,
         initial state, effects and integrator (not t_end/steps, not the outputs)."""
         physics = {k: v for k, v in self.data.items() if k not in ("output", "name", "description")}
-        physics["integrator"] = {k: v for k, v in physics["integrator"].items() if k not in ("t_end", "steps")}
+        physics["integrator"] = {k: v for k, v in physics["integrator"].items() if k not in ("t_end", "steps", "check_step")}
         h = hashlib.sha256(json.dumps(physics, sort_keys=True, default=str).encode())
         mesh = self.mesh_path()
         if mesh is not None and os.path.isfile(mesh):

@@ -345,6 +345,8 @@ SCHEMA = Table({
         "retry": Key(retry, "boolean | integer", "retry a failed Newton step with smaller sub-steps (implicit)"),
         "linear_solver": Key(string, "string", "sparse linear solver of the Newton steps (implicit)"),
         "options": Key(any_table, "table", "any further options, passed to the integrator as they are"),
+        "check_step": Key(boolean, "boolean", "refuse a step far above the stability limit (h > 1.5 h_max at the "
+                          "initial state; docs/robustness.md); false: run anyway (--allow-unstable-step)", True),
     }, "time integration"),
     "output": Table({
         "folder": Key(string, "path", "output folder, relative to the working directory "

@@ -1,0 +1,85 @@
+"""The step-limit policy: is a run's time step safely below its integrator's stability limit?
+
+At the state a run starts from, :func:`check_step` estimates ``h_max = c / ω_max``
+(:func:`thermonet.stability.stable_step`) and classifies ``h``:
+
+- ``h ≤ SAFETY · h_max`` — ok;
+- ``SAFETY · h_max < h ≤ REFUSE · h_max`` — a :class:`StepWarning` (the estimate is of the
+  linearized net at one state; a run this close to the limit may still blow up later);
+- ``h > REFUSE · h_max`` — refused with :class:`UnstableStepError` (a one-line message saying
+  which h to use), unless ``allow_unstable=True`` (``thermonet run --allow-unstable-step``, scene
+  key ``integrator.check_step = false``), which turns the refusal into a warning.
+
+Integrators without a known interval (a user's) are never refused (verdict ``"unknown"``). The
+policy looks at the initial state only: a net that stiffens on its way (a spring driven towards
+collapse) is caught while running, by the simulation's blow-up detection.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass
+
+from .errors import InputError
+
+#: warn above this fraction of h_max
+SAFETY = 0.9
+#: refuse above this multiple of h_max
+REFUSE = 1.5
+
+
+class UnstableStepError(InputError):
+    """A time step far above the integrator's stability limit (refused before running)."""
+
+
+class StepWarning(UserWarning):
+    """A time step above the safety fraction of the stability limit."""
+
+
+@dataclass
+class StepCheck:
+    """The verdict on one run's step.
+
+    verdict: "ok", "warn", "refuse" (raised unless allowed), "allowed" (a refusal overridden),
+    or "unknown" (no stability interval for this integrator). ratio: h / h_max.
+    message: one line for the user ("" when ok).
+    """
+
+    h: float
+    h_max: float
+    ratio: float
+    verdict: str
+    message: str
+    estimate: dict
+
+
+def check_step(sim, *, allow_unstable: bool = False, warn: bool = True) -> StepCheck:
+    """Apply the policy to ``sim`` (a :class:`~thermonet.simulation.Simulation`) at its current
+    state. Raises :class:`UnstableStepError` for a refused step unless ``allow_unstable``; emits a
+    :class:`StepWarning` for "warn" and "allowed" verdicts when ``warn``."""
+    from .stability import stable_step
+
+    est = stable_step(sim)
+    h, h_max = float(sim.h), float(est["h_max"])
+    if not math.isfinite(est["interval"]):
+        return StepCheck(h, h_max, 0.0, "unknown", "", est)
+    ratio = h / h_max if h_max > 0 else (0.0 if h_max == math.inf else math.inf)
+    where = (f"stability limit h_max ≈ {h_max:.4g} of {est['integrator']} at step {sim.step} "
+             f"(ω_max ≈ {est['omega_max']:.4g}, h_max = {est['interval']:.4g}/ω_max)")
+    safe = SAFETY * h_max
+    if ratio <= SAFETY:
+        return StepCheck(h, h_max, ratio, "ok", "", est)
+    if ratio <= REFUSE:
+        msg = (f"h = {h:.4g} is {ratio:.2f}× the {where}, above the safety fraction {SAFETY:g}; "
+               f"the run may blow up: consider h ≤ {safe:.3g}")
+        verdict = "warn"
+    else:
+        msg = (f"h = {h:.4g} is {ratio:.3g}× the {where}: the run would blow up; use h ≤ {safe:.3g}, "
+               f"or pass --allow-unstable-step (scene: integrator.check_step = false) to run anyway")
+        if not allow_unstable:
+            raise UnstableStepError(msg)
+        verdict = "allowed"
+    if warn:
+        warnings.warn(msg, StepWarning, stacklevel=2)
+    return StepCheck(h, h_max, ratio, verdict, msg, est)
