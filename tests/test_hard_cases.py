@@ -243,3 +243,61 @@ def test_implicit_far_beyond_its_limit_fails_with_state_intact(integrator):
     again.run(steps=done)
     np.testing.assert_array_equal(sim.state.positions, again.state.positions)
     np.testing.assert_array_equal(sim.state.entropy, again.state.entropy)
+
+
+# ---------------------------------------------------------------------------------------------
+# stability intervals: every integrator, just inside bounded, just outside unbounded or stopped
+
+
+def linear_spring_energy_growth(integrator, hw, steps=2000, **options):
+    """max energy error over the second half of a run of a linear spring (quadratic model, β = 0,
+    ω² = 50) at h = hw/ω, over that of the first half; inf when the run stops or is non-finite."""
+    net = tn.Net([[0, 0, 0], [1, 0, 0]], [[0, 1]], masses=[1.0, 2.0], anchored=[0], rest_lengths=[1.0])
+    sim = tn.Simulation(net, model="quadratic", parameters=dict(E=100.0, beta=0.0),
+                        momenta=[[0, 0, 0], [0.01, 0, 0]], integrator=integrator, h=hw / np.sqrt(50.0),
+                        integrator_options=options)
+    try:
+        with np.errstate(all="ignore"):
+            e = sim.run(steps=steps, diagnostics_every=10).energy
+    except tn.SimulationError:
+        assert np.isfinite(sim.state.positions).all() or sim.integrator.explicit
+        return np.inf
+    if not np.isfinite(e).all():
+        return np.inf
+    half = len(e) // 2
+    return np.max(np.abs(e[half:] - e[0])) / max(np.max(np.abs(e[1:half] - e[0])), 1e-300)
+
+
+# Newton's scaled-residual floor on this small-amplitude oscillation is ~1.2e-12 near hω = 2.8,
+# just above the default tolerance 1e-12 (reported to the implicit solver's owner): 1e-10 here.
+IMPLICIT = {"ho4": {"tolerance": 1e-10}, "gtr-1/2": {}, "gtr-alpha": {"alpha": 0.25}}
+
+
+@pytest.mark.parametrize("name", ["gtr-0", "gtr-1", "co2", "f10", "nm2", "co4", "co6", "ho4", "gtr-1/2", "gtr-alpha"])
+def test_every_interval_is_the_measured_limit(name):
+    from thermonet.stability import stability_interval
+
+    options = IMPLICIT.get(name, {})
+    c = stability_interval(tn.get_integrator(name, **{k: v for k, v in options.items() if k == "alpha"}))
+    assert np.isfinite(c)
+    assert linear_spring_energy_growth(name, 0.99 * c, **options) < 1.5
+    grown = linear_spring_energy_growth(name, 1.01 * c, **options)
+    assert not np.isfinite(grown) or grown > 10.0
+
+
+def test_ho4_interval_matches_the_closed_form_of_its_step_matrix():
+    """HO4 on ẍ = −x (m = ω = 1): the linear equations (58a), (57a), (58b) give a 2×2 step
+    matrix of determinant 1; its trace reaches −2 at hω = 2√2."""
+    from thermonet.stability import MEASURED_INTERVALS
+
+    def trace(h):
+        A = np.array([[8 / (3 * h), -1 / (3 * h)], [-8 / h**2 + 1, 4 / h**2]])
+        cols = []
+        for x0, p0 in ((1.0, 0.0), (0.0, 1.0)):
+            xh, x1 = np.linalg.solve(A, [p0 + 7 * x0 / (3 * h) - h / 6 * x0, -4 * x0 / h**2])
+            cols.append([x1, (x0 - 8 * xh + 7 * x1) / (3 * h) - h / 6 * x1])
+        return np.trace(np.array(cols).T)
+
+    c = MEASURED_INTERVALS["ho4"]
+    assert c == pytest.approx(2 * np.sqrt(2), abs=1e-4)
+    assert abs(trace(0.999 * c)) < 2 < abs(trace(1.001 * c))

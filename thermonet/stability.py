@@ -114,7 +114,10 @@ def spring_stiffness(system, positions: np.ndarray, entropy: np.ndarray | None):
 
 def stiffness_matrix(system, positions: np.ndarray, entropy: np.ndarray | None) -> sp.csr_matrix:
     """(3n, 3n) adiabatic stiffness K = ∂²H/∂x² at fixed η (internal numbering, all nodes)."""
-    axial, geometric, n_vec = spring_stiffness(system, positions, entropy)
+    return _assemble(system, *spring_stiffness(system, positions, entropy))
+
+
+def _assemble(system, axial, geometric, n_vec) -> sp.csr_matrix:
     edges = system.edges
     # per-spring 3x3 block k = axial n⊗n + geometric (I − n⊗n); K_aa += k, K_bb += k, K_ab = K_ba −= k
     nn = n_vec[:, :, None] * n_vec[:, None, :]
@@ -141,13 +144,20 @@ class FrequencyEstimate:
 
 def max_frequency(system, positions: np.ndarray, entropy: np.ndarray | None) -> FrequencyEstimate:
     """ω_max of the free nodes of ``system`` linearized at ``positions`` (internal numbering)."""
+    parts = spring_stiffness(system, positions, entropy)
+    bad = ~(np.isfinite(parts[0]) & np.isfinite(parts[1]))
+    if bad.any():  # e.g. β²θ/C0 overflowing: no frequency to speak of (reported, not raised)
+        e = int(system.layout.spring_order[np.flatnonzero(bad)[0]])
+        return FrequencyEstimate(float("inf"), float("inf"), f"non-finite stiffness of spring {e}")
     if system.n_springs >= MATFREE_MIN_SPRINGS:
-        return _matfree_frequency(system, *spring_stiffness(system, positions, entropy))
-    K = stiffness_matrix(system, positions, entropy)
+        return _matfree_frequency(system, *parts)
+    K = _assemble(system, *parts)
     free3 = np.repeat(~system.anchored, 3)
     w = 1.0 / np.sqrt(np.repeat(system.masses, 3)[free3])
     A = sp.diags(w) @ K[free3][:, free3] @ sp.diags(w)
     A = 0.5 * (A + A.T)
+    if not np.isfinite(A.data).all():  # finite per spring, but their sum at a node overflows
+        return FrequencyEstimate(float("inf"), float("inf"), "stiffness overflows the float range")
     gersh = float(np.max(np.abs(A).sum(axis=1))) if A.shape[0] else 0.0
     if A.shape[0] == 0:
         return FrequencyEstimate(0.0, 0.0, "no free nodes")
@@ -238,6 +248,8 @@ def _matfree_frequency(system, axial, geometric, n_vec, steps: int = LANCZOS_STE
         q_prev, q = q, r / beta
     k = len(alphas)
     T = np.diag(alphas) + np.diag(betas[: k - 1], 1) + np.diag(betas[: k - 1], -1)
+    if not (np.isfinite(gersh) and np.isfinite(alphas).all() and np.isfinite(betas).all()):
+        return FrequencyEstimate(float("inf"), float("inf"), "stiffness overflows the float range")
     lam = float(np.linalg.eigvalsh(T).max())
     return FrequencyEstimate(float(np.sqrt(max(lam, 0.0))), float(np.sqrt(gersh)),
                              f"Lanczos ({k} matrix-free steps)")

@@ -64,7 +64,16 @@ def check_step(sim, *, allow_unstable: bool = False, warn: bool = True) -> StepC
     h, h_max = float(sim.h), float(est["h_max"])
     if not math.isfinite(est["interval"]):
         return StepCheck(h, h_max, 0.0, "unknown", "", est)
-    ratio = h / h_max if h_max > 0 else (0.0 if h_max == math.inf else math.inf)
+    if not math.isfinite(est["omega_max"]):
+        msg = (f"no stability limit at step {sim.step}: {est['method']} (a parameter or the state is out of "
+               f"the range of model {sim.model.name!r}); pass --allow-unstable-step "
+               f"(scene: integrator.check_step = false) to run anyway")
+        if not allow_unstable:
+            raise UnstableStepError(msg)
+        if warn:
+            warnings.warn(msg, StepWarning, stacklevel=2)
+        return StepCheck(h, h_max, math.inf, "allowed", msg, est)
+    ratio = h / h_max if h_max > 0 else math.inf
     where = (f"stability limit h_max ≈ {h_max:.4g} of {est['integrator']} at step {sim.step} "
              f"(ω_max ≈ {est['omega_max']:.4g}, h_max = {est['interval']:.4g}/ω_max)")
     safe = SAFETY * h_max
