@@ -123,9 +123,11 @@ def _groups(net) -> list[str]:
 
 
 def _stable_step(sim, where: str) -> str:
-    from ..stability import stable_step
+    import math
 
-    if not sim.integrator.explicit:
+    from ..stability import stability_interval, stable_step
+
+    if not math.isfinite(stability_interval(sim.integrator)):
         return f"  stable step: not estimated for the implicit integrator {sim.integrator.name}"
     s = stable_step(sim)
     text = (f"  stable step of {s['integrator']}: h_max ≈ {s['h_max']:.4g} (ω_max {s['omega_max']:.4g}, "
