@@ -4,7 +4,10 @@ A model is a free energy per spring ``F(l, θ)`` and the functions derived from 
 a Numba ``@njit`` scalar function with the signature ``f(l, s, l0, P, e)`` where ``l`` is the
 spring length, ``s`` is the temperature θ or the entropy η (as the name says), ``l0`` the rest
 length, ``P`` the ``(k, m)`` float64 array of per-spring parameters in the order of
-``Model.parameters`` and ``e`` the spring index (so ``P[0, e]`` is the first parameter of spring e).
+``Model.parameters`` and ``e`` the spring's column of ``P`` (so ``P[0, e]`` is the first parameter of
+the spring). ``e`` is the spring index, except when every spring has the same parameters: then the
+explicit kernels pass a ``(k, 1)`` array and ``e = 0`` so that the parameters are read once, not
+per spring. Use ``e`` only to index ``P``.
 The kernels call these functions; they never name a model, so a user-defined model (see
 ``examples/custom_model.py``) runs in every integrator without editing any kernel.
 """
