@@ -20,6 +20,7 @@ from typing import Callable, Iterable, Mapping
 import numpy as np
 
 from .diagnostics import Diagnostics, measure, spring_fields
+from .blowup import STRETCH_BOUNDS
 from .errors import InputError, SimulationError
 from .integrators import get_integrator
 from .integrators.base import StepFailure
@@ -53,6 +54,12 @@ class Simulation:
     parallel: force the multi-threaded (True) or serial (False) kernels; default by net size.
     renumber: reorder nodes/springs internally for locality (results are reported in user order).
     integrator_options: passed to the integrator factory / stepper (e.g. ``alpha`` for GTR-α).
+    stretch_bounds: (lo, hi), default (1e-4, 1e4): admissible stretches l/l0. The explicit kernel
+        stops a run at the first step in which a spring leaves them, or whose tension is not
+        finite, or (thermal) whose θ is not > 0; the state is rewound to the last good step and
+        a :class:`StepFailure` (a SimulationError) names step, time, spring, nodes and quantity.
+    energy_tolerance: optional relative bound on |H − H(0)|/|H(0)|, checked at the diagnostics
+        cadence; a run beyond it stops with the state rewound to the previous stop.
     backend: "cpu" (default) or "cuda": the explicit integrators on an NVIDIA GPU through
         numba-cuda, the state resident on the device (see :mod:`thermonet.cuda`).
     """
@@ -74,6 +81,8 @@ class Simulation:
         renumber: bool = True,
         integrator_options: Mapping | None = None,
         backend: str = "cpu",
+        stretch_bounds=STRETCH_BOUNDS,
+        energy_tolerance: float | None = None,
     ):
         if not isinstance(net, Net):
             raise InputError(f"net must be a thermonet.Net, got {type(net).__name__}")
@@ -114,7 +123,11 @@ class Simulation:
             reference_point=np.zeros(3) if ref is None else ref,
             gravity=gravity_vec,
             thermal=bool(thermal),
+            stretch_bounds=_check_stretch_bounds(stretch_bounds),
         )
+        if energy_tolerance is not None and not (float(energy_tolerance) > 0):
+            raise InputError(f"energy_tolerance must be > 0 (relative), got {energy_tolerance}")
+        self.energy_tolerance = None if energy_tolerance is None else float(energy_tolerance)
 
         x0 = layout.nodes_to_internal(net.positions).copy()
         p0 = self._initial_momenta(momenta, velocities)
@@ -245,7 +258,7 @@ class Simulation:
             diagnostics_every = max(1, steps // 1000)
         if diagnostics_every < 1:
             raise InputError(f"run: diagnostics_every must be >= 1, got {diagnostics_every}")
-        cadences = [(int(diagnostics_every), self._record)] + [(int(k), cb) for k, cb in observers]
+        cadences = [(int(diagnostics_every), self._diagnostics_stop)] + [(int(k), cb) for k, cb in observers]
         for k, _ in cadences:
             if k < 1:
                 raise InputError(f"run: observer cadence must be >= 1, got {k}")
@@ -268,7 +281,7 @@ class Simulation:
             done = self._state.step
             for k, cb in cadences:
                 if done % k == 0 or done == end:
-                    if cb is self._record and self.diagnostics.rows and self.diagnostics.rows[-1]["step"] == done:
+                    if cb == self._diagnostics_stop and self.diagnostics.rows and self.diagnostics.rows[-1]["step"] == done:
                         continue
                     cb(self)
             if progress is not None:
@@ -298,20 +311,86 @@ class Simulation:
 
     def _advance(self, n: int) -> None:
         step0 = self._state.step
+        backup = self._keep_backup()
         try:
             stats = self.stepper.advance(self._state, n, self._h)
         except StepFailure as exc:
+            if exc.details.get("rewind") and backup is not None:
+                self._rewind(backup, exc.steps_done)
             self._set_step(step0 + exc.steps_done)
             self._record(self)
+            if exc.details.get("rewind"):
+                raise StepFailure(self._blowup_message(exc, step0), exc.steps_done, exc.details) from None
             raise
         self._set_step(step0 + n)
         self._last_stats = stats or {}
+
+    def _keep_backup(self) -> State | None:
+        """Copy the state at a chunk's start (explicit CPU runs only: their kernel stops mid-step
+        and the last good step is then replayed from here; implicit steppers keep their state
+        intact themselves). Costs about a fifth of one step per chunk."""
+        if self.backend != "cpu" or not self.integrator.explicit:
+            return None
+        s = self._state
+        b = getattr(self, "_backup", None)
+        if b is None:
+            b = self._backup = s.copy()
+        else:
+            np.copyto(b.positions, s.positions)
+            np.copyto(b.momenta, s.momenta)
+            if s.thermal_displacement is not None:
+                np.copyto(b.thermal_displacement, s.thermal_displacement)
+        b.step, b.time = s.step, s.time
+        return b
+
+    def _rewind(self, backup: State, steps: int) -> None:
+        """Restore ``backup`` (a chunk start) and replay ``steps`` steps: the run's last good
+        state, bit for bit (runs do not depend on how they are chunked)."""
+        s = self._state
+        np.copyto(s.positions, backup.positions)
+        np.copyto(s.momenta, backup.momenta)
+        if s.thermal_displacement is not None:
+            np.copyto(s.thermal_displacement, backup.thermal_displacement)
+        self._set_step(backup.step)
+        if steps > 0:
+            self.stepper.advance(s, steps, self._h)
+
+    def _blowup_message(self, exc: StepFailure, step0: int) -> str:
+        bad_step = step0 + exc.steps_done + 1
+        good_time = self._state.time
+        return (f"the run left the admissible states in step {bad_step} (t = {good_time + self._h:.6g}): {exc}. "
+                f"Stopped; the state is the last good one (step {bad_step - 1}, t = {good_time:.6g}). "
+                f"Try a smaller h than {self._h:g} (`thermonet info` estimates the stable step) or an implicit "
+                f"integrator (ho4, gtr-1/2).")
 
     def record_diagnostics(self) -> None:
         """Record a diagnostics row for the current state unless the last row is of this step
         (checkpoints call it so that a resumed run's rows equal an uninterrupted run's)."""
         if not self.diagnostics.rows or self.diagnostics.rows[-1]["step"] != self._state.step:
             self._record(self)
+
+    def _diagnostics_stop(self, _sim=None) -> None:
+        """The run loop's diagnostics observer: a row, then the energy-departure check."""
+        self._record(self)
+        tol = self.energy_tolerance
+        rows = self.diagnostics.rows
+        if tol is None or len(rows) < 2:
+            return
+        e0, e = rows[0]["energy"], rows[-1]["energy"]
+        if abs(e - e0) <= tol * max(abs(e0), np.finfo(float).tiny):
+            return
+        bad_step, bad_time = self._state.step, self._state.time
+        backup = getattr(self, "_backup", None)
+        rows.pop()
+        if backup is not None and backup.step < bad_step:
+            self._rewind(backup, 0)
+            where = f"the state was rewound to step {backup.step} (t = {backup.time:.6g}), the last diagnostics stop before"
+        else:
+            where = "the state is that of this step"
+        raise SimulationError(
+            f"the energy departed from its initial value {e0:.10g} by {abs(e - e0) / max(abs(e0), 1e-300):.3g} "
+            f"(relative; tolerance {tol:g}) at step {bad_step} (t = {bad_time:.6g}); "
+            f"{where}. Try a smaller h than {self._h:g} or an implicit integrator (ho4, gtr-1/2).")
 
     def _record(self, _sim=None) -> None:
         device_measure = getattr(self.stepper, "measure", None)  # a device-resident state
@@ -456,6 +535,16 @@ def _check_backend(backend, integrator) -> str:
 
         require_cuda()
     return name
+
+
+def _check_stretch_bounds(bounds) -> tuple[float, float]:
+    try:
+        lo, hi = (float(b) for b in bounds)
+    except (TypeError, ValueError):
+        raise InputError(f"stretch_bounds must be two numbers (lo, hi), got {bounds!r}") from None
+    if not (0 <= lo < 1 < hi):
+        raise InputError(f"stretch_bounds must satisfy 0 <= lo < 1 < hi, got ({lo}, {hi})")
+    return lo, hi
 
 
 def _check_step(h) -> float:

@@ -28,6 +28,7 @@ class System:
     gravity: (3,) uniform acceleration, or None when the scene has no external field.
     thermal: False for a purely mechanical run (every spring held at its reference temperature;
         no entropies or thermal displacements exist).
+    stretch_bounds: (lo, hi) admissible stretches l/l0; the explicit kernel stops a run outside.
     """
 
     model: Model
@@ -40,6 +41,7 @@ class System:
     reference_point: np.ndarray
     gravity: np.ndarray | None = None
     thermal: bool = True
+    stretch_bounds: tuple[float, float] = (1e-4, 1e4)
 
     @property
     def edges(self) -> np.ndarray:

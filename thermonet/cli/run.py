@@ -42,6 +42,7 @@ def overrides_of(args) -> list[str]:
 
 
 def handle(args) -> int:
+    from ..errors import SimulationError
     from ..io import RunOutput, load_checkpoint
     from ..scenes import load_scene, scene_from_text
     from .progress import ProgressBar
@@ -96,9 +97,11 @@ def handle(args) -> int:
     try:
         sim.run(steps=max(0, total - sim.step), diagnostics_every=output.diagnostics_every,
                 observers=output.observers(), progress=progress)
-    except BaseException:
+    except BaseException as exc:
         if progress:
             progress.close()
+        if isinstance(exc, SimulationError) and output.checkpoint_every:
+            output.write_checkpoint(sim)  # the last good state (the run was rewound to it)
         output.write_csv()
         if not args.quiet and output.checkpoint_every and os.path.exists(output.checkpoint_path):
             print(f"thermonet: stopped at step {sim.step}; continue with: thermonet run --resume {output.checkpoint_path}",

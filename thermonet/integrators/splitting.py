@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .base import Integrator, Stepper, register_integrator
+from .base import Integrator, StepFailure, Stepper, register_integrator
 
 
 @dataclass(frozen=True, repr=False)
@@ -131,10 +131,18 @@ class SplittingStepper(Stepper):
         l0, P, edges, inc_ptr, inc_spring, inc_other, masses, inv_mass, anchored = self._static
         phi = state.thermal_displacement if self.system.thermal else self._no_thermal
         eta = state.entropy if self.system.thermal else self._no_thermal
-        self._advance(
+        lo, hi = self.system.stretch_bounds
+        done, detected = self._advance(
             state.positions, self._x_buf, state.momenta, phi, eta, self._s,
             l0, P, edges, inc_ptr, inc_spring, inc_other, masses, inv_mass, anchored,
             self._kicks, self._drifts, float(h), int(n_steps), self.integrator.track_phi,
-            self._gravity, self.system.gravity is not None,
+            self._gravity, self.system.gravity is not None, float(lo), float(hi),
         )
+        if detected:
+            from ..blowup import diagnose
+
+            found = diagnose(self.system, state.positions, state.entropy)
+            where = (f"spring {found['spring']} (nodes {found['nodes'][0]}–{found['nodes'][1]}) has {found['problem']}"
+                     if found else "a spring left the admissible states")
+            raise StepFailure(where, steps_done=int(done), details={"rewind": True, **found})
         return None

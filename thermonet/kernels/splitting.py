@@ -21,6 +21,13 @@ Indices are read as unsigned (zero-copy views of the int32 arrays): Numba wraps 
 indices around with a compare-and-select per access, which costs about a third of the gather
 pass and blocks vectorization; an unsigned index has no negative case.
 
+Blow-up detection costs one comparison chain per spring in the vectorized loop: a spring whose
+stretch l/l0 leaves (stretch_min, stretch_max), whose T/l is not finite (a non-finite position
+gives that too) or, with thermal coupling, whose θ is not > 0 is counted; a stage that counts
+any stops the kernel at once, before the node pass. ``advance`` then returns how many steps were
+completed before the step in which it happened, with ``x`` holding the positions it was found
+at; the caller rewinds to the last good step (see ``Simulation``).
+
 The last kick of one step and the first kick of the next act at the same positions and share one
 force evaluation; they are still applied as two separate additions, so a run cut into chunks at
 any step boundary gives bit-for-bit the same numbers as one long call. Every spring and every
@@ -89,12 +96,14 @@ def splitting_kernels(model, parallel: bool, thermal: bool = True, uniform: bool
     return _CACHE[key]
 
 
-def _spring_pass(x, eta, l0, P, edges, s, phi, phi_h1, phi_h2, track_phi):
+def _spring_pass(x, eta, l0, P, edges, s, phi, phi_h1, phi_h2, track_phi, stretch_min, stretch_max):
     """Per spring e: s[e] = T/l at x; Φ[e] += (phi_h1 + phi_h2) θ as two additions.
 
-    edges: (m, 2) uint32. P: (k, m), or (k, 1) when UNIFORM.
+    edges: (m, 2) uint32. P: (k, m), or (k, 1) when UNIFORM. Returns the number of springs
+    outside the admissible states (stretch bounds, non-finite T/l, θ ≤ 0).
     """
     m = edges.shape[0]
+    bad = 0
     for blk in prange((m + BLOCK - 1) // BLOCK):
         lo = blk * BLOCK
         n = min(BLOCK, m - lo)
@@ -110,15 +119,22 @@ def _spring_pass(x, eta, l0, P, edges, s, phi, phi_h1, phi_h2, track_phi):
             e = np.uint64(lo + i)
             c = np.uint64(0) if UNIFORM else e
             l = math.sqrt(s[e])
+            rest = l0[e]
             if THERMAL:
-                theta = temperature(l, eta[e], l0[e], P, c)
+                theta = temperature(l, eta[e], rest, P, c)
             else:
                 theta = P[REFERENCE_TEMPERATURE, c]
-            s[e] = tension(l, theta, l0[e], P, c) / l
+            force = tension(l, theta, rest, P, c) / l
+            s[e] = force
+            outside = (l <= stretch_min * rest) | (l >= stretch_max * rest) | (not (abs(force) < math.inf))
+            if THERMAL:
+                outside = outside | (not (theta > 0.0))
+            bad += outside
             if THERMAL and track_phi:
                 if phi_h1 != 0.0:
                     phi[e] += phi_h1 * theta
                 phi[e] += phi_h2 * theta
+    return bad
 
 
 def _node_pass(x, x_new, p, s, inc_ptr, inc_spring, inc_other, masses, inv_mass, anchored,
@@ -171,8 +187,12 @@ def _node_pass(x, x_new, p, s, inc_ptr, inc_spring, inc_other, masses, inv_mass,
 
 
 def _advance(x, x_buf, p, phi, eta, s, l0, P, edges, inc_ptr, inc_spring, inc_other, masses, inv_mass,
-             anchored, kicks, drifts, h, n_steps, track_phi, gravity, with_gravity):
+             anchored, kicks, drifts, h, n_steps, track_phi, gravity, with_gravity, stretch_min, stretch_max):
     """Advance (x, p, Φ) in place by ``n_steps`` steps of the scheme (kicks (S+1,), drifts (S,)).
+
+    Returns (steps completed, detected): ``detected`` when a spring left the admissible states
+    (see the module docstring); then ``x`` holds the positions where it was found and only the
+    first ``steps completed`` steps are known good (x, p, Φ are mid-step: rewind and replay).
 
     x, x_buf, p: (n, 3); phi, eta, s, l0: (m,); P: (k, m), or (k, 1) for the UNIFORM variant;
     edges: (m, 2) int32; inc_*: CSR incidence (inc_ptr (n+1,) int64, inc_spring and inc_other
@@ -193,17 +213,27 @@ def _advance(x, x_buf, p, phi, eta, s, l0, P, edges, inc_ptr, inc_spring, inc_ot
             k2 = kicks[i]
             with_force = k1 != 0.0 or k2 != 0.0
             if with_force:
-                spring_pass(cur, eta, l0, P, edges_u, s, phi, k1 * h, k2 * h, track_phi)
+                if spring_pass(cur, eta, l0, P, edges_u, s, phi, k1 * h, k2 * h, track_phi,
+                               stretch_min, stretch_max) > 0:
+                    if swaps % 2 == 1:
+                        x[:, :] = x_buf
+                    # positions at stage 0 are the end of the previous step: that step was the bad one
+                    return (step - 1 if i == 0 and step > 0 else step), True
             node_pass(cur, nxt, p, s, inc_ptr, inc_spring_u, inc_other_u, masses, inv_mass, anchored,
                       k1 * h, k2 * h, drifts[i] * h, with_force, gravity, with_gravity)
             cur, nxt = nxt, cur
             swaps += 1
         pending = kicks[n_stages]
     if pending != 0.0:
-        spring_pass(cur, eta, l0, P, edges_u, s, phi, 0.0, pending * h, track_phi)
+        if spring_pass(cur, eta, l0, P, edges_u, s, phi, 0.0, pending * h, track_phi,
+                       stretch_min, stretch_max) > 0:
+            if swaps % 2 == 1:
+                x[:, :] = x_buf
+            return n_steps - 1, True
         node_pass(cur, nxt, p, s, inc_ptr, inc_spring_u, inc_other_u, masses, inv_mass, anchored,
                   0.0, pending * h, 0.0, True, gravity, with_gravity)
         cur, nxt = nxt, cur
         swaps += 1
     if swaps % 2 == 1:
         x[:, :] = x_buf
+    return n_steps, False

@@ -62,6 +62,8 @@ def build_scene(scene: Scene) -> BuiltScene:
             renumber=integ["renumber"],
             integrator_options=options,
             backend=integ["backend"],
+            stretch_bounds=tuple(integ["stretch_bounds"]),
+            energy_tolerance=integ.get("energy_tolerance"),
         )
     except InputError as exc:
         raise scene.error("", str(exc)) from None

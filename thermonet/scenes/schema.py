@@ -347,6 +347,11 @@ SCHEMA = Table({
         "options": Key(any_table, "table", "any further options, passed to the integrator as they are"),
         "check_step": Key(boolean, "boolean", "refuse a step far above the stability limit (h > 1.5 h_max at the "
                           "initial state; docs/robustness.md); false: run anyway (--allow-unstable-step)", True),
+        "energy_tolerance": Key(number(above=0), "number > 0", "stop the run when |H − H(0)|/|H(0)| exceeds this "
+                                "(checked at the diagnostics cadence; the state is rewound to the previous stop)"),
+        "stretch_bounds": Key(list_of(number(above=0), "two numbers"), "array of 2 numbers",
+                              "admissible stretches l/l0 (lo < 1 < hi); the kernel stops a run at the first step "
+                              "in which a spring leaves them", [1e-4, 1e4]),
     }, "time integration"),
     "output": Table({
         "folder": Key(string, "path", "output folder, relative to the working directory "
