@@ -5,8 +5,11 @@ name (``temperature``, ``tension``, …). :func:`specialize` binds those names t
 functions and compiles it. Numba's disk cache keys a closure by pickling its cells, which for
 Numba functions differs in every process, so closures would recompile on every start; instead the
 template's code object is rebound to new globals and given a qualified name that carries the
-model's fingerprint (a hash of its functions' bytecode and constants), which keeps cache entries of
-different models, or of an edited user model, apart.
+model's fingerprint, which keeps cache entries of different models, or of an edited user model,
+apart. The fingerprint hashes the model functions' modules, names, bytecode and constants, and
+those of every Numba function they call (recursively): a cached kernel refers to the modules its
+callees live in, so the same model code imported under another module name (a script run as
+``__main__`` and later imported) must not load it.
 """
 
 from __future__ import annotations
@@ -30,15 +33,35 @@ def _code_digest(code: types.CodeType, h) -> None:
     h.update(repr(code.co_names).encode())
 
 
+def _function_digest(fn, h, seen: set) -> None:
+    """Hash a (Numba or Python) function and, recursively, the Numba functions it calls."""
+    py = getattr(fn, "py_func", fn)
+    if py is None or not hasattr(py, "__code__") or id(py) in seen:
+        return
+    seen.add(id(py))
+    h.update(f"{py.__module__}.{py.__qualname__}".encode())
+    _code_digest(py.__code__, h)
+    glb = getattr(py, "__globals__", {})
+    for name in _all_names(py.__code__):
+        callee = glb.get(name)
+        if hasattr(callee, "py_func"):
+            _function_digest(callee, h, seen)
+
+
+def _all_names(code: types.CodeType):
+    yield from code.co_names
+    for const in code.co_consts:
+        if isinstance(const, types.CodeType):
+            yield from _all_names(const)
+
+
 def model_fingerprint(model) -> str:
-    """A short stable hash of the model's name, parameters and function bytecode."""
+    """A short stable hash of the model's name, parameters and functions (see the module doc)."""
     h = hashlib.sha256(model.name.encode())
     h.update(repr(model.parameters).encode())
+    seen: set = set()
     for name in MODEL_FUNCTIONS:
-        fn = getattr(model, name, None)
-        py = getattr(fn, "py_func", fn)
-        if py is not None and hasattr(py, "__code__"):
-            _code_digest(py.__code__, h)
+        _function_digest(getattr(model, name, None), h, seen)
     return h.hexdigest()[:12]
 
 
