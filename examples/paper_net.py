@@ -70,7 +70,7 @@ def main(argv=None) -> dict:
     for ax, (label, v) in zip(axes.ravel(), series):
         ax.plot(diag.time, v, lw=0.6)
         ax.ticklabel_format(axis="y", useOffset=False)
-        ax.set_title(f"{label} (max |change| {np.max(np.abs(v - v[0])):.2e})", fontsize=9)
+        ax.set_title(f"{label}\n(max |change| {np.max(np.abs(v - v[0])):.2e})", fontsize=9)
     for ax in axes[1]:
         ax.set_xlabel("time")
     fig.suptitle("Fig. 19: conservation (CO2, h = 0.001)", fontsize=10)
