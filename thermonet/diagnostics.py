@@ -52,6 +52,15 @@ def measure(system, state, parallel: bool = False) -> dict[str, float]:
     gravity = _ZERO3 if system.gravity is None else system.gravity
     kinetic, potential, px, py, pz, Lx, Ly, Lz = node_sums(
         state.positions, state.momenta, system.masses, system.anchored, system.reference_point, gravity)
+    entropy = float(np.sum(state.entropy)) if system.thermal else None
+    return diagnostics_row(system, state, kinetic, internal, potential, entropy, (px, py, pz), (Lx, Ly, Lz),
+                           theta_min, theta_max)
+
+
+def diagnostics_row(system, state, kinetic, internal, potential, entropy, momentum, angular_momentum,
+                    theta_min, theta_max) -> dict[str, float]:
+    """The row of one diagnostics stop from its sums (thermal columns only with thermal coupling);
+    shared by the CPU reductions and the CUDA backend's device reductions."""
     row = {
         "step": state.step,
         "time": state.time,
@@ -61,8 +70,9 @@ def measure(system, state, parallel: bool = False) -> dict[str, float]:
         "potential": potential,
     }
     if system.thermal:
-        row["entropy"] = float(np.sum(state.entropy))
-    row.update({"px": px, "py": py, "pz": pz, "Lx": Lx, "Ly": Ly, "Lz": Lz})
+        row["entropy"] = entropy
+    row.update(zip(("px", "py", "pz"), momentum))
+    row.update(zip(("Lx", "Ly", "Lz"), angular_momentum))
     if system.thermal:
         row["theta_min"] = theta_min
         row["theta_max"] = theta_max

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..diagnostics import diagnostics_row
 from ..integrators.base import Stepper
 from ..kernels.splitting import kernel_parameters
 from . import require_cuda
@@ -147,18 +148,5 @@ class CudaSplittingStepper(Stepper):
         k.finish[1, threads](self._node_partial, self._node_ops, self._node_out)
         internal, entropy, theta_min, theta_max = (float(v) for v in self._spring_out.copy_to_host())
         kinetic, potential, px, py, pz, Lx, Ly, Lz = (float(v) for v in self._node_out.copy_to_host())
-        row = {
-            "step": state.step,
-            "time": state.time,
-            "energy": kinetic + internal + potential,
-            "kinetic": kinetic,
-            "internal": internal,
-            "potential": potential,
-        }
-        if system.thermal:
-            row["entropy"] = entropy
-        row.update({"px": px, "py": py, "pz": pz, "Lx": Lx, "Ly": Ly, "Lz": Lz})
-        if system.thermal:
-            row["theta_min"] = theta_min
-            row["theta_max"] = theta_max
-        return row
+        return diagnostics_row(system, state, kinetic, internal, potential, entropy, (px, py, pz), (Lx, Ly, Lz),
+                               theta_min, theta_max)
