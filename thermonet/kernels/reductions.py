@@ -6,8 +6,10 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 from numba import prange
 
+from .splitting import BLOCK
 from .specialize import model_fingerprint, model_namespace, specialize
 
 # Bound per model by specialize(); see kernels/splitting.py for THERMAL / REFERENCE_TEMPERATURE.
@@ -19,7 +21,7 @@ _CACHE: dict = {}
 
 
 def diagnostic_sums_kernel(model, thermal: bool, parallel: bool):
-    """``spring_sums(x, eta, l0, P, edges) -> (Σ U, θ_min, θ_max)`` and
+    """``spring_sums(x, eta, l0, P, edges_uint32) -> (Σ U, θ_min, θ_max)`` and
     ``node_sums(x, p, masses, anchored, ref, gravity) -> (K, V, px, py, pz, Lx, Ly, Lz)``."""
     key = (model_fingerprint(model), bool(thermal), bool(parallel))
     if key not in _CACHE:
@@ -33,25 +35,50 @@ def diagnostic_sums_kernel(model, thermal: bool, parallel: bool):
 
 
 def _spring_sums(x, eta, l0, P, edges):
-    """Σ_e U(l_e, η_e) (Σ F(l_e, θ0) when not THERMAL), min and max of θ_e."""
+    """Σ_e U(l_e, η_e) (Σ F(l_e, θ0) when not THERMAL), min and max of θ_e.
+
+    edges: (m, 2) uint32. Blocked like the stepping kernel's spring pass: gather the squared
+    lengths of a block, evaluate θ and U in a loop over contiguous arrays (which vectorizes),
+    then sum the block in order (a float sum inside the vectorized loop would keep it scalar).
+    """
+    m = edges.shape[0]
     energy = 0.0
     theta_min = math.inf
     theta_max = -math.inf
-    for e in prange(edges.shape[0]):
-        a = edges[e, 0]
-        b = edges[e, 1]
-        dx = x[b, 0] - x[a, 0]
-        dy = x[b, 1] - x[a, 1]
-        dz = x[b, 2] - x[a, 2]
-        l = math.sqrt(dx * dx + dy * dy + dz * dz)
-        if THERMAL:
-            th = temperature(l, eta[e], l0[e], P, e)
-            energy += internal_energy(l, eta[e], l0[e], P, e)
-        else:
-            th = P[REFERENCE_TEMPERATURE, e]
-            energy += free_energy(l, th, l0[e], P, e)
-        theta_min = min(theta_min, th)
-        theta_max = max(theta_max, th)
+    for blk in prange((m + BLOCK - 1) // BLOCK):
+        lo = blk * BLOCK
+        n = min(BLOCK, m - lo)
+        length = np.empty(BLOCK)
+        theta = np.empty(BLOCK)
+        energy_block = np.empty(BLOCK)
+        for i in range(n):
+            e = np.uint64(lo + i)
+            a = edges[e, 0]
+            b = edges[e, 1]
+            dx = x[b, 0] - x[a, 0]
+            dy = x[b, 1] - x[a, 1]
+            dz = x[b, 2] - x[a, 2]
+            length[i] = dx * dx + dy * dy + dz * dz
+        for i in range(n):
+            e = np.uint64(lo + i)
+            l = math.sqrt(length[i])
+            if THERMAL:
+                theta[i] = temperature(l, eta[e], l0[e], P, e)
+                energy_block[i] = internal_energy(l, eta[e], l0[e], P, e)
+            else:
+                th = P[REFERENCE_TEMPERATURE, e]
+                theta[i] = th
+                energy_block[i] = free_energy(l, th, l0[e], P, e)
+        block_sum = 0.0
+        block_min = math.inf
+        block_max = -math.inf
+        for i in range(n):
+            block_sum += energy_block[i]
+            block_min = min(block_min, theta[i])
+            block_max = max(block_max, theta[i])
+        energy += block_sum
+        theta_min = min(theta_min, block_min)
+        theta_max = max(theta_max, block_max)
     return energy, theta_min, theta_max
 
 
