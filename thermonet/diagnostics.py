@@ -36,7 +36,7 @@ def spring_fields(system, positions: np.ndarray, entropy: np.ndarray, parallel: 
     kernel = spring_field_kernel(system.model, system.thermal, parallel)
     if entropy is None:
         entropy = np.empty(0)
-    kernel(positions, entropy, system.rest_lengths, system.parameters, system.edges,
+    kernel(positions, entropy, system.rest_lengths, system.parameters, system.edges.view(np.uint32),
            out.length, out.temperature, out.tension, out.internal_energy)
     return out
 

@@ -46,18 +46,18 @@ class Layout:
     def n_springs(self) -> int:
         return len(self.spring_order)
 
-    # user <-> internal conversions -------------------------------------------------------
+    # user <-> internal conversions (np.take: several times faster than fancy indexing on (n, 3))
     def nodes_to_internal(self, a: np.ndarray) -> np.ndarray:
-        return a[self.node_order]
+        return np.take(a, self.node_order, axis=0)
 
     def nodes_to_user(self, a: np.ndarray) -> np.ndarray:
-        return a[self.node_rank]
+        return np.take(a, self.node_rank, axis=0)
 
     def springs_to_internal(self, a: np.ndarray) -> np.ndarray:
-        return a[self.spring_order]
+        return np.take(a, self.spring_order, axis=0)
 
     def springs_to_user(self, a: np.ndarray) -> np.ndarray:
-        return a[self.spring_rank]
+        return np.take(a, self.spring_rank, axis=0)
 
 
 def build_layout(net: Net, renumber: bool = True) -> Layout:

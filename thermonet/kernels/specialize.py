@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import hashlib
 import types
+import weakref
 
 from numba import njit
 
@@ -55,14 +56,27 @@ def _all_names(code: types.CodeType):
             yield from _all_names(const)
 
 
+_FINGERPRINTS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+
+
 def model_fingerprint(model) -> str:
-    """A short stable hash of the model's name, parameters and functions (see the module doc)."""
+    """A short stable hash of the model's name, parameters and functions (see the module doc);
+    computed once per model object (models are immutable)."""
+    try:
+        return _FINGERPRINTS[model]
+    except (KeyError, TypeError):
+        pass
     h = hashlib.sha256(model.name.encode())
     h.update(repr(model.parameters).encode())
     seen: set = set()
     for name in MODEL_FUNCTIONS:
         _function_digest(getattr(model, name, None), h, seen)
-    return h.hexdigest()[:12]
+    fingerprint = h.hexdigest()[:12]
+    try:
+        _FINGERPRINTS[model] = fingerprint
+    except TypeError:  # not weak-referenceable: recomputed next time
+        pass
+    return fingerprint
 
 
 def model_namespace(model) -> dict:

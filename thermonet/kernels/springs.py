@@ -5,8 +5,10 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 from numba import prange
 
+from .splitting import BLOCK
 from .specialize import MODEL_FUNCTIONS, model_fingerprint, model_namespace, specialize
 
 # Bound per model by specialize(); THERMAL False: every spring at its reference temperature
@@ -46,22 +48,32 @@ def map_springs(model, function: str):
 
 
 def _spring_fields(x, eta, l0, P, edges, length, theta, tens, energy):
-    for e in prange(edges.shape[0]):
-        a = edges[e, 0]
-        b = edges[e, 1]
-        dx = x[b, 0] - x[a, 0]
-        dy = x[b, 1] - x[a, 1]
-        dz = x[b, 2] - x[a, 2]
-        l = math.sqrt(dx * dx + dy * dy + dz * dz)
-        length[e] = l
-        if THERMAL:
-            th = temperature(l, eta[e], l0[e], P, e)
-            energy[e] = internal_energy(l, eta[e], l0[e], P, e)
-        else:
-            th = P[REFERENCE_TEMPERATURE, e]
-            energy[e] = free_energy(l, th, l0[e], P, e)
-        theta[e] = th
-        tens[e] = tension(l, th, l0[e], P, e)
+    """Blocked like the stepping kernel's spring pass: gather squared lengths into ``length``,
+    then a loop over contiguous arrays (which vectorizes) for l, θ, T and U. edges: (m, 2) uint32."""
+    m = edges.shape[0]
+    for blk in prange((m + BLOCK - 1) // BLOCK):
+        lo = blk * BLOCK
+        n = min(BLOCK, m - lo)
+        for i in range(n):
+            e = np.uint64(lo + i)  # unsigned: no negative-index wraparound, so the loop vectorizes
+            a = edges[e, 0]
+            b = edges[e, 1]
+            dx = x[b, 0] - x[a, 0]
+            dy = x[b, 1] - x[a, 1]
+            dz = x[b, 2] - x[a, 2]
+            length[e] = dx * dx + dy * dy + dz * dz
+        for i in range(n):
+            e = np.uint64(lo + i)
+            l = math.sqrt(length[e])
+            length[e] = l
+            if THERMAL:
+                th = temperature(l, eta[e], l0[e], P, e)
+                energy[e] = internal_energy(l, eta[e], l0[e], P, e)
+            else:
+                th = P[REFERENCE_TEMPERATURE, e]
+                energy[e] = free_energy(l, th, l0[e], P, e)
+            theta[e] = th
+            tens[e] = tension(l, th, l0[e], P, e)
 
 
 def _mapped(l, s, l0, P, out):
