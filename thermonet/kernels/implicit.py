@@ -40,7 +40,7 @@ from .specialize import model_fingerprint, model_namespace, specialize
 
 # Bound per model by specialize(); listed so the templates read as ordinary code.
 entropy = temperature = tension = d2F_dl2 = d2F_dl_dtheta = d2F_dtheta2 = None
-gtr_thermal = ho4_thermal = None
+gtr_thermal = ho4_thermal = finish_nodes = None
 
 _CACHE: dict = {}
 _OPTIONS = dict(cache=True, error_model="numpy", boundscheck=False)
@@ -74,6 +74,7 @@ def implicit_kernels(model, scheme: str, parallel: bool = False) -> ImplicitKern
         ptag = f"{tag}_{'par' if parallel else 'ser'}"
         ns = model_namespace(model)
         start = specialize(_start, ptag, ns, parallel=parallel, **_OPTIONS)
+        ns["finish_nodes"] = specialize(_finish_nodes, ptag, ns, parallel=parallel, **_OPTIONS)
         if scheme == "gtr":
             ns["gtr_thermal"] = specialize(_gtr_thermal, tag, ns, **_OPTIONS)
             _CACHE[key] = ImplicitKernels(
@@ -341,6 +342,40 @@ def _gtr_jacobian(free_index, masses, alpha, h, l0, P, edges, len0, dir0, dir1, 
                     data[base + i * stride + j] += sign * B[i, j]
 
 
+def _finish_nodes(x0, u, p, fs, edges, free_index, inc_ptr, inc_spring, masses, h, gravity, with_gravity,
+                  stride, offset, x_new, p_new):
+    """The nodes' part of both finish kernels: x¹ = x⁰ + u[stride k + offset + i] for free node k,
+    p¹ = p⁰ (+ h m g) − Σ± fs over the incident springs (fs: the per-spring impulses of the step,
+    (m, ≥ 3)). Returns (status, −1)."""
+    n = x0.shape[0]
+    bad_node = n
+    for a in prange(n):
+        k = free_index[a]
+        F0 = 0.0
+        F1 = 0.0
+        F2 = 0.0
+        for j in range(inc_ptr[a], inc_ptr[a + 1]):
+            e = inc_spring[j]
+            sg = -1.0 if edges[e, 0] == a else 1.0
+            F0 += sg * fs[e, 0]
+            F1 += sg * fs[e, 1]
+            F2 += sg * fs[e, 2]
+        for i in range(3):
+            F = F0 if i == 0 else (F1 if i == 1 else F2)
+            if k < 0:
+                x_new[a, i] = x0[a, i]
+                p_new[a, i] = p[a, i]
+                continue
+            x_new[a, i] = x0[a, i] + u[stride * k + offset + i]
+            q = p[a, i] + (h * masses[a] * gravity[i] if with_gravity else 0.0) - F
+            p_new[a, i] = q
+            if not (abs(q) < math.inf):
+                bad_node = min(bad_node, a)
+    if bad_node < n:
+        return NOT_FINITE, -1
+    return 0, -1
+
+
 def _gtr_finish(x0, u, p, phi, eta, l0, P, edges, free_index, inc_ptr, inc_spring, masses, alpha, h, gravity,
                 with_gravity, len0, dir0, len1, dir1, theta, fs, code, x_new, p_new, phi_new, eta_new):
     """The next state from converged unknowns: x¹ = x⁰ + d; Φ¹ = Φ⁰ + h θ̄;
@@ -370,33 +405,8 @@ def _gtr_finish(x0, u, p, phi, eta, l0, P, edges, free_index, inc_ptr, inc_sprin
             fs[e, i] += c1 * dir1[e, i]  # fs holds α h T(l⁰, θ̄) n⁰ from the last residual
     if bad < m:
         return code[bad], bad
-    n = x0.shape[0]
-    bad_node = n
-    for a in prange(n):
-        k = free_index[a]
-        F0 = 0.0
-        F1 = 0.0
-        F2 = 0.0
-        for j in range(inc_ptr[a], inc_ptr[a + 1]):
-            e = inc_spring[j]
-            sg = -1.0 if edges[e, 0] == a else 1.0
-            F0 += sg * fs[e, 0]
-            F1 += sg * fs[e, 1]
-            F2 += sg * fs[e, 2]
-        for i in range(3):
-            F = F0 if i == 0 else (F1 if i == 1 else F2)
-            if k < 0:
-                x_new[a, i] = x0[a, i]
-                p_new[a, i] = p[a, i]
-                continue
-            x_new[a, i] = x0[a, i] + u[3 * k + i]
-            q = p[a, i] + (h * masses[a] * gravity[i] if with_gravity else 0.0) - F
-            p_new[a, i] = q
-            if not (abs(q) < math.inf):
-                bad_node = min(bad_node, a)
-    if bad_node < n:
-        return NOT_FINITE, -1
-    return 0, -1
+    return finish_nodes(x0, u, p, fs, edges, free_index, inc_ptr, inc_spring, masses, h, gravity, with_gravity,
+                        3, 0, x_new, p_new)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -662,30 +672,5 @@ def _ho4_finish(x0, u, p, phi, eta, l0, P, edges, free_index, inc_ptr, inc_sprin
             fs[e, i] = fs[e, i] + 8.0 / 3.0 * fs[e, 3 + i] + c1 * dir1[e, i]
     if bad < m:
         return code[bad], bad
-    n = x0.shape[0]
-    bad_node = n
-    for a in prange(n):
-        k = free_index[a]
-        F0 = 0.0
-        F1 = 0.0
-        F2 = 0.0
-        for j in range(inc_ptr[a], inc_ptr[a + 1]):
-            e = inc_spring[j]
-            sg = -1.0 if edges[e, 0] == a else 1.0
-            F0 += sg * fs[e, 0]
-            F1 += sg * fs[e, 1]
-            F2 += sg * fs[e, 2]
-        for i in range(3):
-            F = F0 if i == 0 else (F1 if i == 1 else F2)
-            if k < 0:
-                x_new[a, i] = x0[a, i]
-                p_new[a, i] = p[a, i]
-                continue
-            x_new[a, i] = x0[a, i] + u[6 * k + 3 + i]
-            q = p[a, i] + (h * masses[a] * gravity[i] if with_gravity else 0.0) - F
-            p_new[a, i] = q
-            if not (abs(q) < math.inf):
-                bad_node = min(bad_node, a)
-    if bad_node < n:
-        return NOT_FINITE, -1
-    return 0, -1
+    return finish_nodes(x0, u, p, fs, edges, free_index, inc_ptr, inc_spring, masses, h, gravity, with_gravity,
+                        6, 3, x_new, p_new)
