@@ -8,13 +8,10 @@ Examples in total: 500 (scenes) + 120 (CLI) + 300 (meshes) + 200 (API) = 1120.
 
 import copy
 import json
-import math
-import os
 import warnings
 
 import meshio
 import numpy as np
-import pytest
 import tomli_w
 from hypothesis import HealthCheck, event, example, given, settings
 from hypothesis import strategies as st

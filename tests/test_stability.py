@@ -5,7 +5,7 @@ import pytest
 
 import thermonet as tn
 from thermonet.integrators import CO2, CO4, CO6, F10, GTR0, GTR1, NM2
-from thermonet.stability import max_frequency, splitting_stability_interval, stability_interval, stable_step
+from thermonet.stability import max_frequency, stability_interval, stable_step
 
 
 def test_central_difference_family_has_interval_two():

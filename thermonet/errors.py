@@ -38,10 +38,3 @@ class SimulationError(ThermonetError, RuntimeError):
     """A run that had to stop (non-physical state, solver failure); the last good state is kept."""
 
     exit_code = 3
-
-
-def first_bad(mask) -> int:
-    """Index of the first True entry of a boolean array (caller guarantees one exists)."""
-    import numpy as np
-
-    return int(np.flatnonzero(mask)[0])

@@ -97,7 +97,7 @@ class Simulation:
         if self.backend != "cpu":
             stepper_options["backend"] = self.backend
         self.threads = threads
-        n, m = net.n_nodes, net.n_springs
+        m = net.n_springs
         layout = build_layout(net, renumber=renumber)
         self.layout = layout
 

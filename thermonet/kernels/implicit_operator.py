@@ -21,7 +21,6 @@ inc_ptr (n+1,), inc_spring (2m,) the node→spring incidence; masses (n,).
 
 from __future__ import annotations
 
-import numpy as np
 from numba import prange
 
 from .implicit import _gather_add

@@ -18,7 +18,7 @@ from ..integrators import get_integrator
 from .reference import DEFAULT_CHECK, DEFAULT_RTOL, ReferenceSolution, assemble_reference, reference_tasks
 from .runner import Runner
 from .scenes import check_scene
-from .slopes import SlopeFit, asymptotic_slope
+from .slopes import asymptotic_slope
 from .snapshot import QUANTITIES
 from .tasks import check_steps, integrator_endpoint
 
