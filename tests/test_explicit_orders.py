@@ -16,8 +16,6 @@ import numpy as np
 import pytest
 
 import thermonet as tn
-from thermonet import reference as ref
-from thermonet.paper import CHAIN_MOMENTA, CHAIN_PARAMETERS, CHAIN_TEMPERATURES
 
 T_END = 1.0
 TOLERANCE = 0.15
@@ -33,17 +31,6 @@ CASES = {
     "co4": (4, range(3, 8)),
     "co6": (6, range(2, 7)),
 }
-
-
-@pytest.fixture(scope="module")
-def chain_reference():
-    """(positions, momenta, temperatures) at t = 1 from DOP853 on Hamilton's equations."""
-    net = tn.chain()
-    rnet = ref.ReferenceNet.build(net, "hencky", CHAIN_PARAMETERS)
-    eta = rnet.entropies(net.positions, CHAIN_TEMPERATURES)
-    start = ref.ReferenceState(net.positions.copy(), CHAIN_MOMENTA.copy(), np.zeros(3), eta)
-    end = ref.hamilton_solution(rnet, start, T_END, rtol=1e-13, atol=1e-13)
-    return end.x, end.p, rnet.temperatures(end.x, eta)
 
 
 def errors_at_t1(name, h, reference):

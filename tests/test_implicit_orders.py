@@ -11,22 +11,10 @@ import numpy as np
 import pytest
 
 import thermonet as tn
-from thermonet import reference as ref
-from thermonet.paper import CHAIN_MOMENTA, CHAIN_PARAMETERS, CHAIN_TEMPERATURES
 
 T_END = 1.0
 TOLERANCE = 0.15
 STEPS = np.array([0.1 * 2.0**-i for i in range(3, 8)])
-
-
-@pytest.fixture(scope="module")
-def chain_reference():
-    net = tn.chain()
-    rnet = ref.ReferenceNet.build(net, "hencky", CHAIN_PARAMETERS)
-    eta = rnet.entropies(net.positions, CHAIN_TEMPERATURES)
-    start = ref.ReferenceState(net.positions.copy(), CHAIN_MOMENTA.copy(), np.zeros(3), eta)
-    end = ref.hamilton_solution(rnet, start, T_END, rtol=1e-13, atol=1e-13)
-    return end.x, end.p, rnet.temperatures(end.x, eta)
 
 
 def errors(integrator, options, h, reference):
