@@ -9,7 +9,7 @@ import math
 import numpy as np
 from numba import prange
 
-from .splitting import BLOCK
+from .splitting import BLOCK, squared_lengths
 from .specialize import model_fingerprint, model_namespace, specialize
 
 # Bound per model by specialize(); see kernels/splitting.py for THERMAL / REFERENCE_TEMPERATURE.
@@ -51,14 +51,7 @@ def _spring_sums(x, eta, l0, P, edges):
         length = np.empty(BLOCK)
         theta = np.empty(BLOCK)
         energy_block = np.empty(BLOCK)
-        for i in range(n):
-            e = np.uint64(lo + i)
-            a = edges[e, 0]
-            b = edges[e, 1]
-            dx = x[b, 0] - x[a, 0]
-            dy = x[b, 1] - x[a, 1]
-            dz = x[b, 2] - x[a, 2]
-            length[i] = dx * dx + dy * dy + dz * dz
+        squared_lengths(x, edges, lo, n, length, 0)
         for i in range(n):
             e = np.uint64(lo + i)
             l = math.sqrt(length[i])

@@ -8,7 +8,7 @@ import math
 import numpy as np
 from numba import prange
 
-from .splitting import BLOCK
+from .splitting import BLOCK, squared_lengths
 from .specialize import MODEL_FUNCTIONS, model_fingerprint, model_namespace, specialize
 
 # Bound per model by specialize(); THERMAL False: every spring at its reference temperature
@@ -54,14 +54,7 @@ def _spring_fields(x, eta, l0, P, edges, length, theta, tens, energy):
     for blk in prange((m + BLOCK - 1) // BLOCK):
         lo = blk * BLOCK
         n = min(BLOCK, m - lo)
-        for i in range(n):
-            e = np.uint64(lo + i)  # unsigned: no negative-index wraparound, so the loop vectorizes
-            a = edges[e, 0]
-            b = edges[e, 1]
-            dx = x[b, 0] - x[a, 0]
-            dy = x[b, 1] - x[a, 1]
-            dz = x[b, 2] - x[a, 2]
-            length[e] = dx * dx + dy * dy + dz * dz
+        squared_lengths(x, edges, lo, n, length, lo)
         for i in range(n):
             e = np.uint64(lo + i)
             l = math.sqrt(length[e])
