@@ -193,9 +193,9 @@ def main(argv=None) -> int:
         rows.append(row)
         print(f"| {m:,} | {n:,} | {rate / 1e9:.2f} | {b:.0f} | {row['bandwidth_fraction']:.0%} | "
               f"{cpu / 1e9:.3f} | {row['speedup']:.0f}× | {per_spring:.0f} | {fits:.2e} |", flush=True)
-    if args.json:
-        with open(args.json, "w") as f:
-            json.dump(dict(device=str(dev.name), bandwidth=bandwidth, rows=rows), f, indent=1)
+        if args.json:  # after every row: a run cut short by a time limit keeps what it measured
+            with open(args.json, "w") as f:
+                json.dump(dict(device=str(dev.name), bandwidth=bandwidth, rows=rows), f, indent=1)
     return 0
 
 

@@ -147,6 +147,28 @@ def test_no_gpu_names_the_simulator():
         tn.Simulation(tn.chain(), integrator="co2", h=0.01, backend="cuda")
 
 
+@needs_numba_cuda
+def test_unsupported_numpy_is_named(monkeypatch):
+    """numba-cuda 0.30.4 with NumPy 2.5 breaks at the first kernel compiled (np.row_stack is gone);
+    the backend check must say so in one line instead."""
+    import builtins
+
+    from thermonet.cuda import _compiler_problem
+
+    real_import = builtins.__import__
+
+    def broken(name, globals=None, locals=None, fromlist=(), level=0):
+        if name == "numba.cuda.np" and fromlist and "arrayobj" in fromlist:
+            raise AttributeError("module 'numpy' has no attribute 'row_stack'")
+        return real_import(name, globals, locals, fromlist, level)
+
+    monkeypatch.setattr(builtins, "__import__", broken)
+    message = _compiler_problem()
+    assert message is not None
+    assert "cannot compile kernels with NumPy" in message and "row_stack" in message
+    assert np.__version__ in message and "numpy<2.5" in message
+
+
 # ----------------------------------------------------------------------------------------------
 # compiled for a real device
 

@@ -44,6 +44,25 @@ def cuda_problem() -> str | None:
         return ("no CUDA GPU is visible to numba-cuda (numba.cuda.is_available() is False: no NVIDIA GPU or "
                 "driver)" + ("" if env else "; to run the CUDA kernels without a GPU, slowly, start Python with "
                              "NUMBA_ENABLE_CUDASIM=1 (Numba's CUDA simulator)"))
+    return _compiler_problem()
+
+
+def _compiler_problem() -> str | None:
+    """Why numba-cuda's compiler cannot load with this NumPy, or None.
+
+    numba-cuda loads its array registry lazily, at the first kernel compiled; a NumPy it does not
+    support (numba-cuda 0.30.4 with NumPy >= 2.5, which removed ``np.row_stack``) breaks there,
+    deep inside the first ``advance``. Importing the registry here moves that failure to a message.
+    """
+    try:
+        from numba.cuda.np import arrayobj  # noqa: F401
+    except Exception as exc:
+        import numpy as np
+        import numba_cuda
+
+        return (f"numba-cuda {numba_cuda.__version__} cannot compile kernels with NumPy {np.__version__} "
+                f"({type(exc).__name__}: {exc}); install a NumPy it supports (e.g. 'numpy<2.5') or a newer "
+                "numba-cuda")
     return None
 
 
