@@ -10,7 +10,8 @@ springs it prints a markdown table:
 
 - GPU spring-steps per second (springs × steps / wall time of ``advance`` with the device
   synchronized), after a warm-up that compiles the kernels; the median of three runs, each about
-  ``--seconds`` long;
+  ``--seconds`` long; with one cooperative launch per chunk of steps ("fused") and with two
+  launches per stage, and the rate of the one the default picks by net size;
 - the device-to-device copy bandwidth measured in the same run (a copy kernel over 2 GiB,
   counting bytes read and written), the bytes per spring-step the two kernels move and the
   fraction of that bandwidth reached: (rate × bytes per spring-step) / bandwidth. Bytes are
@@ -105,9 +106,11 @@ def copy_bandwidth(cuda, n_bytes: int = 2 << 30, repeats: int = 10) -> float:
     return 2 * n * 8 / best
 
 
-def gpu_rate(sim, cuda, seconds: float) -> float:
-    """Median spring-steps/s of the CUDA stepper over three runs of about ``seconds``."""
+def gpu_rate(sim, cuda, seconds: float, fused: bool) -> float:
+    """Median spring-steps/s of the CUDA stepper over three runs of about ``seconds``, with one
+    cooperative launch per chunk of steps (``fused``) or two launches per stage."""
     stepper, state, m = sim.stepper, sim._state, sim.net.n_springs
+    stepper.fused = fused
     stepper.advance(state, 2, H)  # compile and upload
     cuda.synchronize()
     t0 = time.perf_counter()
@@ -170,9 +173,9 @@ def main(argv=None) -> int:
     print(f"GPU vs CPU after 20 steps (3000 springs): max relative difference {agreement():.2e}")
     bandwidth = copy_bandwidth(cuda)
     print(f"device copy bandwidth (read + write): {bandwidth / 1e12:.2f} TB/s\n")
-    print("| springs | nodes | GPU G spring-steps/s | B/spring-step | of copy bandwidth | "
-          "CPU G spring-steps/s | speed-up | device B/spring | largest net that fits (est.) |")
-    print("|---|---|---|---|---|---|---|---|---|")
+    print("| springs | nodes | GPU G spring-steps/s | fused launch | two launches per stage | B/spring-step | "
+          "of copy bandwidth | CPU G spring-steps/s | speed-up | device B/spring | largest net that fits (est.) |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     rows = []
     for size in (int(float(s)) for s in args.sizes.split(",")):
         try:
@@ -181,18 +184,21 @@ def main(argv=None) -> int:
             print(f"| {size:.0e} | – | did not fit: {type(exc).__name__}: {exc} |")
             break
         n, m = sim.net.n_nodes, sim.net.n_springs
-        rate = gpu_rate(sim, cuda, args.seconds)
+        fused = gpu_rate(sim, cuda, args.seconds, fused=True)
+        two_launch = gpu_rate(sim, cuda, args.seconds, fused=False)
+        rate = fused if m < sim.stepper.FUSED_MAX_SPRINGS else two_launch  # what the default runs
         b = bytes_per_step(n, m, 0 if sim.stepper._P.shape[1] == 1 else sim.stepper._P.shape[0]) / m
         per_spring = device_bytes(sim.stepper) / m
         fits = int(free / per_spring)
         del sim
         cpu = cpu_rate(size, args.seconds) if size <= args.cpu_max else float("nan")
-        row = dict(springs=m, nodes=n, gpu_rate=rate, bytes_per_spring_step=b, bandwidth=bandwidth,
+        row = dict(springs=m, nodes=n, gpu_rate=rate, gpu_rate_fused=fused, gpu_rate_two_launch=two_launch,
+                   bytes_per_spring_step=b, bandwidth=bandwidth,
                    bandwidth_fraction=rate * b / bandwidth, cpu_rate=cpu, speedup=rate / cpu,
                    device_bytes_per_spring=per_spring, largest_fitting_springs=fits)
         rows.append(row)
-        print(f"| {m:,} | {n:,} | {rate / 1e9:.2f} | {b:.0f} | {row['bandwidth_fraction']:.0%} | "
-              f"{cpu / 1e9:.3f} | {row['speedup']:.0f}× | {per_spring:.0f} | {fits:.2e} |", flush=True)
+        print(f"| {m:,} | {n:,} | {rate / 1e9:.2f} | {fused / 1e9:.2f} | {two_launch / 1e9:.2f} | {b:.0f} | "
+              f"{row['bandwidth_fraction']:.0%} | {cpu / 1e9:.3f} | {row['speedup']:.0f}× | {per_spring:.0f} | {fits:.2e} |", flush=True)
         if args.json:  # after every row: a run cut short by a time limit keeps what it measured
             with open(args.json, "w") as f:
                 json.dump(dict(device=str(dev.name), bandwidth=bandwidth, rows=rows), f, indent=1)

@@ -53,11 +53,20 @@ def cases():
     yield "user-model-co2", lambda b: _with_backend(build_simulation("co2", h=2e-3), b)
     yield "thermal-off-co2", lambda b: tn.Simulation(net, velocities=v, thermal=False, integrator="co2",
                                                      h=2e-3, backend=b)
+    yield "hencky-co4-two-launch", lambda b: _two_launch(tn.Simulation(
+        net, temperatures=temps, velocities=v, integrator="co4", h=2e-3, backend=b))
     chain = tn.chain()
     p = [[0, 0, 0], [20, 10, 10], [10, 20, 10], [0, 10, 0]]
     yield "gravity-chain-f10", lambda b: tn.Simulation(chain, temperatures=[800, 1200, 400], momenta=p,
                                                        gravity=[0, 0, -9.81], integrator="f10", h=1e-2,
                                                        backend=b)
+
+
+def _two_launch(sim):
+    """``sim`` with the CUDA stepper's two launches per stage instead of one fused launch per chunk."""
+    if hasattr(sim.stepper, "fused"):
+        sim.stepper.fused = False
+    return sim
 
 
 def _with_backend(sim, backend):

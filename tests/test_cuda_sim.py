@@ -33,7 +33,7 @@ sys.path.insert(0, os.path.join(ROOT, "tests"))
 from cuda_sim_cases import EXPLICIT  # noqa: E402
 
 CASES = [f"{m}-{i}" for m in ("hencky", "quadratic") for i in EXPLICIT] + [
-    "hencky-per-spring-co2", "user-model-co2", "thermal-off-co2", "gravity-chain-f10"]
+    "hencky-per-spring-co2", "user-model-co2", "thermal-off-co2", "hencky-co4-two-launch", "gravity-chain-f10"]
 FREE = [c for c in CASES if not c.startswith("gravity")]  # no anchors, no external field
 STATE_RTOL = 1e-13
 DIAG_RTOL = 1e-12
@@ -242,3 +242,26 @@ def test_gpu_equals_cpu(integrator, model):
     d = out["cuda"].diagnostics
     for cols in (d.linear_momentum, d.angular_momentum):
         assert np.max(np.abs(cols - cols[0])) <= 1e-12 * max(np.max(np.abs(cols)), 1.0)
+
+
+@pytest.mark.gpu
+@pytest.mark.skipif(not _gpu_available(), reason="needs a CUDA GPU")
+@pytest.mark.parametrize("integrator", ["co2", "co6", "gtr-1"])
+def test_gpu_fused_launch_equals_two_launches(integrator):
+    """One cooperative launch per chunk runs the same inlined per-spring and per-node updates as
+    two launches per stage: the same numbers, chunked or not."""
+    net = tn.lattice((9, 9, 9), neighbours=6, jitter=0.1, seed=3)
+    rng = np.random.default_rng(3)
+    v, temps = rng.normal(0, 0.5, (net.n_nodes, 3)), 250 + 100 * rng.random(net.n_springs)
+    states = {}
+    for fused, chunks in ((False, (40,)), (True, (40,)), (True, (1, 13, 26))):
+        sim = tn.Simulation(net, temperatures=temps, velocities=v, integrator=integrator, h=2e-3, backend="cuda")
+        sim.stepper.fused = fused
+        for n in chunks:
+            sim.run(steps=n, diagnostics_every=n)
+        states[fused, chunks] = sim.state
+    reference = states[False, (40,)]
+    for state in states.values():
+        for field in ("positions", "momenta", "thermal_displacement"):
+            np.testing.assert_array_equal(getattr(state, field), getattr(reference, field), err_msg=field)
+

@@ -64,8 +64,8 @@ _CACHE: dict = {}
 class CudaKernels:
     """The compiled kernels of one model variant and their launch geometry."""
 
-    def __init__(self, spring, node, spring_sums, node_sums, finish, threads, reduce_threads, reduce_blocks):
-        self.spring, self.node = spring, node
+    def __init__(self, spring, node, steps, spring_sums, node_sums, finish, threads, reduce_threads, reduce_blocks):
+        self.spring, self.node, self.steps = spring, node, steps
         self.spring_sums, self.node_sums, self.finish = spring_sums, node_sums, finish
         self.threads, self.reduce_threads, self.reduce_blocks = threads, reduce_threads, reduce_blocks
 
@@ -90,12 +90,15 @@ def cuda_kernels(model, thermal: bool = True, uniform: bool = False) -> CudaKern
         tag = (f"{model.name}_{key[0]}_{'thermal' if thermal else 'mech'}{'_uniform' if uniform else ''}"
                f"_r{reduce_threads}")
         jit = cuda.jit if sim else cuda.jit(cache=True)
+        inline = (lambda fn: fn) if sim else njit(inline="always")
+        for name, template in (("_spring_update", _spring_update), ("_node_update", _node_update)):
+            ns[name] = inline(rebind(template, tag, ns))  # shared by the two-launch and the fused path
 
         def compile_(template):
             return jit(rebind(template, tag, ns))
 
         _CACHE[key] = CudaKernels(
-            compile_(_spring_kernel), compile_(_node_kernel), compile_(_spring_sums_kernel),
+            compile_(_spring_kernel), compile_(_node_kernel), compile_(_steps_kernel), compile_(_spring_sums_kernel),
             compile_(_node_sums_kernel), compile_(_finish_kernel), SIMULATOR_THREADS if sim else THREADS,
             reduce_threads, SIMULATOR_REDUCE_BLOCKS if sim else REDUCE_BLOCKS)
     return _CACHE[key]
@@ -115,41 +118,94 @@ def _simulator_adapter(fn):
 
 
 def _spring_kernel(x, eta, l0, P, edges, s, phi, phi_h1, phi_h2, track_phi):
-    """Thread e: s[e] = T/l at x; Φ[e] += phi_h1 θ; Φ[e] += phi_h2 θ.
-
-    x: (n, 3); eta, l0, s, phi: (m,) (eta, phi empty when not THERMAL); P: (k, m) or (k, 1);
-    edges: (m, 2) uint32.
-    """
+    """Thread e: :func:`_spring_update` of spring e."""
     e = cuda.grid(1)
     if e < edges.shape[0]:
-        a = edges[e, 0]
-        b = edges[e, 1]
-        dx = x[b, 0] - x[a, 0]
-        dy = x[b, 1] - x[a, 1]
-        dz = x[b, 2] - x[a, 2]
-        l = math.sqrt(dx * dx + dy * dy + dz * dz)
-        c = 0 if UNIFORM else e
-        if THERMAL:
-            theta = temperature(l, eta[e], l0[e], P, c)
-        else:
-            theta = P[REFERENCE_TEMPERATURE, c]
-        s[e] = tension(l, theta, l0[e], P, c) / l
-        if THERMAL and track_phi:
-            if phi_h1 != 0.0:
-                phi[e] += phi_h1 * theta
-            phi[e] += phi_h2 * theta
+        _spring_update(e, x, eta, l0, P, edges, s, phi, phi_h1, phi_h2, track_phi)
 
 
 def _node_kernel(x, x_new, p, s, inc_ptr, inc_spring, inc_other, masses, inv_mass, anchored,
                  kick1, kick2, drift, with_force, gravity, with_gravity):
-    """Thread a: f = Σ s_e (x_b − x_a) (+ m g); p += kick1 f; p += kick2 f; x_new = x + drift p/m.
+    """Thread a: :func:`_node_update` of node a."""
+    a = cuda.grid(1)
+    if a < x.shape[0]:
+        _node_update(a, x, x_new, p, s, inc_ptr, inc_spring, inc_other, masses, inv_mass, anchored,
+                     kick1, kick2, drift, with_force, gravity, with_gravity)
+
+
+def _steps_kernel(x, x_buf, p, eta, l0, P, edges, s, phi, inc_ptr, inc_spring, inc_other, masses, inv_mass,
+                  anchored, gravity, with_gravity, kicks, drifts, h, n_steps, track_phi):
+    """``n_steps`` whole steps in one cooperative launch: every stage's spring pass and node pass
+    over grid-stride loops, separated by grid-wide barriers, in the order and with the
+    coefficients of :meth:`~thermonet.cuda.stepper.CudaSplittingStepper.advance`'s two-launch
+    path (the same per-spring and per-node updates, so the same numbers). Positions alternate
+    between ``x`` and ``x_buf`` stage by stage; the caller counts the stages to know which holds
+    the result. kicks: (d+1,), drifts: (d,) coefficients of the splitting.
+    """
+    grid = cuda.cg.this_grid()
+    first = cuda.grid(1)
+    stride = cuda.gridsize(1)
+    n_drifts = drifts.shape[0]
+    pending = 0.0
+    parity = 0
+    for step in range(n_steps + 1):
+        for i in range(n_drifts):
+            if step < n_steps:
+                k1 = pending if i == 0 else 0.0
+                k2 = kicks[i]
+                d = drifts[i]
+            elif i == 0 and pending != 0.0:  # after the last step: its closing kick
+                k1 = 0.0
+                k2 = pending
+                d = 0.0
+            else:
+                break
+            with_force = k1 != 0.0 or k2 != 0.0
+            xs = x if parity == 0 else x_buf
+            xn = x_buf if parity == 0 else x
+            if with_force:
+                for e in range(first, edges.shape[0], stride):
+                    _spring_update(e, xs, eta, l0, P, edges, s, phi, k1 * h, k2 * h, track_phi)
+                grid.sync()
+            for a in range(first, xs.shape[0], stride):
+                _node_update(a, xs, xn, p, s, inc_ptr, inc_spring, inc_other, masses, inv_mass, anchored,
+                             k1 * h, k2 * h, d * h, with_force, gravity, with_gravity)
+            grid.sync()
+            parity = 1 - parity
+        pending = kicks[n_drifts]
+
+
+def _spring_update(e, x, eta, l0, P, edges, s, phi, phi_h1, phi_h2, track_phi):
+    """Spring e: s[e] = T/l at x; Φ[e] += phi_h1 θ; Φ[e] += phi_h2 θ.
+
+    x: (n, 3); eta, l0, s, phi: (m,) (eta, phi empty when not THERMAL); P: (k, m) or (k, 1);
+    edges: (m, 2) uint32.
+    """
+    a = edges[e, 0]
+    b = edges[e, 1]
+    dx = x[b, 0] - x[a, 0]
+    dy = x[b, 1] - x[a, 1]
+    dz = x[b, 2] - x[a, 2]
+    l = math.sqrt(dx * dx + dy * dy + dz * dz)
+    c = 0 if UNIFORM else e
+    if THERMAL:
+        theta = temperature(l, eta[e], l0[e], P, c)
+    else:
+        theta = P[REFERENCE_TEMPERATURE, c]
+    s[e] = tension(l, theta, l0[e], P, c) / l
+    if THERMAL and track_phi:
+        if phi_h1 != 0.0:
+            phi[e] += phi_h1 * theta
+        phi[e] += phi_h2 * theta
+
+
+def _node_update(a, x, x_new, p, s, inc_ptr, inc_spring, inc_other, masses, inv_mass, anchored,
+                 kick1, kick2, drift, with_force, gravity, with_gravity):
+    """Node a: f = Σ s_e (x_b − x_a) (+ m g); p += kick1 f; p += kick2 f; x_new = x + drift p/m.
 
     x, x_new, p: (n, 3); inc_ptr: (n+1,) int64; inc_spring, inc_other: (2m,) uint32;
     masses, inv_mass: (n,); anchored: (n,) bool; gravity: (3,).
     """
-    a = cuda.grid(1)
-    if a >= x.shape[0]:
-        return
     xa0 = x[a, 0]
     xa1 = x[a, 1]
     xa2 = x[a, 2]
@@ -312,12 +368,16 @@ def _combine(op, a, b):
 def compile_ptx(model, thermal: bool = True, uniform: bool = False, cc=(9, 0)) -> dict[str, str]:
     """PTX of every kernel for ``model`` and compute capability ``cc``, compiled as for a GPU (not
     the simulator). Needs numba-cuda's NVVM (the CUDA toolkit) but no GPU, so it checks that a
-    model compiles for the device on any machine with the toolkit. Returns name -> PTX text."""
+    model compiles for the device on any machine with the toolkit. Returns name -> PTX text.
+    Not the fused ``_steps_kernel``: numba-cuda types its grid-wide barrier only with a driver
+    present (the ``gpu`` tests compile and run it); it runs the same inlined updates."""
     from numba import boolean, int32, int64, uint32
 
     ns = model_namespace(model)
     ns.update(THERMAL=bool(thermal), UNIFORM=bool(uniform), REDUCE_THREADS=REDUCE_THREADS,
               REFERENCE_TEMPERATURE=model.parameter_index(model.reference_temperature))
+    for name, template in (("_spring_update", _spring_update), ("_node_update", _node_update)):
+        ns[name] = njit(inline="always")(rebind(template, f"{model.name}_ptx", ns))
     v, m2, u = float64[::1], float64[:, ::1], uint32[::1]
     signatures = {
         "spring": (_spring_kernel, (m2, v, v, m2, uint32[:, ::1], v, v, float64, float64, boolean)),
