@@ -28,12 +28,12 @@ class CudaSplittingStepper(Stepper):
     #: between the passes) instead of two launches per stage; the same numbers either way (tested
     #: bit for bit on an H100). None: by net size, below :data:`FUSED_MAX_SPRINGS`.
     fused: bool | None = None
-    #: Measured on an H100 (CO2, 6-neighbour lattices): each launch from Python costs ~100 µs, so
-    #: two launches per stage bound small nets (0.46 G spring-steps/s at 1e5 springs, 7.1 at 1e6;
-    #: fused 10.1 and 13.1); a cooperative launch keeps only the blocks that fit at once, which
-    #: caps large nets at ~65% of the copy bandwidth (fused 15.4 G/s at 1e7, two launches 22.4).
-    #: The two cost models cross near 3e6 springs.
-    FUSED_MAX_SPRINGS = 3_000_000
+    #: Measured on an H100 (CO2, 6-neighbour lattices, G spring-steps/s fused / two launches):
+    #: 1e5 springs 10.0 / 0.50, 1e6 13.0 / 7.0, 3e6 14.7 / 21.3, 1e7 15.3 / 22.3. Launching from
+    #: Python costs ~70 µs a launch, which bounds two launches per stage on small nets; a
+    #: cooperative launch keeps only the blocks that fit at once, which caps it at ~65% of the copy
+    #: bandwidth on large ones. The two cross near 2e6 springs (both ≈ 144 µs a step there).
+    FUSED_MAX_SPRINGS = 2_000_000
     #: most steps per fused launch (a launch cannot be interrupted; a few hundred steps keep
     #: Ctrl-C and progress reports responsive and cost one launch each)
     FUSED_MAX_STEPS = 256
