@@ -51,26 +51,24 @@ class GTRAlphaStepper(ImplicitStepper):
     def _allocate(self, n: int, m: int) -> None:
         self.alpha = self.integrator.alpha
         self.len1 = np.empty(m)
-        self.dir1 = np.empty((m, 3))
+        self.dir1 = np.empty((3, m))
         self.theta = np.empty(m)
         self.dtheta = np.empty(m)
         self.jc = np.empty(m)
 
-    def predict(self, u: np.ndarray) -> None:
-        """d = h M⁻¹ (p + α h f(x⁰, θ(l⁰, η))): (48a) with θ̄ frozen at the start temperature,
-        CO2's drift at α = ½ and the exact step at α = 0 or 1."""
-        s, h, a = self.system, self.h, self._free_nodes
-        force = self.f0[a] + (s.masses[a, None] * self.gravity if self.with_gravity else 0.0)
-        d = h * s.inv_mass[a, None] * (self.p0[a] + self.alpha * h * force)
-        u.reshape(-1, 3)[self._free_blocks] = d
+    def predictor_coefficients(self, h: float) -> np.ndarray:
+        """d = h M⁻¹ (p + α h f(x⁰, θ(l⁰, η))) = h v + α h² a: (48a) with θ̄ frozen at the start
+        temperature, CO2's drift at α = ½ and the exact step at α = 0 or 1."""
+        return np.array([[h, self.alpha * h * h, 0.0]])
 
     def residual(self, u: np.ndarray):
         s = self.system
-        status, spring = self.kernels.residual(
-            self.x0, u, self.p0, self.eta0, s.rest_lengths, s.parameters, s.edges, self.free_index, *self.incidence,
+        status, spring, rmax, smax = self.kernels.residual(
+            self.x0, u, self.p0, self.eta0, s.rest_lengths, s.parameters, self.edges_u, self.free_index, *self.incidence,
             s.masses, self.alpha, self.h, self.gravity, self.with_gravity, self.len0, self.dir0, self.len1,
-            self.dir1, self.theta, self.dtheta, self.warm, self.fs, self.code, self.R, self.Rabs,
+            self.dir1, self.theta, self.dtheta, self.warm, self.fs, self.guess, self.code, self.R, self.Rabs,
         )
+        self.norms = (rmax, smax)
         self.warm = status == 0
         return status, spring
 
@@ -80,7 +78,7 @@ class GTRAlphaStepper(ImplicitStepper):
                                self.jc)
 
     def sweep(self, du, rhs, r, update, first=False):
-        return self.sweeper(du, rhs, r, self.sweep_scratch, self.jc, self.dir0, self.dir1, self.system.edges,
+        return self.sweeper(du, rhs, r, self.sweep_scratch, self.jc, self.dir0, self.dir1, self.edges_u,
                             self.free_index, *self.incidence, self.system.masses, self.h, update, first)
 
     def apply_inverse_inertia(self, v):
@@ -98,7 +96,7 @@ class GTRAlphaStepper(ImplicitStepper):
     def finish(self, phi0, x_new, p_new, phi_new, eta_new):
         s = self.system
         return self.kernels.finish(
-            self.x0, self.u, self.p0, phi0, self.eta0, s.rest_lengths, s.parameters, s.edges, self.free_index,
+            self.x0, self.u, self.p0, phi0, self.eta0, s.rest_lengths, s.parameters, self.edges_u, self.free_index,
             *self.incidence, s.masses, self.alpha, self.h, self.gravity, self.with_gravity, self.len0, self.dir0,
             self.len1, self.dir1, self.theta, self.fs, self.code, x_new, p_new, phi_new, eta_new,
         )

@@ -37,16 +37,18 @@ class ImplicitStepper(Stepper):
     """Shared driver of an implicit integrator bound to one system (internal numbering).
 
     Attributes a subclass relies on: ``x0, p0, eta0`` the step's start (n, 3), (n, 3), (m,);
-    ``h``; ``len0`` (m,), ``dir0`` (m, 3), ``f0`` (n, 3) from the start kernel; ``R``, ``Rabs``
-    (size,); ``data`` (nnz,) the Jacobian values; ``jc`` the per-spring coefficients of the
-    matrix-free Jacobian; ``fs`` (m, 6) and ``code`` (m,) kernel scratch; ``warm``: whether the
-    per-spring temperatures of the last residual may seed the next one (same step);
-    ``incidence`` the node→spring CSR (inc_ptr, inc_spring); ``pattern``, ``kernels``, ``sweeper``.
+    ``h``; ``len0`` (m,), ``dir0`` (3, m) from the start kernel; ``R``, ``Rabs`` (size,) and
+    ``norms`` (max |R|, max Rabs) of the last residual; ``data`` (nnz,) the Jacobian values;
+    ``jc`` the per-spring coefficients of the matrix-free Jacobian; ``fs`` (6, m), ``guess`` and
+    ``code`` (m,) kernel scratch; ``warm``: whether the per-spring temperatures of the last
+    residual may seed the next one (same step); ``incidence`` the node→spring CSR (inc_ptr,
+    inc_spring); ``pattern``, ``kernels``, ``sweeper``. Per-spring arrays are component-major,
+    (k, m), as the kernels want them.
     """
 
     block: int
     scheme: str
-    #: whether the predictor uses the forces' time derivative (start kernel's fdot0)
+    #: whether the predictor uses the forces' time derivative (the start kernel's ȧ)
     with_rate: bool = False
 
     def __init__(self, integrator, system, options: NewtonOptions, parallel: bool = False):
@@ -57,7 +59,9 @@ class ImplicitStepper(Stepper):
         self.options = options
         self.kernels = implicit_kernels(system.model, self.scheme, parallel)
         self.sweeper = operator_kernels(self.scheme, parallel)
-        self.incidence = (system.layout.inc_ptr, system.layout.inc_spring)
+        # the kernels read the int32 index arrays as unsigned (no negative-index wrap-around)
+        self.edges_u = system.edges.view(np.uint32)
+        self.incidence = (system.layout.inc_ptr, system.layout.inc_spring.view(np.uint32))
         self.pattern = BlockPattern.build(system.edges, system.anchored, self.block)
         self.solver = make_linear_solver(options.linear_solver, self.pattern, self)
         n, m, size = system.n_nodes, system.n_springs, self.pattern.size
@@ -70,16 +74,17 @@ class ImplicitStepper(Stepper):
         self.block_mass = system.masses[self.node_of_block]  # (n_free,)
         self.R = np.zeros(size)
         self.Rabs = np.zeros(size)
+        self.norms = (math.inf, math.inf)
         self.u = np.zeros(size)
+        self.prediction = np.zeros(size)
         self.data = np.zeros(self.pattern.nnz if self.solver.assembled else 0)
-        self.fs = np.empty((m, 6))
-        self.sweep_scratch = np.empty((m, self.block))
+        self.fs = np.empty((6, m))
+        self.sweep_scratch = np.empty((self.block, m))
+        self.guess = np.empty(m)
         self.code = np.zeros(m, dtype=np.int64)
         self.warm = False
         self.len0 = np.empty(m)
-        self.dir0 = np.empty((m, 3))
-        self.f0 = np.empty((n, 3))
-        self.fdot0 = np.empty((n, 3))
+        self.dir0 = np.empty((3, m))
         self._new = (np.empty((n, 3)), np.empty((n, 3)), np.empty(m), np.empty(m))
         self.gravity = np.zeros(3) if system.gravity is None else np.asarray(system.gravity, dtype=np.float64)
         self.with_gravity = system.gravity is not None
@@ -94,8 +99,13 @@ class ImplicitStepper(Stepper):
         """Per-spring scratch of the scheme."""
 
     @abstractmethod
+    def predictor_coefficients(self, h: float) -> np.ndarray:
+        """(B/3, 3): sub-block j of a free node's predicted unknowns is c[j, 0] v + c[j, 1] a
+        + c[j, 2] ȧ (velocity, acceleration and its rate at the step's start)."""
+
     def predict(self, u: np.ndarray) -> None:
-        """Fill the unknowns u with an explicit guess from the step's start."""
+        """Fill the unknowns u with the explicit guess the start kernel computed (begin)."""
+        u[:] = self.prediction
 
     @abstractmethod
     def residual(self, u: np.ndarray) -> tuple[int, int]:
@@ -128,9 +138,10 @@ class ImplicitStepper(Stepper):
         s = self.system
         self.x0, self.p0, self.eta0, self.h = x, p, eta, float(h)
         self.warm = False
-        status, spring = self.kernels.start(x, p, s.inv_mass, eta, s.rest_lengths, s.parameters, s.edges,
-                                            *self.incidence, self.len0, self.dir0, self.fs, self.code,
-                                            self.with_rate, self.f0, self.fdot0)
+        status, spring = self.kernels.start(x, p, s.inv_mass, eta, s.rest_lengths, s.parameters, self.edges_u,
+                                            *self.incidence, self.free_index, self.gravity, self.with_gravity,
+                                            self.len0, self.dir0, self.fs, self.code, self.with_rate,
+                                            self.predictor_coefficients(self.h), self.prediction)
         if status != 0:
             raise _StepError("invalid state at the start of the step", None, status, spring)
 

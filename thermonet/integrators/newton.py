@@ -390,8 +390,8 @@ class NewtonResult:
 def newton(problem, u: np.ndarray, options: NewtonOptions, solver, timers: NewtonTimers) -> NewtonResult:
     """Solve ``problem.residual(u) = 0`` for ``u`` in place, from the predictor in ``u``.
 
-    problem: ``residual(u) -> (status, spring)`` fills ``problem.R`` and ``problem.Rabs`` and
-    whatever the Jacobian needs; ``jacobian(data)`` fills the CSR values at the last residual's
+    problem: ``residual(u) -> (status, spring)`` fills ``problem.R`` and ``problem.Rabs`` (and,
+    optionally, ``problem.norms`` = (max |R|, max Rabs)) and whatever the Jacobian needs; ``jacobian(data)`` fills the CSR values at the last residual's
     point, ``data`` its value array (assembled solvers); ``linearize()`` the per-spring
     coefficients of a matrix-free product (:class:`MatrixFree`). The residual is always evaluated last at the returned ``u``.
     """
@@ -404,8 +404,13 @@ def newton(problem, u: np.ndarray, options: NewtonOptions, solver, timers: Newto
         timers.residuals += 1
         if status != 0:
             return NewtonResult(False, it, history, status, spring, "non-physical iterate")
-        scale = problem.Rabs.max() if problem.Rabs.size else 0.0
-        rho = float(np.abs(problem.R).max() / scale) if scale > 0 else 0.0
+        norms = getattr(problem, "norms", None)  # (max |R|, max Rabs), where the kernel had them
+        if norms is not None:
+            rmax, scale = norms
+        else:
+            scale = problem.Rabs.max() if problem.Rabs.size else 0.0
+            rmax = np.abs(problem.R).max() if problem.R.size else 0.0
+        rho = float(rmax / scale) if scale > 0 else 0.0
         history.append(rho)
         if not math.isfinite(rho):
             return NewtonResult(False, it, history, 0, -1, "residual not finite")

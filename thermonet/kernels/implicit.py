@@ -14,12 +14,25 @@ equations of their own spring, so each residual evaluation solves them exactly (
 per spring given the spring's lengths, and the Jacobian carries their derivatives with respect
 to those lengths (implicit function theorem). This condensation is exact: the converged step
 satisfies every equation of the monolithic system. Within a Newton solve the previous iterate's
-temperatures, moved along those derivatives, seed the per-spring solves, which then stop after
-one or two corrections instead of four or five.
+temperatures, moved along those derivatives, seed the per-spring solves.
+
+The per-spring solves are vectorized: every spring pass is blocked like the explicit kernel's
+(:mod:`.splitting`): per block of ``BLOCK`` springs a scalar loop gathers the node data, then a
+loop over contiguous arrays does the arithmetic, which LLVM vectorizes. In that loop every
+thermal solve makes a fixed number of Newton corrections (``VECTOR_CORRECTIONS``, no early
+exit); a spring whose last correction is not below ``THETA_STOP`` (a cold start of a model that
+is not affine in the right variable, a wild iterate), or whose state is not admissible, is
+flagged and redone by the scalar solve (``*_thermal``: iterate to convergence, report the
+failure) in a third loop over the block. For the shipped models one correction is exact (the
+second confirms it), so the fallback is for custom models and bad states.
+
+Per-spring arrays are stored component-major, (k, m) (``dir0[i, e]``), so that the vectorized
+loop reads and writes unit-stride rows. Indices are read as unsigned in the spring passes.
 
 Residual rows are in momentum units. Next to the residual ``R`` a kernel fills ``Rabs``, the sum
 of the magnitudes of the terms of each row, so the Newton test can judge ``|R|`` against the size
-of what cancelled in it (its round-off floor is then a few ulps).
+of what cancelled in it (its round-off floor is then a few ulps). The residual kernels return
+max |R| and max Rabs too.
 
 Per-spring Jacobian blocks are scattered into a CSR value array: for spring e = (a, b) the
 ``spring_base[e, q]`` (q = aa, ab, ba, bb) is the data index of the block's (0, 0) entry and
@@ -36,19 +49,26 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from .fastmath import exp as exp_
 from .specialize import model_fingerprint, model_namespace, specialize
 
 # Bound per model by specialize(); listed so the templates read as ordinary code.
 entropy = temperature = tension = d2F_dl2 = d2F_dl_dtheta = d2F_dtheta2 = None
-gtr_thermal = ho4_thermal = finish_nodes = None
+gtr_thermal = ho4_thermal = gtr_thermal_vector = ho4_thermal_vector = gtr_correct = ho4_correct = ho4_derivatives = finish_nodes = None
 
 _CACHE: dict = {}
 _OPTIONS = dict(cache=True, error_model="numpy", boundscheck=False)
+_INLINE = dict(inline="always", error_model="numpy", boundscheck=False)
 
 #: a per-spring Newton solve stops after a correction of ln θ this small: its error is then of
 #: the order of the correction squared (quadratic convergence), below round-off
 THETA_STOP = 1e-9
 LOCAL_ITERATIONS = 60
+#: springs per block of a spring pass (as the explicit kernel's)
+BLOCK = 512
+#: Newton corrections of a vectorized thermal solve (warm-started: the first one is exact or
+#: leaves an error ~ its square; the second must then be below THETA_STOP)
+VECTOR_CORRECTIONS = 2
 
 OK, COLLAPSED, NO_TEMPERATURE, NOT_FINITE = 0, 1, 2, 3
 STATUS_TEXT = {
@@ -76,22 +96,33 @@ def implicit_kernels(model, scheme: str, parallel: bool = False) -> ImplicitKern
         start = specialize(_start, ptag, ns, parallel=parallel, **_OPTIONS)
         ns["finish_nodes"] = specialize(_finish_nodes, ptag, ns, parallel=parallel, **_OPTIONS)
         if scheme == "gtr":
+            ns["gtr_correct"] = specialize(_gtr_correct, tag, ns, **_INLINE)
             ns["gtr_thermal"] = specialize(_gtr_thermal, tag, ns, **_OPTIONS)
+            ns["gtr_thermal_vector"] = specialize(_gtr_thermal_vector, tag, ns, **_INLINE)
             _CACHE[key] = ImplicitKernels(
                 start=start,
                 residual=specialize(_gtr_residual, ptag, ns, parallel=parallel, **_OPTIONS),
                 linearize=specialize(_gtr_linearize, ptag, ns, parallel=parallel, **_OPTIONS),
                 jacobian=specialize(_gtr_jacobian, tag, ns, **_OPTIONS),
                 finish=specialize(_gtr_finish, ptag, ns, parallel=parallel, **_OPTIONS),
+                thermal=ns["gtr_thermal"],
+                # the two per-spring solves, callable alone (tests)
+                thermal_vector=specialize(_gtr_thermal_vector, f"{tag}_alone", ns, **_OPTIONS),
             )
         elif scheme == "ho4":
+            ns["ho4_derivatives"] = specialize(_ho4_derivatives, tag, ns, **_INLINE)
+            ns["ho4_correct"] = specialize(_ho4_correct, tag, ns, **_INLINE)
             ns["ho4_thermal"] = specialize(_ho4_thermal, tag, ns, **_OPTIONS)
+            ns["ho4_thermal_vector"] = specialize(_ho4_thermal_vector, tag, ns, **_INLINE)
             _CACHE[key] = ImplicitKernels(
                 start=start,
                 residual=specialize(_ho4_residual, ptag, ns, parallel=parallel, **_OPTIONS),
                 linearize=specialize(_ho4_linearize, ptag, ns, parallel=parallel, **_OPTIONS),
                 jacobian=specialize(_ho4_jacobian, tag, ns, **_OPTIONS),
                 finish=specialize(_ho4_finish, ptag, ns, parallel=parallel, **_OPTIONS),
+                thermal=ns["ho4_thermal"],
+                # the two per-spring solves, callable alone (tests)
+                thermal_vector=specialize(_ho4_thermal_vector, f"{tag}_alone", ns, **_OPTIONS),
             )
         else:
             raise ValueError(f"unknown implicit scheme {scheme!r}")
@@ -124,91 +155,169 @@ def _usable(t):
 
 
 @njit(cache=True, inline="always")
+def _admissible(t):
+    """Positive and finite, written without branches (for the vectorized loops)."""
+    return (t > 0.0) & (t < math.inf)
+
+
+@njit(cache=True, inline="always")
 def _gather_add(a, edges, inc_ptr, inc_spring, fs, B, out, base, mag, with_mag):
-    """out[base:base+B] += Σ_e s_e fs[e, :B] (and, with_mag, mag[base:base+B] += Σ_e |fs[e, :B]|)
+    """out[base:base+B] += Σ_e s_e fs[:B, e] (and, with_mag, mag[base:base+B] += Σ_e |fs[:B, e]|)
     over the springs of node a, s_e = −1 where a is the spring's first end and +1 where it is
-    the second (a residual's sign: R_a −= v, R_b += v); in the incidence list's order."""
+    the second (a residual's sign: R_a −= v, R_b += v); in the incidence list's order.
+    edges, inc_spring: unsigned views."""
     for j in range(inc_ptr[a], inc_ptr[a + 1]):
         e = inc_spring[j]
         sg = -1.0 if edges[e, 0] == a else 1.0
         for i in range(B):
-            v = fs[e, i]
+            v = fs[i, e]
             out[base + i] += sg * v
             if with_mag:
                 mag[base + i] += abs(v)
 
 
+@njit(cache=True, inline="always")
+def _first_flagged(flag, lo, n, none):
+    """The smallest index lo ≤ e < lo + n with flag[e] != 0, else ``none``."""
+    for i in range(n):
+        if flag[lo + i] != 0:
+            return lo + i
+    return none
+
+
 # Every kernel below is two loops, each parallel when compiled with parallel=True: a spring
-# loop writes per-spring results (lengths, temperatures, the spring's force contribution ``fs``)
-# and a node loop gathers them over the node's incident springs (CSR ``inc_ptr``/``inc_spring``).
-# No two threads write the same element, and each node sums its springs in a fixed order, so the
-# results do not depend on the number of threads. A spring loop cannot return early: a failing
-# spring stores its status in ``code`` and the smallest failing index is kept by a min-reduction.
+# loop (over blocks of springs) writes per-spring results (lengths, temperatures, the spring's
+# force contribution ``fs``) and a node loop gathers them over the node's incident springs (CSR
+# ``inc_ptr``/``inc_spring``). No two threads write the same element, each node sums its springs
+# in a fixed order, and the blocks do not depend on the number of threads, so neither do the
+# results. A spring loop cannot return early: a failing spring stores its status in ``code``
+# and the smallest failing index is kept by a min-reduction.
 
 
-def _start(x0, p, inv_mass, eta, l0, P, edges, inc_ptr, inc_spring, len0, dir0, fs, code, with_rate, f0, fdot0):
-    """Lengths len0 (m,) and unit vectors dir0 (m, 3) at x0 (n, 3), and the spring forces
-    f0 (n, 3) at (x0, θ(l0, η)), the explicit force a predictor uses; ``with_rate``: also
-    fdot0 (n, 3), the forces' time derivative along the exact (adiabatic) flow at (x0, p0), for
-    a third-order Taylor predictor (else fdot0 = 0). fs (m, 6), code (m,) scratch.
-    Returns (status, spring)."""
+def _start(x0, p, inv_mass, eta, l0, P, edges, inc_ptr, inc_spring, free_index, gravity, with_gravity,
+           len0, dir0, fs, code, with_rate, coef, pred):
+    """Lengths len0 (m,) and unit vectors dir0 (3, m) at x0 (n, 3), and the explicit predictor
+    of the step's unknowns into pred (B n_free,): per free node and sub-block j (B = 3 × rows
+    of coef), pred = coef[j, 0] v + coef[j, 1] a + coef[j, 2] ȧ with v = p/m, a = f/m (+ g) the
+    acceleration at (x0, θ(l0, η)) and, with ``with_rate``, ȧ its time derivative along the
+    exact (adiabatic) flow at (x0, p0) (else ȧ = 0), for a Taylor predictor. fs (6, m), code
+    (m,) scratch. Returns (status, spring)."""
     m = edges.shape[0]
     bad = m
-    for e in prange(m):
-        a = edges[e, 0]
-        b = edges[e, 1]
-        dx = x0[b, 0] - x0[a, 0]
-        dy = x0[b, 1] - x0[a, 1]
-        dz = x0[b, 2] - x0[a, 2]
-        l = math.sqrt(dx * dx + dy * dy + dz * dz)
-        if not (l > 0.0 and l < math.inf):
-            code[e] = COLLAPSED
-            bad = min(bad, e)
-            continue
-        len0[e] = l
-        nx = dx / l
-        ny = dy / l
-        nz = dz / l
-        dir0[e, 0] = nx
-        dir0[e, 1] = ny
-        dir0[e, 2] = nz
-        th = temperature(l, eta[e], l0[e], P, e)
-        if not (th > 0.0 and th < math.inf):
-            code[e] = NO_TEMPERATURE
-            bad = min(bad, e)
-            continue
-        T = tension(l, th, l0[e], P, e)
-        fs[e, 0] = T * nx
-        fs[e, 1] = T * ny
-        fs[e, 2] = T * nz
-        if with_rate:
-            # d(T n)/dt with dT/dl at constant η (the adiabatic stiffness) and dn/dt = (v − n l̇)/l
-            vx = p[b, 0] * inv_mass[b] - p[a, 0] * inv_mass[a]
-            vy = p[b, 1] * inv_mass[b] - p[a, 1] * inv_mass[a]
-            vz = p[b, 2] * inv_mass[b] - p[a, 2] * inv_mass[a]
-            ldot = nx * vx + ny * vy + nz * vz
-            flt = d2F_dl_dtheta(l, th, l0[e], P, e)
-            Tdot = (d2F_dl2(l, th, l0[e], P, e) - flt * flt / d2F_dtheta2(l, th, l0[e], P, e)) * ldot
-            q = T / l
-            fs[e, 3] = Tdot * nx + q * (vx - nx * ldot)
-            fs[e, 4] = Tdot * ny + q * (vy - ny * ldot)
-            fs[e, 5] = Tdot * nz + q * (vz - nz * ldot)
-        else:
-            fs[e, 3] = 0.0
-            fs[e, 4] = 0.0
-            fs[e, 5] = 0.0
+    for blk in prange((m + BLOCK - 1) // BLOCK):
+        lo = blk * BLOCK
+        n = min(BLOCK, m - lo)
+        for i in range(n):  # gather: spring vector and relative velocity
+            e = np.uint64(lo + i)
+            a = edges[e, 0]
+            b = edges[e, 1]
+            dir0[0, e] = x0[b, 0] - x0[a, 0]
+            dir0[1, e] = x0[b, 1] - x0[a, 1]
+            dir0[2, e] = x0[b, 2] - x0[a, 2]
+            if with_rate:
+                fs[3, e] = p[b, 0] * inv_mass[b] - p[a, 0] * inv_mass[a]
+                fs[4, e] = p[b, 1] * inv_mass[b] - p[a, 1] * inv_mass[a]
+                fs[5, e] = p[b, 2] * inv_mass[b] - p[a, 2] * inv_mass[a]
+        for i in range(n):  # arithmetic (vectorized)
+            e = np.uint64(lo + i)
+            dx = dir0[0, e]
+            dy = dir0[1, e]
+            dz = dir0[2, e]
+            l = math.sqrt(dx * dx + dy * dy + dz * dz)
+            nx = dx / l
+            ny = dy / l
+            nz = dz / l
+            len0[e] = l
+            dir0[0, e] = nx
+            dir0[1, e] = ny
+            dir0[2, e] = nz
+            th = temperature(l, eta[e], l0[e], P, e)
+            T = tension(l, th, l0[e], P, e)
+            fs[0, e] = T * nx
+            fs[1, e] = T * ny
+            fs[2, e] = T * nz
+            if with_rate:
+                # d(T n)/dt with dT/dl at constant η (the adiabatic stiffness) and dn/dt = (v − n l̇)/l
+                vx = fs[3, e]
+                vy = fs[4, e]
+                vz = fs[5, e]
+                ldot = nx * vx + ny * vy + nz * vz
+                flt = d2F_dl_dtheta(l, th, l0[e], P, e)
+                Tdot = (d2F_dl2(l, th, l0[e], P, e) - flt * flt / d2F_dtheta2(l, th, l0[e], P, e)) * ldot
+                q = T / l
+                fs[3, e] = Tdot * nx + q * (vx - nx * ldot)
+                fs[4, e] = Tdot * ny + q * (vy - ny * ldot)
+                fs[5, e] = Tdot * nz + q * (vz - nz * ldot)
+            lok = (l > 0.0) & (l < math.inf)
+            code[e] = OK if (lok & _admissible(th)) else (NO_TEMPERATURE if lok else COLLAPSED)
+        bad = min(bad, _first_flagged(code, lo, n, m))
     if bad < m:
         return code[bad], bad
+    J = coef.shape[0]
     for a in prange(x0.shape[0]):
-        for i in range(3):
-            f0[a, i] = 0.0
-            fdot0[a, i] = 0.0
+        k = free_index[a]
+        if k < 0:
+            continue
+        f0 = 0.0
+        f1 = 0.0
+        f2 = 0.0
+        r0 = 0.0
+        r1 = 0.0
+        r2 = 0.0
         for j in range(inc_ptr[a], inc_ptr[a + 1]):
             e = inc_spring[j]
             sg = 1.0 if edges[e, 0] == a else -1.0
+            f0 += sg * fs[0, e]
+            f1 += sg * fs[1, e]
+            f2 += sg * fs[2, e]
+            if with_rate:
+                r0 += sg * fs[3, e]
+                r1 += sg * fs[4, e]
+                r2 += sg * fs[5, e]
+        w = inv_mass[a]
+        for i in range(3):
+            f = f0 if i == 0 else (f1 if i == 1 else f2)
+            r = r0 if i == 0 else (r1 if i == 1 else r2)
+            v = w * p[a, i]
+            acc = w * f + (gravity[i] if with_gravity else 0.0)
+            jerk = w * r
+            for s in range(J):
+                pred[3 * J * k + 3 * s + i] = coef[s, 0] * v + coef[s, 1] * acc + coef[s, 2] * jerk
+    return 0, -1
+
+
+def _finish_nodes(x0, u, p, fs, edges, free_index, inc_ptr, inc_spring, masses, h, gravity, with_gravity,
+                  stride, offset, x_new, p_new):
+    """The nodes' part of both finish kernels: x¹ = x⁰ + u[stride k + offset + i] for free node k,
+    p¹ = p⁰ (+ h m g) − Σ± fs over the incident springs (fs: the per-spring impulses of the step,
+    (≥ 3, m)). Returns (status, −1)."""
+    n = x0.shape[0]
+    bad_node = n
+    for a in prange(n):
+        k = free_index[a]
+        if k < 0:
             for i in range(3):
-                f0[a, i] += sg * fs[e, i]
-                fdot0[a, i] += sg * fs[e, 3 + i]
+                x_new[a, i] = x0[a, i]
+                p_new[a, i] = p[a, i]
+            continue
+        F0 = 0.0
+        F1 = 0.0
+        F2 = 0.0
+        for j in range(inc_ptr[a], inc_ptr[a + 1]):
+            e = inc_spring[j]
+            sg = -1.0 if edges[e, 0] == a else 1.0
+            F0 += sg * fs[0, e]
+            F1 += sg * fs[1, e]
+            F2 += sg * fs[2, e]
+        for i in range(3):
+            F = F0 if i == 0 else (F1 if i == 1 else F2)
+            x_new[a, i] = x0[a, i] + u[stride * k + offset + i]
+            q = p[a, i] + (h * masses[a] * gravity[i] if with_gravity else 0.0) - F
+            p_new[a, i] = q
+            if not (abs(q) < math.inf):
+                bad_node = min(bad_node, a)
+    if bad_node < n:
+        return NOT_FINITE, -1
     return 0, -1
 
 
@@ -219,14 +328,15 @@ def _start(x0, p, inv_mass, eta, l0, P, edges, inc_ptr, inc_spring, len0, dir0, 
 
 
 def _gtr_thermal(la, lb, eta, l0, P, e, alpha, guess):
-    """θ̄ with α Γ(la, θ̄) + (1 − α) Γ(lb, θ̄) = η, its derivative dθ̄/dlb, and success.
+    """θ̄ with α Γ(la, θ̄) + (1 − α) Γ(lb, θ̄) = η, its derivative dθ̄/dlb, and success (1, else
+    0: an integer, which Numba's alias analysis of a parallel loop treats as immutable).
 
     Newton in ln θ from ``guess`` when usable, else from θ(α la + (1 − α) lb, η) (the answer
-    itself when α is 0 or 1)."""
+    itself when α is 0 or 1). The scalar solve: iterates to convergence."""
     beta = 1.0 - alpha
     th = guess if _usable(guess) else temperature(alpha * la + beta * lb, eta, l0, P, e)
     if not _usable(th):
-        return th, 0.0, False
+        return th, 0.0, 0
     done = False
     for _ in range(LOCAL_ITERATIONS):
         G = alpha * entropy(la, th, l0, P, e) + beta * entropy(lb, th, l0, P, e) - eta
@@ -237,58 +347,108 @@ def _gtr_thermal(la, lb, eta, l0, P, e, alpha, guess):
             done = True
             break
     if not (done and _usable(th)):
-        return th, 0.0, False
+        return th, 0.0, 0
     Gt = -(alpha * d2F_dtheta2(la, th, l0, P, e) + beta * d2F_dtheta2(lb, th, l0, P, e))
-    return th, beta * d2F_dl_dtheta(lb, th, l0, P, e) / Gt, True
+    return th, beta * d2F_dl_dtheta(lb, th, l0, P, e) / Gt, 1
+
+
+def _gtr_correct(la, lb, eta, l0, P, e, alpha, th):
+    """One Newton correction of :func:`_gtr_thermal` (branch-free): (new θ̄, the ln θ step)."""
+    beta = 1.0 - alpha
+    G = alpha * entropy(la, th, l0, P, e) + beta * entropy(lb, th, l0, P, e) - eta
+    Gt = -(alpha * d2F_dtheta2(la, th, l0, P, e) + beta * d2F_dtheta2(lb, th, l0, P, e))
+    s = G / (Gt * th)
+    step = min(max(s, -MAX_LOG_STEP), MAX_LOG_STEP)
+    return th * exp_(-step), s
+
+
+def _gtr_thermal_vector(la, lb, eta, l0, P, e, alpha, guess):
+    """The vectorized loop's solve of :func:`_gtr_thermal`: VECTOR_CORRECTIONS corrections from
+    the same start; success when the last one is below THETA_STOP. Same returns."""
+    beta = 1.0 - alpha
+    th = guess if _admissible(guess) else temperature(alpha * la + beta * lb, eta, l0, P, e)
+    th, s = gtr_correct(la, lb, eta, l0, P, e, alpha, th)
+    th, s = gtr_correct(la, lb, eta, l0, P, e, alpha, th)
+    ok = 1 if (abs(s) <= THETA_STOP) & _admissible(th) else 0
+    Gt = -(alpha * d2F_dtheta2(la, th, l0, P, e) + beta * d2F_dtheta2(lb, th, l0, P, e))
+    return th, beta * d2F_dl_dtheta(lb, th, l0, P, e) / Gt, ok
 
 
 def _gtr_residual(x0, u, p, eta, l0, P, edges, free_index, inc_ptr, inc_spring, masses, alpha, h, gravity,
-                  with_gravity, len0, dir0, len1, dir1, theta, dtheta, warm, fs, code, R, Rabs):
-    """R, Rabs (3 n_free,) at unknowns u (3 n_free,); fills len1 (m,), dir1 (m, 3), θ̄ and
+                  with_gravity, len0, dir0, len1, dir1, theta, dtheta, warm, fs, guess, code, R, Rabs):
+    """R, Rabs (3 n_free,) at unknowns u (3 n_free,); fills len1 (m,), dir1 (3, m), θ̄ and
     dθ̄/dl¹ (m,) for the Jacobian and the finish. With ``warm``, the θ̄ of the previous call
-    (at nearby u), moved along dθ̄/dl¹, seeds each thermal solve. fs (m, ≥3), code (m,) scratch.
-    Returns (status, spring)."""
+    (at nearby u), moved along dθ̄/dl¹, seeds each thermal solve. fs (≥ 3, m), guess, code (m,)
+    scratch. Returns (status, spring, max |R|, max Rabs)."""
     m = edges.shape[0]
     bad = m
-    for e in prange(m):
-        a = edges[e, 0]
-        b = edges[e, 1]
-        ka = free_index[a]
-        kb = free_index[b]
-        dx = x0[b, 0] - x0[a, 0]
-        dy = x0[b, 1] - x0[a, 1]
-        dz = x0[b, 2] - x0[a, 2]
-        if kb >= 0:
-            dx += u[3 * kb]
-            dy += u[3 * kb + 1]
-            dz += u[3 * kb + 2]
-        if ka >= 0:
-            dx -= u[3 * ka]
-            dy -= u[3 * ka + 1]
-            dz -= u[3 * ka + 2]
-        l1 = math.sqrt(dx * dx + dy * dy + dz * dz)
-        if not (l1 > 0.0 and l1 < math.inf):
-            code[e] = COLLAPSED
-            bad = min(bad, e)
-            continue
-        guess = theta[e] + dtheta[e] * (l1 - len1[e]) if warm else -1.0
-        len1[e] = l1
-        dir1[e, 0] = dx / l1
-        dir1[e, 1] = dy / l1
-        dir1[e, 2] = dz / l1
-        th, dth, ok = gtr_thermal(len0[e], l1, eta[e], l0[e], P, e, alpha, guess)
-        if not ok:
-            code[e] = NO_TEMPERATURE
-            bad = min(bad, e)
-            continue
-        theta[e] = th
-        dtheta[e] = dth
-        c = alpha * h * tension(len0[e], th, l0[e], P, e)
-        fs[e, 0] = c * dir0[e, 0]
-        fs[e, 1] = c * dir0[e, 1]
-        fs[e, 2] = c * dir0[e, 2]
+    for blk in prange((m + BLOCK - 1) // BLOCK):
+        lo = blk * BLOCK
+        n = min(BLOCK, m - lo)
+        for i in range(n):  # gather: the spring vector at x¹
+            e = np.uint64(lo + i)
+            a = edges[e, 0]
+            b = edges[e, 1]
+            ka = free_index[a]
+            kb = free_index[b]
+            dx = x0[b, 0] - x0[a, 0]
+            dy = x0[b, 1] - x0[a, 1]
+            dz = x0[b, 2] - x0[a, 2]
+            if kb >= 0:
+                dx += u[3 * kb]
+                dy += u[3 * kb + 1]
+                dz += u[3 * kb + 2]
+            if ka >= 0:
+                dx -= u[3 * ka]
+                dy -= u[3 * ka + 1]
+                dz -= u[3 * ka + 2]
+            fs[0, e] = dx
+            fs[1, e] = dy
+            fs[2, e] = dz
+        for i in range(n):  # arithmetic and thermal solve (vectorized)
+            e = np.uint64(lo + i)
+            dx = fs[0, e]
+            dy = fs[1, e]
+            dz = fs[2, e]
+            l1 = math.sqrt(dx * dx + dy * dy + dz * dz)
+            g = theta[e] + dtheta[e] * (l1 - len1[e]) if warm else -1.0
+            guess[e] = g
+            len1[e] = l1
+            dir1[0, e] = dx / l1
+            dir1[1, e] = dy / l1
+            dir1[2, e] = dz / l1
+            la = len0[e]
+            th, dth, ok = gtr_thermal_vector(la, l1, eta[e], l0[e], P, e, alpha, g)
+            theta[e] = th
+            dtheta[e] = dth
+            c = alpha * h * tension(la, th, l0[e], P, e)
+            fs[0, e] = c * dir0[0, e]
+            fs[1, e] = c * dir0[1, e]
+            fs[2, e] = c * dir0[2, e]
+            code[e] = OK if ((ok != 0) & (l1 > 0.0) & (l1 < math.inf)) else NO_TEMPERATURE
+        for i in range(n):  # the scalar solve where the vectorized one did not converge
+            e = lo + i
+            if code[e] == OK:
+                continue
+            l1 = len1[e]
+            if not (l1 > 0.0 and l1 < math.inf):
+                code[e] = COLLAPSED
+                continue
+            la = len0[e]
+            th, dth, ok = gtr_thermal(la, l1, eta[e], l0[e], P, e, alpha, guess[e])
+            if not ok:
+                continue
+            code[e] = OK
+            theta[e] = th
+            dtheta[e] = dth
+            c = alpha * h * tension(la, th, l0[e], P, e)
+            for j in range(3):
+                fs[j, e] = c * dir0[j, e]
+        bad = min(bad, _first_flagged(code, lo, n, m))
     if bad < m:
-        return code[bad], bad
+        return code[bad], bad, math.inf, math.inf
+    rmax = 0.0
+    smax = 0.0
     for a in prange(x0.shape[0]):
         k = free_index[a]
         if k < 0:
@@ -300,14 +460,21 @@ def _gtr_residual(x0, u, p, eta, l0, P, edges, free_index, inc_ptr, inc_spring, 
             R[3 * k + i] = inertia - p[a, i] - g
             Rabs[3 * k + i] = abs(inertia) + abs(p[a, i]) + abs(g)
         _gather_add(a, edges, inc_ptr, inc_spring, fs, 3, R, 3 * k, Rabs, True)
-    return 0, -1
+        for i in range(3):
+            rmax = max(rmax, abs(R[3 * k + i]))
+            smax = max(smax, Rabs[3 * k + i])
+    return 0, -1, rmax, smax
 
 
 def _gtr_linearize(alpha, h, l0, P, len0, theta, dtheta, jc):
     """Per-spring coefficient of the Jacobian at the last residual's point (matrix-free use):
     spring e's block is jc[e] n⁰ n¹ᵀ, jc[e] = α h F_lθ(l⁰, θ̄) dθ̄/dl¹ (m,)."""
-    for e in prange(len0.shape[0]):
-        jc[e] = alpha * h * d2F_dl_dtheta(len0[e], theta[e], l0[e], P, e) * dtheta[e]
+    m = len0.shape[0]
+    for blk in prange((m + BLOCK - 1) // BLOCK):
+        lo = blk * BLOCK
+        for i in range(min(BLOCK, m - lo)):
+            e = np.uint64(lo + i)
+            jc[e] = alpha * h * d2F_dl_dtheta(len0[e], theta[e], l0[e], P, e) * dtheta[e]
 
 
 def _gtr_jacobian(free_index, masses, alpha, h, l0, P, edges, len0, dir0, dir1, theta, dtheta,
@@ -330,7 +497,7 @@ def _gtr_jacobian(free_index, masses, alpha, h, l0, P, edges, len0, dir0, dir1, 
             continue
         for i in range(3):
             for j in range(3):
-                B[i, j] = c * dir0[e, i] * dir1[e, j]
+                B[i, j] = c * dir0[i, e] * dir1[j, e]
         for q in range(4):
             base = spring_base[e, q]
             if base < 0:
@@ -340,40 +507,6 @@ def _gtr_jacobian(free_index, masses, alpha, h, l0, P, edges, len0, dir0, dir1, 
             for i in range(3):
                 for j in range(3):
                     data[base + i * stride + j] += sign * B[i, j]
-
-
-def _finish_nodes(x0, u, p, fs, edges, free_index, inc_ptr, inc_spring, masses, h, gravity, with_gravity,
-                  stride, offset, x_new, p_new):
-    """The nodes' part of both finish kernels: x¹ = x⁰ + u[stride k + offset + i] for free node k,
-    p¹ = p⁰ (+ h m g) − Σ± fs over the incident springs (fs: the per-spring impulses of the step,
-    (m, ≥ 3)). Returns (status, −1)."""
-    n = x0.shape[0]
-    bad_node = n
-    for a in prange(n):
-        k = free_index[a]
-        F0 = 0.0
-        F1 = 0.0
-        F2 = 0.0
-        for j in range(inc_ptr[a], inc_ptr[a + 1]):
-            e = inc_spring[j]
-            sg = -1.0 if edges[e, 0] == a else 1.0
-            F0 += sg * fs[e, 0]
-            F1 += sg * fs[e, 1]
-            F2 += sg * fs[e, 2]
-        for i in range(3):
-            F = F0 if i == 0 else (F1 if i == 1 else F2)
-            if k < 0:
-                x_new[a, i] = x0[a, i]
-                p_new[a, i] = p[a, i]
-                continue
-            x_new[a, i] = x0[a, i] + u[stride * k + offset + i]
-            q = p[a, i] + (h * masses[a] * gravity[i] if with_gravity else 0.0) - F
-            p_new[a, i] = q
-            if not (abs(q) < math.inf):
-                bad_node = min(bad_node, a)
-    if bad_node < n:
-        return NOT_FINITE, -1
-    return 0, -1
 
 
 def _gtr_finish(x0, u, p, phi, eta, l0, P, edges, free_index, inc_ptr, inc_spring, masses, alpha, h, gravity,
@@ -386,23 +519,23 @@ def _gtr_finish(x0, u, p, phi, eta, l0, P, edges, free_index, inc_ptr, inc_sprin
     Returns (status, spring)."""
     m = edges.shape[0]
     bad = m
-    for e in prange(m):
-        th = theta[e]
-        phi_new[e] = phi[e] + h * th
-        eta1 = alpha * entropy(len0[e], th, l0[e], P, e) + (1.0 - alpha) * entropy(len1[e], th, l0[e], P, e)
-        eta_new[e] = eta1
-        if not (abs(eta1) < math.inf):
-            code[e] = NOT_FINITE
-            bad = min(bad, e)
-            continue
-        th1 = temperature(len1[e], eta1, l0[e], P, e)
-        if not (th1 > 0.0 and th1 < math.inf):
-            code[e] = NO_TEMPERATURE
-            bad = min(bad, e)
-            continue
-        c1 = (1.0 - alpha) * h * tension(len1[e], th, l0[e], P, e)
-        for i in range(3):
-            fs[e, i] += c1 * dir1[e, i]  # fs holds α h T(l⁰, θ̄) n⁰ from the last residual
+    for blk in prange((m + BLOCK - 1) // BLOCK):
+        lo = blk * BLOCK
+        n = min(BLOCK, m - lo)
+        for i in range(n):  # vectorized
+            e = np.uint64(lo + i)
+            th = theta[e]
+            phi_new[e] = phi[e] + h * th
+            l1 = len1[e]
+            eta1 = alpha * entropy(len0[e], th, l0[e], P, e) + (1.0 - alpha) * entropy(l1, th, l0[e], P, e)
+            eta_new[e] = eta1
+            th1 = temperature(l1, eta1, l0[e], P, e)
+            c1 = (1.0 - alpha) * h * tension(l1, th, l0[e], P, e)
+            fs[0, e] += c1 * dir1[0, e]  # fs holds α h T(l⁰, θ̄) n⁰ from the last residual
+            fs[1, e] += c1 * dir1[1, e]
+            fs[2, e] += c1 * dir1[2, e]
+            code[e] = (OK if _admissible(th1) else NO_TEMPERATURE) if abs(eta1) < math.inf else NOT_FINITE
+        bad = min(bad, _first_flagged(code, lo, n, m))
     if bad < m:
         return code[bad], bad
     return finish_nodes(x0, u, p, fs, edges, free_index, inc_ptr, inc_spring, masses, h, gravity, with_gravity,
@@ -416,19 +549,44 @@ def _gtr_finish(x0, u, p, phi, eta, l0, P, edges, free_index, inc_ptr, inc_sprin
 #   Γ⁰ = Γ¹,  (3Γ⁰ + 4Γ^½ − Γ¹)/6 = η                                 per spring (57b), (58c)
 
 
+def _ho4_derivatives(la, lh, lb, l0, P, e, t0, t1):
+    """dθ⁰/dl^½, dθ⁰/dl¹, dθ¹/dl^½, dθ¹/dl¹ at a solution (θ⁰, θ¹) of (57b), (58c)."""
+    th = 0.5 * (t0 + t1)
+    g0 = -d2F_dtheta2(la, t0, l0, P, e)
+    gh = -d2F_dtheta2(lh, th, l0, P, e)
+    g1 = -d2F_dtheta2(lb, t1, l0, P, e)
+    # implicit derivatives of the 2×2 system (57b), (58c) in (θ⁰, θ¹), with Γ_l = −F_lθ:
+    # ∂(G1, G2)/∂l^½ = (0, 4Γ_l(lh, θ^½)/6); ∂(G1, G2)/∂l¹ = (−Γ_l(lb, θ¹), −Γ_l(lb, θ¹)/6)
+    J00 = g0
+    J01 = -g1
+    J10 = (3.0 * g0 + 2.0 * gh) / 6.0
+    J11 = (2.0 * gh - g1) / 6.0
+    det = J00 * J11 - J01 * J10
+    qh = -4.0 * d2F_dl_dtheta(lh, th, l0, P, e) / 6.0
+    w1 = d2F_dl_dtheta(lb, t1, l0, P, e)
+    q1a = w1
+    q1b = w1 / 6.0
+    d0h = -(-J01 * qh) / det
+    d1h = -(J00 * qh) / det
+    d01 = -(J11 * q1a - J01 * q1b) / det
+    d11 = -(J00 * q1b - J10 * q1a) / det
+    return d0h, d01, d1h, d11
+
+
 def _ho4_thermal(la, lh, lb, eta, l0, P, e, guess, warm):
     """θ⁰, θ¹ solving Γ(la, θ⁰) = Γ(lb, θ¹) and (3Γ(la, θ⁰) + 4Γ(lh, θ^½) − Γ(lb, θ¹))/6 = η,
-    θ^½ = (θ⁰ + θ¹)/2; returns (G, θ⁰, θ¹, dθ⁰/dl^½, dθ⁰/dl¹, dθ¹/dl^½, dθ¹/dl¹, success).
+    θ^½ = (θ⁰ + θ¹)/2; returns (G, θ⁰, θ¹, dθ⁰/dl^½, dθ⁰/dl¹, dθ¹/dl^½, dθ¹/dl¹, success 1 or 0).
 
     The unknown is the common value G = Γ⁰ = Γ¹ (so θ⁰ = θ(la, G), θ¹ = θ(lb, G) satisfy (57b)
     exactly), and (58c) becomes the scalar equation (2G + 4Γ(lh, θ^½))/6 = η, solved by Newton
     from ``guess`` when ``warm``, else from G = η. For an entropy affine in ln θ (model "hencky")
-    Γ(lh, θ^½) − G does not depend on G, so one correction is exact."""
+    Γ(lh, θ^½) − G does not depend on G, so one correction is exact. The scalar solve: iterates
+    to convergence."""
     G = guess if (warm and abs(guess) < math.inf) else eta
     t0 = temperature(la, G, l0, P, e)
     t1 = temperature(lb, G, l0, P, e)
     if not (_usable(t0) and _usable(t1)):
-        return G, t0, t1, 0.0, 0.0, 0.0, 0.0, False
+        return G, t0, t1, 0.0, 0.0, 0.0, 0.0, 0
     done = False
     for _ in range(LOCAL_ITERATIONS):
         th = 0.5 * (t0 + t1)
@@ -453,99 +611,161 @@ def _ho4_thermal(la, lh, lb, eta, l0, P, e, guess, warm):
         t0 = temperature(la, G, l0, P, e)
         t1 = temperature(lb, G, l0, P, e)
     if not (done and _usable(t0) and _usable(t1)):
-        return G, t0, t1, 0.0, 0.0, 0.0, 0.0, False
+        return G, t0, t1, 0.0, 0.0, 0.0, 0.0, 0
+    d0h, d01, d1h, d11 = ho4_derivatives(la, lh, lb, l0, P, e, t0, t1)
+    return G, t0, t1, d0h, d01, d1h, d11, 1
+
+
+def _ho4_correct(la, lh, lb, eta, l0, P, e, G, t0, t1):
+    """One Newton correction of :func:`_ho4_thermal` (branch-free): (new G, the changes of
+    ln θ⁰ and ln θ¹ it causes, the larger of their magnitudes)."""
     th = 0.5 * (t0 + t1)
+    r = (2.0 * G + 4.0 * entropy(lh, th, l0, P, e)) / 6.0 - eta
     g0 = -d2F_dtheta2(la, t0, l0, P, e)
     gh = -d2F_dtheta2(lh, th, l0, P, e)
     g1 = -d2F_dtheta2(lb, t1, l0, P, e)
-    # implicit derivatives of the 2×2 system (57b), (58c) in (θ⁰, θ¹), with Γ_l = −F_lθ:
-    # ∂(G1, G2)/∂l^½ = (0, 4Γ_l(lh, θ^½)/6); ∂(G1, G2)/∂l¹ = (−Γ_l(lb, θ¹), −Γ_l(lb, θ¹)/6)
-    J00 = g0
-    J01 = -g1
-    J10 = (3.0 * g0 + 2.0 * gh) / 6.0
-    J11 = (2.0 * gh - g1) / 6.0
-    det = J00 * J11 - J01 * J10
-    qh = -4.0 * d2F_dl_dtheta(lh, th, l0, P, e) / 6.0
-    w1 = d2F_dl_dtheta(lb, t1, l0, P, e)
-    q1a = w1
-    q1b = w1 / 6.0
-    d0h = -(-J01 * qh) / det
-    d1h = -(J00 * qh) / det
-    d01 = -(J11 * q1a - J01 * q1b) / det
-    d11 = -(J00 * q1b - J10 * q1a) / det
-    return G, t0, t1, d0h, d01, d1h, d11, True
+    dG = r / ((2.0 + 2.0 * gh * (1.0 / g0 + 1.0 / g1)) / 6.0)
+    s0 = dG / (g0 * t0)
+    s1 = dG / (g1 * t1)
+    big = max(abs(s0), abs(s1))
+    dG = dG * (MAX_LOG_STEP / big) if big > MAX_LOG_STEP else dG
+    return G - dG, s0, s1, big
+
+
+def _ho4_thermal_vector(la, lh, lb, eta, l0, P, e, guess, warm):
+    """The vectorized loop's solve of :func:`_ho4_thermal`: VECTOR_CORRECTIONS corrections from
+    the same start, the last applied to θ to second order as there; success when the last is
+    below THETA_STOP. Same returns."""
+    G = guess if (warm & (abs(guess) < math.inf)) else eta
+    t0 = temperature(la, G, l0, P, e)
+    t1 = temperature(lb, G, l0, P, e)
+    G, s0, s1, big = ho4_correct(la, lh, lb, eta, l0, P, e, G, t0, t1)
+    t0 = temperature(la, G, l0, P, e)
+    t1 = temperature(lb, G, l0, P, e)
+    G, s0, s1, big = ho4_correct(la, lh, lb, eta, l0, P, e, G, t0, t1)
+    t0 *= 1.0 - s0 + 0.5 * s0 * s0
+    t1 *= 1.0 - s1 + 0.5 * s1 * s1
+    ok = 1 if (big <= THETA_STOP) & _admissible(t0) & _admissible(t1) else 0
+    d0h, d01, d1h, d11 = ho4_derivatives(la, lh, lb, l0, P, e, t0, t1)
+    return G, t0, t1, d0h, d01, d1h, d11, ok
 
 
 def _ho4_residual(x0, u, p, eta, l0, P, edges, free_index, inc_ptr, inc_spring, masses, h, gravity, with_gravity,
-                  len0, dir0, lenh, dirh, len1, dir1, th0, th1, dth, gs, warm, fs, code, R, Rabs):
-    """R, Rabs (6 n_free,) at unknowns u (6 n_free,); fills lengths/unit vectors at x^½ and x¹,
-    θ⁰, θ¹ (m,), dth (m, 4) = dθ⁰/dl^½, dθ⁰/dl¹, dθ¹/dl^½, dθ¹/dl¹ and gs (m,) = Γ⁰ = Γ¹. With
-    ``warm``, the previous call's gs (at nearby u), moved along its length derivatives, seeds the
-    thermal solves. fs (m, 6), code (m,) scratch. Returns (status, spring)."""
+                  len0, dir0, lenh, dirh, len1, dir1, th0, th1, dth, gs, warm, fs, guess, code, R, Rabs):
+    """R, Rabs (6 n_free,) at unknowns u (6 n_free,); fills lengths/unit vectors (3, m) at x^½
+    and x¹, θ⁰, θ¹ (m,), dth (4, m) = dθ⁰/dl^½, dθ⁰/dl¹, dθ¹/dl^½, dθ¹/dl¹ and gs (m,) = Γ⁰ =
+    Γ¹. With ``warm``, the previous call's gs (at nearby u), moved along its length derivatives,
+    seeds the thermal solves. fs (6, m), guess, code (m,) scratch.
+    Returns (status, spring, max |R|, max Rabs)."""
     m = edges.shape[0]
     bad = m
-    for e in prange(m):
-        a = edges[e, 0]
-        b = edges[e, 1]
-        ka = free_index[a]
-        kb = free_index[b]
-        ex = x0[b, 0] - x0[a, 0]
-        ey = x0[b, 1] - x0[a, 1]
-        ez = x0[b, 2] - x0[a, 2]
-        hx = ex
-        hy = ey
-        hz = ez
-        if kb >= 0:
-            hx += u[6 * kb]
-            hy += u[6 * kb + 1]
-            hz += u[6 * kb + 2]
-            ex += u[6 * kb + 3]
-            ey += u[6 * kb + 4]
-            ez += u[6 * kb + 5]
-        if ka >= 0:
-            hx -= u[6 * ka]
-            hy -= u[6 * ka + 1]
-            hz -= u[6 * ka + 2]
-            ex -= u[6 * ka + 3]
-            ey -= u[6 * ka + 4]
-            ez -= u[6 * ka + 5]
-        lh = math.sqrt(hx * hx + hy * hy + hz * hz)
-        l1 = math.sqrt(ex * ex + ey * ey + ez * ez)
-        if not (lh > 0.0 and lh < math.inf and l1 > 0.0 and l1 < math.inf):
-            code[e] = COLLAPSED
-            bad = min(bad, e)
-            continue
-        guess = 0.0
-        if warm:  # G = Γ(l⁰, θ⁰) moved along dG/dl = Γ_θ(l⁰, θ⁰) dθ⁰/dl
-            guess = gs[e] - d2F_dtheta2(len0[e], th0[e], l0[e], P, e) * (
-                dth[e, 0] * (lh - lenh[e]) + dth[e, 1] * (l1 - len1[e]))
-        lenh[e] = lh
-        dirh[e, 0] = hx / lh
-        dirh[e, 1] = hy / lh
-        dirh[e, 2] = hz / lh
-        len1[e] = l1
-        dir1[e, 0] = ex / l1
-        dir1[e, 1] = ey / l1
-        dir1[e, 2] = ez / l1
-        G, t0, t1, d0h, d01, d1h, d11, ok = ho4_thermal(len0[e], lh, l1, eta[e], l0[e], P, e, guess, warm)
-        gs[e] = G
-        if not ok:
-            code[e] = NO_TEMPERATURE
-            bad = min(bad, e)
-            continue
-        th0[e] = t0
-        th1[e] = t1
-        dth[e, 0] = d0h
-        dth[e, 1] = d01
-        dth[e, 2] = d1h
-        dth[e, 3] = d11
-        c0 = h / 6.0 * tension(len0[e], t0, l0[e], P, e)
-        ch = h / 4.0 * tension(lh, 0.5 * (t0 + t1), l0[e], P, e)
-        for i in range(3):
-            fs[e, i] = c0 * dir0[e, i]
-            fs[e, 3 + i] = ch * dirh[e, i]
+    for blk in prange((m + BLOCK - 1) // BLOCK):
+        lo = blk * BLOCK
+        n = min(BLOCK, m - lo)
+        for i in range(n):  # gather: the spring vectors at x^½ and x¹
+            e = np.uint64(lo + i)
+            a = edges[e, 0]
+            b = edges[e, 1]
+            ka = free_index[a]
+            kb = free_index[b]
+            ex = x0[b, 0] - x0[a, 0]
+            ey = x0[b, 1] - x0[a, 1]
+            ez = x0[b, 2] - x0[a, 2]
+            hx = ex
+            hy = ey
+            hz = ez
+            if kb >= 0:
+                hx += u[6 * kb]
+                hy += u[6 * kb + 1]
+                hz += u[6 * kb + 2]
+                ex += u[6 * kb + 3]
+                ey += u[6 * kb + 4]
+                ez += u[6 * kb + 5]
+            if ka >= 0:
+                hx -= u[6 * ka]
+                hy -= u[6 * ka + 1]
+                hz -= u[6 * ka + 2]
+                ex -= u[6 * ka + 3]
+                ey -= u[6 * ka + 4]
+                ez -= u[6 * ka + 5]
+            fs[0, e] = hx
+            fs[1, e] = hy
+            fs[2, e] = hz
+            fs[3, e] = ex
+            fs[4, e] = ey
+            fs[5, e] = ez
+        for i in range(n):  # arithmetic and thermal solve (vectorized)
+            e = np.uint64(lo + i)
+            hx = fs[0, e]
+            hy = fs[1, e]
+            hz = fs[2, e]
+            ex = fs[3, e]
+            ey = fs[4, e]
+            ez = fs[5, e]
+            lh = math.sqrt(hx * hx + hy * hy + hz * hz)
+            l1 = math.sqrt(ex * ex + ey * ey + ez * ez)
+            la = len0[e]
+            rest = l0[e]
+            # warm: G = Γ(l⁰, θ⁰) moved along dG/dl = Γ_θ(l⁰, θ⁰) dθ⁰/dl
+            g = gs[e] - d2F_dtheta2(la, th0[e], rest, P, e) * (dth[0, e] * (lh - lenh[e]) + dth[1, e] * (l1 - len1[e]))
+            guess[e] = g
+            lenh[e] = lh
+            dirh[0, e] = hx / lh
+            dirh[1, e] = hy / lh
+            dirh[2, e] = hz / lh
+            len1[e] = l1
+            dir1[0, e] = ex / l1
+            dir1[1, e] = ey / l1
+            dir1[2, e] = ez / l1
+            G, t0, t1, d0h, d01, d1h, d11, ok = ho4_thermal_vector(la, lh, l1, eta[e], rest, P, e, g, warm)
+            gs[e] = G
+            th0[e] = t0
+            th1[e] = t1
+            dth[0, e] = d0h
+            dth[1, e] = d01
+            dth[2, e] = d1h
+            dth[3, e] = d11
+            c0 = h / 6.0 * tension(la, t0, rest, P, e)
+            ch = h / 4.0 * tension(lh, 0.5 * (t0 + t1), rest, P, e)
+            fs[0, e] = c0 * dir0[0, e]
+            fs[1, e] = c0 * dir0[1, e]
+            fs[2, e] = c0 * dir0[2, e]
+            fs[3, e] = ch * dirh[0, e]
+            fs[4, e] = ch * dirh[1, e]
+            fs[5, e] = ch * dirh[2, e]
+            lok = (lh > 0.0) & (lh < math.inf) & (l1 > 0.0) & (l1 < math.inf)
+            code[e] = OK if ((ok != 0) & lok) else NO_TEMPERATURE
+        for i in range(n):  # the scalar solve where the vectorized one did not converge
+            e = lo + i
+            if code[e] == OK:
+                continue
+            lh = lenh[e]
+            l1 = len1[e]
+            if not (lh > 0.0 and lh < math.inf and l1 > 0.0 and l1 < math.inf):
+                code[e] = COLLAPSED
+                continue
+            la = len0[e]
+            G, t0, t1, d0h, d01, d1h, d11, ok = ho4_thermal(la, lh, l1, eta[e], l0[e], P, e, guess[e], warm)
+            gs[e] = G
+            if not ok:
+                continue
+            code[e] = OK
+            th0[e] = t0
+            th1[e] = t1
+            dth[0, e] = d0h
+            dth[1, e] = d01
+            dth[2, e] = d1h
+            dth[3, e] = d11
+            c0 = h / 6.0 * tension(la, t0, l0[e], P, e)
+            ch = h / 4.0 * tension(lh, 0.5 * (t0 + t1), l0[e], P, e)
+            for j in range(3):
+                fs[j, e] = c0 * dir0[j, e]
+                fs[3 + j, e] = ch * dirh[j, e]
+        bad = min(bad, _first_flagged(code, lo, n, m))
     if bad < m:
-        return code[bad], bad
+        return code[bad], bad, math.inf, math.inf
+    rmax = 0.0
+    smax = 0.0
     for a in prange(x0.shape[0]):
         k = free_index[a]
         if k < 0:
@@ -563,27 +783,35 @@ def _ho4_residual(x0, u, p, eta, l0, P, edges, free_index, inc_ptr, inc_spring, 
             R[6 * k + 3 + i] = i2 - gh
             Rabs[6 * k + 3 + i] = abs(i2) + abs(gh)
         _gather_add(a, edges, inc_ptr, inc_spring, fs, 6, R, 6 * k, Rabs, True)
-    return 0, -1
+        for i in range(6):
+            rmax = max(rmax, abs(R[6 * k + i]))
+            smax = max(smax, Rabs[6 * k + i])
+    return 0, -1, rmax, smax
 
 
 def _ho4_linearize(h, l0, P, len0, lenh, th0, th1, dth, jc):
     """Per-spring coefficients of the Jacobian at the last residual's point (matrix-free use),
-    jc (m, 5): spring e's block (rows R1, R2; columns d^½, d¹) is
-      [[a₁ n⁰ n^½ᵀ, a₂ n⁰ n¹ᵀ], [(k − t) n^½ n^½ᵀ + t I, c n^½ n¹ᵀ]],   jc[e] = (a₁, a₂, k − t, t, c)
+    jc (5, m): spring e's block (rows R1, R2; columns d^½, d¹) is
+      [[a₁ n⁰ n^½ᵀ, a₂ n⁰ n¹ᵀ], [(k − t) n^½ n^½ᵀ + t I, c n^½ n¹ᵀ]],   jc[:, e] = (a₁, a₂, k − t, t, c)
     with the terms of :func:`_ho4_jacobian`."""
-    for e in prange(len0.shape[0]):
-        t0 = th0[e]
-        th = 0.5 * (t0 + th1[e])
-        lh = lenh[e]
-        c0 = h / 6.0 * d2F_dl_dtheta(len0[e], t0, l0[e], P, e)
-        flt = d2F_dl_dtheta(lh, th, l0[e], P, e)
-        axial = h / 4.0 * (d2F_dl2(lh, th, l0[e], P, e) + flt * 0.5 * (dth[e, 0] + dth[e, 2]))
-        lateral = h / 4.0 * tension(lh, th, l0[e], P, e) / lh
-        jc[e, 0] = c0 * dth[e, 0]
-        jc[e, 1] = c0 * dth[e, 1]
-        jc[e, 2] = axial - lateral
-        jc[e, 3] = lateral
-        jc[e, 4] = h / 4.0 * flt * 0.5 * (dth[e, 1] + dth[e, 3])
+    m = len0.shape[0]
+    for blk in prange((m + BLOCK - 1) // BLOCK):
+        lo = blk * BLOCK
+        for i in range(min(BLOCK, m - lo)):
+            e = np.uint64(lo + i)
+            t0 = th0[e]
+            th = 0.5 * (t0 + th1[e])
+            lh = lenh[e]
+            rest = l0[e]
+            c0 = h / 6.0 * d2F_dl_dtheta(len0[e], t0, rest, P, e)
+            flt = d2F_dl_dtheta(lh, th, rest, P, e)
+            axial = h / 4.0 * (d2F_dl2(lh, th, rest, P, e) + flt * 0.5 * (dth[0, e] + dth[2, e]))
+            lateral = h / 4.0 * tension(lh, th, rest, P, e) / lh
+            jc[0, e] = c0 * dth[0, e]
+            jc[1, e] = c0 * dth[1, e]
+            jc[2, e] = axial - lateral
+            jc[3, e] = lateral
+            jc[4, e] = h / 4.0 * flt * 0.5 * (dth[1, e] + dth[3, e])
 
 
 def _ho4_jacobian(free_index, masses, h, l0, P, edges, len0, dir0, lenh, dirh, dir1, th0, th1, dth,
@@ -615,18 +843,18 @@ def _ho4_jacobian(free_index, masses, h, l0, P, edges, len0, dir0, lenh, dirh, d
         lh = lenh[e]
         c0 = h / 6.0 * d2F_dl_dtheta(len0[e], t0, l0[e], P, e)
         flt = d2F_dl_dtheta(lh, th, l0[e], P, e)
-        dthh_h = 0.5 * (dth[e, 0] + dth[e, 2])
-        dthh_1 = 0.5 * (dth[e, 1] + dth[e, 3])
+        dthh_h = 0.5 * (dth[0, e] + dth[2, e])
+        dthh_1 = 0.5 * (dth[1, e] + dth[3, e])
         axial = h / 4.0 * (d2F_dl2(lh, th, l0[e], P, e) + flt * dthh_h)
         lateral = h / 4.0 * tension(lh, th, l0[e], P, e) / lh
         c21 = h / 4.0 * flt * dthh_1
         for i in range(3):
             for j in range(3):
-                B[i, j] = c0 * dth[e, 0] * dir0[e, i] * dirh[e, j]
-                B[i, 3 + j] = c0 * dth[e, 1] * dir0[e, i] * dir1[e, j]
-                nn = dirh[e, i] * dirh[e, j]
+                B[i, j] = c0 * dth[0, e] * dir0[i, e] * dirh[j, e]
+                B[i, 3 + j] = c0 * dth[1, e] * dir0[i, e] * dir1[j, e]
+                nn = dirh[i, e] * dirh[j, e]
                 B[3 + i, j] = (axial - lateral) * nn + (lateral if i == j else 0.0)
-                B[3 + i, 3 + j] = c21 * dirh[e, i] * dir1[e, j]
+                B[3 + i, 3 + j] = c21 * dirh[i, e] * dir1[j, e]
         for q in range(4):
             base = spring_base[e, q]
             if base < 0:
@@ -647,29 +875,30 @@ def _ho4_finish(x0, u, p, phi, eta, l0, P, edges, free_index, inc_ptr, inc_sprin
     u). Returns (status, spring)."""
     m = edges.shape[0]
     bad = m
-    for e in prange(m):
-        t0 = th0[e]
-        t1 = th1[e]
-        th = 0.5 * (t0 + t1)
-        phi_new[e] = phi[e] + h * th
-        G0 = entropy(len0[e], t0, l0[e], P, e)
-        Gh = entropy(lenh[e], th, l0[e], P, e)
-        G1 = entropy(len1[e], t1, l0[e], P, e)
-        eta1 = (-G0 + 4.0 * Gh + 3.0 * G1) / 6.0
-        eta_new[e] = eta1
-        if not (abs(eta1) < math.inf):
-            code[e] = NOT_FINITE
-            bad = min(bad, e)
-            continue
-        th_end = temperature(len1[e], eta1, l0[e], P, e)
-        if not (th_end > 0.0 and th_end < math.inf):
-            code[e] = NO_TEMPERATURE
-            bad = min(bad, e)
-            continue
-        c1 = h / 6.0 * tension(len1[e], t1, l0[e], P, e)
-        for i in range(3):
+    for blk in prange((m + BLOCK - 1) // BLOCK):
+        lo = blk * BLOCK
+        n = min(BLOCK, m - lo)
+        for i in range(n):  # vectorized
+            e = np.uint64(lo + i)
+            t0 = th0[e]
+            t1 = th1[e]
+            th = 0.5 * (t0 + t1)
+            phi_new[e] = phi[e] + h * th
+            rest = l0[e]
+            l1 = len1[e]
+            G0 = entropy(len0[e], t0, rest, P, e)
+            Gh = entropy(lenh[e], th, rest, P, e)
+            G1 = entropy(l1, t1, rest, P, e)
+            eta1 = (-G0 + 4.0 * Gh + 3.0 * G1) / 6.0
+            eta_new[e] = eta1
+            th_end = temperature(l1, eta1, rest, P, e)
+            c1 = h / 6.0 * tension(l1, t1, rest, P, e)
             # fs holds (h/6) T⁰ n⁰ and (h/4) T^½ n^½ from the last residual
-            fs[e, i] = fs[e, i] + 8.0 / 3.0 * fs[e, 3 + i] + c1 * dir1[e, i]
+            fs[0, e] = fs[0, e] + 8.0 / 3.0 * fs[3, e] + c1 * dir1[0, e]
+            fs[1, e] = fs[1, e] + 8.0 / 3.0 * fs[4, e] + c1 * dir1[1, e]
+            fs[2, e] = fs[2, e] + 8.0 / 3.0 * fs[5, e] + c1 * dir1[2, e]
+            code[e] = (OK if _admissible(th_end) else NO_TEMPERATURE) if abs(eta1) < math.inf else NOT_FINITE
+        bad = min(bad, _first_flagged(code, lo, n, m))
     if bad < m:
         return code[bad], bad
     return finish_nodes(x0, u, p, fs, edges, free_index, inc_ptr, inc_spring, masses, h, gravity, with_gravity,

@@ -14,13 +14,15 @@ stability limit (the contraction per sweep is about h² times the largest stiffn
 measured ≈ 0.02–0.05 on the benchmark lattices at h = 0.01). Both loops are parallel when
 compiled with parallel=True; each node sums its springs in a fixed order (thread-independent).
 
-Shapes: du, R, r (B n_free,); w (m, B) scratch (GTR-α: (m, ≥3)); jc per-spring coefficients ((m,) GTR-α,
-(m, 5) HO4, see :mod:`.implicit`); dir* (m, 3); edges (m, 2); free_index (n,);
-inc_ptr (n+1,), inc_spring (2m,) the node→spring incidence; masses (n,).
+Shapes: du, R, r (B n_free,); w (B, m) scratch (GTR-α: (≥3, m)); jc per-spring coefficients ((m,)
+GTR-α, (5, m) HO4, see :mod:`.implicit`); dir* (3, m); edges (m, 2) int32; free_index (n,);
+inc_ptr (n+1,), inc_spring (2m,) int32 the node→spring incidence; masses (n,). Per-spring arrays
+are component-major like the residual's; indices are read as unsigned.
 """
 
 from __future__ import annotations
 
+import numpy as np
 from numba import prange
 
 from .implicit import _gather_add
@@ -43,11 +45,12 @@ def _gtr_sweep(du, R, r, w, jc, dir0, dir1, edges, free_index, inc_ptr, inc_spri
     """r = R − J du; with ``update``, then du += D⁻¹ r. Returns max |r|. ``first``: du is zero
     (the spring loop is skipped).
 
-    Spring e's block is jc[e] n⁰ n¹ᵀ: w[e, :3] = n⁰ jc[e] n¹·(du_a − du_b)."""
+    Spring e's block is jc[e] n⁰ n¹ᵀ: w[:3, e] = n⁰ jc[e] n¹·(du_a − du_b)."""
     m = edges.shape[0]
     for e in prange(0 if first else m):
-        ka = free_index[edges[e, 0]]
-        kb = free_index[edges[e, 1]]
+        eu = np.uint64(e)
+        ka = free_index[edges[eu, 0]]
+        kb = free_index[edges[eu, 1]]
         s = 0.0
         for i in range(3):
             d = 0.0
@@ -55,11 +58,11 @@ def _gtr_sweep(du, R, r, w, jc, dir0, dir1, edges, free_index, inc_ptr, inc_spri
                 d += du[3 * ka + i]
             if kb >= 0:
                 d -= du[3 * kb + i]
-            s += dir1[e, i] * d
-        c = jc[e] * s
-        w[e, 0] = c * dir0[e, 0]
-        w[e, 1] = c * dir0[e, 1]
-        w[e, 2] = c * dir0[e, 2]
+            s += dir1[i, eu] * d
+        c = jc[eu] * s
+        w[0, eu] = c * dir0[0, eu]
+        w[1, eu] = c * dir0[1, eu]
+        w[2, eu] = c * dir0[2, eu]
     rmax = 0.0
     for a in prange(free_index.shape[0]):
         k = free_index[a]
@@ -82,12 +85,13 @@ def _ho4_sweep(du, R, r, w, jc, dir0, dirh, dir1, edges, free_index, inc_ptr, in
     """r = R − J du; with ``update``, then du += D⁻¹ r. Returns max |r|. ``first``: du is zero
     (the spring loop is skipped).
 
-    Spring e's block applied to the difference (v^½, v¹) = du_a − du_b, into w[e] (6,):
+    Spring e's block applied to the difference (v^½, v¹) = du_a − du_b, into w[:, e] (6,):
     rows R1: n⁰ (a₁ n^½·v^½ + a₂ n¹·v¹); rows R2: n^½ ((k − t) n^½·v^½ + c n¹·v¹) + t v^½."""
     m = edges.shape[0]
     for e in prange(0 if first else m):
-        ka = free_index[edges[e, 0]]
-        kb = free_index[edges[e, 1]]
+        eu = np.uint64(e)
+        ka = free_index[edges[eu, 0]]
+        kb = free_index[edges[eu, 1]]
         vh0 = 0.0
         vh1 = 0.0
         vh2 = 0.0
@@ -108,17 +112,17 @@ def _ho4_sweep(du, R, r, w, jc, dir0, dirh, dir1, edges, free_index, inc_ptr, in
             v10 -= du[6 * kb + 3]
             v11 -= du[6 * kb + 4]
             v12 -= du[6 * kb + 5]
-        ph = dirh[e, 0] * vh0 + dirh[e, 1] * vh1 + dirh[e, 2] * vh2
-        p1 = dir1[e, 0] * v10 + dir1[e, 1] * v11 + dir1[e, 2] * v12
-        c1 = jc[e, 0] * ph + jc[e, 1] * p1
-        c2 = jc[e, 2] * ph + jc[e, 4] * p1
-        t = jc[e, 3]
-        w[e, 0] = c1 * dir0[e, 0]
-        w[e, 1] = c1 * dir0[e, 1]
-        w[e, 2] = c1 * dir0[e, 2]
-        w[e, 3] = c2 * dirh[e, 0] + t * vh0
-        w[e, 4] = c2 * dirh[e, 1] + t * vh1
-        w[e, 5] = c2 * dirh[e, 2] + t * vh2
+        ph = dirh[0, eu] * vh0 + dirh[1, eu] * vh1 + dirh[2, eu] * vh2
+        p1 = dir1[0, eu] * v10 + dir1[1, eu] * v11 + dir1[2, eu] * v12
+        c1 = jc[0, eu] * ph + jc[1, eu] * p1
+        c2 = jc[2, eu] * ph + jc[4, eu] * p1
+        t = jc[3, eu]
+        w[0, eu] = c1 * dir0[0, eu]
+        w[1, eu] = c1 * dir0[1, eu]
+        w[2, eu] = c1 * dir0[2, eu]
+        w[3, eu] = c2 * dirh[0, eu] + t * vh0
+        w[4, eu] = c2 * dirh[1, eu] + t * vh1
+        w[5, eu] = c2 * dirh[2, eu] + t * vh2
     rmax = 0.0
     for a in prange(free_index.shape[0]):
         k = free_index[a]

@@ -1,0 +1,94 @@
+"""The per-spring thermal solves of the implicit integrators: the vectorized solve (a fixed
+number of Newton corrections, used in the residual kernels' vectorized loop) agrees with the
+scalar one (iterated to convergence) to round-off, flags what it cannot solve, and the residual
+kernels' scalar fallback for flagged springs gives the same residual as a clean solve."""
+
+import numpy as np
+import pytest
+
+import thermonet as tn
+from thermonet.kernels.implicit import implicit_kernels
+from thermonet.models import get_model
+
+PARAMS = {"hencky": dict(c=100.0, beta=2.0, C0=5.0, theta0=300.0),
+          "quadratic": dict(E=100.0, beta=0.2, C0=5.0, theta0=300.0, eta0=0.1)}
+
+
+def spring_states(model_name, count=200, seed=0):
+    model = get_model(model_name)
+    rng = np.random.default_rng(seed)
+    P = np.array([[PARAMS[model_name][k]] for k in model.parameters])
+    l0 = 1.0
+    la, lh, lb = (rng.uniform(0.9, 1.1, count) for _ in range(3))
+    theta = rng.uniform(250.0, 600.0, count)
+    entropy = np.array([model.entropy(l, t, l0, P, 0) for l, t in zip(la, theta)])
+    return model, P, l0, la, lh, lb, entropy
+
+
+@pytest.mark.parametrize("model_name", ["hencky", "quadratic"])
+def test_vectorized_ho4_solve_is_the_scalar_one(model_name):
+    model, P, l0, la, lh, lb, eta = spring_states(model_name)
+    k = implicit_kernels(model, "ho4")
+    for i in range(len(la)):
+        for guess, warm in ((0.0, False), (eta[i] + 1e-3, True)):
+            a = np.array(k.thermal(la[i], lh[i], lb[i], eta[i], l0, P, 0, guess, warm))
+            b = np.array(k.thermal_vector(la[i], lh[i], lb[i], eta[i], l0, P, 0, guess, warm))
+            assert a[-1] == 1 and b[-1] == 1
+            assert np.allclose(a[1:3], b[1:3], rtol=4e-15, atol=0.0), (a, b)  # θ⁰, θ¹
+            assert np.allclose(a[3:7], b[3:7], rtol=1e-12, atol=1e-15 * np.abs(a[3:7]).max()), (a, b)
+
+
+@pytest.mark.parametrize("model_name", ["hencky", "quadratic"])
+@pytest.mark.parametrize("alpha", [0.5, 0.3])
+def test_vectorized_gtr_solve_is_the_scalar_one(model_name, alpha):
+    model, P, l0, la, lh, lb, eta = spring_states(model_name, seed=1)
+    k = implicit_kernels(model, "gtr")
+    for i in range(len(la)):
+        solution = k.thermal(la[i], lb[i], eta[i], l0, P, 0, alpha, -1.0)[0]
+        for guess in (-1.0, (1.0 + 1e-5) * solution):  # cold, warm (a Newton iterate's seed is closer)
+            a = np.array(k.thermal(la[i], lb[i], eta[i], l0, P, 0, alpha, guess))
+            b = np.array(k.thermal_vector(la[i], lb[i], eta[i], l0, P, 0, alpha, guess))
+            assert a[-1] == 1 and b[-1] == 1
+            assert abs(a[0] - b[0]) <= 4e-15 * a[0], (a, b)
+            assert abs(a[1] - b[1]) <= 1e-12 * abs(a[1]) + 1e-300, (a, b)
+
+
+def test_vectorized_solves_flag_a_start_they_cannot_finish():
+    """From a guess whose first ln θ step exceeds the bound (20) two corrections cannot converge:
+    the vectorized solve says so; the scalar one iterates on and finds the answer."""
+    model, P, l0, la, lh, lb, eta = spring_states("hencky", count=5)
+    k = implicit_kernels(model, "ho4")
+    wild = eta[0] + 500.0  # ln θ off by 100
+    assert k.thermal_vector(la[0], lh[0], lb[0], eta[0], l0, P, 0, wild, True)[-1] == 0
+    assert k.thermal(la[0], lh[0], lb[0], eta[0], l0, P, 0, wild, True)[-1] == 1
+    g = implicit_kernels(model, "gtr")
+    assert g.thermal_vector(la[0], lb[0], eta[0], l0, P, 0, 0.5, 1e-40)[-1] == 0
+    assert g.thermal(la[0], lb[0], eta[0], l0, P, 0, 0.5, 1e-40)[-1] == 1
+
+
+@pytest.mark.parametrize("integrator", ["ho4", "gtr-1/2"])
+@pytest.mark.parametrize("parallel", [False, True])
+def test_residual_falls_back_to_the_scalar_solve_for_flagged_springs(integrator, parallel):
+    """Warm seeds spoiled for a third of the springs (across several blocks of 512) send those
+    springs to the scalar fallback; the residual equals the one from a clean cold solve."""
+    net = tn.lattice((8, 8, 8), jitter=0.1, seed=2)
+    rng = np.random.default_rng(0)
+    sim = tn.Simulation(net, model="hencky", parameters=PARAMS["hencky"],
+                        temperatures=rng.uniform(300.0, 600.0, net.n_springs),
+                        momenta=rng.normal(0.0, 1.0, (net.n_nodes, 3)), integrator=integrator, h=0.01,
+                        parallel=parallel, integrator_options=dict(linear_solver="matfree"))
+    st, s = sim.stepper, sim._state
+    assert net.n_springs > 3 * 512
+    st.begin(s.positions, s.momenta, s.entropy, sim.h)
+    st.predict(st.u)
+    assert st.residual(st.u) == (0, -1)
+    clean = st.R.copy()
+    spoiled = rng.random(net.n_springs) < 1 / 3
+    if integrator == "ho4":
+        st.gs[spoiled] += 500.0
+    else:
+        st.theta[spoiled] = 1e-40
+    st.warm = True
+    assert st.residual(st.u) == (0, -1)
+    assert np.abs(st.R - clean).max() <= 1e-12 * np.abs(st.Rabs).max()
+    assert st.norms[0] == np.abs(st.R).max() and st.norms[1] == st.Rabs.max()
