@@ -225,3 +225,72 @@ def test_checkpoints_keep_the_state_exactly(tmp_path):
     for k in ("positions", "momenta", "thermal_displacement", "entropy"):
         np.testing.assert_array_equal(getattr(back, k), getattr(state, k))
     assert back.time == state.time and back.step == 3 and meta["diagnostics"][0]["energy"] == 1 / 3
+
+
+@pytest.mark.parametrize("int32_limit", [2**31, 10])  # 10: the Int64 topology of very large nets
+def test_frame_image_views_are_aligned_and_odd_sizes_round_trip(tmp_path, monkeypatch, int32_limit):
+    """Odd node and spring counts make the UInt8/Int32 arrays end off an 8-byte boundary: they
+    must go last, every float64 view must stay aligned, and both readers must still agree."""
+    from thermonet.io import vtu
+
+    monkeypatch.setattr(vtu, "INT32_LIMIT", int32_limit)
+    rng = np.random.default_rng(3)
+    n = 37
+    edges = _random_net(rng, n=n, m=91)
+    m = len(edges)
+    point, cell = _fields(rng, n, m)
+    point["velocity"] = rng.normal(size=(n, 3))
+    writer = VTUWriter(edges, n)
+    x = rng.normal(size=(n, 3))
+    path = str(tmp_path / "odd.vtu")
+    writer.write(path, x, point, cell)
+    image = writer.image({k: (v.dtype, v.shape[1] if v.ndim > 1 else 0) for k, v in point.items()},
+                         {k: (v.dtype, 0) for k, v in cell.items()})
+    assert image.points.flags.aligned and image.points.ctypes.data % 8 == 0
+    for view in (*image.point.values(), *image.cell.values()):
+        if view.dtype == np.float64:
+            assert view.ctypes.data % 8 == 0
+    _check_meshio(path, x, edges, point, cell)
+    _check_vtk(path, x, edges, point, cell)
+    header = open(path, "rb").read(2000)
+    index_type = b"Int32" if int32_limit > 2 * m else b"Int64"
+    assert b'type="%s" Name="connectivity"' % index_type in header
+
+
+def test_passes_to_user_numbering_equal_the_numpy_expressions():
+    from thermonet.kernels import gather
+    from thermonet.layout import build_layout
+    from thermonet.net import Net
+
+    rng = np.random.default_rng(4)
+    n, m = 57, 131
+    node_order, spring_order = rng.permutation(n), rng.permutation(m)
+    node_rank, spring_rank = np.argsort(node_order), np.argsort(spring_order)  # user u is internal rank[u]
+    x, p, X = rng.normal(size=(n, 3)), rng.normal(size=(n, 3)), rng.normal(size=(n, 3))
+    masses = rng.uniform(0.5, 2.0, n)
+    outs = [np.empty((n, 3)) for _ in range(4)]
+    gather.node_fields_to_user(*outs, x, p, X, masses, node_order)
+    for out, expected in zip(outs, (x[node_rank], x[node_rank] - X, p[node_rank] / masses[:, None], p[node_rank])):
+        np.testing.assert_array_equal(out, expected)
+    points, none = np.empty((n, 3)), np.empty((0, 3))
+    gather.node_fields_to_user(points, none, none, none, x, p, X, masses, node_order)  # only points
+    np.testing.assert_array_equal(points, x[node_rank])
+    columns = tuple(rng.normal(size=m) for _ in range(3))
+    outs = tuple(np.empty(m) for _ in range(3))
+    gather.columns_to_user(outs, columns, spring_order)
+    for out, column in zip(outs, columns):
+        np.testing.assert_array_equal(out, column[spring_rank])
+    single = np.empty(m)
+    gather.values_to_user(single, columns[0], spring_order)
+    np.testing.assert_array_equal(single, columns[0][spring_rank])
+    edges = np.unique(np.sort(_random_net(rng, n=n, m=m), axis=1), axis=0)  # no spring twice
+    lay = build_layout(Net(positions=rng.normal(size=(n, 3)), edges=edges), renumber=True)
+    values = rng.normal(size=len(edges))  # internal numbering
+    means = np.empty(n)
+    gather.node_means_to_user(means, values, lay.inc_ptr, lay.inc_spring, lay.node_order)
+    user_values = values[lay.spring_rank]
+    ends = edges.reshape(-1)
+    degree = np.bincount(ends, minlength=n)
+    expected = np.bincount(ends, weights=np.repeat(user_values, 2), minlength=n) / np.maximum(degree, 1)
+    np.testing.assert_allclose(means, expected, rtol=1e-13, atol=1e-15)
+    assert np.all(means[degree == 0] == 0.0)

@@ -409,7 +409,7 @@ class Simulation:
         cadence and at the end of every run, so a run never silently returns such a state."""
         if math.isfinite(row["energy"]) and row.get("theta_min", 1.0) > 0:
             return
-        s, lay = self._host_state(), self.layout
+        s, lay = self.internal_state(), self.layout
         where = f"at step {s.step} (t = {s.time:.6g})"
         unstable = f"; h = {self.h} may be above the stability limit"
         bad = ~(np.isfinite(s.positions).all(axis=1) & np.isfinite(s.momenta).all(axis=1))
@@ -433,7 +433,7 @@ class Simulation:
     @property
     def state(self) -> State:
         """A copy of the current state in the user's numbering."""
-        s, lay = self._host_state(), self.layout
+        s, lay = self.internal_state(), self.layout
         return State(
             positions=lay.nodes_to_user(s.positions),
             momenta=lay.nodes_to_user(s.momenta),
@@ -469,37 +469,41 @@ class Simulation:
         on_grid = abs(time - step * self._h) <= 1e-12 * max(1.0, abs(time))
         self._time_origin = (0, 0.0) if on_grid else (step, time)
 
-    def _host_state(self) -> State:
-        """The current state (internal numbering) with its arrays up to date on the host: a
-        device-resident stepper (backend "cuda") copies its state back first."""
+    def internal_state(self) -> State:
+        """The current state itself, in the engine's internal numbering (``self.layout`` maps it
+        to the user's), with its arrays up to date on the host: a device-resident stepper
+        (backend "cuda") copies its state back first. Not a copy: read it, do not keep or
+        modify it. For output writers; users want :attr:`state`."""
         sync = getattr(self.stepper, "sync", None)
         if sync is not None:
             sync(self._state)
         return self._state
 
-    def _fields(self):
-        s = self._host_state()
+    def internal_spring_fields(self):
+        """Length, temperature, tension and internal energy of every spring now, each (m,), in
+        the internal numbering (one threaded pass; for output writers)."""
+        s = self.internal_state()
         return spring_fields(self.system, s.positions, s.entropy, self.parallel)
 
     def spring_fields(self):
         """Length, temperature, tension and internal energy of every spring now, each (m,),
         user numbering (one pass over the springs; what output frames use)."""
-        f, lay = self._fields(), self.layout
+        f, lay = self.internal_spring_fields(), self.layout
         return type(f)(*(lay.springs_to_user(a) for a in (f.length, f.temperature, f.tension, f.internal_energy)))
 
     def temperatures(self) -> np.ndarray:
         """(m,) spring temperatures θ(l, η) now (spec (18b))."""
-        return self.layout.springs_to_user(self._fields().temperature)
+        return self.layout.springs_to_user(self.internal_spring_fields().temperature)
 
     def lengths(self) -> np.ndarray:
-        return self.layout.springs_to_user(self._fields().length)
+        return self.layout.springs_to_user(self.internal_spring_fields().length)
 
     def strains(self) -> np.ndarray:
         """(m,) logarithmic strains ln(l / l0)."""
         return np.log(self.lengths() / self.net.rest_lengths)
 
     def tensions(self) -> np.ndarray:
-        return self.layout.springs_to_user(self._fields().tension)
+        return self.layout.springs_to_user(self.internal_spring_fields().tension)
 
     def velocities(self) -> np.ndarray:
         return self.state.momenta / self.net.masses[:, None]

@@ -264,7 +264,7 @@ def stable_step(sim, integrator=None) -> dict:
     from .integrators import get_integrator
 
     integ = sim.integrator if integrator is None else get_integrator(integrator)
-    s = sim._host_state()
+    s = sim.internal_state()
     est = max_frequency(sim.system, s.positions, s.entropy)
     c = stability_interval(integ)
     h_max = float(c / est.omega_max) if est.omega_max > 0 else float("inf")

@@ -4,10 +4,10 @@ diagnostics CSV, ``summary.json`` and checkpoints. Every file is written atomica
 from .atomic import atomic_write
 from .checkpoint import load_checkpoint, save_checkpoint
 from .pvd import PVDIndex, read_pvd
-from .series import FIELDS, THERMAL_FIELDS, RunOutput, frame_data
-from .vtu import VTUWriter
+from .series import FIELDS, THERMAL_FIELDS, FrameFiller, RunOutput
+from .vtu import FrameImage, VTUWriter
 
 __all__ = [
-    "atomic_write", "save_checkpoint", "load_checkpoint", "PVDIndex", "read_pvd", "VTUWriter",
-    "RunOutput", "frame_data", "FIELDS", "THERMAL_FIELDS",
+    "atomic_write", "save_checkpoint", "load_checkpoint", "PVDIndex", "read_pvd", "VTUWriter", "FrameImage",
+    "RunOutput", "FrameFiller", "FIELDS", "THERMAL_FIELDS",
 ]

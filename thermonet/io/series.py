@@ -14,10 +14,11 @@ import time as _time
 
 import numpy as np
 
-from .atomic import atomic_write
+from .atomic import atomic_write, release_page_cache
 from .checkpoint import save_checkpoint
 from .pvd import PVDIndex
-from .vtu import VTUWriter
+from ..kernels.gather import as_index, columns_to_user, node_fields_to_user, node_means_to_user
+from .vtu import FrameImage, VTUWriter
 
 #: output field -> (point or cell data, needs thermal coupling, meaning)
 FIELDS: dict[str, tuple[str, bool, str]] = {
@@ -36,39 +37,63 @@ FIELDS: dict[str, tuple[str, bool, str]] = {
 THERMAL_FIELDS = tuple(k for k, v in FIELDS.items() if v[1])
 
 
-def frame_data(sim, fields, material_id: np.ndarray) -> tuple[np.ndarray, dict, dict]:
-    """Positions (n, 3), point data and cell data of ``sim`` now, user numbering."""
-    net = sim.net
-    state = sim.state
-    sf = sim.spring_fields()
-    point, cell = {}, {}
-    for name in fields:
-        if name == "displacement":
-            point[name] = state.positions - net.positions
-        elif name == "velocity":
-            point[name] = state.momenta / net.masses[:, None]
-        elif name == "momentum":
-            point[name] = state.momenta
-        elif name == "anchored":
-            point[name] = net.anchored.astype(np.uint8)
-        elif name == "node_temperature":
-            ends = net.edges.reshape(-1)
-            total = np.bincount(ends, weights=np.repeat(sf.temperature, 2), minlength=net.n_nodes)
-            degree = np.bincount(ends, minlength=net.n_nodes)
-            point[name] = total / np.maximum(degree, 1)
-        elif name == "temperature":
-            cell[name] = sf.temperature
-        elif name == "entropy":
-            cell[name] = state.entropy
-        elif name == "strain":
-            cell[name] = np.log(sf.length / net.rest_lengths)
-        elif name == "tension":
-            cell[name] = sf.tension
-        elif name == "thermal_displacement":
-            cell[name] = state.thermal_displacement
-        elif name == "material":
-            cell[name] = np.asarray(material_id, dtype=np.int32)
-    return state.positions, point, cell
+#: stored dtype and components (0: scalar) of each field
+_STORAGE = {name: (np.uint8 if name == "anchored" else np.int32 if name == "material" else np.float64,
+                   3 if kind == "point" and name in ("displacement", "velocity", "momentum") else 0)
+            for name, (kind, _, _) in FIELDS.items()}
+
+class FrameFiller:
+    """Fills a :class:`~thermonet.io.vtu.FrameImage` with a simulation's fields, user numbering.
+
+    Each field is one threaded pass from the engine's internal numbering straight into the
+    image (:mod:`thermonet.kernels.gather`); the fields that cannot change (anchored flag,
+    material id) are written once. Values equal the public accessors' bit for bit (positions,
+    ``sim.state``, ``sim.temperatures()``, ``sim.strains()``, ...); ``node_temperature`` is a sum
+    in incidence order.
+
+    sim: the Simulation; writer: a :class:`~thermonet.io.vtu.VTUWriter` of its net;
+    fields: names from :data:`FIELDS`; material_id: (m,) int, user numbering.
+    """
+
+    def __init__(self, sim, writer: VTUWriter, fields, material_id: np.ndarray):
+        self.sim = sim
+        self.fields = list(fields)
+        spec = {kind: {n: _STORAGE[n] for n in self.fields if FIELDS[n][0] == kind} for kind in ("point", "cell")}
+        self.image = writer.image(spec["point"], spec["cell"])
+        net, lay = sim.net, sim.layout
+        self._node_order, self._spring_order = as_index(lay.node_order), as_index(lay.spring_order)
+        if "anchored" in self.fields:
+            self.image.point["anchored"][:] = net.anchored
+        if "material" in self.fields:
+            self.image.cell["material"][:] = material_id
+        self._no_rows = np.empty((0, 3))
+        self._needs_springs = any(n in self.fields for n in ("temperature", "strain", "tension", "node_temperature"))
+
+    def fill(self) -> FrameImage:
+        """The image, holding the simulation's state now."""
+        sim, img = self.sim, self.image
+        net, lay = sim.net, sim.layout
+        nodes, springs = self._node_order, self._spring_order
+        state = sim.internal_state()
+        sf = sim.internal_spring_fields() if self._needs_springs else None
+        point, cell = img.point, img.cell
+        none = self._no_rows
+        node_fields_to_user(img.points, point.get("displacement", none), point.get("velocity", none),
+                            point.get("momentum", none), state.positions, state.momenta, net.positions,
+                            net.masses, nodes)
+        sources = {"temperature": sf and sf.temperature, "entropy": state.entropy, "tension": sf and sf.tension,
+                   "strain": sf and sf.length, "thermal_displacement": state.thermal_displacement}
+        cells = [name for name in self.fields if name in sources]
+        if cells:  # one pass for every spring field
+            columns_to_user(tuple(cell[n] for n in cells), tuple(sources[n] for n in cells), springs)
+        for name in self.fields:
+            if name == "node_temperature":
+                node_means_to_user(point[name], sf.temperature, lay.inc_ptr, lay.inc_spring, nodes)
+            elif name == "strain":  # the operations of Simulation.strains(): log(l / l0)
+                out = cell[name]
+                np.divide(out, net.rest_lengths, out=out)
+                np.log(out, out=out)
+        return img
 
 
 class RunOutput:
@@ -99,9 +124,11 @@ class RunOutput:
         self.csv_path = os.path.join(self.folder, "diagnostics.csv")
         self.checkpoint_path = os.path.join(self.folder, f"{name}.checkpoint.npz")
         self.summary_path = os.path.join(self.folder, "summary.json")
-        self._writer = VTUWriter(sim.net.edges, sim.net.n_nodes) if self.frames_every else None
+        self._frame = (FrameFiller(sim, VTUWriter(sim.net.edges, sim.net.n_nodes), self.fields, self.material_id)
+                       if self.frames_every else None)
         self._csv_written = -np.inf
         self.frame_seconds = 0.0
+        self._last_frame = None
 
     # ------------------------------------------------------------------------------------------
     def observers(self) -> list:
@@ -130,9 +157,13 @@ class RunOutput:
             filename = self.pvd.frames[step][1]
         else:
             filename = f"{self.name}_{len(self.pvd.frames):06d}.vtu"
-        points, point, cell = frame_data(sim, self.fields, self.material_id)
-        self._writer.write(os.path.join(self.folder, filename), points, point, cell)
+        path = os.path.join(self.folder, filename)
+        self._frame.fill().write(path)
         self.pvd.add(step, sim.time, filename)  # only after the frame file is complete
+        release_page_cache(path)
+        if self._last_frame is not None:
+            release_page_cache(self._last_frame)
+        self._last_frame = path
         self.frame_seconds += _time.perf_counter() - t0
 
     def _maybe_write_csv(self, sim) -> None:
@@ -167,6 +198,7 @@ class RunOutput:
             "nodes": sim.net.n_nodes,
             "springs": sim.net.n_springs,
             "integrator": sim.integrator.name,
+            "backend": sim.backend,
             "h": sim.h,
             "steps": sim.step,
             "time": sim.time,

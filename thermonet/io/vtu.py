@@ -1,12 +1,17 @@
 """A minimal VTK XML UnstructuredGrid (.vtu) writer for spring nets: points and line cells.
 
-Data go in one raw appended block (no base64, no compression) with UInt64 size headers, so a
-frame is a handful of ``tobytes()`` calls and numbers round-trip bit for bit. The topology
-(connectivity, offsets, cell types) is encoded once per net and reused by every frame.
+Data go in one raw appended block (no base64, no compression) with UInt64 size headers, so numbers
+round-trip bit for bit. The whole file of a frame is assembled once per net and field list as one
+byte image (:class:`FrameImage`): XML header, topology (connectivity, offsets, cell types) and the
+size header of every array are written once; each array is a NumPy view into the image that a
+frame overwrites in place, and a frame is then a single ``write`` of the image. Arrays whose size
+is a multiple of 8 bytes come first in the appended block, so every float64 view is aligned.
 Readers checked by the tests: meshio and VTK (through PyVista).
 """
 
 from __future__ import annotations
+
+import sys
 
 import numpy as np
 
@@ -19,13 +24,92 @@ _VTK_TYPES = {
     np.dtype(np.int64): "Int64", np.dtype(np.int32): "Int32",
     np.dtype(np.uint8): "UInt8", np.dtype(np.int8): "Int8",
 }
+_HEADER = np.dtype(np.uint64)  # header_type="UInt64": the byte count before each array
+_BYTE_ORDER = "LittleEndian" if sys.byteorder == "little" else "BigEndian"
+_FOOTER = b"\n</AppendedData>\n</VTKFile>\n"
+#: connectivity and offsets are Int32 below this many nodes and connectivity entries, else Int64
+INT32_LIMIT = 2**31
 
 
-def _block(array: np.ndarray) -> tuple[bytes, memoryview]:
-    """An appended-data block: its UInt64 byte count and the array's bytes (no copy when the
-    array is already contiguous little-endian)."""
-    data = np.ascontiguousarray(array)
-    return np.array(data.nbytes, dtype="<u8").tobytes(), memoryview(data).cast("B")
+def field_dtype(array: np.ndarray) -> np.dtype:
+    """The dtype a field is stored with: its own if VTK has it (bool as UInt8), else float64."""
+    dtype = np.dtype(np.uint8) if array.dtype == np.bool_ else array.dtype.newbyteorder("=")
+    return dtype if dtype in _VTK_TYPES else np.dtype(np.float64)
+
+
+class FrameImage:
+    """The bytes of one .vtu file of a net, with a writable view per array.
+
+    n_nodes, edges: (m, 2) node indices of each spring (VTK lines, in this order).
+    point_fields, cell_fields: name -> (dtype, components); components 0 for a scalar (written
+    without NumberOfComponents, so readers give it back as (rows,)).
+
+    Attributes: ``points`` (n, 3) float64; ``point[name]`` and ``cell[name]`` of shape (rows,) or
+    (rows, components). Fill them, then :meth:`write`.
+    """
+
+    def __init__(self, n_nodes: int, edges: np.ndarray, point_fields: dict, cell_fields: dict):
+        edges = np.asarray(edges)
+        n, m = int(n_nodes), len(edges)
+        index = np.dtype(np.int32) if max(n, 2 * m) < INT32_LIMIT else np.dtype(np.int64)
+        # (section, name, dtype, shape, constant data or None)
+        arrays = [("Points", "Points", np.dtype(np.float64), (n, 3), None),
+                  ("Cells", "connectivity", index, (2 * m,), edges.reshape(-1)),
+                  ("Cells", "offsets", index, (m,), np.arange(2, 2 * m + 1, 2)),
+                  ("Cells", "types", np.dtype(np.uint8), (m,), np.full(m, VTK_LINE))]
+        for section, rows, fields in (("PointData", n, point_fields), ("CellData", m, cell_fields)):
+            for name, (dtype, components) in fields.items():
+                arrays.append((section, name, np.dtype(dtype), (rows, components) if components else (rows,), None))
+        # 8-byte multiples first: each of those starts 8-aligned (the data start is aligned too)
+        order = sorted(range(len(arrays)), key=lambda k: (_nbytes(arrays[k]) % 8 != 0, k))
+        offsets, offset = {}, 0
+        for k in order:
+            offsets[k] = offset
+            offset += _HEADER.itemsize + _nbytes(arrays[k])
+        tags = {"Points": [], "Cells": [], "PointData": [], "CellData": []}
+        for k, (section, name, dtype, shape, _) in enumerate(arrays):
+            components = f' NumberOfComponents="{shape[1]}"' if len(shape) == 2 else ""
+            tags[section].append(f'<DataArray type="{_VTK_TYPES[dtype]}" Name="{name}"{components} '
+                                 f'format="appended" offset="{offsets[k]}"/>')
+        head = "\n".join([
+            '<?xml version="1.0"?>',
+            f'<VTKFile type="UnstructuredGrid" version="1.0" byte_order="{_BYTE_ORDER}" header_type="UInt64">',
+            "<UnstructuredGrid>",
+            f'<Piece NumberOfPoints="{n}" NumberOfCells="{m}">',
+            *(line for section in tags for line in (f"<{section}>", *tags[section], f"</{section}>")),
+            "</Piece>",
+            "</UnstructuredGrid>",
+        ]).encode()
+        tail = b'\n<AppendedData encoding="raw">\n_'
+        head += b" " * (-(len(head) + len(tail)) % 8)
+        start = len(head) + len(tail)
+        self.buffer = np.zeros(start + offset + len(_FOOTER), dtype=np.uint8)
+        self.buffer[:start] = np.frombuffer(head + tail, dtype=np.uint8)
+        self.buffer[start + offset:] = np.frombuffer(_FOOTER, dtype=np.uint8)
+        self.points = None
+        self.point, self.cell = {}, {}
+        for k, (section, name, dtype, shape, constant) in enumerate(arrays):
+            at = start + offsets[k]
+            self.buffer[at:at + _HEADER.itemsize].view(_HEADER)[0] = _nbytes(arrays[k])
+            at += _HEADER.itemsize
+            view = self.buffer[at:at + _nbytes(arrays[k])].view(dtype).reshape(shape)
+            if constant is not None:
+                view[...] = constant
+            elif section == "Points":
+                self.points = view
+            else:
+                (self.point if section == "PointData" else self.cell)[name] = view
+        self.n_nodes, self.n_cells = n, m
+
+    def write(self, path) -> None:
+        """Write the image to ``path`` atomically (one write call)."""
+        with atomic_write(path) as f:
+            f.write(memoryview(self.buffer))
+
+
+def _nbytes(array_spec) -> int:
+    _, _, dtype, shape, _ = array_spec
+    return int(np.prod(shape)) * dtype.itemsize
 
 
 class VTUWriter:
@@ -36,14 +120,20 @@ class VTUWriter:
     """
 
     def __init__(self, edges: np.ndarray, n_nodes: int):
-        edges = np.asarray(edges, dtype=np.int64)
+        self.edges = np.asarray(edges, dtype=np.int64)
         self.n_nodes = int(n_nodes)
-        self.n_cells = len(edges)
-        self._topology = [
-            ("connectivity", _block(edges.reshape(-1).astype("<i8")), "Int64", 1),
-            ("offsets", _block(np.arange(2, 2 * self.n_cells + 1, 2, dtype="<i8")), "Int64", 1),
-            ("types", _block(np.full(self.n_cells, VTK_LINE, dtype=np.uint8)), "UInt8", 1),
-        ]
+        self.n_cells = len(self.edges)
+        self._image: FrameImage | None = None
+        self._schema = None
+
+    def image(self, point_fields: dict, cell_fields: dict) -> FrameImage:
+        """The :class:`FrameImage` for these fields (name -> (dtype, components)), kept while the
+        fields stay the same."""
+        schema = (tuple(point_fields.items()), tuple(cell_fields.items()))
+        if schema != self._schema:
+            self._image = FrameImage(self.n_nodes, self.edges, point_fields, cell_fields)
+            self._schema = schema
+        return self._image
 
     def write(self, path, points: np.ndarray, point_data: dict | None = None, cell_data: dict | None = None) -> None:
         """Write one frame to ``path`` atomically.
@@ -51,54 +141,21 @@ class VTUWriter:
         points: (n, 3) float64 positions. point_data: name -> (n,) or (n, k) array.
         cell_data: name -> (m,) or (m, k) array, one row per spring.
         """
-        points = np.asarray(points, dtype="<f8")
+        points = np.asarray(points, dtype=np.float64)
         if points.shape != (self.n_nodes, 3):
             raise ValueError(f"points must have shape ({self.n_nodes}, 3), got {points.shape}")
-        blocks: list[tuple[bytes, memoryview]] = []
-        offset = 0
-
-        def array_tag(name: str, array: np.ndarray, rows: int) -> str:
-            nonlocal offset
-            array = np.asarray(array)
-            if array.dtype == np.bool_:
-                array = array.astype(np.uint8)
-            dtype = array.dtype.newbyteorder("=")
-            if dtype not in _VTK_TYPES:
-                dtype = np.dtype(np.float64)
-            if array.shape[0] != rows:
-                raise ValueError(f"field {name!r} has {array.shape[0]} rows, expected {rows}")
-            # scalars carry no NumberOfComponents, so that readers give them back as (rows,)
-            components = "" if array.ndim == 1 else f' NumberOfComponents="{int(np.prod(array.shape[1:]))}"'
-            block = _block(array.astype(dtype.newbyteorder("<"), copy=False))
-            tag = (f'<DataArray type="{_VTK_TYPES[dtype]}" Name="{name}"{components} '
-                   f'format="appended" offset="{offset}"/>')
-            blocks.append(block)
-            offset += len(block[0]) + len(block[1])
-            return tag
-
-        def topology_tag(name: str, block: bytes, vtk_type: str) -> str:
-            nonlocal offset
-            tag = f'<DataArray type="{vtk_type}" Name="{name}" format="appended" offset="{offset}"/>'
-            blocks.append(block)
-            offset += len(block[0]) + len(block[1])
-            return tag
-
-        xml = [
-            '<?xml version="1.0"?>',
-            '<VTKFile type="UnstructuredGrid" version="1.0" byte_order="LittleEndian" header_type="UInt64">',
-            "<UnstructuredGrid>",
-            f'<Piece NumberOfPoints="{self.n_nodes}" NumberOfCells="{self.n_cells}">',
-            "<Points>", array_tag("Points", points, self.n_nodes), "</Points>",
-            "<Cells>", *(topology_tag(n, b, t) for n, b, t, _ in self._topology), "</Cells>",
-            "<PointData>", *(array_tag(k, v, self.n_nodes) for k, v in (point_data or {}).items()), "</PointData>",
-            "<CellData>", *(array_tag(k, v, self.n_cells) for k, v in (cell_data or {}).items()), "</CellData>",
-            "</Piece>",
-            "</UnstructuredGrid>",
-            '<AppendedData encoding="raw">',
-        ]
-        with atomic_write(path) as f:
-            f.write("\n".join(xml).encode() + b"\n_")
-            for header, data in blocks:
-                f.write(header)
-                f.write(data)
-            f.write(b"\n</AppendedData>\n</VTKFile>\n")
+        fields = []
+        for data, rows in ((point_data or {}, self.n_nodes), (cell_data or {}, self.n_cells)):
+            spec = {}
+            for name, array in data.items():
+                array = np.asarray(array)
+                if array.shape[0] != rows:
+                    raise ValueError(f"field {name!r} has {array.shape[0]} rows, expected {rows}")
+                spec[name] = (field_dtype(array), int(np.prod(array.shape[1:])) if array.ndim > 1 else 0)
+            fields.append(spec)
+        image = self.image(*fields)
+        image.points[...] = points
+        for data, views in ((point_data or {}, image.point), (cell_data or {}, image.cell)):
+            for name, array in data.items():
+                views[name][...] = np.asarray(array).reshape(views[name].shape)
+        image.write(path)
