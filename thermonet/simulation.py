@@ -487,7 +487,7 @@ class Simulation:
 
     def spring_fields(self):
         """Length, temperature, tension and internal energy of every spring now, each (m,),
-        user numbering (one pass over the springs; what output frames use)."""
+        user numbering (one pass over the springs)."""
         f, lay = self.internal_spring_fields(), self.layout
         return type(f)(*(lay.springs_to_user(a) for a in (f.length, f.temperature, f.tension, f.internal_energy)))
 
