@@ -58,6 +58,21 @@ def test_the_energy_tolerance_stops_the_run_at_the_diagnostics_cadence():
     np.testing.assert_array_equal(fresh.state.positions, sim.state.positions)
 
 
+def test_the_energy_tolerance_rewinds_to_the_last_stop_when_the_backup_lags_behind():
+    """The state copy for rewinds is refreshed only every BACKUP_SPAN steps; a rewind then
+    replays from the older copy to the last good stop, bit for bit."""
+    sim = tn.chain_simulation("co2", h=0.05, energy_tolerance=1e-2)
+    assert sim.BACKUP_SPAN > 150
+    with pytest.raises(tn.SimulationError, match="rewound to step 140"):
+        sim.run(t_end=50.0, diagnostics_every=10)  # fails at step 150; the copy is of step 0
+    assert sim.step == 140 and sim.diagnostics.step[-1] == 140
+    fresh = tn.chain_simulation("co2", h=0.05)
+    fresh.run(steps=140)
+    np.testing.assert_array_equal(fresh.state.positions, sim.state.positions)
+    np.testing.assert_array_equal(fresh.state.momenta, sim.state.momenta)
+    assert sim.time == fresh.time
+
+
 def test_a_loose_energy_tolerance_does_not_stop_a_good_run():
     sim = tn.chain_simulation("co2", h=0.01, energy_tolerance=1e-3)
     sim.run(t_end=5.0, diagnostics_every=10)

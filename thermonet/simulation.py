@@ -309,6 +309,11 @@ class Simulation:
         state.step = step
         state.time = origin_time + (step - origin_step) * self._h
 
+    #: steps a backup of the state may lag behind a chunk's start (explicit CPU runs): copying
+    #: the state at every observer stop costs a noticeable share of a short chunk, and a rewind
+    #: replays at most this many steps more
+    BACKUP_SPAN = 256
+
     def _advance(self, n: int) -> None:
         step0 = self._state.step
         backup = self._keep_backup()
@@ -316,7 +321,7 @@ class Simulation:
             stats = self.stepper.advance(self._state, n, self._h)
         except StepFailure as exc:
             if exc.details.get("rewind") and backup is not None:
-                self._rewind(backup, exc.steps_done)
+                self._rewind(backup, step0 + exc.steps_done - backup.step)
             self._set_step(step0 + exc.steps_done)
             self._record(self)
             if exc.details.get("rewind"):
@@ -326,13 +331,17 @@ class Simulation:
         self._last_stats = stats or {}
 
     def _keep_backup(self) -> State | None:
-        """Copy the state at a chunk's start (explicit CPU runs only: their kernel stops mid-step
-        and the last good step is then replayed from here; implicit steppers keep their state
-        intact themselves). Costs about a fifth of one step per chunk."""
+        """A copy of the state at this or an earlier chunk start, at most :data:`BACKUP_SPAN`
+        steps back, of this run's history and step size (explicit CPU runs only: their kernel
+        stops mid-step and the last good step is then replayed from the copy, bit for bit;
+        implicit steppers keep their state intact themselves). A copy costs about a fifth of one
+        step."""
         if self.backend != "cpu" or not self.integrator.explicit:
             return None
         s = self._state
         b = getattr(self, "_backup", None)
+        if self._backup_usable() and s.step - b.step < self.BACKUP_SPAN:
+            return b
         if b is None:
             b = self._backup = s.copy()
         else:
@@ -341,7 +350,16 @@ class Simulation:
             if s.thermal_displacement is not None:
                 np.copyto(b.thermal_displacement, s.thermal_displacement)
         b.step, b.time = s.step, s.time
+        self._backup_of = (s, self._h)  # a loaded state or a new h makes the copy useless for replays
         return b
+
+    def _backup_usable(self) -> bool:
+        """Whether the backup is an earlier state of the current history, at the current h."""
+        b = getattr(self, "_backup", None)
+        if b is None:
+            return False
+        state, h = getattr(self, "_backup_of", (None, None))
+        return state is self._state and h == self._h and b.step <= self._state.step
 
     def _rewind(self, backup: State, steps: int) -> None:
         """Restore ``backup`` (a chunk start) and replay ``steps`` steps: the run's last good
@@ -354,6 +372,7 @@ class Simulation:
         self._set_step(backup.step)
         if steps > 0:
             self.stepper.advance(s, steps, self._h)
+            self._set_step(backup.step + steps)
 
     def _blowup_message(self, exc: StepFailure, step0: int) -> str:
         bad_step = step0 + exc.steps_done + 1
@@ -382,9 +401,11 @@ class Simulation:
         bad_step, bad_time = self._state.step, self._state.time
         backup = getattr(self, "_backup", None)
         rows.pop()
-        if backup is not None and backup.step < bad_step:
-            self._rewind(backup, 0)
-            where = f"the state was rewound to step {backup.step} (t = {backup.time:.6g}), the last diagnostics stop before"
+        last = rows[-1]["step"]
+        if self._backup_usable() and backup.step <= last:
+            self._rewind(backup, last - backup.step)
+            where = (f"the state was rewound to step {last} (t = {self._state.time:.6g}), "
+                     "the last diagnostics stop before")
         else:
             where = "the state is that of this step"
         raise SimulationError(
