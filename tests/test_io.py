@@ -257,8 +257,11 @@ def test_frame_image_views_are_aligned_and_odd_sizes_round_trip(tmp_path, monkey
     assert b'type="%s" Name="connectivity"' % index_type in header
 
 
-def test_passes_to_user_numbering_equal_the_numpy_expressions():
-    from thermonet.kernels import gather
+@pytest.mark.parametrize("parallel", [False, True])
+def test_passes_to_user_numbering_equal_the_numpy_expressions(parallel):
+    from thermonet.kernels.gather import passes
+
+    gather = passes(parallel)
     from thermonet.layout import build_layout
     from thermonet.net import Net
 
@@ -280,9 +283,6 @@ def test_passes_to_user_numbering_equal_the_numpy_expressions():
     gather.columns_to_user(outs, columns, spring_order)
     for out, column in zip(outs, columns):
         np.testing.assert_array_equal(out, column[spring_rank])
-    single = np.empty(m)
-    gather.values_to_user(single, columns[0], spring_order)
-    np.testing.assert_array_equal(single, columns[0][spring_rank])
     edges = np.unique(np.sort(_random_net(rng, n=n, m=m), axis=1), axis=0)  # no spring twice
     lay = build_layout(Net(positions=rng.normal(size=(n, 3)), edges=edges), renumber=True)
     values = rng.normal(size=len(edges))  # internal numbering

@@ -17,7 +17,7 @@ import numpy as np
 from .atomic import atomic_write, release_page_cache
 from .checkpoint import save_checkpoint
 from .pvd import PVDIndex
-from ..kernels.gather import as_index, columns_to_user, node_fields_to_user, node_means_to_user
+from ..kernels.gather import as_index, passes
 from .vtu import FrameImage, VTUWriter
 
 #: output field -> (point or cell data, needs thermal coupling, meaning)
@@ -62,6 +62,7 @@ class FrameFiller:
         self.image = writer.image(spec["point"], spec["cell"])
         net, lay = sim.net, sim.layout
         self._node_order, self._spring_order = as_index(lay.node_order), as_index(lay.spring_order)
+        self._passes = passes(sim.parallel)
         if "anchored" in self.fields:
             self.image.point["anchored"][:] = net.anchored
         if "material" in self.fields:
@@ -77,18 +78,18 @@ class FrameFiller:
         state = sim.internal_state()
         sf = sim.internal_spring_fields() if self._needs_springs else None
         point, cell = img.point, img.cell
-        none = self._no_rows
-        node_fields_to_user(img.points, point.get("displacement", none), point.get("velocity", none),
+        none, k = self._no_rows, self._passes
+        k.node_fields_to_user(img.points, point.get("displacement", none), point.get("velocity", none),
                             point.get("momentum", none), state.positions, state.momenta, net.positions,
                             net.masses, nodes)
         sources = {"temperature": sf and sf.temperature, "entropy": state.entropy, "tension": sf and sf.tension,
                    "strain": sf and sf.length, "thermal_displacement": state.thermal_displacement}
         cells = [name for name in self.fields if name in sources]
         if cells:  # one pass for every spring field
-            columns_to_user(tuple(cell[n] for n in cells), tuple(sources[n] for n in cells), springs)
+            k.columns_to_user(tuple(cell[n] for n in cells), tuple(sources[n] for n in cells), springs)
         for name in self.fields:
             if name == "node_temperature":
-                node_means_to_user(point[name], sf.temperature, lay.inc_ptr, lay.inc_spring, nodes)
+                k.node_means_to_user(point[name], sf.temperature, lay.inc_ptr, lay.inc_spring, nodes)
             elif name == "strain":  # the operations of Simulation.strains(): log(l / l0)
                 out = cell[name]
                 np.divide(out, net.rest_lengths, out=out)

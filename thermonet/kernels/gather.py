@@ -8,9 +8,10 @@ arrays in memory order, scattering into user positions: after a stretch of time 
 the state from cache, sequential reads and scattered writes cost about half of the reverse
 (measured at 1e5 springs, five fields: 2.2 ms against 3.9 ms for gathering by rank).
 
-Serial on purpose: a pass over 1e5 rows takes well under a millisecond on one core, and a threaded
-one waits for its slowest thread, which on a loaded machine can be a whole scheduler time slice
-(measured: 8 ms per call with two threads while another process ran, 0.1 ms with one).
+Each pass exists serial and threaded (:func:`passes`), chosen like the stepping kernels by
+``Simulation.parallel`` (net size): a threaded pass waits for its slowest thread, which on a
+machine loaded by other processes can be a whole scheduler time slice (measured: 8 ms per call
+with two threads while another process ran, 0.1 ms with one), so small nets stay serial.
 
 Results equal the NumPy expressions named in each docstring bit for bit (the same IEEE operations
 per element). Model-independent: compiled once and cached on disk.
@@ -18,30 +19,25 @@ per element). Model-independent: compiled once and cached on disk.
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numba as nb
 import numpy as np
+
+from .specialize import rebind
 
 _OPTIONS = dict(cache=True, nogil=True, boundscheck=False)
 
 
-@nb.njit(**_OPTIONS)
-def values_to_user(out, values, order):
-    """out[order[i]] = values[i], i.e. out = values in user order; out, values: (m,)."""
-    for i in range(order.shape[0]):
-        out[order[i]] = values[i]
-
-
-@nb.njit(**_OPTIONS)
 def columns_to_user(outs, columns, order):
     """outs[k][order[i]] = columns[k][i] for every k: several (m,) fields in one pass.
     outs, columns: tuples of the same length of (m,) float64 arrays."""
-    for i in range(order.shape[0]):
+    for i in nb.prange(order.shape[0]):
         u = order[i]
         for k in nb.literal_unroll(range(len(outs))):
             outs[k][u] = columns[k][i]
 
 
-@nb.njit(**_OPTIONS)
 def node_fields_to_user(points, displacement, velocity, momentum, positions, momenta, reference, masses, order):
     """One pass over the nodes, for user node u = order[i]: points[u] = x[i], displacement[u] =
     x[i] − X[u], velocity[u] = p[i] / m[u], momentum[u] = p[i]. Outputs: (n, 3), or (0, 3) for a
@@ -50,7 +46,7 @@ def node_fields_to_user(points, displacement, velocity, momentum, positions, mom
     with_displacement = displacement.shape[0] > 0
     with_velocity = velocity.shape[0] > 0
     with_momentum = momentum.shape[0] > 0
-    for i in range(order.shape[0]):
+    for i in nb.prange(order.shape[0]):
         u = order[i]
         for c in range(3):
             x = positions[i, c]
@@ -67,18 +63,32 @@ def node_fields_to_user(points, displacement, velocity, momentum, positions, mom
                     momentum[u, c] = p
 
 
-@nb.njit(**_OPTIONS)
 def node_means_to_user(out, spring_values, inc_ptr, inc_spring, order):
     """out[order[i]] = mean of spring_values over the springs meeting at internal node i (0 where
     none). spring_values: (m,) internal numbering; inc_ptr, inc_spring: the layout's incidence
     lists, whose neighbouring nodes' springs sit close in memory. The sum runs in incidence order,
     so it can differ from a sum in another order by round-off."""
-    for i in range(order.shape[0]):
+    for i in nb.prange(order.shape[0]):
         start, stop = inc_ptr[i], inc_ptr[i + 1]
         total = 0.0
         for k in range(start, stop):
             total += spring_values[inc_spring[k]]
         out[order[i]] = total / max(stop - start, 1)
+
+
+_PASSES = (columns_to_user, node_fields_to_user, node_means_to_user)
+_COMPILED: dict = {}
+
+
+def passes(parallel: bool) -> SimpleNamespace:
+    """The compiled passes, serial or threaded (the threaded ones write disjoint rows: ``order``
+    is a permutation)."""
+    key = bool(parallel)
+    if key not in _COMPILED:
+        tag = "par" if parallel else "ser"  # distinct names: distinct disk-cache entries
+        _COMPILED[key] = SimpleNamespace(**{
+            f.__name__: nb.njit(parallel=key, **_OPTIONS)(rebind(f, tag, {})) for f in _PASSES})
+    return _COMPILED[key]
 
 
 def as_index(order: np.ndarray) -> np.ndarray:
