@@ -78,3 +78,21 @@ def test_one_and_two_threads_and_the_serial_kernel_agree_bit_for_bit(model, inte
         numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
     assert_identical(results["1 thread"], results["2 threads"], "1 vs 2 threads")
     assert_identical(results["serial"], results["2 threads"], "serial vs parallel kernel")
+
+
+def test_a_chunk_starts_from_the_previous_closing_kick_only_when_the_state_is_that_one():
+    """A call keeps its closing kick's forces and temperatures and the next call from the same
+    state starts from them (no second evaluation at an observer stop); a loaded state, though it
+    has the same step, must be evaluated afresh."""
+    sim = make("hencky", "co2", True)
+    sim.run(steps=5, diagnostics_every=5)
+    kept_state, kept_step = sim.stepper._boundary
+    assert kept_state is sim.internal_state() and kept_step == 5
+    state = sim.state
+    state.positions = state.positions + 1e-3 * np.sin(np.arange(state.positions.size)).reshape(-1, 3)
+    sim.load_state(state)  # same step, other positions: the kept forces are stale
+    sim.run(steps=5, diagnostics_every=5)
+    fresh = make("hencky", "co2", True)
+    fresh.load_state(state)
+    fresh.run(steps=5, diagnostics_every=5)
+    assert_identical(final_arrays(fresh), final_arrays(sim), "after load_state")

@@ -119,6 +119,11 @@ class SplittingStepper(Stepper):
         n, m = system.n_nodes, system.n_springs
         self._x_buf = np.empty((n, 3))
         self._s = np.empty(m)
+        self._f_keep = np.empty((n, 3))
+        self._theta_keep = np.empty(m if system.thermal else 0)
+        # (state, step) whose forces and temperatures the last call's closing kick left in the
+        # keep buffers: a call continuing from exactly there starts from them
+        self._boundary = None
         self._gravity = np.zeros(3) if system.gravity is None else np.asarray(system.gravity, dtype=np.float64)
         lay = system.layout
         self._no_thermal = np.empty(0)
@@ -132,12 +137,17 @@ class SplittingStepper(Stepper):
         phi = state.thermal_displacement if self.system.thermal else self._no_thermal
         eta = state.entropy if self.system.thermal else self._no_thermal
         lo, hi = self.system.stretch_bounds
+        reuse = self._boundary is not None and self._boundary[0] is state and self._boundary[1] == state.step
+        self._boundary = None
         done, detected = self._advance(
             state.positions, self._x_buf, state.momenta, phi, eta, self._s,
             l0, P, edges, inc_ptr, inc_spring, inc_other, masses, inv_mass, anchored,
             self._kicks, self._drifts, float(h), int(n_steps), self.integrator.track_phi,
             self._gravity, self.system.gravity is not None, float(lo), float(hi),
+            self._f_keep, self._theta_keep, reuse,
         )
+        if not detected and self._kicks[-1] != 0.0:
+            self._boundary = (state, state.step + int(n_steps))
         if detected:
             from ..blowup import diagnose
 

@@ -30,7 +30,11 @@ at; the caller rewinds to the last good step (see ``Simulation``).
 
 The last kick of one step and the first kick of the next act at the same positions and share one
 force evaluation; they are still applied as two separate additions, so a run cut into chunks at
-any step boundary gives bit-for-bit the same numbers as one long call. Every spring and every
+any step boundary gives bit-for-bit the same numbers as one long call. A call ends with the
+closing kick of its last step; it keeps that kick's forces and temperatures (``f_keep``,
+``theta_keep``), and a following call from the same state (``reuse_boundary``, the caller's
+promise) starts from them instead of evaluating them again: without that, every observer stop of a
+run (a diagnostics row every 10 steps, say) would cost one more force evaluation, a whole CO2 step. Every spring and every
 node is computed by one thread with a fixed summation order, so results do not depend on the
 number of threads.
 
@@ -111,8 +115,10 @@ def squared_lengths(x, edges, lo, n, out, base):
         out[base + i] = dx * dx + dy * dy + dz * dz
 
 
-def _spring_pass(x, eta, l0, P, edges, s, phi, phi_h1, phi_h2, track_phi, stretch_min, stretch_max):
-    """Per spring e: s[e] = T/l at x; Φ[e] += (phi_h1 + phi_h2) θ as two additions.
+def _spring_pass(x, eta, l0, P, edges, s, phi, phi_h1, phi_h2, track_phi, stretch_min, stretch_max,
+                 theta_keep, keep):
+    """Per spring e: s[e] = T/l at x; Φ[e] += (phi_h1 + phi_h2) θ as two additions; θ into
+    theta_keep[e] when ``keep`` (THERMAL only).
 
     edges: (m, 2) uint32. P: (k, m), or (k, 1) when UNIFORM. Returns the number of springs
     outside the admissible states (stretch bounds, non-finite T/l, θ ≤ 0).
@@ -138,6 +144,8 @@ def _spring_pass(x, eta, l0, P, edges, s, phi, phi_h1, phi_h2, track_phi, stretc
             if THERMAL:
                 outside = outside | (not (theta > 0.0))
             bad += outside
+            if THERMAL and keep:
+                theta_keep[e] = theta
             if THERMAL and track_phi:
                 if phi_h1 != 0.0:
                     phi[e] += phi_h1 * theta
@@ -146,10 +154,11 @@ def _spring_pass(x, eta, l0, P, edges, s, phi, phi_h1, phi_h2, track_phi, stretc
 
 
 def _node_pass(x, x_new, p, s, inc_ptr, inc_spring, inc_other, masses, inv_mass, anchored,
-               kick1, kick2, drift, with_force, gravity, with_gravity):
+               kick1, kick2, drift, with_force, gravity, with_gravity, f_keep, force_source):
     """Per node a: f = Σ s_e (x_b − x_a) (+ m g); p += kick1 f; p += kick2 f; x_new = x + drift p/m.
 
-    inc_spring, inc_other: (2m,) uint32.
+    inc_spring, inc_other: (2m,) uint32. force_source: 0 gather f; 1 gather f and keep it in
+    f_keep (n, 3); 2 take f from f_keep.
     """
     for a in prange(x.shape[0]):
         xa0 = x[a, 0]
@@ -164,20 +173,29 @@ def _node_pass(x, x_new, p, s, inc_ptr, inc_spring, inc_other, masses, inv_mass,
         p1 = p[a, 1]
         p2 = p[a, 2]
         if with_force:
-            f0 = 0.0
-            f1 = 0.0
-            f2 = 0.0
-            for j in range(inc_ptr[a], inc_ptr[a + 1]):
-                ju = np.uint64(j)
-                se = s[inc_spring[ju]]
-                b = inc_other[ju]
-                f0 += se * (x[b, 0] - xa0)
-                f1 += se * (x[b, 1] - xa1)
-                f2 += se * (x[b, 2] - xa2)
-            if with_gravity:
-                f0 += masses[a] * gravity[0]
-                f1 += masses[a] * gravity[1]
-                f2 += masses[a] * gravity[2]
+            if force_source == 2:
+                f0 = f_keep[a, 0]
+                f1 = f_keep[a, 1]
+                f2 = f_keep[a, 2]
+            else:
+                f0 = 0.0
+                f1 = 0.0
+                f2 = 0.0
+                for j in range(inc_ptr[a], inc_ptr[a + 1]):
+                    ju = np.uint64(j)
+                    se = s[inc_spring[ju]]
+                    b = inc_other[ju]
+                    f0 += se * (x[b, 0] - xa0)
+                    f1 += se * (x[b, 1] - xa1)
+                    f2 += se * (x[b, 2] - xa2)
+                if with_gravity:
+                    f0 += masses[a] * gravity[0]
+                    f1 += masses[a] * gravity[1]
+                    f2 += masses[a] * gravity[2]
+                if force_source == 1:
+                    f_keep[a, 0] = f0
+                    f_keep[a, 1] = f1
+                    f_keep[a, 2] = f2
             if kick1 != 0.0:
                 p0 += kick1 * f0
                 p1 += kick1 * f1
@@ -195,8 +213,13 @@ def _node_pass(x, x_new, p, s, inc_ptr, inc_spring, inc_other, masses, inv_mass,
 
 
 def _advance(x, x_buf, p, phi, eta, s, l0, P, edges, inc_ptr, inc_spring, inc_other, masses, inv_mass,
-             anchored, kicks, drifts, h, n_steps, track_phi, gravity, with_gravity, stretch_min, stretch_max):
+             anchored, kicks, drifts, h, n_steps, track_phi, gravity, with_gravity, stretch_min, stretch_max,
+             f_keep, theta_keep, reuse_boundary):
     """Advance (x, p, Φ) in place by ``n_steps`` steps of the scheme (kicks (S+1,), drifts (S,)).
+
+    The closing kick's forces and temperatures are kept in f_keep (n, 3) and theta_keep (m,)
+    (empty when not THERMAL); with ``reuse_boundary`` the first kick takes them from there
+    instead of evaluating them (the caller vouches that x, η are those of the previous call's end).
 
     Returns (steps completed, detected): ``detected`` when a spring left the admissible states
     (see the module docstring); then ``x`` holds the positions where it was found and only the
@@ -220,26 +243,31 @@ def _advance(x, x_buf, p, phi, eta, s, l0, P, edges, inc_ptr, inc_spring, inc_ot
             k1 = pending if i == 0 else 0.0
             k2 = kicks[i]
             with_force = k1 != 0.0 or k2 != 0.0
-            if with_force:
+            reuse = reuse_boundary and step == 0 and i == 0 and with_force
+            if reuse:  # the previous call's closing kick evaluated these at these positions
+                if THERMAL and track_phi:
+                    for e in range(phi.shape[0]):
+                        phi[e] += (k2 * h) * theta_keep[e]
+            elif with_force:
                 if spring_pass(cur, eta, l0, P, edges_u, s, phi, k1 * h, k2 * h, track_phi,
-                               stretch_min, stretch_max) > 0:
+                               stretch_min, stretch_max, theta_keep, False) > 0:
                     if swaps % 2 == 1:
                         x[:, :] = x_buf
                     # positions at stage 0 are the end of the previous step: that step was the bad one
                     return (step - 1 if i == 0 and step > 0 else step), True
             node_pass(cur, nxt, p, s, inc_ptr, inc_spring_u, inc_other_u, masses, inv_mass, anchored,
-                      k1 * h, k2 * h, drifts[i] * h, with_force, gravity, with_gravity)
+                      k1 * h, k2 * h, drifts[i] * h, with_force, gravity, with_gravity, f_keep, 2 if reuse else 0)
             cur, nxt = nxt, cur
             swaps += 1
         pending = kicks[n_stages]
     if pending != 0.0:
         if spring_pass(cur, eta, l0, P, edges_u, s, phi, 0.0, pending * h, track_phi,
-                       stretch_min, stretch_max) > 0:
+                       stretch_min, stretch_max, theta_keep, True) > 0:
             if swaps % 2 == 1:
                 x[:, :] = x_buf
             return n_steps - 1, True
         node_pass(cur, nxt, p, s, inc_ptr, inc_spring_u, inc_other_u, masses, inv_mass, anchored,
-                  0.0, pending * h, 0.0, True, gravity, with_gravity)
+                  0.0, pending * h, 0.0, True, gravity, with_gravity, f_keep, 1)
         cur, nxt = nxt, cur
         swaps += 1
     if swaps % 2 == 1:
