@@ -59,7 +59,7 @@ class GTRAlphaStepper(ImplicitStepper):
     def predictor_coefficients(self, h: float) -> np.ndarray:
         """d = h M⁻¹ (p + α h f(x⁰, θ(l⁰, η))) = h v + α h² a: (48a) with θ̄ frozen at the start
         temperature, CO2's drift at α = ½ and the exact step at α = 0 or 1."""
-        return np.array([[h, self.alpha * h * h, 0.0]])
+        return np.array([[h, self.alpha * h * h, 0.0, 0.0]])
 
     def residual(self, u: np.ndarray):
         s = self.system

@@ -48,8 +48,8 @@ class ImplicitStepper(Stepper):
 
     block: int
     scheme: str
-    #: whether the predictor uses the forces' time derivative (the start kernel's ȧ)
-    with_rate: bool = False
+    #: time derivatives of the acceleration the predictor uses (0, 1: ȧ, 2: ȧ and ä)
+    rate: int = 0
 
     def __init__(self, integrator, system, options: NewtonOptions, parallel: bool = False):
         if not system.thermal:
@@ -85,6 +85,7 @@ class ImplicitStepper(Stepper):
         self.warm = False
         self.len0 = np.empty(m)
         self.dir0 = np.empty((3, m))
+        self.nodal = np.empty((n if self.rate > 1 else 0, 6))
         self._new = (np.empty((n, 3)), np.empty((n, 3)), np.empty(m), np.empty(m))
         self.gravity = np.zeros(3) if system.gravity is None else np.asarray(system.gravity, dtype=np.float64)
         self.with_gravity = system.gravity is not None
@@ -100,8 +101,9 @@ class ImplicitStepper(Stepper):
 
     @abstractmethod
     def predictor_coefficients(self, h: float) -> np.ndarray:
-        """(B/3, 3): sub-block j of a free node's predicted unknowns is c[j, 0] v + c[j, 1] a
-        + c[j, 2] ȧ (velocity, acceleration and its rate at the step's start)."""
+        """(B/3, 4): sub-block j of a free node's predicted unknowns is c[j, 0] v + c[j, 1] a
+        + c[j, 2] ȧ + c[j, 3] ä (velocity, acceleration and its first two time derivatives at
+        the step's start; the derivatives beyond ``rate`` are zero)."""
 
     def predict(self, u: np.ndarray) -> None:
         """Fill the unknowns u with the explicit guess the start kernel computed (begin)."""
@@ -140,8 +142,9 @@ class ImplicitStepper(Stepper):
         self.warm = False
         status, spring = self.kernels.start(x, p, s.inv_mass, eta, s.rest_lengths, s.parameters, self.edges_u,
                                             *self.incidence, self.free_index, self.gravity, self.with_gravity,
-                                            self.len0, self.dir0, self.fs, self.code, self.with_rate,
-                                            self.predictor_coefficients(self.h), self.prediction)
+                                            self.len0, self.dir0, self.fs, self.sweep_scratch, self.nodal,
+                                            self.code, self.rate, self.h, self.predictor_coefficients(self.h),
+                                            self.prediction)
         if status != 0:
             raise _StepError("invalid state at the start of the step", None, status, spring)
 

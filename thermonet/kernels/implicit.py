@@ -54,7 +54,7 @@ from .specialize import model_fingerprint, model_namespace, specialize
 
 # Bound per model by specialize(); listed so the templates read as ordinary code.
 entropy = temperature = tension = d2F_dl2 = d2F_dl_dtheta = d2F_dtheta2 = None
-gtr_thermal = ho4_thermal = gtr_thermal_vector = ho4_thermal_vector = gtr_correct = ho4_correct = ho4_derivatives = finish_nodes = None
+adiabatic_stiffness = gtr_thermal = ho4_thermal = gtr_thermal_vector = ho4_thermal_vector = gtr_correct = ho4_correct = ho4_derivatives = finish_nodes = None
 
 _CACHE: dict = {}
 _OPTIONS = dict(cache=True, error_model="numpy", boundscheck=False)
@@ -93,6 +93,7 @@ def implicit_kernels(model, scheme: str, parallel: bool = False) -> ImplicitKern
         tag = f"{model.name}_{key[1]}"
         ptag = f"{tag}_{'par' if parallel else 'ser'}"
         ns = model_namespace(model)
+        ns["adiabatic_stiffness"] = specialize(_adiabatic_stiffness, tag, ns, **_INLINE)
         start = specialize(_start, ptag, ns, parallel=parallel, **_OPTIONS)
         ns["finish_nodes"] = specialize(_finish_nodes, ptag, ns, parallel=parallel, **_OPTIONS)
         if scheme == "gtr":
@@ -194,14 +195,35 @@ def _first_flagged(flag, lo, n, none):
 # and the smallest failing index is kept by a min-reduction.
 
 
+def _adiabatic_stiffness(l, eta, l0, P, e):
+    """dT/dl at constant entropy η: F_ll − F_lθ²/F_θθ at (l, θ(l, η))."""
+    th = temperature(l, eta, l0, P, e)
+    flt = d2F_dl_dtheta(l, th, l0, P, e)
+    return d2F_dl2(l, th, l0, P, e) - flt * flt / d2F_dtheta2(l, th, l0, P, e)
+
+
+#: the predictor's ä term is used at a node only where h²/8 |ä| ≤ SNAP_TRUST (|a| + h/2 |ȧ|)
+SNAP_TRUST = 0.1
+#: relative length step of the central difference for d²T/dl² along an adiabat (the model gives
+#: second derivatives of F only); its error ~ STIFFNESS_STEP², far below what the term needs
+STIFFNESS_STEP = 1e-3
+
+
 def _start(x0, p, inv_mass, eta, l0, P, edges, inc_ptr, inc_spring, free_index, gravity, with_gravity,
-           len0, dir0, fs, code, with_rate, coef, pred):
+           len0, dir0, fs, ws, nodal, code, rate, h, coef, pred):
     """Lengths len0 (m,) and unit vectors dir0 (3, m) at x0 (n, 3), and the explicit predictor
     of the step's unknowns into pred (B n_free,): per free node and sub-block j (B = 3 × rows
-    of coef), pred = coef[j, 0] v + coef[j, 1] a + coef[j, 2] ȧ with v = p/m, a = f/m (+ g) the
-    acceleration at (x0, θ(l0, η)) and, with ``with_rate``, ȧ its time derivative along the
-    exact (adiabatic) flow at (x0, p0) (else ȧ = 0), for a Taylor predictor. fs (6, m), code
-    (m,) scratch. Returns (status, spring)."""
+    of coef), pred = coef[j, 0] v + coef[j, 1] a + coef[j, 2] ȧ + coef[j, 3] ä with v = p/m,
+    a = f/m (+ g) the acceleration at (x0, θ(l0, η)) and its first (``rate`` ≥ 1) and second
+    (``rate`` 2) time derivatives along the exact (adiabatic) flow at (x0, p0) (else 0), for a
+    Taylor-like predictor. Scratch: fs (6, m), ws (6, m) (``rate`` 2), nodal (n, 6) (``rate``
+    2), code (m,). Returns (status, spring).
+
+    Per spring f = T n, T = T(l, θ(l, η)) along the adiabat with T' = dT/dl (adiabatic
+    stiffness), l̇ = n·v, ṅ = (v − n l̇)/l (v, α: relative velocity and acceleration of the ends):
+    ḟ = T' l̇ n + T ṅ;  f̈ = T'' l̇² n + T' l̈ n + 2 T' l̇ ṅ + T n̈ with l̈ = n·α + (|v|² − l̇²)/l,
+    n̈ = (α − n l̈ − 2 ṅ l̇)/l; T'' by a central difference of T'. ä needs the nodes' a: a second
+    spring pass and node pass."""
     m = edges.shape[0]
     bad = m
     for blk in prange((m + BLOCK - 1) // BLOCK):
@@ -214,7 +236,7 @@ def _start(x0, p, inv_mass, eta, l0, P, edges, inc_ptr, inc_spring, free_index, 
             dir0[0, e] = x0[b, 0] - x0[a, 0]
             dir0[1, e] = x0[b, 1] - x0[a, 1]
             dir0[2, e] = x0[b, 2] - x0[a, 2]
-            if with_rate:
+            if rate > 0:
                 fs[3, e] = p[b, 0] * inv_mass[b] - p[a, 0] * inv_mass[a]
                 fs[4, e] = p[b, 1] * inv_mass[b] - p[a, 1] * inv_mass[a]
                 fs[5, e] = p[b, 2] * inv_mass[b] - p[a, 2] * inv_mass[a]
@@ -231,23 +253,33 @@ def _start(x0, p, inv_mass, eta, l0, P, edges, inc_ptr, inc_spring, free_index, 
             dir0[0, e] = nx
             dir0[1, e] = ny
             dir0[2, e] = nz
-            th = temperature(l, eta[e], l0[e], P, e)
-            T = tension(l, th, l0[e], P, e)
+            rest = l0[e]
+            th = temperature(l, eta[e], rest, P, e)
+            T = tension(l, th, rest, P, e)
             fs[0, e] = T * nx
             fs[1, e] = T * ny
             fs[2, e] = T * nz
-            if with_rate:
-                # d(T n)/dt with dT/dl at constant η (the adiabatic stiffness) and dn/dt = (v − n l̇)/l
+            if rate > 0:
                 vx = fs[3, e]
                 vy = fs[4, e]
                 vz = fs[5, e]
                 ldot = nx * vx + ny * vy + nz * vz
-                flt = d2F_dl_dtheta(l, th, l0[e], P, e)
-                Tdot = (d2F_dl2(l, th, l0[e], P, e) - flt * flt / d2F_dtheta2(l, th, l0[e], P, e)) * ldot
+                flt = d2F_dl_dtheta(l, th, rest, P, e)
+                Tl = d2F_dl2(l, th, rest, P, e) - flt * flt / d2F_dtheta2(l, th, rest, P, e)
+                Tdot = Tl * ldot
                 q = T / l
                 fs[3, e] = Tdot * nx + q * (vx - nx * ldot)
                 fs[4, e] = Tdot * ny + q * (vy - ny * ldot)
                 fs[5, e] = Tdot * nz + q * (vz - nz * ldot)
+                if rate > 1:
+                    dl = STIFFNESS_STEP * l
+                    ws[0, e] = vx
+                    ws[1, e] = vy
+                    ws[2, e] = vz
+                    ws[3, e] = T
+                    ws[4, e] = Tl
+                    ws[5, e] = (adiabatic_stiffness(l + dl, eta[e], rest, P, e)
+                                - adiabatic_stiffness(l - dl, eta[e], rest, P, e)) / (2.0 * dl)
             lok = (l > 0.0) & (l < math.inf)
             code[e] = OK if (lok & _admissible(th)) else (NO_TEMPERATURE if lok else COLLAPSED)
         bad = min(bad, _first_flagged(code, lo, n, m))
@@ -257,6 +289,9 @@ def _start(x0, p, inv_mass, eta, l0, P, edges, inc_ptr, inc_spring, free_index, 
     for a in prange(x0.shape[0]):
         k = free_index[a]
         if k < 0:
+            if rate > 1:
+                for i in range(6):
+                    nodal[a, i] = 0.0
             continue
         f0 = 0.0
         f1 = 0.0
@@ -270,7 +305,7 @@ def _start(x0, p, inv_mass, eta, l0, P, edges, inc_ptr, inc_spring, free_index, 
             f0 += sg * fs[0, e]
             f1 += sg * fs[1, e]
             f2 += sg * fs[2, e]
-            if with_rate:
+            if rate > 0:
                 r0 += sg * fs[3, e]
                 r1 += sg * fs[4, e]
                 r2 += sg * fs[5, e]
@@ -281,8 +316,81 @@ def _start(x0, p, inv_mass, eta, l0, P, edges, inc_ptr, inc_spring, free_index, 
             v = w * p[a, i]
             acc = w * f + (gravity[i] if with_gravity else 0.0)
             jerk = w * r
+            if rate > 1:  # the prediction waits for ä
+                nodal[a, i] = acc
+                nodal[a, 3 + i] = jerk
+                continue
             for s in range(J):
                 pred[3 * J * k + 3 * s + i] = coef[s, 0] * v + coef[s, 1] * acc + coef[s, 2] * jerk
+    if rate < 2:
+        return 0, -1
+    for blk in prange((m + BLOCK - 1) // BLOCK):
+        lo = blk * BLOCK
+        n = min(BLOCK, m - lo)
+        for i in range(n):  # gather: relative acceleration
+            e = np.uint64(lo + i)
+            a = edges[e, 0]
+            b = edges[e, 1]
+            fs[0, e] = nodal[b, 0] - nodal[a, 0]
+            fs[1, e] = nodal[b, 1] - nodal[a, 1]
+            fs[2, e] = nodal[b, 2] - nodal[a, 2]
+        for i in range(n):  # f̈ (vectorized)
+            e = np.uint64(lo + i)
+            l = len0[e]
+            nx = dir0[0, e]
+            ny = dir0[1, e]
+            nz = dir0[2, e]
+            vx = ws[0, e]
+            vy = ws[1, e]
+            vz = ws[2, e]
+            ax = fs[0, e]
+            ay = fs[1, e]
+            az = fs[2, e]
+            T = ws[3, e]
+            Tl = ws[4, e]
+            Tll = ws[5, e]
+            ldot = nx * vx + ny * vy + nz * vz
+            mx = (vx - nx * ldot) / l  # ṅ
+            my = (vy - ny * ldot) / l
+            mz = (vz - nz * ldot) / l
+            lddot = nx * ax + ny * ay + nz * az + (vx * vx + vy * vy + vz * vz - ldot * ldot) / l
+            radial = Tll * ldot * ldot + Tl * lddot - T * lddot / l
+            side = 2.0 * (Tl - T / l) * ldot
+            q = T / l
+            fs[3, e] = radial * nx + side * mx + q * ax
+            fs[4, e] = radial * ny + side * my + q * ay
+            fs[5, e] = radial * nz + side * mz + q * az
+    for a in prange(x0.shape[0]):
+        k = free_index[a]
+        if k < 0:
+            continue
+        s0 = 0.0
+        s1 = 0.0
+        s2 = 0.0
+        for j in range(inc_ptr[a], inc_ptr[a + 1]):
+            e = inc_spring[j]
+            sg = 1.0 if edges[e, 0] == a else -1.0
+            s0 += sg * fs[3, e]
+            s1 += sg * fs[4, e]
+            s2 += sg * fs[5, e]
+        w = inv_mass[a]
+        # the series a + τ ȧ + τ²/2 ä (τ ≤ h) is trusted with its ä term only where that term
+        # is small next to the others (ω h ≲ 1 locally); a step near the stability limit keeps
+        # the third-order guess
+        lower = 0.0
+        top = 0.0
+        for i in range(3):
+            lower = max(lower, abs(nodal[a, i]) + 0.5 * h * abs(nodal[a, 3 + i]))
+            top = max(top, 0.125 * h * h * w * abs(s0 if i == 0 else (s1 if i == 1 else s2)))
+        use = top <= SNAP_TRUST * lower
+        for i in range(3):
+            sn = w * (s0 if i == 0 else (s1 if i == 1 else s2)) if use else 0.0
+            v = w * p[a, i]
+            acc = nodal[a, i]
+            jerk = nodal[a, 3 + i]
+            for s in range(J):
+                pred[3 * J * k + 3 * s + i] = (coef[s, 0] * v + coef[s, 1] * acc + coef[s, 2] * jerk
+                                               + coef[s, 3] * sn)
     return 0, -1
 
 

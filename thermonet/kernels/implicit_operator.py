@@ -42,8 +42,8 @@ def operator_kernels(scheme: str, parallel: bool):
 
 
 def _gtr_sweep(du, R, r, w, jc, dir0, dir1, edges, free_index, inc_ptr, inc_spring, masses, h, update, first):
-    """r = R − J du; with ``update``, then du += D⁻¹ r. Returns max |r|. ``first``: du is zero
-    (the spring loop is skipped).
+    """r = R − J du; with ``update``, then du += D⁻¹ r. Returns max |r|. ``first``: du is taken
+    as zero (not read; the spring loop is skipped).
 
     Spring e's block is jc[e] n⁰ n¹ᵀ: w[:3, e] = n⁰ jc[e] n¹·(du_a − du_b)."""
     m = edges.shape[0]
@@ -70,20 +70,20 @@ def _gtr_sweep(du, R, r, w, jc, dir0, dir1, edges, free_index, inc_ptr, inc_spri
             continue
         wm = masses[a] / h
         for i in range(3):
-            r[3 * k + i] = R[3 * k + i] - wm * du[3 * k + i]
+            r[3 * k + i] = R[3 * k + i] - (0.0 if first else wm * du[3 * k + i])
         if not first:
             _gather_add(a, edges, inc_ptr, inc_spring, w, 3, r, 3 * k, r, False)
         for i in range(3):
             acc = r[3 * k + i]
             rmax = max(rmax, abs(acc))
             if update:
-                du[3 * k + i] += acc / wm
+                du[3 * k + i] = (0.0 if first else du[3 * k + i]) + acc / wm
     return rmax
 
 
 def _ho4_sweep(du, R, r, w, jc, dir0, dirh, dir1, edges, free_index, inc_ptr, inc_spring, masses, h, update, first):
-    """r = R − J du; with ``update``, then du += D⁻¹ r. Returns max |r|. ``first``: du is zero
-    (the spring loop is skipped).
+    """r = R − J du; with ``update``, then du += D⁻¹ r. Returns max |r|. ``first``: du is taken
+    as zero (not read; the spring loop is skipped).
 
     Spring e's block applied to the difference (v^½, v¹) = du_a − du_b, into w[:, e] (6,):
     rows R1: n⁰ (a₁ n^½·v^½ + a₂ n¹·v¹); rows R2: n^½ ((k − t) n^½·v^½ + c n¹·v¹) + t v^½."""
@@ -131,15 +131,15 @@ def _ho4_sweep(du, R, r, w, jc, dir0, dirh, dir1, edges, free_index, inc_ptr, in
         wm = masses[a] / h
         q = 0.5 / wm
         for i in range(3):
-            dh = du[6 * k + i]
-            d1 = du[6 * k + 3 + i]
+            dh = 0.0 if first else du[6 * k + i]
+            d1 = 0.0 if first else du[6 * k + 3 + i]
             r[6 * k + i] = R[6 * k + i] - wm * (8.0 * dh - d1) / 3.0
             r[6 * k + 3 + i] = R[6 * k + 3 + i] - wm * (d1 - 2.0 * dh)
         if not first:
             _gather_add(a, edges, inc_ptr, inc_spring, w, 6, r, 6 * k, r, False)
         for i in range(3):
-            dh = du[6 * k + i]
-            d1 = du[6 * k + 3 + i]
+            dh = 0.0 if first else du[6 * k + i]
+            d1 = 0.0 if first else du[6 * k + 3 + i]
             r1 = r[6 * k + i]
             r2 = r[6 * k + 3 + i]
             rmax = max(rmax, max(abs(r1), abs(r2)))
