@@ -45,10 +45,11 @@ def measure(system, state, parallel: bool = False) -> dict[str, float]:
     """One diagnostics row for ``state`` (internal numbering): two fused passes, no temporaries."""
     from .kernels.reductions import diagnostic_sums_kernel
 
-    spring_sums, node_sums = diagnostic_sums_kernel(system.model, system.thermal, parallel)
+    P, uniform = system.kernel_parameters
+    spring_sums, node_sums = diagnostic_sums_kernel(system.model, system.thermal, parallel, uniform)
     eta = state.entropy if system.thermal else _EMPTY
-    internal, theta_min, theta_max = spring_sums(state.positions, eta, system.rest_lengths,
-                                                 system.parameters, system.edges.view(np.uint32))
+    internal, theta_min, theta_max = spring_sums(state.positions, eta, system.rest_lengths, P,
+                                                 system.edges.view(np.uint32))
     gravity = _ZERO3 if system.gravity is None else system.gravity
     kinetic, potential, px, py, pz, Lx, Ly, Lz = node_sums(
         state.positions, state.momenta, system.masses, system.anchored, system.reference_point, gravity)

@@ -19,7 +19,7 @@ from typing import Callable, Iterable, Mapping
 
 import numpy as np
 
-from .diagnostics import Diagnostics, measure, spring_fields
+from .diagnostics import Diagnostics, diagnostics_row, measure, spring_fields
 from .blowup import STRETCH_BOUNDS
 from .errors import InputError, SimulationError
 from .integrators import get_integrator
@@ -277,7 +277,7 @@ class Simulation:
         while self._state.step < end:
             cur = self._state.step
             stop = min([end] + [(cur // k + 1) * k for k, _ in cadences])
-            self._advance(stop - cur)
+            self._advance(stop - cur, measure=stop % cadences[0][0] == 0 or stop == end)
             done = self._state.step
             for k, cb in cadences:
                 if done % k == 0 or done == end:
@@ -314,11 +314,16 @@ class Simulation:
     #: replays at most this many steps more
     BACKUP_SPAN = 256
 
-    def _advance(self, n: int) -> None:
+    def _advance(self, n: int, measure: bool = False) -> None:
+        """n steps; with ``measure``, a stepper that can reduces the diagnostics sums of the end
+        state on the way (see ``SplittingStepper.advance``)."""
         step0 = self._state.step
         backup = self._keep_backup()
         try:
-            stats = self.stepper.advance(self._state, n, self._h)
+            if measure and getattr(self.stepper, "measures", False):
+                stats = self.stepper.advance(self._state, n, self._h, measure=True)
+            else:
+                stats = self.stepper.advance(self._state, n, self._h)
         except StepFailure as exc:
             if exc.details.get("rewind") and backup is not None:
                 self._rewind(backup, step0 + exc.steps_done - backup.step)
@@ -415,8 +420,14 @@ class Simulation:
 
     def _record(self, _sim=None) -> None:
         device_measure = getattr(self.stepper, "measure", None)  # a device-resident state
+        measured = getattr(self.stepper, "measured", None)  # sums reduced by the last advance
+        sums = measured(self._state) if measured is not None else None
         if device_measure is not None:
             row = device_measure(self.system, self._state)
+        elif sums is not None:
+            s = self._state
+            entropy = float(np.sum(s.entropy)) if self.system.thermal else None
+            row = diagnostics_row(self.system, s, entropy=entropy, **sums)
         else:
             row = measure(self.system, self._state, self.parallel)
         row.update(getattr(self, "_last_stats", {}) or {})

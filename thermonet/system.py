@@ -48,6 +48,19 @@ class System:
         return self.layout.edges
 
     @property
+    def kernel_parameters(self) -> tuple[np.ndarray, bool]:
+        """(P, uniform): the parameters as the kernels read them, a shared (k, 1) column when
+        every spring has the same ones (see :func:`thermonet.kernels.splitting.kernel_parameters`);
+        computed once."""
+        cached = self.__dict__.get("_kernel_parameters")
+        if cached is None:
+            from .kernels.splitting import kernel_parameters
+
+            cached = kernel_parameters(self.parameters)
+            object.__setattr__(self, "_kernel_parameters", cached)
+        return cached
+
+    @property
     def n_nodes(self) -> int:
         return self.layout.n_nodes
 

@@ -121,6 +121,9 @@ class SplittingStepper(Stepper):
         self._s = np.empty(m)
         self._f_keep = np.empty((n, 3))
         self._theta_keep = np.empty(m if system.thermal else 0)
+        self._energy_buf = np.empty(m)
+        self._sums = np.empty(11)
+        self._measured = None  # (state, step, sums) of the last call asked to measure its end
         # (state, step) whose forces and temperatures the last call's closing kick left in the
         # keep buffers: a call continuing from exactly there starts from them
         self._boundary = None
@@ -130,7 +133,13 @@ class SplittingStepper(Stepper):
         self._static = (system.rest_lengths, P, lay.edges, lay.inc_ptr, lay.inc_spring,
                         lay.inc_other, system.masses, system.inv_mass, system.anchored)
 
-    def advance(self, state, n_steps: int, h: float):
+    #: advance(..., measure=True) can reduce the end state's diagnostics sums on the way
+    measures = True
+
+    def advance(self, state, n_steps: int, h: float, measure: bool = False):
+        """``n_steps`` steps of h from ``state`` (in place). With ``measure`` the closing kick
+        also reduces the end state's diagnostics sums: :meth:`measured` returns them."""
+        self._measured = None
         if n_steps <= 0:
             return None
         l0, P, edges, inc_ptr, inc_spring, inc_other, masses, inv_mass, anchored = self._static
@@ -139,15 +148,18 @@ class SplittingStepper(Stepper):
         lo, hi = self.system.stretch_bounds
         reuse = self._boundary is not None and self._boundary[0] is state and self._boundary[1] == state.step
         self._boundary = None
-        done, detected = self._advance(
+        done, detected, summed = self._advance(
             state.positions, self._x_buf, state.momenta, phi, eta, self._s,
             l0, P, edges, inc_ptr, inc_spring, inc_other, masses, inv_mass, anchored,
             self._kicks, self._drifts, float(h), int(n_steps), self.integrator.track_phi,
             self._gravity, self.system.gravity is not None, float(lo), float(hi),
-            self._f_keep, self._theta_keep, reuse,
+            self._f_keep, self._theta_keep, reuse, self._energy_buf, self.system.reference_point, self._sums,
+            bool(measure),
         )
         if not detected and self._kicks[-1] != 0.0:
             self._boundary = (state, state.step + int(n_steps))
+        if summed:
+            self._measured = (state, state.step + int(n_steps), self._sums.copy())
         if detected:
             from ..blowup import diagnose
 
@@ -156,3 +168,16 @@ class SplittingStepper(Stepper):
                      if found else "a spring left the admissible states")
             raise StepFailure(where, steps_done=int(done), details={"rewind": True, **found})
         return None
+
+    def measured(self, state) -> dict | None:
+        """The sums of a diagnostics row of ``state`` now, if the last call (with ``measure``)
+        reduced them at its end and ``state`` is still that one: keys as in
+        :func:`thermonet.diagnostics.diagnostics_row`'s arguments; else None."""
+        if self._measured is None:
+            return None
+        kept, step, sums = self._measured
+        if kept is not state or step != state.step:
+            return None
+        U, tmin, tmax, K, V, px, py, pz, lx, ly, lz = (float(v) for v in sums)
+        return dict(kinetic=K, internal=U, potential=V, momentum=(px, py, pz), angular_momentum=(lx, ly, lz),
+                    theta_min=tmin, theta_max=tmax)

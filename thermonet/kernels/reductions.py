@@ -12,23 +12,28 @@ from numba import prange
 from .splitting import BLOCK, squared_lengths
 from .specialize import model_fingerprint, model_namespace, specialize
 
-# Bound per model by specialize(); see kernels/splitting.py for THERMAL / REFERENCE_TEMPERATURE.
+# Bound per model by specialize(); see kernels/splitting.py for THERMAL / REFERENCE_TEMPERATURE /
+# UNIFORM.
 temperature = internal_energy = free_energy = None
 THERMAL = True
 REFERENCE_TEMPERATURE = 0
+UNIFORM = False
 
 _CACHE: dict = {}
 
 
-def diagnostic_sums_kernel(model, thermal: bool, parallel: bool):
+def diagnostic_sums_kernel(model, thermal: bool, parallel: bool, uniform: bool = False):
     """``spring_sums(x, eta, l0, P, edges_uint32) -> (Σ U, θ_min, θ_max)`` and
-    ``node_sums(x, p, masses, anchored, ref, gravity) -> (K, V, px, py, pz, Lx, Ly, Lz)``."""
-    key = (model_fingerprint(model), bool(thermal), bool(parallel))
+    ``node_sums(x, p, masses, anchored, ref, gravity) -> (K, V, px, py, pz, Lx, Ly, Lz)``;
+    P a shared (k, 1) column when ``uniform`` (as the stepping kernels read it)."""
+    key = (model_fingerprint(model), bool(thermal), bool(parallel), bool(uniform))
     if key not in _CACHE:
         ns = model_namespace(model)
         ns["THERMAL"] = bool(thermal)
         ns["REFERENCE_TEMPERATURE"] = model.parameter_index(model.reference_temperature)
-        tag = f"{model.name}_{key[0]}_{'thermal' if thermal else 'mech'}_{'par' if parallel else 'ser'}"
+        ns["UNIFORM"] = bool(uniform)
+        tag = (f"{model.name}_{key[0]}_{'thermal' if thermal else 'mech'}_{'par' if parallel else 'ser'}"
+               f"{'_uniform' if uniform else ''}")
         opts = dict(cache=True, error_model="numpy", parallel=bool(parallel))
         _CACHE[key] = (specialize(_spring_sums, tag, ns, **opts), specialize(_node_sums, tag, ns, **opts))
     return _CACHE[key]
@@ -54,14 +59,15 @@ def _spring_sums(x, eta, l0, P, edges):
         squared_lengths(x, edges, lo, n, length, 0)
         for i in range(n):
             e = np.uint64(lo + i)
+            c = np.uint64(0) if UNIFORM else e
             l = math.sqrt(length[i])
             if THERMAL:
-                theta[i] = temperature(l, eta[e], l0[e], P, e)
-                energy_block[i] = internal_energy(l, eta[e], l0[e], P, e)
+                theta[i] = temperature(l, eta[e], l0[e], P, c)
+                energy_block[i] = internal_energy(l, eta[e], l0[e], P, c)
             else:
-                th = P[REFERENCE_TEMPERATURE, e]
+                th = P[REFERENCE_TEMPERATURE, c]
                 theta[i] = th
-                energy_block[i] = free_energy(l, th, l0[e], P, e)
+                energy_block[i] = free_energy(l, th, l0[e], P, c)
         block_sum = 0.0
         block_min = math.inf
         block_max = -math.inf

@@ -34,7 +34,12 @@ any step boundary gives bit-for-bit the same numbers as one long call. A call en
 closing kick of its last step; it keeps that kick's forces and temperatures (``f_keep``,
 ``theta_keep``), and a following call from the same state (``reuse_boundary``, the caller's
 promise) starts from them instead of evaluating them again: without that, every observer stop of a
-run (a diagnostics row every 10 steps, say) would cost one more force evaluation, a whole CO2 step. Every spring and every
+run (a diagnostics row every 10 steps, say) would cost one more force evaluation, a whole CO2 step.
+With ``want_sums`` the closing kick also reduces a diagnostics row's sums (internal energy and
+the temperature range in its spring pass, kinetic and gravity energy and the momenta in its node
+pass, at the synchronized state the call ends in) into ``sums``, so a row costs a few flops per
+spring instead of two more passes over memory (:func:`thermonet.kernels.reductions` is the
+stand-alone version, for states no call ends in). Every spring and every
 node is computed by one thread with a fixed summation order, so results do not depend on the
 number of threads.
 
@@ -57,7 +62,7 @@ from .specialize import model_fingerprint, model_namespace, specialize
 # REFERENCE_TEMPERATURE and UNIFORM are compile-time constants: with THERMAL False the kernel is
 # the purely mechanical one (every spring at its reference temperature, parameter row
 # REFERENCE_TEMPERATURE; no η, θ or Φ is read or written); with UNIFORM, P is (k, 1) and shared.
-temperature = tension = spring_pass = node_pass = None
+temperature = tension = internal_energy = free_energy = spring_pass = node_pass = None
 THERMAL = True
 REFERENCE_TEMPERATURE = 0
 UNIFORM = False
@@ -116,15 +121,20 @@ def squared_lengths(x, edges, lo, n, out, base):
 
 
 def _spring_pass(x, eta, l0, P, edges, s, phi, phi_h1, phi_h2, track_phi, stretch_min, stretch_max,
-                 theta_keep, keep):
+                 theta_keep, keep, energy_buf, want_sums):
     """Per spring e: s[e] = T/l at x; Φ[e] += (phi_h1 + phi_h2) θ as two additions; θ into
-    theta_keep[e] when ``keep`` (THERMAL only).
+    theta_keep[e] when ``keep`` (THERMAL only); with ``want_sums`` the spring's internal energy
+    (free energy at θ0 when not THERMAL) into energy_buf[e] and the block sums below.
 
-    edges: (m, 2) uint32. P: (k, m), or (k, 1) when UNIFORM. Returns the number of springs
-    outside the admissible states (stretch bounds, non-finite T/l, θ ≤ 0).
+    edges: (m, 2) uint32. P: (k, m), or (k, 1) when UNIFORM. Returns (the number of springs
+    outside the admissible states (stretch bounds, non-finite T/l, θ ≤ 0), Σ energy, min θ,
+    max θ); the sums are 0, inf, −inf without ``want_sums``.
     """
     m = edges.shape[0]
     bad = 0
+    energy = 0.0
+    theta_min = math.inf
+    theta_max = -math.inf
     for blk in prange((m + BLOCK - 1) // BLOCK):
         lo = blk * BLOCK
         n = min(BLOCK, m - lo)
@@ -146,20 +156,47 @@ def _spring_pass(x, eta, l0, P, edges, s, phi, phi_h1, phi_h2, track_phi, stretc
             bad += outside
             if THERMAL and keep:
                 theta_keep[e] = theta
+            if want_sums:
+                if THERMAL:
+                    energy_buf[e] = internal_energy(l, eta[e], rest, P, c)
+                else:
+                    energy_buf[e] = free_energy(l, theta, rest, P, c)
             if THERMAL and track_phi:
                 if phi_h1 != 0.0:
                     phi[e] += phi_h1 * theta
                 phi[e] += phi_h2 * theta
-    return bad
+        if want_sums:  # in order, after the vectorized loop (a sum inside it would keep it scalar)
+            block_sum = 0.0
+            block_min = math.inf
+            block_max = -math.inf
+            for i in range(n):
+                e = np.uint64(lo + i)
+                block_sum += energy_buf[e]
+                th = theta_keep[e] if THERMAL else P[REFERENCE_TEMPERATURE, np.uint64(0) if UNIFORM else e]
+                block_min = min(block_min, th)
+                block_max = max(block_max, th)
+            energy += block_sum
+            theta_min = min(theta_min, block_min)
+            theta_max = max(theta_max, block_max)
+    return bad, energy, theta_min, theta_max
 
 
 def _node_pass(x, x_new, p, s, inc_ptr, inc_spring, inc_other, masses, inv_mass, anchored,
-               kick1, kick2, drift, with_force, gravity, with_gravity, f_keep, force_source):
+               kick1, kick2, drift, with_force, gravity, with_gravity, f_keep, force_source, ref, want_sums):
     """Per node a: f = Σ s_e (x_b − x_a) (+ m g); p += kick1 f; p += kick2 f; x_new = x + drift p/m.
 
     inc_spring, inc_other: (2m,) uint32. force_source: 0 gather f; 1 gather f and keep it in
-    f_keep (n, 3); 2 take f from f_keep.
+    f_keep (n, 3); 2 take f from f_keep. Returns, with ``want_sums``, the sums over free nodes
+    at (x, the new p) of kinetic energy, gravity potential −Σ m g·x, p and (x − ref) × p (else 0).
     """
+    kinetic = 0.0
+    potential = 0.0
+    px = 0.0
+    py = 0.0
+    pz = 0.0
+    lx = 0.0
+    ly = 0.0
+    lz = 0.0
     for a in prange(x.shape[0]):
         xa0 = x[a, 0]
         xa1 = x[a, 1]
@@ -210,20 +247,37 @@ def _node_pass(x, x_new, p, s, inc_ptr, inc_spring, inc_other, masses, inv_mass,
         x_new[a, 0] = xa0 + w * p0
         x_new[a, 1] = xa1 + w * p1
         x_new[a, 2] = xa2 + w * p2
+        if want_sums:
+            r0 = xa0 - ref[0]
+            r1 = xa1 - ref[1]
+            r2 = xa2 - ref[2]
+            kinetic += 0.5 * (p0 * p0 + p1 * p1 + p2 * p2) / masses[a]
+            potential -= masses[a] * (gravity[0] * xa0 + gravity[1] * xa1 + gravity[2] * xa2)
+            px += p0
+            py += p1
+            pz += p2
+            lx += r1 * p2 - r2 * p1
+            ly += r2 * p0 - r0 * p2
+            lz += r0 * p1 - r1 * p0
+    return kinetic, potential, px, py, pz, lx, ly, lz
 
 
 def _advance(x, x_buf, p, phi, eta, s, l0, P, edges, inc_ptr, inc_spring, inc_other, masses, inv_mass,
              anchored, kicks, drifts, h, n_steps, track_phi, gravity, with_gravity, stretch_min, stretch_max,
-             f_keep, theta_keep, reuse_boundary):
+             f_keep, theta_keep, reuse_boundary, energy_buf, ref, sums, want_sums):
     """Advance (x, p, Φ) in place by ``n_steps`` steps of the scheme (kicks (S+1,), drifts (S,)).
 
     The closing kick's forces and temperatures are kept in f_keep (n, 3) and theta_keep (m,)
     (empty when not THERMAL); with ``reuse_boundary`` the first kick takes them from there
     instead of evaluating them (the caller vouches that x, η are those of the previous call's end).
+    With ``want_sums`` the closing kick writes the end state's diagnostics sums into sums (11,):
+    Σ U (Σ F(l, θ0) when not THERMAL), min θ, max θ, kinetic, gravity potential, p (3),
+    angular momentum about ref (3); energy_buf (m,) is their scratch.
 
-    Returns (steps completed, detected): ``detected`` when a spring left the admissible states
-    (see the module docstring); then ``x`` holds the positions where it was found and only the
-    first ``steps completed`` steps are known good (x, p, Φ are mid-step: rewind and replay).
+    Returns (steps completed, detected, summed): ``detected`` when a spring left the admissible
+    states (see the module docstring); then ``x`` holds the positions where it was found and only
+    the first ``steps completed`` steps are known good (x, p, Φ are mid-step: rewind and replay).
+    ``summed``: the sums were written (a scheme without a closing kick writes none).
 
     x, x_buf, p: (n, 3); phi, eta, s, l0: (m,); P: (k, m), or (k, 1) for the UNIFORM variant;
     edges: (m, 2) int32; inc_*: CSR incidence (inc_ptr (n+1,) int64, inc_spring and inc_other
@@ -249,27 +303,39 @@ def _advance(x, x_buf, p, phi, eta, s, l0, P, edges, inc_ptr, inc_spring, inc_ot
                     for e in range(phi.shape[0]):
                         phi[e] += (k2 * h) * theta_keep[e]
             elif with_force:
-                if spring_pass(cur, eta, l0, P, edges_u, s, phi, k1 * h, k2 * h, track_phi,
-                               stretch_min, stretch_max, theta_keep, False) > 0:
+                bad = spring_pass(cur, eta, l0, P, edges_u, s, phi, k1 * h, k2 * h, track_phi,
+                                  stretch_min, stretch_max, theta_keep, False, energy_buf, False)[0]
+                if bad > 0:
                     if swaps % 2 == 1:
                         x[:, :] = x_buf
                     # positions at stage 0 are the end of the previous step: that step was the bad one
-                    return (step - 1 if i == 0 and step > 0 else step), True
+                    return (step - 1 if i == 0 and step > 0 else step), True, False
             node_pass(cur, nxt, p, s, inc_ptr, inc_spring_u, inc_other_u, masses, inv_mass, anchored,
-                      k1 * h, k2 * h, drifts[i] * h, with_force, gravity, with_gravity, f_keep, 2 if reuse else 0)
+                      k1 * h, k2 * h, drifts[i] * h, with_force, gravity, with_gravity, f_keep, 2 if reuse else 0,
+                      ref, False)
             cur, nxt = nxt, cur
             swaps += 1
         pending = kicks[n_stages]
+    summed = False
     if pending != 0.0:
-        if spring_pass(cur, eta, l0, P, edges_u, s, phi, 0.0, pending * h, track_phi,
-                       stretch_min, stretch_max, theta_keep, True) > 0:
+        bad, energy, theta_min, theta_max = spring_pass(cur, eta, l0, P, edges_u, s, phi, 0.0, pending * h,
+                                                        track_phi, stretch_min, stretch_max, theta_keep, True,
+                                                        energy_buf, want_sums)
+        if bad > 0:
             if swaps % 2 == 1:
                 x[:, :] = x_buf
-            return n_steps - 1, True
-        node_pass(cur, nxt, p, s, inc_ptr, inc_spring_u, inc_other_u, masses, inv_mass, anchored,
-                  0.0, pending * h, 0.0, True, gravity, with_gravity, f_keep, 1)
+            return n_steps - 1, True, False
+        node_sums = node_pass(cur, nxt, p, s, inc_ptr, inc_spring_u, inc_other_u, masses, inv_mass, anchored,
+                              0.0, pending * h, 0.0, True, gravity, with_gravity, f_keep, 1, ref, want_sums)
         cur, nxt = nxt, cur
         swaps += 1
+        if want_sums:
+            sums[0] = energy
+            sums[1] = theta_min
+            sums[2] = theta_max
+            for q in range(8):
+                sums[3 + q] = node_sums[q]
+            summed = True
     if swaps % 2 == 1:
         x[:, :] = x_buf
-    return n_steps, False
+    return n_steps, False, summed
