@@ -82,7 +82,7 @@ class HO4Stepper(ImplicitStepper):
 
     def sweep(self, du, rhs, r, update, first=False):
         return self.sweeper(du, rhs, r, self.sweep_scratch, self.jc, self.dir0, self.dirh, self.dir1,
-                            self.edges_u, self.free_index, *self.incidence, self.system.masses, self.h, update, first)
+                            self.ends, self.free_index, *self.incidence, self.system.masses, self.h, update, first)
 
     def apply_inverse_inertia(self, v):
         """Per free node, (h/m) ½ [[1, 1/3], [2, 8/3]] applied to (v^½, v¹)."""

@@ -59,10 +59,15 @@ class ImplicitStepper(Stepper):
         self.options = options
         self.kernels = implicit_kernels(system.model, self.scheme, parallel)
         self.sweeper = operator_kernels(self.scheme, parallel)
-        # the kernels read the int32 index arrays as unsigned (no negative-index wrap-around)
+        # the kernels read the int32 index arrays as unsigned (no negative-index wrap-around),
+        # and the incidence with each spring's sign at that node (+1 at its first end)
+        lay = system.layout
         self.edges_u = system.edges.view(np.uint32)
-        self.incidence = (system.layout.inc_ptr, system.layout.inc_spring.view(np.uint32))
+        first_end = system.edges[lay.inc_spring, 0] == np.repeat(np.arange(system.n_nodes), np.diff(lay.inc_ptr))
+        self.incidence = (lay.inc_ptr, lay.inc_spring.view(np.uint32), np.where(first_end, 1.0, -1.0))
         self.pattern = BlockPattern.build(system.edges, system.anchored, self.block)
+        #: (m, 2) the unknown blocks of each spring's ends (−1: anchored), for the sweeps
+        self.ends = np.ascontiguousarray(self.pattern.free_index[system.edges])
         self.solver = make_linear_solver(options.linear_solver, self.pattern, self)
         n, m, size = system.n_nodes, system.n_springs, self.pattern.size
         self.free_index = self.pattern.free_index

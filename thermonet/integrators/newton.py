@@ -425,7 +425,7 @@ def newton(problem, u: np.ndarray, options: NewtonOptions, solver, timers: Newto
             return NewtonResult(False, it, history, 0, -1, "residual not finite")
         if rho <= options.tolerance:
             return NewtonResult(True, it, history)
-        if it > 0 and increment <= options.rtol * np.abs(u).max() + options.atol and rho <= 1e3 * options.tolerance:
+        if it > 0 and rho <= 1e3 * options.tolerance and increment <= options.rtol * np.abs(u).max() + options.atol:
             return NewtonResult(True, it, history)
         if it == options.max_iterations:
             break

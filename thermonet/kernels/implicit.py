@@ -137,6 +137,7 @@ def implicit_kernels(model, scheme: str, parallel: bool = False) -> ImplicitKern
 # as θ ← θ exp(−δθ/θ)): temperatures stay positive without step halving, and for an entropy
 # that is affine in ln θ (model "hencky") it is exact in one step.
 MAX_LOG_STEP = 20.0
+SIXTH = 1.0 / 6.0
 
 
 @njit(cache=True, inline="always")
@@ -162,14 +163,14 @@ def _admissible(t):
 
 
 @njit(cache=True, inline="always")
-def _gather_add(a, edges, inc_ptr, inc_spring, fs, B, out, base, mag, with_mag):
+def _gather_add(a, inc_ptr, inc_spring, inc_sign, fs, B, out, base, mag, with_mag):
     """out[base:base+B] += Σ_e s_e fs[:B, e] (and, with_mag, mag[base:base+B] += Σ_e |fs[:B, e]|)
     over the springs of node a, s_e = −1 where a is the spring's first end and +1 where it is
-    the second (a residual's sign: R_a −= v, R_b += v); in the incidence list's order.
-    edges, inc_spring: unsigned views."""
+    the second (a residual's sign: R_a −= v, R_b += v; inc_sign is +1 at first ends); in the
+    incidence list's order. inc_spring: unsigned."""
     for j in range(inc_ptr[a], inc_ptr[a + 1]):
         e = inc_spring[j]
-        sg = -1.0 if edges[e, 0] == a else 1.0
+        sg = -inc_sign[j]
         for i in range(B):
             v = fs[i, e]
             out[base + i] += sg * v
@@ -209,7 +210,7 @@ SNAP_TRUST = 0.1
 STIFFNESS_STEP = 1e-3
 
 
-def _start(x0, p, inv_mass, eta, l0, P, edges, inc_ptr, inc_spring, free_index, gravity, with_gravity,
+def _start(x0, p, inv_mass, eta, l0, P, edges, inc_ptr, inc_spring, inc_sign, free_index, gravity, with_gravity,
            len0, dir0, fs, ws, nodal, code, rate, h, coef, pred):
     """Lengths len0 (m,) and unit vectors dir0 (3, m) at x0 (n, 3), and the explicit predictor
     of the step's unknowns into pred (B n_free,): per free node and sub-block j (B = 3 × rows
@@ -246,9 +247,10 @@ def _start(x0, p, inv_mass, eta, l0, P, edges, inc_ptr, inc_spring, free_index, 
             dy = dir0[1, e]
             dz = dir0[2, e]
             l = math.sqrt(dx * dx + dy * dy + dz * dz)
-            nx = dx / l
-            ny = dy / l
-            nz = dz / l
+            il = 1.0 / l
+            nx = dx * il
+            ny = dy * il
+            nz = dz * il
             len0[e] = l
             dir0[0, e] = nx
             dir0[1, e] = ny
@@ -301,7 +303,7 @@ def _start(x0, p, inv_mass, eta, l0, P, edges, inc_ptr, inc_spring, free_index, 
         r2 = 0.0
         for j in range(inc_ptr[a], inc_ptr[a + 1]):
             e = inc_spring[j]
-            sg = 1.0 if edges[e, 0] == a else -1.0
+            sg = inc_sign[j]
             f0 += sg * fs[0, e]
             f1 += sg * fs[1, e]
             f2 += sg * fs[2, e]
@@ -369,7 +371,7 @@ def _start(x0, p, inv_mass, eta, l0, P, edges, inc_ptr, inc_spring, free_index, 
         s2 = 0.0
         for j in range(inc_ptr[a], inc_ptr[a + 1]):
             e = inc_spring[j]
-            sg = 1.0 if edges[e, 0] == a else -1.0
+            sg = inc_sign[j]
             s0 += sg * fs[3, e]
             s1 += sg * fs[4, e]
             s2 += sg * fs[5, e]
@@ -394,7 +396,7 @@ def _start(x0, p, inv_mass, eta, l0, P, edges, inc_ptr, inc_spring, free_index, 
     return 0, -1
 
 
-def _finish_nodes(x0, u, p, fs, edges, free_index, inc_ptr, inc_spring, masses, h, gravity, with_gravity,
+def _finish_nodes(x0, u, p, fs, edges, free_index, inc_ptr, inc_spring, inc_sign, masses, h, gravity, with_gravity,
                   stride, offset, x_new, p_new):
     """The nodes' part of both finish kernels: x¹ = x⁰ + u[stride k + offset + i] for free node k,
     p¹ = p⁰ (+ h m g) − Σ± fs over the incident springs (fs: the per-spring impulses of the step,
@@ -413,7 +415,7 @@ def _finish_nodes(x0, u, p, fs, edges, free_index, inc_ptr, inc_spring, masses, 
         F2 = 0.0
         for j in range(inc_ptr[a], inc_ptr[a + 1]):
             e = inc_spring[j]
-            sg = -1.0 if edges[e, 0] == a else 1.0
+            sg = -inc_sign[j]
             F0 += sg * fs[0, e]
             F1 += sg * fs[1, e]
             F2 += sg * fs[2, e]
@@ -482,7 +484,7 @@ def _gtr_thermal_vector(la, lb, eta, l0, P, e, alpha, guess):
     return th, beta * d2F_dl_dtheta(lb, th, l0, P, e) / Gt, ok
 
 
-def _gtr_residual(x0, u, p, eta, l0, P, edges, free_index, inc_ptr, inc_spring, masses, alpha, h, gravity,
+def _gtr_residual(x0, u, p, eta, l0, P, edges, free_index, inc_ptr, inc_spring, inc_sign, masses, alpha, h, gravity,
                   with_gravity, len0, dir0, len1, dir1, theta, dtheta, warm, fs, guess, code, R, Rabs):
     """R, Rabs (3 n_free,) at unknowns u (3 n_free,); fills len1 (m,), dir1 (3, m), θ̄ and
     dθ̄/dl¹ (m,) for the Jacobian and the finish. With ``warm``, the θ̄ of the previous call
@@ -522,9 +524,10 @@ def _gtr_residual(x0, u, p, eta, l0, P, edges, free_index, inc_ptr, inc_spring, 
             g = theta[e] + dtheta[e] * (l1 - len1[e]) if warm else -1.0
             guess[e] = g
             len1[e] = l1
-            dir1[0, e] = dx / l1
-            dir1[1, e] = dy / l1
-            dir1[2, e] = dz / l1
+            i1 = 1.0 / l1
+            dir1[0, e] = dx * i1
+            dir1[1, e] = dy * i1
+            dir1[2, e] = dz * i1
             la = len0[e]
             th, dth, ok = gtr_thermal_vector(la, l1, eta[e], l0[e], P, e, alpha, g)
             theta[e] = th
@@ -567,7 +570,7 @@ def _gtr_residual(x0, u, p, eta, l0, P, edges, free_index, inc_ptr, inc_spring, 
             g = alpha * h * masses[a] * gravity[i] if with_gravity else 0.0
             R[3 * k + i] = inertia - p[a, i] - g
             Rabs[3 * k + i] = abs(inertia) + abs(p[a, i]) + abs(g)
-        _gather_add(a, edges, inc_ptr, inc_spring, fs, 3, R, 3 * k, Rabs, True)
+        _gather_add(a, inc_ptr, inc_spring, inc_sign, fs, 3, R, 3 * k, Rabs, True)
         for i in range(3):
             rmax = max(rmax, abs(R[3 * k + i]))
             smax = max(smax, Rabs[3 * k + i])
@@ -617,7 +620,7 @@ def _gtr_jacobian(free_index, masses, alpha, h, l0, P, edges, len0, dir0, dir1, 
                     data[base + i * stride + j] += sign * B[i, j]
 
 
-def _gtr_finish(x0, u, p, phi, eta, l0, P, edges, free_index, inc_ptr, inc_spring, masses, alpha, h, gravity,
+def _gtr_finish(x0, u, p, phi, eta, l0, P, edges, free_index, inc_ptr, inc_spring, inc_sign, masses, alpha, h, gravity,
                 with_gravity, len0, dir0, len1, dir1, theta, fs, code, x_new, p_new, phi_new, eta_new):
     """The next state from converged unknowns: x¹ = x⁰ + d; Φ¹ = Φ⁰ + h θ̄;
     η¹ = α Γ(l⁰, θ̄) + (1 − α) Γ(l¹, θ̄) measured (48d); and
@@ -646,7 +649,7 @@ def _gtr_finish(x0, u, p, phi, eta, l0, P, edges, free_index, inc_ptr, inc_sprin
         bad = min(bad, _first_flagged(code, lo, n, m))
     if bad < m:
         return code[bad], bad
-    return finish_nodes(x0, u, p, fs, edges, free_index, inc_ptr, inc_spring, masses, h, gravity, with_gravity,
+    return finish_nodes(x0, u, p, fs, edges, free_index, inc_ptr, inc_spring, inc_sign, masses, h, gravity, with_gravity,
                         3, 0, x_new, p_new)
 
 
@@ -667,17 +670,17 @@ def _ho4_derivatives(la, lh, lb, l0, P, e, t0, t1):
     # ∂(G1, G2)/∂l^½ = (0, 4Γ_l(lh, θ^½)/6); ∂(G1, G2)/∂l¹ = (−Γ_l(lb, θ¹), −Γ_l(lb, θ¹)/6)
     J00 = g0
     J01 = -g1
-    J10 = (3.0 * g0 + 2.0 * gh) / 6.0
-    J11 = (2.0 * gh - g1) / 6.0
-    det = J00 * J11 - J01 * J10
-    qh = -4.0 * d2F_dl_dtheta(lh, th, l0, P, e) / 6.0
+    J10 = (3.0 * g0 + 2.0 * gh) * SIXTH
+    J11 = (2.0 * gh - g1) * SIXTH
+    inv_det = 1.0 / (J00 * J11 - J01 * J10)
+    qh = -4.0 * SIXTH * d2F_dl_dtheta(lh, th, l0, P, e)
     w1 = d2F_dl_dtheta(lb, t1, l0, P, e)
     q1a = w1
-    q1b = w1 / 6.0
-    d0h = -(-J01 * qh) / det
-    d1h = -(J00 * qh) / det
-    d01 = -(J11 * q1a - J01 * q1b) / det
-    d11 = -(J00 * q1b - J10 * q1a) / det
+    q1b = w1 * SIXTH
+    d0h = J01 * qh * inv_det
+    d1h = -(J00 * qh) * inv_det
+    d01 = -(J11 * q1a - J01 * q1b) * inv_det
+    d11 = -(J00 * q1b - J10 * q1a) * inv_det
     return d0h, d01, d1h, d11
 
 
@@ -697,19 +700,7 @@ def _ho4_thermal(la, lh, lb, eta, l0, P, e, guess, warm):
         return G, t0, t1, 0.0, 0.0, 0.0, 0.0, 0
     done = False
     for _ in range(LOCAL_ITERATIONS):
-        th = 0.5 * (t0 + t1)
-        r = (2.0 * G + 4.0 * entropy(lh, th, l0, P, e)) / 6.0 - eta
-        g0 = -d2F_dtheta2(la, t0, l0, P, e)  # Γ_θ, so dθ/dG = 1/Γ_θ
-        gh = -d2F_dtheta2(lh, th, l0, P, e)
-        g1 = -d2F_dtheta2(lb, t1, l0, P, e)
-        dG = r / ((2.0 + 2.0 * gh * (1.0 / g0 + 1.0 / g1)) / 6.0)
-        # the change of ln θ⁰ and ln θ¹ this causes, bounded so exp() cannot overflow
-        s0 = dG / (g0 * t0)
-        s1 = dG / (g1 * t1)
-        big = max(abs(s0), abs(s1))
-        if big > MAX_LOG_STEP:
-            dG *= MAX_LOG_STEP / big
-        G -= dG
+        G, s0, s1, big = ho4_correct(la, lh, lb, eta, l0, P, e, G, t0, t1)
         if big <= THETA_STOP:
             # dθ = −dG/Γ_θ to second order (the neglected term is ~ big², below round-off)
             t0 *= 1.0 - s0 + 0.5 * s0 * s0
@@ -725,16 +716,20 @@ def _ho4_thermal(la, lh, lb, eta, l0, P, e, guess, warm):
 
 
 def _ho4_correct(la, lh, lb, eta, l0, P, e, G, t0, t1):
-    """One Newton correction of :func:`_ho4_thermal` (branch-free): (new G, the changes of
-    ln θ⁰ and ln θ¹ it causes, the larger of their magnitudes)."""
+    """One Newton correction of the scalar equation of :func:`_ho4_thermal` (branch-free):
+    (new G, the changes of ln θ⁰ and ln θ¹ it causes, the larger of their magnitudes).
+    Written with few divisions: they are most of a vectorized solve's cost."""
     th = 0.5 * (t0 + t1)
-    r = (2.0 * G + 4.0 * entropy(lh, th, l0, P, e)) / 6.0 - eta
-    g0 = -d2F_dtheta2(la, t0, l0, P, e)
+    r = (2.0 * G + 4.0 * entropy(lh, th, l0, P, e)) * SIXTH - eta
+    g0 = -d2F_dtheta2(la, t0, l0, P, e)  # Γ_θ, so dθ/dG = 1/Γ_θ
     gh = -d2F_dtheta2(lh, th, l0, P, e)
     g1 = -d2F_dtheta2(lb, t1, l0, P, e)
-    dG = r / ((2.0 + 2.0 * gh * (1.0 / g0 + 1.0 / g1)) / 6.0)
-    s0 = dG / (g0 * t0)
-    s1 = dG / (g1 * t1)
+    q0 = 1.0 / (g0 * t0)
+    q1 = 1.0 / (g1 * t1)
+    dG = 6.0 * r / (2.0 + 2.0 * gh * (q0 * t0 + q1 * t1))
+    # the change of ln θ⁰ and ln θ¹ this causes, bounded so exp() cannot overflow
+    s0 = dG * q0
+    s1 = dG * q1
     big = max(abs(s0), abs(s1))
     dG = dG * (MAX_LOG_STEP / big) if big > MAX_LOG_STEP else dG
     return G - dG, s0, s1, big
@@ -758,7 +753,7 @@ def _ho4_thermal_vector(la, lh, lb, eta, l0, P, e, guess, warm):
     return G, t0, t1, d0h, d01, d1h, d11, ok
 
 
-def _ho4_residual(x0, u, p, eta, l0, P, edges, free_index, inc_ptr, inc_spring, masses, h, gravity, with_gravity,
+def _ho4_residual(x0, u, p, eta, l0, P, edges, free_index, inc_ptr, inc_spring, inc_sign, masses, h, gravity, with_gravity,
                   len0, dir0, lenh, dirh, len1, dir1, th0, th1, dth, gs, warm, fs, guess, code, R, Rabs):
     """R, Rabs (6 n_free,) at unknowns u (6 n_free,); fills lengths/unit vectors (3, m) at x^½
     and x¹, θ⁰, θ¹ (m,), dth (4, m) = dθ⁰/dl^½, dθ⁰/dl¹, dθ¹/dl^½, dθ¹/dl¹ and gs (m,) = Γ⁰ =
@@ -818,13 +813,15 @@ def _ho4_residual(x0, u, p, eta, l0, P, edges, free_index, inc_ptr, inc_spring, 
             g = gs[e] - d2F_dtheta2(la, th0[e], rest, P, e) * (dth[0, e] * (lh - lenh[e]) + dth[1, e] * (l1 - len1[e]))
             guess[e] = g
             lenh[e] = lh
-            dirh[0, e] = hx / lh
-            dirh[1, e] = hy / lh
-            dirh[2, e] = hz / lh
+            ih = 1.0 / lh
+            dirh[0, e] = hx * ih
+            dirh[1, e] = hy * ih
+            dirh[2, e] = hz * ih
             len1[e] = l1
-            dir1[0, e] = ex / l1
-            dir1[1, e] = ey / l1
-            dir1[2, e] = ez / l1
+            i1 = 1.0 / l1
+            dir1[0, e] = ex * i1
+            dir1[1, e] = ey * i1
+            dir1[2, e] = ez * i1
             G, t0, t1, d0h, d01, d1h, d11, ok = ho4_thermal_vector(la, lh, l1, eta[e], rest, P, e, g, warm)
             gs[e] = G
             th0[e] = t0
@@ -890,7 +887,7 @@ def _ho4_residual(x0, u, p, eta, l0, P, edges, free_index, inc_ptr, inc_spring, 
             Rabs[6 * k + i] = abs(i1) + abs(p[a, i]) + abs(g0)
             R[6 * k + 3 + i] = i2 - gh
             Rabs[6 * k + 3 + i] = abs(i2) + abs(gh)
-        _gather_add(a, edges, inc_ptr, inc_spring, fs, 6, R, 6 * k, Rabs, True)
+        _gather_add(a, inc_ptr, inc_spring, inc_sign, fs, 6, R, 6 * k, Rabs, True)
         for i in range(6):
             rmax = max(rmax, abs(R[6 * k + i]))
             smax = max(smax, Rabs[6 * k + i])
@@ -974,7 +971,7 @@ def _ho4_jacobian(free_index, masses, h, l0, P, edges, len0, dir0, lenh, dirh, d
                     data[base + i * stride + j] += sign * B[i, j]
 
 
-def _ho4_finish(x0, u, p, phi, eta, l0, P, edges, free_index, inc_ptr, inc_spring, masses, h, gravity, with_gravity,
+def _ho4_finish(x0, u, p, phi, eta, l0, P, edges, free_index, inc_ptr, inc_spring, inc_sign, masses, h, gravity, with_gravity,
                 len0, dir0, lenh, dirh, len1, dir1, th0, th1, fs, code, x_new, p_new, phi_new, eta_new):
     """The next state from converged unknowns: x¹ = x⁰ + d¹; Φ¹ = Φ⁰ + h (θ⁰ + θ¹)/2;
     η¹ = (−Γ⁰ + 4Γ^½ + 3Γ¹)/6 measured (58d); and p¹ = p⁰ + h (f⁰ + 4 f^½ + f¹)/6, which is
@@ -1009,5 +1006,5 @@ def _ho4_finish(x0, u, p, phi, eta, l0, P, edges, free_index, inc_ptr, inc_sprin
         bad = min(bad, _first_flagged(code, lo, n, m))
     if bad < m:
         return code[bad], bad
-    return finish_nodes(x0, u, p, fs, edges, free_index, inc_ptr, inc_spring, masses, h, gravity, with_gravity,
+    return finish_nodes(x0, u, p, fs, edges, free_index, inc_ptr, inc_spring, inc_sign, masses, h, gravity, with_gravity,
                         6, 3, x_new, p_new)

@@ -15,8 +15,9 @@ measured ≈ 0.02–0.05 on the benchmark lattices at h = 0.01). Both loops are 
 compiled with parallel=True; each node sums its springs in a fixed order (thread-independent).
 
 Shapes: du, R, r (B n_free,); w (B, m) scratch (GTR-α: (≥3, m)); jc per-spring coefficients ((m,)
-GTR-α, (5, m) HO4, see :mod:`.implicit`); dir* (3, m); edges (m, 2) int32; free_index (n,);
-inc_ptr (n+1,), inc_spring (2m,) int32 the node→spring incidence; masses (n,). Per-spring arrays
+GTR-α, (5, m) HO4, see :mod:`.implicit`); dir* (3, m); ends (m, 2) the unknown blocks of the
+springs' ends (free_index of edges, −1 where anchored); free_index (n,); inc_ptr (n+1,),
+inc_spring (2m,) uint32, inc_sign (2m,) the node→spring incidence; masses (n,). Per-spring arrays
 are component-major like the residual's; indices are read as unsigned.
 """
 
@@ -41,16 +42,16 @@ def operator_kernels(scheme: str, parallel: bool):
     return _CACHE[key]
 
 
-def _gtr_sweep(du, R, r, w, jc, dir0, dir1, edges, free_index, inc_ptr, inc_spring, masses, h, update, first):
+def _gtr_sweep(du, R, r, w, jc, dir0, dir1, ends, free_index, inc_ptr, inc_spring, inc_sign, masses, h, update, first):
     """r = R − J du; with ``update``, then du += D⁻¹ r. Returns max |r|. ``first``: du is taken
     as zero (not read; the spring loop is skipped).
 
     Spring e's block is jc[e] n⁰ n¹ᵀ: w[:3, e] = n⁰ jc[e] n¹·(du_a − du_b)."""
-    m = edges.shape[0]
+    m = ends.shape[0]
     for e in prange(0 if first else m):
         eu = np.uint64(e)
-        ka = free_index[edges[eu, 0]]
-        kb = free_index[edges[eu, 1]]
+        ka = ends[eu, 0]
+        kb = ends[eu, 1]
         s = 0.0
         for i in range(3):
             d = 0.0
@@ -72,7 +73,7 @@ def _gtr_sweep(du, R, r, w, jc, dir0, dir1, edges, free_index, inc_ptr, inc_spri
         for i in range(3):
             r[3 * k + i] = R[3 * k + i] - (0.0 if first else wm * du[3 * k + i])
         if not first:
-            _gather_add(a, edges, inc_ptr, inc_spring, w, 3, r, 3 * k, r, False)
+            _gather_add(a, inc_ptr, inc_spring, inc_sign, w, 3, r, 3 * k, r, False)
         for i in range(3):
             acc = r[3 * k + i]
             rmax = max(rmax, abs(acc))
@@ -81,17 +82,17 @@ def _gtr_sweep(du, R, r, w, jc, dir0, dir1, edges, free_index, inc_ptr, inc_spri
     return rmax
 
 
-def _ho4_sweep(du, R, r, w, jc, dir0, dirh, dir1, edges, free_index, inc_ptr, inc_spring, masses, h, update, first):
+def _ho4_sweep(du, R, r, w, jc, dir0, dirh, dir1, ends, free_index, inc_ptr, inc_spring, inc_sign, masses, h, update, first):
     """r = R − J du; with ``update``, then du += D⁻¹ r. Returns max |r|. ``first``: du is taken
     as zero (not read; the spring loop is skipped).
 
     Spring e's block applied to the difference (v^½, v¹) = du_a − du_b, into w[:, e] (6,):
     rows R1: n⁰ (a₁ n^½·v^½ + a₂ n¹·v¹); rows R2: n^½ ((k − t) n^½·v^½ + c n¹·v¹) + t v^½."""
-    m = edges.shape[0]
+    m = ends.shape[0]
     for e in prange(0 if first else m):
         eu = np.uint64(e)
-        ka = free_index[edges[eu, 0]]
-        kb = free_index[edges[eu, 1]]
+        ka = ends[eu, 0]
+        kb = ends[eu, 1]
         vh0 = 0.0
         vh1 = 0.0
         vh2 = 0.0
@@ -136,7 +137,7 @@ def _ho4_sweep(du, R, r, w, jc, dir0, dirh, dir1, edges, free_index, inc_ptr, in
             r[6 * k + i] = R[6 * k + i] - wm * (8.0 * dh - d1) / 3.0
             r[6 * k + 3 + i] = R[6 * k + 3 + i] - wm * (d1 - 2.0 * dh)
         if not first:
-            _gather_add(a, edges, inc_ptr, inc_spring, w, 6, r, 6 * k, r, False)
+            _gather_add(a, inc_ptr, inc_spring, inc_sign, w, 6, r, 6 * k, r, False)
         for i in range(3):
             dh = 0.0 if first else du[6 * k + i]
             d1 = 0.0 if first else du[6 * k + 3 + i]
