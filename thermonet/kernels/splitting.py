@@ -63,7 +63,9 @@ from .specialize import model_fingerprint, model_namespace, specialize
 # the purely mechanical one (every spring at its reference temperature, parameter row
 # REFERENCE_TEMPERATURE; no η, θ or Φ is read or written); with UNIFORM, P is (k, 1) and shared.
 temperature = tension = internal_energy = free_energy = spring_pass = node_pass = None
+boundary_spring_pass = boundary_node_pass = None
 THERMAL = True
+CLOSING = False
 REFERENCE_TEMPERATURE = 0
 UNIFORM = False
 
@@ -99,8 +101,14 @@ def splitting_kernels(model, parallel: bool, thermal: bool = True, uniform: bool
         ns["THERMAL"] = bool(thermal)
         ns["REFERENCE_TEMPERATURE"] = model.parameter_index(model.reference_temperature)
         ns["UNIFORM"] = bool(uniform)
+        ns["CLOSING"] = False
         ns["spring_pass"] = specialize(_spring_pass, tag, ns, parallel=parallel, **_OPTIONS)
         ns["node_pass"] = specialize(_node_pass, tag, ns, parallel=parallel, **_OPTIONS)
+        boundary = dict(ns, CLOSING=True)
+        ns["boundary_spring_pass"] = specialize(_spring_pass, tag + "_boundary", boundary, parallel=parallel,
+                                                **_OPTIONS)
+        ns["boundary_node_pass"] = specialize(_node_pass, tag + "_boundary", boundary, parallel=parallel,
+                                              **_OPTIONS)
         _CACHE[key] = specialize(_advance, tag, ns, **_OPTIONS)
     return _CACHE[key]
 
@@ -128,7 +136,8 @@ def _spring_pass(x, eta, l0, P, edges, s, phi, phi_h1, phi_h2, track_phi, stretc
 
     edges: (m, 2) uint32. P: (k, m), or (k, 1) when UNIFORM. Returns (the number of springs
     outside the admissible states (stretch bounds, non-finite T/l, θ ≤ 0), Σ energy, min θ,
-    max θ); the sums are 0, inf, −inf without ``want_sums``.
+    max θ); the sums are 0, inf, −inf without ``want_sums``. Compiled twice: with CLOSING for
+    the calls' first and last kicks, and without (keep and sums compiled out) for every other.
     """
     m = edges.shape[0]
     bad = 0
@@ -154,30 +163,32 @@ def _spring_pass(x, eta, l0, P, edges, s, phi, phi_h1, phi_h2, track_phi, stretc
             if THERMAL:
                 outside = outside | (not (theta > 0.0))
             bad += outside
-            if THERMAL and keep:
-                theta_keep[e] = theta
-            if want_sums:
-                if THERMAL:
-                    energy_buf[e] = internal_energy(l, eta[e], rest, P, c)
-                else:
-                    energy_buf[e] = free_energy(l, theta, rest, P, c)
+            if CLOSING:
+                if THERMAL and keep:
+                    theta_keep[e] = theta
+                if want_sums:
+                    if THERMAL:
+                        energy_buf[e] = internal_energy(l, eta[e], rest, P, c)
+                    else:
+                        energy_buf[e] = free_energy(l, theta, rest, P, c)
             if THERMAL and track_phi:
                 if phi_h1 != 0.0:
                     phi[e] += phi_h1 * theta
                 phi[e] += phi_h2 * theta
-        if want_sums:  # in order, after the vectorized loop (a sum inside it would keep it scalar)
-            block_sum = 0.0
-            block_min = math.inf
-            block_max = -math.inf
-            for i in range(n):
-                e = np.uint64(lo + i)
-                block_sum += energy_buf[e]
-                th = theta_keep[e] if THERMAL else P[REFERENCE_TEMPERATURE, np.uint64(0) if UNIFORM else e]
-                block_min = min(block_min, th)
-                block_max = max(block_max, th)
-            energy += block_sum
-            theta_min = min(theta_min, block_min)
-            theta_max = max(theta_max, block_max)
+        if CLOSING:
+            if want_sums:  # in order, after the vectorized loop (a sum inside it would keep it scalar)
+                block_sum = 0.0
+                block_min = math.inf
+                block_max = -math.inf
+                for i in range(n):
+                    e = np.uint64(lo + i)
+                    block_sum += energy_buf[e]
+                    th = theta_keep[e] if THERMAL else P[REFERENCE_TEMPERATURE, np.uint64(0) if UNIFORM else e]
+                    block_min = min(block_min, th)
+                    block_max = max(block_max, th)
+                energy += block_sum
+                theta_min = min(theta_min, block_min)
+                theta_max = max(theta_max, block_max)
     return bad, energy, theta_min, theta_max
 
 
@@ -210,7 +221,7 @@ def _node_pass(x, x_new, p, s, inc_ptr, inc_spring, inc_other, masses, inv_mass,
         p1 = p[a, 1]
         p2 = p[a, 2]
         if with_force:
-            if force_source == 2:
+            if CLOSING and force_source == 2:
                 f0 = f_keep[a, 0]
                 f1 = f_keep[a, 1]
                 f2 = f_keep[a, 2]
@@ -229,7 +240,7 @@ def _node_pass(x, x_new, p, s, inc_ptr, inc_spring, inc_other, masses, inv_mass,
                     f0 += masses[a] * gravity[0]
                     f1 += masses[a] * gravity[1]
                     f2 += masses[a] * gravity[2]
-                if force_source == 1:
+                if CLOSING and force_source == 1:
                     f_keep[a, 0] = f0
                     f_keep[a, 1] = f1
                     f_keep[a, 2] = f2
@@ -247,7 +258,7 @@ def _node_pass(x, x_new, p, s, inc_ptr, inc_spring, inc_other, masses, inv_mass,
         x_new[a, 0] = xa0 + w * p0
         x_new[a, 1] = xa1 + w * p1
         x_new[a, 2] = xa2 + w * p2
-        if want_sums:
+        if CLOSING and want_sums:
             r0 = xa0 - ref[0]
             r1 = xa1 - ref[1]
             r2 = xa2 - ref[2]
@@ -310,23 +321,28 @@ def _advance(x, x_buf, p, phi, eta, s, l0, P, edges, inc_ptr, inc_spring, inc_ot
                         x[:, :] = x_buf
                     # positions at stage 0 are the end of the previous step: that step was the bad one
                     return (step - 1 if i == 0 and step > 0 else step), True, False
-            node_pass(cur, nxt, p, s, inc_ptr, inc_spring_u, inc_other_u, masses, inv_mass, anchored,
-                      k1 * h, k2 * h, drifts[i] * h, with_force, gravity, with_gravity, f_keep, 2 if reuse else 0,
-                      ref, False)
+            if reuse:
+                boundary_node_pass(cur, nxt, p, s, inc_ptr, inc_spring_u, inc_other_u, masses, inv_mass, anchored,
+                                   k1 * h, k2 * h, drifts[i] * h, with_force, gravity, with_gravity, f_keep, 2,
+                                   ref, False)
+            else:
+                node_pass(cur, nxt, p, s, inc_ptr, inc_spring_u, inc_other_u, masses, inv_mass, anchored,
+                          k1 * h, k2 * h, drifts[i] * h, with_force, gravity, with_gravity, f_keep, 0, ref, False)
             cur, nxt = nxt, cur
             swaps += 1
         pending = kicks[n_stages]
     summed = False
     if pending != 0.0:
-        bad, energy, theta_min, theta_max = spring_pass(cur, eta, l0, P, edges_u, s, phi, 0.0, pending * h,
-                                                        track_phi, stretch_min, stretch_max, theta_keep, True,
-                                                        energy_buf, want_sums)
+        bad, energy, theta_min, theta_max = boundary_spring_pass(cur, eta, l0, P, edges_u, s, phi, 0.0,
+                                                                 pending * h, track_phi, stretch_min, stretch_max,
+                                                                 theta_keep, True, energy_buf, want_sums)
         if bad > 0:
             if swaps % 2 == 1:
                 x[:, :] = x_buf
             return n_steps - 1, True, False
-        node_sums = node_pass(cur, nxt, p, s, inc_ptr, inc_spring_u, inc_other_u, masses, inv_mass, anchored,
-                              0.0, pending * h, 0.0, True, gravity, with_gravity, f_keep, 1, ref, want_sums)
+        node_sums = boundary_node_pass(cur, nxt, p, s, inc_ptr, inc_spring_u, inc_other_u, masses, inv_mass,
+                                       anchored, 0.0, pending * h, 0.0, True, gravity, with_gravity, f_keep, 1, ref,
+                                       want_sums)
         cur, nxt = nxt, cur
         swaps += 1
         if want_sums:
