@@ -273,9 +273,8 @@ class Krylov:
 class MatrixFree:
     """Inertia-preconditioned Richardson sweeps on matrix-free products (see
     :mod:`thermonet.kernels.implicit_operator`), until the linear residual's max norm is below
-    the target (measured, or estimated from the last sweep's contraction with a margin); SciPy
-    GMRES on the same product when the sweeps stall (a step so large that the springs rival
-    the inertia). Needs from the problem: ``linearize()`` (per-spring
+    the target; SciPy GMRES on the same product when the sweeps stall (a step so large that
+    the springs rival the inertia). Needs from the problem: ``linearize()`` (per-spring
     coefficients at the last residual's point), ``sweep(du, rhs, r, update, first) -> max|r|`` and
     ``apply_inverse_inertia(v) -> D⁻¹ v``."""
 
@@ -285,9 +284,6 @@ class MatrixFree:
     MAX_SWEEPS = 40
     #: the sweeps have stalled when a sweep reduces the residual by less than this factor
     STALL = 0.5
-    #: a solve ends when the residual left by the last update, estimated from the last
-    #: contraction, is this many times below the target
-    MARGIN = 4.0
 
     def __init__(self, pattern: BlockPattern, problem):
         self.pattern = pattern
@@ -312,11 +308,6 @@ class MatrixFree:
                 return du
             if not math.isfinite(rmax) or rmax > self.STALL * previous:
                 break
-            # rmax is the residual before this sweep's update; the update contracts it by about
-            # the rate just seen: stop when that leaves it below the target with a margin,
-            # instead of paying a sweep to confirm it (Newton's next residual checks anyway)
-            if k > 0 and self.MARGIN * rmax * (rmax / previous) <= target:
-                return du
             previous = rmax
         return self._gmres(rhs, target)
 
