@@ -521,7 +521,10 @@ def _gtr_residual(x0, u, p, eta, l0, P, edges, free_index, inc_ptr, inc_spring, 
             dy = fs[1, e]
             dz = fs[2, e]
             l1 = math.sqrt(dx * dx + dy * dy + dz * dz)
-            g = theta[e] + dtheta[e] * (l1 - len1[e]) if warm else -1.0
+            # read unconditionally: a conditional read of len1 before its store made LLVM's
+            # runtime alias check always fail (the loop ran its scalar version)
+            g = theta[e] + dtheta[e] * (l1 - len1[e])
+            g = g if warm else -1.0
             guess[e] = g
             len1[e] = l1
             i1 = 1.0 / l1
