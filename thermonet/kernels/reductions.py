@@ -9,7 +9,7 @@ import math
 import numpy as np
 from numba import prange
 
-from .splitting import BLOCK, squared_lengths
+from .splitting import BLOCK, node_diagnostic_terms, squared_lengths
 from .specialize import model_fingerprint, model_namespace, specialize
 
 # Bound per model by specialize(); see kernels/splitting.py for THERMAL / REFERENCE_TEMPERATURE /
@@ -96,15 +96,13 @@ def _node_sums(x, p, masses, anchored, ref, gravity):
             p0 = p[a, 0]
             p1 = p[a, 1]
             p2 = p[a, 2]
-            r0 = x[a, 0] - ref[0]
-            r1 = x[a, 1] - ref[1]
-            r2 = x[a, 2] - ref[2]
-            kinetic += 0.5 * (p0 * p0 + p1 * p1 + p2 * p2) / masses[a]
-            potential -= masses[a] * (gravity[0] * x[a, 0] + gravity[1] * x[a, 1] + gravity[2] * x[a, 2])
+            k, v, l0_, l1_, l2_ = node_diagnostic_terms(x[a, 0], x[a, 1], x[a, 2], p0, p1, p2, masses[a], gravity, ref)
+            kinetic += k
+            potential += v
             px += p0
             py += p1
             pz += p2
-            lx += r1 * p2 - r2 * p1
-            ly += r2 * p0 - r0 * p2
-            lz += r0 * p1 - r1 * p0
+            lx += l0_
+            ly += l1_
+            lz += l2_
     return kinetic, potential, px, py, pz, lx, ly, lz

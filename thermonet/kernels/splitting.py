@@ -128,6 +128,18 @@ def squared_lengths(x, edges, lo, n, out, base):
         out[base + i] = dx * dx + dy * dy + dz * dz
 
 
+@njit(inline="always", error_model="numpy", boundscheck=False)
+def node_diagnostic_terms(x0, x1, x2, p0, p1, p2, mass, gravity, ref):
+    """One free node's terms of a diagnostics row: kinetic energy, gravity potential −m g·x, p,
+    and (x − ref) × p (shared by the fused closing kick and the stand-alone reduction)."""
+    r0 = x0 - ref[0]
+    r1 = x1 - ref[1]
+    r2 = x2 - ref[2]
+    return (0.5 * (p0 * p0 + p1 * p1 + p2 * p2) / mass,
+            -(mass * (gravity[0] * x0 + gravity[1] * x1 + gravity[2] * x2)),
+            r1 * p2 - r2 * p1, r2 * p0 - r0 * p2, r0 * p1 - r1 * p0)
+
+
 def _spring_pass(x, eta, l0, P, edges, s, phi, phi_h1, phi_h2, track_phi, stretch_min, stretch_max,
                  theta_keep, keep, energy_buf, want_sums):
     """Per spring e: s[e] = T/l at x; Φ[e] += (phi_h1 + phi_h2) θ as two additions; θ into
@@ -259,17 +271,15 @@ def _node_pass(x, x_new, p, s, inc_ptr, inc_spring, inc_other, masses, inv_mass,
         x_new[a, 1] = xa1 + w * p1
         x_new[a, 2] = xa2 + w * p2
         if CLOSING and want_sums:
-            r0 = xa0 - ref[0]
-            r1 = xa1 - ref[1]
-            r2 = xa2 - ref[2]
-            kinetic += 0.5 * (p0 * p0 + p1 * p1 + p2 * p2) / masses[a]
-            potential -= masses[a] * (gravity[0] * xa0 + gravity[1] * xa1 + gravity[2] * xa2)
+            k, v, l0_, l1_, l2_ = node_diagnostic_terms(xa0, xa1, xa2, p0, p1, p2, masses[a], gravity, ref)
+            kinetic += k
+            potential += v
             px += p0
             py += p1
             pz += p2
-            lx += r1 * p2 - r2 * p1
-            ly += r2 * p0 - r0 * p2
-            lz += r0 * p1 - r1 * p0
+            lx += l0_
+            ly += l1_
+            lz += l2_
     return kinetic, potential, px, py, pz, lx, ly, lz
 
 
