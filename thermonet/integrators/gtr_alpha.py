@@ -78,7 +78,7 @@ class GTRAlphaStepper(ImplicitStepper):
                                self.jc)
 
     def sweep(self, du, rhs, r, update, first=False):
-        return self.sweeper(du, rhs, r, self.sweep_scratch, self.jc, self.dir0, self.dir1, self.ends,
+        return self.sweeper(du, rhs, r, self.sweep_w, self.jc, self.dir0, self.dir1, self.ends,
                             self.free_index, *self.incidence, self.system.masses, self.h, update, first)
 
     def apply_inverse_inertia(self, v):

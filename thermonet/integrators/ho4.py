@@ -81,7 +81,7 @@ class HO4Stepper(ImplicitStepper):
                                self.dth, self.jc)
 
     def sweep(self, du, rhs, r, update, first=False):
-        return self.sweeper(du, rhs, r, self.sweep_scratch, self.jc, self.dir0, self.dirh, self.dir1,
+        return self.sweeper(du, rhs, r, self.sweep_w, self.jc, self.dir0, self.dirh, self.dir1,
                             self.ends, self.free_index, *self.incidence, self.system.masses, self.h, update, first)
 
     def apply_inverse_inertia(self, v):

@@ -85,6 +85,8 @@ class ImplicitStepper(Stepper):
         self.data = np.zeros(self.pattern.nnz if self.solver.assembled else 0)
         self.fs = np.empty((6, m))
         self.sweep_scratch = np.empty((self.block, m))
+        #: the sweeps' spring-major (m, B) scratch: the same memory (the start kernel's use ends first)
+        self.sweep_w = self.sweep_scratch.reshape(m, self.block)
         self.guess = np.empty(m)
         self.code = np.zeros(m, dtype=np.int64)
         self.warm = False

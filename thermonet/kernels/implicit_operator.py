@@ -14,7 +14,8 @@ stability limit (the contraction per sweep is about h² times the largest stiffn
 measured ≈ 0.02–0.05 on the benchmark lattices at h = 0.01). Both loops are parallel when
 compiled with parallel=True; each node sums its springs in a fixed order (thread-independent).
 
-Shapes: du, R, r (B n_free,); w (B, m) scratch (GTR-α: (≥3, m)); jc per-spring coefficients ((m,)
+Shapes: du, R, r (B n_free,); w (m, B) scratch, spring-major (the node gather reads a spring's B
+values from one cache line); jc per-spring coefficients ((m,)
 GTR-α, (5, m) HO4, see :mod:`.implicit`); dir* (3, m); ends (m, 2) the unknown blocks of the
 springs' ends (free_index of edges, −1 where anchored); free_index (n,); inc_ptr (n+1,),
 inc_spring (2m,) uint32, inc_sign (2m,) the node→spring incidence; masses (n,). Per-spring arrays
@@ -24,13 +25,24 @@ are component-major like the residual's; indices are read as unsigned.
 from __future__ import annotations
 
 import numpy as np
-from numba import prange
+from numba import njit, prange
 
-from .implicit import _gather_add
 from .specialize import specialize
 
 _OPTIONS = dict(cache=True, error_model="numpy", boundscheck=False)
 _CACHE: dict = {}
+
+
+@njit(cache=True, inline="always")
+def _gather_rows(a, inc_ptr, inc_spring, inc_sign, w, B, out, base):
+    """out[base:base+B] −= Σ_e s_e w[e, :B] over the springs of node a (s_e = inc_sign, +1 at a
+    spring's first end), in the incidence list's order: the spring terms' signs of a residual,
+    read from the spring-major scratch (one cache line per spring, not B)."""
+    for j in range(inc_ptr[a], inc_ptr[a + 1]):
+        e = inc_spring[j]
+        sg = -inc_sign[j]
+        for i in range(B):
+            out[base + i] += sg * w[e, i]
 
 
 def operator_kernels(scheme: str, parallel: bool):
@@ -46,7 +58,7 @@ def _gtr_sweep(du, R, r, w, jc, dir0, dir1, ends, free_index, inc_ptr, inc_sprin
     """r = R − J du; with ``update``, then du += D⁻¹ r. Returns max |r|. ``first``: du is taken
     as zero (not read; the spring loop is skipped).
 
-    Spring e's block is jc[e] n⁰ n¹ᵀ: w[:3, e] = n⁰ jc[e] n¹·(du_a − du_b)."""
+    Spring e's block is jc[e] n⁰ n¹ᵀ: w[e, :3] = n⁰ jc[e] n¹·(du_a − du_b)."""
     m = ends.shape[0]
     for e in prange(0 if first else m):
         eu = np.uint64(e)
@@ -61,9 +73,9 @@ def _gtr_sweep(du, R, r, w, jc, dir0, dir1, ends, free_index, inc_ptr, inc_sprin
                 d -= du[3 * kb + i]
             s += dir1[i, eu] * d
         c = jc[eu] * s
-        w[0, eu] = c * dir0[0, eu]
-        w[1, eu] = c * dir0[1, eu]
-        w[2, eu] = c * dir0[2, eu]
+        w[eu, 0] = c * dir0[0, eu]
+        w[eu, 1] = c * dir0[1, eu]
+        w[eu, 2] = c * dir0[2, eu]
     rmax = 0.0
     for a in prange(free_index.shape[0]):
         k = free_index[a]
@@ -73,7 +85,7 @@ def _gtr_sweep(du, R, r, w, jc, dir0, dir1, ends, free_index, inc_ptr, inc_sprin
         for i in range(3):
             r[3 * k + i] = R[3 * k + i] - (0.0 if first else wm * du[3 * k + i])
         if not first:
-            _gather_add(a, inc_ptr, inc_spring, inc_sign, w, 3, r, 3 * k, r, False)
+            _gather_rows(a, inc_ptr, inc_spring, inc_sign, w, 3, r, 3 * k)
         for i in range(3):
             acc = r[3 * k + i]
             rmax = max(rmax, abs(acc))
@@ -86,7 +98,7 @@ def _ho4_sweep(du, R, r, w, jc, dir0, dirh, dir1, ends, free_index, inc_ptr, inc
     """r = R − J du; with ``update``, then du += D⁻¹ r. Returns max |r|. ``first``: du is taken
     as zero (not read; the spring loop is skipped).
 
-    Spring e's block applied to the difference (v^½, v¹) = du_a − du_b, into w[:, e] (6,):
+    Spring e's block applied to the difference (v^½, v¹) = du_a − du_b, into w[e, :] (6,):
     rows R1: n⁰ (a₁ n^½·v^½ + a₂ n¹·v¹); rows R2: n^½ ((k − t) n^½·v^½ + c n¹·v¹) + t v^½."""
     m = ends.shape[0]
     for e in prange(0 if first else m):
@@ -118,12 +130,12 @@ def _ho4_sweep(du, R, r, w, jc, dir0, dirh, dir1, ends, free_index, inc_ptr, inc
         c1 = jc[0, eu] * ph + jc[1, eu] * p1
         c2 = jc[2, eu] * ph + jc[4, eu] * p1
         t = jc[3, eu]
-        w[0, eu] = c1 * dir0[0, eu]
-        w[1, eu] = c1 * dir0[1, eu]
-        w[2, eu] = c1 * dir0[2, eu]
-        w[3, eu] = c2 * dirh[0, eu] + t * vh0
-        w[4, eu] = c2 * dirh[1, eu] + t * vh1
-        w[5, eu] = c2 * dirh[2, eu] + t * vh2
+        w[eu, 0] = c1 * dir0[0, eu]
+        w[eu, 1] = c1 * dir0[1, eu]
+        w[eu, 2] = c1 * dir0[2, eu]
+        w[eu, 3] = c2 * dirh[0, eu] + t * vh0
+        w[eu, 4] = c2 * dirh[1, eu] + t * vh1
+        w[eu, 5] = c2 * dirh[2, eu] + t * vh2
     rmax = 0.0
     for a in prange(free_index.shape[0]):
         k = free_index[a]
@@ -137,7 +149,7 @@ def _ho4_sweep(du, R, r, w, jc, dir0, dirh, dir1, ends, free_index, inc_ptr, inc
             r[6 * k + i] = R[6 * k + i] - wm * (8.0 * dh - d1) / 3.0
             r[6 * k + 3 + i] = R[6 * k + 3 + i] - wm * (d1 - 2.0 * dh)
         if not first:
-            _gather_add(a, inc_ptr, inc_spring, inc_sign, w, 6, r, 6 * k, r, False)
+            _gather_rows(a, inc_ptr, inc_spring, inc_sign, w, 6, r, 6 * k)
         for i in range(3):
             dh = 0.0 if first else du[6 * k + i]
             d1 = 0.0 if first else du[6 * k + 3 + i]
