@@ -163,22 +163,6 @@ def _admissible(t):
 
 
 @njit(cache=True, inline="always")
-def _gather_add(a, inc_ptr, inc_spring, inc_sign, fs, B, out, base, mag, with_mag):
-    """out[base:base+B] += Σ_e s_e fs[:B, e] (and, with_mag, mag[base:base+B] += Σ_e |fs[:B, e]|)
-    over the springs of node a, s_e = −1 where a is the spring's first end and +1 where it is
-    the second (a residual's sign: R_a −= v, R_b += v; inc_sign is +1 at first ends); in the
-    incidence list's order. inc_spring: unsigned."""
-    for j in range(inc_ptr[a], inc_ptr[a + 1]):
-        e = inc_spring[j]
-        sg = -inc_sign[j]
-        for i in range(B):
-            v = fs[i, e]
-            out[base + i] += sg * v
-            if with_mag:
-                mag[base + i] += abs(v)
-
-
-@njit(cache=True, inline="always")
 def _first_flagged(flag, lo, n, none):
     """The smallest index lo ≤ e < lo + n with flag[e] != 0, else ``none``."""
     for i in range(n):
@@ -568,15 +552,44 @@ def _gtr_residual(x0, u, p, eta, l0, P, edges, free_index, inc_ptr, inc_spring, 
         if k < 0:
             continue
         w = masses[a] / h
-        for i in range(3):
-            inertia = w * u[3 * k + i]
-            g = alpha * h * masses[a] * gravity[i] if with_gravity else 0.0
-            R[3 * k + i] = inertia - p[a, i] - g
-            Rabs[3 * k + i] = abs(inertia) + abs(p[a, i]) + abs(g)
-        _gather_add(a, inc_ptr, inc_spring, inc_sign, fs, 3, R, 3 * k, Rabs, True)
-        for i in range(3):
-            rmax = max(rmax, abs(R[3 * k + i]))
-            smax = max(smax, Rabs[3 * k + i])
+        # the node's rows and their magnitudes in registers, written once (the same sums in the
+        # same order as accumulating in R, Rabs)
+        inertia = w * u[3 * k + 0]
+        g = alpha * h * masses[a] * gravity[0] if with_gravity else 0.0
+        r0 = inertia - p[a, 0] - g
+        s0 = abs(inertia) + abs(p[a, 0]) + abs(g)
+        inertia = w * u[3 * k + 1]
+        g = alpha * h * masses[a] * gravity[1] if with_gravity else 0.0
+        r1 = inertia - p[a, 1] - g
+        s1 = abs(inertia) + abs(p[a, 1]) + abs(g)
+        inertia = w * u[3 * k + 2]
+        g = alpha * h * masses[a] * gravity[2] if with_gravity else 0.0
+        r2 = inertia - p[a, 2] - g
+        s2 = abs(inertia) + abs(p[a, 2]) + abs(g)
+        for j in range(inc_ptr[a], inc_ptr[a + 1]):
+            e = inc_spring[j]
+            sg = -inc_sign[j]
+            v0 = fs[0, e]
+            v1 = fs[1, e]
+            v2 = fs[2, e]
+            r0 += sg * v0
+            s0 += abs(v0)
+            r1 += sg * v1
+            s1 += abs(v1)
+            r2 += sg * v2
+            s2 += abs(v2)
+        R[3 * k + 0] = r0
+        Rabs[3 * k + 0] = s0
+        R[3 * k + 1] = r1
+        Rabs[3 * k + 1] = s1
+        R[3 * k + 2] = r2
+        Rabs[3 * k + 2] = s2
+        rmax = max(rmax, abs(r0))
+        smax = max(smax, s0)
+        rmax = max(rmax, abs(r1))
+        smax = max(smax, s1)
+        rmax = max(rmax, abs(r2))
+        smax = max(smax, s2)
     return 0, -1, rmax, smax
 
 
@@ -879,21 +892,77 @@ def _ho4_residual(x0, u, p, eta, l0, P, edges, free_index, inc_ptr, inc_spring, 
         if k < 0:
             continue
         w = masses[a] / h
-        for i in range(3):
-            dh = u[6 * k + i]
-            d1 = u[6 * k + 3 + i]
-            g0 = h / 6.0 * masses[a] * gravity[i] if with_gravity else 0.0
-            gh = h / 4.0 * masses[a] * gravity[i] if with_gravity else 0.0
-            i1 = w * (8.0 * dh - d1) / 3.0
-            i2 = w * (d1 - 2.0 * dh)
-            R[6 * k + i] = i1 - p[a, i] - g0
-            Rabs[6 * k + i] = abs(i1) + abs(p[a, i]) + abs(g0)
-            R[6 * k + 3 + i] = i2 - gh
-            Rabs[6 * k + 3 + i] = abs(i2) + abs(gh)
-        _gather_add(a, inc_ptr, inc_spring, inc_sign, fs, 6, R, 6 * k, Rabs, True)
-        for i in range(6):
-            rmax = max(rmax, abs(R[6 * k + i]))
-            smax = max(smax, Rabs[6 * k + i])
+        # the node's rows and their magnitudes in registers, written once (the same sums in the
+        # same order as accumulating in R, Rabs)
+        g0 = h / 6.0 * masses[a] * gravity[0] if with_gravity else 0.0
+        gh = h / 4.0 * masses[a] * gravity[0] if with_gravity else 0.0
+        i1 = w * (8.0 * u[6 * k + 0] - u[6 * k + 3]) / 3.0
+        i2 = w * (u[6 * k + 3] - 2.0 * u[6 * k + 0])
+        r0 = i1 - p[a, 0] - g0
+        s0 = abs(i1) + abs(p[a, 0]) + abs(g0)
+        r3 = i2 - gh
+        s3 = abs(i2) + abs(gh)
+        g0 = h / 6.0 * masses[a] * gravity[1] if with_gravity else 0.0
+        gh = h / 4.0 * masses[a] * gravity[1] if with_gravity else 0.0
+        i1 = w * (8.0 * u[6 * k + 1] - u[6 * k + 4]) / 3.0
+        i2 = w * (u[6 * k + 4] - 2.0 * u[6 * k + 1])
+        r1 = i1 - p[a, 1] - g0
+        s1 = abs(i1) + abs(p[a, 1]) + abs(g0)
+        r4 = i2 - gh
+        s4 = abs(i2) + abs(gh)
+        g0 = h / 6.0 * masses[a] * gravity[2] if with_gravity else 0.0
+        gh = h / 4.0 * masses[a] * gravity[2] if with_gravity else 0.0
+        i1 = w * (8.0 * u[6 * k + 2] - u[6 * k + 5]) / 3.0
+        i2 = w * (u[6 * k + 5] - 2.0 * u[6 * k + 2])
+        r2 = i1 - p[a, 2] - g0
+        s2 = abs(i1) + abs(p[a, 2]) + abs(g0)
+        r5 = i2 - gh
+        s5 = abs(i2) + abs(gh)
+        for j in range(inc_ptr[a], inc_ptr[a + 1]):
+            e = inc_spring[j]
+            sg = -inc_sign[j]
+            v0 = fs[0, e]
+            v1 = fs[1, e]
+            v2 = fs[2, e]
+            v3 = fs[3, e]
+            v4 = fs[4, e]
+            v5 = fs[5, e]
+            r0 += sg * v0
+            s0 += abs(v0)
+            r1 += sg * v1
+            s1 += abs(v1)
+            r2 += sg * v2
+            s2 += abs(v2)
+            r3 += sg * v3
+            s3 += abs(v3)
+            r4 += sg * v4
+            s4 += abs(v4)
+            r5 += sg * v5
+            s5 += abs(v5)
+        R[6 * k + 0] = r0
+        Rabs[6 * k + 0] = s0
+        R[6 * k + 1] = r1
+        Rabs[6 * k + 1] = s1
+        R[6 * k + 2] = r2
+        Rabs[6 * k + 2] = s2
+        R[6 * k + 3] = r3
+        Rabs[6 * k + 3] = s3
+        R[6 * k + 4] = r4
+        Rabs[6 * k + 4] = s4
+        R[6 * k + 5] = r5
+        Rabs[6 * k + 5] = s5
+        rmax = max(rmax, abs(r0))
+        smax = max(smax, s0)
+        rmax = max(rmax, abs(r1))
+        smax = max(smax, s1)
+        rmax = max(rmax, abs(r2))
+        smax = max(smax, s2)
+        rmax = max(rmax, abs(r3))
+        smax = max(smax, s3)
+        rmax = max(rmax, abs(r4))
+        smax = max(smax, s4)
+        rmax = max(rmax, abs(r5))
+        smax = max(smax, s5)
     return 0, -1, rmax, smax
 
 

@@ -25,24 +25,12 @@ are component-major like the residual's; indices are read as unsigned.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import prange
 
 from .specialize import specialize
 
 _OPTIONS = dict(cache=True, error_model="numpy", boundscheck=False)
 _CACHE: dict = {}
-
-
-@njit(cache=True, inline="always")
-def _gather_rows(a, inc_ptr, inc_spring, inc_sign, w, B, out, base):
-    """out[base:base+B] −= Σ_e s_e w[e, :B] over the springs of node a (s_e = inc_sign, +1 at a
-    spring's first end), in the incidence list's order: the spring terms' signs of a residual,
-    read from the spring-major scratch (one cache line per spring, not B)."""
-    for j in range(inc_ptr[a], inc_ptr[a + 1]):
-        e = inc_spring[j]
-        sg = -inc_sign[j]
-        for i in range(B):
-            out[base + i] += sg * w[e, i]
 
 
 def operator_kernels(scheme: str, parallel: bool):
@@ -82,15 +70,30 @@ def _gtr_sweep(du, R, r, w, jc, dir0, dir1, ends, free_index, inc_ptr, inc_sprin
         if k < 0:
             continue
         wm = masses[a] / h
-        for i in range(3):
-            r[3 * k + i] = R[3 * k + i] - (0.0 if first else wm * du[3 * k + i])
+        # the node's rows in registers (r written once; the same sums in the same order)
+        d0 = 0.0 if first else du[3 * k]
+        d1 = 0.0 if first else du[3 * k + 1]
+        d2 = 0.0 if first else du[3 * k + 2]
+        r0 = R[3 * k] - (0.0 if first else wm * d0)
+        r1 = R[3 * k + 1] - (0.0 if first else wm * d1)
+        r2 = R[3 * k + 2] - (0.0 if first else wm * d2)
         if not first:
-            _gather_rows(a, inc_ptr, inc_spring, inc_sign, w, 3, r, 3 * k)
-        for i in range(3):
-            acc = r[3 * k + i]
-            rmax = max(rmax, abs(acc))
-            if update:
-                du[3 * k + i] = (0.0 if first else du[3 * k + i]) + acc / wm
+            for j in range(inc_ptr[a], inc_ptr[a + 1]):
+                e = inc_spring[j]
+                sg = -inc_sign[j]
+                r0 += sg * w[e, 0]
+                r1 += sg * w[e, 1]
+                r2 += sg * w[e, 2]
+        r[3 * k] = r0
+        r[3 * k + 1] = r1
+        r[3 * k + 2] = r2
+        rmax = max(rmax, abs(r0))
+        rmax = max(rmax, abs(r1))
+        rmax = max(rmax, abs(r2))
+        if update:
+            du[3 * k] = d0 + r0 / wm
+            du[3 * k + 1] = d1 + r1 / wm
+            du[3 * k + 2] = d2 + r2 / wm
     return rmax
 
 
@@ -143,21 +146,44 @@ def _ho4_sweep(du, R, r, w, jc, dir0, dirh, dir1, ends, free_index, inc_ptr, inc
             continue
         wm = masses[a] / h
         q = 0.5 / wm
-        for i in range(3):
-            dh = 0.0 if first else du[6 * k + i]
-            d1 = 0.0 if first else du[6 * k + 3 + i]
-            r[6 * k + i] = R[6 * k + i] - wm * (8.0 * dh - d1) / 3.0
-            r[6 * k + 3 + i] = R[6 * k + 3 + i] - wm * (d1 - 2.0 * dh)
+        # the node's six rows in registers (r written once; the same sums in the same order)
+        dh0 = 0.0 if first else du[6 * k]
+        dh1 = 0.0 if first else du[6 * k + 1]
+        dh2 = 0.0 if first else du[6 * k + 2]
+        d10 = 0.0 if first else du[6 * k + 3]
+        d11 = 0.0 if first else du[6 * k + 4]
+        d12 = 0.0 if first else du[6 * k + 5]
+        r0 = R[6 * k] - wm * (8.0 * dh0 - d10) / 3.0
+        r1 = R[6 * k + 1] - wm * (8.0 * dh1 - d11) / 3.0
+        r2 = R[6 * k + 2] - wm * (8.0 * dh2 - d12) / 3.0
+        r3 = R[6 * k + 3] - wm * (d10 - 2.0 * dh0)
+        r4 = R[6 * k + 4] - wm * (d11 - 2.0 * dh1)
+        r5 = R[6 * k + 5] - wm * (d12 - 2.0 * dh2)
         if not first:
-            _gather_rows(a, inc_ptr, inc_spring, inc_sign, w, 6, r, 6 * k)
-        for i in range(3):
-            dh = 0.0 if first else du[6 * k + i]
-            d1 = 0.0 if first else du[6 * k + 3 + i]
-            r1 = r[6 * k + i]
-            r2 = r[6 * k + 3 + i]
-            rmax = max(rmax, max(abs(r1), abs(r2)))
-            if update:
-                # D⁻¹ = h/m · ½ [[1, 1/3], [2, 8/3]]
-                du[6 * k + i] = dh + q * (r1 + r2 / 3.0)
-                du[6 * k + 3 + i] = d1 + q * (2.0 * r1 + 8.0 / 3.0 * r2)
+            for j in range(inc_ptr[a], inc_ptr[a + 1]):
+                e = inc_spring[j]
+                sg = -inc_sign[j]
+                r0 += sg * w[e, 0]
+                r1 += sg * w[e, 1]
+                r2 += sg * w[e, 2]
+                r3 += sg * w[e, 3]
+                r4 += sg * w[e, 4]
+                r5 += sg * w[e, 5]
+        r[6 * k] = r0
+        r[6 * k + 1] = r1
+        r[6 * k + 2] = r2
+        r[6 * k + 3] = r3
+        r[6 * k + 4] = r4
+        r[6 * k + 5] = r5
+        rmax = max(rmax, max(abs(r0), abs(r3)))
+        rmax = max(rmax, max(abs(r1), abs(r4)))
+        rmax = max(rmax, max(abs(r2), abs(r5)))
+        if update:
+            # D⁻¹ = h/m · ½ [[1, 1/3], [2, 8/3]]
+            du[6 * k] = dh0 + q * (r0 + r3 / 3.0)
+            du[6 * k + 1] = dh1 + q * (r1 + r4 / 3.0)
+            du[6 * k + 2] = dh2 + q * (r2 + r5 / 3.0)
+            du[6 * k + 3] = d10 + q * (2.0 * r0 + 8.0 / 3.0 * r3)
+            du[6 * k + 4] = d11 + q * (2.0 * r1 + 8.0 / 3.0 * r4)
+            du[6 * k + 5] = d12 + q * (2.0 * r2 + 8.0 / 3.0 * r5)
     return rmax
