@@ -42,12 +42,14 @@ _STORAGE = {name: (np.uint8 if name == "anchored" else np.int32 if name == "mate
                    3 if kind == "point" and name in ("displacement", "velocity", "momentum") else 0)
             for name, (kind, _, _) in FIELDS.items()}
 
+
 class FrameFiller:
     """Fills a :class:`~thermonet.io.vtu.FrameImage` with a simulation's fields, user numbering.
 
-    Each field is one threaded pass from the engine's internal numbering straight into the
-    image (:mod:`thermonet.kernels.gather`); the fields that cannot change (anchored flag,
-    material id) are written once. Values equal the public accessors' bit for bit (positions,
+    One pass for the node fields and one for the spring fields, from the engine's internal
+    numbering straight into the image (:mod:`thermonet.kernels.gather`; threaded where the
+    stepping kernels are); the fields that cannot change (anchored flag, material id) are
+    written once. Values equal the public accessors' bit for bit (positions,
     ``sim.state``, ``sim.temperatures()``, ``sim.strains()``, ...); ``node_temperature`` is a sum
     in incidence order.
 
@@ -82,8 +84,9 @@ class FrameFiller:
         k.node_fields_to_user(img.points, point.get("displacement", none), point.get("velocity", none),
                             point.get("momentum", none), state.positions, state.momenta, net.positions,
                             net.masses, nodes)
-        sources = {"temperature": sf and sf.temperature, "entropy": state.entropy, "tension": sf and sf.tension,
-                   "strain": sf and sf.length, "thermal_displacement": state.thermal_displacement}
+        sources = {"entropy": state.entropy, "thermal_displacement": state.thermal_displacement}
+        if sf is not None:
+            sources.update(temperature=sf.temperature, tension=sf.tension, strain=sf.length)
         cells = [name for name in self.fields if name in sources]
         if cells:  # one pass for every spring field
             k.columns_to_user(tuple(cell[n] for n in cells), tuple(sources[n] for n in cells), springs)
