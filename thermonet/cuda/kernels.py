@@ -91,7 +91,7 @@ def cuda_kernels(model, thermal: bool = True, uniform: bool = False) -> CudaKern
                f"_r{reduce_threads}")
         jit = cuda.jit if sim else cuda.jit(cache=True)
         inline = (lambda fn: fn) if sim else njit(inline="always")
-        for name, template in (("_spring_update", _spring_update), ("_node_update", _node_update)):
+        for name, template in _SHARED:  # in order: later ones call earlier ones
             ns[name] = inline(rebind(template, tag, ns))  # shared by the two-launch and the fused path
 
         def compile_(template):
@@ -175,18 +175,23 @@ def _steps_kernel(x, x_buf, p, eta, l0, P, edges, s, phi, inc_ptr, inc_spring, i
         pending = kicks[n_drifts]
 
 
+def _spring_length(x, edges, e):
+    """|x_b − x_a| of spring e; x: (n, 3), edges: (m, 2) uint32."""
+    a = edges[e, 0]
+    b = edges[e, 1]
+    dx = x[b, 0] - x[a, 0]
+    dy = x[b, 1] - x[a, 1]
+    dz = x[b, 2] - x[a, 2]
+    return math.sqrt(dx * dx + dy * dy + dz * dz)
+
+
 def _spring_update(e, x, eta, l0, P, edges, s, phi, phi_h1, phi_h2, track_phi):
     """Spring e: s[e] = T/l at x; Φ[e] += phi_h1 θ; Φ[e] += phi_h2 θ.
 
     x: (n, 3); eta, l0, s, phi: (m,) (eta, phi empty when not THERMAL); P: (k, m) or (k, 1);
     edges: (m, 2) uint32.
     """
-    a = edges[e, 0]
-    b = edges[e, 1]
-    dx = x[b, 0] - x[a, 0]
-    dy = x[b, 1] - x[a, 1]
-    dz = x[b, 2] - x[a, 2]
-    l = math.sqrt(dx * dx + dy * dy + dz * dz)
+    l = _spring_length(x, edges, e)
     c = 0 if UNIFORM else e
     if THERMAL:
         theta = temperature(l, eta[e], l0[e], P, c)
@@ -260,12 +265,7 @@ def _spring_sums_kernel(x, eta, l0, P, edges, partial):
     theta_min = math.inf
     theta_max = -math.inf
     for e in range(cuda.grid(1), edges.shape[0], cuda.gridsize(1)):
-        a = edges[e, 0]
-        b = edges[e, 1]
-        dx = x[b, 0] - x[a, 0]
-        dy = x[b, 1] - x[a, 1]
-        dz = x[b, 2] - x[a, 2]
-        l = math.sqrt(dx * dx + dy * dy + dz * dz)
+        l = _spring_length(x, edges, e)
         c = 0 if UNIFORM else e
         if THERMAL:
             th = temperature(l, eta[e], l0[e], P, c)
@@ -365,6 +365,10 @@ def _combine(op, a, b):
     return min(a, b) if op == 1 else max(a, b)
 
 
+#: device functions the kernels share, bound per model before the kernels (callers after callees)
+_SHARED = (("_spring_length", _spring_length), ("_spring_update", _spring_update), ("_node_update", _node_update))
+
+
 def compile_ptx(model, thermal: bool = True, uniform: bool = False, cc=(9, 0)) -> dict[str, str]:
     """PTX of every kernel for ``model`` and compute capability ``cc``, compiled as for a GPU (not
     the simulator). Needs numba-cuda's NVVM (the CUDA toolkit) but no GPU, so it checks that a
@@ -376,7 +380,7 @@ def compile_ptx(model, thermal: bool = True, uniform: bool = False, cc=(9, 0)) -
     ns = model_namespace(model)
     ns.update(THERMAL=bool(thermal), UNIFORM=bool(uniform), REDUCE_THREADS=REDUCE_THREADS,
               REFERENCE_TEMPERATURE=model.parameter_index(model.reference_temperature))
-    for name, template in (("_spring_update", _spring_update), ("_node_update", _node_update)):
+    for name, template in _SHARED:
         ns[name] = njit(inline="always")(rebind(template, f"{model.name}_ptx", ns))
     v, m2, u = float64[::1], float64[:, ::1], uint32[::1]
     signatures = {
