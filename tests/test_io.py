@@ -11,6 +11,7 @@ import meshio
 import numpy as np
 import pytest
 
+import thermonet as tn
 from thermonet.io import PVDIndex, VTUWriter, load_checkpoint, read_pvd, save_checkpoint
 from thermonet.io import atomic as atomic_module
 from thermonet.scenes import load_scene
@@ -76,7 +77,7 @@ def test_frames_round_trip_exactly_through_meshio_and_vtk(tmp_path):
         _check_vtk(path, x, edges, point, cell)
 
 
-def _run_scene(tmp_path, overrides=()):
+def _run_scene(tmp_path, overrides=(), background=True):
     from thermonet.io import RunOutput
 
     scene = load_scene(os.path.join(ROOT, "scenes", "default.toml"),
@@ -85,9 +86,38 @@ def _run_scene(tmp_path, overrides=()):
     built = scene.build()
     sim = built.simulation
     out = RunOutput(sim, tmp_path, scene.name, fields=scene.output_fields(), frames_every=20,
-                    diagnostics_every=10, checkpoint_every=0, material_id=built.material_id, scene=scene.describe())
+                    diagnostics_every=10, checkpoint_every=0, material_id=built.material_id, scene=scene.describe(),
+                    background=background)
     sim.run(steps=scene.total_steps(), diagnostics_every=10, observers=out.observers())
     return scene, built, sim
+
+
+def test_frames_written_on_the_writer_thread_are_the_same_files_and_complete_when_run_returns(tmp_path):
+    on_thread, inline = tmp_path / "thread", tmp_path / "inline"
+    _run_scene(on_thread, background=True)  # read back as soon as run returns: no waiting here
+    _run_scene(inline, background=False)
+    names = sorted(f for f in os.listdir(inline) if f.endswith((".vtu", ".pvd")))
+    assert len(names) == 5 and names == sorted(f for f in os.listdir(on_thread) if f.endswith((".vtu", ".pvd")))
+    for name in names:
+        assert (on_thread / name).read_bytes() == (inline / name).read_bytes(), name
+
+
+def test_an_error_of_the_last_frame_write_is_raised_by_run(tmp_path, monkeypatch):
+    from thermonet.io import vtu
+
+    real = vtu.FrameImage.write
+    calls = []
+
+    def full_disk_at_the_last_frame(self, path):
+        calls.append(path)
+        if len(calls) == 4:
+            raise OSError(28, "No space left on device")
+        real(self, path)
+
+    monkeypatch.setattr(vtu.FrameImage, "write", full_disk_at_the_last_frame)
+    with pytest.raises(OSError, match="No space left"):
+        _run_scene(tmp_path)
+    assert len(read_pvd(tmp_path / "truss_block.pvd")) == 3
 
 
 def test_run_frames_hold_the_simulation_fields_and_the_pvd_lists_every_frame_with_its_time(tmp_path):
@@ -267,8 +297,8 @@ def test_passes_to_user_numbering_equal_the_numpy_expressions(parallel):
 
     rng = np.random.default_rng(4)
     n, m = 57, 131
-    node_order, spring_order = rng.permutation(n), rng.permutation(m)
-    node_rank, spring_rank = np.argsort(node_order), np.argsort(spring_order)  # user u is internal rank[u]
+    node_order = rng.permutation(n)
+    node_rank = np.argsort(node_order)  # user u is internal rank[u]
     x, p, X = rng.normal(size=(n, 3)), rng.normal(size=(n, 3)), rng.normal(size=(n, 3))
     masses = rng.uniform(0.5, 2.0, n)
     outs = [np.empty((n, 3)) for _ in range(4)]
@@ -278,11 +308,6 @@ def test_passes_to_user_numbering_equal_the_numpy_expressions(parallel):
     points, none = np.empty((n, 3)), np.empty((0, 3))
     gather.node_fields_to_user(points, none, none, none, x, p, X, masses, node_order)  # only points
     np.testing.assert_array_equal(points, x[node_rank])
-    columns = tuple(rng.normal(size=m) for _ in range(3))
-    outs = tuple(np.empty(m) for _ in range(3))
-    gather.columns_to_user(outs, columns, spring_order)
-    for out, column in zip(outs, columns):
-        np.testing.assert_array_equal(out, column[spring_rank])
     edges = np.unique(np.sort(_random_net(rng, n=n, m=m), axis=1), axis=0)  # no spring twice
     lay = build_layout(Net(positions=rng.normal(size=(n, 3)), edges=edges), renumber=True)
     values = rng.normal(size=len(edges))  # internal numbering
@@ -294,3 +319,38 @@ def test_passes_to_user_numbering_equal_the_numpy_expressions(parallel):
     expected = np.bincount(ends, weights=np.repeat(user_values, 2), minlength=n) / np.maximum(degree, 1)
     np.testing.assert_allclose(means, expected, rtol=1e-13, atol=1e-15)
     assert np.all(means[degree == 0] == 0.0)
+
+
+@pytest.mark.parametrize("parallel", [False, True])
+@pytest.mark.parametrize("model, thermal", [("hencky", True), ("quadratic", True), ("hencky", False)])
+def test_frame_spring_pass_equals_the_public_accessors_bit_for_bit(parallel, model, thermal):
+    """The frame's one spring pass (computed and scattered to user order) against
+    sim.temperatures(), tensions(), strains() and the state's η and Φ; strains within an ulp of
+    NumPy's log."""
+    from thermonet.kernels.springs import frame_spring_kernel
+
+    net = tn.lattice((4, 3, 3), jitter=0.2, seed=3)
+    rng = np.random.default_rng(5)
+    m = net.n_springs
+    kwargs = dict(temperatures=rng.uniform(250.0, 400.0, m)) if thermal else dict(thermal=False)
+    sim = tn.Simulation(net, model=model, momenta=rng.normal(0.0, 0.5, (net.n_nodes, 3)), h=0.01, **kwargs)
+    sim.run(steps=7)
+    assert not np.array_equal(sim.layout.spring_order, np.arange(m))  # a real permutation
+    s, system = sim.internal_state(), sim.system
+    out = {k: np.full(m, np.nan) for k in ("temperature", "tension", "strain", "entropy", "phi", "internal")}
+    none = np.empty(0)
+    eta = s.entropy if thermal else none
+    phi = s.thermal_displacement if thermal else none
+    kernel = frame_spring_kernel(system.model, thermal, parallel)
+    kernel(s.positions, eta, phi, system.rest_lengths, system.parameters, system.edges.view(np.uint32),
+           np.ascontiguousarray(sim.layout.spring_order, dtype=np.int64), np.empty((4, m)), out["temperature"],
+           out["tension"], out["strain"], out["entropy"] if thermal else none, out["phi"] if thermal else none,
+           out["internal"])
+    np.testing.assert_array_equal(out["temperature"], sim.temperatures())
+    np.testing.assert_array_equal(out["internal"], sim.internal_spring_fields().temperature)
+    np.testing.assert_array_equal(out["tension"], sim.tensions())
+    np.testing.assert_array_equal(out["strain"], sim.strains())
+    np.testing.assert_array_max_ulp(out["strain"], np.log(sim.lengths() / net.rest_lengths), maxulp=1)
+    if thermal:
+        np.testing.assert_array_equal(out["entropy"], sim.state.entropy)
+        np.testing.assert_array_equal(out["phi"], sim.state.thermal_displacement)

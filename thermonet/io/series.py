@@ -3,6 +3,12 @@
 ``OUTDIR/<name>.pvd`` indexes ``OUTDIR/<name>_NNNNNN.vtu`` frames; ``OUTDIR/diagnostics.csv``;
 ``OUTDIR/summary.json``; ``OUTDIR/<name>.checkpoint.npz`` (the latest checkpoint). Everything is
 in the user's numbering and written atomically.
+
+A frame is filled from the state at its step, then written to disk by a writer thread while the
+run goes on (the file write, the PVD update and the page-cache hint: about half a frame's cost,
+overlapped with stepping where a core is free). One frame is in flight at most; the next frame,
+a checkpoint, the summary and the end of ``Simulation.run`` (normal or not) wait for it, and an
+error of the write is raised there.
 """
 
 from __future__ import annotations
@@ -11,6 +17,7 @@ import json
 import os
 import platform
 import time as _time
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
@@ -18,6 +25,7 @@ from .atomic import atomic_write, release_page_cache
 from .checkpoint import save_checkpoint
 from .pvd import PVDIndex
 from ..kernels.gather import as_index, passes
+from ..kernels.springs import frame_spring_kernel
 from .vtu import FrameImage, VTUWriter
 
 #: output field -> (point or cell data, needs thermal coupling, meaning)
@@ -46,16 +54,18 @@ _STORAGE = {name: (np.uint8 if name == "anchored" else np.int32 if name == "mate
 class FrameFiller:
     """Fills a :class:`~thermonet.io.vtu.FrameImage` with a simulation's fields, user numbering.
 
-    One pass for the node fields and one for the spring fields, from the engine's internal
-    numbering straight into the image (:mod:`thermonet.kernels.gather`; threaded where the
-    stepping kernels are); the fields that cannot change (anchored flag, material id) are
-    written once. Values equal the public accessors' bit for bit (positions,
-    ``sim.state``, ``sim.temperatures()``, ``sim.strains()``, ...); ``node_temperature`` is a sum
-    in incidence order.
+    One pass for the node fields (:mod:`thermonet.kernels.gather`) and one for the spring fields
+    (:func:`thermonet.kernels.springs.frame_spring_kernel`: lengths, temperatures, tensions and
+    strains computed and written straight into the image), threaded where the stepping kernels
+    are; the fields that cannot change (anchored flag, material id) are written once. Values
+    equal the public accessors' bit for bit (positions, ``sim.state``, ``sim.temperatures()``,
+    ``sim.strains()``, ...); ``node_temperature`` is a sum in incidence order.
 
     sim: the Simulation; writer: a :class:`~thermonet.io.vtu.VTUWriter` of its net;
     fields: names from :data:`FIELDS`; material_id: (m,) int, user numbering.
     """
+
+    _SPRING_FIELDS = ("temperature", "tension", "strain", "entropy", "thermal_displacement")
 
     def __init__(self, sim, writer: VTUWriter, fields, material_id: np.ndarray):
         self.sim = sim
@@ -69,34 +79,38 @@ class FrameFiller:
             self.image.point["anchored"][:] = net.anchored
         if "material" in self.fields:
             self.image.cell["material"][:] = material_id
+        self._none = np.empty(0)
         self._no_rows = np.empty((0, 3))
-        self._needs_springs = any(n in self.fields for n in ("temperature", "strain", "tension", "node_temperature"))
+        m = net.n_springs
+        self._with_springs = any(n in self.fields for n in (*self._SPRING_FIELDS, "node_temperature"))
+        if self._with_springs:
+            system = sim.system
+            self._spring_pass = frame_spring_kernel(system.model, system.thermal, sim.parallel)
+            self._edges = system.edges.view(np.uint32)
+            self._scratch = np.empty((4, m))
+        self._theta_internal = np.empty(m if "node_temperature" in self.fields else 0)
 
     def fill(self) -> FrameImage:
         """The image, holding the simulation's state now."""
         sim, img = self.sim, self.image
         net, lay = sim.net, sim.layout
-        nodes, springs = self._node_order, self._spring_order
         state = sim.internal_state()
-        sf = sim.internal_spring_fields() if self._needs_springs else None
         point, cell = img.point, img.cell
-        none, k = self._no_rows, self._passes
-        k.node_fields_to_user(img.points, point.get("displacement", none), point.get("velocity", none),
-                            point.get("momentum", none), state.positions, state.momenta, net.positions,
-                            net.masses, nodes)
-        sources = {"entropy": state.entropy, "thermal_displacement": state.thermal_displacement}
-        if sf is not None:
-            sources.update(temperature=sf.temperature, tension=sf.tension, strain=sf.length)
-        cells = [name for name in self.fields if name in sources]
-        if cells:  # one pass for every spring field
-            k.columns_to_user(tuple(cell[n] for n in cells), tuple(sources[n] for n in cells), springs)
-        for name in self.fields:
-            if name == "node_temperature":
-                k.node_means_to_user(point[name], sf.temperature, lay.inc_ptr, lay.inc_spring, nodes)
-            elif name == "strain":  # the operations of Simulation.strains(): log(l / l0)
-                out = cell[name]
-                np.divide(out, net.rest_lengths, out=out)
-                np.log(out, out=out)
+        k = self._passes
+        k.node_fields_to_user(img.points, point.get("displacement", self._no_rows), point.get("velocity", self._no_rows),
+                              point.get("momentum", self._no_rows), state.positions, state.momenta, net.positions,
+                              net.masses, self._node_order)
+        if self._with_springs:
+            system = sim.system
+            none = self._none
+            eta = state.entropy if system.thermal else none
+            phi = state.thermal_displacement if system.thermal else none
+            self._spring_pass(state.positions, eta, phi, system.rest_lengths, system.parameters, self._edges,
+                              self._spring_order, self._scratch,
+                              *(cell.get(name, none) for name in self._SPRING_FIELDS), self._theta_internal)
+        if "node_temperature" in self.fields:
+            k.node_means_to_user(point["node_temperature"], self._theta_internal, lay.inc_ptr, lay.inc_spring,
+                                 self._node_order)
         return img
 
 
@@ -106,14 +120,18 @@ class RunOutput:
     sim: the Simulation. folder: output folder. name: file stem.
     fields: output field names (see :data:`FIELDS`). frames_every, checkpoint_every: cadences in
     steps (0: never). material_id: (m,) int. scene: JSON-serialisable description stored in
-    checkpoints and summary.json (must hold ``hash``).
+    checkpoints and summary.json (must hold ``hash``). background: write frame files on the
+    writer thread (default) or in the observer call.
+
+    ``Simulation.run`` calls :meth:`flush` when it returns or raises (an observer's owner with a
+    ``flush`` method), so the files are complete when ``run`` is done.
     """
 
     #: rewrite the CSV at most this often (seconds) between checkpoints
     CSV_INTERVAL = 2.0
 
     def __init__(self, sim, folder, name: str, *, fields, frames_every: int, diagnostics_every: int,
-                 checkpoint_every: int, material_id, scene: dict):
+                 checkpoint_every: int, material_id, scene: dict, background: bool = True):
         self.sim = sim
         self.folder = os.fspath(folder)
         self.name = name
@@ -131,8 +149,13 @@ class RunOutput:
         self._frame = (FrameFiller(sim, VTUWriter(sim.net.edges, sim.net.n_nodes), self.fields, self.material_id)
                        if self.frames_every else None)
         self._csv_written = -np.inf
+        #: seconds the run spent in frame observer calls (filling; waiting for a previous write)
         self.frame_seconds = 0.0
+        #: seconds the frame files took to write (on the writer thread when ``background``)
+        self.write_seconds = 0.0
+        self.background = bool(background)
         self._last_frame = None
+        self._pending = None
 
     # ------------------------------------------------------------------------------------------
     def observers(self) -> list:
@@ -155,20 +178,38 @@ class RunOutput:
 
     # ------------------------------------------------------------------------------------------
     def write_frame(self, sim) -> None:
+        """Fill the frame of the current step and write it (on the writer thread when
+        ``background``); the PVD lists it once its file is complete."""
         t0 = _time.perf_counter()
+        self.flush()  # one image: the previous frame must be on disk before it is refilled
         step = sim.step
         if step in self.pvd.frames:
             filename = self.pvd.frames[step][1]
         else:
             filename = f"{self.name}_{len(self.pvd.frames):06d}.vtu"
-        path = os.path.join(self.folder, filename)
-        self._frame.fill().write(path)
-        self.pvd.add(step, sim.time, filename)  # only after the frame file is complete
+        image = self._frame.fill()
+        args = (image, os.path.join(self.folder, filename), step, sim.time, filename)
+        if self.background:
+            self._pending = _writer().submit(self._store_frame, *args)
+        else:
+            self._store_frame(*args)
+        self.frame_seconds += _time.perf_counter() - t0
+
+    def _store_frame(self, image: FrameImage, path: str, step: int, time: float, filename: str) -> None:
+        t0 = _time.perf_counter()
+        image.write(path)
+        self.pvd.add(step, time, filename)  # only after the frame file is complete
         release_page_cache(path)
         if self._last_frame is not None:
             release_page_cache(self._last_frame)
         self._last_frame = path
-        self.frame_seconds += _time.perf_counter() - t0
+        self.write_seconds += _time.perf_counter() - t0
+
+    def flush(self) -> None:
+        """Wait until the frame being written is on disk and listed; raise its write's error."""
+        pending, self._pending = self._pending, None
+        if pending is not None:
+            pending.result()
 
     def _maybe_write_csv(self, sim) -> None:
         if _time.monotonic() - self._csv_written >= self.CSV_INTERVAL:
@@ -179,6 +220,7 @@ class RunOutput:
         self._csv_written = _time.monotonic()
 
     def write_checkpoint(self, sim) -> None:
+        self.flush()  # the checkpoint lists the frames written so far
         sim.record_diagnostics()
         meta = {
             "scene": self.scene,
@@ -193,6 +235,7 @@ class RunOutput:
     def write_summary(self, sim, extra: dict | None = None) -> dict:
         """``summary.json``: scene hash, versions, steps, wall time, steps/s, and the initial value
         and max deviation of each conserved quantity."""
+        self.flush()
         summary = sim.conservation_summary()
         run = summary.pop("_run")
         out = {
@@ -217,6 +260,17 @@ class RunOutput:
             json.dump(out, f, indent=2, allow_nan=True)
             f.write("\n")
         return out
+
+
+_WRITER: ThreadPoolExecutor | None = None
+
+
+def _writer() -> ThreadPoolExecutor:
+    """The process's frame-writer thread (one: frames of every run are written in order)."""
+    global _WRITER
+    if _WRITER is None:
+        _WRITER = ThreadPoolExecutor(max_workers=1, thread_name_prefix="thermonet-frames")
+    return _WRITER
 
 
 def versions() -> dict:

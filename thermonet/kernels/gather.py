@@ -29,15 +29,6 @@ from .specialize import rebind
 _OPTIONS = dict(cache=True, nogil=True, boundscheck=False)
 
 
-def columns_to_user(outs, columns, order):
-    """outs[k][order[i]] = columns[k][i] for every k: several (m,) fields in one pass.
-    outs, columns: tuples of the same length of (m,) float64 arrays."""
-    for i in nb.prange(order.shape[0]):
-        u = order[i]
-        for k in nb.literal_unroll(range(len(outs))):
-            outs[k][u] = columns[k][i]
-
-
 def node_fields_to_user(points, displacement, velocity, momentum, positions, momenta, reference, masses, order):
     """One pass over the nodes, for user node u = order[i]: points[u] = x[i], displacement[u] =
     x[i] − X[u], velocity[u] = p[i] / m[u], momentum[u] = p[i]. Outputs: (n, 3), or (0, 3) for a
@@ -76,7 +67,7 @@ def node_means_to_user(out, spring_values, inc_ptr, inc_spring, order):
         out[order[i]] = total / max(stop - start, 1)
 
 
-_PASSES = (columns_to_user, node_fields_to_user, node_means_to_user)
+_PASSES = (node_fields_to_user, node_means_to_user)
 _COMPILED: dict = {}
 
 

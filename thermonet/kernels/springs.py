@@ -1,5 +1,6 @@
 """Per-spring fields (length, temperature, tension, internal energy) for diagnostics and output,
-and element-wise maps of one model function. Run at the diagnostics cadence, outside the loop."""
+an output frame's spring fields written straight into the user's numbering, and element-wise
+maps of one model function. Run at the diagnostics and output cadences, outside the loop."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ import math
 import numpy as np
 from numba import prange
 
+from .fastmath import log
 from .splitting import BLOCK, squared_lengths
 from .specialize import MODEL_FUNCTIONS, model_fingerprint, model_namespace, specialize
 
@@ -33,6 +35,37 @@ def spring_field_kernel(model, thermal: bool = True, parallel: bool = False):
         tag = f"{model.name}_{key[1]}_{'thermal' if thermal else 'mech'}_{'par' if parallel else 'ser'}"
         _CACHE[key] = specialize(_spring_fields, tag, ns, parallel=bool(parallel), **_OPTIONS)
     return _CACHE[key]
+
+
+def frame_spring_kernel(model, thermal: bool = True, parallel: bool = False):
+    """``frame_springs(x, eta, phi, l0, P, edges, order, scratch, theta, tension, strain, entropy,
+    thermal_displacement, theta_internal)`` for ``model``: one blocked pass that computes each
+    spring's length, temperature, tension and strain (:func:`log_strain`) from positions x
+    (n, 3) and entropies eta (m,), and writes them, with eta and the thermal displacement phi
+    (m,), to user spring ``order[e]`` of the output arrays (each (m,), or (0,) for a field not
+    wanted). theta_internal: (m,) the temperatures in the internal numbering too, or (0,).
+    scratch: (4, m) float64. edges: (m, 2) uint32; order: (m,) int64. Values equal
+    :func:`spring_field_kernel`'s (and :func:`log_strain`'s) bit for bit: the same operations."""
+    key = ("frame", model_fingerprint(model), bool(thermal), bool(parallel))
+    if key not in _CACHE:
+        ns = model_namespace(model)
+        ns["THERMAL"] = bool(thermal)
+        ns["REFERENCE_TEMPERATURE"] = model.parameter_index(model.reference_temperature)
+        tag = f"{model.name}_{key[1]}_{'thermal' if thermal else 'mech'}_{'par' if parallel else 'ser'}"
+        _CACHE[key] = specialize(_frame_springs, tag, ns, parallel=bool(parallel), **_OPTIONS)
+    return _CACHE[key]
+
+
+def log_strain(lengths: np.ndarray, rest_lengths: np.ndarray) -> np.ndarray:
+    """(m,) logarithmic strains ln(l / l0), with the same log as an output frame's (thermonet's
+    vectorizable log, within about an ulp of NumPy's), so that the two agree bit for bit."""
+    key = ("log_strain",)
+    if key not in _CACHE:
+        _CACHE[key] = specialize(_log_strain, "any", {}, **_OPTIONS)
+    lengths = np.ascontiguousarray(lengths, dtype=np.float64)
+    out = np.empty_like(lengths)
+    _CACHE[key](lengths, np.ascontiguousarray(rest_lengths, dtype=np.float64), out)
+    return out
 
 
 def map_springs(model, function: str):
@@ -72,3 +105,52 @@ def _spring_fields(x, eta, l0, P, edges, length, theta, tens, energy):
 def _mapped(l, s, l0, P, out):
     for e in range(l.shape[0]):
         out[e] = scalar(l[e], s[e], l0[e], P, e)
+
+
+def _frame_springs(x, eta, phi, l0, P, edges, order, scratch, theta, tens, strain, entropy, thermal_displacement,
+                   theta_internal):
+    """See :func:`frame_spring_kernel`. Blocked like :func:`_spring_fields`: per block the gather
+    (squared lengths), the arithmetic over contiguous scratch rows (which vectorizes), then one
+    loop scattering every wanted field to its user position."""
+    m = edges.shape[0]
+    with_theta = theta.shape[0] > 0
+    with_tension = tens.shape[0] > 0
+    with_strain = strain.shape[0] > 0
+    with_entropy = entropy.shape[0] > 0
+    with_phi = thermal_displacement.shape[0] > 0
+    with_internal = theta_internal.shape[0] > 0
+    for blk in prange((m + BLOCK - 1) // BLOCK):
+        lo = blk * BLOCK
+        n = min(BLOCK, m - lo)
+        squared_lengths(x, edges, lo, n, scratch[0], lo)
+        for i in range(n):
+            e = np.uint64(lo + i)
+            l = math.sqrt(scratch[0, e])
+            if THERMAL:
+                th = temperature(l, eta[e], l0[e], P, e)
+            else:
+                th = P[REFERENCE_TEMPERATURE, e]
+            scratch[1, e] = th
+            scratch[2, e] = tension(l, th, l0[e], P, e)
+            if with_strain:
+                scratch[3, e] = log(l / l0[e])
+        for i in range(n):
+            e = np.uint64(lo + i)
+            u = order[e]
+            if with_theta:
+                theta[u] = scratch[1, e]
+            if with_internal:
+                theta_internal[e] = scratch[1, e]
+            if with_tension:
+                tens[u] = scratch[2, e]
+            if with_strain:
+                strain[u] = scratch[3, e]
+            if with_entropy:
+                entropy[u] = eta[e]
+            if with_phi:
+                thermal_displacement[u] = phi[e]
+
+
+def _log_strain(l, l0, out):
+    for e in range(l.shape[0]):
+        out[e] = log(l[e] / l0[e])
