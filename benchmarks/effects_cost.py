@@ -1,21 +1,29 @@
 """What each effect of a scene costs: steps/s on a ~1e5-spring lattice with
 (a) mechanics only, (b) + thermal coupling, (c) + gravity, (d) + a VTU frame every 100 steps,
-(e) + a diagnostics row every 10 steps; each as a cost ratio to (a).
+(e) + a diagnostics row every 10 steps; each as a cost ratio to (a), and the overhead of each
+effect over the configuration before it. (d) writes frame files on the writer thread (the
+default); "(d) inline" writes them in the observer call, for comparison.
 
     python benchmarks/effects_cost.py [--cells 32] [--steps 1000] [--repeats 3]
 
-Prints a markdown table (medians over the repeats, all configurations measured side by side in
-one process). Targets (issue 4): thermal ≤ 1.5× mechanics; output and diagnostics ≤ 10%.
+Prints a markdown table. The configurations run interleaved, one run each per repeat, so that
+drifts of a shared machine hit all alike; steps/s are medians over the repeats, and an
+overhead is the median over the repeats of the ratio of two runs of the same repeat. The frame
+columns are the milliseconds per frame the stepping thread spent in the frame observer (filling
+the image) and that the file write took (on the writer thread, overlapped with stepping).
+Targets (issue 4): thermal ≤ 1.5× mechanics; output and diagnostics ≤ 10%.
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import shutil
 import statistics
 import tempfile
 import time
 
+import numba
 from thermonet.io import RunOutput
 from thermonet.scenes import scene_from_text
 
@@ -34,17 +42,21 @@ h = 0.01
 steps = {steps}
 """
 
+# (name, overrides, frames every, diagnostics every, frames written on the writer thread,
+#  the configuration whose overhead this adds)
 CONFIGS = [
-    ("(a) mechanics only", ["effects.thermal=false"], 0, None),
-    ("(b) + thermal", [], 0, None),
-    ("(c) + gravity", ["effects.gravity=[0, 0, -1]"], 0, None),
-    ("(d) + VTU every 100 steps", ["effects.gravity=[0, 0, -1]"], 100, None),
-    ("(e) + diagnostics every 10 steps", ["effects.gravity=[0, 0, -1]"], 100, 10),
+    ("(a) mechanics only", ["effects.thermal=false"], 0, None, True, None),
+    ("(b) + thermal", [], 0, None, True, "(a) mechanics only"),
+    ("(c) + gravity", ["effects.gravity=[0, 0, -1]"], 0, None, True, "(b) + thermal"),
+    ("(d) + VTU every 100 steps", ["effects.gravity=[0, 0, -1]"], 100, None, True, "(c) + gravity"),
+    ("(d) inline: frame files written in the observer", ["effects.gravity=[0, 0, -1]"], 100, None, False, "(c) + gravity"),
+    ("(e) + diagnostics every 10 steps", ["effects.gravity=[0, 0, -1]"], 100, 10, True, "(d) + VTU every 100 steps"),
 ]
 
 
-def measure(text: str, overrides, frames_every: int, diagnostics_every, folder: str) -> tuple[float, int]:
-    """Steps/s of one run (diagnostics only at start and end unless ``diagnostics_every``)."""
+def measure(text: str, overrides, frames_every: int, diagnostics_every, folder: str, background: bool = True):
+    """(steps/s, springs, ms per frame in the observer, ms per frame file write) of one run
+    (diagnostics only at start and end unless ``diagnostics_every``)."""
     scene = scene_from_text(text, overrides)
     built = scene.build()
     sim = built.simulation
@@ -54,11 +66,15 @@ def measure(text: str, overrides, frames_every: int, diagnostics_every, folder: 
     if frames_every:
         out = RunOutput(sim, folder, "bench", fields=scene.output_fields(), frames_every=frames_every,
                         diagnostics_every=every, checkpoint_every=0, material_id=built.material_id,
-                        scene={"name": "bench", "hash": scene.hash})
+                        scene={"name": "bench", "hash": scene.hash}, background=background)
         observers = [(k, cb) for k, cb in out.observers() if cb == out.write_frame]
     t0 = time.perf_counter()
     sim.run(steps=steps, diagnostics_every=every, observers=observers)
-    return steps / (time.perf_counter() - t0), sim.net.n_springs
+    rate = steps / (time.perf_counter() - t0)
+    if not frames_every:
+        return rate, sim.net.n_springs, None, None
+    frames = len(out.pvd.frames)
+    return rate, sim.net.n_springs, 1e3 * out.frame_seconds / frames, 1e3 * out.write_seconds / frames
 
 
 def main() -> None:
@@ -69,21 +85,34 @@ def main() -> None:
     args = ap.parse_args()
     text = SCENE.format(n=args.cells, steps=args.steps)
     with tempfile.TemporaryDirectory() as folder:
-        for _, overrides, frames, diag in CONFIGS:  # compile every kernel first
-            measure(SCENE.format(n=2, steps=20), overrides, frames and 10, diag, folder)
-        rates = {name: [] for name, *_ in CONFIGS}
+        for _, overrides, frames, diag, background, _ in CONFIGS:  # compile every kernel first
+            measure(SCENE.format(n=2, steps=20), overrides, frames and 10, diag, folder, background)
+        runs = {name: [] for name, *_ in CONFIGS}
         for _ in range(args.repeats):  # interleaved, so drifts of the machine hit all alike
-            for name, overrides, frames, diag in CONFIGS:
-                rate, m = measure(text, overrides, frames, diag, os.path.join(folder, "frames"))
-                rates[name].append(rate)
-    base = statistics.median(rates[CONFIGS[0][0]])
-    print(f"{m} springs, {args.steps} steps per run, median of {args.repeats}, co2, "
-          f"{os.cpu_count()} cores\n")
-    print("| configuration | steps/s | spring-steps/s | cost vs (a) |")
-    print("|---|---:|---:|---:|")
-    for name, *_ in CONFIGS:
-        r = statistics.median(rates[name])
-        print(f"| {name} | {r:,.0f} | {r * m:.3g} | {base / r:.2f}× |")
+            for name, overrides, frames, diag, background, _ in CONFIGS:
+                # a fresh folder per run, as a new run's output: replacing files of an earlier run
+                # costs more (freeing their blocks) and is not what a run normally does
+                run_folder = tempfile.mkdtemp(dir=folder)
+                runs[name].append(measure(text, overrides, frames, diag, run_folder, background))
+                shutil.rmtree(run_folder)
+    m = runs[CONFIGS[0][0]][0][1]
+    rate = {name: [r[0] for r in runs[name]] for name in runs}
+    base = statistics.median(rate[CONFIGS[0][0]])
+    print(f"{m} springs, {args.steps} steps per run, {args.repeats} interleaved repeats, co2, "
+          f"{os.cpu_count()} cores, {numba.get_num_threads()} threads\n")
+    print("| configuration | steps/s | cost vs (a) | overhead over | ms/frame in observer | ms/frame write |")
+    print("|---|---:|---:|---|---:|---:|")
+    for name, _, frames, _, background, before in CONFIGS:
+        r = statistics.median(rate[name])
+        over = "–"
+        if before is not None:
+            paired = statistics.median(b / a for a, b in zip(rate[name], rate[before]))
+            over = f"{100 * (paired - 1):+.1f} % over {before.split()[0]}"
+        fill = write = "–"
+        if frames:
+            fill = f"{statistics.median(x[2] for x in runs[name]):.2f}"
+            write = f"{statistics.median(x[3] for x in runs[name]):.2f}" + (" (thread)" if background else "")
+        print(f"| {name} | {r:,.0f} | {base / r:.2f}× | {over} | {fill} | {write} |")
 
 
 if __name__ == "__main__":
