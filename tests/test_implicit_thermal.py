@@ -3,6 +3,8 @@ number of Newton corrections, used in the residual kernels' vectorized loop) agr
 scalar one (iterated to convergence) to round-off, flags what it cannot solve, and the residual
 kernels' scalar fallback for flagged springs gives the same residual as a clean solve."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -12,6 +14,11 @@ from thermonet.models import get_model
 
 PARAMS = {"hencky": dict(c=100.0, beta=2.0, C0=5.0, theta0=300.0),
           "quadratic": dict(E=100.0, beta=0.2, C0=5.0, theta0=300.0, eta0=0.1)}
+
+
+def iterated(model):
+    """The model without its closed-form HO4 solve (Newton corrections, as for any model)."""
+    return dataclasses.replace(model, name=f"{model.name}_iterated", entropy_log_affine=False)
 
 
 def spring_states(model_name, count=200, seed=0):
@@ -25,9 +32,12 @@ def spring_states(model_name, count=200, seed=0):
     return model, P, l0, la, lh, lb, entropy
 
 
-@pytest.mark.parametrize("model_name", ["hencky", "quadratic"])
+@pytest.mark.parametrize("model_name", ["hencky", "hencky_iterated", "quadratic"])
 def test_vectorized_ho4_solve_is_the_scalar_one(model_name):
-    model, P, l0, la, lh, lb, eta = spring_states(model_name)
+    """hencky: the closed form against the scalar Newton solve."""
+    model, P, l0, la, lh, lb, eta = spring_states(model_name.removesuffix("_iterated"))
+    if model_name.endswith("_iterated"):
+        model = iterated(model)
     k = implicit_kernels(model, "ho4")
     for i in range(len(la)):
         for guess, warm in ((0.0, False), (eta[i] + 1e-3, True)):
@@ -57,10 +67,15 @@ def test_vectorized_solves_flag_a_start_they_cannot_finish():
     """From a guess whose first ln θ step exceeds the bound (20) two corrections cannot converge:
     the vectorized solve says so; the scalar one iterates on and finds the answer."""
     model, P, l0, la, lh, lb, eta = spring_states("hencky", count=5)
-    k = implicit_kernels(model, "ho4")
+    k = implicit_kernels(iterated(model), "ho4")
     wild = eta[0] + 500.0  # ln θ off by 100
     assert k.thermal_vector(la[0], lh[0], lb[0], eta[0], l0, P, 0, wild, True)[-1] == 0
     assert k.thermal(la[0], lh[0], lb[0], eta[0], l0, P, 0, wild, True)[-1] == 1
+    model, P, l0, la, lh, lb, eta = spring_states("hencky", count=5)
+    k = implicit_kernels(model, "ho4")  # closed form: no seed, nothing to flag
+    wild = eta[0] + 500.0  # ln θ off by 100
+    exact = k.thermal_vector(la[0], lh[0], lb[0], eta[0], l0, P, 0, wild, True)
+    assert exact == k.thermal_vector(la[0], lh[0], lb[0], eta[0], l0, P, 0, 0.0, False) and exact[-1] == 1
     g = implicit_kernels(model, "gtr")
     assert g.thermal_vector(la[0], lb[0], eta[0], l0, P, 0, 0.5, 1e-40)[-1] == 0
     assert g.thermal(la[0], lb[0], eta[0], l0, P, 0, 0.5, 1e-40)[-1] == 1
@@ -70,10 +85,12 @@ def test_vectorized_solves_flag_a_start_they_cannot_finish():
 @pytest.mark.parametrize("parallel", [False, True])
 def test_residual_falls_back_to_the_scalar_solve_for_flagged_springs(integrator, parallel):
     """Warm seeds spoiled for a third of the springs (across several blocks of 512) send those
-    springs to the scalar fallback; the residual equals the one from a clean cold solve."""
+    springs to the scalar fallback; the residual equals the one from a clean cold solve. (HO4
+    with "hencky" solves in closed form, without seeds: the quadratic model here.)"""
     net = tn.lattice((8, 8, 8), jitter=0.1, seed=2)
     rng = np.random.default_rng(0)
-    sim = tn.Simulation(net, model="hencky", parameters=PARAMS["hencky"],
+    model = "quadratic" if integrator == "ho4" else "hencky"
+    sim = tn.Simulation(net, model=model, parameters=PARAMS[model],
                         temperatures=rng.uniform(300.0, 600.0, net.n_springs),
                         momenta=rng.normal(0.0, 1.0, (net.n_nodes, 3)), integrator=integrator, h=0.01,
                         parallel=parallel, integrator_options=dict(linear_solver="matfree"))
@@ -86,6 +103,7 @@ def test_residual_falls_back_to_the_scalar_solve_for_flagged_springs(integrator,
     spoiled = rng.random(net.n_springs) < 1 / 3
     if integrator == "ho4":
         st.gs[spoiled] += 500.0
+        assert not sim.model.entropy_log_affine
     else:
         st.theta[spoiled] = 1e-40
     st.warm = True

@@ -24,7 +24,9 @@ exit); a spring whose last correction is not below ``THETA_STOP`` (a cold start 
 is not affine in the right variable, a wild iterate), or whose state is not admissible, is
 flagged and redone by the scalar solve (``*_thermal``: iterate to convergence, report the
 failure) in a third loop over the block. For the shipped models one correction is exact (the
-second confirms it), so the fallback is for custom models and bad states.
+second confirms it), so the fallback is for custom models and bad states. Where the entropy is
+affine in ln θ (``Model.entropy_log_affine``, model "hencky"), HO4's solve is in closed form
+(:func:`_ho4_thermal_exact`): no corrections, no seeds.
 
 Per-spring arrays are stored component-major, (k, m) (``dir0[i, e]``), so that the vectorized
 loop reads and writes unit-stride rows. Indices are read as unsigned in the spring passes.
@@ -55,6 +57,9 @@ from .specialize import model_fingerprint, model_namespace, specialize
 # Bound per model by specialize(); listed so the templates read as ordinary code.
 entropy = temperature = tension = d2F_dl2 = d2F_dl_dtheta = d2F_dtheta2 = None
 adiabatic_stiffness = gtr_thermal = ho4_thermal = gtr_thermal_vector = ho4_thermal_vector = gtr_correct = ho4_correct = ho4_derivatives = finish_nodes = None
+ho4_thermal_exact = None
+#: the model's entropy is affine in ln θ (Model.entropy_log_affine): HO4's thermal solve in closed form
+LOG_AFFINE = False
 
 _CACHE: dict = {}
 _OPTIONS = dict(cache=True, error_model="numpy", boundscheck=False)
@@ -93,6 +98,7 @@ def implicit_kernels(model, scheme: str, parallel: bool = False) -> ImplicitKern
         tag = f"{model.name}_{key[1]}"
         ptag = f"{tag}_{'par' if parallel else 'ser'}"
         ns = model_namespace(model)
+        ns["LOG_AFFINE"] = bool(getattr(model, "entropy_log_affine", False))
         ns["adiabatic_stiffness"] = specialize(_adiabatic_stiffness, tag, ns, **_INLINE)
         start = specialize(_start, ptag, ns, parallel=parallel, **_OPTIONS)
         ns["finish_nodes"] = specialize(_finish_nodes, ptag, ns, parallel=parallel, **_OPTIONS)
@@ -113,6 +119,7 @@ def implicit_kernels(model, scheme: str, parallel: bool = False) -> ImplicitKern
         elif scheme == "ho4":
             ns["ho4_derivatives"] = specialize(_ho4_derivatives, tag, ns, **_INLINE)
             ns["ho4_correct"] = specialize(_ho4_correct, tag, ns, **_INLINE)
+            ns["ho4_thermal_exact"] = specialize(_ho4_thermal_exact, tag, ns, **_INLINE)
             ns["ho4_thermal"] = specialize(_ho4_thermal, tag, ns, **_OPTIONS)
             ns["ho4_thermal_vector"] = specialize(_ho4_thermal_vector, tag, ns, **_INLINE)
             _CACHE[key] = ImplicitKernels(
@@ -751,10 +758,29 @@ def _ho4_correct(la, lh, lb, eta, l0, P, e, G, t0, t1):
     return G - dG, s0, s1, big
 
 
+def _ho4_thermal_exact(la, lh, lb, eta, l0, P, e):
+    """The solution of :func:`_ho4_thermal`'s equations in closed form, for an entropy affine in
+    ln θ with a constant coefficient C (LOG_AFFINE). Then θ(l, G) = θ(l, η) exp((G − η)/C) and
+    Γ(l, s θ) = Γ(l, θ) + C ln s, so with A = θ(la, η), B = θ(lb, η) and S = Γ(lh, (A + B)/2),
+    Γ(lh, θ^½) = S + G − η and (58c) reads (2G + 4(S + G − η))/6 = η: G = η + 2(η − S)/3.
+    Same returns; success unless a temperature is not admissible."""
+    A = temperature(la, eta, l0, P, e)
+    B = temperature(lb, eta, l0, P, e)
+    G = eta + (2.0 / 3.0) * (eta - entropy(lh, 0.5 * (A + B), l0, P, e))
+    t0 = temperature(la, G, l0, P, e)
+    t1 = temperature(lb, G, l0, P, e)
+    ok = 1 if _admissible(t0) & _admissible(t1) else 0
+    d0h, d01, d1h, d11 = ho4_derivatives(la, lh, lb, l0, P, e, t0, t1)
+    return G, t0, t1, d0h, d01, d1h, d11, ok
+
+
 def _ho4_thermal_vector(la, lh, lb, eta, l0, P, e, guess, warm):
-    """The vectorized loop's solve of :func:`_ho4_thermal`: VECTOR_CORRECTIONS corrections from
-    the same start, the last applied to θ to second order as there; success when the last is
-    below THETA_STOP. Same returns."""
+    """The vectorized loop's solve of :func:`_ho4_thermal`: in closed form where the model
+    allows (:func:`_ho4_thermal_exact`), else VECTOR_CORRECTIONS corrections from the same start,
+    the last applied to θ to second order as there; success when the last is below THETA_STOP.
+    Same returns."""
+    if LOG_AFFINE:
+        return ho4_thermal_exact(la, lh, lb, eta, l0, P, e)
     G = guess if (warm & (abs(guess) < math.inf)) else eta
     t0 = temperature(la, G, l0, P, e)
     t1 = temperature(lb, G, l0, P, e)
@@ -825,9 +851,11 @@ def _ho4_residual(x0, u, p, eta, l0, P, edges, free_index, inc_ptr, inc_spring, 
             l1 = math.sqrt(ex * ex + ey * ey + ez * ez)
             la = len0[e]
             rest = l0[e]
-            # warm: G = Γ(l⁰, θ⁰) moved along dG/dl = Γ_θ(l⁰, θ⁰) dθ⁰/dl
-            g = gs[e] - d2F_dtheta2(la, th0[e], rest, P, e) * (dth[0, e] * (lh - lenh[e]) + dth[1, e] * (l1 - len1[e]))
-            guess[e] = g
+            if LOG_AFFINE:  # solved in closed form: no seed
+                g = eta[e]
+            else:  # warm: G = Γ(l⁰, θ⁰) moved along dG/dl = Γ_θ(l⁰, θ⁰) dθ⁰/dl
+                g = gs[e] - d2F_dtheta2(la, th0[e], rest, P, e) * (dth[0, e] * (lh - lenh[e]) + dth[1, e] * (l1 - len1[e]))
+                guess[e] = g
             lenh[e] = lh
             ih = 1.0 / lh
             dirh[0, e] = hx * ih
@@ -866,7 +894,10 @@ def _ho4_residual(x0, u, p, eta, l0, P, edges, free_index, inc_ptr, inc_spring, 
                 code[e] = COLLAPSED
                 continue
             la = len0[e]
-            G, t0, t1, d0h, d01, d1h, d11, ok = ho4_thermal(la, lh, l1, eta[e], l0[e], P, e, guess[e], warm)
+            seed = guess[e]
+            if LOG_AFFINE:  # no seed was written: start from η
+                seed = eta[e]
+            G, t0, t1, d0h, d01, d1h, d11, ok = ho4_thermal(la, lh, l1, eta[e], l0[e], P, e, seed, warm)
             gs[e] = G
             if not ok:
                 continue

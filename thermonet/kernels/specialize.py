@@ -68,6 +68,7 @@ def model_fingerprint(model) -> str:
         pass
     h = hashlib.sha256(model.name.encode())
     h.update(repr(model.parameters).encode())
+    h.update(repr(getattr(model, "entropy_log_affine", False)).encode())  # selects kernel code
     seen: set = set()
     for name in MODEL_FUNCTIONS:
         _function_digest(getattr(model, name, None), h, seen)

@@ -39,6 +39,9 @@ class Model:
     internal_energy: U(l, η, l0, P, e) = F + ηθ.
     d2F_dl2, d2F_dl_dtheta, d2F_dtheta2: second derivatives of F at (l, θ), for Newton.
     temperature_can_vanish: True when θ(l, η) may become ≤ 0 (a state the run must stop at).
+    entropy_log_affine: True when Γ(l, θ) = a(l) + C ln θ with C a per-spring constant (model
+        "hencky"): HO4's per-spring thermal equations then have a closed-form solution, which its
+        kernels use instead of Newton corrections. Leave False unless it holds exactly.
     reference_temperature: name of the parameter that is the reference temperature (used by a
         purely mechanical run, where every spring stays at it).
     """
@@ -56,6 +59,7 @@ class Model:
     defaults: Mapping[str, float] = field(default_factory=dict)
     positive: tuple[str, ...] = ()
     temperature_can_vanish: bool = False
+    entropy_log_affine: bool = False
     reference_temperature: str = "theta0"
     description: str = ""
 

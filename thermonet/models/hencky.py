@@ -83,6 +83,7 @@ HENCKY = register_model(
         defaults={"c": 100.0, "beta": 0.2, "C0": 5.0, "theta0": 300.0},
         positive=("c", "C0", "theta0"),
         temperature_can_vanish=False,
+        entropy_log_affine=True,  # Γ = β ln(l/l0) + C0 ln(θ/θ0)
         description="paper (31): c/2 L² − β(θ−θ0)L + C0(θ−θ0−θ ln θ/θ0), L = ln(l/l0)",
     )
 )
