@@ -227,3 +227,67 @@ def test_cli_runs_an_implicit_integrator(tmp_path):
     assert "newton_iterations" in data.dtype.names and "newton_residual" in data.dtype.names
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["newton"]["iterations_max"] <= 3 and summary["newton"]["residual_max"] <= 1e-12
+
+
+def test_a_residual_near_the_tolerance_is_finished_by_one_jacobi_step(monkeypatch):
+    """On the benchmark-like lattice most HO4 steps end one Newton iteration at 1–5× the
+    tolerance; one inertia-preconditioned correction then brings them below it. Same states as
+    full Newton iterations, to the tolerance's size."""
+    import thermonet.integrators.newton as newton_module
+
+    def lattice_run():
+        net = tn.lattice((10, 10, 10), jitter=0.1, seed=1)
+        rng = np.random.default_rng(0)
+        sim = tn.Simulation(net, model="hencky", parameters=dict(c=100.0, beta=0.2, C0=5.0, theta0=300.0),
+                            temperatures=rng.uniform(300.0, 600.0, net.n_springs),
+                            momenta=rng.normal(0.0, 1.0, (net.n_nodes, 3)), integrator="ho4", h=0.012,
+                            integrator_options=dict(linear_solver="matfree"))
+        sim.run(steps=12, diagnostics_every=10**9)
+        return sim
+
+    short = lattice_run()
+    monkeypatch.setattr(newton_module, "JACOBI_RANGE", 0.0)
+    full = lattice_run()
+    assert short.stepper.timers.jacobi_steps >= 3 and full.stepper.timers.jacobi_steps == 0
+    for sim in (short, full):
+        assert sim.stepper.summary()["residual_max"] <= 1e-12
+    assert short.stepper.timers.linear_solves == full.stepper.timers.linear_solves
+    assert short.stepper.solver.iterations < full.stepper.solver.iterations  # fewer sweeps
+    scale = np.abs(full.state.momenta).max()
+    assert np.abs(short.state.momenta - full.state.momenta).max() <= 1e-11 * scale
+    assert np.abs(short.state.positions - full.state.positions).max() <= 1e-11
+
+
+def test_a_jacobi_step_that_does_not_contract_hands_back_to_full_iterations():
+    """R(u) = u − b; the 'full' solve is off by ε = 5e-12 on purpose, the Jacobi step goes the
+    wrong way: after it, Newton must solve fully again instead of repeating it."""
+    eps = 5e-12
+    calls = {"solve": 0, "jacobi": 0}
+
+    class Problem:
+        b = np.linspace(1.0, 2.0, 7)
+
+        def residual(self, u):
+            self.R = u - self.b
+            self.Rabs = np.abs(self.b)
+            return 0, -1
+
+        def linearize(self):
+            pass
+
+    class Solver:
+        assembled = False
+
+        def solve(self, rhs, target=0.0):
+            calls["solve"] += 1
+            return rhs * (1.0 - eps)
+
+        def jacobi(self, rhs):
+            calls["jacobi"] += 1
+            return -rhs
+
+    u = np.zeros(7)
+    result = newton(Problem(), u, NewtonOptions(), Solver(), NewtonTimers())
+    assert result.converged and calls == {"solve": 2, "jacobi": 1}
+    rho = result.history
+    assert rho[0] == 1.0 and 1e-12 < rho[1] <= 1e-11 and rho[2] > rho[1] and rho[3] <= 1e-12

@@ -277,6 +277,7 @@ class ImplicitStepper(Stepper):
         t["linear_solver"] = self.solver.name
         t["unknowns"] = self.pattern.size
         t["jacobian_nnz"] = self.pattern.nnz
+        t["jacobi_steps"] = self.timers.jacobi_steps  # of the iterations, those finished by D⁻¹ R alone
         t.update({f"time_{k}": v for k, v in self.timers.as_dict().items() if isinstance(v, float)})
         return t
 

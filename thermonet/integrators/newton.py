@@ -297,6 +297,12 @@ class MatrixFree:
     def factorize(self, data: np.ndarray) -> None:  # nothing to factorize
         pass
 
+    def jacobi(self, rhs: np.ndarray) -> np.ndarray:
+        """D⁻¹ rhs: one sweep from du = 0, which needs no linearization (the inertia only)."""
+        self.problem.sweep(self._du, rhs, self._r, True, True)
+        self.iterations += 1
+        return self._du
+
     def solve(self, rhs: np.ndarray, target: float = 0.0) -> np.ndarray:
         du = self._du
         previous = math.inf
@@ -356,6 +362,13 @@ def make_linear_solver(name: str, pattern: BlockPattern, problem=None):
 #: Newton scaling, ρ the current scaled residual): Newton stays quadratic and the last linear
 #: error cannot keep the next Newton residual above the tolerance
 LINEAR_FRACTION = 0.1
+#: after a full Newton iteration, a scaled residual within this factor of the tolerance is
+#: corrected by one inertia-preconditioned (block-Jacobi) step, u −= D⁻¹ R, without linearizing
+#: or sweeping: the inertia dominates the Newton matrix below the stability limit (a sweep
+#: contracts by ≈ 0.005–0.05 on the benchmark lattices), so this is an inexact Newton step whose
+#: linear residual is that fraction of R. Its result is checked like any other iterate; a step
+#: that does not halve the residual ends the shortcut for this solve (matrix-free solver only).
+JACOBI_RANGE = 10.0
 
 
 @dataclass
@@ -368,6 +381,7 @@ class NewtonTimers:
     solve: float = 0.0
     linear_solves: int = 0
     residuals: int = 0
+    jacobi_steps: int = 0
 
     def as_dict(self) -> dict:
         return dict(self.__dict__)
@@ -397,6 +411,8 @@ def newton(problem, u: np.ndarray, options: NewtonOptions, solver, timers: Newto
     """
     history: list[float] = []
     increment = math.inf
+    jacobi = getattr(solver, "jacobi", None)
+    jacobi_last = False
     for it in range(options.max_iterations + 1):
         t0 = time.perf_counter()
         status, spring = problem.residual(u)
@@ -420,6 +436,20 @@ def newton(problem, u: np.ndarray, options: NewtonOptions, solver, timers: Newto
             return NewtonResult(True, it, history)
         if it == options.max_iterations:
             break
+        if jacobi_last and rho > 0.5 * history[-2]:
+            jacobi = None  # it did not contract: full Newton iterations from here on
+        jacobi_last = jacobi is not None and it > 0 and rho <= JACOBI_RANGE * options.tolerance
+        if jacobi_last:
+            t0 = time.perf_counter()
+            du = jacobi(problem.R)
+            timers.solve += time.perf_counter() - t0
+            timers.jacobi_steps += 1
+            timers.linear_solves += 1
+            u -= du
+            increment = float(np.abs(du).max())
+            if not math.isfinite(increment):
+                return NewtonResult(False, it + 1, history, 0, -1, "Newton correction not finite")
+            continue
         t0 = time.perf_counter()
         if solver.assembled:
             problem.jacobian(problem.data)
