@@ -1,8 +1,9 @@
 """What each effect of a scene costs: steps/s on a ~1e5-spring lattice with
 (a) mechanics only, (b) + thermal coupling, (c) + gravity, (d) + a VTU frame every 100 steps,
 (e) + a diagnostics row every 10 steps; each as a cost ratio to (a), and the overhead of each
-effect over the configuration before it. (d) writes frame files on the writer thread (the
-default); "(d) inline" writes them in the observer call, for comparison.
+effect over the configuration before it. (d) writes frame files as a run does by default: on a
+writer thread where a core is idle while the run steps, else in the frame observer; the two
+"(d) …" rows below it force one way, for comparison.
 
     python benchmarks/effects_cost.py [--cells 32] [--steps 1000] [--repeats 3]
 
@@ -42,21 +43,22 @@ h = 0.01
 steps = {steps}
 """
 
-# (name, overrides, frames every, diagnostics every, frames written on the writer thread,
-#  the configuration whose overhead this adds)
+# (name, overrides, frames every, diagnostics every, frames written on the writer thread (None:
+#  the default), the configuration whose overhead this adds)
 CONFIGS = [
-    ("(a) mechanics only", ["effects.thermal=false"], 0, None, True, None),
-    ("(b) + thermal", [], 0, None, True, "(a) mechanics only"),
-    ("(c) + gravity", ["effects.gravity=[0, 0, -1]"], 0, None, True, "(b) + thermal"),
-    ("(d) + VTU every 100 steps", ["effects.gravity=[0, 0, -1]"], 100, None, True, "(c) + gravity"),
-    ("(d) inline: frame files written in the observer", ["effects.gravity=[0, 0, -1]"], 100, None, False, "(c) + gravity"),
-    ("(e) + diagnostics every 10 steps", ["effects.gravity=[0, 0, -1]"], 100, 10, True, "(d) + VTU every 100 steps"),
+    ("(a) mechanics only", ["effects.thermal=false"], 0, None, None, None),
+    ("(b) + thermal", [], 0, None, None, "(a) mechanics only"),
+    ("(c) + gravity", ["effects.gravity=[0, 0, -1]"], 0, None, None, "(b) + thermal"),
+    ("(d) + VTU every 100 steps", ["effects.gravity=[0, 0, -1]"], 100, None, None, "(c) + gravity"),
+    ("(d) frame files on the writer thread", ["effects.gravity=[0, 0, -1]"], 100, None, True, "(c) + gravity"),
+    ("(d) frame files in the observer", ["effects.gravity=[0, 0, -1]"], 100, None, False, "(c) + gravity"),
+    ("(e) + diagnostics every 10 steps", ["effects.gravity=[0, 0, -1]"], 100, 10, None, "(d) + VTU every 100 steps"),
 ]
 
 
-def measure(text: str, overrides, frames_every: int, diagnostics_every, folder: str, background: bool = True):
-    """(steps/s, springs, ms per frame in the observer, ms per frame file write) of one run
-    (diagnostics only at start and end unless ``diagnostics_every``)."""
+def measure(text: str, overrides, frames_every: int, diagnostics_every, folder: str, background=None):
+    """(steps/s, springs, ms per frame in the observer, ms per frame file write, written on the
+    writer thread) of one run (diagnostics only at start and end unless ``diagnostics_every``)."""
     scene = scene_from_text(text, overrides)
     built = scene.build()
     sim = built.simulation
@@ -72,9 +74,9 @@ def measure(text: str, overrides, frames_every: int, diagnostics_every, folder: 
     sim.run(steps=steps, diagnostics_every=every, observers=observers)
     rate = steps / (time.perf_counter() - t0)
     if not frames_every:
-        return rate, sim.net.n_springs, None, None
+        return rate, sim.net.n_springs, None, None, None
     frames = len(out.pvd.frames)
-    return rate, sim.net.n_springs, 1e3 * out.frame_seconds / frames, 1e3 * out.write_seconds / frames
+    return rate, sim.net.n_springs, 1e3 * out.frame_seconds / frames, 1e3 * out.write_seconds / frames, out.background
 
 
 def main() -> None:
@@ -102,7 +104,7 @@ def main() -> None:
           f"{os.cpu_count()} cores, {numba.get_num_threads()} threads\n")
     print("| configuration | steps/s | cost vs (a) | overhead over | ms/frame in observer | ms/frame write |")
     print("|---|---:|---:|---|---:|---:|")
-    for name, _, frames, _, background, before in CONFIGS:
+    for name, _, frames, _, _, before in CONFIGS:
         r = statistics.median(rate[name])
         over = "–"
         if before is not None:
@@ -111,7 +113,7 @@ def main() -> None:
         fill = write = "–"
         if frames:
             fill = f"{statistics.median(x[2] for x in runs[name]):.2f}"
-            write = f"{statistics.median(x[3] for x in runs[name]):.2f}" + (" (thread)" if background else "")
+            write = f"{statistics.median(x[3] for x in runs[name]):.2f}" + (" (thread)" if runs[name][0][4] else "")
         print(f"| {name} | {r:,.0f} | {base / r:.2f}× | {over} | {fill} | {write} |")
 
 

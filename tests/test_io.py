@@ -354,3 +354,16 @@ def test_frame_spring_pass_equals_the_public_accessors_bit_for_bit(parallel, mod
     if thermal:
         np.testing.assert_array_equal(out["entropy"], sim.state.entropy)
         np.testing.assert_array_equal(out["phi"], sim.state.thermal_displacement)
+
+
+def test_frames_go_to_the_writer_thread_only_where_a_core_is_idle():
+    from thermonet.io.series import idle_core
+
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    net = tn.lattice((3, 3, 3))
+    serial = tn.Simulation(net, h=0.01, parallel=False)
+    every_core = tn.Simulation(net, h=0.01, parallel=True, threads=cores)
+    assert idle_core(serial) == (cores > 1)
+    assert not idle_core(every_core)
+    if cores > 1:
+        assert idle_core(tn.Simulation(net, h=0.01, parallel=True, threads=cores - 1))

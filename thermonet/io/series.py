@@ -4,11 +4,14 @@
 ``OUTDIR/summary.json``; ``OUTDIR/<name>.checkpoint.npz`` (the latest checkpoint). Everything is
 in the user's numbering and written atomically.
 
-A frame is filled from the state at its step, then written to disk by a writer thread while the
-run goes on (the file write, the PVD update and the page-cache hint: about half a frame's cost,
-overlapped with stepping where a core is free). One frame is in flight at most; the next frame,
-a checkpoint, the summary and the end of ``Simulation.run`` (normal or not) wait for it, and an
-error of the write is raised there.
+A frame is filled from the state at its step; where a core is idle while the run steps (serial
+kernels on a multi-core machine, fewer stepping threads than cores, the GPU backend) it is then
+written to disk by a writer thread while the run goes on (the file write, the PVD update and the
+page-cache hint: about half a frame's cost). Where every core steps, a writer thread only
+competes with the stepping threads (measured slower than writing in the observer), so the frame
+is written in the observer call. One frame is in flight at most; the next frame, a checkpoint,
+the summary and the end of ``Simulation.run`` (normal or not) wait for it, and an error of the
+write is raised there.
 """
 
 from __future__ import annotations
@@ -121,7 +124,8 @@ class RunOutput:
     fields: output field names (see :data:`FIELDS`). frames_every, checkpoint_every: cadences in
     steps (0: never). material_id: (m,) int. scene: JSON-serialisable description stored in
     checkpoints and summary.json (must hold ``hash``). background: write frame files on the
-    writer thread (default) or in the observer call.
+    writer thread (True) or in the observer call (False); default: on the writer thread where a
+    core is idle while the run steps (:func:`idle_core`).
 
     ``Simulation.run`` calls :meth:`flush` when it returns or raises (an observer's owner with a
     ``flush`` method), so the files are complete when ``run`` is done.
@@ -131,7 +135,7 @@ class RunOutput:
     CSV_INTERVAL = 2.0
 
     def __init__(self, sim, folder, name: str, *, fields, frames_every: int, diagnostics_every: int,
-                 checkpoint_every: int, material_id, scene: dict, background: bool = True):
+                 checkpoint_every: int, material_id, scene: dict, background: bool | None = None):
         self.sim = sim
         self.folder = os.fspath(folder)
         self.name = name
@@ -153,7 +157,7 @@ class RunOutput:
         self.frame_seconds = 0.0
         #: seconds the frame files took to write (on the writer thread when ``background``)
         self.write_seconds = 0.0
-        self.background = bool(background)
+        self.background = idle_core(sim) if background is None else bool(background)
         self._last_frame = None
         self._pending = None
 
@@ -260,6 +264,20 @@ class RunOutput:
             json.dump(out, f, indent=2, allow_nan=True)
             f.write("\n")
         return out
+
+
+def idle_core(sim) -> bool:
+    """Whether this process may use more cores than the simulation's stepping keeps busy: the
+    CPU backend's threaded kernels use Numba's threads (``sim.threads`` or Numba's count), its
+    serial kernels and the GPU backend one host thread."""
+    affinity = getattr(os, "sched_getaffinity", None)
+    cores = len(affinity(0)) if affinity is not None else (os.cpu_count() or 1)
+    stepping = 1
+    if sim.backend == "cpu" and sim.parallel:
+        import numba
+
+        stepping = int(sim.threads) if sim.threads else numba.get_num_threads()
+    return cores > stepping
 
 
 _WRITER: ThreadPoolExecutor | None = None
