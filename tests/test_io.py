@@ -77,7 +77,7 @@ def test_frames_round_trip_exactly_through_meshio_and_vtk(tmp_path):
         _check_vtk(path, x, edges, point, cell)
 
 
-def _run_scene(tmp_path, overrides=(), background=True):
+def _run_scene(tmp_path, overrides=(), background=True, frames_every=20):
     from thermonet.io import RunOutput
 
     scene = load_scene(os.path.join(ROOT, "scenes", "default.toml"),
@@ -85,7 +85,7 @@ def _run_scene(tmp_path, overrides=(), background=True):
                         "output.checkpoint_every=0", *overrides])
     built = scene.build()
     sim = built.simulation
-    out = RunOutput(sim, tmp_path, scene.name, fields=scene.output_fields(), frames_every=20,
+    out = RunOutput(sim, tmp_path, scene.name, fields=scene.output_fields(), frames_every=frames_every,
                     diagnostics_every=10, checkpoint_every=0, material_id=built.material_id, scene=scene.describe(),
                     background=background)
     sim.run(steps=scene.total_steps(), diagnostics_every=10, observers=out.observers())
@@ -367,3 +367,19 @@ def test_frames_go_to_the_writer_thread_only_where_a_core_is_idle():
     assert not idle_core(every_core)
     if cores > 1:
         assert idle_core(tn.Simulation(net, h=0.01, parallel=True, threads=cores - 1))
+
+
+def test_the_pvd_is_rewritten_at_an_interval_and_complete_when_run_returns(tmp_path, monkeypatch):
+    """Frames every step: the index is not rewritten per frame (that grows with the number of
+    frames), yet lists every frame once run returns."""
+    writes = []
+    real = PVDIndex.write
+
+    def counted(self):
+        writes.append(len(self.frames))
+        real(self)
+
+    monkeypatch.setattr(PVDIndex, "write", counted)
+    scene, built, sim = _run_scene(tmp_path, ["output.frames_every=1"], frames_every=1)
+    assert len(read_pvd(tmp_path / "truss_block.pvd")) == 61
+    assert 2 <= len(writes) < 10 and writes[0] == 1 and writes[-1] == 61

@@ -1,7 +1,7 @@
 """The ParaView collection (.pvd) that indexes a time series of .vtu frames.
 
-The index is rewritten atomically after each frame file is complete, so it only ever lists
-frames that exist in full.
+The index is rewritten atomically, and only after the frame files it lists are complete, so it
+only ever lists frames that exist in full.
 """
 
 from __future__ import annotations
@@ -20,10 +20,16 @@ class PVDIndex:
         self.path = os.fspath(path)
         self.frames: dict[int, tuple[float, str]] = dict(frames or {})
 
-    def add(self, step: int, time: float, filename: str) -> None:
-        """Record a complete frame and rewrite the index (a frame of the same step is replaced)."""
+    def add(self, step: int, time: float, filename: str, write: bool = True) -> None:
+        """Record a complete frame (a frame of the same step is replaced) and, with ``write``,
+        rewrite the index."""
         self.frames[int(step)] = (float(time), filename)
-        self.write()
+        self.written = False
+        if write:
+            self.write()
+
+    #: whether the file lists every recorded frame
+    written = True
 
     def write(self) -> None:
         lines = ['<?xml version="1.0"?>',
@@ -35,6 +41,7 @@ class PVDIndex:
         lines += ["  </Collection>", "</VTKFile>", ""]
         with atomic_write(self.path, "w") as f:
             f.write("\n".join(lines))
+        self.written = True
 
 
 def read_pvd(path) -> list[tuple[float, str]]:

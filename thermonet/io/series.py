@@ -133,6 +133,9 @@ class RunOutput:
 
     #: rewrite the CSV at most this often (seconds) between checkpoints
     CSV_INTERVAL = 2.0
+    #: rewrite the PVD index at most this often (seconds) while frames come: its rewrite grows
+    #: with the number of frames; flush() (checkpoints, the summary, the end of a run) completes it
+    PVD_INTERVAL = 1.0
 
     def __init__(self, sim, folder, name: str, *, fields, frames_every: int, diagnostics_every: int,
                  checkpoint_every: int, material_id, scene: dict, background: bool | None = None):
@@ -160,6 +163,7 @@ class RunOutput:
         self.background = idle_core(sim) if background is None else bool(background)
         self._last_frame = None
         self._pending = None
+        self._pvd_written = -np.inf
 
     # ------------------------------------------------------------------------------------------
     def observers(self) -> list:
@@ -185,7 +189,7 @@ class RunOutput:
         """Fill the frame of the current step and write it (on the writer thread when
         ``background``); the PVD lists it once its file is complete."""
         t0 = _time.perf_counter()
-        self.flush()  # one image: the previous frame must be on disk before it is refilled
+        self._wait()  # one image: the previous frame must be on disk before it is refilled
         step = sim.step
         if step in self.pvd.frames:
             filename = self.pvd.frames[step][1]
@@ -202,18 +206,31 @@ class RunOutput:
     def _store_frame(self, image: FrameImage, path: str, step: int, time: float, filename: str) -> None:
         t0 = _time.perf_counter()
         image.write(path)
-        self.pvd.add(step, time, filename)  # only after the frame file is complete
+        now = _time.monotonic()  # listed only after the frame file is complete:
+        self.pvd.add(step, time, filename, write=now - self._pvd_written >= self.PVD_INTERVAL)
+        if self.pvd.written:
+            self._pvd_written = now
         release_page_cache(path)
         if self._last_frame is not None:
             release_page_cache(self._last_frame)
         self._last_frame = path
         self.write_seconds += _time.perf_counter() - t0
 
-    def flush(self) -> None:
-        """Wait until the frame being written is on disk and listed; raise its write's error."""
+    def _wait(self) -> None:
+        """Wait until the frame being written is on disk; raise its write's error."""
         pending, self._pending = self._pending, None
         if pending is not None:
             pending.result()
+
+    def flush(self) -> None:
+        """Wait until the frame being written is on disk, then make the PVD list every frame
+        written (also when that write failed); raise a write's error."""
+        try:
+            self._wait()
+        finally:
+            if not self.pvd.written:
+                self.pvd.write()
+                self._pvd_written = _time.monotonic()
 
     def _maybe_write_csv(self, sim) -> None:
         if _time.monotonic() - self._csv_written >= self.CSV_INTERVAL:
