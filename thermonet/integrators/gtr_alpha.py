@@ -64,7 +64,7 @@ class GTRAlphaStepper(ImplicitStepper):
     def residual(self, u: np.ndarray):
         s = self.system
         status, spring, rmax, smax = self.kernels.residual(
-            self.x0, u, self.p0, self.eta0, s.rest_lengths, s.parameters, self.edges_u, self.free_index, *self.incidence,
+            self.x0, u, self.p0, self.eta0, s.rest_lengths, self.P, self.edges_u, self.free_index, *self.incidence,
             s.masses, self.alpha, self.h, self.gravity, self.with_gravity, self.len0, self.dir0, self.len1,
             self.dir1, self.theta, self.dtheta, self.warm, self.fs, self.guess, self.code, self.R, self.Rabs,
         )
@@ -74,7 +74,7 @@ class GTRAlphaStepper(ImplicitStepper):
 
     def linearize(self) -> None:
         s = self.system
-        self.kernels.linearize(self.alpha, self.h, s.rest_lengths, s.parameters, self.len0, self.theta, self.dtheta,
+        self.kernels.linearize(self.alpha, self.h, s.rest_lengths, self.P, self.len0, self.theta, self.dtheta,
                                self.jc)
 
     def sweep(self, du, rhs, r, update, first=False):
@@ -88,7 +88,7 @@ class GTRAlphaStepper(ImplicitStepper):
     def jacobian(self, data: np.ndarray) -> None:
         s, p = self.system, self.pattern
         self.kernels.jacobian(
-            self.free_index, s.masses, self.alpha, self.h, s.rest_lengths, s.parameters, s.edges, self.len0,
+            self.free_index, s.masses, self.alpha, self.h, s.rest_lengths, self.P, s.edges, self.len0,
             self.dir0, self.dir1, self.theta, self.dtheta, p.node_base, p.node_stride, p.spring_base,
             p.spring_stride, data,
         )
@@ -96,7 +96,7 @@ class GTRAlphaStepper(ImplicitStepper):
     def finish(self, phi0, x_new, p_new, phi_new, eta_new):
         s = self.system
         return self.kernels.finish(
-            self.x0, self.u, self.p0, phi0, self.eta0, s.rest_lengths, s.parameters, self.edges_u, self.free_index,
+            self.x0, self.u, self.p0, phi0, self.eta0, s.rest_lengths, self.P, self.edges_u, self.free_index,
             *self.incidence, s.masses, self.alpha, self.h, self.gravity, self.with_gravity, self.len0, self.dir0,
             self.len1, self.dir1, self.theta, self.fs, self.code, x_new, p_new, phi_new, eta_new,
         )

@@ -57,17 +57,20 @@ class ImplicitStepper(Stepper):
         self.integrator = integrator
         self.system = system
         self.options = options
-        self.kernels = implicit_kernels(system.model, self.scheme, parallel)
+        #: the parameters as the kernels read them: (k, m), or one (k, 1) column shared by all
+        self.P, uniform = system.kernel_parameters
+        self.kernels = implicit_kernels(system.model, self.scheme, parallel, uniform)
         self.sweeper = operator_kernels(self.scheme, parallel)
         # the kernels read the int32 index arrays as unsigned (no negative-index wrap-around),
         # and the incidence with each spring's sign at that node (+1 at its first end)
         lay = system.layout
         self.edges_u = system.edges.view(np.uint32)
         first_end = system.edges[lay.inc_spring, 0] == np.repeat(np.arange(system.n_nodes), np.diff(lay.inc_ptr))
-        self.incidence = (lay.inc_ptr, lay.inc_spring.view(np.uint32), np.where(first_end, 1.0, -1.0))
+        # (int8: the node passes are memory-bound, and ±1 times a float is exact in any type)
+        self.incidence = (lay.inc_ptr, lay.inc_spring.view(np.uint32), np.where(first_end, 1, -1).astype(np.int8))
         self.pattern = BlockPattern.build(system.edges, system.anchored, self.block)
         #: (m, 2) the unknown blocks of each spring's ends (−1: anchored), for the sweeps
-        self.ends = np.ascontiguousarray(self.pattern.free_index[system.edges])
+        self.ends = np.ascontiguousarray(self.pattern.free_index[system.edges], dtype=np.int32)
         self.solver = make_linear_solver(options.linear_solver, self.pattern, self)
         n, m, size = system.n_nodes, system.n_springs, self.pattern.size
         self.free_index = self.pattern.free_index
@@ -88,7 +91,7 @@ class ImplicitStepper(Stepper):
         #: the sweeps' spring-major (m, B) scratch: the same memory (the start kernel's use ends first)
         self.sweep_w = self.sweep_scratch.reshape(m, self.block)
         self.guess = np.empty(m)
-        self.code = np.zeros(m, dtype=np.int64)
+        self.code = np.zeros(m, dtype=np.int8)
         self.warm = False
         self.len0 = np.empty(m)
         self.dir0 = np.empty((3, m))
@@ -147,7 +150,7 @@ class ImplicitStepper(Stepper):
         s = self.system
         self.x0, self.p0, self.eta0, self.h = x, p, eta, float(h)
         self.warm = False
-        status, spring = self.kernels.start(x, p, s.inv_mass, eta, s.rest_lengths, s.parameters, self.edges_u,
+        status, spring = self.kernels.start(x, p, s.inv_mass, eta, s.rest_lengths, self.P, self.edges_u,
                                             *self.incidence, self.free_index, self.gravity, self.with_gravity,
                                             self.len0, self.dir0, self.fs, self.sweep_scratch, self.nodal,
                                             self.code, self.rate, self.h, self.predictor_coefficients(self.h),

@@ -60,6 +60,9 @@ adiabatic_stiffness = gtr_thermal = ho4_thermal = gtr_thermal_vector = ho4_therm
 ho4_thermal_exact = None
 #: the model's entropy is affine in ln θ (Model.entropy_log_affine): HO4's thermal solve in closed form
 LOG_AFFINE = False
+#: every spring has the same parameters: P is the shared (k, 1) column of System.kernel_parameters,
+#: read at column 0 (``pe``) and not streamed per spring
+UNIFORM = False
 
 _CACHE: dict = {}
 _OPTIONS = dict(cache=True, error_model="numpy", boundscheck=False)
@@ -90,15 +93,17 @@ class ImplicitKernels:
         self.__dict__.update(kernels)
 
 
-def implicit_kernels(model, scheme: str, parallel: bool = False) -> ImplicitKernels:
+def implicit_kernels(model, scheme: str, parallel: bool = False, uniform: bool = False) -> ImplicitKernels:
     """Kernels for ``scheme`` ("gtr" or "ho4") compiled for ``model`` (cached on disk); the
-    residual, linearization, start and finish kernels multi-threaded when ``parallel``."""
-    key = (scheme, model_fingerprint(model), bool(parallel))
+    residual, linearization, start and finish kernels multi-threaded when ``parallel``; reading
+    the parameters as one shared (k, 1) column when ``uniform`` (System.kernel_parameters)."""
+    key = (scheme, model_fingerprint(model), bool(parallel), bool(uniform))
     if key not in _CACHE:
-        tag = f"{model.name}_{key[1]}"
+        tag = f"{model.name}_{key[1]}{'_uniform' if uniform else ''}"
         ptag = f"{tag}_{'par' if parallel else 'ser'}"
         ns = model_namespace(model)
         ns["LOG_AFFINE"] = bool(getattr(model, "entropy_log_affine", False))
+        ns["UNIFORM"] = bool(uniform)
         ns["adiabatic_stiffness"] = specialize(_adiabatic_stiffness, tag, ns, **_INLINE)
         start = specialize(_start, ptag, ns, parallel=parallel, **_OPTIONS)
         ns["finish_nodes"] = specialize(_finish_nodes, ptag, ns, parallel=parallel, **_OPTIONS)
@@ -223,6 +228,7 @@ def _start(x0, p, inv_mass, eta, l0, P, edges, inc_ptr, inc_spring, inc_sign, fr
         n = min(BLOCK, m - lo)
         for i in range(n):  # gather: spring vector and relative velocity
             e = np.uint64(lo + i)
+            pe = np.uint64(0) if UNIFORM else np.uint64(e)
             a = edges[e, 0]
             b = edges[e, 1]
             dir0[0, e] = x0[b, 0] - x0[a, 0]
@@ -234,6 +240,7 @@ def _start(x0, p, inv_mass, eta, l0, P, edges, inc_ptr, inc_spring, inc_sign, fr
                 fs[5, e] = p[b, 2] * inv_mass[b] - p[a, 2] * inv_mass[a]
         for i in range(n):  # arithmetic (vectorized)
             e = np.uint64(lo + i)
+            pe = np.uint64(0) if UNIFORM else np.uint64(e)
             dx = dir0[0, e]
             dy = dir0[1, e]
             dz = dir0[2, e]
@@ -247,8 +254,8 @@ def _start(x0, p, inv_mass, eta, l0, P, edges, inc_ptr, inc_spring, inc_sign, fr
             dir0[1, e] = ny
             dir0[2, e] = nz
             rest = l0[e]
-            th = temperature(l, eta[e], rest, P, e)
-            T = tension(l, th, rest, P, e)
+            th = temperature(l, eta[e], rest, P, pe)
+            T = tension(l, th, rest, P, pe)
             fs[0, e] = T * nx
             fs[1, e] = T * ny
             fs[2, e] = T * nz
@@ -257,8 +264,8 @@ def _start(x0, p, inv_mass, eta, l0, P, edges, inc_ptr, inc_spring, inc_sign, fr
                 vy = fs[4, e]
                 vz = fs[5, e]
                 ldot = nx * vx + ny * vy + nz * vz
-                flt = d2F_dl_dtheta(l, th, rest, P, e)
-                Tl = d2F_dl2(l, th, rest, P, e) - flt * flt / d2F_dtheta2(l, th, rest, P, e)
+                flt = d2F_dl_dtheta(l, th, rest, P, pe)
+                Tl = d2F_dl2(l, th, rest, P, pe) - flt * flt / d2F_dtheta2(l, th, rest, P, pe)
                 Tdot = Tl * ldot
                 q = T / l
                 fs[3, e] = Tdot * nx + q * (vx - nx * ldot)
@@ -271,8 +278,8 @@ def _start(x0, p, inv_mass, eta, l0, P, edges, inc_ptr, inc_spring, inc_sign, fr
                     ws[2, e] = vz
                     ws[3, e] = T
                     ws[4, e] = Tl
-                    ws[5, e] = (adiabatic_stiffness(l + dl, eta[e], rest, P, e)
-                                - adiabatic_stiffness(l - dl, eta[e], rest, P, e)) / (2.0 * dl)
+                    ws[5, e] = (adiabatic_stiffness(l + dl, eta[e], rest, P, pe)
+                                - adiabatic_stiffness(l - dl, eta[e], rest, P, pe)) / (2.0 * dl)
             lok = (l > 0.0) & (l < math.inf)
             code[e] = OK if (lok & _admissible(th)) else (NO_TEMPERATURE if lok else COLLAPSED)
         bad = min(bad, _first_flagged(code, lo, n, m))
@@ -294,6 +301,7 @@ def _start(x0, p, inv_mass, eta, l0, P, edges, inc_ptr, inc_spring, inc_sign, fr
         r2 = 0.0
         for j in range(inc_ptr[a], inc_ptr[a + 1]):
             e = inc_spring[j]
+            pe = np.uint64(0) if UNIFORM else np.uint64(e)
             sg = inc_sign[j]
             f0 += sg * fs[0, e]
             f1 += sg * fs[1, e]
@@ -322,6 +330,7 @@ def _start(x0, p, inv_mass, eta, l0, P, edges, inc_ptr, inc_spring, inc_sign, fr
         n = min(BLOCK, m - lo)
         for i in range(n):  # gather: relative acceleration
             e = np.uint64(lo + i)
+            pe = np.uint64(0) if UNIFORM else np.uint64(e)
             a = edges[e, 0]
             b = edges[e, 1]
             fs[0, e] = nodal[b, 0] - nodal[a, 0]
@@ -329,6 +338,7 @@ def _start(x0, p, inv_mass, eta, l0, P, edges, inc_ptr, inc_spring, inc_sign, fr
             fs[2, e] = nodal[b, 2] - nodal[a, 2]
         for i in range(n):  # f̈ (vectorized)
             e = np.uint64(lo + i)
+            pe = np.uint64(0) if UNIFORM else np.uint64(e)
             l = len0[e]
             nx = dir0[0, e]
             ny = dir0[1, e]
@@ -362,6 +372,7 @@ def _start(x0, p, inv_mass, eta, l0, P, edges, inc_ptr, inc_spring, inc_sign, fr
         s2 = 0.0
         for j in range(inc_ptr[a], inc_ptr[a + 1]):
             e = inc_spring[j]
+            pe = np.uint64(0) if UNIFORM else np.uint64(e)
             sg = inc_sign[j]
             s0 += sg * fs[3, e]
             s1 += sg * fs[4, e]
@@ -488,6 +499,7 @@ def _gtr_residual(x0, u, p, eta, l0, P, edges, free_index, inc_ptr, inc_spring, 
         n = min(BLOCK, m - lo)
         for i in range(n):  # gather: the spring vector at x¹
             e = np.uint64(lo + i)
+            pe = np.uint64(0) if UNIFORM else np.uint64(e)
             a = edges[e, 0]
             b = edges[e, 1]
             ka = free_index[a]
@@ -508,6 +520,7 @@ def _gtr_residual(x0, u, p, eta, l0, P, edges, free_index, inc_ptr, inc_spring, 
             fs[2, e] = dz
         for i in range(n):  # arithmetic and thermal solve (vectorized)
             e = np.uint64(lo + i)
+            pe = np.uint64(0) if UNIFORM else np.uint64(e)
             dx = fs[0, e]
             dy = fs[1, e]
             dz = fs[2, e]
@@ -523,16 +536,17 @@ def _gtr_residual(x0, u, p, eta, l0, P, edges, free_index, inc_ptr, inc_spring, 
             dir1[1, e] = dy * i1
             dir1[2, e] = dz * i1
             la = len0[e]
-            th, dth, ok = gtr_thermal_vector(la, l1, eta[e], l0[e], P, e, alpha, g)
+            th, dth, ok = gtr_thermal_vector(la, l1, eta[e], l0[e], P, pe, alpha, g)
             theta[e] = th
             dtheta[e] = dth
-            c = alpha * h * tension(la, th, l0[e], P, e)
+            c = alpha * h * tension(la, th, l0[e], P, pe)
             fs[0, e] = c * dir0[0, e]
             fs[1, e] = c * dir0[1, e]
             fs[2, e] = c * dir0[2, e]
             code[e] = OK if ((ok != 0) & (l1 > 0.0) & (l1 < math.inf)) else NO_TEMPERATURE
         for i in range(n):  # the scalar solve where the vectorized one did not converge
             e = lo + i
+            pe = np.uint64(0) if UNIFORM else np.uint64(e)
             if code[e] == OK:
                 continue
             l1 = len1[e]
@@ -540,13 +554,13 @@ def _gtr_residual(x0, u, p, eta, l0, P, edges, free_index, inc_ptr, inc_spring, 
                 code[e] = COLLAPSED
                 continue
             la = len0[e]
-            th, dth, ok = gtr_thermal(la, l1, eta[e], l0[e], P, e, alpha, guess[e])
+            th, dth, ok = gtr_thermal(la, l1, eta[e], l0[e], P, pe, alpha, guess[e])
             if not ok:
                 continue
             code[e] = OK
             theta[e] = th
             dtheta[e] = dth
-            c = alpha * h * tension(la, th, l0[e], P, e)
+            c = alpha * h * tension(la, th, l0[e], P, pe)
             for j in range(3):
                 fs[j, e] = c * dir0[j, e]
         bad = min(bad, _first_flagged(code, lo, n, m))
@@ -575,6 +589,7 @@ def _gtr_residual(x0, u, p, eta, l0, P, edges, free_index, inc_ptr, inc_spring, 
         s2 = abs(inertia) + abs(p[a, 2]) + abs(g)
         for j in range(inc_ptr[a], inc_ptr[a + 1]):
             e = inc_spring[j]
+            pe = np.uint64(0) if UNIFORM else np.uint64(e)
             sg = -inc_sign[j]
             v0 = fs[0, e]
             v1 = fs[1, e]
@@ -608,7 +623,8 @@ def _gtr_linearize(alpha, h, l0, P, len0, theta, dtheta, jc):
         lo = blk * BLOCK
         for i in range(min(BLOCK, m - lo)):
             e = np.uint64(lo + i)
-            jc[e] = alpha * h * d2F_dl_dtheta(len0[e], theta[e], l0[e], P, e) * dtheta[e]
+            pe = np.uint64(0) if UNIFORM else np.uint64(e)
+            jc[e] = alpha * h * d2F_dl_dtheta(len0[e], theta[e], l0[e], P, pe) * dtheta[e]
 
 
 def _gtr_jacobian(free_index, masses, alpha, h, l0, P, edges, len0, dir0, dir1, theta, dtheta,
@@ -626,7 +642,8 @@ def _gtr_jacobian(free_index, masses, alpha, h, l0, P, edges, len0, dir0, dir1, 
             data[node_base[k] + i * node_stride[k] + i] += w
     B = np.zeros((3, 3))
     for e in range(edges.shape[0]):
-        c = alpha * h * d2F_dl_dtheta(len0[e], theta[e], l0[e], P, e) * dtheta[e]
+        pe = np.uint64(0) if UNIFORM else np.uint64(e)
+        c = alpha * h * d2F_dl_dtheta(len0[e], theta[e], l0[e], P, pe) * dtheta[e]
         if c == 0.0:
             continue
         for i in range(3):
@@ -658,13 +675,14 @@ def _gtr_finish(x0, u, p, phi, eta, l0, P, edges, free_index, inc_ptr, inc_sprin
         n = min(BLOCK, m - lo)
         for i in range(n):  # vectorized
             e = np.uint64(lo + i)
+            pe = np.uint64(0) if UNIFORM else np.uint64(e)
             th = theta[e]
             phi_new[e] = phi[e] + h * th
             l1 = len1[e]
-            eta1 = alpha * entropy(len0[e], th, l0[e], P, e) + (1.0 - alpha) * entropy(l1, th, l0[e], P, e)
+            eta1 = alpha * entropy(len0[e], th, l0[e], P, pe) + (1.0 - alpha) * entropy(l1, th, l0[e], P, pe)
             eta_new[e] = eta1
-            th1 = temperature(l1, eta1, l0[e], P, e)
-            c1 = (1.0 - alpha) * h * tension(l1, th, l0[e], P, e)
+            th1 = temperature(l1, eta1, l0[e], P, pe)
+            c1 = (1.0 - alpha) * h * tension(l1, th, l0[e], P, pe)
             fs[0, e] += c1 * dir1[0, e]  # fs holds α h T(l⁰, θ̄) n⁰ from the last residual
             fs[1, e] += c1 * dir1[1, e]
             fs[2, e] += c1 * dir1[2, e]
@@ -809,6 +827,7 @@ def _ho4_residual(x0, u, p, eta, l0, P, edges, free_index, inc_ptr, inc_spring, 
         n = min(BLOCK, m - lo)
         for i in range(n):  # gather: the spring vectors at x^½ and x¹
             e = np.uint64(lo + i)
+            pe = np.uint64(0) if UNIFORM else np.uint64(e)
             a = edges[e, 0]
             b = edges[e, 1]
             ka = free_index[a]
@@ -841,6 +860,7 @@ def _ho4_residual(x0, u, p, eta, l0, P, edges, free_index, inc_ptr, inc_spring, 
             fs[5, e] = ez
         for i in range(n):  # arithmetic and thermal solve (vectorized)
             e = np.uint64(lo + i)
+            pe = np.uint64(0) if UNIFORM else np.uint64(e)
             hx = fs[0, e]
             hy = fs[1, e]
             hz = fs[2, e]
@@ -854,7 +874,7 @@ def _ho4_residual(x0, u, p, eta, l0, P, edges, free_index, inc_ptr, inc_spring, 
             if LOG_AFFINE:  # solved in closed form: no seed
                 g = eta[e]
             else:  # warm: G = Γ(l⁰, θ⁰) moved along dG/dl = Γ_θ(l⁰, θ⁰) dθ⁰/dl
-                g = gs[e] - d2F_dtheta2(la, th0[e], rest, P, e) * (dth[0, e] * (lh - lenh[e]) + dth[1, e] * (l1 - len1[e]))
+                g = gs[e] - d2F_dtheta2(la, th0[e], rest, P, pe) * (dth[0, e] * (lh - lenh[e]) + dth[1, e] * (l1 - len1[e]))
                 guess[e] = g
             lenh[e] = lh
             ih = 1.0 / lh
@@ -866,7 +886,7 @@ def _ho4_residual(x0, u, p, eta, l0, P, edges, free_index, inc_ptr, inc_spring, 
             dir1[0, e] = ex * i1
             dir1[1, e] = ey * i1
             dir1[2, e] = ez * i1
-            G, t0, t1, d0h, d01, d1h, d11, ok = ho4_thermal_vector(la, lh, l1, eta[e], rest, P, e, g, warm)
+            G, t0, t1, d0h, d01, d1h, d11, ok = ho4_thermal_vector(la, lh, l1, eta[e], rest, P, pe, g, warm)
             gs[e] = G
             th0[e] = t0
             th1[e] = t1
@@ -874,8 +894,8 @@ def _ho4_residual(x0, u, p, eta, l0, P, edges, free_index, inc_ptr, inc_spring, 
             dth[1, e] = d01
             dth[2, e] = d1h
             dth[3, e] = d11
-            c0 = h / 6.0 * tension(la, t0, rest, P, e)
-            ch = h / 4.0 * tension(lh, 0.5 * (t0 + t1), rest, P, e)
+            c0 = h / 6.0 * tension(la, t0, rest, P, pe)
+            ch = h / 4.0 * tension(lh, 0.5 * (t0 + t1), rest, P, pe)
             fs[0, e] = c0 * dir0[0, e]
             fs[1, e] = c0 * dir0[1, e]
             fs[2, e] = c0 * dir0[2, e]
@@ -886,6 +906,7 @@ def _ho4_residual(x0, u, p, eta, l0, P, edges, free_index, inc_ptr, inc_spring, 
             code[e] = OK if ((ok != 0) & lok) else NO_TEMPERATURE
         for i in range(n):  # the scalar solve where the vectorized one did not converge
             e = lo + i
+            pe = np.uint64(0) if UNIFORM else np.uint64(e)
             if code[e] == OK:
                 continue
             lh = lenh[e]
@@ -897,7 +918,7 @@ def _ho4_residual(x0, u, p, eta, l0, P, edges, free_index, inc_ptr, inc_spring, 
             seed = guess[e]
             if LOG_AFFINE:  # no seed was written: start from η
                 seed = eta[e]
-            G, t0, t1, d0h, d01, d1h, d11, ok = ho4_thermal(la, lh, l1, eta[e], l0[e], P, e, seed, warm)
+            G, t0, t1, d0h, d01, d1h, d11, ok = ho4_thermal(la, lh, l1, eta[e], l0[e], P, pe, seed, warm)
             gs[e] = G
             if not ok:
                 continue
@@ -908,8 +929,8 @@ def _ho4_residual(x0, u, p, eta, l0, P, edges, free_index, inc_ptr, inc_spring, 
             dth[1, e] = d01
             dth[2, e] = d1h
             dth[3, e] = d11
-            c0 = h / 6.0 * tension(la, t0, l0[e], P, e)
-            ch = h / 4.0 * tension(lh, 0.5 * (t0 + t1), l0[e], P, e)
+            c0 = h / 6.0 * tension(la, t0, l0[e], P, pe)
+            ch = h / 4.0 * tension(lh, 0.5 * (t0 + t1), l0[e], P, pe)
             for j in range(3):
                 fs[j, e] = c0 * dir0[j, e]
                 fs[3 + j, e] = ch * dirh[j, e]
@@ -951,6 +972,7 @@ def _ho4_residual(x0, u, p, eta, l0, P, edges, free_index, inc_ptr, inc_spring, 
         s5 = abs(i2) + abs(gh)
         for j in range(inc_ptr[a], inc_ptr[a + 1]):
             e = inc_spring[j]
+            pe = np.uint64(0) if UNIFORM else np.uint64(e)
             sg = -inc_sign[j]
             v0 = fs[0, e]
             v1 = fs[1, e]
@@ -1007,14 +1029,15 @@ def _ho4_linearize(h, l0, P, len0, lenh, th0, th1, dth, jc):
         lo = blk * BLOCK
         for i in range(min(BLOCK, m - lo)):
             e = np.uint64(lo + i)
+            pe = np.uint64(0) if UNIFORM else np.uint64(e)
             t0 = th0[e]
             th = 0.5 * (t0 + th1[e])
             lh = lenh[e]
             rest = l0[e]
-            c0 = h / 6.0 * d2F_dl_dtheta(len0[e], t0, rest, P, e)
-            flt = d2F_dl_dtheta(lh, th, rest, P, e)
-            axial = h / 4.0 * (d2F_dl2(lh, th, rest, P, e) + flt * 0.5 * (dth[0, e] + dth[2, e]))
-            lateral = h / 4.0 * tension(lh, th, rest, P, e) / lh
+            c0 = h / 6.0 * d2F_dl_dtheta(len0[e], t0, rest, P, pe)
+            flt = d2F_dl_dtheta(lh, th, rest, P, pe)
+            axial = h / 4.0 * (d2F_dl2(lh, th, rest, P, pe) + flt * 0.5 * (dth[0, e] + dth[2, e]))
+            lateral = h / 4.0 * tension(lh, th, rest, P, pe) / lh
             jc[0, e] = c0 * dth[0, e]
             jc[1, e] = c0 * dth[1, e]
             jc[2, e] = axial - lateral
@@ -1046,15 +1069,16 @@ def _ho4_jacobian(free_index, masses, h, l0, P, edges, len0, dir0, lenh, dirh, d
             data[base + (3 + i) * st + 3 + i] += w
     B = np.zeros((6, 6))
     for e in range(edges.shape[0]):
+        pe = np.uint64(0) if UNIFORM else np.uint64(e)
         t0 = th0[e]
         th = 0.5 * (t0 + th1[e])
         lh = lenh[e]
-        c0 = h / 6.0 * d2F_dl_dtheta(len0[e], t0, l0[e], P, e)
-        flt = d2F_dl_dtheta(lh, th, l0[e], P, e)
+        c0 = h / 6.0 * d2F_dl_dtheta(len0[e], t0, l0[e], P, pe)
+        flt = d2F_dl_dtheta(lh, th, l0[e], P, pe)
         dthh_h = 0.5 * (dth[0, e] + dth[2, e])
         dthh_1 = 0.5 * (dth[1, e] + dth[3, e])
-        axial = h / 4.0 * (d2F_dl2(lh, th, l0[e], P, e) + flt * dthh_h)
-        lateral = h / 4.0 * tension(lh, th, l0[e], P, e) / lh
+        axial = h / 4.0 * (d2F_dl2(lh, th, l0[e], P, pe) + flt * dthh_h)
+        lateral = h / 4.0 * tension(lh, th, l0[e], P, pe) / lh
         c21 = h / 4.0 * flt * dthh_1
         for i in range(3):
             for j in range(3):
@@ -1088,19 +1112,20 @@ def _ho4_finish(x0, u, p, phi, eta, l0, P, edges, free_index, inc_ptr, inc_sprin
         n = min(BLOCK, m - lo)
         for i in range(n):  # vectorized
             e = np.uint64(lo + i)
+            pe = np.uint64(0) if UNIFORM else np.uint64(e)
             t0 = th0[e]
             t1 = th1[e]
             th = 0.5 * (t0 + t1)
             phi_new[e] = phi[e] + h * th
             rest = l0[e]
             l1 = len1[e]
-            G0 = entropy(len0[e], t0, rest, P, e)
-            Gh = entropy(lenh[e], th, rest, P, e)
-            G1 = entropy(l1, t1, rest, P, e)
+            G0 = entropy(len0[e], t0, rest, P, pe)
+            Gh = entropy(lenh[e], th, rest, P, pe)
+            G1 = entropy(l1, t1, rest, P, pe)
             eta1 = (-G0 + 4.0 * Gh + 3.0 * G1) / 6.0
             eta_new[e] = eta1
-            th_end = temperature(l1, eta1, rest, P, e)
-            c1 = h / 6.0 * tension(l1, t1, rest, P, e)
+            th_end = temperature(l1, eta1, rest, P, pe)
+            c1 = h / 6.0 * tension(l1, t1, rest, P, pe)
             # fs holds (h/6) T⁰ n⁰ and (h/4) T^½ n^½ from the last residual
             fs[0, e] = fs[0, e] + 8.0 / 3.0 * fs[3, e] + c1 * dir1[0, e]
             fs[1, e] = fs[1, e] + 8.0 / 3.0 * fs[4, e] + c1 * dir1[1, e]
