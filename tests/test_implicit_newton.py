@@ -291,3 +291,31 @@ def test_a_jacobi_step_that_does_not_contract_hands_back_to_full_iterations():
     assert result.converged and calls == {"solve": 2, "jacobi": 1}
     rho = result.history
     assert rho[0] == 1.0 and 1e-12 < rho[1] <= 1e-11 and rho[2] > rho[1] and rho[3] <= 1e-12
+
+
+@pytest.mark.parametrize("integrator", ["gtr-1/2", "ho4"])
+def test_uniform_parameter_kernels_give_the_per_spring_kernels_numbers(integrator):
+    """With every spring's parameters equal the kernels read one shared column (UNIFORM); the
+    kernels that stream the (k, m) array must give the same bits."""
+    from thermonet.kernels.implicit import implicit_kernels
+
+    net = tn.lattice((5, 4, 4), jitter=0.1, seed=3)
+    rng = np.random.default_rng(2)
+    sim = tn.Simulation(net, model="hencky", parameters=dict(c=100.0, beta=0.2, C0=5.0, theta0=300.0),
+                        temperatures=rng.uniform(300.0, 600.0, net.n_springs),
+                        momenta=rng.normal(0.0, 1.0, (net.n_nodes, 3)), integrator=integrator, h=0.01,
+                        integrator_options=dict(linear_solver="matfree"))
+    st, s = sim.stepper, sim._state
+    assert st.P.shape[1] == 1
+    outputs = []
+    for kernels, P in ((st.kernels, st.P),
+                       (implicit_kernels(sim.model, st.scheme, sim.parallel, False), sim.system.parameters)):
+        st.kernels, st.P = kernels, P
+        st.begin(s.positions, s.momenta, s.entropy, sim.h)
+        st.predict(st.u)
+        assert st.residual(st.u) == (0, -1)
+        st.linearize()
+        assert st.finish(s.thermal_displacement, *st._new) == (0, -1)
+        outputs.append([a.copy() for a in (st.prediction, st.R, st.Rabs, st.jc, *st._new)])
+    for a, b in zip(*outputs):
+        np.testing.assert_array_equal(a, b)
