@@ -77,7 +77,7 @@ class HO4Stepper(ImplicitStepper):
 
     def linearize(self) -> None:
         s = self.system
-        self.kernels.linearize(self.h, s.rest_lengths, self.P, self.len0, self.lenh, self.th0, self.th1,
+        self.kernels.linearize(self.h, s.rest_lengths, self.P, self.len0, self.lenh, self.len1, self.th0, self.th1,
                                self.dth, self.jc)
 
     def sweep(self, du, rhs, r, update, first=False):
@@ -97,7 +97,7 @@ class HO4Stepper(ImplicitStepper):
         s, p = self.system, self.pattern
         self.kernels.jacobian(
             self.free_index, s.masses, self.h, s.rest_lengths, self.P, s.edges, self.len0, self.dir0,
-            self.lenh, self.dirh, self.dir1, self.th0, self.th1, self.dth, p.node_base, p.node_stride,
+            self.lenh, self.dirh, self.len1, self.dir1, self.th0, self.th1, self.dth, p.node_base, p.node_stride,
             p.spring_base, p.spring_stride, data,
         )
 

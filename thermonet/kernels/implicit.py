@@ -57,7 +57,7 @@ from .specialize import model_fingerprint, model_namespace, specialize
 # Bound per model by specialize(); listed so the templates read as ordinary code.
 entropy = temperature = tension = d2F_dl2 = d2F_dl_dtheta = d2F_dtheta2 = None
 adiabatic_stiffness = gtr_thermal = ho4_thermal = gtr_thermal_vector = ho4_thermal_vector = gtr_correct = ho4_correct = ho4_derivatives = finish_nodes = None
-ho4_thermal_exact = None
+ho4_thermal_exact = ho4_temperature_derivatives = None
 #: the model's entropy is affine in ln θ (Model.entropy_log_affine): HO4's thermal solve in closed form
 LOG_AFFINE = False
 #: every spring has the same parameters: P is the shared (k, 1) column of System.kernel_parameters,
@@ -123,6 +123,7 @@ def implicit_kernels(model, scheme: str, parallel: bool = False, uniform: bool =
             )
         elif scheme == "ho4":
             ns["ho4_derivatives"] = specialize(_ho4_derivatives, tag, ns, **_INLINE)
+            ns["ho4_temperature_derivatives"] = specialize(_ho4_temperature_derivatives, tag, ns, **_INLINE)
             ns["ho4_correct"] = specialize(_ho4_correct, tag, ns, **_INLINE)
             ns["ho4_thermal_exact"] = specialize(_ho4_thermal_exact, tag, ns, **_INLINE)
             ns["ho4_thermal"] = specialize(_ho4_thermal, tag, ns, **_OPTIONS)
@@ -818,8 +819,10 @@ def _ho4_residual(x0, u, p, eta, l0, P, edges, free_index, inc_ptr, inc_spring, 
     """R, Rabs (6 n_free,) at unknowns u (6 n_free,); fills lengths/unit vectors (3, m) at x^½
     and x¹, θ⁰, θ¹ (m,), dth (4, m) = dθ⁰/dl^½, dθ⁰/dl¹, dθ¹/dl^½, dθ¹/dl¹ and gs (m,) = Γ⁰ =
     Γ¹. With ``warm``, the previous call's gs (at nearby u), moved along its length derivatives,
-    seeds the thermal solves. fs (6, m), guess, code (m,) scratch.
-    Returns (status, spring, max |R|, max Rabs)."""
+    seeds the thermal solves. With LOG_AFFINE (closed-form solves: no seeds) dth and gs are not
+    written; the linearization and the Jacobian recompute the derivatives from the lengths and
+    temperatures (the residual is memory-bound, they are called less often).
+    fs (6, m), guess, code (m,) scratch. Returns (status, spring, max |R|, max Rabs)."""
     m = edges.shape[0]
     bad = m
     for blk in prange((m + BLOCK - 1) // BLOCK):
@@ -887,13 +890,14 @@ def _ho4_residual(x0, u, p, eta, l0, P, edges, free_index, inc_ptr, inc_spring, 
             dir1[1, e] = ey * i1
             dir1[2, e] = ez * i1
             G, t0, t1, d0h, d01, d1h, d11, ok = ho4_thermal_vector(la, lh, l1, eta[e], rest, P, pe, g, warm)
-            gs[e] = G
             th0[e] = t0
             th1[e] = t1
-            dth[0, e] = d0h
-            dth[1, e] = d01
-            dth[2, e] = d1h
-            dth[3, e] = d11
+            if not LOG_AFFINE:  # the warm seed and its derivatives (else recomputed where needed)
+                gs[e] = G
+                dth[0, e] = d0h
+                dth[1, e] = d01
+                dth[2, e] = d1h
+                dth[3, e] = d11
             c0 = h / 6.0 * tension(la, t0, rest, P, pe)
             ch = h / 4.0 * tension(lh, 0.5 * (t0 + t1), rest, P, pe)
             fs[0, e] = c0 * dir0[0, e]
@@ -919,16 +923,18 @@ def _ho4_residual(x0, u, p, eta, l0, P, edges, free_index, inc_ptr, inc_spring, 
             if LOG_AFFINE:  # no seed was written: start from η
                 seed = eta[e]
             G, t0, t1, d0h, d01, d1h, d11, ok = ho4_thermal(la, lh, l1, eta[e], l0[e], P, pe, seed, warm)
-            gs[e] = G
+            if not LOG_AFFINE:
+                gs[e] = G
             if not ok:
                 continue
             code[e] = OK
             th0[e] = t0
             th1[e] = t1
-            dth[0, e] = d0h
-            dth[1, e] = d01
-            dth[2, e] = d1h
-            dth[3, e] = d11
+            if not LOG_AFFINE:
+                dth[0, e] = d0h
+                dth[1, e] = d01
+                dth[2, e] = d1h
+                dth[3, e] = d11
             c0 = h / 6.0 * tension(la, t0, l0[e], P, pe)
             ch = h / 4.0 * tension(lh, 0.5 * (t0 + t1), l0[e], P, pe)
             for j in range(3):
@@ -1019,7 +1025,15 @@ def _ho4_residual(x0, u, p, eta, l0, P, edges, free_index, inc_ptr, inc_spring, 
     return 0, -1, rmax, smax
 
 
-def _ho4_linearize(h, l0, P, len0, lenh, th0, th1, dth, jc):
+def _ho4_temperature_derivatives(dth, e, la, lh, lb, l0, P, pe, t0, t1):
+    """dθ⁰/dl^½, dθ⁰/dl¹, dθ¹/dl^½, dθ¹/dl¹ of spring e at the last residual's point: computed
+    again where the residual does not store them (LOG_AFFINE), else read from dth (4, m)."""
+    if LOG_AFFINE:
+        return ho4_derivatives(la, lh, lb, l0, P, pe, t0, t1)
+    return dth[0, e], dth[1, e], dth[2, e], dth[3, e]
+
+
+def _ho4_linearize(h, l0, P, len0, lenh, len1, th0, th1, dth, jc):
     """Per-spring coefficients of the Jacobian at the last residual's point (matrix-free use),
     jc (5, m): spring e's block (rows R1, R2; columns d^½, d¹) is
       [[a₁ n⁰ n^½ᵀ, a₂ n⁰ n¹ᵀ], [(k − t) n^½ n^½ᵀ + t I, c n^½ n¹ᵀ]],   jc[:, e] = (a₁, a₂, k − t, t, c)
@@ -1031,21 +1045,23 @@ def _ho4_linearize(h, l0, P, len0, lenh, th0, th1, dth, jc):
             e = np.uint64(lo + i)
             pe = np.uint64(0) if UNIFORM else np.uint64(e)
             t0 = th0[e]
-            th = 0.5 * (t0 + th1[e])
+            t1 = th1[e]
+            th = 0.5 * (t0 + t1)
             lh = lenh[e]
             rest = l0[e]
+            d0h, d01, d1h, d11 = ho4_temperature_derivatives(dth, e, len0[e], lh, len1[e], rest, P, pe, t0, t1)
             c0 = h / 6.0 * d2F_dl_dtheta(len0[e], t0, rest, P, pe)
             flt = d2F_dl_dtheta(lh, th, rest, P, pe)
-            axial = h / 4.0 * (d2F_dl2(lh, th, rest, P, pe) + flt * 0.5 * (dth[0, e] + dth[2, e]))
+            axial = h / 4.0 * (d2F_dl2(lh, th, rest, P, pe) + flt * 0.5 * (d0h + d1h))
             lateral = h / 4.0 * tension(lh, th, rest, P, pe) / lh
-            jc[0, e] = c0 * dth[0, e]
-            jc[1, e] = c0 * dth[1, e]
+            jc[0, e] = c0 * d0h
+            jc[1, e] = c0 * d01
             jc[2, e] = axial - lateral
             jc[3, e] = lateral
-            jc[4, e] = h / 4.0 * flt * 0.5 * (dth[1, e] + dth[3, e])
+            jc[4, e] = h / 4.0 * flt * 0.5 * (d01 + d11)
 
 
-def _ho4_jacobian(free_index, masses, h, l0, P, edges, len0, dir0, lenh, dirh, dir1, th0, th1, dth,
+def _ho4_jacobian(free_index, masses, h, l0, P, edges, len0, dir0, lenh, dirh, len1, dir1, th0, th1, dth,
                   node_base, node_stride, spring_base, spring_stride, data):
     """Values of ∂R/∂u at the last residual's point into the CSR value array ``data``.
 
@@ -1073,17 +1089,18 @@ def _ho4_jacobian(free_index, masses, h, l0, P, edges, len0, dir0, lenh, dirh, d
         t0 = th0[e]
         th = 0.5 * (t0 + th1[e])
         lh = lenh[e]
+        d0h, d01, d1h, d11 = ho4_temperature_derivatives(dth, e, len0[e], lh, len1[e], l0[e], P, pe, t0, th1[e])
         c0 = h / 6.0 * d2F_dl_dtheta(len0[e], t0, l0[e], P, pe)
         flt = d2F_dl_dtheta(lh, th, l0[e], P, pe)
-        dthh_h = 0.5 * (dth[0, e] + dth[2, e])
-        dthh_1 = 0.5 * (dth[1, e] + dth[3, e])
+        dthh_h = 0.5 * (d0h + d1h)
+        dthh_1 = 0.5 * (d01 + d11)
         axial = h / 4.0 * (d2F_dl2(lh, th, l0[e], P, pe) + flt * dthh_h)
         lateral = h / 4.0 * tension(lh, th, l0[e], P, pe) / lh
         c21 = h / 4.0 * flt * dthh_1
         for i in range(3):
             for j in range(3):
-                B[i, j] = c0 * dth[0, e] * dir0[i, e] * dirh[j, e]
-                B[i, 3 + j] = c0 * dth[1, e] * dir0[i, e] * dir1[j, e]
+                B[i, j] = c0 * d0h * dir0[i, e] * dirh[j, e]
+                B[i, 3 + j] = c0 * d01 * dir0[i, e] * dir1[j, e]
                 nn = dirh[i, e] * dirh[j, e]
                 B[3 + i, j] = (axial - lateral) * nn + (lateral if i == j else 0.0)
                 B[3 + i, 3 + j] = c21 * dirh[i, e] * dir1[j, e]
