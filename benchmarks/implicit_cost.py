@@ -6,7 +6,9 @@ each linear solver: seconds per step, Newton iterations per step, linear iterati
 (matfree: sweeps; gmres: GMRES iterations), the split of a step's time into residual
 evaluations, Jacobian assembly (matfree: per-spring coefficients), factorization (gmres:
 block-Jacobi set-up) and solve, and the ratio to a CO2 step of the same net in the same
-process. Steppers run threaded where the Simulation would (≥ 16384 springs), CO2 included.
+process (the median of six CO2 samples, three before and three after the implicit runs, so that
+a drift of a shared machine does not decide the ratio). Steppers run threaded where the
+Simulation would (≥ 16384 springs), CO2 included.
 
 Part 2, the paper's chain: Newton iterations per step at h ≤ 0.01, and error in positions at
 t = 100 against wall time for every integrator (the paper's Fig. 9), to find where HO4 starts
@@ -20,6 +22,7 @@ to pay off. The reference is DOP853 at rtol = atol = 1e-13 on Hamilton's equatio
 from __future__ import annotations
 
 import argparse
+import statistics
 import time
 
 import numpy as np
@@ -56,8 +59,9 @@ def scaling(sizes, steps, h, direct_max_springs, solvers):
         co2 = lattice_simulation(k, "co2", h)
         m = co2.net.n_springs
         n_steps = max(3, min(steps, int(2e6 / m)))
-        t_co2 = seconds_per_step(co2, max(n_steps, 50))
-        print(f"| {m} | co2 | – | {1e3 * t_co2:.3f} | 1 | – | – | – | – | – | – |", flush=True)
+        co2_steps = max(50, int(3e7 / m))  # ≈ 0.2 s per sample at 1e5 springs
+        samples = [seconds_per_step(co2, co2_steps) for _ in range(3)]
+        rows = []
         for method in ("gtr-1/2", "ho4"):
             for solver in solvers:
                 if solver == "splu" and m > direct_max_springs:
@@ -68,9 +72,14 @@ def scaling(sizes, steps, h, direct_max_springs, solvers):
                 per = {key: 1e3 * s[f"time_{key}"] / s["steps"] for key in ("residual", "assembly", "factorization", "solve")}
                 lin = getattr(sim.stepper.solver, "iterations", None)
                 lin = f"{lin / max(1, sim.stepper.timers.linear_solves):.1f}" if lin is not None else "–"
-                print(f"| {m} | {method} | {solver} | {1e3 * t:.2f} | {t / t_co2:.0f} | {s['iterations_mean']:.2f} | {lin} | "
-                      f"{per['residual']:.2f} | {per['assembly']:.2f} | {per['factorization']:.2f} | {per['solve']:.2f} |",
-                      flush=True)
+                rows.append((method, solver, t, s, lin, per))
+        samples += [seconds_per_step(co2, co2_steps) for _ in range(3)]
+        t_co2 = statistics.median(samples)  # three samples before the implicit runs, three after
+        print(f"| {m} | co2 | – | {1e3 * t_co2:.3f} | 1 | – | – | – | – | – | – |", flush=True)
+        for method, solver, t, s, lin, per in rows:
+            print(f"| {m} | {method} | {solver} | {1e3 * t:.2f} | {t / t_co2:.0f} | {s['iterations_mean']:.2f} | {lin} | "
+                  f"{per['residual']:.2f} | {per['assembly']:.2f} | {per['factorization']:.2f} | {per['solve']:.2f} |",
+                  flush=True)
 
 
 def chain(t_end):
