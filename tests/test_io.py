@@ -383,3 +383,15 @@ def test_the_pvd_is_rewritten_at_an_interval_and_complete_when_run_returns(tmp_p
     scene, built, sim = _run_scene(tmp_path, ["output.frames_every=1"], frames_every=1)
     assert len(read_pvd(tmp_path / "truss_block.pvd")) == 61
     assert 2 <= len(writes) < 10 and writes[0] == 1 and writes[-1] == 61
+
+
+def test_observers_given_as_a_generator_are_flushed_too(tmp_path):
+    from thermonet.io import RunOutput
+
+    scene = load_scene(os.path.join(ROOT, "scenes", "default.toml"), ["integrator.steps=40"])
+    built = scene.build()
+    sim = built.simulation
+    out = RunOutput(sim, tmp_path, scene.name, fields=scene.output_fields(), frames_every=20, diagnostics_every=10,
+                    checkpoint_every=0, material_id=built.material_id, scene=scene.describe(), background=True)
+    sim.run(steps=40, observers=(pair for pair in out.observers()))
+    assert out._pending is None and len(read_pvd(tmp_path / f"{scene.name}.pvd")) == 3

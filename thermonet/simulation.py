@@ -275,7 +275,7 @@ class Simulation:
             numba.set_num_threads(int(self.threads))
         start = self._state.step
         end = start + steps
-        flushes = _flushes(observers)
+        flushes = _flushes(cadences[1:])  # (observers may have been a generator: read once above)
         t0 = _time.perf_counter()
         try:
             while self._state.step < end:
@@ -609,9 +609,6 @@ def _check_step(h) -> float:
     return h
 
 
-__all__ = ["Simulation", "SimulationError"]
-
-
 def _flushes(observers) -> list:
     """The ``flush`` methods of the objects whose bound methods are among the observers (each
     object once)."""
@@ -622,3 +619,7 @@ def _flushes(observers) -> list:
         if callable(flush):
             owners[id(owner)] = flush
     return list(owners.values())
+
+
+__all__ = ["Simulation", "SimulationError"]
+
