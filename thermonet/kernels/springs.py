@@ -27,14 +27,7 @@ def spring_field_kernel(model, thermal: bool = True, parallel: bool = False):
     """``spring_fields(x, eta, l0, P, edges, length, theta, tension, energy)`` for ``model``:
     fills the four (m,) output arrays from positions x (n, 3) and entropies eta (m,)
     (eta unused and may be empty when not ``thermal``); multi-threaded when ``parallel``."""
-    key = ("fields", model_fingerprint(model), bool(thermal), bool(parallel))
-    if key not in _CACHE:
-        ns = model_namespace(model)
-        ns["THERMAL"] = bool(thermal)
-        ns["REFERENCE_TEMPERATURE"] = model.parameter_index(model.reference_temperature)
-        tag = f"{model.name}_{key[1]}_{'thermal' if thermal else 'mech'}_{'par' if parallel else 'ser'}"
-        _CACHE[key] = specialize(_spring_fields, tag, ns, parallel=bool(parallel), **_OPTIONS)
-    return _CACHE[key]
+    return _spring_pass(_spring_fields, model, thermal, parallel)
 
 
 def frame_spring_kernel(model, thermal: bool = True, parallel: bool = False):
@@ -46,13 +39,18 @@ def frame_spring_kernel(model, thermal: bool = True, parallel: bool = False):
     wanted). theta_internal: (m,) the temperatures in the internal numbering too, or (0,).
     scratch: (4, m) float64. edges: (m, 2) uint32; order: (m,) int64. Values equal
     :func:`spring_field_kernel`'s (and :func:`log_strain`'s) bit for bit: the same operations."""
-    key = ("frame", model_fingerprint(model), bool(thermal), bool(parallel))
+    return _spring_pass(_frame_springs, model, thermal, parallel)
+
+
+def _spring_pass(template, model, thermal: bool, parallel: bool):
+    """``template`` compiled for ``model``, thermal coupling on or off, threaded or not (cached)."""
+    key = (template.__name__, model_fingerprint(model), bool(thermal), bool(parallel))
     if key not in _CACHE:
         ns = model_namespace(model)
         ns["THERMAL"] = bool(thermal)
         ns["REFERENCE_TEMPERATURE"] = model.parameter_index(model.reference_temperature)
         tag = f"{model.name}_{key[1]}_{'thermal' if thermal else 'mech'}_{'par' if parallel else 'ser'}"
-        _CACHE[key] = specialize(_frame_springs, tag, ns, parallel=bool(parallel), **_OPTIONS)
+        _CACHE[key] = specialize(template, tag, ns, parallel=bool(parallel), **_OPTIONS)
     return _CACHE[key]
 
 
