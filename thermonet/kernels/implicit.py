@@ -229,7 +229,6 @@ def _start(x0, p, inv_mass, eta, l0, P, edges, inc_ptr, inc_spring, inc_sign, fr
         n = min(BLOCK, m - lo)
         for i in range(n):  # gather: spring vector and relative velocity
             e = np.uint64(lo + i)
-            pe = np.uint64(0) if UNIFORM else np.uint64(e)
             a = edges[e, 0]
             b = edges[e, 1]
             dir0[0, e] = x0[b, 0] - x0[a, 0]
@@ -302,7 +301,6 @@ def _start(x0, p, inv_mass, eta, l0, P, edges, inc_ptr, inc_spring, inc_sign, fr
         r2 = 0.0
         for j in range(inc_ptr[a], inc_ptr[a + 1]):
             e = inc_spring[j]
-            pe = np.uint64(0) if UNIFORM else np.uint64(e)
             sg = inc_sign[j]
             f0 += sg * fs[0, e]
             f1 += sg * fs[1, e]
@@ -331,7 +329,6 @@ def _start(x0, p, inv_mass, eta, l0, P, edges, inc_ptr, inc_spring, inc_sign, fr
         n = min(BLOCK, m - lo)
         for i in range(n):  # gather: relative acceleration
             e = np.uint64(lo + i)
-            pe = np.uint64(0) if UNIFORM else np.uint64(e)
             a = edges[e, 0]
             b = edges[e, 1]
             fs[0, e] = nodal[b, 0] - nodal[a, 0]
@@ -339,7 +336,6 @@ def _start(x0, p, inv_mass, eta, l0, P, edges, inc_ptr, inc_spring, inc_sign, fr
             fs[2, e] = nodal[b, 2] - nodal[a, 2]
         for i in range(n):  # f̈ (vectorized)
             e = np.uint64(lo + i)
-            pe = np.uint64(0) if UNIFORM else np.uint64(e)
             l = len0[e]
             nx = dir0[0, e]
             ny = dir0[1, e]
@@ -373,7 +369,6 @@ def _start(x0, p, inv_mass, eta, l0, P, edges, inc_ptr, inc_spring, inc_sign, fr
         s2 = 0.0
         for j in range(inc_ptr[a], inc_ptr[a + 1]):
             e = inc_spring[j]
-            pe = np.uint64(0) if UNIFORM else np.uint64(e)
             sg = inc_sign[j]
             s0 += sg * fs[3, e]
             s1 += sg * fs[4, e]
@@ -500,7 +495,6 @@ def _gtr_residual(x0, u, p, eta, l0, P, edges, free_index, inc_ptr, inc_spring, 
         n = min(BLOCK, m - lo)
         for i in range(n):  # gather: the spring vector at x¹
             e = np.uint64(lo + i)
-            pe = np.uint64(0) if UNIFORM else np.uint64(e)
             a = edges[e, 0]
             b = edges[e, 1]
             ka = free_index[a]
@@ -590,7 +584,6 @@ def _gtr_residual(x0, u, p, eta, l0, P, edges, free_index, inc_ptr, inc_spring, 
         s2 = abs(inertia) + abs(p[a, 2]) + abs(g)
         for j in range(inc_ptr[a], inc_ptr[a + 1]):
             e = inc_spring[j]
-            pe = np.uint64(0) if UNIFORM else np.uint64(e)
             sg = -inc_sign[j]
             v0 = fs[0, e]
             v1 = fs[1, e]
@@ -830,7 +823,6 @@ def _ho4_residual(x0, u, p, eta, l0, P, edges, free_index, inc_ptr, inc_spring, 
         n = min(BLOCK, m - lo)
         for i in range(n):  # gather: the spring vectors at x^½ and x¹
             e = np.uint64(lo + i)
-            pe = np.uint64(0) if UNIFORM else np.uint64(e)
             a = edges[e, 0]
             b = edges[e, 1]
             ka = free_index[a]
@@ -978,7 +970,6 @@ def _ho4_residual(x0, u, p, eta, l0, P, edges, free_index, inc_ptr, inc_spring, 
         s5 = abs(i2) + abs(gh)
         for j in range(inc_ptr[a], inc_ptr[a + 1]):
             e = inc_spring[j]
-            pe = np.uint64(0) if UNIFORM else np.uint64(e)
             sg = -inc_sign[j]
             v0 = fs[0, e]
             v1 = fs[1, e]
