@@ -439,29 +439,22 @@ def newton(problem, u: np.ndarray, options: NewtonOptions, solver, timers: Newto
         if jacobi_last and rho > 0.5 * history[-2]:
             jacobi = None  # it did not contract: full Newton iterations from here on
         jacobi_last = jacobi is not None and it > 0 and rho <= JACOBI_RANGE * options.tolerance
+        t0 = t1 = t2 = time.perf_counter()
         if jacobi_last:
-            t0 = time.perf_counter()
             du = jacobi(problem.R)
-            timers.solve += time.perf_counter() - t0
             timers.jacobi_steps += 1
-            timers.linear_solves += 1
-            u -= du
-            increment = float(np.abs(du).max())
-            if not math.isfinite(increment):
-                return NewtonResult(False, it + 1, history, 0, -1, "Newton correction not finite")
-            continue
-        t0 = time.perf_counter()
-        if solver.assembled:
-            problem.jacobian(problem.data)
-            t1 = time.perf_counter()
-            solver.factorize(problem.data)
         else:
-            problem.linearize()
-            t1 = time.perf_counter()
-        t2 = time.perf_counter()
-        # forcing term ∝ ρ (Eisenstat–Walker): the linear error stays below Newton's own
-        # quadratic term, so an early, far-from-converged step is not solved to round-off
-        du = solver.solve(problem.R, LINEAR_FRACTION * max(options.tolerance, rho * rho) * scale)
+            if solver.assembled:
+                problem.jacobian(problem.data)
+                t1 = time.perf_counter()
+                solver.factorize(problem.data)
+            else:
+                problem.linearize()
+                t1 = time.perf_counter()
+            t2 = time.perf_counter()
+            # forcing term ∝ ρ (Eisenstat–Walker): the linear error stays below Newton's own
+            # quadratic term, so an early, far-from-converged step is not solved to round-off
+            du = solver.solve(problem.R, LINEAR_FRACTION * max(options.tolerance, rho * rho) * scale)
         t3 = time.perf_counter()
         timers.assembly += t1 - t0
         timers.factorization += t2 - t1

@@ -19,6 +19,8 @@ class PVDIndex:
     def __init__(self, path, frames: dict[int, tuple[float, str]] | None = None):
         self.path = os.fspath(path)
         self.frames: dict[int, tuple[float, str]] = dict(frames or {})
+        #: whether the file lists every recorded frame
+        self.written = True
 
     def add(self, step: int, time: float, filename: str, write: bool = True) -> None:
         """Record a complete frame (a frame of the same step is replaced) and, with ``write``,
@@ -27,9 +29,6 @@ class PVDIndex:
         self.written = False
         if write:
             self.write()
-
-    #: whether the file lists every recorded frame
-    written = True
 
     def write(self) -> None:
         lines = ['<?xml version="1.0"?>',
