@@ -1,9 +1,10 @@
 """What each effect of a scene costs: steps/s on a ~1e5-spring lattice with
 (a) mechanics only, (b) + thermal coupling, (c) + gravity, (d) + a VTU frame every 100 steps,
 (e) + a diagnostics row every 10 steps; each as a cost ratio to (a), and the overhead of each
-effect over the configuration before it. (d) writes frame files as a run does by default: on a
-writer thread where a core is idle while the run steps, else in the frame observer; the two
-"(d) …" rows below it force one way, for comparison.
+effect over the configuration before it. (d) writes frame files as a run does by default
+(direct to the device on a writer thread where the file system allows); the four "(d) …" rows
+below it force each way (direct or through the page cache; on the writer thread or in the
+frame observer), for comparison.
 
     python benchmarks/effects_cost.py [--cells 32] [--steps 1000] [--repeats 3]
 
@@ -43,22 +44,28 @@ h = 0.01
 steps = {steps}
 """
 
-# (name, overrides, frames every, diagnostics every, frames written on the writer thread (None:
-#  the default), the configuration whose overhead this adds)
+# (name, overrides, frames every, diagnostics every, how frame files are written (RunOutput's
+#  background and direct; {}: the default), the configuration whose overhead this adds)
 CONFIGS = [
-    ("(a) mechanics only", ["effects.thermal=false"], 0, None, None, None),
-    ("(b) + thermal", [], 0, None, None, "(a) mechanics only"),
-    ("(c) + gravity", ["effects.gravity=[0, 0, -1]"], 0, None, None, "(b) + thermal"),
-    ("(d) + VTU every 100 steps", ["effects.gravity=[0, 0, -1]"], 100, None, None, "(c) + gravity"),
-    ("(d) frame files on the writer thread", ["effects.gravity=[0, 0, -1]"], 100, None, True, "(c) + gravity"),
-    ("(d) frame files in the observer", ["effects.gravity=[0, 0, -1]"], 100, None, False, "(c) + gravity"),
-    ("(e) + diagnostics every 10 steps", ["effects.gravity=[0, 0, -1]"], 100, 10, None, "(d) + VTU every 100 steps"),
+    ("(a) mechanics only", ["effects.thermal=false"], 0, None, {}, None),
+    ("(b) + thermal", [], 0, None, {}, "(a) mechanics only"),
+    ("(c) + gravity", ["effects.gravity=[0, 0, -1]"], 0, None, {}, "(b) + thermal"),
+    ("(d) + VTU every 100 steps", ["effects.gravity=[0, 0, -1]"], 100, None, {}, "(c) + gravity"),
+    ("(d) direct, on the writer thread", ["effects.gravity=[0, 0, -1]"], 100, None,
+     dict(background=True, direct=True), "(c) + gravity"),
+    ("(d) direct, in the observer", ["effects.gravity=[0, 0, -1]"], 100, None,
+     dict(background=False, direct=True), "(c) + gravity"),
+    ("(d) page cache, on the writer thread", ["effects.gravity=[0, 0, -1]"], 100, None,
+     dict(background=True, direct=False), "(c) + gravity"),
+    ("(d) page cache, in the observer", ["effects.gravity=[0, 0, -1]"], 100, None,
+     dict(background=False, direct=False), "(c) + gravity"),
+    ("(e) + diagnostics every 10 steps", ["effects.gravity=[0, 0, -1]"], 100, 10, {}, "(d) + VTU every 100 steps"),
 ]
 
 
-def measure(text: str, overrides, frames_every: int, diagnostics_every, folder: str, background=None):
-    """(steps/s, springs, ms per frame in the observer, ms per frame file write, written on the
-    writer thread) of one run (diagnostics only at start and end unless ``diagnostics_every``)."""
+def measure(text: str, overrides, frames_every: int, diagnostics_every, folder: str, writes: dict):
+    """(steps/s, springs, ms per frame in the observer, ms per frame file write, how the frames
+    were written) of one run (diagnostics only at start and end unless ``diagnostics_every``)."""
     scene = scene_from_text(text, overrides)
     built = scene.build()
     sim = built.simulation
@@ -68,7 +75,7 @@ def measure(text: str, overrides, frames_every: int, diagnostics_every, folder: 
     if frames_every:
         out = RunOutput(sim, folder, "bench", fields=scene.output_fields(), frames_every=frames_every,
                         diagnostics_every=every, checkpoint_every=0, material_id=built.material_id,
-                        scene={"name": "bench", "hash": scene.hash}, background=background)
+                        scene={"name": "bench", "hash": scene.hash}, **writes)
         observers = [(k, cb) for k, cb in out.observers() if cb == out.write_frame]
     t0 = time.perf_counter()
     sim.run(steps=steps, diagnostics_every=every, observers=observers)
@@ -76,7 +83,8 @@ def measure(text: str, overrides, frames_every: int, diagnostics_every, folder: 
     if not frames_every:
         return rate, sim.net.n_springs, None, None, None
     frames = len(out.pvd.frames)
-    return rate, sim.net.n_springs, 1e3 * out.frame_seconds / frames, 1e3 * out.write_seconds / frames, out.background
+    how = ("thread" if out.background else "observer") + (", direct" if out.direct_writes == frames else "")
+    return rate, sim.net.n_springs, 1e3 * out.frame_seconds / frames, 1e3 * out.write_seconds / frames, how
 
 
 def main() -> None:
@@ -87,15 +95,15 @@ def main() -> None:
     args = ap.parse_args()
     text = SCENE.format(n=args.cells, steps=args.steps)
     with tempfile.TemporaryDirectory() as folder:
-        for _, overrides, frames, diag, background, _ in CONFIGS:  # compile every kernel first
-            measure(SCENE.format(n=2, steps=20), overrides, frames and 10, diag, folder, background)
+        for _, overrides, frames, diag, writes, _ in CONFIGS:  # compile every kernel first
+            measure(SCENE.format(n=2, steps=20), overrides, frames and 10, diag, folder, writes)
         runs = {name: [] for name, *_ in CONFIGS}
         for _ in range(args.repeats):  # interleaved, so drifts of the machine hit all alike
-            for name, overrides, frames, diag, background, _ in CONFIGS:
+            for name, overrides, frames, diag, writes, _ in CONFIGS:
                 # a fresh folder per run, as a new run's output: replacing files of an earlier run
                 # costs more (freeing their blocks) and is not what a run normally does
                 run_folder = tempfile.mkdtemp(dir=folder)
-                runs[name].append(measure(text, overrides, frames, diag, run_folder, background))
+                runs[name].append(measure(text, overrides, frames, diag, run_folder, writes))
                 shutil.rmtree(run_folder)
     m = runs[CONFIGS[0][0]][0][1]
     rate = {name: [r[0] for r in runs[name]] for name in runs}
@@ -113,7 +121,7 @@ def main() -> None:
         fill = write = "–"
         if frames:
             fill = f"{statistics.median(x[2] for x in runs[name]):.2f}"
-            write = f"{statistics.median(x[3] for x in runs[name]):.2f}" + (" (thread)" if runs[name][0][4] else "")
+            write = f"{statistics.median(x[3] for x in runs[name]):.2f} ({runs[name][0][4]})"
         print(f"| {name} | {r:,.0f} | {base / r:.2f}× | {over} | {fill} | {write} |")
 
 

@@ -77,7 +77,7 @@ def test_frames_round_trip_exactly_through_meshio_and_vtk(tmp_path):
         _check_vtk(path, x, edges, point, cell)
 
 
-def _run_scene(tmp_path, overrides=(), background=True, frames_every=20):
+def _run_scene(tmp_path, overrides=(), background=True, frames_every=20, direct=True):
     from thermonet.io import RunOutput
 
     scene = load_scene(os.path.join(ROOT, "scenes", "default.toml"),
@@ -87,19 +87,25 @@ def _run_scene(tmp_path, overrides=(), background=True, frames_every=20):
     sim = built.simulation
     out = RunOutput(sim, tmp_path, scene.name, fields=scene.output_fields(), frames_every=frames_every,
                     diagnostics_every=10, checkpoint_every=0, material_id=built.material_id, scene=scene.describe(),
-                    background=background)
+                    background=background, direct=direct)
     sim.run(steps=scene.total_steps(), diagnostics_every=10, observers=out.observers())
     return scene, built, sim
 
 
-def test_frames_written_on_the_writer_thread_are_the_same_files_and_complete_when_run_returns(tmp_path):
-    on_thread, inline = tmp_path / "thread", tmp_path / "inline"
-    _run_scene(on_thread, background=True)  # read back as soon as run returns: no waiting here
-    _run_scene(inline, background=False)
-    names = sorted(f for f in os.listdir(inline) if f.endswith((".vtu", ".pvd")))
-    assert len(names) == 5 and names == sorted(f for f in os.listdir(on_thread) if f.endswith((".vtu", ".pvd")))
-    for name in names:
-        assert (on_thread / name).read_bytes() == (inline / name).read_bytes(), name
+def test_frames_are_the_same_files_written_any_way_and_complete_when_run_returns(tmp_path):
+    """On the writer thread or in the observer, direct to the device or through the page cache."""
+    ways = {(background, direct): tmp_path / f"{background}-{direct}" for background in (True, False)
+            for direct in (True, False)}
+    for (background, direct), folder in ways.items():
+        _run_scene(folder, background=background, direct=direct)  # read back as soon as run returns
+    reference = ways[False, False]
+    names = sorted(f for f in os.listdir(reference) if f.endswith((".vtu", ".pvd")))
+    assert len(names) == 5
+    for folder in ways.values():
+        assert names == sorted(f for f in os.listdir(folder) if f.endswith((".vtu", ".pvd")))
+        assert not [f for f in os.listdir(folder) if ".tmp-" in f]
+        for name in names:
+            assert (folder / name).read_bytes() == (reference / name).read_bytes(), (folder, name)
 
 
 def test_an_error_of_the_last_frame_write_is_raised_by_run(tmp_path, monkeypatch):
@@ -108,11 +114,11 @@ def test_an_error_of_the_last_frame_write_is_raised_by_run(tmp_path, monkeypatch
     real = vtu.FrameImage.write
     calls = []
 
-    def full_disk_at_the_last_frame(self, path):
+    def full_disk_at_the_last_frame(self, path, direct=True):
         calls.append(path)
         if len(calls) == 4:
             raise OSError(28, "No space left on device")
-        real(self, path)
+        return real(self, path, direct)
 
     monkeypatch.setattr(vtu.FrameImage, "write", full_disk_at_the_last_frame)
     with pytest.raises(OSError, match="No space left"):
@@ -172,8 +178,9 @@ class _Killed(BaseException):
     pass
 
 
-def test_a_kill_during_a_frame_write_leaves_only_complete_frames_listed(tmp_path, monkeypatch):
-    real_open = open
+@pytest.mark.parametrize("direct", [True, False], ids=["direct", "page-cache"])
+def test_a_kill_during_a_frame_write_leaves_only_complete_frames_listed(tmp_path, monkeypatch, direct):
+    real_open, real_write_all = open, atomic_module._write_all
     written = {"frames": 0}
 
     class TornFile:
@@ -200,15 +207,97 @@ def test_a_kill_during_a_frame_write_leaves_only_complete_frames_listed(tmp_path
                 return TornFile(f)
         return f
 
-    monkeypatch.setattr(atomic_module, "open", faulty_open, raising=False)
+    def faulty_write_all(fd, data):
+        written["frames"] += 1
+        if written["frames"] == 3:
+            real_write_all(fd, data[: len(data) // 2])
+            raise _Killed()
+        real_write_all(fd, data)
+
+    if direct:
+        monkeypatch.setattr(atomic_module, "_write_all", faulty_write_all)
+    else:
+        monkeypatch.setattr(atomic_module, "open", faulty_open, raising=False)
     with pytest.raises(_Killed):
-        _run_scene(tmp_path)
+        _run_scene(tmp_path, direct=direct)
+    assert written["frames"] == 3
     frames = read_pvd(tmp_path / "truss_block.pvd")
     assert len(frames) == 2
     for _, f in frames:
         meshio.read(f)
         pv.read(f)
     assert not (tmp_path / "truss_block_000002.vtu").exists()
+
+
+def _padded_bytes(size, seed=3):
+    padded = atomic_module.aligned_buffer(size)
+    assert padded.ctypes.data % atomic_module.DIRECT_ALIGNMENT == 0
+    assert len(padded) % atomic_module.DIRECT_ALIGNMENT == 0 and 0 <= len(padded) - size < atomic_module.DIRECT_ALIGNMENT
+    padded[:size] = np.random.default_rng(seed).integers(0, 256, size, dtype=np.uint8)
+    return padded
+
+
+@pytest.mark.parametrize("size", [1, 4095, 4096, 4097, 3 * 4096 + 17])
+def test_a_direct_write_holds_exactly_the_first_size_bytes(tmp_path, size):
+    padded = _padded_bytes(size)
+    target = tmp_path / "frame.vtu"
+    target.write_bytes(b"an older frame")
+    direct = atomic_module.atomic_write_direct(target, padded, size)
+    assert direct == atomic_module.direct_writes_possible(tmp_path)
+    assert target.read_bytes() == padded[:size].tobytes()
+    assert os.listdir(tmp_path) == ["frame.vtu"]
+
+
+def test_a_direct_write_falls_back_to_the_page_cache_where_it_is_refused(tmp_path, monkeypatch):
+    """tmpfs and some network file systems refuse O_DIRECT at open (EINVAL); a write can also be
+    refused part-way. Either way the same bytes arrive, written through the page cache."""
+    size = 2 * 4096 + 5
+    padded = _padded_bytes(size)
+    real_open, real_write = os.open, os.write
+    flag = getattr(os, "O_DIRECT", 0)
+
+    def refusing_open(path, flags, *args):
+        if flags & flag:
+            raise OSError(22, "Invalid argument")
+        return real_open(path, flags, *args)
+
+    monkeypatch.setattr(atomic_module.os, "open", refusing_open)
+    assert not atomic_module.direct_writes_possible(tmp_path)
+    assert atomic_module.atomic_write_direct(tmp_path / "a.vtu", padded, size) is False
+    monkeypatch.undo()
+    assert (tmp_path / "a.vtu").read_bytes() == padded[:size].tobytes()
+    if not atomic_module.direct_writes_possible(tmp_path):
+        pytest.skip("this file system refuses O_DIRECT: the part-way refusal cannot be reached")
+    calls = []
+
+    def refusing_after_one_block(fd, data):
+        calls.append(len(data))
+        if len(calls) == 2:
+            raise OSError(22, "Invalid argument")
+        return real_write(fd, data[:4096])
+
+    monkeypatch.setattr(atomic_module.os, "write", refusing_after_one_block)
+    assert atomic_module.atomic_write_direct(tmp_path / "b.vtu", padded, size) is False
+    monkeypatch.undo()
+    assert (tmp_path / "b.vtu").read_bytes() == padded[:size].tobytes()
+    assert sorted(os.listdir(tmp_path)) == ["a.vtu", "b.vtu"]
+
+
+def test_a_failed_direct_write_leaves_the_old_file_and_no_temporary(tmp_path, monkeypatch):
+    padded = _padded_bytes(10_000)
+    target = tmp_path / "frame.vtu"
+    target.write_bytes(b"the frame before")
+
+    def full_disk(fd, data):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(atomic_module, "_write_all", full_disk)
+    monkeypatch.setattr(atomic_module, "open", lambda *a, **k: full_disk(None, None), raising=False)  # fallback
+    with pytest.raises(OSError, match="No space left"):
+        atomic_module.atomic_write_direct(target, padded, 10_000)
+    assert target.read_bytes() == b"the frame before" and os.listdir(tmp_path) == ["frame.vtu"]
+    with pytest.raises(ValueError, match="aligned_buffer"):
+        atomic_module.atomic_write_direct(target, np.zeros(4096, np.uint8)[1:], 10)
 
 
 def test_a_kill_during_the_index_rewrite_keeps_the_previous_index(tmp_path, monkeypatch):
@@ -354,6 +443,21 @@ def test_frame_spring_pass_equals_the_public_accessors_bit_for_bit(parallel, mod
     if thermal:
         np.testing.assert_array_equal(out["entropy"], sim.state.entropy)
         np.testing.assert_array_equal(out["phi"], sim.state.thermal_displacement)
+
+
+def test_by_default_frames_are_written_direct_on_the_writer_thread_where_the_folder_allows(tmp_path):
+    from thermonet.io import RunOutput
+    from thermonet.io.series import idle_core
+
+    scene = load_scene(os.path.join(ROOT, "scenes", "default.toml"), ["integrator.steps=40"])
+    built = scene.build()
+    sim = built.simulation
+    out = RunOutput(sim, tmp_path, scene.name, fields=scene.output_fields(), frames_every=20, diagnostics_every=10,
+                    checkpoint_every=0, material_id=built.material_id, scene=scene.describe())
+    direct = atomic_module.direct_writes_possible(tmp_path)
+    assert out.direct == direct and out.background == (direct or idle_core(sim))
+    sim.run(steps=40, observers=out.observers())
+    assert out.direct_writes == (3 if direct else 0) and len(read_pvd(tmp_path / f"{scene.name}.pvd")) == 3
 
 
 def test_frames_go_to_the_writer_thread_only_where_a_core_is_idle():

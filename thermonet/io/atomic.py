@@ -6,8 +6,27 @@ A process killed at any moment leaves either the old file or the new one, never 
 
 from __future__ import annotations
 
+import errno
 import os
 from contextlib import contextmanager
+
+import numpy as np
+
+
+@contextmanager
+def _temporary_beside(path):
+    """A temporary path beside ``path``, renamed to it on a clean exit, removed on an error."""
+    path = os.fspath(path)
+    tmp = f"{path}.tmp-{os.getpid()}"
+    try:
+        yield tmp
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        raise
 
 
 @contextmanager
@@ -16,19 +35,9 @@ def atomic_write(path, mode: str = "wb"):
 
     On an exception the temporary file is removed and ``path`` is left untouched.
     """
-    path = os.fspath(path)
-    tmp = f"{path}.tmp-{os.getpid()}"
-    f = open(tmp, mode, **({} if "b" in mode else {"encoding": "utf-8", "newline": ""}))
-    try:
-        with f:
+    with _temporary_beside(path) as tmp:
+        with open(tmp, mode, **({} if "b" in mode else {"encoding": "utf-8", "newline": ""})) as f:
             yield f
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
 
 
 def release_page_cache(path) -> None:
@@ -54,3 +63,84 @@ def release_page_cache(path) -> None:
         pass
     finally:
         os.close(fd)
+
+
+#: block size that direct (unbuffered) writes are aligned to: buffer address, file offset and
+#: length (4096 covers devices with 512- and 4096-byte logical blocks)
+DIRECT_ALIGNMENT = 4096
+
+
+def aligned_buffer(size: int, alignment: int = DIRECT_ALIGNMENT) -> np.ndarray:
+    """A zeroed (padded,) uint8 array, padded = ``size`` rounded up to ``alignment``, whose data
+    start at a multiple of ``alignment``: what :func:`atomic_write_direct` writes from."""
+    padded = -(-int(size) // alignment) * alignment
+    storage = np.empty(padded + alignment, dtype=np.uint8)
+    storage.fill(0)  # touched now, not at the first frame: fresh pages fault slowly on VMs
+    start = -storage.ctypes.data % alignment
+    return storage[start:start + padded]
+
+
+def atomic_write_direct(path, padded: np.ndarray, size: int, direct: bool = True) -> bool:
+    """Write the first ``size`` bytes of ``padded`` (from :func:`aligned_buffer`) to ``path``
+    atomically, bypassing the page cache where the file system allows it (``O_DIRECT``).
+
+    A direct write moves the bytes from ``padded`` to the device without copying them into the
+    page cache: the calling thread mostly waits for the device and uses little CPU, and the
+    write leaves no dirty pages behind (a buffered 10 MB frame measured 8 ms of CPU here, a
+    direct one well under 1 ms). The whole padded buffer is written, then the file is cut to
+    ``size``. Where ``O_DIRECT`` does not exist or the file system refuses it (tmpfs, some
+    network file systems: ``EINVAL``), the bytes are written through the page cache instead.
+    ``padded`` must not change until this returns. ``direct=False`` always writes through the
+    page cache.
+
+    Returns whether the write was direct.
+    """
+    if padded.ctypes.data % DIRECT_ALIGNMENT or len(padded) % DIRECT_ALIGNMENT or size > len(padded):
+        raise ValueError("atomic_write_direct needs a buffer from aligned_buffer() of at least size bytes")
+    direct = getattr(os, "O_DIRECT", 0) if direct else 0
+    with _temporary_beside(path) as tmp:
+        if direct:
+            try:
+                fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | direct, 0o644)
+            except OSError as error:
+                if error.errno != errno.EINVAL:
+                    raise
+                direct = 0
+            else:
+                try:
+                    _write_all(fd, memoryview(padded))
+                    os.ftruncate(fd, size)
+                except OSError as error:
+                    if error.errno != errno.EINVAL:
+                        raise
+                    direct = 0  # refused part-way (an unaligned short write): start again buffered
+                finally:
+                    os.close(fd)
+        if not direct:
+            with open(tmp, "wb") as f:
+                f.write(memoryview(padded)[:size])
+    return bool(direct)
+
+
+def _write_all(fd: int, data: memoryview) -> None:
+    while len(data):
+        data = data[os.write(fd, data):]
+
+
+def direct_writes_possible(folder) -> bool:
+    """Whether files in ``folder`` can be written with ``O_DIRECT`` (tried on a probe file)."""
+    direct = getattr(os, "O_DIRECT", 0)
+    if not direct:
+        return False
+    probe = os.path.join(os.fspath(folder), f".thermonet-direct-probe-{os.getpid()}")
+    try:
+        fd = os.open(probe, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | direct, 0o644)
+    except OSError:
+        return False
+    try:
+        return os.write(fd, memoryview(aligned_buffer(DIRECT_ALIGNMENT))) == DIRECT_ALIGNMENT
+    except OSError:
+        return False
+    finally:
+        os.close(fd)
+        os.unlink(probe)

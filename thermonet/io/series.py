@@ -4,14 +4,16 @@
 ``OUTDIR/summary.json``; ``OUTDIR/<name>.checkpoint.npz`` (the latest checkpoint). Everything is
 in the user's numbering and written atomically.
 
-A frame is filled from the state at its step; where a core is idle while the run steps (serial
-kernels on a multi-core machine, fewer stepping threads than cores, the GPU backend) it is then
-written to disk by a writer thread while the run goes on (the file write, the PVD update and the
-page-cache hint: about half a frame's cost). Where every core steps, a writer thread only
-competes with the stepping threads (measured slower than writing in the observer), so the frame
-is written in the observer call. One frame is in flight at most; the next frame, a checkpoint,
-the summary and the end of ``Simulation.run`` (normal or not) wait for it, and an error of the
-write is raised there.
+A frame is filled from the state at its step, then written to disk by a writer thread while the
+run goes on: direct to the device where the file system allows (``O_DIRECT``: no copy into the
+page cache, so the thread mostly waits for the device and barely competes with the stepping
+threads; measured +6 % end to end at 1e5 springs with every core stepping, against +14 % for a
+write through the page cache either way). Where direct writes are refused, the frame goes through
+the page cache: on the writer thread where a core is idle while the run steps (serial kernels on
+a multi-core machine, fewer stepping threads than cores, the GPU backend), else in the observer
+call (a copying writer thread only competes with the stepping threads). One frame is in flight at
+most; the next frame, a checkpoint, the summary and the end of ``Simulation.run`` (normal or
+not) wait for it, and an error of the write is raised there.
 """
 
 from __future__ import annotations
@@ -24,7 +26,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
-from .atomic import atomic_write, release_page_cache
+from .atomic import atomic_write, direct_writes_possible, release_page_cache
 from .checkpoint import save_checkpoint
 from .pvd import PVDIndex
 from ..kernels.gather import as_index, passes
@@ -123,9 +125,11 @@ class RunOutput:
     sim: the Simulation. folder: output folder. name: file stem.
     fields: output field names (see :data:`FIELDS`). frames_every, checkpoint_every: cadences in
     steps (0: never). material_id: (m,) int. scene: JSON-serialisable description stored in
-    checkpoints and summary.json (must hold ``hash``). background: write frame files on the
-    writer thread (True) or in the observer call (False); default: on the writer thread where a
-    core is idle while the run steps (:func:`idle_core`).
+    checkpoints and summary.json (must hold ``hash``). direct: write frame files past the page
+    cache where the folder's file system allows (False: always through it). background: write
+    frame files on the writer thread (True) or in the observer call (False); default: on the
+    writer thread where the writes are direct or a core is idle while the run steps
+    (:func:`idle_core`).
 
     ``Simulation.run`` calls :meth:`flush` when it returns or raises (an observer's owner with a
     ``flush`` method), so the files are complete when ``run`` is done.
@@ -138,7 +142,8 @@ class RunOutput:
     PVD_INTERVAL = 1.0
 
     def __init__(self, sim, folder, name: str, *, fields, frames_every: int, diagnostics_every: int,
-                 checkpoint_every: int, material_id, scene: dict, background: bool | None = None):
+                 checkpoint_every: int, material_id, scene: dict, background: bool | None = None,
+                 direct: bool = True):
         self.sim = sim
         self.folder = os.fspath(folder)
         self.name = name
@@ -160,7 +165,12 @@ class RunOutput:
         self.frame_seconds = 0.0
         #: seconds the frame files took to write (on the writer thread when ``background``)
         self.write_seconds = 0.0
-        self.background = idle_core(sim) if background is None else bool(background)
+        #: frame files written past the page cache (O_DIRECT)
+        self.direct_writes = 0
+        self.direct = bool(direct) and bool(self.frames_every) and direct_writes_possible(self.folder)
+        if background is None:
+            background = bool(self.frames_every) and (idle_core(sim) or self.direct)
+        self.background = bool(background)
         self._last_frame = None
         self._pending = None
         self._pvd_written = -np.inf
@@ -205,15 +215,17 @@ class RunOutput:
 
     def _store_frame(self, image: FrameImage, path: str, step: int, time: float, filename: str) -> None:
         t0 = _time.perf_counter()
-        image.write(path)
+        direct = image.write(path, self.direct)
         now = _time.monotonic()  # listed only after the frame file is complete:
         self.pvd.add(step, time, filename, write=now - self._pvd_written >= self.PVD_INTERVAL)
         if self.pvd.written:
             self._pvd_written = now
-        release_page_cache(path)
-        if self._last_frame is not None:
-            release_page_cache(self._last_frame)
-        self._last_frame = path
+        if not direct:  # written through the page cache: recycle its pages
+            release_page_cache(path)
+            if self._last_frame is not None:
+                release_page_cache(self._last_frame)
+            self._last_frame = path
+        self.direct_writes += direct
         self.write_seconds += _time.perf_counter() - t0
 
     def _wait(self) -> None:
