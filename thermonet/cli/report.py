@@ -17,8 +17,9 @@ def format_summary(sim, scene: str, out: str | None = None) -> str:
     if "newton" in run:
         nw = run["newton"]
         lines.insert(2, f"  Newton ({nw['linear_solver']}): {nw['iterations_mean']:.3g} iterations/step (max "
-                        f"{nw['iterations_max']}), final scaled residual <= {nw['residual_max']:.2e}, "
-                        f"{nw['retried_steps']} retried steps")
+                        f"{nw['iterations_max']})"
+                        + (f" + {nw['jacobi_steps'] / max(1, nw['steps']):.3g} Jacobi steps/step" if nw.get("jacobi_steps") else "")
+                        + f", final scaled residual <= {nw['residual_max']:.2e}, {nw['retried_steps']} retried steps")
     for name, v in s.items():
         flag = "" if name in conserved else "   (not conserved here)"
         lines.append(f"  {name:<10} {v['initial']:>22.15g} {v['max_deviation']:>16.3e} {v['relative']:>10.2e}{flag}")

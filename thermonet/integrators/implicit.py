@@ -182,7 +182,7 @@ class ImplicitStepper(Stepper):
             x, p, phi, eta = state.positions, state.momenta, state.thermal_displacement, state.entropy
             try:
                 new, result = self.attempt(x, p, phi, eta, h)
-                it, final, substeps = result.iterations, result.history[-1], 1
+                it, final, substeps = result.full_iterations, result.history[-1], 1
                 x[:], p[:], phi[:], eta[:] = new
             except _StepError as err:
                 it, final, substeps = self._retry(state, h, err, i)
@@ -223,7 +223,7 @@ class ImplicitStepper(Stepper):
                 for _ in range(substeps):
                     new, result = self.attempt(xs, ps, phis, etas, h / substeps)
                     xs[:], ps[:], phis[:], etas[:] = new
-                    its = max(its, result.iterations)
+                    its = max(its, result.full_iterations)
                     final = max(final, result.history[-1])
             except _StepError as sub:
                 tried.append(f"{substeps} substeps: {sub.reason}")
@@ -280,7 +280,7 @@ class ImplicitStepper(Stepper):
         t["linear_solver"] = self.solver.name
         t["unknowns"] = self.pattern.size
         t["jacobian_nnz"] = self.pattern.nnz
-        t["jacobi_steps"] = self.timers.jacobi_steps  # of the iterations, those finished by D⁻¹ R alone
+        t["jacobi_steps"] = self.timers.jacobi_steps  # finishing steps u −= D⁻¹ R, not counted as iterations
         t.update({f"time_{k}": v for k, v in self.timers.as_dict().items() if isinstance(v, float)})
         return t
 

@@ -293,6 +293,9 @@ class MatrixFree:
         self._zero = np.zeros(pattern.size)
         self.iterations = 0  # sweeps, and GMRES iterations of the fallback
         self.fallbacks = 0
+        #: the largest factor by which a sweep of the last solve reduced the linear residual
+        #: (inf: unknown, or the sweeps stalled); what a Jacobi step may be expected to achieve
+        self.contraction = math.inf
 
     def factorize(self, data: np.ndarray) -> None:  # nothing to factorize
         pass
@@ -306,15 +309,21 @@ class MatrixFree:
     def solve(self, rhs: np.ndarray, target: float = 0.0) -> np.ndarray:
         du = self._du
         previous = math.inf
+        self.contraction = -math.inf
         for k in range(self.MAX_SWEEPS):
             # the first sweep starts from du = 0 (it neither reads du nor needs it zeroed)
             rmax = self.problem.sweep(du, rhs, self._r, True, k == 0)
             self.iterations += 1
+            if k > 0:
+                self.contraction = max(self.contraction, rmax / previous if previous > 0 else 0.0)
             if rmax <= target:
+                if self.contraction < 0:  # a single sweep: no contraction seen
+                    self.contraction = math.inf
                 return du
             if not math.isfinite(rmax) or rmax > self.STALL * previous:
                 break
             previous = rmax
+        self.contraction = math.inf
         return self._gmres(rhs, target)
 
     def _gmres(self, rhs: np.ndarray, target: float) -> np.ndarray:
@@ -362,13 +371,26 @@ def make_linear_solver(name: str, pattern: BlockPattern, problem=None):
 #: Newton scaling, ρ the current scaled residual): Newton stays quadratic and the last linear
 #: error cannot keep the next Newton residual above the tolerance
 LINEAR_FRACTION = 0.1
-#: after a full Newton iteration, a scaled residual within this factor of the tolerance is
-#: corrected by one inertia-preconditioned (block-Jacobi) step, u −= D⁻¹ R, without linearizing
-#: or sweeping: the inertia dominates the Newton matrix below the stability limit (a sweep
-#: contracts by ≈ 0.005–0.05 on the benchmark lattices), so this is an inexact Newton step whose
-#: linear residual is that fraction of R. Its result is checked like any other iterate; a step
-#: that does not halve the residual ends the shortcut for this solve (matrix-free solver only).
-JACOBI_RANGE = 10.0
+#: After a full Newton iteration, a scaled residual that few inertia-preconditioned (block-Jacobi)
+#: steps u −= D⁻¹ R can bring below the tolerance is finished by them, without linearizing or
+#: sweeping: below the stability limit the inertia dominates the Newton matrix, so each is an
+#: inexact Newton step whose linear residual is a fraction of R, the fraction by which a sweep
+#: of the last linear solve contracted (measured 0.005–0.05 on the benchmark lattices; the
+#: scaled residual then falls 0.006–0.015× per Jacobi step). A Jacobi step costs a residual and
+#: a node-only sweep, about a third of a full iteration (linearization, two or three full
+#: sweeps, residual), so Jacobi steps are taken while that contraction says that at most
+#: JACOBI_MAX_STEPS of them reach the tolerance (after each, by the contraction it achieved),
+#: and never from above JACOBI_RANGE times the tolerance. Each result is checked like any other
+#: iterate (matrix-free solver only).
+JACOBI_RANGE = 1e4
+JACOBI_MAX_STEPS = 2
+
+
+def _jacobi_pays(rho: float, contraction: float, tolerance: float) -> bool:
+    """Whether at most JACOBI_MAX_STEPS Jacobi steps, each reducing the scaled residual ``rho``
+    by ``contraction``, reach ``tolerance``."""
+    return (rho <= JACOBI_RANGE * tolerance and contraction < 1.0
+            and rho * contraction**JACOBI_MAX_STEPS <= tolerance)
 
 
 @dataclass
@@ -399,6 +421,13 @@ class NewtonResult:
     status: int = 0
     spring: int = -1
     reason: str = ""
+    #: of the iterations, those that were Jacobi steps (u −= D⁻¹ R, no linearization)
+    jacobi_steps: int = 0
+
+    @property
+    def full_iterations(self) -> int:
+        """Iterations that linearized and solved: what ``newton_iterations`` reports."""
+        return self.iterations - self.jacobi_steps
 
 
 def newton(problem, u: np.ndarray, options: NewtonOptions, solver, timers: NewtonTimers) -> NewtonResult:
@@ -413,13 +442,14 @@ def newton(problem, u: np.ndarray, options: NewtonOptions, solver, timers: Newto
     increment = math.inf
     jacobi = getattr(solver, "jacobi", None)
     jacobi_last = False
+    jacobi_steps = 0
     for it in range(options.max_iterations + 1):
         t0 = time.perf_counter()
         status, spring = problem.residual(u)
         timers.residual += time.perf_counter() - t0
         timers.residuals += 1
         if status != 0:
-            return NewtonResult(False, it, history, status, spring, "non-physical iterate")
+            return NewtonResult(False, it, history, status, spring, "non-physical iterate", jacobi_steps)
         norms = getattr(problem, "norms", None)  # (max |R|, max Rabs), where the kernel had them
         if norms is not None:
             rmax, scale = norms
@@ -429,20 +459,27 @@ def newton(problem, u: np.ndarray, options: NewtonOptions, solver, timers: Newto
         rho = float(rmax / scale) if scale > 0 else 0.0
         history.append(rho)
         if not math.isfinite(rho):
-            return NewtonResult(False, it, history, 0, -1, "residual not finite")
+            return NewtonResult(False, it, history, 0, -1, "residual not finite", jacobi_steps)
         if rho <= options.tolerance:
-            return NewtonResult(True, it, history)
+            return NewtonResult(True, it, history, jacobi_steps=jacobi_steps)
         if it > 0 and rho <= 1e3 * options.tolerance and increment <= options.rtol * np.abs(u).max() + options.atol:
-            return NewtonResult(True, it, history)
+            return NewtonResult(True, it, history, jacobi_steps=jacobi_steps)
         if it == options.max_iterations:
             break
-        if jacobi_last and rho > 0.5 * history[-2]:
-            jacobi = None  # it did not contract: full Newton iterations from here on
-        jacobi_last = jacobi is not None and it > 0 and rho <= JACOBI_RANGE * options.tolerance
+        use_jacobi = False
+        if jacobi is not None and it > 0:
+            # what a Jacobi step may be expected to contract by: the last one's contraction, else
+            # that of the last linear solve's sweeps
+            contraction = rho / history[-2] if jacobi_last else getattr(solver, "contraction", math.inf)
+            use_jacobi = _jacobi_pays(rho, contraction, options.tolerance)
+            if jacobi_last and not use_jacobi:
+                jacobi = None  # it contracts too slowly: full Newton iterations from here on
+        jacobi_last = use_jacobi
         t0 = t1 = t2 = time.perf_counter()
         if jacobi_last:
             du = jacobi(problem.R)
             timers.jacobi_steps += 1
+            jacobi_steps += 1
         else:
             if solver.assembled:
                 problem.jacobian(problem.data)
@@ -463,6 +500,6 @@ def newton(problem, u: np.ndarray, options: NewtonOptions, solver, timers: Newto
         u -= du
         increment = float(np.abs(du).max())
         if not math.isfinite(increment):
-            return NewtonResult(False, it + 1, history, 0, -1, "Newton correction not finite")
+            return NewtonResult(False, it + 1, history, 0, -1, "Newton correction not finite", jacobi_steps)
     return NewtonResult(False, options.max_iterations, history, 0, -1,
-                        f"no convergence in {options.max_iterations} iterations")
+                        f"no convergence in {options.max_iterations} iterations", jacobi_steps)
