@@ -63,7 +63,7 @@ from .specialize import model_fingerprint, model_namespace, specialize
 # the purely mechanical one (every spring at its reference temperature, parameter row
 # REFERENCE_TEMPERATURE; no η, θ or Φ is read or written); with UNIFORM, P is (k, 1) and shared.
 temperature = tension = internal_energy = free_energy = spring_pass = node_pass = None
-boundary_spring_pass = boundary_node_pass = None
+boundary_spring_pass = boundary_node_pass = thermal_kick = copy_rows = None
 THERMAL = True
 CLOSING = False
 REFERENCE_TEMPERATURE = 0
@@ -109,6 +109,8 @@ def splitting_kernels(model, parallel: bool, thermal: bool = True, uniform: bool
                                                 **_OPTIONS)
         ns["boundary_node_pass"] = specialize(_node_pass, tag + "_boundary", boundary, parallel=parallel,
                                               **_OPTIONS)
+        ns["thermal_kick"] = specialize(_thermal_kick, tag, ns, parallel=parallel, **_OPTIONS)
+        ns["copy_rows"] = specialize(_copy_rows, tag, ns, parallel=parallel, **_OPTIONS)
         _CACHE[key] = specialize(_advance, tag, ns, **_OPTIONS)
     return _CACHE[key]
 
@@ -209,9 +211,12 @@ def _node_pass(x, x_new, p, s, inc_ptr, inc_spring, inc_other, masses, inv_mass,
     """Per node a: f = Σ s_e (x_b − x_a) (+ m g); p += kick1 f; p += kick2 f; x_new = x + drift p/m.
 
     inc_spring, inc_other: (2m,) uint32. force_source: 0 gather f; 1 gather f and keep it in
-    f_keep (n, 3); 2 take f from f_keep. Returns, with ``want_sums``, the sums over free nodes
-    at (x, the new p) of kinetic energy, gravity potential −Σ m g·x, p and (x − ref) × p (else 0).
+    f_keep (n, 3) (a call's closing kick, whose drift is 0: x_new is then not written, the
+    positions stay in x); 2 take f from f_keep. Returns, with ``want_sums``, the sums over free
+    nodes at (x, the new p) of kinetic energy, gravity potential −Σ m g·x, p and (x − ref) × p
+    (else 0).
     """
+    move = not (CLOSING and force_source == 1)
     kinetic = 0.0
     potential = 0.0
     px = 0.0
@@ -225,9 +230,10 @@ def _node_pass(x, x_new, p, s, inc_ptr, inc_spring, inc_other, masses, inv_mass,
         xa1 = x[a, 1]
         xa2 = x[a, 2]
         if anchored[a]:
-            x_new[a, 0] = xa0
-            x_new[a, 1] = xa1
-            x_new[a, 2] = xa2
+            if move:
+                x_new[a, 0] = xa0
+                x_new[a, 1] = xa1
+                x_new[a, 2] = xa2
             continue
         p0 = p[a, 0]
         p1 = p[a, 1]
@@ -266,10 +272,11 @@ def _node_pass(x, x_new, p, s, inc_ptr, inc_spring, inc_other, masses, inv_mass,
             p[a, 0] = p0
             p[a, 1] = p1
             p[a, 2] = p2
-        w = drift * inv_mass[a]
-        x_new[a, 0] = xa0 + w * p0
-        x_new[a, 1] = xa1 + w * p1
-        x_new[a, 2] = xa2 + w * p2
+        if move:
+            w = drift * inv_mass[a]
+            x_new[a, 0] = xa0 + w * p0
+            x_new[a, 1] = xa1 + w * p1
+            x_new[a, 2] = xa2 + w * p2
         if CLOSING and want_sums:
             k, v, l0_, l1_, l2_ = node_diagnostic_terms(xa0, xa1, xa2, p0, p1, p2, masses[a], gravity, ref)
             kinetic += k
@@ -281,6 +288,20 @@ def _node_pass(x, x_new, p, s, inc_ptr, inc_spring, inc_other, masses, inv_mass,
             ly += l1_
             lz += l2_
     return kinetic, potential, px, py, pz, lx, ly, lz
+
+
+def _thermal_kick(phi, theta, coefficient):
+    """Φ += coefficient θ, per spring (the thermal half of a kick whose θ is known)."""
+    for e in prange(phi.shape[0]):
+        phi[e] += coefficient * theta[e]
+
+
+def _copy_rows(source, target):
+    """target[:] = source for (n, 3) arrays, rows in parallel."""
+    for a in prange(source.shape[0]):
+        target[a, 0] = source[a, 0]
+        target[a, 1] = source[a, 1]
+        target[a, 2] = source[a, 2]
 
 
 def _advance(x, x_buf, p, phi, eta, s, l0, P, edges, inc_ptr, inc_spring, inc_other, masses, inv_mass,
@@ -321,14 +342,13 @@ def _advance(x, x_buf, p, phi, eta, s, l0, P, edges, inc_ptr, inc_spring, inc_ot
             reuse = reuse_boundary and step == 0 and i == 0 and with_force
             if reuse:  # the previous call's closing kick evaluated these at these positions
                 if THERMAL and track_phi:
-                    for e in range(phi.shape[0]):
-                        phi[e] += (k2 * h) * theta_keep[e]
+                    thermal_kick(phi, theta_keep, k2 * h)
             elif with_force:
                 bad = spring_pass(cur, eta, l0, P, edges_u, s, phi, k1 * h, k2 * h, track_phi,
                                   stretch_min, stretch_max, theta_keep, False, energy_buf, False)[0]
                 if bad > 0:
                     if swaps % 2 == 1:
-                        x[:, :] = x_buf
+                        copy_rows(x_buf, x)
                     # positions at stage 0 are the end of the previous step: that step was the bad one
                     return (step - 1 if i == 0 and step > 0 else step), True, False
             if reuse:
@@ -348,13 +368,11 @@ def _advance(x, x_buf, p, phi, eta, s, l0, P, edges, inc_ptr, inc_spring, inc_ot
                                                                  theta_keep, True, energy_buf, want_sums)
         if bad > 0:
             if swaps % 2 == 1:
-                x[:, :] = x_buf
+                copy_rows(x_buf, x)
             return n_steps - 1, True, False
         node_sums = boundary_node_pass(cur, nxt, p, s, inc_ptr, inc_spring_u, inc_other_u, masses, inv_mass,
                                        anchored, 0.0, pending * h, 0.0, True, gravity, with_gravity, f_keep, 1, ref,
-                                       want_sums)
-        cur, nxt = nxt, cur
-        swaps += 1
+                                       want_sums)  # drift 0: the positions stay in cur
         if want_sums:
             sums[0] = energy
             sums[1] = theta_min
@@ -363,5 +381,5 @@ def _advance(x, x_buf, p, phi, eta, s, l0, P, edges, inc_ptr, inc_spring, inc_ot
                 sums[3 + q] = node_sums[q]
             summed = True
     if swaps % 2 == 1:
-        x[:, :] = x_buf
+        copy_rows(x_buf, x)
     return n_steps, False, summed
