@@ -1,6 +1,8 @@
 """Bad input (issue 2): a clear thermonet error that names the offending node, spring, parameter
 or name; never a Numba typing error, and never a NaN-filled result as the only sign."""
 
+import warnings
+
 import meshio
 import numpy as np
 import pytest
@@ -98,6 +100,12 @@ def test_mesh_problems_are_named(tmp_path):
     mesh = meshio.Mesh(np.array(TRI + [[0.0, 0.0, 0.0]]), [("triangle", np.array([[0, 1, 2], [0, 1, 3]]))])
     with pytest.raises(tn.MeshError, match=r"mesh points \[0, 3\] coincide"):
         tn.from_meshio(mesh)
+    far = meshio.Mesh(np.array([[0.0, 0.0, 0.0], [1e300, 1e300, 0.0], [0.0, 1.0, 0.0]]),
+                      [("line", np.array([[0, 2], [0, 1]]))])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no overflow warning from inside NumPy either
+        with pytest.raises(tn.MeshError, match=r"mesh points \[0, 1\] has no finite length"):
+            tn.from_meshio(far)
     mesh = meshio.Mesh(np.array(TRI), [("triangle", np.array([[0, 1, 2]]))])
     with pytest.raises(tn.MeshError, match="anchor group 'clamp' does not exist"):
         tn.from_meshio(mesh, anchors="clamp")

@@ -191,7 +191,8 @@ def test_gravity_is_off_unless_asked_and_energy_includes_its_potential():
 
 
 def _expected(path):
-    text = open(path).read()
+    with open(path, encoding="utf-8") as f:
+        text = f.read()
     message = re.search(r"^# error: (.*)$", text, re.M).group(1)
     line = re.search(r"^# line: (\d+)$", text, re.M)
     return message, int(line.group(1)) if line else None

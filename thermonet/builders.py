@@ -215,7 +215,14 @@ def from_meshio(
     point_to_node[used] = np.arange(len(used))
     positions = points[used]
     edges = point_to_node[unique]
-    lengths = np.linalg.norm(positions[edges[:, 1]] - positions[edges[:, 0]], axis=1)
+    with np.errstate(over="ignore", invalid="ignore"):  # reported below, with the points
+        lengths = np.linalg.norm(positions[edges[:, 1]] - positions[edges[:, 0]], axis=1)
+    if not np.isfinite(lengths).all():
+        e = int(np.flatnonzero(~np.isfinite(lengths))[0])
+        raise MeshError(
+            f"{source}: the spring between mesh points {unique[e].tolist()} has no finite length "
+            f"(coordinates {points[unique[e][0]].tolist()} and {points[unique[e][1]].tolist()})"
+        )
     if (lengths <= 0).any():
         e = int(np.flatnonzero(lengths <= 0)[0])
         raise MeshError(
