@@ -342,3 +342,84 @@ def test_uniform_parameter_kernels_give_the_per_spring_kernels_numbers(integrato
         outputs.append([a.copy() for a in (st.prediction, st.R, st.Rabs, st.jc, *st._new)])
     for a, b in zip(*outputs):
         np.testing.assert_array_equal(a, b)
+
+
+def hot_lattice_ho4(model="hencky", steps=40, **options):
+    """The benchmark's lattice, smaller (6³ cells), after ``steps`` steps: hot enough that one
+    Newton iteration leaves a residual above the tolerance at a few nodes."""
+    net = tn.lattice((6, 6, 6), jitter=0.1, seed=1)
+    rng = np.random.default_rng(0)
+    params = (dict(c=100.0, beta=0.2, C0=5.0, theta0=300.0) if model != "quadratic"
+              else dict(E=100.0, beta=0.2, C0=5.0, theta0=300.0, eta0=0.1))
+    sim = tn.Simulation(net, model=model, parameters=params, temperatures=rng.uniform(300.0, 600.0, net.n_springs),
+                        momenta=rng.normal(0.0, 1.0, (net.n_nodes, 3)), integrator="ho4", h=0.01,
+                        integrator_options=dict(linear_solver="matfree", **options))
+    sim.run(steps=steps, diagnostics_every=10**9)
+    return sim
+
+
+def one_newton_iteration(sim):
+    st, s = sim.stepper, sim.internal_state()
+    st.begin(s.positions, s.momenta, s.entropy, sim.h)
+    st.predict(st.u)
+    st.residual(st.u)
+    st.linearize()
+    st.u -= st.solver.solve(st.R, 0.1 * st.options.tolerance * st.norms[1])
+    st.residual(st.u)
+    return st
+
+
+@pytest.mark.parametrize("model", ["hencky", "hencky_iterated"])
+def test_a_local_jacobi_step_leaves_the_residual_a_full_evaluation_gives(model):
+    """The step moves only the nodes with large rows and recomputes the residual only at their
+    springs and those springs' ends: bit for bit a full evaluation's for the closed-form thermal
+    solve ("hencky"); for an iterated solve, within its tolerance (the springs not recomputed
+    keep the temperatures solved from the last seeds)."""
+    import dataclasses
+
+    from thermonet.models import get_model
+
+    chosen = get_model("hencky") if model == "hencky" else dataclasses.replace(
+        get_model("hencky"), name="hencky_iterated", entropy_log_affine=False)
+    sim = hot_lattice_ho4(chosen)
+    st = one_newton_iteration(sim)
+    fraction = 0.1 * st.options.tolerance
+    before = st.u.copy()
+    rows = np.abs(st.R).reshape(-1, 6).max(axis=1) > fraction * st.norms[1]
+    assert 0 < rows.sum() < 0.05 * len(rows)  # a few nodes, as in the benchmark's later regime
+    status, spring, increment = st.local_jacobi(st.u, fraction)
+    assert status == 0 and increment > 0
+    moved = np.abs(st.u - before).reshape(-1, 6).max(axis=1) > 0
+    assert np.array_equal(moved, rows)
+    local = (st.R.copy(), st.Rabs.copy(), st.norms, st.th0.copy(), st.th1.copy())
+    st.residual(st.u)
+    full = (st.R, st.Rabs, st.norms, st.th0, st.th1)
+    if model == "hencky":
+        for a, b in zip(local, full):
+            assert np.array_equal(a, b)
+    else:
+        scale = st.norms[1]
+        assert np.abs(local[0] - full[0]).max() <= 1e-13 * scale
+        assert np.abs(local[3] - full[3]).max() <= 1e-10 * np.abs(full[3]).max()
+
+
+def test_local_jacobi_steps_replace_global_ones_with_the_same_states(monkeypatch):
+    """In the hot regime the finishing Jacobi steps are local (no full residual, no sweep), and
+    the steps end where global Jacobi steps end, to the tolerance's size. Where too many nodes
+    are above the threshold, a global step is taken instead."""
+    from thermonet.integrators.implicit import ImplicitStepper
+
+    local = hot_lattice_ho4()
+    local.stepper.timers.__init__()
+    local.run(steps=20, diagnostics_every=10**9)
+    monkeypatch.setattr(ImplicitStepper, "LOCAL_MAX_FRACTION", 0.0)  # every local step declines
+    both = hot_lattice_ho4()
+    both.stepper.timers.__init__()
+    both.run(steps=20, diagnostics_every=10**9)
+    t, g = local.stepper.timers, both.stepper.timers
+    assert t.local_steps == t.jacobi_steps >= 3 and g.local_steps == 0 and g.jacobi_steps >= 3
+    assert t.residuals == 40 < g.residuals  # two full evaluations per step: predictor, iteration
+    assert local.stepper.summary()["residual_max"] <= 1e-12 and both.stepper.summary()["residual_max"] <= 1e-12
+    scale = np.abs(both.state.momenta).max()
+    assert np.abs(local.state.momenta - both.state.momenta).max() <= 1e-11 * scale
+    assert np.abs(local.state.positions - both.state.positions).max() <= 1e-11

@@ -64,16 +64,28 @@ class HO4Stepper(ImplicitStepper):
                          [h, 0.5 * h * h, h**3 / 6.0, h**4 / 24.0]])
 
     def residual(self, u: np.ndarray):
+        status, spring, rmax, smax = self._residual(self.kernels.residual, u, self._no_index, self._no_index)
+        self.norms = (rmax, smax)
+        self._active = None
+        return status, spring
+
+    def residual_subset(self, u: np.ndarray, springs: np.ndarray, nodes: np.ndarray):
+        """The residual after u changed at a few nodes: ``springs`` (int64) those at the
+        changed nodes, ``nodes`` (int64) the nodes at those springs' ends; the rest keep their
+        values. Leaves ``norms`` to the caller (the maxima are over these rows only)."""
+        status, spring, _, _ = self._residual(self.kernels.residual_subset, u, springs, nodes)
+        return status, spring
+
+    def _residual(self, kernel, u, springs, nodes):
         s = self.system
-        status, spring, rmax, smax = self.kernels.residual(
+        out = kernel(
             self.x0, u, self.p0, self.eta0, s.rest_lengths, self.P, self.edges_u, self.free_index, *self.incidence,
             s.masses, self.h, self.gravity, self.with_gravity, self.len0, self.dir0, self.lenh, self.dirh, self.len1,
             self.dir1, self.th0, self.th1, self.dth, self.gs, self.warm, self.fs, self.guess, self.code, self.R,
-            self.Rabs,
+            self.Rabs, springs, nodes,
         )
-        self.norms = (rmax, smax)
-        self.warm = status == 0
-        return status, spring
+        self.warm = out[0] == 0
+        return out
 
     def linearize(self) -> None:
         s = self.system
@@ -84,10 +96,12 @@ class HO4Stepper(ImplicitStepper):
         return self.sweeper(du, rhs, r, self.sweep_w, self.jc, self.dir0, self.dirh, self.dir1,
                             self.ends, self.free_index, *self.incidence, self.system.masses, self.h, update, first)
 
-    def apply_inverse_inertia(self, v):
-        """Per free node, (h/m) ½ [[1, 1/3], [2, 8/3]] applied to (v^½, v¹)."""
+    def apply_inverse_inertia(self, v, blocks=None):
+        """Per free node, (h/m) ½ [[1, 1/3], [2, 8/3]] applied to (v^½, v¹); v holds the rows of
+        the free nodes ``blocks`` (int array) where given, else of all."""
         b = np.asarray(v).reshape(-1, 2, 3)
-        q = (0.5 * self.h / self.block_mass)[:, None]
+        mass = self.block_mass if blocks is None else self.block_mass[blocks]
+        q = (0.5 * self.h / mass)[:, None]
         out = np.empty_like(b)
         out[:, 0] = q * (b[:, 0] + b[:, 1] / 3.0)
         out[:, 1] = q * (2.0 * b[:, 0] + 8.0 / 3.0 * b[:, 1])

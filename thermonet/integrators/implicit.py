@@ -18,6 +18,7 @@ import numpy as np
 from ..errors import InputError
 from ..kernels.implicit import STATUS_TEXT, implicit_kernels
 from ..kernels.implicit_operator import operator_kernels
+from ..kernels.local_update import active_blocks, neighbourhood, scan
 from .base import Stepper, StepFailure
 from .newton import BlockPattern, NewtonOptions, NewtonResult, NewtonTimers, make_linear_solver, newton
 
@@ -50,6 +51,9 @@ class ImplicitStepper(Stepper):
     scheme: str
     #: time derivatives of the acceleration the predictor uses (0, 1: ȧ, 2: ȧ and ä)
     rate: int = 0
+    #: a local Jacobi step (:meth:`local_jacobi`) updates at most this fraction of the free
+    #: nodes; with more, a global one (one sweep, one full residual) costs less
+    LOCAL_MAX_FRACTION = 0.05
 
     def __init__(self, integrator, system, options: NewtonOptions, parallel: bool = False):
         if not system.thermal:
@@ -99,6 +103,9 @@ class ImplicitStepper(Stepper):
         self._new = (np.empty((n, 3)), np.empty((n, 3)), np.empty(m), np.empty(m))
         self.gravity = np.zeros(3) if system.gravity is None else np.asarray(system.gravity, dtype=np.float64)
         self.with_gravity = system.gravity is not None
+        self._no_index = np.empty(0, dtype=np.int64)
+        self._local = None  # index scratch of local_jacobi, made at its first use
+        self._active = None  # the number of nodes local_jacobi's last scan found (None: no scan of this R)
         self.timers = NewtonTimers()
         self.totals = dict(steps=0, iterations=0, iterations_max=0, residual_max=0.0, retried_steps=0,
                            substeps_max=1)
@@ -143,6 +150,44 @@ class ImplicitStepper(Stepper):
     @abstractmethod
     def finish(self, phi0, x_new, p_new, phi_new, eta_new) -> tuple[int, int]:
         """The next state from the converged unknowns; (status, spring)."""
+
+    def local_jacobi(self, u: np.ndarray, fraction: float):
+        """One Jacobi step u −= D⁻¹ R restricted to the free nodes with a residual row above
+        ``fraction`` × max Rabs, the residual then recomputed only where the step changes it
+        (the springs at those nodes, the rows of the nodes at those springs' ends) with the
+        kernel's own arithmetic: the residual a full evaluation at the new u gives, bit for bit
+        for models whose thermal solve is closed-form (else within that solve's tolerance, from
+        the last seeds). None where the scheme has no such residual or more than
+        LOCAL_MAX_FRACTION of the free nodes are above the threshold (a global step is then
+        cheaper); else (status, spring, max |change of u|), with ``norms`` of the new residual.
+        The pass that takes the new norms also finds the next step's nodes (at this step's
+        threshold), so a step reads R in full once."""
+        residual_subset = getattr(self, "residual_subset", None)
+        if residual_subset is None:
+            return None
+        n_free, B = self.pattern.n_free, self.block
+        if self._local is None:
+            lay = self.system.layout
+            self._local = (np.empty(int(self.LOCAL_MAX_FRACTION * n_free) + 1, dtype=np.int64),
+                           np.zeros(self.system.n_springs, dtype=np.uint8), np.zeros(self.system.n_nodes, dtype=np.uint8),
+                           np.empty(self.system.n_springs, dtype=np.int64), np.empty(self.system.n_nodes, dtype=np.int64),
+                           lay.inc_ptr, lay.inc_spring)
+        out, spring_mark, node_mark, springs, nodes, inc_ptr, inc_spring = self._local
+        threshold = fraction * self.norms[1]
+        count = self._active if self._active is not None else active_blocks(self.R, B, threshold, out)
+        if count > out.shape[0]:
+            return None
+        blocks = out[:count]
+        rows = (B * blocks[:, None] + np.arange(B)).ravel()
+        du = self.apply_inverse_inertia(self.R[rows], blocks)
+        u[rows] -= du
+        ns, nn = neighbourhood(blocks, self.node_of_block, inc_ptr, inc_spring, self.system.edges, self.free_index,
+                               spring_mark, node_mark, springs, nodes)
+        # in index order: each thread of the kernel then works on nearby memory
+        status, spring = residual_subset(u, np.sort(springs[:ns]), np.sort(nodes[:nn]))
+        rmax, smax, self._active = scan(self.R, self.Rabs, B, threshold, out)
+        self.norms = (rmax, smax)
+        return status, spring, float(np.abs(du).max()) if count else 0.0
 
     # -- one step ---------------------------------------------------------------------------------
     def begin(self, x, p, eta, h: float) -> None:
@@ -281,6 +326,7 @@ class ImplicitStepper(Stepper):
         t["unknowns"] = self.pattern.size
         t["jacobian_nnz"] = self.pattern.nnz
         t["jacobi_steps"] = self.timers.jacobi_steps  # finishing steps u −= D⁻¹ R, not counted as iterations
+        t["local_steps"] = self.timers.local_steps  # of those, the ones on a few nodes only
         t.update({f"time_{k}": v for k, v in self.timers.as_dict().items() if isinstance(v, float)})
         return t
 

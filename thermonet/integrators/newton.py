@@ -384,6 +384,15 @@ LINEAR_FRACTION = 0.1
 #: iterate (matrix-free solver only).
 JACOBI_RANGE = 1e4
 JACOBI_MAX_STEPS = 2
+#: Where the problem offers local Jacobi steps (HO4), a Jacobi step first updates only the free
+#: nodes whose residual rows exceed LOCAL_FRACTION × the tolerance (after a full iteration, a few
+#: per cent of the nodes at most on the benchmark lattices) and recomputes the residual only at
+#: their springs and the ends of those: the same new residual as a global step's evaluation where
+#: the rest are left, at a few per cent of its cost. Local steps go on while each reduces the
+#: scaled residual at least LOCAL_STALL×, at most LOCAL_MAX_ROUNDS per solve.
+LOCAL_FRACTION = 0.1
+LOCAL_STALL = 0.5
+LOCAL_MAX_ROUNDS = 8
 
 
 def _jacobi_pays(rho: float, contraction: float, tolerance: float) -> bool:
@@ -404,6 +413,7 @@ class NewtonTimers:
     linear_solves: int = 0
     residuals: int = 0
     jacobi_steps: int = 0
+    local_steps: int = 0
 
     def as_dict(self) -> dict:
         return dict(self.__dict__)
@@ -434,20 +444,36 @@ def newton(problem, u: np.ndarray, options: NewtonOptions, solver, timers: Newto
     """Solve ``problem.residual(u) = 0`` for ``u`` in place, from the predictor in ``u``.
 
     problem: ``residual(u) -> (status, spring)`` fills ``problem.R`` and ``problem.Rabs`` (and,
-    optionally, ``problem.norms`` = (max |R|, max Rabs)) and whatever the Jacobian needs; ``jacobian(data)`` fills the CSR values at the last residual's
-    point, ``data`` its value array (assembled solvers); ``linearize()`` the per-spring
-    coefficients of a matrix-free product (:class:`MatrixFree`). The residual is always evaluated last at the returned ``u``.
+    optionally, ``problem.norms`` = (max |R|, max Rabs)) and whatever the Jacobian needs;
+    ``jacobian(data)`` fills the CSR values at the last residual's point, ``data`` its value
+    array (assembled solvers); ``linearize()`` the per-spring coefficients of a matrix-free
+    product (:class:`MatrixFree`); optionally ``local_jacobi(u, fraction)``, a Jacobi step on
+    the nodes whose residual rows exceed that fraction of max Rabs, which also brings R and
+    ``norms`` up to date (None where it declines). The residual is always evaluated last at the
+    returned ``u``.
+
+    ``max_iterations`` bounds the full iterations and global Jacobi steps; local Jacobi steps
+    are bounded by LOCAL_MAX_ROUNDS.
     """
     history: list[float] = []
     increment = math.inf
     jacobi = getattr(solver, "jacobi", None)
-    jacobi_last = False
+    local = getattr(problem, "local_jacobi", None) if jacobi is not None else None
+    last = "full"  # the kind of the last correction: "full", "jacobi" (global) or "local"
+    corrections = 0  # of every kind
+    local_rounds = 0
     jacobi_steps = 0
-    for it in range(options.max_iterations + 1):
-        t0 = time.perf_counter()
-        status, spring = problem.residual(u)
-        timers.residual += time.perf_counter() - t0
-        timers.residuals += 1
+    evaluated = None  # (status, spring) of the residual a local step brought up to date
+    while True:
+        it = corrections
+        if evaluated is None:
+            t0 = time.perf_counter()
+            status, spring = problem.residual(u)
+            timers.residual += time.perf_counter() - t0
+            timers.residuals += 1
+        else:
+            status, spring = evaluated
+            evaluated = None
         if status != 0:
             return NewtonResult(False, it, history, status, spring, "non-physical iterate", jacobi_steps)
         norms = getattr(problem, "norms", None)  # (max |R|, max Rabs), where the kernel had them
@@ -464,19 +490,36 @@ def newton(problem, u: np.ndarray, options: NewtonOptions, solver, timers: Newto
             return NewtonResult(True, it, history, jacobi_steps=jacobi_steps)
         if it > 0 and rho <= 1e3 * options.tolerance and increment <= options.rtol * np.abs(u).max() + options.atol:
             return NewtonResult(True, it, history, jacobi_steps=jacobi_steps)
-        if it == options.max_iterations:
+        if corrections - local_rounds == options.max_iterations:
             break
         use_jacobi = False
         if jacobi is not None and it > 0:
-            # what a Jacobi step may be expected to contract by: the last one's contraction, else
-            # that of the last linear solve's sweeps
-            contraction = rho / history[-2] if jacobi_last else getattr(solver, "contraction", math.inf)
-            use_jacobi = _jacobi_pays(rho, contraction, options.tolerance)
-            if jacobi_last and not use_jacobi:
-                jacobi = None  # it contracts too slowly: full Newton iterations from here on
-        jacobi_last = use_jacobi
+            if last == "full":  # what the sweeps of that iteration's solve promise
+                use_jacobi = _jacobi_pays(rho, getattr(solver, "contraction", math.inf), options.tolerance)
+            else:
+                contraction = rho / history[-2]
+                if last == "local":  # each costs a few per cent of a global step
+                    use_jacobi = contraction <= LOCAL_STALL and local_rounds < LOCAL_MAX_ROUNDS
+                else:
+                    use_jacobi = _jacobi_pays(rho, contraction, options.tolerance)
+                if not use_jacobi:
+                    jacobi = local = None  # they contract too slowly: full iterations from here on
+        corrections += 1
+        if use_jacobi and local is not None:
+            t0 = time.perf_counter()
+            done = local(u, LOCAL_FRACTION * options.tolerance)
+            if done is not None:
+                evaluated, increment = done[:2], done[2]
+                timers.residual += time.perf_counter() - t0
+                timers.local_steps += 1
+                timers.jacobi_steps += 1
+                jacobi_steps += 1
+                local_rounds += 1
+                last = "local"
+                continue
+        last = "jacobi" if use_jacobi else "full"
         t0 = t1 = t2 = time.perf_counter()
-        if jacobi_last:
+        if use_jacobi:
             du = jacobi(problem.R)
             timers.jacobi_steps += 1
             jacobi_steps += 1
@@ -500,6 +543,6 @@ def newton(problem, u: np.ndarray, options: NewtonOptions, solver, timers: Newto
         u -= du
         increment = float(np.abs(du).max())
         if not math.isfinite(increment):
-            return NewtonResult(False, it + 1, history, 0, -1, "Newton correction not finite", jacobi_steps)
-    return NewtonResult(False, options.max_iterations, history, 0, -1,
+            return NewtonResult(False, corrections, history, 0, -1, "Newton correction not finite", jacobi_steps)
+    return NewtonResult(False, corrections, history, 0, -1,
                         f"no convergence in {options.max_iterations} iterations", jacobi_steps)

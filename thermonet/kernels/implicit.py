@@ -63,6 +63,12 @@ LOG_AFFINE = False
 #: every spring has the same parameters: P is the shared (k, 1) column of System.kernel_parameters,
 #: read at column 0 (``pe``) and not streamed per spring
 UNIFORM = False
+#: the residual's index helpers, bound per variant (a kernel compiled with a conditional index
+#: ran 25 % slower): in the full kernel ``listed(indices, j)`` is j, ``listed_count(indices, n)``
+#: is n and ``first_flagged_listed`` is :func:`_first_flagged`; in the SUBSET kernel, which
+#: recomputes only the listed springs and node rows, indices[j], len(indices) and the same over
+#: the listed entries
+listed = listed_count = first_flagged_listed = None
 
 _CACHE: dict = {}
 _OPTIONS = dict(cache=True, error_model="numpy", boundscheck=False)
@@ -128,9 +134,13 @@ def implicit_kernels(model, scheme: str, parallel: bool = False, uniform: bool =
             ns["ho4_thermal_exact"] = specialize(_ho4_thermal_exact, tag, ns, **_INLINE)
             ns["ho4_thermal"] = specialize(_ho4_thermal, tag, ns, **_OPTIONS)
             ns["ho4_thermal_vector"] = specialize(_ho4_thermal_vector, tag, ns, **_INLINE)
+            subset = dict(ns, listed=_listed_entry, listed_count=_listed_count,
+                          first_flagged_listed=_first_flagged_entry)
+            ns.update(listed=_listed_position, listed_count=_all_count, first_flagged_listed=_first_flagged_position)
             _CACHE[key] = ImplicitKernels(
                 start=start,
                 residual=specialize(_ho4_residual, ptag, ns, parallel=parallel, **_OPTIONS),
+                residual_subset=specialize(_ho4_residual, f"{ptag}_subset", subset, parallel=parallel, **_OPTIONS),
                 linearize=specialize(_ho4_linearize, ptag, ns, parallel=parallel, **_OPTIONS),
                 jacobian=specialize(_ho4_jacobian, tag, ns, **_OPTIONS),
                 finish=specialize(_ho4_finish, ptag, ns, parallel=parallel, **_OPTIONS),
@@ -173,6 +183,47 @@ def _usable(t):
 def _admissible(t):
     """Positive and finite, written without branches (for the vectorized loops)."""
     return (t > 0.0) & (t < math.inf)
+
+
+@njit(cache=True, inline="always")
+def _listed_position(indices, j):
+    """j: the index of a full kernel's loop (its ``listed``)."""
+    return j
+
+
+@njit(cache=True, inline="always")
+def _listed_entry(indices, j):
+    """indices[j]: the index of a SUBSET kernel's loop (its ``listed``)."""
+    return indices[j]
+
+
+@njit(cache=True, inline="always")
+def _all_count(indices, n):
+    """n: a full kernel's loop length (its ``listed_count``)."""
+    return n
+
+
+@njit(cache=True, inline="always")
+def _listed_count(indices, n):
+    """len(indices): a SUBSET kernel's loop length (its ``listed_count``)."""
+    return indices.shape[0]
+
+
+@njit(cache=True, inline="always")
+def _first_flagged_position(flag, indices, lo, n, none):
+    """:func:`_first_flagged` (a full kernel's ``first_flagged_listed``)."""
+    return _first_flagged(flag, lo, n, none)
+
+
+@njit(cache=True, inline="always")
+def _first_flagged_entry(flag, indices, lo, n, none):
+    """The smallest e = indices[lo + i], 0 ≤ i < n, with flag[e] != 0, else ``none`` (a SUBSET
+    kernel's ``first_flagged_listed``)."""
+    bad = none
+    for i in range(n):
+        if flag[indices[lo + i]] != 0:
+            bad = min(bad, indices[lo + i])
+    return bad
 
 
 @njit(cache=True, inline="always")
@@ -808,21 +859,28 @@ def _ho4_thermal_vector(la, lh, lb, eta, l0, P, e, guess, warm):
 
 
 def _ho4_residual(x0, u, p, eta, l0, P, edges, free_index, inc_ptr, inc_spring, inc_sign, masses, h, gravity, with_gravity,
-                  len0, dir0, lenh, dirh, len1, dir1, th0, th1, dth, gs, warm, fs, guess, code, R, Rabs):
+                  len0, dir0, lenh, dirh, len1, dir1, th0, th1, dth, gs, warm, fs, guess, code, R, Rabs, springs, nodes):
     """R, Rabs (6 n_free,) at unknowns u (6 n_free,); fills lengths/unit vectors (3, m) at x^½
     and x¹, θ⁰, θ¹ (m,), dth (4, m) = dθ⁰/dl^½, dθ⁰/dl¹, dθ¹/dl^½, dθ¹/dl¹ and gs (m,) = Γ⁰ =
     Γ¹. With ``warm``, the previous call's gs (at nearby u), moved along its length derivatives,
     seeds the thermal solves. With LOG_AFFINE (closed-form solves: no seeds) dth and gs are not
     written; the linearization and the Jacobian recompute the derivatives from the lengths and
     temperatures (the residual is memory-bound, they are called less often).
-    fs (6, m), guess, code (m,) scratch. Returns (status, spring, max |R|, max Rabs)."""
-    m = edges.shape[0]
-    bad = m
+    fs (6, m), guess, code (m,) scratch; fs holds each spring's force terms afterwards. With
+    the SUBSET variant only the springs listed in ``springs`` (int64) and the rows of the free nodes listed in
+    ``nodes`` (int64) are computed, in the same arithmetic and order as by a full call: after u
+    changed at a few nodes, the listed springs are those at these nodes and the listed nodes
+    those at these springs' ends, and the rest keep the values of the last call (else both are
+    empty and unused). Returns (status, spring, max |R|, max Rabs), the maxima over the rows
+    computed."""
+    none = edges.shape[0]
+    m = listed_count(springs, none)
+    bad = none
     for blk in prange((m + BLOCK - 1) // BLOCK):
         lo = blk * BLOCK
         n = min(BLOCK, m - lo)
         for i in range(n):  # gather: the spring vectors at x^½ and x¹
-            e = np.uint64(lo + i)
+            e = np.uint64(listed(springs, lo + i))
             a = edges[e, 0]
             b = edges[e, 1]
             ka = free_index[a]
@@ -854,7 +912,7 @@ def _ho4_residual(x0, u, p, eta, l0, P, edges, free_index, inc_ptr, inc_spring, 
             fs[4, e] = ey
             fs[5, e] = ez
         for i in range(n):  # arithmetic and thermal solve (vectorized)
-            e = np.uint64(lo + i)
+            e = np.uint64(listed(springs, lo + i))
             pe = np.uint64(0) if UNIFORM else np.uint64(e)
             hx = fs[0, e]
             hy = fs[1, e]
@@ -901,7 +959,7 @@ def _ho4_residual(x0, u, p, eta, l0, P, edges, free_index, inc_ptr, inc_spring, 
             lok = (lh > 0.0) & (lh < math.inf) & (l1 > 0.0) & (l1 < math.inf)
             code[e] = OK if ((ok != 0) & lok) else NO_TEMPERATURE
         for i in range(n):  # the scalar solve where the vectorized one did not converge
-            e = lo + i
+            e = listed(springs, lo + i)
             pe = np.uint64(0) if UNIFORM else np.uint64(e)
             if code[e] == OK:
                 continue
@@ -932,12 +990,13 @@ def _ho4_residual(x0, u, p, eta, l0, P, edges, free_index, inc_ptr, inc_spring, 
             for j in range(3):
                 fs[j, e] = c0 * dir0[j, e]
                 fs[3 + j, e] = ch * dirh[j, e]
-        bad = min(bad, _first_flagged(code, lo, n, m))
-    if bad < m:
+        bad = min(bad, first_flagged_listed(code, springs, lo, n, none))
+    if bad < none:
         return code[bad], bad, math.inf, math.inf
     rmax = 0.0
     smax = 0.0
-    for a in prange(x0.shape[0]):
+    for j_node in prange(listed_count(nodes, x0.shape[0])):
+        a = listed(nodes, j_node)
         k = free_index[a]
         if k < 0:
             continue

@@ -1,0 +1,78 @@
+"""Index sets of a local Jacobi step of the implicit integrators: the free nodes whose residual
+rows are large, the springs at those nodes, and the free nodes at those springs' ends (whose
+residual rows the step changes). Serial: the sets are small (a few per cent of the net at most,
+else the caller takes a global step), and their order does not change any result (each spring
+and each node row is computed on its own; a node sums its springs in incidence order)."""
+
+from __future__ import annotations
+
+from numba import njit
+
+
+@njit(cache=True, boundscheck=False)
+def active_blocks(R, block, threshold, out):
+    """The free nodes (blocks of ``block`` rows of R (block n_free,)) with a row |R| > threshold,
+    in increasing order, into ``out``; returns their number, or len(out) + 1 where there are
+    more than len(out)."""
+    count = 0
+    for k in range(R.shape[0] // block):
+        big = 0.0
+        for j in range(block):
+            big = max(big, abs(R[block * k + j]))
+        if big > threshold:
+            if count == out.shape[0]:
+                return count + 1
+            out[count] = k
+            count += 1
+    return count
+
+
+@njit(cache=True, boundscheck=False)
+def neighbourhood(blocks, node_of_block, inc_ptr, inc_spring, edges, free_index, spring_mark, node_mark,
+                  springs_out, nodes_out):
+    """The springs at the nodes of ``blocks`` into springs_out and the free nodes at their ends
+    into nodes_out, each once; returns (springs, nodes). spring_mark (m,), node_mark (n,) uint8
+    scratch, zero on entry and on return."""
+    ns = 0
+    nn = 0
+    for q in range(blocks.shape[0]):
+        a = node_of_block[blocks[q]]
+        for j in range(inc_ptr[a], inc_ptr[a + 1]):
+            e = inc_spring[j]
+            if spring_mark[e]:
+                continue
+            spring_mark[e] = 1
+            springs_out[ns] = e
+            ns += 1
+            for end in range(2):
+                b = edges[e, end]
+                if free_index[b] >= 0 and not node_mark[b]:
+                    node_mark[b] = 1
+                    nodes_out[nn] = b
+                    nn += 1
+    for q in range(ns):
+        spring_mark[springs_out[q]] = 0
+    for q in range(nn):
+        node_mark[nodes_out[q]] = 0
+    return ns, nn
+
+
+@njit(cache=True, boundscheck=False)
+def scan(R, Rabs, block, threshold, out):
+    """(max |R|, max Rabs, count) in one pass: the norms of a residual, and the free nodes with
+    a row |R| > threshold into ``out`` as :func:`active_blocks` does (count len(out) + 1 where
+    there are more)."""
+    rmax = 0.0
+    smax = 0.0
+    count = 0
+    for k in range(R.shape[0] // block):
+        big = 0.0
+        for j in range(block):
+            big = max(big, abs(R[block * k + j]))
+            smax = max(smax, Rabs[block * k + j])
+        rmax = max(rmax, big)
+        if big > threshold:
+            if count < out.shape[0]:
+                out[count] = k
+            count += 1
+    return rmax, smax, min(count, out.shape[0] + 1)
