@@ -164,7 +164,7 @@ class ImplicitStepper(Stepper):
         threshold), so a step reads R in full once."""
         residual_subset = getattr(self, "residual_subset", None)
         if residual_subset is None:
-            return None
+            return None  # (a scheme that has one also has jacobi_rows(u, blocks) -> max |change|)
         n_free, B = self.pattern.n_free, self.block
         if self._local is None:
             lay = self.system.layout
@@ -178,16 +178,14 @@ class ImplicitStepper(Stepper):
         if count > out.shape[0]:
             return None
         blocks = out[:count]
-        rows = (B * blocks[:, None] + np.arange(B)).ravel()
-        du = self.apply_inverse_inertia(self.R[rows], blocks)
-        u[rows] -= du
+        increment = self.jacobi_rows(u, blocks)
         ns, nn = neighbourhood(blocks, self.node_of_block, inc_ptr, inc_spring, self.system.edges, self.free_index,
                                spring_mark, node_mark, springs, nodes)
         # in index order: each thread of the kernel then works on nearby memory
         status, spring = residual_subset(u, np.sort(springs[:ns]), np.sort(nodes[:nn]))
         rmax, smax, self._active = scan(self.R, self.Rabs, B, threshold, out)
         self.norms = (rmax, smax)
-        return status, spring, float(np.abs(du).max()) if count else 0.0
+        return status, spring, increment
 
     # -- one step ---------------------------------------------------------------------------------
     def begin(self, x, p, eta, h: float) -> None:
