@@ -88,7 +88,8 @@ class ImplicitStepper(Stepper):
         self.Rabs = np.zeros(size)
         self.norms = (math.inf, math.inf)
         self.u = np.zeros(size)
-        self.prediction = np.zeros(size)
+        #: the start kernel writes the explicit predictor straight into the unknowns (no copy)
+        self.prediction = self.u
         self.data = np.zeros(self.pattern.nnz if self.solver.assembled else 0)
         self.fs = np.empty((6, m))
         self.sweep_scratch = np.empty((self.block, m))
@@ -123,8 +124,10 @@ class ImplicitStepper(Stepper):
         the step's start; the derivatives beyond ``rate`` are zero)."""
 
     def predict(self, u: np.ndarray) -> None:
-        """Fill the unknowns u with the explicit guess the start kernel computed (begin)."""
-        u[:] = self.prediction
+        """Fill the unknowns u with the explicit guess the start kernel computed (begin), which
+        it wrote into ``self.u`` (= ``self.prediction``)."""
+        if u is not self.prediction:
+            u[:] = self.prediction
 
     @abstractmethod
     def residual(self, u: np.ndarray) -> tuple[int, int]:
@@ -226,7 +229,9 @@ class ImplicitStepper(Stepper):
             try:
                 new, result = self.attempt(x, p, phi, eta, h)
                 it, final, substeps = result.full_iterations, result.history[-1], 1
-                x[:], p[:], phi[:], eta[:] = new
+                # the new state's buffers become the state's; the old ones the next step's outputs
+                state.positions, state.momenta, state.thermal_displacement, state.entropy = new
+                self._new = (x, p, phi, eta)
             except _StepError as err:
                 it, final, substeps = self._retry(state, h, err, i)
                 retried += 1
