@@ -143,8 +143,8 @@ class ImplicitStepper(Stepper):
 
     @abstractmethod
     def sweep(self, du: np.ndarray, rhs: np.ndarray, r: np.ndarray, update: bool, first: bool = False) -> float:
-        """r = rhs − J du, then (update) du += D⁻¹ r; returns max |r| (matrix-free J). ``first``:
-        du is zero."""
+        """r = rhs − J du, then (update) du += D⁻¹ r, r written out only without ``update``;
+        returns max |r| (matrix-free J). ``first``: du is zero."""
 
     @abstractmethod
     def apply_inverse_inertia(self, v: np.ndarray) -> np.ndarray:

@@ -8,7 +8,8 @@ e = (a, b) adds ``s_c s_g B_e`` to block (c, g), s_a = +1, s_b = −1. So
 per-spring coefficients and the unit vectors the residual stored) and one gather per node. This
 costs a fraction of a residual evaluation and never forms the matrix.
 
-A sweep computes the linear residual ``r = R − J du`` and then ``du += D⁻¹ r``: Richardson's
+A sweep computes the linear residual ``r = R − J du`` and then ``du += D⁻¹ r`` (r is written out
+only by a sweep that does not update du: a product for GMRES): Richardson's
 iteration preconditioned by the inertia, which dominates J for steps below the explicit
 stability limit (the contraction per sweep is about h² times the largest stiffness over mass;
 measured ≈ 0.02–0.05 on the benchmark lattices at h = 0.01). Both loops are parallel when
@@ -43,8 +44,8 @@ def operator_kernels(scheme: str, parallel: bool):
 
 
 def _gtr_sweep(du, R, r, w, jc, dir0, dir1, ends, free_index, inc_ptr, inc_spring, inc_sign, masses, h, update, first):
-    """r = R − J du; with ``update``, then du += D⁻¹ r. Returns max |r|. ``first``: du is taken
-    as zero (not read; the spring loop is skipped).
+    """r = R − J du; with ``update``, then du += D⁻¹ r (and r is not written). Returns max |r|.
+    ``first``: du is taken as zero (not read; the spring loop is skipped).
 
     Spring e's block is jc[e] n⁰ n¹ᵀ: w[e, :3] = n⁰ jc[e] n¹·(du_a − du_b)."""
     m = ends.shape[0]
@@ -84,9 +85,10 @@ def _gtr_sweep(du, R, r, w, jc, dir0, dir1, ends, free_index, inc_ptr, inc_sprin
                 r0 += sg * w[e, 0]
                 r1 += sg * w[e, 1]
                 r2 += sg * w[e, 2]
-        r[3 * k] = r0
-        r[3 * k + 1] = r1
-        r[3 * k + 2] = r2
+        if not update:  # a sweep that updates du keeps r in registers (no caller reads it then)
+            r[3 * k] = r0
+            r[3 * k + 1] = r1
+            r[3 * k + 2] = r2
         rmax = max(rmax, abs(r0))
         rmax = max(rmax, abs(r1))
         rmax = max(rmax, abs(r2))
@@ -98,8 +100,8 @@ def _gtr_sweep(du, R, r, w, jc, dir0, dir1, ends, free_index, inc_ptr, inc_sprin
 
 
 def _ho4_sweep(du, R, r, w, jc, dir0, dirh, dir1, ends, free_index, inc_ptr, inc_spring, inc_sign, masses, h, update, first):
-    """r = R − J du; with ``update``, then du += D⁻¹ r. Returns max |r|. ``first``: du is taken
-    as zero (not read; the spring loop is skipped).
+    """r = R − J du; with ``update``, then du += D⁻¹ r (and r is not written). Returns max |r|.
+    ``first``: du is taken as zero (not read; the spring loop is skipped).
 
     Spring e's block applied to the difference (v^½, v¹) = du_a − du_b, into w[e, :] (6,):
     rows R1: n⁰ (a₁ n^½·v^½ + a₂ n¹·v¹); rows R2: n^½ ((k − t) n^½·v^½ + c n¹·v¹) + t v^½."""
@@ -169,12 +171,13 @@ def _ho4_sweep(du, R, r, w, jc, dir0, dirh, dir1, ends, free_index, inc_ptr, inc
                 r3 += sg * w[e, 3]
                 r4 += sg * w[e, 4]
                 r5 += sg * w[e, 5]
-        r[6 * k] = r0
-        r[6 * k + 1] = r1
-        r[6 * k + 2] = r2
-        r[6 * k + 3] = r3
-        r[6 * k + 4] = r4
-        r[6 * k + 5] = r5
+        if not update:  # a sweep that updates du keeps r in registers (no caller reads it then)
+            r[6 * k] = r0
+            r[6 * k + 1] = r1
+            r[6 * k + 2] = r2
+            r[6 * k + 3] = r3
+            r[6 * k + 4] = r4
+            r[6 * k + 5] = r5
         rmax = max(rmax, max(abs(r0), abs(r3)))
         rmax = max(rmax, max(abs(r1), abs(r4)))
         rmax = max(rmax, max(abs(r2), abs(r5)))
