@@ -41,6 +41,7 @@ class HO4Stepper(ImplicitStepper):
     scheme = "ho4"
 
     def _allocate(self, n: int, m: int) -> None:
+        self._subset_compiled = False
         self.lenh = np.empty(m)
         self.dirh = np.empty((3, m))
         self.len1 = np.empty(m)
@@ -76,6 +77,13 @@ class HO4Stepper(ImplicitStepper):
         values. Leaves ``norms`` to the caller (the maxima are over these rows only)."""
         status, spring, _, _ = self._residual(self.kernels.residual_subset, u, springs, nodes)
         return status, spring
+
+    def begin(self, x, p, eta, h: float) -> None:
+        super().begin(x, p, eta, h)
+        if not self._subset_compiled:  # compile (or load) it now, not at a run's first local step
+            self._residual(self.kernels.residual_subset, self.u, self._no_index, self._no_index)  # lists empty: no-op
+            self._subset_compiled = True
+            self.warm = False
 
     def jacobi_rows(self, u: np.ndarray, blocks: np.ndarray) -> float:
         """u −= D⁻¹ R on the free nodes ``blocks`` (int64); max |change|."""
