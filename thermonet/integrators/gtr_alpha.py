@@ -81,11 +81,9 @@ class GTRAlphaStepper(ImplicitStepper):
         return self.sweeper(du, rhs, r, self.sweep_w, self.jc, self.dir0, self.dir1, self.ends,
                             self.free_index, *self.incidence, self.system.masses, self.h, update, first)
 
-    def apply_inverse_inertia(self, v, blocks=None):
-        """(h/m) v per free node; v holds the rows of the free nodes ``blocks`` (int array) where
-        given, else of all."""
-        mass = self.block_mass if blocks is None else self.block_mass[blocks]
-        return (np.asarray(v).reshape(-1, 3) * (self.h / mass)[:, None]).ravel()
+    def apply_inverse_inertia(self, v):
+        """(h/m) v per free node."""
+        return (np.asarray(v).reshape(-1, 3) * (self.h / self.block_mass)[:, None]).ravel()
 
     def jacobian(self, data: np.ndarray) -> None:
         s, p = self.system, self.pattern

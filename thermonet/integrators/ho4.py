@@ -109,12 +109,10 @@ class HO4Stepper(ImplicitStepper):
         return self.sweeper(du, rhs, r, self.sweep_w, self.jc, self.dir0, self.dirh, self.dir1,
                             self.ends, self.free_index, *self.incidence, self.system.masses, self.h, update, first)
 
-    def apply_inverse_inertia(self, v, blocks=None):
-        """Per free node, (h/m) ½ [[1, 1/3], [2, 8/3]] applied to (v^½, v¹); v holds the rows of
-        the free nodes ``blocks`` (int array) where given, else of all."""
+    def apply_inverse_inertia(self, v):
+        """Per free node, (h/m) ½ [[1, 1/3], [2, 8/3]] applied to (v^½, v¹)."""
         b = np.asarray(v).reshape(-1, 2, 3)
-        mass = self.block_mass if blocks is None else self.block_mass[blocks]
-        q = (0.5 * self.h / mass)[:, None]
+        q = (0.5 * self.h / self.block_mass)[:, None]
         out = np.empty_like(b)
         out[:, 0] = q * (b[:, 0] + b[:, 1] / 3.0)
         out[:, 1] = q * (2.0 * b[:, 0] + 8.0 / 3.0 * b[:, 1])

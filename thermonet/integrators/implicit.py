@@ -168,13 +168,12 @@ class ImplicitStepper(Stepper):
         residual_subset = getattr(self, "residual_subset", None)
         if residual_subset is None:
             return None  # (a scheme that has one also has jacobi_rows(u, blocks) -> max |change|)
-        n_free, B = self.pattern.n_free, self.block
+        B = self.block
         if self._local is None:
-            lay = self.system.layout
-            self._local = (np.empty(int(self.LOCAL_MAX_FRACTION * n_free) + 1, dtype=np.int64),
-                           np.zeros(self.system.n_springs, dtype=np.uint8), np.zeros(self.system.n_nodes, dtype=np.uint8),
-                           np.empty(self.system.n_springs, dtype=np.int64), np.empty(self.system.n_nodes, dtype=np.int64),
-                           lay.inc_ptr, lay.inc_spring)
+            n, m, lay = self.system.n_nodes, self.system.n_springs, self.system.layout
+            self._local = (np.empty(int(self.LOCAL_MAX_FRACTION * self.pattern.n_free) + 1, dtype=np.int64),
+                           np.zeros(m, dtype=np.uint8), np.zeros(n, dtype=np.uint8),
+                           np.empty(m, dtype=np.int64), np.empty(n, dtype=np.int64), lay.inc_ptr, lay.inc_spring)
         out, spring_mark, node_mark, springs, nodes, inc_ptr, inc_spring = self._local
         threshold = fraction * self.norms[1]
         count = self._active if self._active is not None else active_blocks(self.R, B, threshold, out)

@@ -866,13 +866,13 @@ def _ho4_residual(x0, u, p, eta, l0, P, edges, free_index, inc_ptr, inc_spring, 
     seeds the thermal solves. With LOG_AFFINE (closed-form solves: no seeds) dth and gs are not
     written; the linearization and the Jacobian recompute the derivatives from the lengths and
     temperatures (the residual is memory-bound, they are called less often).
-    fs (6, m), guess, code (m,) scratch; fs holds each spring's force terms afterwards. With
-    the SUBSET variant only the springs listed in ``springs`` (int64) and the rows of the free nodes listed in
-    ``nodes`` (int64) are computed, in the same arithmetic and order as by a full call: after u
-    changed at a few nodes, the listed springs are those at these nodes and the listed nodes
-    those at these springs' ends, and the rest keep the values of the last call (else both are
-    empty and unused). Returns (status, spring, max |R|, max Rabs), the maxima over the rows
-    computed."""
+    fs (6, m), guess, code (m,) scratch; fs holds each spring's force terms afterwards. The
+    SUBSET variant computes only the springs listed in ``springs`` (int64) and the rows of the
+    free nodes listed in ``nodes`` (int64), in the same arithmetic and order as a full call:
+    after u changed at a few nodes, the listed springs are those at these nodes and the listed
+    nodes those at these springs' ends, and the rest keep the values of the last call (in the
+    full kernel both lists are empty and unused). Returns (status, spring, max |R|, max Rabs),
+    the maxima over the rows computed."""
     none = edges.shape[0]
     m = listed_count(springs, none)
     bad = none
