@@ -1,8 +1,10 @@
-"""Index sets of a local Jacobi step of the implicit integrators: the free nodes whose residual
-rows are large, the springs at those nodes, and the free nodes at those springs' ends (whose
-residual rows the step changes). Serial: the sets are small (a few per cent of the net at most,
-else the caller takes a global step), and their order does not change any result (each spring
-and each node row is computed on its own; a node sums its springs in incidence order)."""
+"""The pieces of a local Jacobi step of the implicit integrators (``ImplicitStepper.local_jacobi``):
+the free nodes whose residual rows are large, the springs at those nodes and the free nodes at
+those springs' ends (whose residual rows the step changes), the step's update of the listed
+nodes (HO4), and the one pass over R that gives the new residual's norms and the next step's
+nodes. Serial: the sets are small (a few per cent of the net at most, else the caller takes a
+global step), and their order does not change any result (each spring and each node row is
+computed on its own; a node sums its springs in incidence order)."""
 
 from __future__ import annotations
 
