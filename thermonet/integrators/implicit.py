@@ -18,7 +18,7 @@ import numpy as np
 from ..errors import InputError
 from ..kernels.implicit import STATUS_TEXT, implicit_kernels
 from ..kernels.implicit_operator import operator_kernels
-from ..kernels.local_update import active_blocks, neighbourhood, scan
+from ..kernels.local_update import neighbourhood, scan
 from .base import Stepper, StepFailure
 from .newton import BlockPattern, NewtonOptions, NewtonResult, NewtonTimers, make_linear_solver, newton
 
@@ -176,7 +176,7 @@ class ImplicitStepper(Stepper):
                            np.empty(m, dtype=np.int64), np.empty(n, dtype=np.int64), lay.inc_ptr, lay.inc_spring)
         out, spring_mark, node_mark, springs, nodes, inc_ptr, inc_spring = self._local
         threshold = fraction * self.norms[1]
-        count = self._active if self._active is not None else active_blocks(self.R, B, threshold, out)
+        count = self._active if self._active is not None else scan(self.R, self.Rabs, B, threshold, out)[2]
         if count > out.shape[0]:
             return None
         blocks = out[:count]

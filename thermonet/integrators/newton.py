@@ -309,16 +309,15 @@ class MatrixFree:
     def solve(self, rhs: np.ndarray, target: float = 0.0) -> np.ndarray:
         du = self._du
         previous = math.inf
-        self.contraction = -math.inf
+        worst = math.nan  # the largest reduction of a sweep in this solve (nan: none seen yet)
         for k in range(self.MAX_SWEEPS):
             # the first sweep starts from du = 0 (it neither reads du nor needs it zeroed)
             rmax = self.problem.sweep(du, rhs, self._r, True, k == 0)
             self.iterations += 1
-            if k > 0:
-                self.contraction = max(self.contraction, rmax / previous if previous > 0 else 0.0)
+            if k > 0:  # (previous > target ≥ 0 here)
+                worst = rmax / previous if math.isnan(worst) else max(worst, rmax / previous)
             if rmax <= target:
-                if self.contraction < 0:  # a single sweep: no contraction seen
-                    self.contraction = math.inf
+                self.contraction = math.inf if math.isnan(worst) else worst
                 return du
             if not math.isfinite(rmax) or rmax > self.STALL * previous:
                 break

@@ -12,24 +12,6 @@ from numba import njit
 
 
 @njit(cache=True, boundscheck=False)
-def active_blocks(R, block, threshold, out):
-    """The free nodes (blocks of ``block`` rows of R (block n_free,)) with a row |R| > threshold,
-    in increasing order, into ``out``; returns their number, or len(out) + 1 where there are
-    more than len(out)."""
-    count = 0
-    for k in range(R.shape[0] // block):
-        big = 0.0
-        for j in range(block):
-            big = max(big, abs(R[block * k + j]))
-        if big > threshold:
-            if count == out.shape[0]:
-                return count + 1
-            out[count] = k
-            count += 1
-    return count
-
-
-@njit(cache=True, boundscheck=False)
 def neighbourhood(blocks, node_of_block, inc_ptr, inc_spring, edges, free_index, spring_mark, node_mark,
                   springs_out, nodes_out):
     """The springs at the nodes of ``blocks`` into springs_out and the free nodes at their ends
@@ -61,9 +43,9 @@ def neighbourhood(blocks, node_of_block, inc_ptr, inc_spring, edges, free_index,
 
 @njit(cache=True, boundscheck=False)
 def scan(R, Rabs, block, threshold, out):
-    """(max |R|, max Rabs, count) in one pass: the norms of a residual, and the free nodes with
-    a row |R| > threshold into ``out`` as :func:`active_blocks` does (count len(out) + 1 where
-    there are more)."""
+    """(max |R|, max Rabs, count) in one pass: the norms of a residual, and the free nodes
+    (blocks of ``block`` rows of R (block n_free,)) with a row |R| > threshold, in increasing
+    order, into ``out``; count is their number, or len(out) + 1 where there are more."""
     rmax = 0.0
     smax = 0.0
     count = 0
