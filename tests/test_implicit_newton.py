@@ -281,7 +281,7 @@ def _newton_on_a_linear_problem(full_error, jacobi_factor, promised=None):
         assembled = False
         contraction = jacobi_factor if promised is None else promised
 
-        def solve(self, rhs, target=0.0):
+        def solve(self, rhs, target=0.0, settled=0.0):
             calls["solve"] += 1
             return rhs * (1.0 - full_error)
 
@@ -334,7 +334,7 @@ def test_uniform_parameter_kernels_give_the_per_spring_kernels_numbers(integrato
     assert st.P.shape[1] == 1
     outputs = []
     for kernels, P in ((st.kernels, st.P),
-                       (implicit_kernels(sim.model, st.scheme, sim.parallel, False), sim.system.parameters)):
+                       (implicit_kernels(sim.model, st.scheme, sim.parallel, False, st.rate), sim.system.parameters)):
         st.kernels, st.P = kernels, P
         st.begin(s.positions, s.momenta, s.entropy, sim.h)
         st.predict(st.u)

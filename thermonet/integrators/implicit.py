@@ -16,7 +16,7 @@ from abc import abstractmethod
 import numpy as np
 
 from ..errors import InputError
-from ..kernels.implicit import STATUS_TEXT, implicit_kernels
+from ..kernels.implicit import KEEP_ROWS, STATUS_TEXT, implicit_kernels
 from ..kernels.implicit_operator import operator_kernels
 from ..kernels.local_update import neighbourhood, scan
 from .base import Stepper, StepFailure
@@ -63,7 +63,7 @@ class ImplicitStepper(Stepper):
         self.options = options
         #: the parameters as the kernels read them: (k, m), or one (k, 1) column shared by all
         self.P, uniform = system.kernel_parameters
-        self.kernels = implicit_kernels(system.model, self.scheme, parallel, uniform)
+        self.kernels = implicit_kernels(system.model, self.scheme, parallel, uniform, self.rate)
         self.sweeper = operator_kernels(self.scheme, parallel)
         # the kernels read the int32 index arrays as unsigned (no negative-index wrap-around),
         # and the incidence with each spring's sign at that node (+1 at its first end)
@@ -100,6 +100,8 @@ class ImplicitStepper(Stepper):
         self.warm = False
         self.len0 = np.empty(m)
         self.dir0 = np.empty((3, m))
+        #: what the start kernel keeps of the step's start for the residuals (kernels.keep_start)
+        self.keep = np.empty((KEEP_ROWS, m if self.kernels.keep_start else 0))
         self.nodal = np.empty((n if self.rate > 1 else 0, 6))
         self._new = (np.empty((n, 3)), np.empty((n, 3)), np.empty(m), np.empty(m))
         self.gravity = np.zeros(3) if system.gravity is None else np.asarray(system.gravity, dtype=np.float64)
@@ -198,7 +200,7 @@ class ImplicitStepper(Stepper):
         status, spring = self.kernels.start(x, p, s.inv_mass, eta, s.rest_lengths, self.P, self.edges_u,
                                             *self.incidence, self.free_index, self.gravity, self.with_gravity,
                                             self.len0, self.dir0, self.fs, self.sweep_scratch, self.nodal,
-                                            self.code, self.rate, self.h, self.predictor_coefficients(self.h),
+                                            self.code, self.keep, self.h, self.predictor_coefficients(self.h),
                                             self.prediction)
         if status != 0:
             raise _StepError("invalid state at the start of the step", None, status, spring)

@@ -226,7 +226,7 @@ class SparseLU:
         self._lu = spla.splu(At, permc_spec="NATURAL", diag_pivot_thresh=0.1,
                              options=dict(SymmetricMode=True))
 
-    def solve(self, rhs: np.ndarray, target: float = 0.0) -> np.ndarray:
+    def solve(self, rhs: np.ndarray, target: float = 0.0, settled: float = 0.0) -> np.ndarray:
         return self._lu.solve(rhs, trans="T")
 
 
@@ -258,7 +258,7 @@ class Krylov:
                                shape=(p.size, p.size), blocksize=(B, B))
         self._M = blocks
 
-    def solve(self, rhs: np.ndarray, target: float = 0.0) -> np.ndarray:
+    def solve(self, rhs: np.ndarray, target: float = 0.0, settled: float = 0.0) -> np.ndarray:
         count = [0]
 
         def callback(_):
@@ -306,7 +306,11 @@ class MatrixFree:
         self.iterations += 1
         return self._du
 
-    def solve(self, rhs: np.ndarray, target: float = 0.0) -> np.ndarray:
+    def solve(self, rhs: np.ndarray, target: float = 0.0, settled: float = 0.0) -> np.ndarray:
+        """du with max |rhs − J du| ≤ target: sweeps until the residual a sweep measures (that of
+        its du before its update) is below ``target``, or until the residual its update leaves,
+        estimated as that times the worst contraction seen in this solve, is below ``settled``
+        (one sweep fewer once the rest of the error would be negligible anyway)."""
         du = self._du
         previous = math.inf
         worst = math.nan  # the largest reduction of a sweep in this solve (nan: none seen yet)
@@ -316,7 +320,7 @@ class MatrixFree:
             self.iterations += 1
             if k > 0:  # (previous > target ≥ 0 here)
                 worst = rmax / previous if math.isnan(worst) else max(worst, rmax / previous)
-            if rmax <= target:
+            if rmax <= target or (k > 0 and rmax * worst <= settled):
                 self.contraction = math.inf if math.isnan(worst) else worst
                 return du
             if not math.isfinite(rmax) or rmax > self.STALL * previous:
@@ -532,8 +536,11 @@ def newton(problem, u: np.ndarray, options: NewtonOptions, solver, timers: Newto
                 t1 = time.perf_counter()
             t2 = time.perf_counter()
             # forcing term ∝ ρ (Eisenstat–Walker): the linear error stays below Newton's own
-            # quadratic term, so an early, far-from-converged step is not solved to round-off
-            du = solver.solve(problem.R, LINEAR_FRACTION * max(options.tolerance, rho * rho) * scale)
+            # quadratic term, so an early, far-from-converged step is not solved to round-off;
+            # and no sweep is spent once the one before leaves a linear error that a converged
+            # step could not tell from zero
+            du = solver.solve(problem.R, LINEAR_FRACTION * max(options.tolerance, rho * rho) * scale,
+                              LINEAR_FRACTION * options.tolerance * scale)
         t3 = time.perf_counter()
         timers.assembly += t1 - t0
         timers.factorization += t2 - t1

@@ -57,9 +57,16 @@ from .specialize import model_fingerprint, model_namespace, specialize
 # Bound per model by specialize(); listed so the templates read as ordinary code.
 entropy = temperature = tension = d2F_dl2 = d2F_dl_dtheta = d2F_dtheta2 = None
 adiabatic_stiffness = gtr_thermal = ho4_thermal = gtr_thermal_vector = ho4_thermal_vector = gtr_correct = ho4_correct = ho4_derivatives = finish_nodes = None
-ho4_thermal_exact = ho4_temperature_derivatives = None
+ho4_thermal_exact = ho4_thermal_closed = ho4_temperature_derivatives = None
 #: the model's entropy is affine in ln θ (Model.entropy_log_affine): HO4's thermal solve in closed form
 LOG_AFFINE = False
+#: the time derivatives of the acceleration the start kernel's predictor uses (ImplicitStepper.rate)
+RATE = 0
+#: the start kernel keeps, per spring, what HO4's closed-form thermal solve needs of the step's
+#: start (HO4 with a LOG_AFFINE model; see _ho4_thermal_closed)
+KEEP_START = False
+#: rows of the start kernel's ``keep`` (4, m): θ(l⁰, η), T(l⁰, θ(l⁰, η)), F_lθ(l⁰), C
+KEEP_ROWS = 4
 #: every spring has the same parameters: P is the shared (k, 1) column of System.kernel_parameters,
 #: read at column 0 (``pe``) and not streamed per spring
 UNIFORM = False
@@ -93,25 +100,31 @@ STATUS_TEXT = {
 
 
 class ImplicitKernels:
-    """The compiled kernels of one scheme for one model (attributes: the kernel functions)."""
+    """The compiled kernels of one scheme for one model (attributes: the kernel functions, and
+    ``keep_start``: whether the start kernel fills its ``keep`` argument, (KEEP_ROWS, m))."""
 
     def __init__(self, **kernels):
         self.__dict__.update(kernels)
 
 
-def implicit_kernels(model, scheme: str, parallel: bool = False, uniform: bool = False) -> ImplicitKernels:
+def implicit_kernels(model, scheme: str, parallel: bool = False, uniform: bool = False, rate: int = 0) -> ImplicitKernels:
     """Kernels for ``scheme`` ("gtr" or "ho4") compiled for ``model`` (cached on disk); the
     residual, linearization, start and finish kernels multi-threaded when ``parallel``; reading
-    the parameters as one shared (k, 1) column when ``uniform`` (System.kernel_parameters)."""
-    key = (scheme, model_fingerprint(model), bool(parallel), bool(uniform))
+    the parameters as one shared (k, 1) column when ``uniform`` (System.kernel_parameters); the
+    start kernel's predictor with the acceleration's first ``rate`` time derivatives (a
+    compile-time constant: the spring loops then carry no branches they do not take)."""
+    key = (scheme, model_fingerprint(model), bool(parallel), bool(uniform), int(rate))
     if key not in _CACHE:
         tag = f"{model.name}_{key[1]}{'_uniform' if uniform else ''}"
         ptag = f"{tag}_{'par' if parallel else 'ser'}"
         ns = model_namespace(model)
+        ns["RATE"] = int(rate)
         ns["LOG_AFFINE"] = bool(getattr(model, "entropy_log_affine", False))
+        ns["KEEP_START"] = scheme == "ho4" and ns["LOG_AFFINE"]
         ns["UNIFORM"] = bool(uniform)
         ns["adiabatic_stiffness"] = specialize(_adiabatic_stiffness, tag, ns, **_INLINE)
-        start = specialize(_start, ptag, ns, parallel=parallel, **_OPTIONS)
+        start = specialize(_start, f"{ptag}_rate{int(rate)}{'_keep' if ns['KEEP_START'] else ''}", ns,
+                           parallel=parallel, **_OPTIONS)
         ns["finish_nodes"] = specialize(_finish_nodes, ptag, ns, parallel=parallel, **_OPTIONS)
         if scheme == "gtr":
             ns["gtr_correct"] = specialize(_gtr_correct, tag, ns, **_INLINE)
@@ -119,6 +132,7 @@ def implicit_kernels(model, scheme: str, parallel: bool = False, uniform: bool =
             ns["gtr_thermal_vector"] = specialize(_gtr_thermal_vector, tag, ns, **_INLINE)
             _CACHE[key] = ImplicitKernels(
                 start=start,
+                keep_start=False,
                 residual=specialize(_gtr_residual, ptag, ns, parallel=parallel, **_OPTIONS),
                 linearize=specialize(_gtr_linearize, ptag, ns, parallel=parallel, **_OPTIONS),
                 jacobian=specialize(_gtr_jacobian, tag, ns, **_OPTIONS),
@@ -131,6 +145,7 @@ def implicit_kernels(model, scheme: str, parallel: bool = False, uniform: bool =
             ns["ho4_derivatives"] = specialize(_ho4_derivatives, tag, ns, **_INLINE)
             ns["ho4_temperature_derivatives"] = specialize(_ho4_temperature_derivatives, tag, ns, **_INLINE)
             ns["ho4_correct"] = specialize(_ho4_correct, tag, ns, **_INLINE)
+            ns["ho4_thermal_closed"] = specialize(_ho4_thermal_closed, tag, ns, **_INLINE)
             ns["ho4_thermal_exact"] = specialize(_ho4_thermal_exact, tag, ns, **_INLINE)
             ns["ho4_thermal"] = specialize(_ho4_thermal, tag, ns, **_OPTIONS)
             ns["ho4_thermal_vector"] = specialize(_ho4_thermal_vector, tag, ns, **_INLINE)
@@ -139,6 +154,7 @@ def implicit_kernels(model, scheme: str, parallel: bool = False, uniform: bool =
             ns.update(listed=_listed_position, listed_count=_all_count, first_flagged_listed=_first_flagged_position)
             _CACHE[key] = ImplicitKernels(
                 start=start,
+                keep_start=ns["KEEP_START"],
                 residual=specialize(_ho4_residual, ptag, ns, parallel=parallel, **_OPTIONS),
                 residual_subset=specialize(_ho4_residual, f"{ptag}_subset", subset, parallel=parallel, **_OPTIONS),
                 linearize=specialize(_ho4_linearize, ptag, ns, parallel=parallel, **_OPTIONS),
@@ -253,25 +269,28 @@ def _adiabatic_stiffness(l, eta, l0, P, e):
 
 #: the predictor's ä term is used at a node only where h²/8 |ä| ≤ SNAP_TRUST (|a| + h/2 |ȧ|)
 SNAP_TRUST = 0.1
-#: relative length step of the central difference for d²T/dl² along an adiabat (the model gives
-#: second derivatives of F only); its error ~ STIFFNESS_STEP², far below what the term needs
-STIFFNESS_STEP = 1e-3
+#: relative length step of the forward difference for d²T/dl² along an adiabat (the model gives
+#: second derivatives of F only): its error ~ STIFFNESS_STEP, its round-off ~ 1e-16/STIFFNESS_STEP,
+#: both far below what a predictor term needs (a central difference costs one more evaluation)
+STIFFNESS_STEP = 1e-5
 
 
 def _start(x0, p, inv_mass, eta, l0, P, edges, inc_ptr, inc_spring, inc_sign, free_index, gravity, with_gravity,
-           len0, dir0, fs, ws, nodal, code, rate, h, coef, pred):
+           len0, dir0, fs, ws, nodal, code, keep, h, coef, pred):
     """Lengths len0 (m,) and unit vectors dir0 (3, m) at x0 (n, 3), and the explicit predictor
     of the step's unknowns into pred (B n_free,): per free node and sub-block j (B = 3 × rows
     of coef), pred = coef[j, 0] v + coef[j, 1] a + coef[j, 2] ȧ + coef[j, 3] ä with v = p/m,
-    a = f/m (+ g) the acceleration at (x0, θ(l0, η)) and its first (``rate`` ≥ 1) and second
-    (``rate`` 2) time derivatives along the exact (adiabatic) flow at (x0, p0) (else 0), for a
-    Taylor-like predictor. Scratch: fs (6, m), ws (6, m) (``rate`` 2), nodal (n, 6) (``rate``
-    2), code (m,). Returns (status, spring).
+    a = f/m (+ g) the acceleration at (x0, θ(l0, η)) and its first (``RATE`` ≥ 1) and second
+    (``RATE`` 2) time derivatives along the exact (adiabatic) flow at (x0, p0) (else 0), for a
+    Taylor-like predictor. Scratch: fs (6, m), ws (6, m) (``RATE`` 2), nodal (n, 6) (``RATE``
+    2), code (m,). With KEEP_START, keep (KEEP_ROWS, m) receives per spring θ(l⁰, η),
+    T(l⁰, θ(l⁰, η)), F_lθ(l⁰) and the log-affine coefficient C = −θ F_θθ (HO4's closed-form
+    thermal solve reads them at every residual of the step). Returns (status, spring).
 
     Per spring f = T n, T = T(l, θ(l, η)) along the adiabat with T' = dT/dl (adiabatic
     stiffness), l̇ = n·v, ṅ = (v − n l̇)/l (v, α: relative velocity and acceleration of the ends):
     ḟ = T' l̇ n + T ṅ;  f̈ = T'' l̇² n + T' l̈ n + 2 T' l̇ ṅ + T n̈ with l̈ = n·α + (|v|² − l̇²)/l,
-    n̈ = (α − n l̈ − 2 ṅ l̇)/l; T'' by a central difference of T'. ä needs the nodes' a: a second
+    n̈ = (α − n l̈ − 2 ṅ l̇)/l; T'' by a forward difference of T'. ä needs the nodes' a: a second
     spring pass and node pass."""
     m = edges.shape[0]
     bad = m
@@ -285,7 +304,7 @@ def _start(x0, p, inv_mass, eta, l0, P, edges, inc_ptr, inc_spring, inc_sign, fr
             dir0[0, e] = x0[b, 0] - x0[a, 0]
             dir0[1, e] = x0[b, 1] - x0[a, 1]
             dir0[2, e] = x0[b, 2] - x0[a, 2]
-            if rate > 0:
+            if RATE > 0:
                 fs[3, e] = p[b, 0] * inv_mass[b] - p[a, 0] * inv_mass[a]
                 fs[4, e] = p[b, 1] * inv_mass[b] - p[a, 1] * inv_mass[a]
                 fs[5, e] = p[b, 2] * inv_mass[b] - p[a, 2] * inv_mass[a]
@@ -310,7 +329,12 @@ def _start(x0, p, inv_mass, eta, l0, P, edges, inc_ptr, inc_spring, inc_sign, fr
             fs[0, e] = T * nx
             fs[1, e] = T * ny
             fs[2, e] = T * nz
-            if rate > 0:
+            if KEEP_START:
+                keep[0, e] = th
+                keep[1, e] = T
+                keep[2, e] = d2F_dl_dtheta(l, th, rest, P, pe)
+                keep[3, e] = -th * d2F_dtheta2(l, th, rest, P, pe)
+            if RATE > 0:
                 vx = fs[3, e]
                 vy = fs[4, e]
                 vz = fs[5, e]
@@ -322,15 +346,14 @@ def _start(x0, p, inv_mass, eta, l0, P, edges, inc_ptr, inc_spring, inc_sign, fr
                 fs[3, e] = Tdot * nx + q * (vx - nx * ldot)
                 fs[4, e] = Tdot * ny + q * (vy - ny * ldot)
                 fs[5, e] = Tdot * nz + q * (vz - nz * ldot)
-                if rate > 1:
+                if RATE > 1:
                     dl = STIFFNESS_STEP * l
                     ws[0, e] = vx
                     ws[1, e] = vy
                     ws[2, e] = vz
                     ws[3, e] = T
                     ws[4, e] = Tl
-                    ws[5, e] = (adiabatic_stiffness(l + dl, eta[e], rest, P, pe)
-                                - adiabatic_stiffness(l - dl, eta[e], rest, P, pe)) / (2.0 * dl)
+                    ws[5, e] = (adiabatic_stiffness(l + dl, eta[e], rest, P, pe) - Tl) / dl
             lok = (l > 0.0) & (l < math.inf)
             code[e] = OK if (lok & _admissible(th)) else (NO_TEMPERATURE if lok else COLLAPSED)
         bad = min(bad, _first_flagged(code, lo, n, m))
@@ -340,7 +363,7 @@ def _start(x0, p, inv_mass, eta, l0, P, edges, inc_ptr, inc_spring, inc_sign, fr
     for a in prange(x0.shape[0]):
         k = free_index[a]
         if k < 0:
-            if rate > 1:
+            if RATE > 1:
                 for i in range(6):
                     nodal[a, i] = 0.0
             continue
@@ -356,7 +379,7 @@ def _start(x0, p, inv_mass, eta, l0, P, edges, inc_ptr, inc_spring, inc_sign, fr
             f0 += sg * fs[0, e]
             f1 += sg * fs[1, e]
             f2 += sg * fs[2, e]
-            if rate > 0:
+            if RATE > 0:
                 r0 += sg * fs[3, e]
                 r1 += sg * fs[4, e]
                 r2 += sg * fs[5, e]
@@ -367,13 +390,13 @@ def _start(x0, p, inv_mass, eta, l0, P, edges, inc_ptr, inc_spring, inc_sign, fr
             v = w * p[a, i]
             acc = w * f + (gravity[i] if with_gravity else 0.0)
             jerk = w * r
-            if rate > 1:  # the prediction waits for ä
+            if RATE > 1:  # the prediction waits for ä
                 nodal[a, i] = acc
                 nodal[a, 3 + i] = jerk
                 continue
             for s in range(J):
                 pred[3 * J * k + 3 * s + i] = coef[s, 0] * v + coef[s, 1] * acc + coef[s, 2] * jerk
-    if rate < 2:
+    if RATE < 2:
         return 0, -1
     for blk in prange((m + BLOCK - 1) // BLOCK):
         lo = blk * BLOCK
@@ -821,17 +844,24 @@ def _ho4_correct(la, lh, lb, eta, l0, P, e, G, t0, t1):
     return G - dG, s0, s1, big
 
 
-def _ho4_thermal_exact(la, lh, lb, eta, l0, P, e):
+def _ho4_thermal_closed(A, B, C, lh, eta, l0, P, e):
     """The solution of :func:`_ho4_thermal`'s equations in closed form, for an entropy affine in
-    ln θ with a constant coefficient C (LOG_AFFINE). Then θ(l, G) = θ(l, η) exp((G − η)/C) and
-    Γ(l, s θ) = Γ(l, θ) + C ln s, so with A = θ(la, η), B = θ(lb, η) and S = Γ(lh, (A + B)/2),
-    Γ(lh, θ^½) = S + G − η and (58c) reads (2G + 4(S + G − η))/6 = η: G = η + 2(η − S)/3.
-    Same returns; success unless a temperature is not admissible."""
+    ln θ, Γ(l, θ) = a(l) + C ln θ (LOG_AFFINE), from A = θ(l⁰, η) and B = θ(l¹, η): then
+    θ(l, G) = θ(l, η) exp((G − η)/C) and Γ(l, s θ) = Γ(l, θ) + C ln s, so with S = Γ(l^½,
+    (A + B)/2), Γ(l^½, θ^½) = S + G − η and (58c) reads (2G + 4(S + G − η))/6 = η: G = η +
+    2(η − S)/3, θ⁰ = A E, θ¹ = B E with E = exp((G − η)/C). Returns (G, θ⁰, θ¹)."""
+    G = eta + (2.0 / 3.0) * (eta - entropy(lh, 0.5 * (A + B), l0, P, e))
+    E = exp_((G - eta) / C)
+    return G, A * E, B * E
+
+
+def _ho4_thermal_exact(la, lh, lb, eta, l0, P, e):
+    """:func:`_ho4_thermal`'s returns from :func:`_ho4_thermal_closed` (LOG_AFFINE), A, B and
+    C = −A F_θθ(l⁰, A) computed here (the residual kernel reads A and C from the start kernel's
+    ``keep``); success unless a temperature is not admissible."""
     A = temperature(la, eta, l0, P, e)
     B = temperature(lb, eta, l0, P, e)
-    G = eta + (2.0 / 3.0) * (eta - entropy(lh, 0.5 * (A + B), l0, P, e))
-    t0 = temperature(la, G, l0, P, e)
-    t1 = temperature(lb, G, l0, P, e)
+    G, t0, t1 = ho4_thermal_closed(A, B, -A * d2F_dtheta2(la, A, l0, P, e), lh, eta, l0, P, e)
     ok = 1 if _admissible(t0) & _admissible(t1) else 0
     d0h, d01, d1h, d11 = ho4_derivatives(la, lh, lb, l0, P, e, t0, t1)
     return G, t0, t1, d0h, d01, d1h, d11, ok
@@ -859,13 +889,16 @@ def _ho4_thermal_vector(la, lh, lb, eta, l0, P, e, guess, warm):
 
 
 def _ho4_residual(x0, u, p, eta, l0, P, edges, free_index, inc_ptr, inc_spring, inc_sign, masses, h, gravity, with_gravity,
-                  len0, dir0, lenh, dirh, len1, dir1, th0, th1, dth, gs, warm, fs, guess, code, R, Rabs, springs, nodes):
+                  len0, dir0, keep, lenh, dirh, len1, dir1, th0, th1, dth, gs, warm, fs, guess, code, R, Rabs, springs,
+                  nodes):
     """R, Rabs (6 n_free,) at unknowns u (6 n_free,); fills lengths/unit vectors (3, m) at x^½
     and x¹, θ⁰, θ¹ (m,), dth (4, m) = dθ⁰/dl^½, dθ⁰/dl¹, dθ¹/dl^½, dθ¹/dl¹ and gs (m,) = Γ⁰ =
     Γ¹. With ``warm``, the previous call's gs (at nearby u), moved along its length derivatives,
     seeds the thermal solves. With LOG_AFFINE (closed-form solves: no seeds) dth and gs are not
     written; the linearization and the Jacobian recompute the derivatives from the lengths and
-    temperatures (the residual is memory-bound, they are called less often).
+    temperatures (they are called less often), and the solve and the force at x⁰ use what the
+    start kernel kept of the step's start (``keep``, KEEP_START): T(l⁰, θ⁰) = T(l⁰, A) +
+    F_lθ(l⁰) (θ⁰ − A), exact for a LOG_AFFINE model, whose tension is affine in θ.
     fs (6, m), guess, code (m,) scratch; fs holds each spring's force terms afterwards. The
     SUBSET variant computes only the springs listed in ``springs`` (int64) and the rows of the
     free nodes listed in ``nodes`` (int64), in the same arithmetic and order as a full call:
@@ -939,16 +972,23 @@ def _ho4_residual(x0, u, p, eta, l0, P, edges, free_index, inc_ptr, inc_spring, 
             dir1[0, e] = ex * i1
             dir1[1, e] = ey * i1
             dir1[2, e] = ez * i1
-            G, t0, t1, d0h, d01, d1h, d11, ok = ho4_thermal_vector(la, lh, l1, eta[e], rest, P, pe, g, warm)
-            th0[e] = t0
-            th1[e] = t1
-            if not LOG_AFFINE:  # the warm seed and its derivatives (else recomputed where needed)
+            if LOG_AFFINE:
+                A = keep[0, e]
+                G, t0, t1 = ho4_thermal_closed(A, temperature(l1, eta[e], rest, P, pe), keep[3, e], lh, eta[e],
+                                               rest, P, pe)
+                ok = 1 if _admissible(t0) & _admissible(t1) else 0
+                c0 = h / 6.0 * (keep[1, e] + keep[2, e] * (t0 - A))
+            else:
+                G, t0, t1, d0h, d01, d1h, d11, ok = ho4_thermal_vector(la, lh, l1, eta[e], rest, P, pe, g, warm)
+                # the warm seed and its derivatives (else recomputed where needed)
                 gs[e] = G
                 dth[0, e] = d0h
                 dth[1, e] = d01
                 dth[2, e] = d1h
                 dth[3, e] = d11
-            c0 = h / 6.0 * tension(la, t0, rest, P, pe)
+                c0 = h / 6.0 * tension(la, t0, rest, P, pe)
+            th0[e] = t0
+            th1[e] = t1
             ch = h / 4.0 * tension(lh, 0.5 * (t0 + t1), rest, P, pe)
             fs[0, e] = c0 * dir0[0, e]
             fs[1, e] = c0 * dir0[1, e]
