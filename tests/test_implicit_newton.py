@@ -393,9 +393,12 @@ def test_a_local_jacobi_step_leaves_the_residual_a_full_evaluation_gives(model):
     assert status == 0 and increment > 0
     moved = np.abs(st.u - before).reshape(-1, 6).max(axis=1) > 0
     assert np.array_equal(moved, rows)
-    local = (st.R.copy(), st.Rabs.copy(), st.norms, st.th0.copy(), st.th1.copy())
+    local = (st.R.copy(), st.Rabs.copy(), st.norms, st.th0.copy(), st.th1.copy(), st.peak.copy())
     st.residual(st.u)
-    full = (st.R, st.Rabs, st.norms, st.th0, st.th1)
+    full = (st.R, st.Rabs, st.norms, st.th0, st.th1, st.peak)
+    # the per-node maxima the node selection reads are those of the rows
+    assert np.array_equal(st.peak, np.stack([np.abs(st.R).reshape(-1, 6).max(axis=1),
+                                             st.Rabs.reshape(-1, 6).max(axis=1)]))
     if model == "hencky":
         for a, b in zip(local, full):
             assert np.array_equal(a, b)
@@ -425,3 +428,19 @@ def test_local_jacobi_steps_replace_global_ones_with_the_same_states(monkeypatch
     scale = np.abs(both.state.momenta).max()
     assert np.abs(local.state.momenta - both.state.momenta).max() <= 1e-11 * scale
     assert np.abs(local.state.positions - both.state.positions).max() <= 1e-11
+
+
+def test_a_nan_residual_row_shows_in_the_norm():
+    """max() passes over NaN; a residual row that is NaN must still make the scaled residual
+    not finite (Newton then stops with 'residual not finite' instead of iterating on NaN)."""
+    sim = hot_lattice_ho4(steps=1)
+    st, s = sim.stepper, sim._state
+    st.begin(s.positions, s.momenta, s.entropy, sim.h)
+    st.predict(st.u)
+    p = s.momenta.copy()
+    a = int(st.node_of_block[7])
+    p[a, 1] = np.nan
+    st.p0 = p  # (only the residual's node rows read it)
+    assert st.residual(st.u) == (0, -1)
+    assert np.isnan(st.R[6 * 7 + 1]) and st.norms[0] == np.inf
+    assert st.peak[0, 7] == np.inf

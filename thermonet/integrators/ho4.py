@@ -51,6 +51,7 @@ class HO4Stepper(ImplicitStepper):
         self.dth = np.empty((4, m))
         self.jc = np.empty((5, m))
         self.gs = np.empty(m)
+        self.peak = np.zeros((2, self.pattern.n_free))
 
     rate = 2
 
@@ -95,7 +96,7 @@ class HO4Stepper(ImplicitStepper):
             self.x0, u, self.p0, self.eta0, s.rest_lengths, self.P, self.edges_u, self.free_index, *self.incidence,
             s.masses, self.h, self.gravity, self.with_gravity, self.len0, self.dir0, self.keep, self.lenh, self.dirh,
             self.len1, self.dir1, self.th0, self.th1, self.dth, self.gs, self.warm, self.fs, self.guess, self.code, self.R,
-            self.Rabs, springs, nodes,
+            self.Rabs, self.peak, springs, nodes,
         )
         self.warm = out[0] == 0
         return out

@@ -162,15 +162,16 @@ class ImplicitStepper(Stepper):
         (the springs at those nodes, the rows of the nodes at those springs' ends) with the
         kernel's own arithmetic: the residual a full evaluation at the new u gives, bit for bit
         for models whose thermal solve is closed-form (else within that solve's tolerance, from
-        the last seeds). None where the scheme has no such residual or more than
+        the last seeds). Such a scheme's residuals also write ``peak`` (2, n_free), each free
+        node's largest |R| and Rabs, which the node selection reads. None where the scheme has
+        no such residual or more than
         LOCAL_MAX_FRACTION of the free nodes are above the threshold (a global step is then
         cheaper); else (status, spring, max |change of u|), with ``norms`` of the new residual.
         The pass that takes the new norms also finds the next step's nodes (at this step's
-        threshold), so a step reads R in full once."""
+        threshold), so a step reads the per-node maxima once."""
         residual_subset = getattr(self, "residual_subset", None)
         if residual_subset is None:
             return None  # (a scheme that has one also has jacobi_rows(u, blocks) -> max |change|)
-        B = self.block
         if self._local is None:
             n, m, lay = self.system.n_nodes, self.system.n_springs, self.system.layout
             self._local = (np.empty(int(self.LOCAL_MAX_FRACTION * self.pattern.n_free) + 1, dtype=np.int64),
@@ -178,7 +179,7 @@ class ImplicitStepper(Stepper):
                            np.empty(m, dtype=np.int64), np.empty(n, dtype=np.int64), lay.inc_ptr, lay.inc_spring)
         out, spring_mark, node_mark, springs, nodes, inc_ptr, inc_spring = self._local
         threshold = fraction * self.norms[1]
-        count = self._active if self._active is not None else scan(self.R, self.Rabs, B, threshold, out)[2]
+        count = self._active if self._active is not None else scan(self.peak, threshold, out)[2]
         if count > out.shape[0]:
             return None
         blocks = out[:count]
@@ -187,7 +188,7 @@ class ImplicitStepper(Stepper):
                                spring_mark, node_mark, springs, nodes)
         # in index order: each thread of the kernel then works on nearby memory
         status, spring = residual_subset(u, np.sort(springs[:ns]), np.sort(nodes[:nn]))
-        rmax, smax, self._active = scan(self.R, self.Rabs, B, threshold, out)
+        rmax, smax, self._active = scan(self.peak, threshold, out)
         self.norms = (rmax, smax)
         return status, spring, increment
 

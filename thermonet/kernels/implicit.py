@@ -889,9 +889,10 @@ def _ho4_thermal_vector(la, lh, lb, eta, l0, P, e, guess, warm):
 
 
 def _ho4_residual(x0, u, p, eta, l0, P, edges, free_index, inc_ptr, inc_spring, inc_sign, masses, h, gravity, with_gravity,
-                  len0, dir0, keep, lenh, dirh, len1, dir1, th0, th1, dth, gs, warm, fs, guess, code, R, Rabs, springs,
-                  nodes):
-    """R, Rabs (6 n_free,) at unknowns u (6 n_free,); fills lengths/unit vectors (3, m) at x^½
+                  len0, dir0, keep, lenh, dirh, len1, dir1, th0, th1, dth, gs, warm, fs, guess, code, R, Rabs, peak,
+                  springs, nodes):
+    """R, Rabs (6 n_free,) at unknowns u (6 n_free,), and peak (2, n_free) each free node's largest
+    |R| and Rabs (for the local steps' node selection); fills lengths/unit vectors (3, m) at x^½
     and x¹, θ⁰, θ¹ (m,), dth (4, m) = dθ⁰/dl^½, dθ⁰/dl¹, dθ¹/dl^½, dθ¹/dl¹ and gs (m,) = Γ⁰ =
     Γ¹. With ``warm``, the previous call's gs (at nearby u), moved along its length derivatives,
     seeds the thermal solves. With LOG_AFFINE (closed-form solves: no seeds) dth and gs are not
@@ -1100,18 +1101,14 @@ def _ho4_residual(x0, u, p, eta, l0, P, edges, free_index, inc_ptr, inc_spring, 
         Rabs[6 * k + 4] = s4
         R[6 * k + 5] = r5
         Rabs[6 * k + 5] = s5
-        rmax = max(rmax, abs(r0))
-        smax = max(smax, s0)
-        rmax = max(rmax, abs(r1))
-        smax = max(smax, s1)
-        rmax = max(rmax, abs(r2))
-        smax = max(smax, s2)
-        rmax = max(rmax, abs(r3))
-        smax = max(smax, s3)
-        rmax = max(rmax, abs(r4))
-        smax = max(smax, s4)
-        rmax = max(rmax, abs(r5))
-        smax = max(smax, s5)
+        big = max(max(abs(r0), abs(r1)), max(max(abs(r2), abs(r3)), max(abs(r4), abs(r5))))
+        if not (abs(r0) + abs(r1) + abs(r2) + abs(r3) + abs(r4) + abs(r5) < math.inf):
+            big = math.inf  # a NaN row (max() passes over NaN) shows in the norm as not finite
+        scale = max(max(s0, s1), max(max(s2, s3), max(s4, s5)))
+        peak[0, k] = big
+        peak[1, k] = scale
+        rmax = max(rmax, big)
+        smax = max(smax, scale)
     return 0, -1, rmax, smax
 
 

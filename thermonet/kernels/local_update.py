@@ -1,10 +1,10 @@
 """The pieces of a local Jacobi step of the implicit integrators (``ImplicitStepper.local_jacobi``):
 the free nodes whose residual rows are large, the springs at those nodes and the free nodes at
 those springs' ends (whose residual rows the step changes), the step's update of the listed
-nodes (HO4), and the one pass over R that gives the new residual's norms and the next step's
-nodes. Serial: the sets are small (a few per cent of the net at most, else the caller takes a
-global step), and their order does not change any result (each spring and each node row is
-computed on its own; a node sums its springs in incidence order)."""
+nodes (HO4), and the one pass over the residual's per-node maxima that gives its norms and the
+next step's nodes. Serial: the sets are small (a few per cent of the net at most, else the
+caller takes a global step), and their order does not change any result (each spring and each
+node row is computed on its own; a node sums its springs in incidence order)."""
 
 from __future__ import annotations
 
@@ -42,19 +42,19 @@ def neighbourhood(blocks, node_of_block, inc_ptr, inc_spring, edges, free_index,
 
 
 @njit(cache=True, boundscheck=False)
-def scan(R, Rabs, block, threshold, out):
-    """(max |R|, max Rabs, count) in one pass: the norms of a residual, and the free nodes
-    (blocks of ``block`` rows of R (block n_free,)) with a row |R| > threshold, in increasing
-    order, into ``out``; count is their number, or len(out) + 1 where there are more."""
+def scan(peak, threshold, out):
+    """(max |R|, max Rabs, count) in one pass over the per-node maxima of a residual, ``peak``
+    (2, n_free): row 0 the largest |R| of each free node's rows, row 1 the largest Rabs (the
+    residual kernel writes them, 16 bytes per node instead of the rows' 2 B × 8): the norms of the
+    residual, and the free nodes with peak[0] > threshold, in increasing order, into ``out``;
+    count is their number, or len(out) + 1 where there are more."""
     rmax = 0.0
     smax = 0.0
     count = 0
-    for k in range(R.shape[0] // block):
-        big = 0.0
-        for j in range(block):
-            big = max(big, abs(R[block * k + j]))
-            smax = max(smax, Rabs[block * k + j])
+    for k in range(peak.shape[1]):
+        big = peak[0, k]
         rmax = max(rmax, big)
+        smax = max(smax, peak[1, k])
         if big > threshold:
             if count < out.shape[0]:
                 out[count] = k
