@@ -41,7 +41,8 @@ class Model:
     temperature_can_vanish: True when θ(l, η) may become ≤ 0 (a state the run must stop at).
     entropy_log_affine: True when Γ(l, θ) = a(l) + C ln θ with C a per-spring constant (model
         "hencky"): HO4's per-spring thermal equations then have a closed-form solution, which its
-        kernels use instead of Newton corrections. Leave False unless it holds exactly.
+        kernels use instead of Newton corrections (and T = F_l is then affine in θ, which they
+        use too). Leave False unless it holds exactly.
     reference_temperature: name of the parameter that is the reference temperature (used by a
         purely mechanical run, where every spring stays at it).
     """
