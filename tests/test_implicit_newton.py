@@ -444,3 +444,29 @@ def test_a_nan_residual_row_shows_in_the_norm():
     assert st.residual(st.u) == (0, -1)
     assert np.isnan(st.R[6 * 7 + 1]) and st.norms[0] == np.inf
     assert st.peak[0, 7] == np.inf
+
+
+def test_the_matfree_solve_stops_a_sweep_early_only_when_the_update_settles_it():
+    """``settled``: the sweeps stop once the residual the last update leaves, estimated as the
+    measured residual times the worst contraction of the solve, is below it. The solve then
+    takes one sweep fewer than one that must measure its residual below the same bound, and the
+    du it returns does leave a linear residual below the bound (checked with a product)."""
+    sim = hot_lattice_ho4(steps=1)
+    st, s = sim.stepper, sim.internal_state()
+    st.begin(s.positions, s.momenta, s.entropy, sim.h)
+    st.predict(st.u)
+    st.residual(st.u)
+    st.linearize()
+    bound = 0.1 * st.options.tolerance * st.norms[1]
+    solver = st.solver
+    sweeps = []
+    residuals = []
+    for settled in (0.0, bound):
+        before = solver.iterations
+        du = solver.solve(st.R, bound, settled).copy()
+        sweeps.append(solver.iterations - before)
+        r = np.empty_like(du)
+        st.sweep(du, st.R, r, False)  # r = R − J du (no update)
+        residuals.append(np.abs(r).max())
+    assert sweeps[1] == sweeps[0] - 1 and sweeps[1] >= 2
+    assert residuals[0] <= bound and residuals[1] <= bound
