@@ -958,9 +958,7 @@ def _ho4_residual(x0, u, p, eta, l0, P, edges, free_index, inc_ptr, inc_spring, 
             l1 = math.sqrt(ex * ex + ey * ey + ez * ez)
             la = len0[e]
             rest = l0[e]
-            if LOG_AFFINE:  # solved in closed form: no seed
-                g = eta[e]
-            else:  # warm: G = Γ(l⁰, θ⁰) moved along dG/dl = Γ_θ(l⁰, θ⁰) dθ⁰/dl
+            if not LOG_AFFINE:  # a seed (the closed form needs none): G = Γ(l⁰, θ⁰) moved along dG/dl
                 g = gs[e] - d2F_dtheta2(la, th0[e], rest, P, pe) * (dth[0, e] * (lh - lenh[e]) + dth[1, e] * (l1 - len1[e]))
                 guess[e] = g
             lenh[e] = lh

@@ -45,7 +45,7 @@ def neighbourhood(blocks, node_of_block, inc_ptr, inc_spring, edges, free_index,
 def scan(peak, threshold, out):
     """(max |R|, max Rabs, count) in one pass over the per-node maxima of a residual, ``peak``
     (2, n_free): row 0 the largest |R| of each free node's rows, row 1 the largest Rabs (the
-    residual kernel writes them, 16 bytes per node instead of the rows' 2 B × 8): the norms of the
+    residual kernel writes them: 16 bytes per node to read instead of 2 × B × 8): the norms of the
     residual, and the free nodes with peak[0] > threshold, in increasing order, into ``out``;
     count is their number, or len(out) + 1 where there are more."""
     rmax = 0.0
