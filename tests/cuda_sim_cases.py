@@ -16,7 +16,7 @@ import sys
 import numpy as np
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-sys.path[:0] = [ROOT, os.path.join(ROOT, "examples")]  # this checkout's thermonet, whatever is installed
+sys.path[:0] = [ROOT, os.path.join(ROOT, "examples"), os.path.join(ROOT, "tests")]  # this checkout's thermonet
 
 import thermonet as tn  # noqa: E402
 
@@ -55,6 +55,12 @@ def cases():
                                                      h=2e-3, backend=b)
     yield "hencky-co4-two-launch", lambda b: _two_launch(tn.Simulation(
         net, temperatures=temps, velocities=v, integrator="co4", h=2e-3, backend=b))
+    from push_subflow import push  # a sub-flow no package file knows of
+    pushing = tn.get_integrator("co2").with_flow(push([0, 5, 7], [0.3, -0.2, 0.5]), 0.5)
+    yield "push-co2", lambda b: tn.Simulation(net, temperatures=temps, velocities=v, integrator=pushing, h=2e-3,
+                                              backend=b)
+    yield "push-co2-two-launch", lambda b: _two_launch(tn.Simulation(
+        net, temperatures=temps, velocities=v, integrator=pushing, h=2e-3, backend=b))
     chain = tn.chain()
     p = [[0, 0, 0], [20, 10, 10], [10, 20, 10], [0, 10, 0]]
     yield "gravity-chain-f10", lambda b: tn.Simulation(chain, temperatures=[800, 1200, 400], momenta=p,
@@ -115,7 +121,38 @@ def main(path):
         sim.load_state(state)
         sim.run(steps=2, diagnostics_every=2)
         record(out, f"reload/{backend}", sim)
+    blowups(out)
     np.savez(path, **out)
+
+
+#: (name, integrator, fused launch) of the blow-up cases: one linear spring at 1.2× its stability
+#: limit, whose stretch bound is crossed in the 13th-14th step
+BLOWUPS = (("co2", "co2", True), ("co2-two-launch", "co2", False), ("co4", "co4", True),
+           ("f10-two-launch", "f10", False), ("gtr-0", "gtr-0", True))
+
+
+def blowups(out):
+    """Each blow-up case on both backends, run in chunks of 5 steps until it stops: the step it
+    stopped at, its message and the state it kept."""
+    from thermonet.stability import stability_interval
+
+    for name, integrator, fused in BLOWUPS:
+        h = 1.2 * stability_interval(tn.get_integrator(integrator)) / np.sqrt(100.0 / 2.0)
+        for backend in ("cpu", "cuda"):
+            net = tn.Net([[0, 0, 0], [1, 0, 0]], [[0, 1]], masses=[1.0, 2.0], anchored=[0], rest_lengths=[1.0])
+            sim = tn.Simulation(net, model="quadratic", parameters=dict(E=100.0, beta=0.0),
+                                momenta=[[0, 0, 0], [0.01, 0, 0]], h=h, integrator=integrator, backend=backend)
+            if backend == "cuda":
+                sim.stepper.fused = fused
+            message = ""
+            try:
+                sim.run(steps=1000, diagnostics_every=5)
+            except tn.SimulationError as exc:
+                message = str(exc)
+            key = f"blowup-{name}/{backend}"
+            out[f"{key}/step"] = np.array(sim.step)
+            out[f"{key}/message"] = np.array(message)
+            record(out, key, sim)
 
 
 if __name__ == "__main__":

@@ -30,11 +30,12 @@ HAVE_NUMBA_CUDA = importlib.util.find_spec("numba_cuda") is not None
 needs_numba_cuda = pytest.mark.skipif(not HAVE_NUMBA_CUDA, reason="numba-cuda is not installed (pip install '.[cuda]')")
 
 sys.path.insert(0, os.path.join(ROOT, "tests"))
-from cuda_sim_cases import EXPLICIT  # noqa: E402
+from cuda_sim_cases import BLOWUPS, EXPLICIT  # noqa: E402
 
 CASES = [f"{m}-{i}" for m in ("hencky", "quadratic") for i in EXPLICIT] + [
-    "hencky-per-spring-co2", "user-model-co2", "thermal-off-co2", "hencky-co4-two-launch", "gravity-chain-f10"]
-FREE = [c for c in CASES if not c.startswith("gravity")]  # no anchors, no external field
+    "hencky-per-spring-co2", "user-model-co2", "thermal-off-co2", "hencky-co4-two-launch", "gravity-chain-f10",
+    "push-co2", "push-co2-two-launch"]
+FREE = [c for c in CASES if not c.startswith(("gravity", "push"))]  # no anchors, no external field
 STATE_RTOL = 1e-13
 DIAG_RTOL = 1e-12
 
@@ -89,6 +90,31 @@ def test_diagnostics_equal_cpu(runs, case):
         ok = ~np.isnan(a)
         scale = max(float(np.max(np.abs(a[ok]), initial=0.0)), 1e-300)
         assert np.all(np.abs(a[ok] - b[ok]) <= DIAG_RTOL * max(scale, 1.0)), c
+
+
+@pytest.mark.parametrize("case", ["push-co2", "push-co2-two-launch"])
+def test_a_sub_flow_defined_outside_the_package_runs_on_the_device(runs, case):
+    """``tests/push_subflow.py``'s push (the worked example of docs/architecture.md) gives the
+    momentum its impulse on the device as on the CPU; nothing in the package names it."""
+    gained = runs[f"{case}/cuda/px"][-1] - runs[f"{case}/cuda/px"][0]
+    assert abs(gained - 3 * 0.3 * 3 * 2e-3) <= 1e-13
+
+
+@pytest.mark.parametrize("name", [b[0] for b in BLOWUPS])
+def test_a_blow_up_stops_the_device_in_the_cpus_step_and_keeps_the_last_good_state(runs, name):
+    """The GPU path's in-loop stop: the same first bad step as the CPU (found between the
+    diagnostics stops of a chunked run), the same message, and the state rewound to the last
+    good step, equal to the CPU's."""
+    cpu, gpu = f"blowup-{name}/cpu", f"blowup-{name}/cuda"
+    step = int(runs[f"{cpu}/step"])
+    assert 5 < step < 1000
+    assert int(runs[f"{gpu}/step"]) == step
+    message = str(runs[f"{gpu}/message"])
+    assert f"in step {step + 1} " in message and "spring 0 (nodes 0–1) has stretch l/l0 =" in message
+    assert message == str(runs[f"{cpu}/message"])
+    for field in ("positions", "momenta", "phi"):
+        assert np.isfinite(runs[f"{gpu}/{field}"]).all()
+        assert _close(runs[f"{cpu}/{field}"], runs[f"{gpu}/{field}"], STATE_RTOL), field
 
 
 def test_thermal_off_has_no_thermal_state(runs):

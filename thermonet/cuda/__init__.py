@@ -19,6 +19,11 @@ from ..errors import InputError
 
 INSTALL_HINT = "pip install 'thermonet[cuda]' (numba-cuda >= 0.30)"
 
+#: the stepping kernels' blow-up flag (4,) int64: set, and the step, row of the schedule (its
+#: length for a call's closing kick) and stage count since the launch sequence began at which a
+#: spring left the admissible states
+FLAG_SET, FLAG_STEP, FLAG_ROW, FLAG_STAGES = range(4)
+
 
 def simulator_enabled() -> bool:
     """True when Numba's CUDA simulator is switched on (it must be before numba is imported)."""

@@ -1,12 +1,18 @@
-"""CUDA kernels of one kick/drift stage and of the diagnostics sums, compiled per model.
+"""CUDA kernels of the explicit step's sub-flows and of the diagnostics sums, compiled per model.
 
-The stage is :mod:`thermonet.kernels.splitting`'s, as two launches:
+A stage of the schedule (:mod:`thermonet.integrators.schedule`) is two launches, each running
+the sub-flows of :mod:`thermonet.kernels.subflows` (the CPU kernel's own):
 
 1. :func:`_spring_kernel`, one thread per spring e: ``s[e] = T/l`` at x and ``Φ[e] += k h θ``
-   (the two kicks that meet at a step boundary as two separate additions, as on the CPU);
+   (the two kicks that meet at a step boundary as two separate additions, as on the CPU), and
+   the admissibility test: a spring outside the admissible states sets ``flag`` with where it
+   happened, and every later launch of the call returns at once (the CPU kernel's stop);
 2. :func:`_node_kernel`, one thread per node a: gathers ``f_a = Σ s_e (x_b − x_a)`` over its
    CSR incidence list in the CPU's order, kicks ``p`` and drifts into a second position buffer
    (other threads still read the old one).
+
+An extra sub-flow row is one launch of its slot's :func:`_flow_kernel`. :func:`_steps_kernel`
+runs whole chunks of steps in one cooperative launch, the same rows over grid-stride loops.
 
 No atomics: every spring and node is written by one thread with the CPU's summation order, so a
 step differs from the CPU's only where the GPU compiler contracts ``a*b + c`` into one fused
@@ -33,11 +39,17 @@ import math
 import numpy as np
 from numba import cuda, float64, njit
 
-from ..kernels.specialize import model_fingerprint, model_namespace, rebind
-from . import simulator_enabled
+from ..integrators.schedule import MAX_FLOWS
+from ..kernels import subflows
+from ..kernels.specialize import function_fingerprint, model_fingerprint, model_namespace, rebind
+from ..kernels.splitting import bind_subflows
+from . import FLAG_ROW, FLAG_SET, FLAG_STAGES, FLAG_STEP, simulator_enabled
 
 # Bound per model by cuda_kernels(); see thermonet.kernels.splitting for their meaning.
 temperature = tension = internal_energy = free_energy = None
+spring_force = outside_admissible = advance_thermal_displacement = squared_length = None
+gather_force = kick_momentum = drift_position = load_row = store_row = update = None
+flow_update_0 = flow_update_1 = flow_update_2 = flow_update_3 = None
 THERMAL = True
 REFERENCE_TEMPERATURE = 0
 UNIFORM = False
@@ -58,14 +70,16 @@ SPRING_OPS = (0, 0, 1, 2)
 NODE_SUMS = ("kinetic", "potential", "px", "py", "pz", "Lx", "Ly", "Lz")
 NODE_OPS = (0,) * 8
 
+
 _CACHE: dict = {}
 
 
 class CudaKernels:
     """The compiled kernels of one model variant and their launch geometry."""
 
-    def __init__(self, spring, node, steps, spring_sums, node_sums, finish, threads, reduce_threads, reduce_blocks):
-        self.spring, self.node, self.steps = spring, node, steps
+    def __init__(self, spring, node, flows, steps, spring_sums, node_sums, finish, threads, reduce_threads,
+                 reduce_blocks):
+        self.spring, self.node, self.flows, self.steps = spring, node, flows, steps
         self.spring_sums, self.node_sums, self.finish = spring_sums, node_sums, finish
         self.threads, self.reduce_threads, self.reduce_blocks = threads, reduce_threads, reduce_blocks
 
@@ -74,12 +88,13 @@ class CudaKernels:
         return (n + self.threads - 1) // self.threads
 
 
-def cuda_kernels(model, thermal: bool = True, uniform: bool = False) -> CudaKernels:
+def cuda_kernels(model, thermal: bool = True, uniform: bool = False, flows=()) -> CudaKernels:
     """The CUDA kernels for ``model`` (purely mechanical when not ``thermal``; parameters shared
     by all springs, a ``(k, 1)`` array, when ``uniform``: see
-    :func:`thermonet.kernels.splitting.kernel_parameters`)."""
+    :func:`thermonet.kernels.splitting.kernel_parameters`), with the extra sub-flows ``flows``
+    (:class:`~thermonet.integrators.schedule.SubFlow` s, slot order)."""
     sim = simulator_enabled()
-    key = (model_fingerprint(model), bool(thermal), bool(uniform), sim)
+    key = (model_fingerprint(model), bool(thermal), bool(uniform), sim, tuple(id(f) for f in flows))
     if key not in _CACHE:
         ns = model_namespace(model)
         if sim:
@@ -87,20 +102,26 @@ def cuda_kernels(model, thermal: bool = True, uniform: bool = False) -> CudaKern
         reduce_threads = SIMULATOR_REDUCE_THREADS if sim else REDUCE_THREADS
         ns.update(THERMAL=bool(thermal), UNIFORM=bool(uniform), REDUCE_THREADS=reduce_threads,
                   REFERENCE_TEMPERATURE=model.parameter_index(model.reference_temperature))
+        flows_tag = f"_f{function_fingerprint(*(f.update for f in flows))}" if flows else ""
         tag = (f"{model.name}_{key[0]}_{'thermal' if thermal else 'mech'}{'_uniform' if uniform else ''}"
-               f"_r{reduce_threads}")
+               f"_r{reduce_threads}_s{subflows.source_digest()}{flows_tag}")
         jit = cuda.jit if sim else cuda.jit(cache=True)
         inline = (lambda fn: fn) if sim else njit(inline="always")
+        bind_subflows(ns, tag, inline)
+        for slot in range(MAX_FLOWS):
+            ns[f"flow_update_{slot}"] = _device_update(flows[slot].update, sim) if slot < len(flows) else _no_update
         for name, template in _SHARED:  # in order: later ones call earlier ones
             ns[name] = inline(rebind(template, tag, ns))  # shared by the two-launch and the fused path
 
-        def compile_(template):
-            return jit(rebind(template, tag, ns))
+        def compile_(template, namespace=ns, suffix=""):
+            return jit(rebind(template, tag + suffix, namespace))
 
+        flow_kernels = tuple(compile_(_flow_kernel, dict(ns, update=ns[f"flow_update_{slot}"]), f"_{slot}")
+                             for slot in range(len(flows)))
         _CACHE[key] = CudaKernels(
-            compile_(_spring_kernel), compile_(_node_kernel), compile_(_steps_kernel), compile_(_spring_sums_kernel),
-            compile_(_node_sums_kernel), compile_(_finish_kernel), SIMULATOR_THREADS if sim else THREADS,
-            reduce_threads, SIMULATOR_REDUCE_BLOCKS if sim else REDUCE_BLOCKS)
+            compile_(_spring_kernel), compile_(_node_kernel), flow_kernels, compile_(_steps_kernel),
+            compile_(_spring_sums_kernel), compile_(_node_sums_kernel), compile_(_finish_kernel),
+            SIMULATOR_THREADS if sim else THREADS, reduce_threads, SIMULATOR_REDUCE_BLOCKS if sim else REDUCE_BLOCKS)
     return _CACHE[key]
 
 
@@ -113,143 +134,165 @@ def _simulator_adapter(fn):
     return call
 
 
+def _device_update(update, sim: bool):
+    """A sub-flow's ``update`` as the kernels call it: the Python function under the simulator
+    (its arrays are simulator arrays), else an inlined device function."""
+    py = getattr(update, "py_func", update)
+    return py if sim else njit(inline="always")(py)
+
+
+def _no_update(i, data, tau, t, x, p, phi, eta):
+    """An empty flow slot."""
+    return None
+
+
 # ----------------------------------------------------------------------------------------------
 # one stage
 
 
-def _spring_kernel(x, eta, l0, P, edges, s, phi, phi_h1, phi_h2, track_phi):
-    """Thread e: :func:`_spring_update` of spring e."""
+def _spring_kernel(x, eta, phi, springs, edges, s, steps, run, flag, where):
+    """Thread e: :func:`_spring_update` of spring e, unless the call already stopped (``flag``).
+    steps: (kick1 h, kick2 h) of Φ's update; where: (step, row, stages) written into ``flag``
+    if spring e is outside the admissible states."""
     e = cuda.grid(1)
-    if e < edges.shape[0]:
-        _spring_update(e, x, eta, l0, P, edges, s, phi, phi_h1, phi_h2, track_phi)
+    if e < edges.shape[0] and flag[FLAG_SET] == 0:
+        if _spring_update(e, x, eta, phi, springs, edges, s, steps, run):
+            _raise_flag(flag, where)
 
 
-def _node_kernel(x, x_new, p, s, inc_ptr, inc_spring, inc_other, masses, inv_mass, anchored,
-                 kick1, kick2, drift, with_force, gravity, with_gravity):
-    """Thread a: :func:`_node_update` of node a."""
+def _node_kernel(x, x_new, p, s, topology, nodes, steps, flag):
+    """Thread a: :func:`_node_update` of node a, unless the call already stopped (``flag``);
+    steps: (kick1 h, kick2 h, drift h, with_force)."""
     a = cuda.grid(1)
-    if a < x.shape[0]:
-        _node_update(a, x, x_new, p, s, inc_ptr, inc_spring, inc_other, masses, inv_mass, anchored,
-                     kick1, kick2, drift, with_force, gravity, with_gravity)
+    if a < x.shape[0] and flag[FLAG_SET] == 0:
+        _node_update(a, x, x_new, p, s, topology, nodes, steps)
 
 
-def _steps_kernel(x, x_buf, p, eta, l0, P, edges, s, phi, inc_ptr, inc_spring, inc_other, masses, inv_mass,
-                  anchored, gravity, with_gravity, kicks, drifts, h, n_steps, track_phi):
-    """``n_steps`` whole steps in one cooperative launch: every stage's spring pass and node pass
+def _flow_kernel(data, tau, t, x, p, phi, eta, flag):
+    """Thread i: the slot's sub-flow ``update`` of element i over tau at time t, unless the call
+    already stopped (``flag``)."""
+    i = cuda.grid(1)
+    if i < data[0].shape[0] and flag[FLAG_SET] == 0:
+        update(i, data, tau, t, x, p, phi, eta)
+
+
+def _steps_kernel(state, x_buf, s, topology, springs, nodes, table, effects, run, flag):
+    """``run.n_steps`` whole steps in one cooperative launch: every row of the schedule ``table``
     over grid-stride loops, separated by grid-wide barriers, in the order and with the
     coefficients of :meth:`~thermonet.cuda.stepper.CudaSplittingStepper.advance`'s two-launch
-    path (the same per-spring and per-node updates, so the same numbers). Positions alternate
-    between ``x`` and ``x_buf`` stage by stage; the caller counts the stages to know which holds
-    the result. kicks: (d+1,), drifts: (d,) coefficients of the splitting.
+    path (the same per-spring and per-node updates, so the same numbers), and the call's closing
+    kick. Positions alternate between ``state.x`` and ``x_buf`` stage by stage; the caller counts
+    the stages to know which holds the result. A spring outside the admissible states stops the
+    launch after its spring pass, with ``flag`` saying where.
     """
     grid = cuda.cg.this_grid()
     first = cuda.grid(1)
     stride = cuda.gridsize(1)
-    n_drifts = drifts.shape[0]
+    x = state.x
+    p = state.p
+    phi = state.phi
+    eta = state.eta
+    h = run.h
+    n_rows = table.code.shape[0]
+    edges = topology.edges
     pending = 0.0
     parity = 0
-    for step in range(n_steps + 1):
-        for i in range(n_drifts):
-            if step < n_steps:
-                k1 = pending if i == 0 else 0.0
-                k2 = kicks[i]
-                d = drifts[i]
-            elif i == 0 and pending != 0.0:  # after the last step: its closing kick
+    for step in range(run.n_steps + 1):
+        for r in range(n_rows):
+            xs = x if parity == 0 else x_buf
+            xn = x_buf if parity == 0 else x
+            if step < run.n_steps:
+                code = table.code[r]
+                if code >= 0:
+                    tau = table.kick[r] * h
+                    t = run.t0 + (step + table.drift[r]) * h
+                    _flow_grid(code, effects, tau, t, xs, p, phi, eta, first, stride)
+                    grid.sync()
+                    continue
+                k1 = pending if r == 0 else 0.0
+                k2 = table.kick[r]
+                d = table.drift[r]
+            elif r == 0 and pending != 0.0:  # after the last step: its closing kick
                 k1 = 0.0
                 k2 = pending
                 d = 0.0
             else:
                 break
             with_force = k1 != 0.0 or k2 != 0.0
-            xs = x if parity == 0 else x_buf
-            xn = x_buf if parity == 0 else x
             if with_force:
                 for e in range(first, edges.shape[0], stride):
-                    _spring_update(e, xs, eta, l0, P, edges, s, phi, k1 * h, k2 * h, track_phi)
+                    if _spring_update(e, xs, eta, phi, springs, edges, s, (k1 * h, k2 * h), run):
+                        _raise_flag(flag, (step, r if step < run.n_steps else n_rows, parity))
                 grid.sync()
+                if flag[FLAG_SET] != 0:
+                    return
             for a in range(first, xs.shape[0], stride):
-                _node_update(a, xs, xn, p, s, inc_ptr, inc_spring, inc_other, masses, inv_mass, anchored,
-                             k1 * h, k2 * h, d * h, with_force, gravity, with_gravity)
+                _node_update(a, xs, xn, p, s, topology, nodes, (k1 * h, k2 * h, d * h, with_force))
             grid.sync()
             parity = 1 - parity
-        pending = kicks[n_drifts]
+        pending = table.carry
+
+
+def _flow_grid(slot, effects, tau, t, x, p, phi, eta, first, stride):
+    """The sub-flow in ``slot`` over its elements in a grid-stride loop (the fused launch)."""
+    if slot == 0:
+        for i in range(first, effects[0][0].shape[0], stride):
+            flow_update_0(i, effects[0], tau, t, x, p, phi, eta)
+    elif slot == 1:
+        for i in range(first, effects[1][0].shape[0], stride):
+            flow_update_1(i, effects[1], tau, t, x, p, phi, eta)
+    elif slot == 2:
+        for i in range(first, effects[2][0].shape[0], stride):
+            flow_update_2(i, effects[2], tau, t, x, p, phi, eta)
+    else:
+        for i in range(first, effects[3][0].shape[0], stride):
+            flow_update_3(i, effects[3], tau, t, x, p, phi, eta)
+
+
+def _raise_flag(flag, where):
+    """Record where a spring left the admissible states (every thread that finds one writes
+    the same values)."""
+    flag[FLAG_STEP] = where[0]
+    flag[FLAG_ROW] = where[1]
+    flag[FLAG_STAGES] = where[2]
+    flag[FLAG_SET] = 1
 
 
 def _spring_length(x, edges, e):
     """|x_b − x_a| of spring e; x: (n, 3), edges: (m, 2) uint32."""
-    a = edges[e, 0]
-    b = edges[e, 1]
-    dx = x[b, 0] - x[a, 0]
-    dy = x[b, 1] - x[a, 1]
-    dz = x[b, 2] - x[a, 2]
-    return math.sqrt(dx * dx + dy * dy + dz * dz)
+    return math.sqrt(squared_length(x, edges, e))
 
 
-def _spring_update(e, x, eta, l0, P, edges, s, phi, phi_h1, phi_h2, track_phi):
-    """Spring e: s[e] = T/l at x; Φ[e] += phi_h1 θ; Φ[e] += phi_h2 θ.
+def _spring_update(e, x, eta, phi, springs, edges, s, steps, run):
+    """Spring e: s[e] = T/l at x; Φ[e] += steps[0] θ; Φ[e] += steps[1] θ. Returns whether the
+    spring is outside the admissible states.
 
-    x: (n, 3); eta, l0, s, phi: (m,) (eta, phi empty when not THERMAL); P: (k, m) or (k, 1);
-    edges: (m, 2) uint32.
+    x: (n, 3); eta, phi, s: (m,) (eta, phi empty when not THERMAL); edges: (m, 2) uint32.
     """
     l = _spring_length(x, edges, e)
     c = 0 if UNIFORM else e
-    if THERMAL:
-        theta = temperature(l, eta[e], l0[e], P, c)
-    else:
-        theta = P[REFERENCE_TEMPERATURE, c]
-    s[e] = tension(l, theta, l0[e], P, c) / l
-    if THERMAL and track_phi:
-        if phi_h1 != 0.0:
-            phi[e] += phi_h1 * theta
-        phi[e] += phi_h2 * theta
+    rest = springs.rest[e]
+    theta, force = spring_force(l, eta[e] if THERMAL else 0.0, rest, springs.P, c)
+    s[e] = force
+    if THERMAL and run.track_phi:
+        advance_thermal_displacement(phi, e, theta, steps[0], steps[1])
+    return outside_admissible(l, rest, force, theta, run.stretch_min, run.stretch_max)
 
 
-def _node_update(a, x, x_new, p, s, inc_ptr, inc_spring, inc_other, masses, inv_mass, anchored,
-                 kick1, kick2, drift, with_force, gravity, with_gravity):
-    """Node a: f = Σ s_e (x_b − x_a) (+ m g); p += kick1 f; p += kick2 f; x_new = x + drift p/m.
-
-    x, x_new, p: (n, 3); inc_ptr: (n+1,) int64; inc_spring, inc_other: (2m,) uint32;
-    masses, inv_mass: (n,); anchored: (n,) bool; gravity: (3,).
-    """
-    xa0 = x[a, 0]
-    xa1 = x[a, 1]
-    xa2 = x[a, 2]
-    if anchored[a]:
-        x_new[a, 0] = xa0
-        x_new[a, 1] = xa1
-        x_new[a, 2] = xa2
+def _node_update(a, x, x_new, p, s, topology, nodes, steps):
+    """Node a: f = Σ s_e (x_b − x_a) (+ m g); p += kick1 f; p += kick2 f; x_new = x + drift p/m,
+    steps = (kick1, kick2, drift, with_force). x, x_new, p: (n, 3)."""
+    xa0, xa1, xa2 = load_row(x, a)
+    if nodes.anchored[a]:
+        store_row(x_new, a, xa0, xa1, xa2)
         return
-    p0 = p[a, 0]
-    p1 = p[a, 1]
-    p2 = p[a, 2]
-    if with_force:
-        f0 = 0.0
-        f1 = 0.0
-        f2 = 0.0
-        for j in range(inc_ptr[a], inc_ptr[a + 1]):
-            se = s[inc_spring[j]]
-            b = inc_other[j]
-            f0 += se * (x[b, 0] - xa0)
-            f1 += se * (x[b, 1] - xa1)
-            f2 += se * (x[b, 2] - xa2)
-        if with_gravity:
-            f0 += masses[a] * gravity[0]
-            f1 += masses[a] * gravity[1]
-            f2 += masses[a] * gravity[2]
-        if kick1 != 0.0:
-            p0 += kick1 * f0
-            p1 += kick1 * f1
-            p2 += kick1 * f2
-        p0 += kick2 * f0
-        p1 += kick2 * f1
-        p2 += kick2 * f2
-        p[a, 0] = p0
-        p[a, 1] = p1
-        p[a, 2] = p2
-    w = drift * inv_mass[a]
-    x_new[a, 0] = xa0 + w * p0
-    x_new[a, 1] = xa1 + w * p1
-    x_new[a, 2] = xa2 + w * p2
+    p0, p1, p2 = load_row(p, a)
+    if steps[3]:
+        f0, f1, f2 = gather_force(a, x, s, topology.inc_ptr, topology.inc_spring, topology.inc_other, nodes.masses,
+                                  nodes.gravity, nodes.with_gravity)
+        p0, p1, p2 = kick_momentum(p0, p1, p2, f0, f1, f2, steps[0], steps[1])
+        store_row(p, a, p0, p1, p2)
+    drift_position(x_new, a, xa0, xa1, xa2, p0, p1, p2, steps[2] * nodes.inv_mass[a])
 
 
 # ----------------------------------------------------------------------------------------------
@@ -366,7 +409,8 @@ def _combine(op, a, b):
 
 
 #: device functions the kernels share, bound per model before the kernels (callers after callees)
-_SHARED = (("_spring_length", _spring_length), ("_spring_update", _spring_update), ("_node_update", _node_update))
+_SHARED = (("_spring_length", _spring_length), ("_spring_update", _spring_update), ("_node_update", _node_update),
+           ("_raise_flag", _raise_flag), ("_flow_grid", _flow_grid))
 
 
 def compile_ptx(model, thermal: bool = True, uniform: bool = False, cc=(9, 0)) -> dict[str, str]:
@@ -375,24 +419,32 @@ def compile_ptx(model, thermal: bool = True, uniform: bool = False, cc=(9, 0)) -
     model compiles for the device on any machine with the toolkit. Returns name -> PTX text.
     Not the fused ``_steps_kernel``: numba-cuda types its grid-wide barrier only with a driver
     present (the ``gpu`` tests compile and run it); it runs the same inlined updates."""
-    from numba import boolean, int32, int64, uint32
+    from numba import typeof
+
+    from ..kernels import records
 
     ns = model_namespace(model)
     ns.update(THERMAL=bool(thermal), UNIFORM=bool(uniform), REDUCE_THREADS=REDUCE_THREADS,
               REFERENCE_TEMPERATURE=model.parameter_index(model.reference_temperature))
+    tag = f"{model.name}_ptx"
+    bind_subflows(ns, tag, njit(inline="always"))
     for name, template in _SHARED:
-        ns[name] = njit(inline="always")(rebind(template, f"{model.name}_ptx", ns))
-    v, m2, u = float64[::1], float64[:, ::1], uint32[::1]
-    signatures = {
-        "spring": (_spring_kernel, (m2, v, v, m2, uint32[:, ::1], v, v, float64, float64, boolean)),
-        "node": (_node_kernel, (m2, m2, m2, v, int64[::1], u, u, v, v, boolean[::1], float64, float64, float64,
-                                boolean, v, boolean)),
-        "spring_sums": (_spring_sums_kernel, (m2, v, v, m2, uint32[:, ::1], m2)),
-        "node_sums": (_node_sums_kernel, (m2, m2, v, boolean[::1], v, v, m2)),
-        "finish": (_finish_kernel, (m2, int32[::1], v)),
+        ns[name] = njit(inline="always")(rebind(template, tag, ns))
+    v, x, u = np.empty(1), np.empty((1, 3)), np.empty(1, np.uint32)
+    springs = records.Springs(v, np.empty((len(model.parameters), 1)))
+    topology = records.Topology(np.empty((1, 2), np.uint32), np.empty(2, np.int64), u, u)
+    nodes = records.Nodes(v, v, np.empty(1, np.bool_), np.empty(3), True, np.empty(3))
+    run = records.Run(1.0, 0.0, 1, True, 0.1, 10.0, False, False)
+    flag = np.zeros(4, np.int64)
+    samples = {
+        "spring": (_spring_kernel, (x, v, v, springs, topology.edges, v, (1.0, 1.0), run, flag, (0, 0, 0))),
+        "node": (_node_kernel, (x, x, x, v, topology, nodes, (1.0, 1.0, 1.0, True), flag)),
+        "spring_sums": (_spring_sums_kernel, (x, v, v, springs.P, topology.edges, x)),
+        "node_sums": (_node_sums_kernel, (x, x, v, nodes.anchored, v, v, x)),
+        "finish": (_finish_kernel, (x, np.empty(1, np.int32), v)),
     }
     out = {}
-    for name, (template, sig) in signatures.items():
-        ptx, _ = cuda.compile_ptx(rebind(template, f"{model.name}_ptx", ns), sig, cc=cc)
+    for name, (template, args) in samples.items():
+        ptx, _ = cuda.compile_ptx(rebind(template, tag, ns), tuple(typeof(a) for a in args), cc=cc)
         out[name] = ptx
     return out

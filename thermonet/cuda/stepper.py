@@ -15,8 +15,9 @@ import numpy as np
 
 from ..diagnostics import diagnostics_row
 from ..integrators.base import Stepper
+from ..kernels import records
 from ..kernels.splitting import kernel_parameters
-from . import require_cuda
+from . import FLAG_ROW, FLAG_SET, FLAG_STAGES, FLAG_STEP, require_cuda
 
 
 class CudaSplittingStepper(Stepper):
@@ -38,33 +39,33 @@ class CudaSplittingStepper(Stepper):
     #: Ctrl-C and progress reports responsive and cost one launch each)
     FUSED_MAX_STEPS = 256
 
+    #: steps the device copy of a call's start state may lag behind it: a blow-up restores that
+    #: copy and replays the good steps (as the CPU runs do from the Simulation's backup)
+    BACKUP_SPAN = 256
+
     def __init__(self, integrator, system):
         require_cuda()
         from numba import cuda
 
+        from ..integrators.splitting import flow_data
         from .kernels import NODE_OPS, SPRING_OPS, cuda_kernels
 
         self.integrator = integrator
         self.system = system
         self._cuda = cuda
         P, uniform = kernel_parameters(system.parameters)
-        self._k = cuda_kernels(system.model, system.thermal, uniform)
-        self._kicks = tuple(float(k) for k in integrator.kicks)
-        self._drifts = tuple(float(d) for d in integrator.drifts)
+        flows = integrator.subflows
+        self._k = cuda_kernels(system.model, system.thermal, uniform, flows)
+        table = integrator.table
         n, m = system.n_nodes, system.n_springs
-        lay = system.layout
         dev = cuda.to_device
-        gravity = np.zeros(3) if system.gravity is None else np.asarray(system.gravity, dtype=np.float64)
-        self._l0, self._P = dev(system.rest_lengths), dev(P)
-        # unsigned indices: no negative-index wraparound test per access
-        self._edges = dev(np.ascontiguousarray(lay.edges).view(np.uint32))
-        self._inc_ptr = dev(np.ascontiguousarray(lay.inc_ptr, dtype=np.int64))
-        self._inc_spring = dev(np.ascontiguousarray(lay.inc_spring).view(np.uint32))
-        self._inc_other = dev(np.ascontiguousarray(lay.inc_other).view(np.uint32))
-        self._masses, self._inv_mass = dev(system.masses), dev(system.inv_mass)
-        self._anchored = dev(np.ascontiguousarray(system.anchored, dtype=np.bool_))
-        self._gravity, self._ref = dev(gravity), dev(np.asarray(system.reference_point, dtype=np.float64))
-        self._with_gravity = system.gravity is not None
+        self._table = records_to_device(table, dev)
+        self._rows = [(int(c), float(k), float(d)) for c, k, d in zip(table.code, table.kick, table.drift)]
+        self._carry = float(table.carry)
+        self._topology = records_to_device(records.topology(system.layout), dev)
+        self._springs = records_to_device(records.Springs(system.rest_lengths, P), dev)
+        self._nodes = records_to_device(records.nodes(system), dev)
+        self._effects = records_to_device(flow_data(flows, system), dev)
         self._s = cuda.device_array(max(m, 1))
         self._x = cuda.device_array((n, 3))
         self._x_buf = cuda.device_array((n, 3))
@@ -72,8 +73,8 @@ class CudaSplittingStepper(Stepper):
         empty = cuda.device_array(0)
         self._phi = cuda.device_array(m) if system.thermal else empty
         self._eta = cuda.device_array(m) if system.thermal else empty
-        self._kick_table = dev(np.array(self._kicks, dtype=np.float64))
-        self._drift_table = dev(np.array(self._drifts, dtype=np.float64))
+        self._flag = cuda.to_device(np.zeros(4, np.int64))
+        self._backup = None  # (state, step, h, (x, p, phi, eta) device copies) of a recent call's start
         self._fused_blocks = None
         self._spring_ops, self._node_ops = dev(np.array(SPRING_OPS, np.int32)), dev(np.array(NODE_OPS, np.int32))
         blocks = self._k.reduce_blocks
@@ -110,64 +111,92 @@ class CudaSplittingStepper(Stepper):
             self._eta.copy_to_host(state.entropy)
         self._device_newer = False
 
+    def _state_arrays(self):
+        return records.StateArrays(self._x, self._p, self._phi, self._eta)
+
     # ------------------------------------------------------------------------------------------
     # stepping
 
-    def _stage(self, k1: float, k2: float, drift: float, with_force: bool, track_phi: bool) -> None:
+    def _stage(self, k1: float, k2: float, drift: float, with_force: bool, run, where) -> None:
         k = self._k
         n, m = self.system.n_nodes, self.system.n_springs
         if with_force and m > 0:
-            k.spring[k.blocks(m), k.threads](self._x, self._eta, self._l0, self._P, self._edges, self._s,
-                                             self._phi, k1, k2, track_phi)
+            k.spring[k.blocks(m), k.threads](self._x, self._eta, self._phi, self._springs, self._topology.edges,
+                                             self._s, (k1, k2), run, self._flag, where)
         if n > 0:
-            k.node[k.blocks(n), k.threads](self._x, self._x_buf, self._p, self._s, self._inc_ptr,
-                                           self._inc_spring, self._inc_other, self._masses, self._inv_mass,
-                                           self._anchored, k1, k2, drift, with_force, self._gravity,
-                                           self._with_gravity)
+            k.node[k.blocks(n), k.threads](self._x, self._x_buf, self._p, self._s, self._topology, self._nodes,
+                                           (k1, k2, drift, with_force), self._flag)
         self._x, self._x_buf = self._x_buf, self._x
 
+    def _flow(self, slot: int, tau: float, t: float) -> None:
+        data = self._effects[slot]
+        kernel = self._k.flows[slot]
+        count = data[0].shape[0]
+        if count > 0:
+            kernel[self._k.blocks(count), self._k.threads](data, tau, t, self._x, self._p, self._phi, self._eta,
+                                                           self._flag)
+
     def advance(self, state, n_steps: int, h: float):
-        """As :meth:`thermonet.integrators.splitting.SplittingStepper.advance`; the same stage
-        sequence, kick coefficients and chunk-boundary handling, so results do not depend on
-        how a run is cut into chunks."""
+        """As :meth:`thermonet.integrators.splitting.SplittingStepper.advance`: the same rows of the
+        same schedule and chunk-boundary handling, so results do not depend on how a run is cut
+        into chunks; a spring outside the admissible states stops the call, the device state is
+        rewound to the last good step and :class:`~thermonet.integrators.base.StepFailure` names
+        the spring, as on the CPU."""
         if n_steps <= 0:
             return None
         self._bind(state)
-        h = float(h)
-        track_phi = bool(self.integrator.track_phi)
+        self._keep_backup(state, h)
+        stop = self._steps(float(state.time), int(n_steps), float(h))
+        self._device_newer = True
+        if stop is not None:
+            self._stopped(state, float(h), *stop)
+        return None
+
+    def _steps(self, t0: float, n_steps: int, h: float):
+        """n_steps steps from time t0 on the device state; None, or where a launch stopped:
+        (flag, steps completed before its launch sequence, positions buffer at that start)."""
+        lo, hi = self.system.stretch_bounds
+        run = records.Run(h, t0, n_steps, bool(self.integrator.track_phi), float(lo), float(hi), False, False)
         fused = self.fused if self.fused is not None else self.system.n_springs < self.FUSED_MAX_SPRINGS
         if fused:
             done = 0
             while done < n_steps:
-                chunk = min(int(n_steps) - done, self.FUSED_MAX_STEPS)
-                self._fused_steps(chunk, h, track_phi)
+                chunk = min(n_steps - done, self.FUSED_MAX_STEPS)
+                chunk_start = self._x
+                self._fused_steps(run._replace(n_steps=chunk, t0=t0 + done * h))
+                flag = self._flag.copy_to_host()
+                if flag[FLAG_SET]:
+                    return flag, done, chunk_start
                 done += chunk
-            self._device_newer = True
             return None
-        kicks, drifts = self._kicks, self._drifts
+        x_start = self._x
         pending = 0.0
-        for _ in range(int(n_steps)):
-            for i, d in enumerate(drifts):
-                k1 = pending if i == 0 else 0.0
-                k2 = kicks[i]
-                self._stage(k1 * h, k2 * h, d * h, k1 != 0.0 or k2 != 0.0, track_phi)
-            pending = kicks[-1]
+        stages = 0
+        for step in range(n_steps):
+            t_step = t0 + step * h
+            for r, (code, kick, drift) in enumerate(self._rows):
+                if code >= 0:
+                    self._flow(code, kick * h, t_step + drift * h)
+                    continue
+                k1 = pending if r == 0 else 0.0
+                self._stage(k1 * h, kick * h, drift * h, k1 != 0.0 or kick != 0.0, run, (step, r, stages))
+                stages += 1
+            pending = self._carry
         if pending != 0.0:
-            self._stage(0.0, pending * h, 0.0, True, track_phi)
-        self._device_newer = True
-        return None
+            self._stage(0.0, pending * h, 0.0, True, run, (n_steps, len(self._rows), stages))
+        flag = self._flag.copy_to_host()
+        return (flag, 0, x_start) if flag[FLAG_SET] else None
 
-    def _fused_steps(self, n_steps: int, h: float, track_phi: bool) -> None:
-        """``n_steps`` steps as one cooperative launch; the same stages as :meth:`advance`'s
+    def _fused_steps(self, run) -> None:
+        """``run.n_steps`` steps as one cooperative launch; the same rows as :meth:`advance`'s
         two-launch loop (including the closing half kick), so a chunk ends in the same state."""
         k = self._k
-        args = (self._x, self._x_buf, self._p, self._eta, self._l0, self._P, self._edges, self._s, self._phi,
-                self._inc_ptr, self._inc_spring, self._inc_other, self._masses, self._inv_mass, self._anchored,
-                self._gravity, self._with_gravity, self._kick_table, self._drift_table, h, n_steps, track_phi)
+        args = (self._state_arrays(), self._x_buf, self._s, self._topology, self._springs, self._nodes, self._table,
+                self._effects, run, self._flag)
         if self._fused_blocks is None:
             self._fused_blocks = self._cooperative_blocks(args)
         k.steps[self._fused_blocks, k.threads](*args)
-        stages = n_steps * len(self._drifts) + (1 if self._kicks[-1] != 0.0 else 0)
+        stages = run.n_steps * sum(1 for c, _, _ in self._rows if c < 0) + (1 if self._carry != 0.0 else 0)
         if stages % 2:
             self._x, self._x_buf = self._x_buf, self._x
 
@@ -182,11 +211,45 @@ class CudaSplittingStepper(Stepper):
         if simulator_enabled():
             return 1
         k = self._k
-
         kernel = k.steps.compile(tuple(typeof(a) for a in args))
         resident = kernel.max_cooperative_grid_blocks(k.threads)
         needed = k.blocks(max(self.system.n_springs, self.system.n_nodes, 1))
         return max(1, min(resident, needed))
+
+    def _keep_backup(self, state, h: float) -> None:
+        """A device copy of the state at this call's start, unless one of this history at most
+        :data:`BACKUP_SPAN` steps back is kept already."""
+        b = self._backup
+        if b is not None and b[0] is state and b[2] == h and 0 <= state.step - b[1] < self.BACKUP_SPAN:
+            return
+        arrays = self._state_arrays()
+        copies = b[4] if b is not None else tuple(self._cuda.device_array_like(a) for a in arrays)
+        for source, target in zip(arrays, copies):
+            target.copy_to_device(source)
+        self._backup = (state, state.step, h, float(state.time), copies)
+
+    def _stopped(self, state, h: float, flag, steps_before: int, x_start) -> None:
+        """A launch found a spring outside the admissible states: name it from the positions
+        where it was found, restore the backup, replay the good steps and raise."""
+        from ..integrators.splitting import blowup_failure
+
+        step, row = int(flag[FLAG_STEP]), int(flag[FLAG_ROW])
+        found_at = x_start if int(flag[FLAG_STAGES]) % 2 == 0 else (self._x_buf if x_start is self._x else self._x)
+        positions = found_at.copy_to_host()
+        entropy = self._eta.copy_to_host() if self.system.thermal else None
+        # positions at row 0 are the end of the previous step, and a closing kick's (row = the
+        # table's length) those of the call's last step: that step was the bad one
+        at_step_end = (row == 0 and step > 0) or row == len(self._rows)
+        done = steps_before + (step - 1 if at_step_end else step)
+        failure = blowup_failure(self.system, positions, entropy, done)
+        self._flag.copy_to_device(np.zeros(4, np.int64))
+        _, backup_step, _, backup_time, copies = self._backup
+        for source, target in zip(copies, self._state_arrays()):
+            target.copy_to_device(source)
+        replay = state.step - backup_step + done
+        if replay > 0 and self._steps(backup_time, replay, h) is not None:
+            raise RuntimeError("the replay of good steps stopped again")  # cannot happen: same steps, same bits
+        raise failure
 
     # ------------------------------------------------------------------------------------------
     # diagnostics
@@ -197,12 +260,25 @@ class CudaSplittingStepper(Stepper):
         self._bind(state)
         k = self._k
         blocks, threads = k.reduce_blocks, k.reduce_threads
-        k.spring_sums[blocks, threads](self._x, self._eta, self._l0, self._P, self._edges, self._spring_partial)
+        k.spring_sums[blocks, threads](self._x, self._eta, self._springs.rest, self._springs.P, self._topology.edges,
+                                       self._spring_partial)
         k.finish[1, threads](self._spring_partial, self._spring_ops, self._spring_out)
-        k.node_sums[blocks, threads](self._x, self._p, self._masses, self._anchored, self._ref, self._gravity,
+        k.node_sums[blocks, threads](self._x, self._p, self._nodes.masses, self._nodes.anchored, self._nodes.reference,
+                                     self._nodes.gravity,
                                      self._node_partial)
         k.finish[1, threads](self._node_partial, self._node_ops, self._node_out)
         internal, entropy, theta_min, theta_max = (float(v) for v in self._spring_out.copy_to_host())
         kinetic, potential, px, py, pz, Lx, Ly, Lz = (float(v) for v in self._node_out.copy_to_host())
         return diagnostics_row(system, state, kinetic, internal, potential, entropy, (px, py, pz), (Lx, Ly, Lz),
                                theta_min, theta_max)
+
+
+def records_to_device(record, to_device):
+    """``record`` (a possibly nested tuple or named tuple) with every NumPy array copied to the
+    device; scalars stay as they are."""
+    if isinstance(record, np.ndarray):
+        return to_device(record)
+    if isinstance(record, tuple):
+        items = [records_to_device(item, to_device) for item in record]
+        return type(record)(*items) if hasattr(record, "_fields") else tuple(items)
+    return record

@@ -11,11 +11,12 @@ and raise the order.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from .base import Integrator, StepFailure, Stepper, register_integrator
+from .schedule import StageTable, flow_slots, stage_table
 
 
 @dataclass(frozen=True, repr=False)
@@ -33,10 +34,31 @@ class Splitting(Integrator):
     track_phi: bool = True
     description: str = ""
     explicit: bool = True
+    #: further sub-flows, ((position, SubFlow, coefficient), ...): position i ≤ S runs before
+    #: kick i, S + 1 after the last kick (see :mod:`thermonet.integrators.schedule`)
+    flows: tuple = ()
 
     def __post_init__(self):
         assert len(self.kicks) == len(self.drifts) + 1
         assert abs(sum(self.kicks) - 1.0) < 1e-13 and abs(sum(self.drifts) - 1.0) < 1e-13
+
+    @property
+    def table(self) -> StageTable:
+        """The schedule every backend's kernels read (:func:`~thermonet.integrators.schedule.stage_table`)."""
+        return stage_table(self.kicks, self.drifts, self.flows)
+
+    @property
+    def subflows(self) -> tuple:
+        """The distinct extra sub-flows, in the kernels' slot order."""
+        return flow_slots(self.flows)
+
+    def with_flow(self, flow, coefficient: float = 0.5, name: str | None = None) -> "Splitting":
+        """``flow(c h) ∘ self(h) ∘ flow(c h)``: the symmetric splitting of this integrator and
+        ``flow`` (c = ½: second order when self is symmetric and of order ≥ 2)."""
+        last = len(self.drifts) + 1
+        return replace(self, name=name or f"{self.name}+{flow.name}",
+                       flows=self.flows + ((0, flow, coefficient), (last, flow, coefficient)),
+                       description=f"{flow.name}({coefficient:g} h) around {self.name}")
 
     @property
     def force_evaluations(self) -> int:
@@ -55,7 +77,10 @@ class Splitting(Integrator):
 
 
 def compose(base: Splitting, gammas, name: str, order: int, description: str) -> Splitting:
-    """The composition ``base(γ_1 h) ∘ … ∘ base(γ_s h)``, adjacent kicks merged."""
+    """The composition ``base(γ_1 h) ∘ … ∘ base(γ_s h)``, adjacent kicks merged (of a base
+    without extra sub-flows; compose first, then add flows around the result)."""
+    if base.flows:
+        raise ValueError(f"compose(): {base.name} has sub-flows; compose the splitting without them")
     kicks: list[float] = [0.0]
     drifts: list[float] = []
     for g in gammas:
@@ -108,30 +133,27 @@ class SplittingStepper(Stepper):
     """A :class:`Splitting` bound to a system: owns the scratch buffers, calls the fused kernel."""
 
     def __init__(self, integrator: Splitting, system, parallel: bool = False):
+        from ..kernels import records
         from ..kernels.splitting import kernel_parameters, splitting_kernels
 
         self.integrator = integrator
         self.system = system
         P, uniform = kernel_parameters(system.parameters)
-        self._advance = splitting_kernels(system.model, parallel, system.thermal, uniform)
-        self._kicks = np.asarray(integrator.kicks, dtype=np.float64)
-        self._drifts = np.asarray(integrator.drifts, dtype=np.float64)
+        flows = integrator.subflows
+        self._advance = splitting_kernels(system.model, parallel, system.thermal, uniform, flows)
+        self._table = integrator.table
         n, m = system.n_nodes, system.n_springs
-        self._x_buf = np.empty((n, 3))
-        self._s = np.empty(m)
-        self._f_keep = np.empty((n, 3))
-        self._theta_keep = np.empty(m if system.thermal else 0)
-        self._energy_buf = np.empty(m)
-        self._sums = np.empty(11)
+        self._scratch = records.Scratch(np.empty((n, 3)), np.empty(m), np.empty((n, 3)),
+                                        np.empty(m if system.thermal else 0), np.empty(m), np.empty(11))
         self._measured = None  # (state, step, sums) of the last call asked to measure its end
         # (state, step) whose forces and temperatures the last call's closing kick left in the
         # keep buffers: a call continuing from exactly there starts from them
         self._boundary = None
-        self._gravity = np.zeros(3) if system.gravity is None else np.asarray(system.gravity, dtype=np.float64)
-        lay = system.layout
         self._no_thermal = np.empty(0)
-        self._static = (system.rest_lengths, P, lay.edges, lay.inc_ptr, lay.inc_spring,
-                        lay.inc_other, system.masses, system.inv_mass, system.anchored)
+        self._topology = records.topology(system.layout)
+        self._springs = records.Springs(system.rest_lengths, P)
+        self._nodes = records.nodes(system)
+        self._effects = flow_data(flows, system)
 
     #: advance(..., measure=True) can reduce the end state's diagnostics sums on the way
     measures = True
@@ -139,34 +161,28 @@ class SplittingStepper(Stepper):
     def advance(self, state, n_steps: int, h: float, measure: bool = False):
         """``n_steps`` steps of h from ``state`` (in place). With ``measure`` the closing kick
         also reduces the end state's diagnostics sums: :meth:`measured` returns them."""
+        from ..kernels.records import Run, StateArrays
+
         self._measured = None
         if n_steps <= 0:
             return None
-        l0, P, edges, inc_ptr, inc_spring, inc_other, masses, inv_mass, anchored = self._static
-        phi = state.thermal_displacement if self.system.thermal else self._no_thermal
-        eta = state.entropy if self.system.thermal else self._no_thermal
+        thermal = self.system.thermal
+        arrays = StateArrays(state.positions, state.momenta,
+                             state.thermal_displacement if thermal else self._no_thermal,
+                             state.entropy if thermal else self._no_thermal)
         lo, hi = self.system.stretch_bounds
         reuse = self._boundary is not None and self._boundary[0] is state and self._boundary[1] == state.step
         self._boundary = None
-        done, detected, summed = self._advance(
-            state.positions, self._x_buf, state.momenta, phi, eta, self._s,
-            l0, P, edges, inc_ptr, inc_spring, inc_other, masses, inv_mass, anchored,
-            self._kicks, self._drifts, float(h), int(n_steps), self.integrator.track_phi,
-            self._gravity, self.system.gravity is not None, float(lo), float(hi),
-            self._f_keep, self._theta_keep, reuse, self._energy_buf, self.system.reference_point, self._sums,
-            bool(measure),
-        )
-        if not detected and self._kicks[-1] != 0.0:
+        run = Run(float(h), float(state.time), int(n_steps), bool(self.integrator.track_phi), float(lo), float(hi),
+                  bool(reuse), bool(measure))
+        done, detected, summed = self._advance(arrays, self._scratch, self._topology, self._springs, self._nodes,
+                                               self._table, self._effects, run)
+        if not detected and self._table.carry != 0.0:
             self._boundary = (state, state.step + int(n_steps))
         if summed:
-            self._measured = (state, state.step + int(n_steps), self._sums.copy())
+            self._measured = (state, state.step + int(n_steps), self._scratch.sums.copy())
         if detected:
-            from ..blowup import diagnose
-
-            found = diagnose(self.system, state.positions, state.entropy)
-            where = (f"spring {found['spring']} (nodes {found['nodes'][0]}–{found['nodes'][1]}) has {found['problem']}"
-                     if found else "a spring left the admissible states")
-            raise StepFailure(where, steps_done=int(done), details={"rewind": True, **found})
+            raise blowup_failure(self.system, state.positions, state.entropy, done)
         return None
 
     def measured(self, state) -> dict | None:
@@ -181,3 +197,24 @@ class SplittingStepper(Stepper):
         U, tmin, tmax, K, V, px, py, pz, lx, ly, lz = (float(v) for v in sums)
         return dict(kinetic=K, internal=U, potential=V, momentum=(px, py, pz), angular_momentum=(lx, ly, lz),
                     theta_min=tmin, theta_max=tmax)
+
+
+def flow_data(flows, system) -> tuple:
+    """The kernels' ``effects`` record: one data tuple per flow slot (4), each flow's
+    ``prepare(system)`` (as contiguous arrays), an unused slot a one-array placeholder."""
+    from .schedule import MAX_FLOWS
+
+    data = [tuple(np.ascontiguousarray(a) for a in f.prepare(system)) for f in flows]
+    return tuple(data + [(np.empty(0),)] * (MAX_FLOWS - len(data)))
+
+
+def blowup_failure(system, positions, entropy, steps_done: int) -> StepFailure:
+    """The :class:`StepFailure` of a kernel that stopped on an inadmissible spring at
+    ``positions`` (internal numbering), naming the spring: the caller rewinds and replays
+    ``steps_done`` steps."""
+    from ..blowup import diagnose
+
+    found = diagnose(system, positions, entropy)
+    where = (f"spring {found['spring']} (nodes {found['nodes'][0]}–{found['nodes'][1]}) has {found['problem']}"
+             if found else "a spring left the admissible states")
+    return StepFailure(where, steps_done=int(steps_done), details={"rewind": True, **found})

@@ -80,6 +80,16 @@ def model_fingerprint(model) -> str:
     return fingerprint
 
 
+def function_fingerprint(*functions) -> str:
+    """A short stable hash of (Numba or Python) functions and the Numba functions they call, for
+    cache names of kernels compiled around them (as :func:`model_fingerprint` for a model)."""
+    h = hashlib.sha256()
+    seen: set = set()
+    for fn in functions:
+        _function_digest(fn, h, seen)
+    return h.hexdigest()[:12]
+
+
 def model_namespace(model) -> dict:
     """Global names a template may use for the model's functions."""
     return {name: getattr(model, name) for name in MODEL_FUNCTIONS}

@@ -56,14 +56,20 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from .specialize import model_fingerprint, model_namespace, specialize
+from . import subflows
+from .specialize import function_fingerprint, model_fingerprint, model_namespace, rebind, specialize
 
-# Bound per model by specialize(); listed so the templates read as ordinary code. THERMAL,
-# REFERENCE_TEMPERATURE and UNIFORM are compile-time constants: with THERMAL False the kernel is
-# the purely mechanical one (every spring at its reference temperature, parameter row
-# REFERENCE_TEMPERATURE; no η, θ or Φ is read or written); with UNIFORM, P is (k, 1) and shared.
-temperature = tension = internal_energy = free_energy = spring_pass = node_pass = None
-boundary_spring_pass = boundary_node_pass = thermal_kick = copy_rows = None
+# Bound per kernel variant by splitting_kernels(); listed so the templates read as ordinary code.
+# THERMAL, CLOSING, REFERENCE_TEMPERATURE and UNIFORM are compile-time constants: with THERMAL
+# False the kernel is the purely mechanical one (every spring at its reference temperature,
+# parameter row REFERENCE_TEMPERATURE; no η, θ or Φ is read or written); with UNIFORM, P is
+# (k, 1) and shared. The sub-flows (spring_force, gather_force, ...) are those of
+# thermonet.kernels.subflows; flow_pass_0 … flow_pass_3 run the integrator's extra sub-flows.
+internal_energy = free_energy = spring_pass = node_pass = boundary_spring_pass = boundary_node_pass = None
+thermal_kick = copy_rows = apply_flow = None
+spring_force = outside_admissible = advance_thermal_displacement = None
+gather_force = kick_momentum = drift_position = load_row = store_row = None
+flow_pass_0 = flow_pass_1 = flow_pass_2 = flow_pass_3 = update = None
 THERMAL = True
 CLOSING = False
 REFERENCE_TEMPERATURE = 0
@@ -75,6 +81,8 @@ BLOCK = 512
 _CACHE: dict = {}
 
 _OPTIONS = dict(cache=True, error_model="numpy", boundscheck=False)
+
+_squared_length = njit(inline="always", error_model="numpy", boundscheck=False)(subflows.squared_length)
 
 
 def kernel_parameters(P: np.ndarray) -> tuple[np.ndarray, bool]:
@@ -89,19 +97,31 @@ def kernel_parameters(P: np.ndarray) -> tuple[np.ndarray, bool]:
     return P, False
 
 
-def splitting_kernels(model, parallel: bool, thermal: bool = True, uniform: bool = False):
-    """``advance(...)`` compiled for ``model`` (multi-threaded when ``parallel``; purely mechanical
-    when not ``thermal``, in which case ``phi`` and ``eta`` may be empty arrays; for a ``(k, 1)``
-    parameter array shared by all springs when ``uniform``, see :func:`kernel_parameters`)."""
-    key = (model_fingerprint(model), bool(parallel), bool(thermal), bool(uniform))
+def bind_subflows(ns: dict, tag: str, compile_) -> None:
+    """Bind :mod:`thermonet.kernels.subflows`' functions into ``ns`` (a kernel namespace holding
+    the model and the compile-time constants), each compiled by ``compile_`` for its target."""
+    for name in subflows.SHARED:
+        ns[name] = compile_(rebind(getattr(subflows, name), tag, ns))
+
+
+def splitting_kernels(model, parallel: bool, thermal: bool = True, uniform: bool = False, flows=()):
+    """``advance(state, scratch, topology, springs, nodes, table, effects, run)`` compiled for
+    ``model`` (multi-threaded when ``parallel``; purely mechanical when not ``thermal``, in which
+    case ``phi`` and ``eta`` may be empty arrays; for a ``(k, 1)`` parameter array shared by all
+    springs when ``uniform``, see :func:`kernel_parameters`) with the extra sub-flows ``flows``
+    (:class:`~thermonet.integrators.schedule.SubFlow` s, slot order) in its flow slots."""
+    key = (model_fingerprint(model), bool(parallel), bool(thermal), bool(uniform),
+           tuple(id(f) for f in flows))
     if key not in _CACHE:
+        flows_tag = f"_f{function_fingerprint(*(f.update for f in flows))}" if flows else ""
         tag = (f"{model.name}_{key[0]}_{'par' if parallel else 'ser'}_{'thermal' if thermal else 'mech'}"
-               f"{'_uniform' if uniform else ''}")
+               f"{'_uniform' if uniform else ''}_s{subflows.source_digest()}{flows_tag}")
         ns = model_namespace(model)
         ns["THERMAL"] = bool(thermal)
         ns["REFERENCE_TEMPERATURE"] = model.parameter_index(model.reference_temperature)
         ns["UNIFORM"] = bool(uniform)
         ns["CLOSING"] = False
+        bind_subflows(ns, tag, njit(inline="always", error_model="numpy", boundscheck=False))
         ns["spring_pass"] = specialize(_spring_pass, tag, ns, parallel=parallel, **_OPTIONS)
         ns["node_pass"] = specialize(_node_pass, tag, ns, parallel=parallel, **_OPTIONS)
         boundary = dict(ns, CLOSING=True)
@@ -111,6 +131,16 @@ def splitting_kernels(model, parallel: bool, thermal: bool = True, uniform: bool
                                               **_OPTIONS)
         ns["thermal_kick"] = specialize(_thermal_kick, tag, ns, parallel=parallel, **_OPTIONS)
         ns["copy_rows"] = specialize(_copy_rows, tag, ns, parallel=parallel, **_OPTIONS)
+        for slot in range(4):
+            if slot < len(flows):
+                update_ = flows[slot].update
+                if not hasattr(update_, "py_func"):
+                    update_ = njit(inline="always", error_model="numpy", boundscheck=False)(update_)
+                fn = specialize(_flow_pass, f"{tag}_{slot}", dict(ns, update=update_), parallel=parallel, **_OPTIONS)
+            else:
+                fn = _no_flow
+            ns[f"flow_pass_{slot}"] = fn
+        ns["apply_flow"] = specialize(_apply_flow, tag, ns, inline="always", **_OPTIONS)
         _CACHE[key] = specialize(_advance, tag, ns, **_OPTIONS)
     return _CACHE[key]
 
@@ -121,13 +151,7 @@ def squared_lengths(x, edges, lo, n, out, base):
     spring pass (kept apart from the arithmetic so that the arithmetic loop vectorizes).
     edges: (m, 2) uint32."""
     for i in range(n):
-        e = np.uint64(lo + i)
-        a = edges[e, 0]
-        b = edges[e, 1]
-        dx = x[b, 0] - x[a, 0]
-        dy = x[b, 1] - x[a, 1]
-        dz = x[b, 2] - x[a, 2]
-        out[base + i] = dx * dx + dy * dy + dz * dz
+        out[base + i] = _squared_length(x, edges, np.uint64(lo + i))
 
 
 @njit(inline="always", error_model="numpy", boundscheck=False)
@@ -142,17 +166,28 @@ def node_diagnostic_terms(x0, x1, x2, p0, p1, p2, mass, gravity, ref):
             r1 * p2 - r2 * p1, r2 * p0 - r0 * p2, r0 * p1 - r1 * p0)
 
 
-def _spring_pass(x, eta, l0, P, edges, s, phi, phi_h1, phi_h2, track_phi, stretch_min, stretch_max,
-                 theta_keep, keep, energy_buf, want_sums):
-    """Per spring e: s[e] = T/l at x; Φ[e] += (phi_h1 + phi_h2) θ as two additions; θ into
-    theta_keep[e] when ``keep`` (THERMAL only); with ``want_sums`` the spring's internal energy
-    (free energy at θ0 when not THERMAL) into energy_buf[e] and the block sums below.
+def _spring_pass(x, eta, phi, topology, springs, scratch, steps, run, keep):
+    """Per spring e: s[e] = T/l at x; Φ[e] += steps[0] θ, += steps[1] θ (two additions); θ into
+    theta_keep[e] when ``keep`` (THERMAL only); with ``run.want_sums`` (CLOSING only) the
+    spring's internal energy (free energy at θ0 when not THERMAL) into energy_buf[e] and the
+    block sums below.
 
-    edges: (m, 2) uint32. P: (k, m), or (k, 1) when UNIFORM. Returns (the number of springs
-    outside the admissible states (stretch bounds, non-finite T/l, θ ≤ 0), Σ energy, min θ,
-    max θ); the sums are 0, inf, −inf without ``want_sums``. Compiled twice: with CLOSING for
-    the calls' first and last kicks, and without (keep and sums compiled out) for every other.
+    x: (n, 3); eta, phi: (m,); steps: (2,) tuple of floats. Returns (the number of springs
+    outside the admissible states, Σ energy, min θ, max θ); the sums are 0, inf, −inf unless
+    summed. Compiled twice: with CLOSING for the calls' first and last kicks, and without (keep
+    and sums compiled out) for every other.
     """
+    edges = topology.edges
+    l0 = springs.rest
+    P = springs.P
+    s = scratch.s
+    theta_keep = scratch.theta_keep
+    energy_buf = scratch.energy_buf
+    phi_h1, phi_h2 = steps
+    track_phi = run.track_phi
+    stretch_min = run.stretch_min
+    stretch_max = run.stretch_max
+    want_sums = CLOSING and run.want_sums
     m = edges.shape[0]
     bad = 0
     energy = 0.0
@@ -167,16 +202,9 @@ def _spring_pass(x, eta, l0, P, edges, s, phi, phi_h1, phi_h2, track_phi, stretc
             c = np.uint64(0) if UNIFORM else e
             l = math.sqrt(s[e])
             rest = l0[e]
-            if THERMAL:
-                theta = temperature(l, eta[e], rest, P, c)
-            else:
-                theta = P[REFERENCE_TEMPERATURE, c]
-            force = tension(l, theta, rest, P, c) / l
+            theta, force = spring_force(l, eta[e] if THERMAL else 0.0, rest, P, c)
             s[e] = force
-            outside = (l <= stretch_min * rest) | (l >= stretch_max * rest) | (not (abs(force) < math.inf))
-            if THERMAL:
-                outside = outside | (not (theta > 0.0))
-            bad += outside
+            bad += outside_admissible(l, rest, force, theta, stretch_min, stretch_max)
             if CLOSING:
                 if THERMAL and keep:
                     theta_keep[e] = theta
@@ -186,9 +214,7 @@ def _spring_pass(x, eta, l0, P, edges, s, phi, phi_h1, phi_h2, track_phi, stretc
                     else:
                         energy_buf[e] = free_energy(l, theta, rest, P, c)
             if THERMAL and track_phi:
-                if phi_h1 != 0.0:
-                    phi[e] += phi_h1 * theta
-                phi[e] += phi_h2 * theta
+                advance_thermal_displacement(phi, e, theta, phi_h1, phi_h2)
         if CLOSING:
             if want_sums:  # in order, after the vectorized loop (a sum inside it would keep it scalar)
                 block_sum = 0.0
@@ -206,17 +232,30 @@ def _spring_pass(x, eta, l0, P, edges, s, phi, phi_h1, phi_h2, track_phi, stretc
     return bad, energy, theta_min, theta_max
 
 
-def _node_pass(x, x_new, p, s, inc_ptr, inc_spring, inc_other, masses, inv_mass, anchored,
-               kick1, kick2, drift, with_force, gravity, with_gravity, f_keep, force_source, ref, want_sums):
-    """Per node a: f = Σ s_e (x_b − x_a) (+ m g); p += kick1 f; p += kick2 f; x_new = x + drift p/m.
+def _node_pass(x, x_new, p, topology, nodes, scratch, steps, force_source, want_sums):
+    """Per node a: f = Σ s_e (x_b − x_a) (+ m g); p += kick1 f; p += kick2 f; x_new = x + drift p/m,
+    with steps = (kick1, kick2, drift, with_force) (fractions of h already multiplied by h).
 
-    inc_spring, inc_other: (2m,) uint32. force_source: 0 gather f; 1 gather f and keep it in
-    f_keep (n, 3) (a call's closing kick, whose drift is 0: x_new is then not written, the
-    positions stay in x); 2 take f from f_keep. Returns, with ``want_sums``, the sums over free
+    x, x_new, p: (n, 3). force_source: 0 gather f; 1 gather f and keep it in f_keep (n, 3) (a
+    call's closing kick, whose drift is 0: x_new is then not written, the positions stay in
+    x); 2 take f from f_keep. Returns, with ``want_sums`` (CLOSING only), the sums over free
     nodes at (x, the new p) of kinetic energy, gravity potential −Σ m g·x, p and (x − ref) × p
     (else 0).
     """
+    inc_ptr = topology.inc_ptr
+    inc_spring = topology.inc_spring
+    inc_other = topology.inc_other
+    masses = nodes.masses
+    inv_mass = nodes.inv_mass
+    anchored = nodes.anchored
+    gravity = nodes.gravity
+    with_gravity = nodes.with_gravity
+    ref = nodes.reference
+    s = scratch.s
+    f_keep = scratch.f_keep
+    kick1, kick2, drift, with_force = steps
     move = not (CLOSING and force_source == 1)
+    sums = CLOSING and want_sums
     kinetic = 0.0
     potential = 0.0
     px = 0.0
@@ -226,58 +265,24 @@ def _node_pass(x, x_new, p, s, inc_ptr, inc_spring, inc_other, masses, inv_mass,
     ly = 0.0
     lz = 0.0
     for a in prange(x.shape[0]):
-        xa0 = x[a, 0]
-        xa1 = x[a, 1]
-        xa2 = x[a, 2]
+        xa0, xa1, xa2 = load_row(x, a)
         if anchored[a]:
             if move:
-                x_new[a, 0] = xa0
-                x_new[a, 1] = xa1
-                x_new[a, 2] = xa2
+                store_row(x_new, a, xa0, xa1, xa2)
             continue
-        p0 = p[a, 0]
-        p1 = p[a, 1]
-        p2 = p[a, 2]
+        p0, p1, p2 = load_row(p, a)
         if with_force:
             if CLOSING and force_source == 2:
-                f0 = f_keep[a, 0]
-                f1 = f_keep[a, 1]
-                f2 = f_keep[a, 2]
+                f0, f1, f2 = load_row(f_keep, a)
             else:
-                f0 = 0.0
-                f1 = 0.0
-                f2 = 0.0
-                for j in range(inc_ptr[a], inc_ptr[a + 1]):
-                    ju = np.uint64(j)
-                    se = s[inc_spring[ju]]
-                    b = inc_other[ju]
-                    f0 += se * (x[b, 0] - xa0)
-                    f1 += se * (x[b, 1] - xa1)
-                    f2 += se * (x[b, 2] - xa2)
-                if with_gravity:
-                    f0 += masses[a] * gravity[0]
-                    f1 += masses[a] * gravity[1]
-                    f2 += masses[a] * gravity[2]
+                f0, f1, f2 = gather_force(a, x, s, inc_ptr, inc_spring, inc_other, masses, gravity, with_gravity)
                 if CLOSING and force_source == 1:
-                    f_keep[a, 0] = f0
-                    f_keep[a, 1] = f1
-                    f_keep[a, 2] = f2
-            if kick1 != 0.0:
-                p0 += kick1 * f0
-                p1 += kick1 * f1
-                p2 += kick1 * f2
-            p0 += kick2 * f0
-            p1 += kick2 * f1
-            p2 += kick2 * f2
-            p[a, 0] = p0
-            p[a, 1] = p1
-            p[a, 2] = p2
+                    store_row(f_keep, a, f0, f1, f2)
+            p0, p1, p2 = kick_momentum(p0, p1, p2, f0, f1, f2, kick1, kick2)
+            store_row(p, a, p0, p1, p2)
         if move:
-            w = drift * inv_mass[a]
-            x_new[a, 0] = xa0 + w * p0
-            x_new[a, 1] = xa1 + w * p1
-            x_new[a, 2] = xa2 + w * p2
-        if CLOSING and want_sums:
+            drift_position(x_new, a, xa0, xa1, xa2, p0, p1, p2, drift * inv_mass[a])
+        if sums:
             k, v, l0_, l1_, l2_ = node_diagnostic_terms(xa0, xa1, xa2, p0, p1, p2, masses[a], gravity, ref)
             kinetic += k
             potential += v
@@ -304,76 +309,103 @@ def _copy_rows(source, target):
         target[a, 2] = source[a, 2]
 
 
-def _advance(x, x_buf, p, phi, eta, s, l0, P, edges, inc_ptr, inc_spring, inc_other, masses, inv_mass,
-             anchored, kicks, drifts, h, n_steps, track_phi, gravity, with_gravity, stretch_min, stretch_max,
-             f_keep, theta_keep, reuse_boundary, energy_buf, ref, sums, want_sums):
-    """Advance (x, p, Φ) in place by ``n_steps`` steps of the scheme (kicks (S+1,), drifts (S,)).
+def _flow_pass(data, tau, t, x, p, phi, eta):
+    """One extra sub-flow over tau at time t: ``update(i, data, tau, t, x, p, phi, eta)`` for
+    every element i of range(len(data[0])), in parallel."""
+    for i in prange(data[0].shape[0]):
+        update(i, data, tau, t, x, p, phi, eta)
 
-    The closing kick's forces and temperatures are kept in f_keep (n, 3) and theta_keep (m,)
-    (empty when not THERMAL); with ``reuse_boundary`` the first kick takes them from there
-    instead of evaluating them (the caller vouches that x, η are those of the previous call's end).
-    With ``want_sums`` the closing kick writes the end state's diagnostics sums into sums (11,):
-    Σ U (Σ F(l, θ0) when not THERMAL), min θ, max θ, kinetic, gravity potential, p (3),
-    angular momentum about ref (3); energy_buf (m,) is their scratch.
+
+@njit(inline="always")
+def _no_flow(data, tau, t, x, p, phi, eta):
+    """An empty flow slot."""
+    return None
+
+
+def _apply_flow(slot, effects, tau, t, x, p, phi, eta):
+    """Run the sub-flow in ``slot`` with its data ``effects[slot]`` (effects: a 4-tuple of data
+    tuples, one per slot)."""
+    if slot == 0:
+        flow_pass_0(effects[0], tau, t, x, p, phi, eta)
+    elif slot == 1:
+        flow_pass_1(effects[1], tau, t, x, p, phi, eta)
+    elif slot == 2:
+        flow_pass_2(effects[2], tau, t, x, p, phi, eta)
+    else:
+        flow_pass_3(effects[3], tau, t, x, p, phi, eta)
+
+
+def _advance(state, scratch, topology, springs, nodes, table, effects, run):
+    """Advance ``state`` (x, p, Φ in place; η too where a sub-flow changes it) by ``run.n_steps``
+    steps of the schedule ``table`` (a :class:`~thermonet.integrators.schedule.StageTable`).
+
+    The closing kick's forces and temperatures are kept in f_keep and theta_keep; with
+    ``run.reuse_boundary`` the first kick takes them from there instead of evaluating them (the
+    caller vouches that x, η are those of the previous call's end). With ``run.want_sums`` the
+    closing kick writes the end state's diagnostics sums into sums (11,): Σ U (Σ F(l, θ0) when
+    not THERMAL), min θ, max θ, kinetic, gravity potential, p (3), angular momentum about the
+    reference point (3).
 
     Returns (steps completed, detected, summed): ``detected`` when a spring left the admissible
     states (see the module docstring); then ``x`` holds the positions where it was found and only
     the first ``steps completed`` steps are known good (x, p, Φ are mid-step: rewind and replay).
-    ``summed``: the sums were written (a scheme without a closing kick writes none).
-
-    x, x_buf, p: (n, 3); phi, eta, s, l0: (m,); P: (k, m), or (k, 1) for the UNIFORM variant;
-    edges: (m, 2) int32; inc_*: CSR incidence (inc_ptr (n+1,) int64, inc_spring and inc_other
-    (2m,) int32); masses, inv_mass: (n,) (inv_mass 0 on anchors); anchored: (n,) bool;
-    gravity: (3,) acceleration, used when with_gravity. x_buf and s are scratch.
+    ``summed``: the sums were written (a schedule without a closing kick writes none).
     """
-    edges_u = edges.view(np.uint32)
-    inc_spring_u = inc_spring.view(np.uint32)
-    inc_other_u = inc_other.view(np.uint32)
-    n_stages = drifts.shape[0]
+    x = state.x
+    p = state.p
+    phi = state.phi
+    eta = state.eta
+    x_buf = scratch.x_buf
+    h = run.h
+    n_steps = run.n_steps
+    codes = table.code
+    n_rows = codes.shape[0]
+    carry = table.carry
     cur = x
     nxt = x_buf
     swaps = 0
     pending = 0.0
     for step in range(n_steps):
-        for i in range(n_stages):
-            k1 = pending if i == 0 else 0.0
-            k2 = kicks[i]
+        for r in range(n_rows):
+            if codes[r] >= 0:
+                apply_flow(codes[r], effects, table.kick[r] * h, run.t0 + (step + table.drift[r]) * h,
+                           cur, p, phi, eta)
+                continue
+            k1 = pending if r == 0 else 0.0
+            k2 = table.kick[r]
             with_force = k1 != 0.0 or k2 != 0.0
-            reuse = reuse_boundary and step == 0 and i == 0 and with_force
+            steps = (k1 * h, k2 * h, table.drift[r] * h, with_force)
+            reuse = run.reuse_boundary and step == 0 and r == 0 and with_force
             if reuse:  # the previous call's closing kick evaluated these at these positions
-                if THERMAL and track_phi:
-                    thermal_kick(phi, theta_keep, k2 * h)
+                if THERMAL and run.track_phi:
+                    thermal_kick(phi, scratch.theta_keep, k2 * h)
             elif with_force:
-                bad = spring_pass(cur, eta, l0, P, edges_u, s, phi, k1 * h, k2 * h, track_phi,
-                                  stretch_min, stretch_max, theta_keep, False, energy_buf, False)[0]
+                bad = spring_pass(cur, eta, phi, topology, springs, scratch, (k1 * h, k2 * h), run, False)[0]
                 if bad > 0:
                     if swaps % 2 == 1:
                         copy_rows(x_buf, x)
-                    # positions at stage 0 are the end of the previous step: that step was the bad one
-                    return (step - 1 if i == 0 and step > 0 else step), True, False
+                    # positions at row 0 are the end of the previous step: that step was the bad one
+                    return (step - 1 if r == 0 and step > 0 else step), True, False
             if reuse:
-                boundary_node_pass(cur, nxt, p, s, inc_ptr, inc_spring_u, inc_other_u, masses, inv_mass, anchored,
-                                   k1 * h, k2 * h, drifts[i] * h, with_force, gravity, with_gravity, f_keep, 2,
-                                   ref, False)
+                boundary_node_pass(cur, nxt, p, topology, nodes, scratch, steps, 2, False)
             else:
-                node_pass(cur, nxt, p, s, inc_ptr, inc_spring_u, inc_other_u, masses, inv_mass, anchored,
-                          k1 * h, k2 * h, drifts[i] * h, with_force, gravity, with_gravity, f_keep, 0, ref, False)
+                node_pass(cur, nxt, p, topology, nodes, scratch, steps, 0, False)
             cur, nxt = nxt, cur
             swaps += 1
-        pending = kicks[n_stages]
+        pending = carry
     summed = False
     if pending != 0.0:
-        bad, energy, theta_min, theta_max = boundary_spring_pass(cur, eta, l0, P, edges_u, s, phi, 0.0,
-                                                                 pending * h, track_phi, stretch_min, stretch_max,
-                                                                 theta_keep, True, energy_buf, want_sums)
+        bad, energy, theta_min, theta_max = boundary_spring_pass(cur, eta, phi, topology, springs, scratch,
+                                                                 (0.0, pending * h), run, True)
         if bad > 0:
             if swaps % 2 == 1:
                 copy_rows(x_buf, x)
             return n_steps - 1, True, False
-        node_sums = boundary_node_pass(cur, nxt, p, s, inc_ptr, inc_spring_u, inc_other_u, masses, inv_mass,
-                                       anchored, 0.0, pending * h, 0.0, True, gravity, with_gravity, f_keep, 1, ref,
-                                       want_sums)  # drift 0: the positions stay in cur
-        if want_sums:
+        # drift 0: the positions stay in cur
+        node_sums = boundary_node_pass(cur, nxt, p, topology, nodes, scratch, (0.0, pending * h, 0.0, True), 1,
+                                       run.want_sums)
+        if run.want_sums:
+            sums = scratch.sums
             sums[0] = energy
             sums[1] = theta_min
             sums[2] = theta_max

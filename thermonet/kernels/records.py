@@ -1,0 +1,100 @@
+"""The records the explicit kernels take: a few named tuples of arrays instead of dozens of
+positional arguments. Numba passes a named tuple of arrays like the arrays themselves (a struct of
+pointers, unpacked once per call), on the CPU and on CUDA alike.
+
+Arrays are in the internal numbering (:class:`~thermonet.layout.Layout`); index arrays are
+unsigned views (a negative-index test per access would otherwise cost a third of the gather
+pass and block vectorization).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+
+class Topology(NamedTuple):
+    """Which springs join which nodes.
+
+    edges: (m, 2) uint32; inc_ptr: (n+1,) int64 CSR offsets of each node's incident springs;
+    inc_spring, inc_other: (2m,) uint32, the incident spring and the node at its other end.
+    """
+
+    edges: np.ndarray
+    inc_ptr: np.ndarray
+    inc_spring: np.ndarray
+    inc_other: np.ndarray
+
+
+class Springs(NamedTuple):
+    """Per-spring data: rest (m,) rest lengths; P (k, m) model parameters, or (k, 1) when every
+    spring has the same (see :func:`thermonet.kernels.splitting.kernel_parameters`)."""
+
+    rest: np.ndarray
+    P: np.ndarray
+
+
+class Nodes(NamedTuple):
+    """Per-node data: masses, inv_mass (n,) (inv_mass 0 on anchors); anchored (n,) bool;
+    gravity (3,) acceleration, applied when with_gravity; reference (3,) the point angular
+    momentum is taken about."""
+
+    masses: np.ndarray
+    inv_mass: np.ndarray
+    anchored: np.ndarray
+    gravity: np.ndarray
+    with_gravity: bool
+    reference: np.ndarray
+
+
+class StateArrays(NamedTuple):
+    """The state a step changes: x, p (n, 3); phi, eta (m,) (empty when not thermal)."""
+
+    x: np.ndarray
+    p: np.ndarray
+    phi: np.ndarray
+    eta: np.ndarray
+
+
+class Scratch(NamedTuple):
+    """A stepper's buffers: x_buf (n, 3) the other position buffer; s (m,) T/l per spring;
+    f_keep (n, 3) and theta_keep (m,) a call's closing forces and temperatures; energy_buf (m,);
+    sums (11,) a diagnostics row's sums."""
+
+    x_buf: np.ndarray
+    s: np.ndarray
+    f_keep: np.ndarray
+    theta_keep: np.ndarray
+    energy_buf: np.ndarray
+    sums: np.ndarray
+
+
+class Run(NamedTuple):
+    """What one call does: n_steps of h from time t0; track_phi (False for NM2); admissible
+    stretches (stretch_min, stretch_max); reuse_boundary (the previous call's closing forces
+    are valid here); want_sums (reduce the end state's diagnostics sums)."""
+
+    h: float
+    t0: float
+    n_steps: int
+    track_phi: bool
+    stretch_min: float
+    stretch_max: float
+    reuse_boundary: bool
+    want_sums: bool
+
+
+def topology(layout) -> Topology:
+    """The :class:`Topology` of a :class:`~thermonet.layout.Layout`, as unsigned views."""
+    return Topology(np.ascontiguousarray(layout.edges).view(np.uint32),
+                    np.ascontiguousarray(layout.inc_ptr, dtype=np.int64),
+                    np.ascontiguousarray(layout.inc_spring).view(np.uint32),
+                    np.ascontiguousarray(layout.inc_other).view(np.uint32))
+
+
+def nodes(system) -> Nodes:
+    """The :class:`Nodes` record of a :class:`~thermonet.system.System`."""
+    gravity = np.zeros(3) if system.gravity is None else np.asarray(system.gravity, dtype=np.float64)
+    return Nodes(system.masses, system.inv_mass, np.ascontiguousarray(system.anchored, dtype=np.bool_), gravity,
+                 system.gravity is not None, np.asarray(system.reference_point, dtype=np.float64))
