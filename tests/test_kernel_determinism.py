@@ -109,7 +109,7 @@ def test_rows_reduced_by_the_closing_kick_equal_the_stand_alone_reduction(model,
 
     sim = make(model, integrator, uniform, gravity, parallel=parallel)
     sim.run(steps=12, diagnostics_every=4)
-    fused = sim.stepper.measured(sim.internal_state()) is not None
+    fused = sim.stepper.closing_sums(sim.internal_state()) is not None
     assert fused == (sim.integrator.kicks[-1] != 0.0)  # schemes without a closing kick reduce apart
     row, alone = sim.diagnostics.rows[-1], measure(sim.system, sim.internal_state(), parallel)
     for key, value in alone.items():
@@ -126,6 +126,6 @@ def test_mechanical_rows_reduced_by_the_closing_kick_equal_the_stand_alone_reduc
     v = np.random.default_rng(5).normal(0.0, 1.0, (net.n_nodes, 3))
     sim = tn.Simulation(net, velocities=v, thermal=False, integrator="co2", h=2e-3, gravity=(0, 0, -1), parallel=False)
     sim.run(steps=12, diagnostics_every=4)
-    assert sim.stepper.measured(sim.internal_state()) is not None
+    assert sim.stepper.closing_sums(sim.internal_state()) is not None
     row, alone = sim.diagnostics.rows[-1], measure(sim.system, sim.internal_state(), False)
     assert {k: row[k] for k in alone} == alone

@@ -333,7 +333,7 @@ class Simulation:
         step0 = self._state.step
         backup = self._keep_backup()
         try:
-            if measure and getattr(self.stepper, "measures", False):
+            if measure and self.stepper.measures:
                 stats = self.stepper.advance(self._state, n, self._h, measure=True)
             else:
                 stats = self.stepper.advance(self._state, n, self._h)
@@ -432,17 +432,15 @@ class Simulation:
             f"{where}. Try a smaller h than {self._h:g} or an implicit integrator (ho4, gtr-1/2).")
 
     def _record(self, _sim=None) -> None:
-        device_measure = getattr(self.stepper, "measure", None)  # a device-resident state
-        measured = getattr(self.stepper, "measured", None)  # sums reduced by the last advance
-        sums = measured(self._state) if measured is not None else None
-        if device_measure is not None:
-            row = device_measure(self.system, self._state)
-        elif sums is not None:
-            s = self._state
-            entropy = float(np.sum(s.entropy)) if self.system.thermal else None
-            row = diagnostics_row(self.system, s, entropy=entropy, **sums)
-        else:
-            row = measure(self.system, self._state, self.parallel)
+        row = self.stepper.diagnostics_row(self.system, self._state)  # a device-resident state
+        if row is None:
+            sums = self.stepper.closing_sums(self._state)  # reduced by the last advance
+            if sums is not None:
+                s = self._state
+                entropy = float(np.sum(s.entropy)) if self.system.thermal else None
+                row = diagnostics_row(self.system, s, entropy=entropy, **sums)
+            else:
+                row = measure(self.system, self._state, self.parallel)
         row.update(getattr(self, "_last_stats", {}) or {})
         self.diagnostics.append(row)
         self._check_physical(row)
@@ -519,9 +517,7 @@ class Simulation:
         to the user's), with its arrays up to date on the host: a device-resident stepper
         (backend "cuda") copies its state back first. Not a copy: read it, do not keep or
         modify it. For output writers; users want :attr:`state`."""
-        sync = getattr(self.stepper, "sync", None)
-        if sync is not None:
-            sync(self._state)
+        self.stepper.sync(self._state)
         return self._state
 
     def internal_spring_fields(self):
@@ -565,9 +561,9 @@ class Simulation:
             "steps_per_s": self.steps_run / self.wall_time if self.wall_time > 0 else float("nan"),
             "spring_steps_per_s": self.steps_run * self.net.n_springs / self.wall_time if self.wall_time > 0 else float("nan"),
         }
-        solver_summary = getattr(self.stepper, "summary", None)  # implicit integrators: Newton totals
+        solver_summary = self.stepper.summary()  # implicit integrators: Newton totals
         if solver_summary is not None:
-            out["_run"]["newton"] = solver_summary()
+            out["_run"]["newton"] = solver_summary
         return out
 
     def __repr__(self) -> str:

@@ -4,8 +4,8 @@ state resident in device memory.
 The host :class:`~thermonet.system.State` stays the one the :class:`~thermonet.simulation.Simulation`
 holds (step and time are kept there), but while the stepper owns it its arrays are stale: the
 simulation calls :meth:`CudaSplittingStepper.sync` before it reads them (output frames, the state
-property, error reports) and :meth:`CudaSplittingStepper.measure` for a diagnostics row, which is
-reduced on the device. So a run copies back only frames and diagnostics rows. A state the
+property, error reports) and :meth:`CudaSplittingStepper.diagnostics_row` for a diagnostics row,
+which is reduced on the device. So a run copies back only frames and diagnostics rows. A state the
 simulation replaces (``load_state``) is a new object, and is uploaded at the next ``advance``.
 """
 
@@ -136,7 +136,7 @@ class CudaSplittingStepper(Stepper):
             kernel[self._k.blocks(count), self._k.threads](data, tau, t, self._x, self._p, self._phi, self._eta,
                                                            self._flag)
 
-    def advance(self, state, n_steps: int, h: float):
+    def advance(self, state, n_steps: int, h: float, measure: bool = False):
         """As :meth:`thermonet.integrators.splitting.SplittingStepper.advance`: the same rows of the
         same schedule and chunk-boundary handling, so results do not depend on how a run is cut
         into chunks; a spring outside the admissible states stops the call, the device state is
@@ -254,7 +254,7 @@ class CudaSplittingStepper(Stepper):
     # ------------------------------------------------------------------------------------------
     # diagnostics
 
-    def measure(self, system, state) -> dict[str, float]:
+    def diagnostics_row(self, system, state) -> dict[str, float]:
         """One diagnostics row (the keys of :func:`thermonet.diagnostics.measure`), reduced on the
         device from the device state; only the few sums come back."""
         self._bind(state)

@@ -14,16 +14,41 @@ from ..errors import SimulationError, UnknownNameError
 
 
 class Stepper(ABC):
-    """An integrator bound to one system."""
+    """An integrator bound to one system: what the :class:`~thermonet.simulation.Simulation`
+    calls. Only :meth:`advance` is required; the rest have defaults for a stepper whose state is
+    the host :class:`~thermonet.system.State` and that measures nothing itself."""
+
+    #: whether ``advance(..., measure=True)`` can reduce the end state's diagnostics sums on the
+    #: way (then :meth:`closing_sums` returns them)
+    measures: bool = False
 
     @abstractmethod
-    def advance(self, state, n_steps: int, h: float) -> dict[str, Any] | None:
+    def advance(self, state, n_steps: int, h: float, measure: bool = False) -> dict[str, Any] | None:
         """Advance ``state`` in place by ``n_steps`` steps of size ``h``.
 
         Returns per-chunk statistics to record with the diagnostics (e.g. Newton iterations), or
         None. On failure raises :class:`StepFailure` with ``steps_done`` set, leaving ``state`` at
-        the last completed step.
+        the last completed step (or, with ``details["rewind"]``, asking the caller to restore and
+        replay that many steps).
         """
+
+    def closing_sums(self, state) -> dict | None:
+        """The sums of a diagnostics row of ``state`` that the last ``advance(..., measure=True)``
+        reduced at its end, if ``state`` is still that one (keys as
+        :func:`thermonet.diagnostics.diagnostics_row`'s arguments); else None."""
+        return None
+
+    def diagnostics_row(self, system, state) -> dict | None:
+        """A whole diagnostics row measured by the stepper (a state resident on a device is
+        reduced there), or None: the caller measures the host state."""
+        return None
+
+    def sync(self, state) -> None:
+        """Bring ``state``'s host arrays up to date (a device-resident stepper copies back)."""
+
+    def summary(self) -> dict | None:
+        """Totals over the run to report (e.g. Newton iterations), or None."""
+        return None
 
 
 class Integrator(ABC):

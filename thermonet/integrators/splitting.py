@@ -160,7 +160,7 @@ class SplittingStepper(Stepper):
 
     def advance(self, state, n_steps: int, h: float, measure: bool = False):
         """``n_steps`` steps of h from ``state`` (in place). With ``measure`` the closing kick
-        also reduces the end state's diagnostics sums: :meth:`measured` returns them."""
+        also reduces the end state's diagnostics sums: :meth:`closing_sums` returns them."""
         from ..kernels.records import Run, StateArrays
 
         self._measured = None
@@ -185,10 +185,8 @@ class SplittingStepper(Stepper):
             raise blowup_failure(self.system, state.positions, state.entropy, done)
         return None
 
-    def measured(self, state) -> dict | None:
-        """The sums of a diagnostics row of ``state`` now, if the last call (with ``measure``)
-        reduced them at its end and ``state`` is still that one: keys as in
-        :func:`thermonet.diagnostics.diagnostics_row`'s arguments; else None."""
+    def closing_sums(self, state) -> dict | None:
+        """See :meth:`Stepper.closing_sums`."""
         if self._measured is None:
             return None
         kept, step, sums = self._measured
