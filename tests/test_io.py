@@ -431,10 +431,10 @@ def test_frame_spring_pass_equals_the_public_accessors_bit_for_bit(parallel, mod
     eta = s.entropy if thermal else none
     phi = s.thermal_displacement if thermal else none
     kernel = frame_spring_kernel(system.model, thermal, parallel)
-    kernel(s.positions, eta, phi, system.rest_lengths, system.parameters, system.edges.view(np.uint32),
-           np.ascontiguousarray(sim.layout.spring_order, dtype=np.int64), np.empty((4, m)), out["temperature"],
-           out["tension"], out["strain"], out["entropy"] if thermal else none, out["phi"] if thermal else none,
-           out["internal"])
+    kernel(s.positions, eta, phi, (system.rest_lengths, system.parameters), system.edges.view(np.uint32),
+           np.ascontiguousarray(sim.layout.spring_order, dtype=np.int64), np.empty((4, m)),
+           (out["temperature"], out["tension"], out["strain"], out["entropy"] if thermal else none,
+            out["phi"] if thermal else none), out["internal"])
     np.testing.assert_array_equal(out["temperature"], sim.temperatures())
     np.testing.assert_array_equal(out["internal"], sim.internal_spring_fields().temperature)
     np.testing.assert_array_equal(out["tension"], sim.tensions())

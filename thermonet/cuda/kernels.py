@@ -41,7 +41,7 @@ from numba import cuda, float64, njit
 
 from ..integrators.schedule import MAX_FLOWS
 from ..kernels import subflows
-from ..kernels.specialize import function_fingerprint, model_fingerprint, model_namespace, rebind
+from ..kernels.specialize import MODEL_FUNCTIONS, function_fingerprint, kernel_namespace, model_fingerprint, rebind
 from ..kernels.splitting import bind_subflows
 from . import FLAG_ROW, FLAG_SET, FLAG_STAGES, FLAG_STEP, simulator_enabled
 
@@ -96,12 +96,11 @@ def cuda_kernels(model, thermal: bool = True, uniform: bool = False, flows=()) -
     sim = simulator_enabled()
     key = (model_fingerprint(model), bool(thermal), bool(uniform), sim, tuple(id(f) for f in flows))
     if key not in _CACHE:
-        ns = model_namespace(model)
+        ns = kernel_namespace(model, thermal, uniform)
         if sim:
-            ns = {name: _simulator_adapter(fn) for name, fn in ns.items()}
+            ns.update({name: _simulator_adapter(ns[name]) for name in MODEL_FUNCTIONS})
         reduce_threads = SIMULATOR_REDUCE_THREADS if sim else REDUCE_THREADS
-        ns.update(THERMAL=bool(thermal), UNIFORM=bool(uniform), REDUCE_THREADS=reduce_threads,
-                  REFERENCE_TEMPERATURE=model.parameter_index(model.reference_temperature))
+        ns["REDUCE_THREADS"] = reduce_threads
         flows_tag = f"_f{function_fingerprint(*(f.update for f in flows))}" if flows else ""
         tag = (f"{model.name}_{key[0]}_{'thermal' if thermal else 'mech'}{'_uniform' if uniform else ''}"
                f"_r{reduce_threads}_s{subflows.source_digest()}{flows_tag}")
@@ -423,9 +422,8 @@ def compile_ptx(model, thermal: bool = True, uniform: bool = False, cc=(9, 0)) -
 
     from ..kernels import records
 
-    ns = model_namespace(model)
-    ns.update(THERMAL=bool(thermal), UNIFORM=bool(uniform), REDUCE_THREADS=REDUCE_THREADS,
-              REFERENCE_TEMPERATURE=model.parameter_index(model.reference_temperature))
+    ns = kernel_namespace(model, thermal, uniform)
+    ns["REDUCE_THREADS"] = REDUCE_THREADS
     tag = f"{model.name}_ptx"
     bind_subflows(ns, tag, njit(inline="always"))
     for name, template in _SHARED:

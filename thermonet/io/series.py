@@ -110,9 +110,9 @@ class FrameFiller:
             none = self._none
             eta = state.entropy if system.thermal else none
             phi = state.thermal_displacement if system.thermal else none
-            self._spring_pass(state.positions, eta, phi, system.rest_lengths, system.parameters, self._edges,
-                              self._spring_order, self._scratch,
-                              *(cell.get(name, none) for name in self._SPRING_FIELDS), self._theta_internal)
+            self._spring_pass(state.positions, eta, phi, (system.rest_lengths, system.parameters), self._edges,
+                              self._spring_order, self._scratch, tuple(cell.get(name, none) for name in self._SPRING_FIELDS),
+                              self._theta_internal)
         if "node_temperature" in self.fields:
             k.node_means_to_user(point["node_temperature"], self._theta_internal, lay.inc_ptr, lay.inc_spring,
                                  self._node_order)

@@ -10,7 +10,7 @@ import numpy as np
 from numba import prange
 
 from .splitting import BLOCK, node_diagnostic_terms, squared_lengths
-from .specialize import model_fingerprint, model_namespace, specialize
+from .specialize import kernel_namespace, model_fingerprint, specialize
 
 # Bound per model by specialize(); see kernels/splitting.py for THERMAL / REFERENCE_TEMPERATURE /
 # UNIFORM.
@@ -28,10 +28,7 @@ def diagnostic_sums_kernel(model, thermal: bool, parallel: bool, uniform: bool =
     P a shared (k, 1) column when ``uniform`` (as the stepping kernels read it)."""
     key = (model_fingerprint(model), bool(thermal), bool(parallel), bool(uniform))
     if key not in _CACHE:
-        ns = model_namespace(model)
-        ns["THERMAL"] = bool(thermal)
-        ns["REFERENCE_TEMPERATURE"] = model.parameter_index(model.reference_temperature)
-        ns["UNIFORM"] = bool(uniform)
+        ns = kernel_namespace(model, thermal, uniform)
         tag = (f"{model.name}_{key[0]}_{'thermal' if thermal else 'mech'}_{'par' if parallel else 'ser'}"
                f"{'_uniform' if uniform else ''}")
         opts = dict(cache=True, error_model="numpy", parallel=bool(parallel))

@@ -95,6 +95,18 @@ def model_namespace(model) -> dict:
     return {name: getattr(model, name) for name in MODEL_FUNCTIONS}
 
 
+def kernel_namespace(model, thermal: bool = True, uniform: bool = False) -> dict:
+    """The globals every kernel template of a model variant reads: the model's functions, and the
+    compile-time constants THERMAL (thermal coupling on; off: every spring at its reference
+    temperature, parameter row REFERENCE_TEMPERATURE) and UNIFORM (one (k, 1) parameter column
+    shared by all springs)."""
+    ns = model_namespace(model)
+    ns["THERMAL"] = bool(thermal)
+    ns["REFERENCE_TEMPERATURE"] = model.parameter_index(model.reference_temperature)
+    ns["UNIFORM"] = bool(uniform)
+    return ns
+
+
 def specialize(template, tag: str, namespace: dict, **jit_options):
     """``njit(**jit_options)`` of ``template`` with ``namespace`` overriding its globals.
 

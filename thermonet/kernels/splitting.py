@@ -57,7 +57,7 @@ import numpy as np
 from numba import njit, prange
 
 from . import subflows
-from .specialize import function_fingerprint, model_fingerprint, model_namespace, rebind, specialize
+from .specialize import function_fingerprint, kernel_namespace, model_fingerprint, rebind, specialize
 
 # Bound per kernel variant by splitting_kernels(); listed so the templates read as ordinary code.
 # THERMAL, CLOSING, REFERENCE_TEMPERATURE and UNIFORM are compile-time constants: with THERMAL
@@ -116,10 +116,7 @@ def splitting_kernels(model, parallel: bool, thermal: bool = True, uniform: bool
         flows_tag = f"_f{function_fingerprint(*(f.update for f in flows))}" if flows else ""
         tag = (f"{model.name}_{key[0]}_{'par' if parallel else 'ser'}_{'thermal' if thermal else 'mech'}"
                f"{'_uniform' if uniform else ''}_s{subflows.source_digest()}{flows_tag}")
-        ns = model_namespace(model)
-        ns["THERMAL"] = bool(thermal)
-        ns["REFERENCE_TEMPERATURE"] = model.parameter_index(model.reference_temperature)
-        ns["UNIFORM"] = bool(uniform)
+        ns = kernel_namespace(model, thermal, uniform)
         ns["CLOSING"] = False
         bind_subflows(ns, tag, njit(inline="always", error_model="numpy", boundscheck=False))
         ns["spring_pass"] = specialize(_spring_pass, tag, ns, parallel=parallel, **_OPTIONS)

@@ -11,7 +11,7 @@ from numba import prange
 
 from .fastmath import log
 from .splitting import BLOCK, squared_lengths
-from .specialize import MODEL_FUNCTIONS, model_fingerprint, model_namespace, specialize
+from .specialize import MODEL_FUNCTIONS, kernel_namespace, model_fingerprint, specialize
 
 # Bound per model by specialize(); THERMAL False: every spring at its reference temperature
 # (parameter row REFERENCE_TEMPERATURE) and "energy" is the free energy F(l, θ0).
@@ -31,12 +31,12 @@ def spring_field_kernel(model, thermal: bool = True, parallel: bool = False):
 
 
 def frame_spring_kernel(model, thermal: bool = True, parallel: bool = False):
-    """``frame_springs(x, eta, phi, l0, P, edges, order, scratch, theta, tension, strain, entropy,
-    thermal_displacement, theta_internal)`` for ``model``: one blocked pass that computes each
-    spring's length, temperature, tension and strain (:func:`log_strain`) from positions x
-    (n, 3) and entropies eta (m,), and writes them, with eta and the thermal displacement phi
-    (m,), to user spring ``order[e]`` of the output arrays (each (m,), or (0,) for a field not
-    wanted). theta_internal: (m,) the temperatures in the internal numbering too, or (0,).
+    """``frame_springs(x, eta, phi, (l0, P), edges, order, scratch, (theta, tension, strain,
+    entropy, thermal_displacement), theta_internal)`` for ``model``: one blocked pass that
+    computes each spring's length, temperature, tension and strain (:func:`log_strain`) from
+    positions x (n, 3) and entropies eta (m,), and writes them, with eta and the thermal
+    displacement phi (m,), to user spring ``order[e]`` of the output arrays (each (m,), or (0,)
+    for a field not wanted). theta_internal: (m,) the temperatures in the internal numbering too, or (0,).
     scratch: (4, m) float64. edges: (m, 2) uint32; order: (m,) int64. Values equal
     :func:`spring_field_kernel`'s (and :func:`log_strain`'s) bit for bit: the same operations."""
     return _spring_pass(_frame_springs, model, thermal, parallel)
@@ -46,9 +46,7 @@ def _spring_pass(template, model, thermal: bool, parallel: bool):
     """``template`` compiled for ``model``, thermal coupling on or off, threaded or not (cached)."""
     key = (template.__name__, model_fingerprint(model), bool(thermal), bool(parallel))
     if key not in _CACHE:
-        ns = model_namespace(model)
-        ns["THERMAL"] = bool(thermal)
-        ns["REFERENCE_TEMPERATURE"] = model.parameter_index(model.reference_temperature)
+        ns = kernel_namespace(model, thermal)
         tag = f"{model.name}_{key[1]}_{'thermal' if thermal else 'mech'}_{'par' if parallel else 'ser'}"
         _CACHE[key] = specialize(template, tag, ns, parallel=bool(parallel), **_OPTIONS)
     return _CACHE[key]
@@ -105,11 +103,12 @@ def _mapped(l, s, l0, P, out):
         out[e] = scalar(l[e], s[e], l0[e], P, e)
 
 
-def _frame_springs(x, eta, phi, l0, P, edges, order, scratch, theta, tens, strain, entropy, thermal_displacement,
-                   theta_internal):
+def _frame_springs(x, eta, phi, springs, edges, order, scratch, fields, theta_internal):
     """See :func:`frame_spring_kernel`. Blocked like :func:`_spring_fields`: per block the gather
     (squared lengths), the arithmetic over contiguous scratch rows (which vectorizes), then one
     loop scattering every wanted field to its user position."""
+    l0, P = springs
+    theta, tens, strain, entropy, thermal_displacement = fields
     m = edges.shape[0]
     with_theta = theta.shape[0] > 0
     with_tension = tens.shape[0] > 0
