@@ -8,7 +8,6 @@ P = Σ p, L = Σ (x − x_ref) × p over free nodes.
 from __future__ import annotations
 
 import csv
-import os
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -140,14 +139,14 @@ class Diagnostics:
 
     def to_csv(self, path) -> None:
         """Write all rows to ``path`` atomically (a temporary file renamed into place)."""
+        from .io.atomic import atomic_write
+
         cols = self.columns
-        tmp = f"{os.fspath(path)}.tmp"
-        with open(tmp, "w", newline="") as f:
+        with atomic_write(path, "w") as f:
             w = csv.writer(f)
             w.writerow(cols)
             for row in self.rows:
                 w.writerow([_fmt(row.get(c, "")) for c in cols])
-        os.replace(tmp, path)
 
 
 def _fmt(v):

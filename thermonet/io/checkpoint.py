@@ -52,8 +52,10 @@ def load_checkpoint(path) -> tuple[State, dict]:
                 time=float(z["time"]),
                 step=int(z["step"]),
             )
-    except (OSError, ValueError, KeyError) as exc:
-        raise InputError(f"{path}: not a readable thermonet checkpoint ({exc})") from None
-    if meta.get("format") != FORMAT:
-        raise InputError(f"{path}: not a thermonet checkpoint (format {meta.get('format')!r}, expected {FORMAT})")
+    except Exception as exc:  # zipfile.BadZipFile, EOFError, zlib.error, OSError, ValueError, KeyError, ...
+        reason = str(exc) or type(exc).__name__
+        raise InputError(f"{path}: not a readable thermonet checkpoint (corrupt or truncated? {reason})") from None
+    if not isinstance(meta, dict) or meta.get("format") != FORMAT:
+        found = meta.get("format") if isinstance(meta, dict) else None
+        raise InputError(f"{path}: not a thermonet checkpoint (format {found!r}, expected {FORMAT})")
     return state, meta

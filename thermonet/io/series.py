@@ -161,6 +161,8 @@ class RunOutput:
         self._frame = (FrameFiller(sim, VTUWriter(sim.net.edges, sim.net.n_nodes), self.fields, self.material_id)
                        if self.frames_every else None)
         self._csv_written = -np.inf
+        #: step of the last checkpoint written (or restored), None before the first
+        self.checkpoint_step = None
         #: seconds the run spent in frame observer calls (filling; waiting for a previous write)
         self.frame_seconds = 0.0
         #: seconds the frame files took to write (on the writer thread when ``background``)
@@ -193,6 +195,7 @@ class RunOutput:
         self.pvd.frames = {int(s): (float(t), f) for s, t, f in meta["frames"]}
         self.sim.wall_time = float(meta["wall_time_s"])
         self.sim.steps_run = int(meta["steps_run"])
+        self.checkpoint_step = self.sim.step
 
     # ------------------------------------------------------------------------------------------
     def write_frame(self, sim) -> None:
@@ -263,6 +266,7 @@ class RunOutput:
             "steps_run": sim.steps_run,
         }
         save_checkpoint(self.checkpoint_path, sim.state, meta)
+        self.checkpoint_step = sim.step
         self.write_csv()
 
     def write_summary(self, sim, extra: dict | None = None) -> dict:

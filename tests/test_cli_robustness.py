@@ -1,0 +1,348 @@
+"""What a new user hits (project issue 15): silent garbage, overwritten runs, file-system faults,
+unreadable meshes, t_end off the step grid, misleading messages, compile time in the ETA.
+
+Each test reproduces the failure as it was reported and asserts the wanted behaviour: exit
+codes, one-line messages naming the file, key or step, and the files left on disk.
+"""
+
+import os
+import subprocess
+
+import meshio
+import numpy as np
+import pytest
+
+import thermonet as tn
+from thermonet.cli.main import main
+from thermonet.io import load_checkpoint, read_pvd
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+LATTICE2D = os.path.join(ROOT, "scenes", "lattice2d.toml")
+SPINNING = os.path.join(ROOT, "scenes", "spinning_lattice.toml")
+#: the reported case on a shipped scene: thermal stress far above the elastic one (β = 1, a region
+#: at 10 θ0), h = 0.01 at 0.57 of the initial stability limit (0.0175), which collapses to 0.0013
+#: two steps later as the hot region expands
+HOT_SCENE = ["materials.soft.beta=1.0", "materials.stiff.beta=1.0", "initial.temperature.regions.soft=3000.0",
+             "integrator.h=0.01", "integrator.t_end=2.0"]
+HOT = [a for key in HOT_SCENE for a in ("--set", key)] + [
+    "--set", "output.frames_every=1", "--set", "output.checkpoint_every=1"]
+SMALL = ["--quiet", "--set", "integrator.steps=120", "--set", "output.frames_every=20",
+         "--set", "output.diagnostics_every=10", "--set", "output.checkpoint_every=40"]
+
+
+def snapshot(folder) -> dict:
+    """name -> bytes of every file in ``folder``."""
+    return {n: open(os.path.join(folder, n), "rb").read() for n in sorted(os.listdir(folder))}
+
+
+def one_error_line(err: str) -> str:
+    lines = [line for line in err.splitlines() if line.startswith("thermonet: error:")]
+    assert len(lines) == 1 and "Traceback" not in err, err
+    return lines[0]
+
+
+def assert_valid_output(folder, name):
+    """The checkpoint loads and the PVD lists only complete frames meshio reads."""
+    state, meta = load_checkpoint(os.path.join(folder, f"{name}.checkpoint.npz"))
+    frames = read_pvd(os.path.join(folder, f"{name}.pvd"))
+    assert frames
+    for _, path in frames:
+        assert meshio.read(path).points.shape[0] > 0
+    return state, frames
+
+
+# ----------------------------------------------------------------------------------------------
+# 1. a run that left its stability limit, or conservation, does not end with exit 0
+
+
+def test_a_step_above_the_limit_re_estimated_while_running_stops_the_run(tmp_path, capsys):
+    assert main(["run", LATTICE2D, "--out", str(tmp_path), *HOT]) == 3
+    err = one_error_line(capsys.readouterr().err)
+    assert "at step 2 (t = 0.02) the stability limit of co2 is h_max ≈ 0.001289" in err
+    assert "h = 0.01 is 7.76× it" in err and "rewound to step 1" in err
+    state, frames = assert_valid_output(tmp_path, "lattice2d")
+    assert state.step == 1 and [t for t, _ in frames] == [0.0, 0.01]
+    assert not (tmp_path / "summary.json").exists()
+
+
+def test_with_the_guards_off_a_garbage_run_still_exits_non_zero_and_says_why(tmp_path, capsys):
+    code = main(["run", LATTICE2D, "--out", str(tmp_path), *HOT, "--allow-unstable-step",
+                 "--set", "integrator.energy_tolerance=false", "--set", "output.frames_every=50"])
+    assert code == 3
+    captured = capsys.readouterr()
+    assert "thermonet: warning: at step 2 (t = 0.02) the stability limit" in captured.err
+    err = one_error_line(captured.err)
+    assert "broken conservation: energy departed from its initial value by 0.292" in err
+    import json
+
+    summary = json.loads((tmp_path / "summary.json").read_text())  # the files are kept
+    assert summary["steps"] == 200 and summary["broken_conservation"][0].startswith("energy departed")
+
+
+def test_the_default_energy_guard_stops_a_run_whose_energy_departs(tmp_path):
+    from thermonet.run_guards import DEFAULT_ENERGY_TOLERANCE, broken_conservation
+    from thermonet.scenes import load_scene
+
+    scene = load_scene(LATTICE2D, HOT_SCENE)
+    assert scene["integrator"]["energy_tolerance"] == DEFAULT_ENERGY_TOLERANCE == 0.1
+    sim = scene.build().simulation
+    sim.stability_guard.mode = "warn"
+    with pytest.warns(tn.step_policy.StepWarning, match="stability limit"), \
+            pytest.raises(tn.SimulationError, match=r"energy departed .* by 0\.285 \(relative; tolerance 0\.1\) at step 3"):
+        sim.run(steps=200, diagnostics_every=1)
+    assert sim.step == 2  # rewound to the previous stop
+    # API: energy_tolerance=None switches the guard off; the run's conservation is then judged at its end
+    sim = scene.build().simulation
+    sim.energy_tolerance, sim.stability_guard.mode = None, "off"
+    sim.run(steps=200, diagnostics_every=1)
+    assert broken_conservation(sim) == ["energy departed from its initial value by 0.292 (relative; at most 0.1 expected)"]
+
+
+def test_the_cheap_frequency_bound_is_an_upper_bound_of_the_largest_frequency():
+    from thermonet.run_guards import frequency_bound
+    from thermonet.stability import max_frequency
+
+    rng = np.random.default_rng(5)
+    for seed in range(4):
+        net = tn.lattice((3, 3, 2), neighbours=18, jitter=0.3, seed=seed)
+        temps = rng.uniform(100.0, 3000.0, net.n_springs)
+        sim = tn.Simulation(net, parameters=dict(c=50.0, beta=1.0), temperatures=temps, h=1e-3,
+                            velocities=rng.normal(size=(net.n_nodes, 3)))
+        for _ in range(3):
+            s = sim.internal_state()
+            exact = max_frequency(sim.system, s.positions, s.entropy).omega_max
+            bound = frequency_bound(sim.system, s.positions, s.entropy)
+            assert exact <= bound <= 4.0 * exact, (seed, exact, bound)
+            sim.run(steps=20)
+
+
+# ----------------------------------------------------------------------------------------------
+# 3. an existing output folder is refused, --overwrite replaces it, --resume cleans up
+
+
+def test_a_previous_run_is_never_overwritten_silently(tmp_path, capsys):
+    out = tmp_path / "out"
+    assert main(["run", SPINNING, "--out", str(out), *SMALL]) == 0
+    (out / "notes.txt").write_text("mine")
+    before = snapshot(out)
+    assert main(["run", SPINNING, "--out", str(out), *SMALL, "--set", "output.frames_every=60"]) == 2
+    err = one_error_line(capsys.readouterr().err)
+    assert f"--out {out}: holds the output of a previous run" in err and "--overwrite" in err and "--resume" in err
+    assert snapshot(out) == before
+    # --overwrite removes the old run's files (its extra frames too), and only those
+    assert main(["run", SPINNING, "--out", str(out), *SMALL, "--set", "output.frames_every=60", "--overwrite"]) == 0
+    names = sorted(os.listdir(out))
+    assert names == ["diagnostics.csv", "notes.txt", "spinning_lattice.checkpoint.npz", "spinning_lattice.pvd",
+                     "spinning_lattice_000000.vtu", "spinning_lattice_000001.vtu", "spinning_lattice_000002.vtu",
+                     "summary.json"]
+    assert (out / "notes.txt").read_text() == "mine"
+
+
+def test_resume_removes_a_killed_runs_temporary_files_and_refuses_overwrite(tmp_path, capsys):
+    out = tmp_path / "out"
+    assert main(["run", SPINNING, "--out", str(out), *SMALL, "--set", "integrator.steps=80"]) == 0
+    for stale in ("spinning_lattice_000004.vtu.tmp-99999", "spinning_lattice.pvd.tmp-4242", "diagnostics.csv.tmp"):
+        (out / stale).write_bytes(b"half a file")
+    assert main(["run", "--resume", str(out), "--overwrite", "--quiet"]) == 2
+    assert "give one of them" in one_error_line(capsys.readouterr().err)
+    assert main(["run", "--resume", str(out), "--quiet", "--set", "integrator.steps=120"]) == 0
+    assert not [n for n in os.listdir(out) if ".tmp" in n]
+    assert load_checkpoint(out / "spinning_lattice.checkpoint.npz")[0].step == 120
+
+
+# ----------------------------------------------------------------------------------------------
+# 4. file-system failures are clear errors; what was written stays valid
+
+
+def test_out_naming_an_existing_file_is_refused(tmp_path, capsys):
+    target = tmp_path / "results"
+    target.write_text("not a folder")
+    assert main(["run", SPINNING, "--out", str(target), *SMALL]) == 2
+    assert f"--out {target}: exists and is not a folder" in one_error_line(capsys.readouterr().err)
+    assert target.read_text() == "not a folder"
+
+
+def _mount_tmpfs(folder, options: str) -> None:
+    os.makedirs(folder, exist_ok=True)
+    done = subprocess.run(["mount", "-t", "tmpfs", "-o", options, "tmpfs", str(folder)], capture_output=True)
+    if done.returncode != 0:
+        pytest.skip(f"cannot mount a tmpfs here (needs root): {done.stderr.decode().strip()}")
+
+
+@pytest.fixture
+def mounts():
+    made = []
+    yield made
+    for folder in made:
+        subprocess.run(["umount", str(folder)], capture_output=True)
+
+
+def test_a_read_only_output_folder_is_a_clear_error(tmp_path, mounts, capsys):
+    out = tmp_path / "ro"
+    _mount_tmpfs(out, "ro,size=1m")
+    mounts.append(out)
+    assert main(["run", SPINNING, "--out", str(out), *SMALL]) == 4
+    err = one_error_line(capsys.readouterr().err)
+    assert f"--out {out}: cannot write the output folder" in err and "Read-only file system" in err
+
+
+def test_a_full_disk_part_way_stops_with_a_valid_checkpoint_and_pvd(tmp_path, mounts, capsys):
+    out = tmp_path / "small"
+    _mount_tmpfs(out, "size=160k")
+    mounts.append(out)
+    code = main(["run", LATTICE2D, "--out", str(out), "--set", "integrator.steps=2000", "--set", "output.frames_every=10",
+                 "--set", "output.checkpoint_every=50", "--set", "output.diagnostics_every=10"])
+    assert code == 4
+    err = capsys.readouterr().err
+    line = one_error_line(err)
+    assert "writing the output failed at step" in line and "No space left on device" in line
+    assert f"{out}/" in line  # names the file
+    assert "the last checkpoint is of step" in err
+    state, frames = assert_valid_output(out, "lattice2d")
+    assert 0 < state.step < 2000 and not (out / "summary.json").exists()
+    assert not [n for n in os.listdir(out) if ".tmp" in n]
+
+
+def test_a_corrupt_or_truncated_checkpoint_is_refused_on_resume(tmp_path, capsys):
+    out = tmp_path / "out"
+    assert main(["run", SPINNING, "--out", str(out), *SMALL]) == 0
+    ckpt = out / "spinning_lattice.checkpoint.npz"
+    data = ckpt.read_bytes()
+    for broken in (data[: len(data) // 2], b"garbage" * 10, data[:100]):
+        ckpt.write_bytes(broken)
+        assert main(["run", "--resume", str(out), "--quiet"]) == 2
+        err = one_error_line(capsys.readouterr().err)
+        assert f"{ckpt}: not a readable thermonet checkpoint" in err
+
+
+# ----------------------------------------------------------------------------------------------
+# 5. an unreadable mesh is a MeshError naming it, in the CLI as in the API
+
+
+@pytest.mark.parametrize("content", [b"garbage\n", "truncated"])
+def test_an_unreadable_mesh_is_one_error_line_in_run_and_info(tmp_path, capsys, content):
+    mesh = tmp_path / "plate.msh"
+    if content == "truncated":
+        content = open(os.path.join(ROOT, "meshes", "lattice2d.msh"), "rb").read()[:1500]
+    mesh.write_bytes(content)
+    scene = tmp_path / "plate.toml"
+    scene.write_text('[net]\nmesh = "plate.msh"\n[integrator]\nh = 0.001\nsteps = 10\n')
+    assert main(["info", str(mesh)]) == 2
+    assert one_error_line(capsys.readouterr().err).startswith(f"thermonet: error: {mesh}: meshio cannot read it: ")
+    assert main(["run", str(scene), "--out", str(tmp_path / "out"), "--quiet"]) == 2
+    captured = capsys.readouterr()
+    assert f"{scene}:2: net.mesh: {mesh}: meshio cannot read it" in one_error_line(captured.err)
+    assert captured.out == "" and "Couldn't read" not in captured.err.replace(one_error_line(captured.err), "")
+    with pytest.raises(tn.MeshError, match="meshio cannot read it"):
+        tn.read_mesh(mesh)
+
+
+# ----------------------------------------------------------------------------------------------
+# 6. one rule for t_end: a whole number of steps, everywhere
+
+
+def test_t_end_off_the_step_grid_is_refused_everywhere_with_what_would_do(tmp_path, capsys):
+    sim = tn.Simulation(tn.chain(), h=0.3)
+    with pytest.raises(tn.InputError, match=r"t_end = 1 is not a whole number of steps of h = 0.3 .* give t_end = 0.9 or 1.2"):
+        sim.run(t_end=1.0)
+    assert sim.step == 0
+    assert main(["run", SPINNING, "--out", str(tmp_path / "o"), "--quiet", "--t-end", "0.005"]) == 2
+    err = one_error_line(capsys.readouterr().err)
+    assert "integrator.t_end: t_end = 0.005 is not a whole number of steps of h = 0.002" in err
+    assert "give t_end = 0.004 or 0.006" in err
+    from thermonet.studies.tasks import check_steps
+
+    with pytest.raises(tn.InputError, match="not a whole number of steps"):
+        check_steps(1.0, 0.3)
+    assert tn.Simulation(tn.chain(), h=0.1).run(t_end=0.3).rows[-1]["step"] == 3  # 0.3/0.1 rounds to 3
+
+
+# ----------------------------------------------------------------------------------------------
+# 7. messages that say what is wrong, once
+
+
+def test_a_folder_given_as_scene_or_mesh_says_so(tmp_path, capsys):
+    assert main(["run", str(tmp_path)]) == 2
+    assert one_error_line(capsys.readouterr().err) == f"thermonet: error: {tmp_path}: is a folder, not a scene file (.toml)"
+    assert main(["info", str(tmp_path)]) == 2
+    assert "is a folder" in one_error_line(capsys.readouterr().err)
+    (tmp_path / "m.msh").mkdir()
+    with pytest.raises(tn.MeshError, match="is a folder, not a mesh file"):
+        tn.read_mesh(tmp_path / "m.msh")
+
+
+def test_a_group_typo_names_each_file_once(tmp_path, capsys):
+    assert main(["run", LATTICE2D, "--out", str(tmp_path), "--set", "materials.sof.c=3.0"]) == 2
+    err = one_error_line(capsys.readouterr().err)
+    assert err == ("thermonet: error: --set materials.sof.c: materials.sof: no spring group 'sof' in the mesh "
+                   "lattice2d.msh; spring groups: all, soft, stiff")
+
+
+def test_after_ctrl_c_the_message_names_the_step_resume_starts_from(tmp_path, monkeypatch, capsys):
+    from thermonet.io import series
+
+    real = series.RunOutput.write_frame
+
+    def interrupted_at_step_100(self, sim):
+        if sim.step == 100:
+            raise KeyboardInterrupt
+        real(self, sim)
+
+    monkeypatch.setattr(series.RunOutput, "write_frame", interrupted_at_step_100)
+    assert main(["run", SPINNING, "--out", str(tmp_path), *SMALL[1:]]) == 130
+    err = capsys.readouterr().err
+    assert (f"thermonet: interrupted at step 100; the last checkpoint is of step 80: continue from there with: "
+            f"thermonet run --resume {tmp_path}/spinning_lattice.checkpoint.npz") in err
+    assert load_checkpoint(tmp_path / "spinning_lattice.checkpoint.npz")[0].step == 80
+
+
+# ----------------------------------------------------------------------------------------------
+# 8. compiling is announced and kept out of the rate and ETA
+
+
+def test_compile_time_is_announced_and_kept_out_of_rate_and_eta():
+    import io
+    import time
+
+    import numba
+
+    from thermonet.cli.progress import ProgressBar
+
+    sim = tn.Simulation(tn.chain(), h=0.01)
+    real = sim.stepper.advance
+    calls = []
+
+    def advance_compiling_first(state, n, h, **kw):  # a first chunk that compiles a new kernel
+        if not calls:
+            fresh = numba.njit(lambda x: x * 2.0 + 1.0)
+            fresh(1.0)
+        calls.append(n)
+        return real(state, n, h, **kw)
+
+    sim.stepper.advance = advance_compiling_first
+    stream = io.StringIO()
+    bar = ProgressBar(stream=stream, delay=0.0, log_interval=0.0)
+    seen = []
+    t0 = time.perf_counter()
+    sim.run(steps=100, diagnostics_every=10, progress=lambda d, t, e: (seen.append(e), bar(d, t, e)))
+    wall = time.perf_counter() - t0
+    bar.compiling(), bar.compiling()  # said once
+    assert sim.compile_time > 0.01
+    assert seen[-1] <= wall - sim.compile_time + 1e-3 and sim.wall_time <= wall - sim.compile_time + 1e-3
+
+
+def test_the_progress_bar_says_once_that_kernels_are_compiling():
+    import io
+
+    from thermonet.cli.progress import ProgressBar
+    from thermonet.compile_watch import CompileWatch
+
+    import numba
+
+    stream = io.StringIO()
+    bar = ProgressBar(stream=stream)
+    with CompileWatch(bar.compiling) as watch:
+        numba.njit(lambda x: x + 1)(1)
+        numba.njit(lambda x: x + 2)(1)
+    assert watch.compilations == 2 and watch.seconds > 0
+    assert stream.getvalue().count("compiling kernels") == 1
