@@ -346,3 +346,123 @@ def test_the_progress_bar_says_once_that_kernels_are_compiling():
         numba.njit(lambda x: x + 2)(1)
     assert watch.compilations == 2 and watch.seconds > 0
     assert stream.getvalue().count("compiling kernels") == 1
+
+
+# ----------------------------------------------------------------------------------------------
+# 2. thermonet study convergence: defaults from the scene, arguments checked first, reasons
+
+
+def test_study_arguments_are_checked_before_any_cluster_starts(monkeypatch, capsys):
+    import thermonet.studies as studies
+
+    class NoCluster:
+        def __init__(self, *a, **k):
+            raise AssertionError("a Runner was started before the arguments were checked")
+
+    monkeypatch.setattr(studies, "Runner", NoCluster)
+    for argv, message in [
+        (["--dt", "0.3"], "--dt and --t-end: t_end = 1 is not a whole number of steps h = 0.3"),
+        (["--check", "co6:0.3"], "--check: t_end = 1 is not a whole number of steps h = 0.3"),
+        (["--check", "nope:1e-3"], "unknown integrator 'nope'"),
+        (["--halvings", "-1"], "--halvings must be in 0..30, got -1"),
+        (["--integrators", "co2,nope"], "unknown integrator 'nope'"),
+        (["--t-end", "-1"], "--t-end must be finite and > 0, got -1"),
+    ]:
+        assert main(["study", "convergence", "chain", *argv]) == 2
+        assert message in one_error_line(capsys.readouterr().err), argv
+    assert main(["study", "convergence", "no-such-scene.toml"]) == 2
+    assert "neither a built-in scene" in one_error_line(capsys.readouterr().err)
+
+
+def test_study_defaults_come_from_the_scene_and_every_missing_slope_says_why(tmp_path, capsys):
+    from thermonet.studies.convergence import default_check, default_time_step
+
+    # the scene's own h (0.002), inside its stability limit (0.046): not the paper's 0.1
+    assert default_time_step(LATTICE2D, ["co2", "co4"], 1.0) == 0.002
+    assert default_time_step("chain", ["co2"], 1.0) == 0.09090909090909091  # 0.9 h_max = 0.0937 -> 1/11
+    assert default_check(LATTICE2D, 1.0) == ("co6", 5e-4)
+    # a step the user forces above the limit: the failed runs leave too few points, and the
+    # summary says so instead of a bare dash
+    code = main(["study", "convergence", LATTICE2D, "--serial", "--integrators", "co2", "--dt", "0.1",
+                 "--halvings", "1", "--t-end", "0.2", "--out", str(tmp_path)])
+    assert code == 0
+    out = capsys.readouterr().out
+    assert "\n\n" not in out and not out.startswith("\n")
+    assert "time steps 0.1·2^-i, i = 0..1, to t = 0.2; reference checked against co6 h=0.0005" in out
+    reasons = [line for line in out.splitlines() if line.startswith("  no ")]
+    assert reasons and all("usable point" in line and "(2 needed)" in line for line in reasons)
+    assert any("1 failed or non-finite run" in line for line in reasons)
+    assert "co2 h=0.1: failed: the energy departed" in out
+
+
+# ----------------------------------------------------------------------------------------------
+# 9. the API: short reprs, frames from a script, meshio and PyVista, citations users can follow
+
+
+def test_reprs_are_one_short_line():
+    net = tn.lattice((6, 6, 6), neighbours=18)
+    sim = tn.Simulation(net, h=1e-3)
+    diag = sim.run(steps=20, diagnostics_every=5)
+    for obj, start in ((net, "<Net 343 nodes (0 anchored), 2"), (diag, "<Diagnostics 5 rows, steps 0..20"),
+                       (sim.state, "<State step 20, t = 0.02: 343 nodes (x, p), 2"), (sim.system, "<System 343 nodes"),
+                       (sim, "<Simulation 343 nodes")):
+        text = repr(obj)
+        assert text.startswith(start) and "\n" not in text and "array" not in text and len(text) < 400, text
+        assert str(obj) == text
+
+
+def test_frames_written_from_a_script_are_the_cli_s_files(tmp_path):
+    from thermonet.io import RunOutput
+
+    sim = tn.chain_simulation("co2", h=0.01)
+    out = RunOutput.for_simulation(sim, tmp_path / "mine", frames_every=25)
+    sim.run(t_end=1.0, diagnostics_every=out.diagnostics_every, observers=out.observers())
+    out.write_summary(sim)
+    frames = read_pvd(tmp_path / "mine" / "run.pvd")
+    assert [t for t, _ in frames] == pytest.approx([0.0, 0.25, 0.5, 0.75, 1.0])
+    last = meshio.read(frames[-1][1])
+    np.testing.assert_array_equal(last.points, sim.state.positions)
+    np.testing.assert_array_equal(last.cell_data["temperature"][0], sim.temperatures())
+    assert sorted(os.listdir(tmp_path / "mine"))[:3] == ["diagnostics.csv", "run.pvd", "run_000000.vtu"]
+    # a second run into the same folder is refused, unless asked to overwrite it
+    with pytest.raises(tn.InputError, match="holds the output of a previous run"):
+        RunOutput.for_simulation(sim, tmp_path / "mine", frames_every=25)
+    RunOutput.for_simulation(sim, tmp_path / "mine", frames_every=25, overwrite=True)
+    assert os.listdir(tmp_path / "mine") == []
+
+
+def test_nets_and_states_convert_to_meshio_and_pyvista_and_read_back(tmp_path):
+    pv = pytest.importorskip("pyvista")
+    net = tn.read_mesh(os.path.join(ROOT, "meshes", "lattice2d.msh"), anchors="clamp")
+    mesh = net.to_meshio()
+    mesh.write(tmp_path / "net.vtu")
+    back = meshio.read(tmp_path / "net.vtu")
+    np.testing.assert_array_equal(back.points, net.positions)
+    np.testing.assert_array_equal(back.cells_dict["line"], net.edges)
+    np.testing.assert_array_equal(back.point_data["anchored"], net.anchored)
+    np.testing.assert_array_equal(back.cell_data["rest_length"][0], net.rest_lengths)
+    grid = net.to_pyvista()
+    assert isinstance(grid, pv.UnstructuredGrid) and grid.n_cells == net.n_springs
+    np.testing.assert_array_equal(grid.point_data["mass"], net.masses)
+
+    sim = tn.Simulation(net, temperatures=400.0, h=1e-3)
+    sim.run(steps=30)
+    sim.to_meshio().write(tmp_path / "state.vtu")
+    grid = pv.read(tmp_path / "state.vtu")
+    np.testing.assert_array_equal(np.asarray(grid.points), sim.state.positions)
+    np.testing.assert_array_equal(grid.cell_data["temperature"], sim.temperatures())
+    np.testing.assert_array_equal(grid.cell_data["strain"], sim.strains())
+    np.testing.assert_array_equal(sim.to_pyvista().point_data["momentum"], sim.state.momenta)
+
+
+def test_the_api_s_docstrings_cite_the_paper_or_the_docs_not_a_private_spec():
+    owned = ["simulation.py", "builders.py", "net.py", "system.py", "diagnostics.py", "stability.py",
+             "step_policy.py", "run_guards.py", "compile_watch.py", "cli", "io", "scenes"]
+    hits = []
+    for item in owned:
+        path = os.path.join(ROOT, "thermonet", item)
+        files = [path] if path.endswith(".py") else [os.path.join(path, f) for f in os.listdir(path) if f.endswith(".py")]
+        for f in files:
+            text = open(f, encoding="utf-8").read()
+            hits += [f for marker in ("spec §", "spec (", "spec.md") if marker in text]
+    assert not hits, hits

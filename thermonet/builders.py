@@ -39,7 +39,7 @@ _TETS = {
 
 
 def chain() -> Net:
-    """The paper's chain of three springs (spec §3.1): node 0 anchored at the origin,
+    """The paper's chain of three springs (Mata & Lew 2011, §5.1): node 0 anchored at the origin,
     nodes (1,0,0), (1,1,0), (1,1,1); spring i joins nodes i−1 and i; masses 1, 2, 1.5; l0 = 1."""
     x = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [1.0, 1.0, 1.0]])
     edges = np.array([[0, 1], [1, 2], [2, 3]])
@@ -49,7 +49,7 @@ def chain() -> Net:
 
 
 def triangle() -> Net:
-    """The paper's triangle net (spec §3.2): equilateral, side 1; nodes 0, 1, 2 are the paper's
+    """The paper's triangle net (Mata & Lew 2011, §5.2): equilateral, side 1; nodes 0, 1, 2 are the paper's
     masses 1, 2, 3; springs 0, 1, 2 are the paper's springs 1 (1–3), 2 (1–2), 3 (2–3)."""
     x = np.array([[-0.5, 0.0, 0.0], [0.5, 0.0, 0.0], [0.0, np.sqrt(3.0) / 2.0, 0.0]])
     edges = np.array([[0, 2], [0, 1], [1, 2]])

@@ -90,6 +90,17 @@ class Diagnostics:
 
     rows: list[dict] = field(default_factory=list)
 
+    def __repr__(self) -> str:
+        if not self.rows:
+            return "<Diagnostics: no rows>"
+        first, last = self.rows[0], self.rows[-1]
+        text = (f"<Diagnostics {len(self.rows)} rows, steps {first['step']}..{last['step']}, "
+                f"t = {first['time']:.6g}..{last['time']:.6g}")
+        energy = self.summary().get("energy")
+        if energy is not None:
+            text += f", energy {energy['initial']:.10g} (max rel. deviation {energy['relative']:.2e})"
+        return text + f"; columns {', '.join(self.columns)}>"
+
     def append(self, row: dict) -> None:
         self.rows.append(row)
 

@@ -45,7 +45,8 @@ class Simulation:
     parameters: model parameters, name -> scalar or (m,) array (user spring numbering);
         missing ones take the model's defaults.
     temperatures: initial temperature per spring θ(0), scalar or (m,); default: each spring's
-        reference temperature. Entropies are η = Γ(l(0), θ(0)) (spec §1.3).
+        reference temperature. Entropies are η = Γ(l(0), θ(0)), Γ = −∂F/∂θ (Mata & Lew 2011,
+        (11)).
     momenta / velocities: initial (n, 3) momenta or velocities (give at most one; default rest).
     integrator: a name (see ``thermonet.available_integrators()``) or an Integrator.
     h: time step.
@@ -572,7 +573,7 @@ class Simulation:
         return type(f)(*(lay.springs_to_user(a) for a in (f.length, f.temperature, f.tension, f.internal_energy)))
 
     def temperatures(self) -> np.ndarray:
-        """(m,) spring temperatures θ(l, η) now (spec (18b))."""
+        """(m,) spring temperatures θ(l, η) now (Mata & Lew 2011, (12) and (18b))."""
         return self.layout.springs_to_user(self.internal_spring_fields().temperature)
 
     def lengths(self) -> np.ndarray:
@@ -590,6 +591,21 @@ class Simulation:
 
     def velocities(self) -> np.ndarray:
         return self.state.momenta / self.net.masses[:, None]
+
+    def to_meshio(self):
+        """The current state as a ``meshio.Mesh`` in the user's numbering: springs as "line"
+        cells at the current positions, node displacement, velocity, momentum, spring strain,
+        tension (and temperature, entropy with thermal coupling); see :mod:`thermonet.io.convert`."""
+        from .io.convert import simulation_mesh
+
+        return simulation_mesh(self)
+
+    def to_pyvista(self):
+        """The current state as a ``pyvista.UnstructuredGrid`` (the fields of :meth:`to_meshio`;
+        needs PyVista)."""
+        from .io.convert import simulation_mesh, to_pyvista
+
+        return to_pyvista(simulation_mesh(self))
 
     def conservation_summary(self) -> dict:
         """Initial value and maximal deviation of each conserved quantity, plus speed."""

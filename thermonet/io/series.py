@@ -177,6 +177,40 @@ class RunOutput:
         self._pending = None
         self._pvd_written = -np.inf
 
+    @classmethod
+    def for_simulation(cls, sim, folder, name: str = "run", *, frames_every: int, diagnostics_every: int | None = None,
+                       checkpoint_every: int = 0, fields=None, material_id=None, overwrite: bool = False,
+                       **options) -> "RunOutput":
+        """The files of a run of ``sim`` driven from a script, as ``thermonet run`` writes them::
+
+            out = RunOutput.for_simulation(sim, "out/mine", frames_every=10)
+            sim.run(t_end=1.0, diagnostics_every=out.diagnostics_every, observers=out.observers())
+            out.write_summary(sim)          # optional: summary.json
+
+        writes ``out/mine/run.pvd`` with a ``run_NNNNNN.vtu`` frame every 10 steps (and at the
+        end), and ``diagnostics.csv``. folder: refused when it holds a previous run's files unless
+        ``overwrite`` (which deletes them; :func:`~thermonet.io.folder.prepare_output_folder`).
+        fields: default every field of :data:`FIELDS` the simulation has. diagnostics_every:
+        default ``frames_every``. material_id: (m,) int (default 0). checkpoint_every: 0 (none)
+        or a cadence (``load_checkpoint`` and ``sim.load_state`` continue from one).
+        """
+        from .folder import prepare_output_folder
+
+        prepare_output_folder(folder, overwrite=overwrite)
+        if fields is None:
+            fields = [f for f in FIELDS if sim.system.thermal or f not in THERMAL_FIELDS]
+        unknown = [f for f in fields if f not in FIELDS]
+        if unknown:
+            from ..errors import InputError
+
+            raise InputError(f"unknown output field {unknown[0]!r}; fields: {', '.join(FIELDS)}")
+        if material_id is None:
+            material_id = np.zeros(sim.net.n_springs, dtype=np.int32)
+        return cls(sim, folder, name, fields=fields, frames_every=frames_every,
+                   diagnostics_every=frames_every if diagnostics_every is None else diagnostics_every,
+                   checkpoint_every=checkpoint_every, material_id=material_id,
+                   scene={"name": name, "hash": None}, **options)
+
     # ------------------------------------------------------------------------------------------
     def observers(self) -> list:
         """(cadence, callback) pairs for ``Simulation.run``; checkpoints come last so that they
