@@ -41,6 +41,14 @@ def load_checkpoint(path) -> tuple[State, dict]:
     if not os.path.isfile(path):
         raise InputError(f"{path}: no such checkpoint file")
     try:
+        with open(path, "rb") as f:
+            magic = f.read(4)
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read the checkpoint: {exc.strerror}") from None
+    if magic != b"PK\x03\x04":  # every .npz is a zip file
+        raise InputError(f"{path}: not a readable thermonet checkpoint (not a .npz file: corrupt, truncated to "
+                         f"{os.path.getsize(path)} bytes, or another kind of file)")
+    try:
         with np.load(path, allow_pickle=False) as z:
             meta = json.loads(bytes(z["meta"]).decode())
             thermal = "entropy" in z.files

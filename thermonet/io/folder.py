@@ -58,9 +58,12 @@ def check_writable(folder) -> None:
     """Create and remove a probe file in ``folder``; raises the OSError of a folder that cannot
     be written (read-only file system, no permission; as root, permission bits do not stop it)."""
     probe = os.path.join(os.fspath(folder), f".thermonet-write-probe-{os.getpid()}")
-    with open(probe, "wb"):
-        pass
-    os.unlink(probe)
+    try:
+        with open(probe, "wb"):
+            pass
+        os.unlink(probe)
+    except OSError as exc:  # the folder's problem, not the probe's: no file name
+        raise OSError(exc.errno, exc.strerror or str(exc)) from None
 
 
 def remove_stale_temporaries(folder) -> list[str]:

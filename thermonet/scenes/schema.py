@@ -341,7 +341,7 @@ SCHEMA = Table({
     "integrator": Table({
         "name": Key(choice(_integrators), "string", "integrator (thermonet.available_integrators())", "co2"),
         "h": Key(number(above=0), "number > 0", "time step", required=True),
-        "t_end": Key(number(above=0), "number > 0", "final time (or give steps)"),
+        "t_end": Key(number(above=0), "number > 0", "final time, a whole number of steps of h (or give steps)"),
         "steps": Key(integer(0), "integer >= 0", "number of steps (or give t_end)"),
         "backend": Key(choice(_backends), "string", "compute backend: cpu, or cuda (explicit integrators on a GPU)", "cpu"),
         "threads": Key(integer(1), "integer >= 1", "threads of the parallel kernels (default: all cores)"),
