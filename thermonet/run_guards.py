@@ -13,7 +13,8 @@ finished run's conservation.
   is ω_max estimated accurately (:func:`thermonet.stability.max_frequency`: dense eigenvalues or
   Lanczos). Then the step policy's thresholds (:mod:`thermonet.step_policy`) apply: a
   :class:`~thermonet.step_policy.StepWarning` once above ``SAFETY``, and above ``REFUSE`` a stop
-  (:class:`StabilityLimitExceeded`) unless the guard only warns.
+  (:class:`StabilityLimitExceeded`) unless the guard only warns. Stops are skipped where needed
+  to keep the guard's time below :data:`GUARD_TIME_BUDGET` of the run's.
 - :func:`energy_departure`: the energy guard, |H − H(0)| against ``tolerance · |H(0)|``.
 - :func:`broken_conservation`: what a finished run failed to conserve beyond the tolerances
   (energy beyond the energy guard's default, entropy beyond :data:`ENTROPY_TOLERANCE`).
@@ -22,6 +23,7 @@ finished run's conservation.
 from __future__ import annotations
 
 import math
+import time
 import warnings
 
 import numpy as np
@@ -35,6 +37,12 @@ DEFAULT_ENERGY_TOLERANCE = 0.1
 ENTROPY_TOLERANCE = 1e-6
 
 GUARD_MODES = ("stop", "warn", "off")
+#: the stable-step guard skips diagnostics stops where needed so that its time stays below this
+#: fraction of the run's (a bound costs about two explicit steps of a large net; on small nets,
+#: whose steps are cheap next to a stop's fixed costs, every stop is checked)
+GUARD_TIME_BUDGET = 0.05
+#: seconds the guard may spend beyond that budget (its first checks, an accurate estimate)
+GUARD_TIME_ALLOWANCE = 0.1
 
 
 class StabilityLimitExceeded(SimulationError):
@@ -132,11 +140,30 @@ class StabilityGuard:
         self.warned = False
         #: the last verdict: (step, h / h_max) of the last accurate estimate, or None
         self.last = None
+        #: stops checked and skipped (to keep within :data:`GUARD_TIME_BUDGET`); seconds spent
+        self.checked = self.skipped = 0
+        self.seconds = 0.0
+        self._since = None
 
     def check(self, sim) -> None:
-        """Estimate the limit at ``sim``'s current state; warn or raise :class:`StabilityLimitExceeded`."""
+        """Estimate the limit at ``sim``'s current state, unless this stop is skipped to keep
+        the guard within :data:`GUARD_TIME_BUDGET` of the time since its first check, plus
+        :data:`GUARD_TIME_ALLOWANCE`; warn or raise :class:`StabilityLimitExceeded`."""
         if not self.active:
             return
+        now = time.perf_counter()
+        if self._since is None:
+            self._since = now
+        if self.seconds > GUARD_TIME_BUDGET * (now - self._since) + GUARD_TIME_ALLOWANCE:
+            self.skipped += 1
+            return
+        self.checked += 1
+        try:
+            self._check(sim)
+        finally:
+            self.seconds += time.perf_counter() - now
+
+    def _check(self, sim) -> None:
         from .step_policy import REFUSE, SAFETY, StepWarning
 
         state = sim.internal_state()
