@@ -87,7 +87,9 @@ def test_the_default_energy_guard_stops_a_run_whose_energy_departs(tmp_path):
     assert scene["integrator"]["energy_tolerance"] == DEFAULT_ENERGY_TOLERANCE == 0.1
     sim = scene.build().simulation
     sim.stability_guard.mode = "warn"
-    with pytest.warns(tn.step_policy.StepWarning, match="stability limit"), \
+    from thermonet.step_policy import StepWarning
+
+    with pytest.warns(StepWarning, match="stability limit"), \
             pytest.raises(tn.SimulationError, match=r"energy departed .* by 0\.285 \(relative; tolerance 0\.1\) at step 3"):
         sim.run(steps=200, diagnostics_every=1)
     assert sim.step == 2  # rewound to the previous stop

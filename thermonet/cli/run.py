@@ -188,8 +188,10 @@ def _run_warnings(quiet: bool, progress):
             sys.stderr.write("\n")
         print(f"thermonet: warning: {message}", file=sys.stderr)
 
+    from ..step_policy import StepWarning
+
     with warnings.catch_warnings():
-        warnings.simplefilter("always")
+        warnings.simplefilter("always", StepWarning)  # the guard warns once per run itself
         warnings.showwarning = show
         yield
 
