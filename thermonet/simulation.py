@@ -457,13 +457,13 @@ class Simulation:
         backup allows); returns where the state now is, in words."""
         rows = self.diagnostics.rows
         backup = getattr(self, "_backup", None)
-        rows.pop()
+        dropped = rows.pop()
         last = rows[-1]["step"] if rows else -1
         if rows and self._backup_usable() and backup.step <= last:
             self._rewind(backup, last - backup.step)
             return (f"the state was rewound to step {last} (t = {self._state.time:.6g}), "
                     "the last diagnostics stop before")
-        rows.append(self._last_row)
+        rows.append(dropped)  # no earlier state to go back to: the row stays
         return f"the state is that of step {self._state.step}"
 
     def _record(self, _sim=None) -> None:
@@ -479,7 +479,6 @@ class Simulation:
         else:
             row = measure(self.system, self._state, self.parallel)
         row.update(getattr(self, "_last_stats", {}) or {})
-        self._last_row = row
         self.diagnostics.append(row)
         self._check_physical(row)
 

@@ -78,8 +78,8 @@ class ConvergenceStudy:
         for (name, q), reason in self.unfitted().items():
             lines.append(f"  no {q} slope for {name}: {reason}")
         failed = [r for r in self.rows if r["status"] != "ok"]
-        for r in failed:
-            lines.append(f"  {r['integrator']} h={r['h']:g}: {r['status']}")
+        for r in failed:  # one line each, whatever the error's text
+            lines.append(f"  {r['integrator']} h={r['h']:g}: {' '.join(str(r['status']).split())}")
         return "\n".join(lines)
 
     def unfitted(self) -> dict:
