@@ -100,6 +100,31 @@ def test_the_default_energy_guard_stops_a_run_whose_energy_departs(tmp_path):
     assert broken_conservation(sim) == ["energy departed from its initial value by 0.292 (relative; at most 0.1 expected)"]
 
 
+def test_the_guard_warns_between_0_9_and_1_5_h_max_and_stops_above():
+    from thermonet.run_guards import StabilityLimitExceeded
+    from thermonet.step_policy import StepWarning
+
+    def linear_spring(ratio, **kw):  # constant stiffness: ω² = 50 at every state, h_max = 2/ω for co2
+        net = tn.Net([[0, 0, 0], [1, 0, 0]], [[0, 1]], masses=[1.0, 2.0], anchored=[0], rest_lengths=[1.0])
+        return tn.Simulation(net, model="quadratic", parameters=dict(E=100.0, beta=0.0), momenta=[[0, 0, 0], [1e-3, 0, 0]],
+                             h=ratio * 2.0 / np.sqrt(50.0), energy_tolerance=None, **kw)
+
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", StepWarning)  # below 0.9 h_max: silent
+        linear_spring(0.85).run(steps=40, diagnostics_every=4)
+    with pytest.warns(StepWarning, match=r"h = 0.268701 is 0.95× it") as caught:
+        linear_spring(0.95).run(steps=40, diagnostics_every=4)
+    assert len(caught) == 1  # once per run
+    sim = linear_spring(1.6)
+    with pytest.raises(StabilityLimitExceeded, match=r"at step 4 .* h = 0.452548 is 1.6× it: the run is no longer stable"):
+        sim.run(steps=40, diagnostics_every=4)
+    assert sim.step == 0  # rewound to the previous stop
+    with pytest.warns(StepWarning, match="1.60× it"):
+        linear_spring(1.6, stability_guard="warn").run(steps=8, diagnostics_every=4)
+
+
 def test_the_cheap_frequency_bound_is_an_upper_bound_of_the_largest_frequency():
     from thermonet.run_guards import frequency_bound
     from thermonet.stability import max_frequency
