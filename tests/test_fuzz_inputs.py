@@ -3,7 +3,8 @@ hypothesis. Every case must either raise a :class:`thermonet.ThermonetError` (on
 CLI) or build and run to a finite state; the CLI must exit 0 with a complete summary, or exit 2/3
 without claiming one. Runs are capped at a few steps, so nothing can hang.
 
-Examples in total: 500 (scenes) + 120 (CLI) + 300 (meshes) + 200 (API) = 1120.
+Examples in total: 500 (scenes) + 120 (CLI) + 300 (meshes) + 200 (API) + 60 (CLI under
+file-system faults) = 1180.
 """
 
 import copy
@@ -261,3 +262,93 @@ def test_random_parameters_give_a_thermonet_error_or_run(model, params, theta, h
         return
     assert np.isfinite(sim.state.positions).all() and np.isfinite(sim.diagnostics.energy).all()
     event("ran")
+
+
+# ---------------------------------------------------------------------------------------------
+# the CLI under file-system faults (issue 15): an existing file as --out, a read-only folder, a
+# corrupt or truncated checkpoint, a truncated mesh, a folder holding a previous run
+
+import contextlib  # noqa: E402
+import io  # noqa: E402
+import os  # noqa: E402
+import shutil  # noqa: E402
+import subprocess  # noqa: E402
+
+import pytest  # noqa: E402
+
+_ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+_SPINNING = os.path.join(_ROOT, "scenes", "spinning_lattice.toml")
+_SMALL = ["--quiet", "--set", "integrator.steps=60", "--set", "output.frames_every=20",
+          "--set", "output.diagnostics_every=10", "--set", "output.checkpoint_every=20"]
+FAULTS = ("existing file as --out", "read-only folder", "corrupt checkpoint", "truncated checkpoint",
+          "truncated mesh", "previous run without --overwrite")
+
+
+@pytest.fixture(scope="module")
+def fs_fault_base(tmp_path_factory):
+    """A finished run's folder, and a read-only tmpfs folder (None where no tmpfs can be
+    mounted, e.g. without root; as root, permission bits would not stop a write)."""
+    root = tmp_path_factory.mktemp("fs-fault-base")
+    assert main(["run", _SPINNING, "--out", str(root / "run"), *_SMALL]) == 0
+    ro = root / "ro"
+    ro.mkdir()
+    done = subprocess.run(["mount", "-t", "tmpfs", "-o", "ro,size=64k", "tmpfs", str(ro)], capture_output=True)
+    yield root / "run", (ro if done.returncode == 0 else None)
+    if done.returncode == 0:
+        subprocess.run(["umount", str(ro)], capture_output=True)
+
+
+def _files(folder) -> dict:
+    return {n: (folder / n).read_bytes() for n in sorted(os.listdir(folder))} if folder.is_dir() else {}
+
+
+@settings(max_examples=60, **FUZZ)
+@given(fault=st.sampled_from(FAULTS), cut=st.floats(0.0, 0.999), junk=st.binary(min_size=0, max_size=300))
+def test_the_cli_under_file_system_faults_is_one_clear_error_and_loses_nothing(tmp_path_factory, fs_fault_base,
+                                                                               fault, cut, junk):
+    base, read_only = fs_fault_base
+    work = tmp_path_factory.mktemp("fs-fault")
+    run = work / "run"
+    shutil.copytree(base, run)
+    checkpoint = run / "spinning_lattice.checkpoint.npz"
+    if fault == "existing file as --out":
+        target = work / "results.txt"
+        target.write_bytes(junk)
+        argv = ["run", _SPINNING, "--out", str(target), *_SMALL]
+    elif fault == "read-only folder":
+        if read_only is None:
+            event("read-only folder: no tmpfs can be mounted here, case skipped")
+            return
+        argv = ["run", _SPINNING, "--out", str(read_only / "out"), *_SMALL]
+    elif fault == "corrupt checkpoint":
+        checkpoint.write_bytes(junk)
+        argv = ["run", "--resume", str(run), "--quiet"]
+    elif fault == "truncated checkpoint":
+        data = checkpoint.read_bytes()
+        checkpoint.write_bytes(data[: int(cut * len(data))])
+        argv = ["run", "--resume", str(run), "--quiet"]
+    elif fault == "truncated mesh":
+        data = open(os.path.join(_ROOT, "meshes", "lattice2d.msh"), "rb").read()
+        (work / "plate.msh").write_bytes(data[: int(cut * len(data))])
+        scene = work / "plate.toml"
+        scene.write_text('[net]\nmesh = "plate.msh"\n[integrator]\nh = 1e-3\nsteps = 5\n')
+        argv = ["run", str(scene), "--out", str(run), "--overwrite", "--quiet"]
+        run = work / "untouched"  # --overwrite may replace the copy; nothing else is at stake
+    else:
+        argv = ["run", _SPINNING, "--out", str(run), *_SMALL, "--set", "integrator.steps=40"]
+    before = _files(run)
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err), warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        rc = main(argv)
+    event(f"{fault}: exit code {rc}")
+    text = err.getvalue()
+    assert "Traceback" not in text
+    if fault == "truncated mesh" and rc == 0:  # cut after the last section meshio needs: a valid mesh
+        return
+    assert rc in (2, 4), (fault, rc, text)
+    errors = [line for line in text.splitlines() if line.startswith("thermonet: error: ")]
+    assert len(errors) == 1 and len(text.splitlines()) == 1, text
+    assert _files(run) == before  # a previous run's files are never lost
+    if fault == "existing file as --out":
+        assert target.read_bytes() == junk

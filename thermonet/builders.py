@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import contextlib
+import io
 import os
 import numpy as np
 
@@ -37,7 +39,7 @@ _TETS = {
 
 
 def chain() -> Net:
-    """The paper's chain of three springs (spec §3.1): node 0 anchored at the origin,
+    """The paper's chain of three springs (Mata & Lew 2011, §5.1): node 0 anchored at the origin,
     nodes (1,0,0), (1,1,0), (1,1,1); spring i joins nodes i−1 and i; masses 1, 2, 1.5; l0 = 1."""
     x = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [1.0, 1.0, 1.0]])
     edges = np.array([[0, 1], [1, 2], [2, 3]])
@@ -47,7 +49,7 @@ def chain() -> Net:
 
 
 def triangle() -> Net:
-    """The paper's triangle net (spec §3.2): equilateral, side 1; nodes 0, 1, 2 are the paper's
+    """The paper's triangle net (Mata & Lew 2011, §5.2): equilateral, side 1; nodes 0, 1, 2 are the paper's
     masses 1, 2, 3; springs 0, 1, 2 are the paper's springs 1 (1–3), 2 (1–2), 3 (2–3)."""
     x = np.array([[-0.5, 0.0, 0.0], [0.5, 0.0, 0.0], [0.0, np.sqrt(3.0) / 2.0, 0.0]])
     edges = np.array([[0, 2], [0, 1], [1, 2]])
@@ -106,6 +108,27 @@ def lattice(
 # meshes
 
 
+def read_meshio(path):
+    """``meshio.read(path)``, its failures as a :class:`MeshError` naming the file: a missing
+    file, a folder, a file no reader accepts (meshio calls ``sys.exit()`` on some of those: a
+    notebook or the CLI must not be shut down) or a truncated or corrupt one."""
+    import meshio
+
+    path = os.fspath(path)
+    if os.path.isdir(path):
+        raise MeshError(f"{path}: is a folder, not a mesh file")
+    if not os.path.exists(path):
+        raise MeshError(f"{path}: no such mesh file")
+    said = io.StringIO()  # meshio prints its reason before some of its sys.exit() calls
+    try:
+        with contextlib.redirect_stdout(said), contextlib.redirect_stderr(said):
+            return meshio.read(path)
+    except (Exception, SystemExit) as exc:
+        printed = " ".join(said.getvalue().split()).removeprefix("Error: ")
+        reason = str(exc).strip() if not isinstance(exc, SystemExit) else (printed or "no meshio reader accepts it")
+        raise MeshError(f"{path}: meshio cannot read it: {reason or type(exc).__name__}") from None
+
+
 def read_mesh(
     path,
     *,
@@ -118,18 +141,8 @@ def read_mesh(
 
     See :func:`from_meshio` for the arguments. Errors name the file.
     """
-    import meshio
-
     path = os.fspath(path)
-    if not os.path.exists(path):
-        raise MeshError(f"{path}: no such mesh file")
-    try:
-        mesh = meshio.read(path)
-    # meshio raises many kinds, and calls sys.exit() on a file no reader accepts; the user needs
-    # the file and the reason, and a notebook must not be shut down
-    except (Exception, SystemExit) as exc:
-        reason = str(exc) if not isinstance(exc, SystemExit) else "no meshio reader accepts it"
-        raise MeshError(f"{path}: meshio cannot read it: {reason}") from None
+    mesh = read_meshio(path)
     return from_meshio(mesh, cell_types=cell_types, mass=mass, density=density, anchors=anchors, source=path)
 
 

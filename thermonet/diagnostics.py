@@ -8,7 +8,6 @@ P = Σ p, L = Σ (x − x_ref) × p over free nodes.
 from __future__ import annotations
 
 import csv
-import os
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -91,6 +90,17 @@ class Diagnostics:
 
     rows: list[dict] = field(default_factory=list)
 
+    def __repr__(self) -> str:
+        if not self.rows:
+            return "<Diagnostics: no rows>"
+        first, last = self.rows[0], self.rows[-1]
+        text = (f"<Diagnostics {len(self.rows)} rows, steps {first['step']}..{last['step']}, "
+                f"t = {first['time']:.6g}..{last['time']:.6g}")
+        energy = self.summary().get("energy")
+        if energy is not None:
+            text += f", energy {energy['initial']:.10g} (max rel. deviation {energy['relative']:.2e})"
+        return text + f"; columns {', '.join(self.columns)}>"
+
     def append(self, row: dict) -> None:
         self.rows.append(row)
 
@@ -140,14 +150,14 @@ class Diagnostics:
 
     def to_csv(self, path) -> None:
         """Write all rows to ``path`` atomically (a temporary file renamed into place)."""
+        from .io.atomic import atomic_write
+
         cols = self.columns
-        tmp = f"{os.fspath(path)}.tmp"
-        with open(tmp, "w", newline="") as f:
+        with atomic_write(path, "w") as f:
             w = csv.writer(f)
             w.writerow(cols)
             for row in self.rows:
                 w.writerow([_fmt(row.get(c, "")) for c in cols])
-        os.replace(tmp, path)
 
 
 def _fmt(v):

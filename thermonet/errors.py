@@ -38,3 +38,10 @@ class SimulationError(ThermonetError, RuntimeError):
     """A run that had to stop (non-physical state, solver failure); the last good state is kept."""
 
     exit_code = 3
+
+
+class OutputError(ThermonetError):
+    """Output that could not be written (a full disk, a read-only folder, ...); what was written
+    before stays valid (every file is written atomically)."""
+
+    exit_code = 4

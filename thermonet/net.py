@@ -167,6 +167,28 @@ class Net:
             return pts[0].copy()
         return None
 
+    def to_meshio(self):
+        """The net as a ``meshio.Mesh`` (springs as "line" cells; point data ``mass``,
+        ``anchored``; cell data ``rest_length``), e.g. ``net.to_meshio().write("net.vtu")``."""
+        from .io.convert import net_mesh
+
+        return net_mesh(self)
+
+    def to_pyvista(self):
+        """The net as a ``pyvista.UnstructuredGrid`` (the fields of :meth:`to_meshio`; needs PyVista)."""
+        from .io.convert import net_mesh, to_pyvista
+
+        return to_pyvista(net_mesh(self))
+
+    def __repr__(self) -> str:
+        groups = ""
+        if self.node_groups:
+            groups += f", node groups {', '.join(sorted(self.node_groups))}"
+        if self.spring_groups:
+            groups += f", spring groups {', '.join(sorted(self.spring_groups))}"
+        return (f"<Net {self.n_nodes} nodes ({int(self.anchored.sum())} anchored), {self.n_springs} springs"
+                f"{groups}, from {self.source}>")
+
     def summary(self) -> str:
         n_anch = int(self.anchored.sum())
         return (

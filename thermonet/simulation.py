@@ -21,6 +21,8 @@ import numpy as np
 
 from .diagnostics import Diagnostics, diagnostics_row, measure, spring_fields
 from .blowup import STRETCH_BOUNDS
+from .compile_watch import CompileWatch
+from .run_guards import DEFAULT_ENERGY_TOLERANCE, GUARD_MODES, StabilityGuard, energy_departure
 from .errors import InputError, SimulationError
 from .integrators import get_integrator
 from .integrators.base import StepFailure
@@ -43,7 +45,8 @@ class Simulation:
     parameters: model parameters, name -> scalar or (m,) array (user spring numbering);
         missing ones take the model's defaults.
     temperatures: initial temperature per spring θ(0), scalar or (m,); default: each spring's
-        reference temperature. Entropies are η = Γ(l(0), θ(0)) (spec §1.3).
+        reference temperature. Entropies are η = Γ(l(0), θ(0)), Γ = −∂F/∂θ (Mata & Lew 2011,
+        (11)).
     momenta / velocities: initial (n, 3) momenta or velocities (give at most one; default rest).
     integrator: a name (see ``thermonet.available_integrators()``) or an Integrator.
     h: time step.
@@ -58,8 +61,14 @@ class Simulation:
         stops a run at the first step in which a spring leaves them, or whose tension is not
         finite, or (thermal) whose θ is not > 0; the state is rewound to the last good step and
         a :class:`StepFailure` (a SimulationError) names step, time, spring, nodes and quantity.
-    energy_tolerance: optional relative bound on |H − H(0)|/|H(0)|, checked at the diagnostics
-        cadence; a run beyond it stops with the state rewound to the previous stop.
+    energy_tolerance: relative bound on |H − H(0)|/|H(0)|, checked at the diagnostics cadence
+        (default ``DEFAULT_ENERGY_TOLERANCE`` = 0.1; None: no energy guard); a run beyond it
+        stops with a SimulationError, the state rewound to the previous stop.
+    stability_guard: "stop" (default; True), "warn" or "off" (False): the explicit integrators'
+        stable step re-estimated at the diagnostics cadence from the current stiffnesses
+        (:class:`thermonet.run_guards.StabilityGuard`): a StepWarning above 0.9 h_max, and above
+        1.5 h_max a stop (StabilityLimitExceeded, a SimulationError; "warn": warned only), the
+        state rewound to the previous stop.
     backend: "cpu" (default) or "cuda": the explicit integrators on an NVIDIA GPU through
         numba-cuda, the state resident on the device (see :mod:`thermonet.cuda`).
     """
@@ -82,7 +91,8 @@ class Simulation:
         integrator_options: Mapping | None = None,
         backend: str = "cpu",
         stretch_bounds=STRETCH_BOUNDS,
-        energy_tolerance: float | None = None,
+        energy_tolerance: float | None = DEFAULT_ENERGY_TOLERANCE,
+        stability_guard="stop",
     ):
         if not isinstance(net, Net):
             raise InputError(f"net must be a thermonet.Net, got {type(net).__name__}")
@@ -128,6 +138,7 @@ class Simulation:
         if energy_tolerance is not None and not (float(energy_tolerance) > 0):
             raise InputError(f"energy_tolerance must be > 0 (relative), got {energy_tolerance}")
         self.energy_tolerance = None if energy_tolerance is None else float(energy_tolerance)
+        self.stability_guard = StabilityGuard(self, _guard_mode(stability_guard))
 
         x0 = layout.nodes_to_internal(net.positions).copy()
         p0 = self._initial_momenta(momenta, velocities)
@@ -148,8 +159,11 @@ class Simulation:
         self.parallel = bool(parallel)
         self.stepper = self.integrator.make_stepper(self.system, parallel=self.parallel, **stepper_options)
         self.diagnostics = Diagnostics()
+        #: seconds spent stepping (Numba compilation excluded) and steps run, over all runs
         self.wall_time = 0.0
         self.steps_run = 0
+        #: seconds ``run`` spent compiling kernels (first runs of a model and integrator)
+        self.compile_time = 0.0
 
     # ------------------------------------------------------------------------------------------
     # initial data
@@ -224,9 +238,11 @@ class Simulation:
         return self._state.step
 
     def steps_until(self, t_end: float) -> int:
-        """Whole steps from the current time to ``t_end`` (rounded up, with a tolerance)."""
-        n = (t_end - self._state.time) / self.h
-        return max(0, int(math.ceil(n - 1e-9 * max(1.0, abs(n)))))
+        """Steps from the current time to ``t_end``, which must be a whole number of steps
+        (:func:`thermonet.step_policy.whole_steps`; an InputError otherwise)."""
+        from .step_policy import whole_steps
+
+        return whole_steps(t_end, self.h, self._state.time)
 
     def run(
         self,
@@ -244,7 +260,9 @@ class Simulation:
             k in the global step count) and at the end of the run. Where a callback is a bound
             method of an object with a ``flush()`` method (``RunOutput``: frames written on a
             thread), that is called before ``run`` returns or raises.
-        progress: called as ``progress(done, total, elapsed_seconds)`` at each stop.
+        progress: called as ``progress(done, total, elapsed_seconds)`` at each stop, elapsed
+            without the time Numba spent compiling kernels; where it has a ``compiling()``
+            method, that is called when the run starts compiling a kernel (first runs only).
         Returns the diagnostics series (``sim.diagnostics``, accumulated over runs).
         """
         if (t_end is None) == (steps is None):
@@ -276,7 +294,9 @@ class Simulation:
         start = self._state.step
         end = start + steps
         flushes = _flushes(cadences[1:])  # (observers may have been a generator: read once above)
+        watch = CompileWatch(getattr(progress, "compiling", None))  # compile time kept out of rates
         t0 = _time.perf_counter()
+        watch.__enter__()
         try:
             while self._state.step < end:
                 cur = self._state.step
@@ -289,7 +309,7 @@ class Simulation:
                             continue
                         cb(self)
                 if progress is not None:
-                    progress(done - start, steps, _time.perf_counter() - t0)
+                    progress(done - start, steps, _time.perf_counter() - t0 - watch.seconds)
         except BaseException:
             for flush in flushes:  # keep what was written; the first error is the one to report
                 try:
@@ -297,9 +317,12 @@ class Simulation:
                 except Exception:
                     pass
             raise
+        finally:
+            watch.__exit__()
+            self.compile_time += watch.seconds
         for flush in flushes:
             flush()
-        self.wall_time += _time.perf_counter() - t0
+        self.wall_time += _time.perf_counter() - t0 - watch.seconds
         self.steps_run += steps
         return self.diagnostics
 
@@ -407,29 +430,41 @@ class Simulation:
             self._record(self)
 
     def _diagnostics_stop(self, _sim=None) -> None:
-        """The run loop's diagnostics observer: a row, then the energy-departure check."""
+        """The run loop's diagnostics observer: a row, then the run-time guards
+        (:mod:`thermonet.run_guards`): the energy departure, then the stable step."""
         self._record(self)
-        tol = self.energy_tolerance
         rows = self.diagnostics.rows
-        if tol is None or len(rows) < 2:
-            return
-        e0, e = rows[0]["energy"], rows[-1]["energy"]
-        if abs(e - e0) <= tol * max(abs(e0), np.finfo(float).tiny):
-            return
-        bad_step, bad_time = self._state.step, self._state.time
+        departure = energy_departure(rows, self.energy_tolerance)
+        if departure is not None:
+            bad_step, bad_time = self._state.step, self._state.time
+            e0 = rows[0]["energy"]
+            where = self._rewind_to_previous_stop()
+            raise SimulationError(
+                f"the energy departed from its initial value {e0:.10g} by {departure:.3g} "
+                f"(relative; tolerance {self.energy_tolerance:g}) at step {bad_step} (t = {bad_time:.6g}); "
+                f"{where}. Try a smaller h than {self._h:g} or an implicit integrator (ho4, gtr-1/2); "
+                f"energy_tolerance (scene: integrator.energy_tolerance) sets the guard")
+        try:
+            self.stability_guard.check(self)
+        except SimulationError as exc:
+            where = self._rewind_to_previous_stop()
+            raise type(exc)(f"{exc}; {where}. Use a smaller h or an implicit integrator (ho4, gtr-1/2), or pass "
+                            f"--allow-unstable-step (scene: integrator.check_step = false; API: "
+                            f"stability_guard='warn') to only warn") from None
+
+    def _rewind_to_previous_stop(self) -> str:
+        """Drop the last diagnostics row and rewind the state to the row before (where the
+        backup allows); returns where the state now is, in words."""
+        rows = self.diagnostics.rows
         backup = getattr(self, "_backup", None)
-        rows.pop()
-        last = rows[-1]["step"]
-        if self._backup_usable() and backup.step <= last:
+        dropped = rows.pop()
+        last = rows[-1]["step"] if rows else -1
+        if rows and self._backup_usable() and backup.step <= last:
             self._rewind(backup, last - backup.step)
-            where = (f"the state was rewound to step {last} (t = {self._state.time:.6g}), "
-                     "the last diagnostics stop before")
-        else:
-            where = "the state is that of this step"
-        raise SimulationError(
-            f"the energy departed from its initial value {e0:.10g} by {abs(e - e0) / max(abs(e0), 1e-300):.3g} "
-            f"(relative; tolerance {tol:g}) at step {bad_step} (t = {bad_time:.6g}); "
-            f"{where}. Try a smaller h than {self._h:g} or an implicit integrator (ho4, gtr-1/2).")
+            return (f"the state was rewound to step {last} (t = {self._state.time:.6g}), "
+                    "the last diagnostics stop before")
+        rows.append(dropped)  # no earlier state to go back to: the row stays
+        return f"the state is that of step {self._state.step}"
 
     def _record(self, _sim=None) -> None:
         row = self.stepper.diagnostics_row(self.system, self._state)  # a device-resident state
@@ -533,7 +568,7 @@ class Simulation:
         return type(f)(*(lay.springs_to_user(a) for a in (f.length, f.temperature, f.tension, f.internal_energy)))
 
     def temperatures(self) -> np.ndarray:
-        """(m,) spring temperatures θ(l, η) now (spec (18b))."""
+        """(m,) spring temperatures θ(l, η) now (Mata & Lew 2011, (12) and (18b))."""
         return self.layout.springs_to_user(self.internal_spring_fields().temperature)
 
     def lengths(self) -> np.ndarray:
@@ -552,6 +587,21 @@ class Simulation:
     def velocities(self) -> np.ndarray:
         return self.state.momenta / self.net.masses[:, None]
 
+    def to_meshio(self):
+        """The current state as a ``meshio.Mesh`` in the user's numbering: springs as "line"
+        cells at the current positions, node displacement, velocity, momentum, spring strain,
+        tension (and temperature, entropy with thermal coupling); see :mod:`thermonet.io.convert`."""
+        from .io.convert import simulation_mesh
+
+        return simulation_mesh(self)
+
+    def to_pyvista(self):
+        """The current state as a ``pyvista.UnstructuredGrid`` (the fields of :meth:`to_meshio`;
+        needs PyVista)."""
+        from .io.convert import simulation_mesh, to_pyvista
+
+        return to_pyvista(simulation_mesh(self))
+
     def conservation_summary(self) -> dict:
         """Initial value and maximal deviation of each conserved quantity, plus speed."""
         out = self.diagnostics.summary()
@@ -560,6 +610,7 @@ class Simulation:
             "wall_time_s": self.wall_time,
             "steps_per_s": self.steps_run / self.wall_time if self.wall_time > 0 else float("nan"),
             "spring_steps_per_s": self.steps_run * self.net.n_springs / self.wall_time if self.wall_time > 0 else float("nan"),
+            "compile_s": self.compile_time,
         }
         solver_summary = self.stepper.summary()  # implicit integrators: Newton totals
         if solver_summary is not None:
@@ -583,6 +634,16 @@ def _check_backend(backend, integrator) -> str:
 
         require_cuda()
     return name
+
+
+def _guard_mode(mode) -> str:
+    if mode is True:
+        return "stop"
+    if mode is False or mode is None:
+        return "off"
+    if str(mode).lower() not in GUARD_MODES:
+        raise InputError(f"stability_guard must be one of {', '.join(GUARD_MODES)} (or True/False), got {mode!r}")
+    return str(mode).lower()
 
 
 def _check_stretch_bounds(bounds) -> tuple[float, float]:

@@ -92,3 +92,24 @@ def check_step(sim, *, allow_unstable: bool = False, warn: bool = True) -> StepC
     if warn:
         warnings.warn(msg, StepWarning, stacklevel=2)
     return StepCheck(h, h_max, ratio, verdict, msg, est)
+
+
+#: how far t_end may be from a whole number of steps, relative to that number (rounding of t/h)
+WHOLE_STEPS_TOLERANCE = 1e-9
+
+
+def whole_steps(t_end: float, h: float, start: float = 0.0, what: str = "t_end") -> int:
+    """The number of steps of size ``h`` from time ``start`` to ``t_end``, which must be a whole
+    number (within :data:`WHOLE_STEPS_TOLERANCE`): the one rule of the API (``Simulation.run``),
+    scenes (``integrator.t_end``) and the studies. Otherwise an :class:`InputError` says which
+    t_end or step count would do."""
+    n = (t_end - start) / h
+    k = round(n)
+    if abs(n - k) <= WHOLE_STEPS_TOLERANCE * max(1.0, abs(n)) and k >= 0:
+        return int(k)
+    if n < 0:
+        raise InputError(f"{what} = {t_end:g} is before the current time t = {start:g}")
+    lo, hi = math.floor(n), math.ceil(n)
+    options = " or ".join(f"{start + k * h:.10g}" for k in (lo, hi) if k >= 1)
+    raise InputError(f"{what} = {t_end:g} is not a whole number of steps of h = {h:g} from t = {start:g} "
+                     f"({n:.6g} steps); give {what} = {options}, or a number of steps")

@@ -43,6 +43,10 @@ class System:
     thermal: bool = True
     stretch_bounds: tuple[float, float] = (1e-4, 1e4)
 
+    def __repr__(self) -> str:
+        return (f"<System {self.n_nodes} nodes, {self.n_springs} springs, model {self.model.name}, "
+                f"thermal {'on' if self.thermal else 'off'}, gravity {'off' if self.gravity is None else list(self.gravity)}>")
+
     @property
     def edges(self) -> np.ndarray:
         return self.layout.edges
@@ -89,6 +93,10 @@ class State:
     time: float = 0.0
     step: int = 0
     extra: dict = field(default_factory=dict)
+
+    def __repr__(self) -> str:
+        springs = "" if self.entropy is None else f", {len(self.entropy)} springs (η, Φ)"
+        return f"<State step {self.step}, t = {self.time:.6g}: {len(self.positions)} nodes (x, p){springs}>"
 
     def copy(self) -> "State":
         return State(

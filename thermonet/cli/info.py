@@ -31,9 +31,11 @@ def _mb(b: float) -> str:
 
 def handle(args) -> int:
     target = args.target
-    if not os.path.exists(target):
-        from ..errors import InputError
+    from ..errors import InputError
 
+    if os.path.isdir(target):
+        raise InputError(f"{target}: is a folder; give a mesh file or a scene (.toml)")
+    if not os.path.exists(target):
         raise InputError(f"{target}: no such file")
     lines = describe_scene(target, args.overrides) if target.endswith(".toml") else describe_mesh(target)
     print("\n".join(lines))
@@ -41,16 +43,10 @@ def handle(args) -> int:
 
 
 def describe_mesh(path: str) -> list[str]:
-    import meshio
-
-    from ..builders import from_meshio
-    from ..errors import MeshError
+    from ..builders import from_meshio, read_meshio
     from ..simulation import Simulation
 
-    try:
-        mesh = meshio.read(path)
-    except Exception as exc:  # meshio raises many kinds
-        raise MeshError(f"{path}: meshio cannot read it: {exc}") from None
+    mesh = read_meshio(path)
     net = from_meshio(mesh, source=path)
     cells = {}
     for block in mesh.cells:
@@ -82,9 +78,9 @@ def describe_scene(path: str, overrides) -> list[str]:
            f"  net: {net.n_nodes} nodes ({int(net.anchored.sum())} anchored), {net.n_springs} springs, "
            f"total mass {net.masses[~net.anchored].sum():.6g}, from {source}"]
     if scene.mesh_path():
-        import meshio
+        from ..builders import read_meshio
 
-        mesh = built.mesh if built.mesh is not None else meshio.read(scene.mesh_path())
+        mesh = built.mesh if built.mesh is not None else read_meshio(scene.mesh_path())
         cells = {}
         for block in mesh.cells:
             cells[block.type] = cells.get(block.type, 0) + len(block.data)

@@ -5,8 +5,10 @@ mesh or scene holds, memory, stable step), ``render OUTDIR`` (a picture of a fra
 PyVista), ``study`` (convergence and cost studies). ``--debug`` shows a traceback instead of the one-line error.
 
 Exit codes: 0 success; 1 unexpected thermonet error; 2 bad input (scene, mesh, parameters,
-names, checkpoint, missing optional dependency); 3 the simulation had to stop (non-physical
-state, solver failure); 130 interrupted (Ctrl-C; a run can continue with ``--resume``).
+names, checkpoint, an output folder of a previous run, missing optional dependency); 3 the
+simulation had to stop (non-physical state, solver failure, a step above the stability limit,
+energy far from its start) or ended with broken conservation; 4 output that could not be written
+(read-only folder, full disk); 130 interrupted (Ctrl-C; a run can continue with ``--resume``).
 """
 
 from __future__ import annotations
@@ -48,6 +50,13 @@ def main(argv=None) -> int:
             raise
         print(f"thermonet: error: {exc}", file=sys.stderr)
         return exc.exit_code
+    except OSError as exc:  # a file an output writer could not write, outside `thermonet run`'s own handling
+        if args.debug:
+            raise
+        from ..io.folder import describe_os_error
+
+        print(f"thermonet: error: {describe_os_error(exc)}", file=sys.stderr)
+        return 4
     except KeyboardInterrupt:
         print("thermonet: interrupted", file=sys.stderr)
         return 130

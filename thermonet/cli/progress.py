@@ -14,7 +14,8 @@ def _clock(seconds: float) -> str:
 
 
 class ProgressBar:
-    """``progress(done, total, elapsed)`` callback for ``Simulation.run``.
+    """``progress(done, total, elapsed)`` callback for ``Simulation.run`` (elapsed: seconds of
+    stepping, compilation excluded; :meth:`compiling` says when kernels are being compiled).
 
     Shows nothing during the first ``delay`` seconds (short runs stay quiet); then redraws one
     line at most every ``interval`` seconds on a terminal, or prints a line every
@@ -28,6 +29,7 @@ class ProgressBar:
         self.interval = interval if self.tty else log_interval
         self._last = -float("inf")
         self.shown = False
+        self._compiling_said = False
 
     def line(self, done: int, total: int, elapsed: float) -> str:
         frac = done / total if total else 1.0
@@ -37,6 +39,15 @@ class ProgressBar:
         eta_text = _clock(eta) if eta == eta else "?"
         return (f"[{'#' * filled}{'.' * (self.width - filled)}] {100 * frac:5.1f}%  "
                 f"step {done}/{total}  {rate:,.0f} steps/s  ETA {eta_text}")
+
+    def compiling(self) -> None:
+        """Say, once, that kernels are being compiled (a first run; Numba caches them on disk)."""
+        if self._compiling_said:
+            return
+        self._compiling_said = True
+        self.stream.write("thermonet: compiling kernels (first run of this model and integrator only; "
+                          "cached for later runs; not counted in steps/s and ETA)\n")
+        self.stream.flush()
 
     def __call__(self, done: int, total: int, elapsed: float) -> None:
         now = time.monotonic()

@@ -11,7 +11,8 @@ def format_summary(sim, scene: str, out: str | None = None) -> str:
         f"thermonet: {scene}: {sim.net.n_nodes} nodes, {sim.net.n_springs} springs, model {sim.model.name}, "
         f"integrator {sim.integrator.name} (order {sim.integrator.order}), h = {sim.h:g}",
         f"  ran {run['steps']} steps to t = {sim.time:.6g} in {run['wall_time_s']:.3g} s "
-        f"({run['steps_per_s']:.4g} steps/s, {run['spring_steps_per_s']:.4g} spring-steps/s)",
+        f"({run['steps_per_s']:.4g} steps/s, {run['spring_steps_per_s']:.4g} spring-steps/s)"
+        + (f", after {run['compile_s']:.3g} s compiling kernels" if run.get("compile_s", 0) >= 0.05 else ""),
         f"  {'quantity':<10} {'initial':>22} {'max |deviation|':>16} {'relative':>10}",
     ]
     if "newton" in run:

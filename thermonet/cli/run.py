@@ -3,8 +3,10 @@ time series, diagnostics, summary and checkpoints, and print the conservation su
 
 from __future__ import annotations
 
+import contextlib
 import os
 import sys
+import warnings
 
 HELP = "run a scene and write VTU/PVD frames, diagnostics.csv, summary.json and checkpoints"
 
@@ -26,6 +28,9 @@ def add_args(p) -> None:
     p.add_argument("--allow-unstable-step", action="store_true",
                    help="run even when h is far above the estimated stability limit (> 1.5 h_max; "
                         "same as --set integrator.check_step=false); it is still warned about")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace the output of a previous run in the output folder (its files are deleted "
+                        "first); without it such a folder is refused")
     p.add_argument("--quiet", action="store_true", help="print nothing but errors")
 
 
@@ -42,24 +47,37 @@ def overrides_of(args) -> list[str]:
 
 
 def handle(args) -> int:
-    from ..errors import SimulationError
-    from ..io import RunOutput, load_checkpoint
-    from ..scenes import load_scene, scene_from_text
+    from ..compile_watch import CompileWatch
     from .progress import ProgressBar
+
+    progress = None if args.quiet else ProgressBar()
+    with _run_warnings(args.quiet, progress), CompileWatch(progress.compiling if progress else None):
+        return _run(args, progress)
+
+
+def _run(args, progress) -> int:
+    from ..errors import InputError, OutputError, SimulationError
+    from ..io import RunOutput, load_checkpoint
+    from ..io.folder import check_writable, describe_os_error, prepare_output_folder, remove_stale_temporaries
+    from ..run_guards import broken_conservation
+    from ..scenes import load_scene, scene_from_text
     from .report import format_summary
 
     overrides = overrides_of(args)
     state = meta = None
+    if args.resume and args.overwrite:
+        raise InputError("--resume continues the run in its folder; --overwrite would delete it: give one of them")
     if args.resume:
         checkpoint = args.resume
         if os.path.isdir(checkpoint):
             found = sorted(f for f in os.listdir(checkpoint) if f.endswith(".checkpoint.npz"))
             if not found:
-                from ..errors import InputError
-
                 raise InputError(f"{checkpoint}: no *.checkpoint.npz in this folder")
             checkpoint = os.path.join(checkpoint, found[0])
         state, meta = load_checkpoint(checkpoint)
+        missing = [k for k in ("scene", "diagnostics", "frames", "wall_time_s", "steps_run") if k not in meta]
+        if missing:
+            raise InputError(f"{checkpoint}: not a checkpoint of `thermonet run` (no {', '.join(missing)} in it)")
         saved = meta["scene"]
         if args.scene:
             scene = load_scene(args.scene, overrides)
@@ -67,57 +85,115 @@ def handle(args) -> int:
             scene = scene_from_text(saved["text"], file=saved["file"], base_dir=saved["base_dir"],
                                     overrides=list(saved["overrides"]) + overrides)
         if scene.hash != saved["hash"]:
-            from ..errors import InputError
-
             raise InputError(f"{checkpoint}: written by a different scene (hash {saved['hash'][:12]}, this scene "
                              f"{scene.hash[:12]}): net, materials, initial state, effects or integrator differ")
         folder = args.out or os.path.dirname(os.path.abspath(checkpoint))
+        if os.path.exists(folder) and not os.path.isdir(folder):
+            raise InputError(f"--out {folder}: exists and is not a folder")
+        try:
+            check_writable(folder)
+        except OSError as exc:
+            raise OutputError(f"--resume: cannot write the output folder {folder}: {describe_os_error(exc)}") from None
+        remove_stale_temporaries(folder)
     else:
         scene = load_scene(args.scene, overrides)
         folder = args.out or scene["output"].get("folder") or os.path.join("thermonet-out", scene.name)
+        prepare_output_folder(folder, overwrite=args.overwrite)
 
     built = scene.build()
     sim = built.simulation
+    if args.allow_unstable_step:
+        sim.stability_guard.mode = "warn"
     if state is None:
         _check_step(sim, scene, args)
     total = scene.total_steps()
-    output = RunOutput(
-        sim, folder, scene.name,
-        fields=scene.output_fields(),
-        frames_every=scene.cadence("frames_every", total),
-        diagnostics_every=scene.cadence("diagnostics_every", total),
-        checkpoint_every=scene.cadence("checkpoint_every", total),
-        material_id=built.material_id,
-        scene=scene.describe(),
-    )
+    try:
+        output = RunOutput(
+            sim, folder, scene.name,
+            fields=scene.output_fields(),
+            frames_every=scene.cadence("frames_every", total),
+            diagnostics_every=scene.cadence("diagnostics_every", total),
+            checkpoint_every=scene.cadence("checkpoint_every", total),
+            material_id=built.material_id,
+            scene=scene.describe(),
+        )
+    except OSError as exc:
+        raise OutputError(f"cannot write to the output folder: {describe_os_error(exc)}") from None
     if state is not None:
         sim.load_state(state)
         output.restore(meta)
-    progress = None if args.quiet else ProgressBar()
     try:
         sim.run(steps=max(0, total - sim.step), diagnostics_every=output.diagnostics_every,
                 observers=output.observers(), progress=progress)
     except BaseException as exc:
         if progress:
             progress.close()
+        failure = OutputError(f"writing the output failed at step {sim.step}: {describe_os_error(exc)}"
+                              ) if isinstance(exc, OSError) else None
         if isinstance(exc, SimulationError) and output.checkpoint_every:
-            output.write_checkpoint(sim)  # the last good state (the run was rewound to it)
-        output.write_csv()
-        if not args.quiet and output.checkpoint_every and os.path.exists(output.checkpoint_path):
-            print(f"thermonet: stopped at step {sim.step}; continue with: thermonet run --resume {output.checkpoint_path}",
-                  file=sys.stderr)
+            _try(output.write_checkpoint, sim)  # the last good state (the run was rewound to it)
+        _try(output.write_csv)
+        if not args.quiet or failure is not None:
+            print(_where_to_continue(sim, output, exc), file=sys.stderr)
+        if failure is not None:
+            raise failure from None
         raise
     if progress:
         progress.close()
-    output.write_csv()
-    output.write_summary(sim)
+    try:
+        output.write_csv()
+        output.write_summary(sim, {"broken_conservation": broken_conservation(sim, sim.energy_tolerance)})
+    except OSError as exc:
+        raise OutputError(f"writing the output failed at the end of the run: {describe_os_error(exc)}") from None
     if not args.quiet:
         print(format_summary(sim, scene.name, folder))
         files = [f"{scene.name}.pvd ({len(output.pvd.frames)} frames)" if output.frames_every else None,
                  "diagnostics.csv", "summary.json",
                  os.path.basename(output.checkpoint_path) if output.checkpoint_every else None]
         print(f"  wrote {', '.join(f for f in files if f)}")
+    broken = broken_conservation(sim, sim.energy_tolerance)
+    if broken:
+        raise SimulationError(f"the run ended with broken conservation: {'; '.join(broken)}; the result is not a "
+                              f"solution to trust (the files in {folder} are kept). Use a smaller h than {sim.h:g} "
+                              "or an implicit integrator (ho4, gtr-1/2)")
     return 0
+
+
+def _try(write, *args) -> None:
+    """A write after a failure: attempted, its own error dropped (the first one is reported)."""
+    try:
+        write(*args)
+    except Exception:
+        pass
+
+
+def _where_to_continue(sim, output, exc) -> str:
+    """Where the run stopped and which step --resume starts from."""
+    stop = "interrupted" if isinstance(exc, KeyboardInterrupt) else "stopped"
+    step = output.checkpoint_step
+    if step is None or not os.path.exists(output.checkpoint_path):
+        return f"thermonet: {stop} at step {sim.step}; no checkpoint was written (output.checkpoint_every)"
+    return (f"thermonet: {stop} at step {sim.step}; the last checkpoint is of step {step}: continue from there "
+            f"with: thermonet run --resume {output.checkpoint_path}")
+
+
+@contextlib.contextmanager
+def _run_warnings(quiet: bool, progress):
+    """Warnings while running (a step close to the stability limit, ...) as one line each:
+    ``thermonet: warning: ...`` on stderr (none with --quiet)."""
+    def show(message, category, filename, lineno, file=None, line=None):
+        if quiet:
+            return
+        if progress is not None and progress.shown and progress.tty:
+            sys.stderr.write("\n")
+        print(f"thermonet: warning: {message}", file=sys.stderr)
+
+    from ..step_policy import StepWarning
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("always", StepWarning)  # the guard warns once per run itself
+        warnings.showwarning = show
+        yield
 
 
 def _check_step(sim, scene, args) -> None:

@@ -7,6 +7,7 @@ them to an existing Dask cluster instead.
 
 from __future__ import annotations
 
+import math
 import os
 import sys
 
@@ -32,12 +33,15 @@ def add_args(p) -> None:
         s.add_argument("--workers", type=int, default=None, help="workers of the local cluster (default: one per core)")
         s.add_argument("--quiet", action="store_true", help="print nothing but errors")
         if name in ("convergence", "cost"):
-            s.add_argument("--dt", type=float, default=0.1, help="largest time step (default 0.1)")
+            s.add_argument("--dt", type=float, default=None,
+                           help="largest time step (default: 0.1 for the built-in scenes, else the scene's h; at "
+                                "most 0.9 × the smallest stability limit of the integrators, a whole fraction of t_end)")
             s.add_argument("--halvings", type=int, default=8, help="time steps dt·2^-i, i = 0..halvings (default 8)")
-            s.add_argument("--t-end", type=float, default=1.0, help="time at which errors are measured (default 1)")
+            s.add_argument("--t-end", type=float, default=None, help="time at which errors are measured (default 1)")
             s.add_argument("--reference-rtol", type=float, default=1e-13, help="DOP853 tolerance of the reference")
-            s.add_argument("--check", default="co6:5e-4", metavar="INTEGRATOR:H",
-                           help="solution the reference is checked against (default co6:5e-4; 'none' to skip)")
+            s.add_argument("--check", default=None, metavar="INTEGRATOR:H",
+                           help="solution the reference is checked against (default co6 at h = 5e-4, or at half its "
+                                "stability limit where that is smaller; 'none' to skip)")
         if name == "cost":
             s.add_argument("--repeats", type=int, default=5, help="timed repeats per run, median reported (default 5)")
             s.add_argument("--scipy", default="DOP853:1e-3..1e-12,RK45:1e-3..1e-9",
@@ -68,15 +72,21 @@ def _integrators(text: str | None, study: str) -> list[str]:
 
 
 def _check(text: str):
-    from ..errors import InputError
+    from ..errors import InputError, UnknownNameError
+    from ..integrators import available_integrators
 
     if text.lower() == "none":
         return None
     try:
         name, h = text.split(":")
-        return name.strip().lower(), float(h)
+        name, h = name.strip().lower(), float(h)
     except ValueError:
         raise InputError(f"--check must be INTEGRATOR:H or none, got {text!r}") from None
+    if name not in available_integrators():
+        raise UnknownNameError("integrator", name, available_integrators())
+    if not (math.isfinite(h) and h > 0):
+        raise InputError(f"--check {text}: the step must be finite and > 0")
+    return name, h
 
 
 def _scipy(text: str) -> dict:
@@ -100,27 +110,99 @@ def handle(args) -> int:
     from ..studies import Runner, convergence_study, cost_study, energy_study
 
     say = (lambda *a: None) if args.quiet else (lambda *a: print(*a, file=sys.stdout, flush=True))
-    integrators = _integrators(args.integrators, args.study)
+    plan = _plan(args)  # every argument checked, and the defaults resolved, before any work
+    integrators = plan["integrators"]
     scene_tag = os.path.splitext(os.path.basename(args.scene))[0]
     out = args.out or os.path.join("thermonet-out", f"study-{args.study}-{scene_tag}")
+    import warnings
+
+    from ..step_policy import StepWarning
+
+    warnings.simplefilter("ignore", StepWarning)  # a run near its limit is measured, and reported if it fails
     with Runner(serial=args.serial, scheduler=args.scheduler, n_workers=args.workers) as runner:
         say(f"{args.study} study of {args.scene}: {', '.join(integrators)}; runs on {runner.description}")
+        if args.study in ("convergence", "cost"):
+            check = f"{plan['check'][0]} h={plan['check'][1]:g}" if plan["check"] else "none"
+            say(f"time steps {plan['dt']:g}·2^-i, i = 0..{args.halvings}, to t = {plan['t_end']:g}; "
+                f"reference checked against {check}")
         if args.study == "convergence":
-            study = convergence_study(args.scene, integrators, args.dt, args.halvings, args.t_end, runner=runner,
-                                      rtol=args.reference_rtol, check=_check(args.check))
+            study = convergence_study(args.scene, integrators, plan["dt"], args.halvings, plan["t_end"], runner=runner,
+                                      rtol=args.reference_rtol, check=plan["check"])
             files = study.write(out)
         elif args.study == "cost":
-            acc = [float(a) for a in args.accuracy.split(",")] if args.accuracy else None
-            study = cost_study(args.scene, integrators, args.dt, args.halvings, args.t_end, repeats=args.repeats,
-                               scipy=_scipy(args.scipy), runner=runner, one_at_a_time=args.one_at_a_time,
-                               rtol=args.reference_rtol, check=_check(args.check))
-            files = study.write(out, accuracies=acc)
-            say(study.summary(accuracies=acc))
+            study = cost_study(args.scene, integrators, plan["dt"], args.halvings, plan["t_end"], repeats=args.repeats,
+                               scipy=plan["scipy"], runner=runner, one_at_a_time=args.one_at_a_time,
+                               rtol=args.reference_rtol, check=plan["check"])
+            files = study.write(out, accuracies=plan["accuracies"])
+            say(study.summary(accuracies=plan["accuracies"]))
         else:
-            window = [float(v) for v in args.window.split(",")] if args.window else None
-            study = energy_study(args.scene, integrators, args.h, args.t_end, args.every, window, runner=runner)
+            study = energy_study(args.scene, integrators, args.h, args.t_end, args.every, plan["window"], runner=runner)
             files = study.write(out)
     if args.study != "cost":
         say(study.summary())
     say("wrote " + ", ".join(os.path.relpath(f) for f in files))
     return 0
+
+
+def _plan(args) -> dict:
+    """The study's arguments checked, and its defaults resolved (from the scene's step and the
+    integrators' stability limits), in this process, before a Dask cluster starts or a run is
+    made: any problem is an InputError naming the argument."""
+    from ..errors import InputError
+    from ..studies.convergence import default_check, default_time_step, time_steps
+    from ..studies.scenes import check_scene
+    from ..studies.tasks import check_steps
+
+    check_scene(args.scene)
+    plan = {"integrators": _integrators(args.integrators, args.study)}
+    if not plan["integrators"]:
+        raise InputError("--integrators: none of the given integrators exists in this installation")
+    if args.workers is not None and args.workers < 1:
+        raise InputError(f"--workers must be >= 1, got {args.workers}")
+    if args.study in ("convergence", "cost"):
+        t_end = 1.0 if args.t_end is None else args.t_end
+        if not (math.isfinite(t_end) and t_end > 0):
+            raise InputError(f"--t-end must be finite and > 0, got {t_end}")
+        if args.dt is not None and not (math.isfinite(args.dt) and args.dt > 0):
+            raise InputError(f"--dt must be finite and > 0, got {args.dt}")
+        if not 0 <= args.halvings <= 30:
+            raise InputError(f"--halvings must be in 0..30, got {args.halvings}")
+        if not math.isfinite(args.reference_rtol) or not 0 < args.reference_rtol < 1:
+            raise InputError(f"--reference-rtol must be in (0, 1), got {args.reference_rtol}")
+        dt = default_time_step(args.scene, plan["integrators"], t_end) if args.dt is None else args.dt
+        check = default_check(args.scene, t_end) if args.check is None else _check(args.check)
+        for h in time_steps(dt, args.halvings):
+            _whole(check_steps, t_end, h, "--dt and --t-end")
+        if check is not None:
+            _whole(check_steps, t_end, check[1], "--check")
+        plan.update(t_end=t_end, dt=dt, check=check)
+    if args.study == "cost":
+        if args.repeats < 1:
+            raise InputError(f"--repeats must be >= 1, got {args.repeats}")
+        plan["scipy"] = _scipy(args.scipy)
+        try:
+            plan["accuracies"] = [float(a) for a in args.accuracy.split(",")] if args.accuracy else None
+        except ValueError:
+            raise InputError(f"--accuracy must be comma-separated numbers, got {args.accuracy!r}") from None
+    if args.study == "energy":
+        if not (math.isfinite(args.h) and args.h > 0):
+            raise InputError(f"--h must be finite and > 0, got {args.h}")
+        if args.every < 1:
+            raise InputError(f"--every must be >= 1, got {args.every}")
+        _whole(check_steps, args.t_end, args.h, "--t-end and --h")
+        try:
+            plan["window"] = [float(v) for v in args.window.split(",")] if args.window else None
+        except ValueError:
+            raise InputError(f"--window must be T0,T1, got {args.window!r}") from None
+        if plan["window"] is not None and len(plan["window"]) != 2:
+            raise InputError(f"--window must be T0,T1, got {args.window!r}")
+    return plan
+
+
+def _whole(check_steps, t_end: float, h: float, what: str) -> None:
+    from ..errors import InputError
+
+    try:
+        check_steps(t_end, h)
+    except InputError as exc:
+        raise InputError(f"{what}: {exc}") from None

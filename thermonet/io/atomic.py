@@ -1,7 +1,9 @@
 """Atomic file writes: write a temporary file beside the target, then rename it into place.
 
 A process killed at any moment leaves either the old file or the new one, never a torn one
-(``os.replace`` is atomic on POSIX and Windows). Leftover ``*.tmp-<pid>`` files are harmless.
+(``os.replace`` is atomic on POSIX and Windows). A failed write (a full disk) removes its
+temporary file and raises an OSError naming the target file. Leftover ``*.tmp-<pid>`` files of a
+killed process are harmless; ``thermonet run --resume`` removes them.
 """
 
 from __future__ import annotations
@@ -21,11 +23,13 @@ def _temporary_beside(path):
     try:
         yield tmp
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         try:
             os.unlink(tmp)
         except OSError:
             pass
+        if isinstance(exc, OSError) and exc.filename is None:  # a write(): say which file it was
+            raise OSError(exc.errno, exc.strerror or str(exc), path) from exc
         raise
 
 

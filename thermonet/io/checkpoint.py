@@ -41,6 +41,14 @@ def load_checkpoint(path) -> tuple[State, dict]:
     if not os.path.isfile(path):
         raise InputError(f"{path}: no such checkpoint file")
     try:
+        with open(path, "rb") as f:
+            magic = f.read(4)
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read the checkpoint: {exc.strerror}") from None
+    if magic != b"PK\x03\x04":  # every .npz is a zip file
+        raise InputError(f"{path}: not a readable thermonet checkpoint (not a .npz file: corrupt, truncated to "
+                         f"{os.path.getsize(path)} bytes, or another kind of file)")
+    try:
         with np.load(path, allow_pickle=False) as z:
             meta = json.loads(bytes(z["meta"]).decode())
             thermal = "entropy" in z.files
@@ -52,8 +60,10 @@ def load_checkpoint(path) -> tuple[State, dict]:
                 time=float(z["time"]),
                 step=int(z["step"]),
             )
-    except (OSError, ValueError, KeyError) as exc:
-        raise InputError(f"{path}: not a readable thermonet checkpoint ({exc})") from None
-    if meta.get("format") != FORMAT:
-        raise InputError(f"{path}: not a thermonet checkpoint (format {meta.get('format')!r}, expected {FORMAT})")
+    except Exception as exc:  # zipfile.BadZipFile, EOFError, zlib.error, OSError, ValueError, KeyError, ...
+        reason = str(exc) or type(exc).__name__
+        raise InputError(f"{path}: not a readable thermonet checkpoint (corrupt or truncated? {reason})") from None
+    if not isinstance(meta, dict) or meta.get("format") != FORMAT:
+        found = meta.get("format") if isinstance(meta, dict) else None
+        raise InputError(f"{path}: not a thermonet checkpoint (format {found!r}, expected {FORMAT})")
     return state, meta

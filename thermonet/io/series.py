@@ -161,6 +161,8 @@ class RunOutput:
         self._frame = (FrameFiller(sim, VTUWriter(sim.net.edges, sim.net.n_nodes), self.fields, self.material_id)
                        if self.frames_every else None)
         self._csv_written = -np.inf
+        #: step of the last checkpoint written (or restored), None before the first
+        self.checkpoint_step = None
         #: seconds the run spent in frame observer calls (filling; waiting for a previous write)
         self.frame_seconds = 0.0
         #: seconds the frame files took to write (on the writer thread when ``background``)
@@ -174,6 +176,40 @@ class RunOutput:
         self._last_frame = None
         self._pending = None
         self._pvd_written = -np.inf
+
+    @classmethod
+    def for_simulation(cls, sim, folder, name: str = "run", *, frames_every: int, diagnostics_every: int | None = None,
+                       checkpoint_every: int = 0, fields=None, material_id=None, overwrite: bool = False,
+                       **options) -> "RunOutput":
+        """The files of a run of ``sim`` driven from a script, as ``thermonet run`` writes them::
+
+            out = RunOutput.for_simulation(sim, "out/mine", frames_every=10)
+            sim.run(t_end=1.0, diagnostics_every=out.diagnostics_every, observers=out.observers())
+            out.write_summary(sim)          # optional: summary.json
+
+        writes ``out/mine/run.pvd`` with a ``run_NNNNNN.vtu`` frame every 10 steps (and at the
+        end), and ``diagnostics.csv``. folder: refused when it holds a previous run's files unless
+        ``overwrite`` (which deletes them; :func:`~thermonet.io.folder.prepare_output_folder`).
+        fields: default every field of :data:`FIELDS` the simulation has. diagnostics_every:
+        default ``frames_every``. material_id: (m,) int (default 0). checkpoint_every: 0 (none)
+        or a cadence (``load_checkpoint`` and ``sim.load_state`` continue from one).
+        """
+        from .folder import prepare_output_folder
+
+        prepare_output_folder(folder, overwrite=overwrite)
+        if fields is None:
+            fields = [f for f in FIELDS if sim.system.thermal or f not in THERMAL_FIELDS]
+        unknown = [f for f in fields if f not in FIELDS]
+        if unknown:
+            from ..errors import InputError
+
+            raise InputError(f"unknown output field {unknown[0]!r}; fields: {', '.join(FIELDS)}")
+        if material_id is None:
+            material_id = np.zeros(sim.net.n_springs, dtype=np.int32)
+        return cls(sim, folder, name, fields=fields, frames_every=frames_every,
+                   diagnostics_every=frames_every if diagnostics_every is None else diagnostics_every,
+                   checkpoint_every=checkpoint_every, material_id=material_id,
+                   scene={"name": name, "hash": None}, **options)
 
     # ------------------------------------------------------------------------------------------
     def observers(self) -> list:
@@ -193,6 +229,7 @@ class RunOutput:
         self.pvd.frames = {int(s): (float(t), f) for s, t, f in meta["frames"]}
         self.sim.wall_time = float(meta["wall_time_s"])
         self.sim.steps_run = int(meta["steps_run"])
+        self.checkpoint_step = self.sim.step
 
     # ------------------------------------------------------------------------------------------
     def write_frame(self, sim) -> None:
@@ -263,6 +300,7 @@ class RunOutput:
             "steps_run": sim.steps_run,
         }
         save_checkpoint(self.checkpoint_path, sim.state, meta)
+        self.checkpoint_step = sim.step
         self.write_csv()
 
     def write_summary(self, sim, extra: dict | None = None) -> dict:

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..builders import chain, from_meshio, lattice, triangle
+from ..builders import chain, from_meshio, lattice, read_meshio, triangle
 from ..errors import InputError
 from ..models import get_model
 from ..net import Net
@@ -63,7 +63,8 @@ def build_scene(scene: Scene) -> BuiltScene:
             integrator_options=options,
             backend=integ["backend"],
             stretch_bounds=tuple(integ["stretch_bounds"]),
-            energy_tolerance=integ.get("energy_tolerance"),
+            energy_tolerance=integ["energy_tolerance"] or None,
+            stability_guard="stop" if integ["check_step"] else "warn",
         )
     except InputError as exc:
         raise scene.error("", str(exc)) from None
@@ -83,15 +84,15 @@ def build_net(scene: Scene) -> tuple[Net, object]:
     mass = init["mass"] or {}
     mesh = None
     if spec.get("mesh") is not None:
-        import meshio
-
         path = scene.mesh_path()
+        if os.path.isdir(path):
+            raise scene.error("net.mesh", f"{path} is a folder, not a mesh file")
         if not os.path.isfile(path):
             raise scene.error("net.mesh", f"mesh file {path} does not exist")
         try:
-            mesh = meshio.read(path)
-        except Exception as exc:  # meshio raises many kinds; say which file and why
-            raise scene.error("net.mesh", f"meshio cannot read {path}: {exc}") from None
+            mesh = read_meshio(path)
+        except InputError as exc:  # meshio raises many kinds (or exits); say which file and why
+            raise scene.error("net.mesh", str(exc)) from None
         mass_arg = mass.get("uniform") if mass.get("uniform") is not None else mass.get("point_data")
         if mass.get("point_data") is not None and mass["point_data"] not in mesh.point_data:
             raise scene.error("initial.mass.point_data", _no_field(mass["point_data"], mesh))
@@ -143,9 +144,15 @@ def _lattice_faces(x: np.ndarray, spacing: float) -> dict[str, np.ndarray]:
     return groups
 
 
+def _net_name(net) -> str:
+    """The net's source in a message that already names the scene file: the mesh's file name."""
+    source = str(net.source)
+    return f"the mesh {os.path.basename(source)}" if os.path.sep in source or "." in source else source
+
+
 def _node_group(scene, net, name, key) -> np.ndarray:
     if name not in net.node_groups:
-        raise scene.error(key, f"no node group {name!r} in {net.source}; node groups: {', '.join(sorted(net.node_groups)) or 'none'}")
+        raise scene.error(key, f"no node group {name!r} in {_net_name(net)}; node groups: {', '.join(sorted(net.node_groups)) or 'none'}")
     return net.node_groups[name]
 
 
@@ -153,7 +160,7 @@ def _spring_group(scene, net, name, key) -> np.ndarray:
     if name == "all":
         return np.arange(net.n_springs)
     if name not in net.spring_groups:
-        raise scene.error(key, f"no spring group {name!r} in {net.source}; spring groups: "
+        raise scene.error(key, f"no spring group {name!r} in {_net_name(net)}; spring groups: "
                           f"{', '.join(['all'] + sorted(net.spring_groups))}")
     return net.spring_groups[name]
 

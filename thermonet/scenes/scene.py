@@ -11,6 +11,7 @@ import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from ..errors import InputError
 from .schema import FIELD_NAMES, Invalid, validate
 from .source import SceneError, apply_overrides, key_lines, parse_toml
 
@@ -46,6 +47,9 @@ class Scene:
         for i in range(len(path), 0, -1):
             if path[:i] in self._overridden:
                 return SceneError(message, file=f"--set {'.'.join(path[:i])}", key=key)
+        below = sorted(k for k in self._overridden if path and k[:len(path)] == path)
+        if below:  # e.g. --set materials.sof.c=3 made the table materials.sof
+            return SceneError(message, file=f"--set {'.'.join(below[0])}", key=key)
         line = None
         for i in range(len(path), 0, -1):
             if path[:i] in self._lines:
@@ -68,9 +72,10 @@ class Scene:
     @property
     def hash(self) -> str:
         """SHA-256 of what determines the trajectory: net (and the mesh file's bytes), materials,
-        initial state, effects and integrator (not t_end/steps, not the outputs)."""
+        initial state, effects and integrator (not t_end/steps, not the guards check_step and
+        energy_tolerance, not the outputs)."""
         physics = {k: v for k, v in self.data.items() if k not in ("output", "name", "description")}
-        physics["integrator"] = {k: v for k, v in physics["integrator"].items() if k not in ("t_end", "steps", "check_step")}
+        physics["integrator"] = {k: v for k, v in physics["integrator"].items() if k not in ("t_end", "steps", "check_step", "energy_tolerance")}
         h = hashlib.sha256(json.dumps(physics, sort_keys=True, default=str).encode())
         mesh = self.mesh_path()
         if mesh is not None and os.path.isfile(mesh):
@@ -79,12 +84,14 @@ class Scene:
         return h.hexdigest()
 
     def total_steps(self) -> int:
-        """Steps from t = 0 to the scene's end (t_end rounded up to whole steps, with a tolerance)."""
+        """Steps from t = 0 to the scene's end (t_end must be a whole number of steps; checked
+        when the scene is loaded)."""
+        from ..step_policy import whole_steps
+
         integ = self.data["integrator"]
         if integ.get("steps") is not None:
             return int(integ["steps"])
-        n = integ["t_end"] / integ["h"]
-        return max(0, int(math.ceil(n - 1e-9 * max(1.0, abs(n)))))
+        return whole_steps(integ["t_end"], integ["h"])
 
     def cadence(self, key: str, total: int) -> int:
         """output.<key> in steps ("auto" resolved against ``total`` steps)."""
@@ -118,11 +125,16 @@ class Scene:
 def load_scene(path=None, overrides=()) -> Scene:
     """Read and validate a scene file (default: the built-in default scene)."""
     path = os.fspath(path) if path is not None else str(DEFAULT_SCENE)
+    if os.path.isdir(path):
+        raise SceneError("is a folder, not a scene file (.toml)", file=path)
     if not os.path.isfile(path):
         where = "the built-in default scene" if path == str(DEFAULT_SCENE) else "scene file"
         raise SceneError(f"{where} {path} does not exist")
-    with open(path, encoding="utf-8") as f:
-        text = f.read()
+    try:
+        with open(path, encoding="utf-8") as f:
+            text = f.read()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise SceneError(f"cannot read it: {getattr(exc, 'strerror', None) or exc}", file=path) from None
     return scene_from_text(text, file=path, base_dir=os.path.dirname(os.path.abspath(path)), overrides=overrides)
 
 
@@ -154,6 +166,13 @@ def check(scene: Scene) -> None:
         raise scene.error("net.cells", "selects mesh cell blocks, but the scene has no net.mesh")
     if (integ.get("t_end") is None) == (integ.get("steps") is None):
         raise scene.error("integrator", "give exactly one of integrator.t_end or integrator.steps")
+    if integ.get("t_end") is not None:
+        from ..step_policy import whole_steps
+
+        try:
+            whole_steps(integ["t_end"], integ["h"])
+        except InputError as exc:
+            raise scene.error("integrator.t_end", f"{exc} (integrator.steps)") from None
     if init["velocity"] is not None and init["momentum"] is not None:
         raise scene.error("initial.momentum", "give initial.velocity or initial.momentum, not both")
     mass = init["mass"]

@@ -194,6 +194,14 @@ def retry(v):
     raise Invalid(f"must be true, false or a number of retries >= 0, got {v!r}")
 
 
+def energy_tolerance(v):
+    if v is False:
+        return v
+    if v is True:
+        raise Invalid("must be a relative tolerance > 0 or false (no energy guard), got true")
+    return number(above=0)(v)
+
+
 def any_table(v):
     if not isinstance(v, dict):
         raise Invalid(f"must be a table, got {_type_name(v)} {v!r}")
@@ -333,7 +341,7 @@ SCHEMA = Table({
     "integrator": Table({
         "name": Key(choice(_integrators), "string", "integrator (thermonet.available_integrators())", "co2"),
         "h": Key(number(above=0), "number > 0", "time step", required=True),
-        "t_end": Key(number(above=0), "number > 0", "final time (or give steps)"),
+        "t_end": Key(number(above=0), "number > 0", "final time, a whole number of steps of h (or give steps)"),
         "steps": Key(integer(0), "integer >= 0", "number of steps (or give t_end)"),
         "backend": Key(choice(_backends), "string", "compute backend: cpu, or cuda (explicit integrators on a GPU)", "cpu"),
         "threads": Key(integer(1), "integer >= 1", "threads of the parallel kernels (default: all cores)"),
@@ -346,9 +354,11 @@ SCHEMA = Table({
         "linear_solver": Key(string, "string", "sparse linear solver of the Newton steps (implicit)"),
         "options": Key(any_table, "table", "any further options, passed to the integrator as they are"),
         "check_step": Key(boolean, "boolean", "refuse a step far above the stability limit (h > 1.5 h_max at the "
-                          "initial state; docs/robustness.md); false: run anyway (--allow-unstable-step)", True),
-        "energy_tolerance": Key(number(above=0), "number > 0", "stop the run when |H − H(0)|/|H(0)| exceeds this "
-                                "(checked at the diagnostics cadence; the state is rewound to the previous stop)"),
+                          "initial state) and stop a run whose step goes above 1.5 h_max re-estimated while it "
+                          "runs (docs/robustness.md); false: warn only (--allow-unstable-step)", True),
+        "energy_tolerance": Key(energy_tolerance, "number > 0 | false", "energy guard: stop the run when "
+                                "|H − H(0)|/|H(0)| exceeds this (checked at the diagnostics cadence; the state is "
+                                "rewound to the previous stop); false: no guard", 0.1),
         "stretch_bounds": Key(list_of(number(above=0), "two numbers"), "array of 2 numbers",
                               "admissible stretches l/l0 (lo < 1 < hi); the kernel stops a run at the first step "
                               "in which a spring leaves them", [1e-4, 1e4]),

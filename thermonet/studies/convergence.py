@@ -24,6 +24,10 @@ from .tasks import check_steps, integrator_endpoint
 
 #: errors below this multiple of the reference's agreement are not used for slopes
 FLOOR_FACTOR = 100.0
+#: errors at or above this fraction of a quantity's size are not used for slopes (as in slopes.py)
+MAX_RELATIVE = 0.1
+#: the paper's coarsest step, the default of the built-in scenes
+PAPER_DT = 0.1
 
 
 @dataclass
@@ -71,10 +75,22 @@ class ConvergenceStudy:
             fits = [self.slopes[(name, q)] for q in QUANTITIES]
             lines.append(f"  {name:<10} {get_integrator(name).order:>5}  " + "  ".join(
                 f"{f.slope:>6.2f} ({f.n_points})" if math.isfinite(f.slope) else f"{'—':>11}" for f in fits))
+        for (name, q), reason in self.unfitted().items():
+            lines.append(f"  no {q} slope for {name}: {reason}")
         failed = [r for r in self.rows if r["status"] != "ok"]
-        for r in failed:
-            lines.append(f"  {r['integrator']} h={r['h']:g}: {r['status']}")
+        for r in failed:  # one line each, whatever the error's text
+            lines.append(f"  {r['integrator']} h={r['h']:g}: {' '.join(str(r['status']).split())}")
         return "\n".join(lines)
+
+    def unfitted(self) -> dict:
+        """(integrator, quantity) -> why no slope could be fitted, for every slope that is nan."""
+        out = {}
+        for (name, q), fit in self.slopes.items():
+            if math.isfinite(fit.slope):
+                continue
+            h, e = self.errors(name, q)
+            out[(name, q)] = unfitted_reason(h, e, self.reference.floor(q, FLOOR_FACTOR), self.reference.scales[q])
+        return out
 
     def plot(self, out_dir, prefix: str = "convergence") -> list[str]:
         """One log-log PNG per quantity, slopes annotated; returns the paths."""
@@ -98,6 +114,65 @@ class ConvergenceStudy:
         with open(files[2], "w") as f:
             f.write(self.summary() + "\n")
         return files + self.plot(out_dir)
+
+
+def unfitted_reason(h, error, floor: float, scale: float, max_relative: float = MAX_RELATIVE) -> str:
+    """Why the errors (n,) at steps h (n,) give no slope: what each point was dropped for (the
+    criteria of :func:`thermonet.studies.slopes.asymptotic_slope`)."""
+    error = np.asarray(error, dtype=np.float64)
+    failed = int((~np.isfinite(error)).sum())
+    finite = error[np.isfinite(error)]
+    below = int(((finite <= floor) | (finite <= 0)).sum())
+    large = int((finite >= max_relative * scale).sum())
+    usable = len(error) - failed - below - large
+    parts = [f"{usable} usable point{'s' if usable != 1 else ''} of {len(error)} (2 needed)"]
+    if failed:
+        parts.append(f"{failed} failed or non-finite run{'s' if failed != 1 else ''} (see below; the steps may be "
+                     "above the stability limit: a smaller --dt)")
+    if below:
+        parts.append(f"{below} at or below the reference's floor {floor:.2g} (100× its agreement with the check "
+                     "solution: a larger --dt, or a tighter check)")
+    if large:
+        parts.append(f"{large} with errors ≥ {max_relative:g} of the quantity's size {scale:.3g} (a smaller --dt)")
+    return "; ".join(parts)
+
+
+def default_time_step(scene: str, integrators, t_end: float) -> float:
+    """The coarsest step of a study when none is given: the paper's 0.1 for the built-in scenes,
+    else the scene's own h; at most ``SAFETY`` (0.9) × the smallest stability limit of the
+    integrators at the initial state, and a whole fraction of ``t_end``."""
+    from ..stability import stability_interval, stable_step
+    from ..step_policy import SAFETY
+    from .scenes import BUILTIN, make_simulation
+
+    h = PAPER_DT if scene in BUILTIN else _scene_step(scene)
+    for name in integrators:
+        sim = make_simulation(scene, name, h)
+        if math.isfinite(stability_interval(sim.integrator)):
+            h = min(h, SAFETY * stable_step(sim)["h_max"])
+    return fraction_of(t_end, h)
+
+
+def default_check(scene: str, t_end: float) -> tuple[str, float]:
+    """The check of the reference when none is given: CO6 at h = 5e-4, or at half its stability
+    limit at the initial state where that is smaller, a whole fraction of ``t_end``."""
+    from ..stability import stable_step
+    from .scenes import make_simulation
+
+    name, h = DEFAULT_CHECK
+    h_max = stable_step(make_simulation(scene, name, h))["h_max"]
+    return name, fraction_of(t_end, min(h, 0.5 * h_max))
+
+
+def fraction_of(t_end: float, h: float) -> float:
+    """The largest t_end / k (k a whole number) not above h."""
+    return t_end / math.ceil(t_end / h * (1 - 1e-12))
+
+
+def _scene_step(path: str) -> float:
+    from .scenes import _scene_loader
+
+    return float(_scene_loader().load_scene(path)["integrator"]["h"])
 
 
 def time_steps(dt: float, halvings: int) -> list[float]:
