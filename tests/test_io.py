@@ -15,7 +15,7 @@ import thermonet as tn
 from thermonet.io import PVDIndex, VTUWriter, load_checkpoint, read_pvd, save_checkpoint
 from thermonet.io import atomic as atomic_module
 from thermonet.scenes import load_scene
-from thermonet.system import State
+from thermonet.state import State
 
 pv = pytest.importorskip("pyvista")
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))

@@ -12,7 +12,7 @@ from .models import Model, available_models, get_model, register_model
 from .net import Net
 from .paper import chain_simulation, triangle_simulation
 from .simulation import Simulation
-from .system import State
+from .state import State
 
 __version__ = "0.1.0"
 

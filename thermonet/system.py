@@ -1,4 +1,5 @@
-"""What a stepper works on: the fixed :class:`System` and the evolving :class:`State`.
+"""What a stepper works on that does not change: the :class:`System` (the evolving state is
+:class:`~thermonet.state.State`).
 
 Both are in the engine's internal numbering (see :mod:`thermonet.layout`); the
 :class:`~thermonet.simulation.Simulation` maps them to and from the user's numbering.
@@ -6,7 +7,7 @@ Both are in the engine's internal numbering (see :mod:`thermonet.layout`); the
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -77,34 +78,4 @@ class System:
         return ~self.anchored
 
 
-@dataclass(eq=False)
-class State:
-    """The integrator state after ``step`` steps, at time ``time``.
-
-    positions, momenta: (n, 3) float64. thermal_displacement Φ, entropy η: (m,) float64
-    (η is constant in time for every integrator here, but it is state, not a parameter);
-    both None in a purely mechanical run (thermal coupling off).
-    """
-
-    positions: np.ndarray
-    momenta: np.ndarray
-    thermal_displacement: np.ndarray | None
-    entropy: np.ndarray | None
-    time: float = 0.0
-    step: int = 0
-    extra: dict = field(default_factory=dict)
-
-    def __repr__(self) -> str:
-        springs = "" if self.entropy is None else f", {len(self.entropy)} springs (η, Φ)"
-        return f"<State step {self.step}, t = {self.time:.6g}: {len(self.positions)} nodes (x, p){springs}>"
-
-    def copy(self) -> "State":
-        return State(
-            self.positions.copy(),
-            self.momenta.copy(),
-            None if self.thermal_displacement is None else self.thermal_displacement.copy(),
-            None if self.entropy is None else self.entropy.copy(),
-            self.time,
-            self.step,
-            {k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in self.extra.items()},
-        )
+from .state import State  # noqa: E402,F401  (importable from here as well)

@@ -12,7 +12,7 @@ import os
 import numpy as np
 
 from ..errors import InputError
-from ..system import State
+from ..state import State
 from .atomic import atomic_write
 
 FORMAT = "thermonet-checkpoint-1"

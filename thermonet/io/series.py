@@ -29,8 +29,6 @@ import numpy as np
 from .atomic import atomic_write, direct_writes_possible, release_page_cache
 from .checkpoint import save_checkpoint
 from .pvd import PVDIndex
-from ..kernels.gather import as_index, passes
-from ..kernels.springs import frame_spring_kernel
 from .vtu import FrameImage, VTUWriter
 
 #: output field -> (point or cell data, needs thermal coupling, meaning)
@@ -59,64 +57,30 @@ _STORAGE = {name: (np.uint8 if name == "anchored" else np.int32 if name == "mate
 class FrameFiller:
     """Fills a :class:`~thermonet.io.vtu.FrameImage` with a simulation's fields, user numbering.
 
-    One pass for the node fields (:mod:`thermonet.kernels.gather`) and one for the spring fields
-    (:func:`thermonet.kernels.springs.frame_spring_kernel`: lengths, temperatures, tensions and
-    strains computed and written straight into the image), threaded where the stepping kernels
-    are; the fields that cannot change (anchored flag, material id) are written once. Values
-    equal the public accessors' bit for bit (positions, ``sim.state``, ``sim.temperatures()``,
-    ``sim.strains()``, ...); ``node_temperature`` is a sum in incidence order.
+    The changing fields are written straight into the image's arrays by the simulation
+    (:meth:`thermonet.simulation.Simulation.output_fields`: one node pass, one spring pass); the
+    fields that cannot change (anchored flag, material id) are written here once.
 
     sim: the Simulation; writer: a :class:`~thermonet.io.vtu.VTUWriter` of its net;
     fields: names from :data:`FIELDS`; material_id: (m,) int, user numbering.
     """
 
-    _SPRING_FIELDS = ("temperature", "tension", "strain", "entropy", "thermal_displacement")
-
     def __init__(self, sim, writer: VTUWriter, fields, material_id: np.ndarray):
-        self.sim = sim
         self.fields = list(fields)
         spec = {kind: {n: _STORAGE[n] for n in self.fields if FIELDS[n][0] == kind} for kind in ("point", "cell")}
         self.image = writer.image(spec["point"], spec["cell"])
-        net, lay = sim.net, sim.layout
-        self._node_order, self._spring_order = as_index(lay.node_order), as_index(lay.spring_order)
-        self._passes = passes(sim.parallel)
         if "anchored" in self.fields:
-            self.image.point["anchored"][:] = net.anchored
+            self.image.point["anchored"][:] = sim.net.anchored
         if "material" in self.fields:
             self.image.cell["material"][:] = material_id
-        self._none = np.empty(0)
-        self._no_rows = np.empty((0, 3))
-        m = net.n_springs
-        self._with_springs = any(n in self.fields for n in (*self._SPRING_FIELDS, "node_temperature"))
-        if self._with_springs:
-            system = sim.system
-            self._spring_pass = frame_spring_kernel(system.model, system.thermal, sim.parallel)
-            self._edges = system.edges.view(np.uint32)
-            self._scratch = np.empty((4, m))
-        self._theta_internal = np.empty(m if "node_temperature" in self.fields else 0)
+        changing = [n for n in self.fields if n not in ("anchored", "material")]
+        self._output = sim.output_fields(self.image.points, {n: self.image.point[n] for n in changing if n in spec["point"]},
+                                         {n: self.image.cell[n] for n in changing if n in spec["cell"]})
 
     def fill(self) -> FrameImage:
         """The image, holding the simulation's state now."""
-        sim, img = self.sim, self.image
-        net, lay = sim.net, sim.layout
-        state = sim.internal_state()
-        point, cell = img.point, img.cell
-        k = self._passes
-        k.node_fields_to_user(img.points, point.get("displacement", self._no_rows), point.get("velocity", self._no_rows),
-                              point.get("momentum", self._no_rows), state.positions, state.momenta, net.positions,
-                              net.masses, self._node_order)
-        if self._with_springs:
-            system = sim.system
-            none = self._none
-            eta = state.entropy if system.thermal else none
-            phi = state.thermal_displacement if system.thermal else none
-            self._spring_pass(state.positions, eta, phi, (system.rest_lengths, system.parameters), self._edges,
-                              self._spring_order, self._scratch, tuple(cell.get(name, none) for name in self._SPRING_FIELDS),
-                              self._theta_internal)
-        if "node_temperature" in self.fields:
-            k.node_means_to_user(point["node_temperature"], self._theta_internal, lay.inc_ptr, lay.inc_spring,
-                                 self._node_order)
-        return img
+        self._output.write()
+        return self.image
 
 
 class RunOutput:

@@ -1,0 +1,296 @@
+"""The run driver of a :class:`~thermonet.simulation.Simulation`: steps between observer stops
+(diagnostics rows, frames, checkpoints, progress at their cadences), the backup and replay of
+the last good state after a blow-up, and the energy policy checked at the diagnostics cadence.
+
+:class:`RunDriver` is mixed into the Simulation; it works on the Simulation's ``_state``,
+``stepper``, ``system``, ``diagnostics``, ``_h`` and ``_time_origin`` and reads back through its
+public accessors.
+"""
+
+from __future__ import annotations
+
+import math
+import time as _time
+from typing import Callable, Iterable
+
+import numpy as np
+
+from .compile_watch import CompileWatch
+from .diagnostics import Diagnostics, diagnostics_row, measure
+from .errors import InputError, SimulationError
+from .integrators.base import StepFailure
+from .run_guards import energy_departure
+from .state import State
+
+
+class RunDriver:
+    """Running a Simulation in time (see the module docstring)."""
+
+    def steps_until(self, t_end: float) -> int:
+        """Steps from the current time to ``t_end``, which must be a whole number of steps
+        (:func:`thermonet.step_policy.whole_steps`; an InputError otherwise)."""
+        from .step_policy import whole_steps
+
+        return whole_steps(t_end, self.h, self._state.time)
+
+    def run(
+        self,
+        t_end: float | None = None,
+        steps: int | None = None,
+        diagnostics_every: int | None = None,
+        observers: Iterable[tuple[int, Callable]] = (),
+        progress: Callable[[int, int, float], None] | None = None,
+    ) -> Diagnostics:
+        """Advance by ``steps`` steps, or to ``t_end``.
+
+        diagnostics_every: a diagnostics row every k steps (and at the start and end);
+            default: about 1000 rows over the run.
+        observers: (k, callback) pairs; ``callback(sim)`` is called every k steps (at multiples of
+            k in the global step count) and at the end of the run. Where a callback is a bound
+            method of an object with a ``flush()`` method (``RunOutput``: frames written on a
+            thread), that is called before ``run`` returns or raises.
+        progress: called as ``progress(done, total, elapsed_seconds)`` at each stop, elapsed
+            without the time Numba spent compiling kernels; where it has a ``compiling()``
+            method, that is called when the run starts compiling a kernel (first runs only).
+        Returns the diagnostics series (``sim.diagnostics``, accumulated over runs).
+        """
+        if (t_end is None) == (steps is None):
+            raise InputError("run: give exactly one of t_end or steps")
+        if steps is None:
+            if not math.isfinite(t_end):
+                raise InputError(f"run: t_end must be finite, got {t_end}")
+            steps = self.steps_until(t_end)
+        steps = int(steps)
+        if steps < 0:
+            raise InputError(f"run: steps must be >= 0, got {steps}")
+        if diagnostics_every is None:
+            diagnostics_every = max(1, steps // 1000)
+        if diagnostics_every < 1:
+            raise InputError(f"run: diagnostics_every must be >= 1, got {diagnostics_every}")
+        cadences = [(int(diagnostics_every), self._diagnostics_stop)] + [(int(k), cb) for k, cb in observers]
+        for k, _ in cadences:
+            if k < 1:
+                raise InputError(f"run: observer cadence must be >= 1, got {k}")
+        if not self.diagnostics.rows or self.diagnostics.rows[-1]["step"] != self._state.step:
+            self._record(self)
+        for k, cb in cadences[1:]:
+            if self._state.step % k == 0:
+                cb(self)
+        if self.threads:
+            import numba
+
+            numba.set_num_threads(int(self.threads))
+        start = self._state.step
+        end = start + steps
+        flushes = _flushes(cadences[1:])  # (observers may have been a generator: read once above)
+        watch = CompileWatch(getattr(progress, "compiling", None))  # compile time kept out of rates
+        t0 = _time.perf_counter()
+        watch.__enter__()
+        try:
+            while self._state.step < end:
+                cur = self._state.step
+                stop = min([end] + [(cur // k + 1) * k for k, _ in cadences])
+                self._advance(stop - cur, measure=stop % cadences[0][0] == 0 or stop == end)
+                done = self._state.step
+                for k, cb in cadences:
+                    if done % k == 0 or done == end:
+                        if cb == self._diagnostics_stop and self.diagnostics.rows and self.diagnostics.rows[-1]["step"] == done:
+                            continue
+                        cb(self)
+                if progress is not None:
+                    progress(done - start, steps, _time.perf_counter() - t0 - watch.seconds)
+        except BaseException:
+            for flush in flushes:  # keep what was written; the first error is the one to report
+                try:
+                    flush()
+                except Exception:
+                    pass
+            raise
+        finally:
+            watch.__exit__()
+            self.compile_time += watch.seconds
+        for flush in flushes:
+            flush()
+        self.wall_time += _time.perf_counter() - t0 - watch.seconds
+        self.steps_run += steps
+        return self.diagnostics
+
+    def _set_step(self, step: int) -> None:
+        """Move the step counter; time is origin + (steps since origin)·h, so it does not depend
+        on how the run was cut into chunks."""
+        state = self._state
+        origin_step, origin_time = self._time_origin
+        state.step = step
+        state.time = origin_time + (step - origin_step) * self._h
+
+    #: steps a backup of the state may lag behind a chunk's start (explicit CPU runs): copying
+    #: the state at every observer stop costs a noticeable share of a short chunk, and a rewind
+    #: replays at most this many steps more
+    BACKUP_SPAN = 256
+
+    def _advance(self, n: int, measure: bool = False) -> None:
+        """n steps; with ``measure``, a stepper that can reduces the diagnostics sums of the end
+        state on the way (see ``SplittingStepper.advance``)."""
+        step0 = self._state.step
+        backup = self._keep_backup()
+        try:
+            if measure and self.stepper.measures:
+                stats = self.stepper.advance(self._state, n, self._h, measure=True)
+            else:
+                stats = self.stepper.advance(self._state, n, self._h)
+        except StepFailure as exc:
+            if exc.details.get("rewind") and backup is not None:
+                self._rewind(backup, step0 + exc.steps_done - backup.step)
+            self._set_step(step0 + exc.steps_done)
+            self._record(self)
+            if exc.details.get("rewind"):
+                raise StepFailure(self._blowup_message(exc, step0), exc.steps_done, exc.details) from None
+            raise
+        self._set_step(step0 + n)
+        self._last_stats = stats or {}
+
+    def _keep_backup(self) -> State | None:
+        """A copy of the state at this or an earlier chunk start, at most :data:`BACKUP_SPAN`
+        steps back, of this run's history and step size (explicit CPU runs only: their kernel
+        stops mid-step and the last good step is then replayed from the copy, bit for bit;
+        implicit steppers keep their state intact themselves). A copy costs about a fifth of one
+        step."""
+        if self.backend != "cpu" or not self.integrator.explicit:
+            return None
+        s = self._state
+        b = getattr(self, "_backup", None)
+        if self._backup_usable() and s.step - b.step < self.BACKUP_SPAN:
+            return b
+        if b is None:
+            b = self._backup = s.copy()
+        else:
+            np.copyto(b.positions, s.positions)
+            np.copyto(b.momenta, s.momenta)
+            if s.thermal_displacement is not None:
+                np.copyto(b.thermal_displacement, s.thermal_displacement)
+        b.step, b.time = s.step, s.time
+        self._backup_of = (s, self._h)  # a loaded state or a new h makes the copy useless for replays
+        return b
+
+    def _backup_usable(self) -> bool:
+        """Whether the backup is an earlier state of the current history, at the current h."""
+        b = getattr(self, "_backup", None)
+        if b is None:
+            return False
+        state, h = getattr(self, "_backup_of", (None, None))
+        return state is self._state and h == self._h and b.step <= self._state.step
+
+    def _rewind(self, backup: State, steps: int) -> None:
+        """Restore ``backup`` (a chunk start) and replay ``steps`` steps: the run's last good
+        state, bit for bit (runs do not depend on how they are chunked)."""
+        s = self._state
+        np.copyto(s.positions, backup.positions)
+        np.copyto(s.momenta, backup.momenta)
+        if s.thermal_displacement is not None:
+            np.copyto(s.thermal_displacement, backup.thermal_displacement)
+        self._set_step(backup.step)
+        if steps > 0:
+            self.stepper.advance(s, steps, self._h)
+            self._set_step(backup.step + steps)
+
+    def _blowup_message(self, exc: StepFailure, step0: int) -> str:
+        bad_step = step0 + exc.steps_done + 1
+        good_time = self._state.time
+        return (f"the run left the admissible states in step {bad_step} (t = {good_time + self._h:.6g}): {exc}. "
+                f"Stopped; the state is the last good one (step {bad_step - 1}, t = {good_time:.6g}). "
+                f"Try a smaller h than {self._h:g} (`thermonet info` estimates the stable step) or an implicit "
+                f"integrator (ho4, gtr-1/2).")
+
+    def record_diagnostics(self) -> None:
+        """Record a diagnostics row for the current state unless the last row is of this step
+        (checkpoints call it so that a resumed run's rows equal an uninterrupted run's)."""
+        if not self.diagnostics.rows or self.diagnostics.rows[-1]["step"] != self._state.step:
+            self._record(self)
+
+    def _diagnostics_stop(self, _sim=None) -> None:
+        """The run loop's diagnostics observer: a row, then the run-time guards
+        (:mod:`thermonet.run_guards`): the energy departure, then the stable step."""
+        self._record(self)
+        rows = self.diagnostics.rows
+        departure = energy_departure(rows, self.energy_tolerance)
+        if departure is not None:
+            bad_step, bad_time = self._state.step, self._state.time
+            e0 = rows[0]["energy"]
+            where = self._rewind_to_previous_stop()
+            raise SimulationError(
+                f"the energy departed from its initial value {e0:.10g} by {departure:.3g} "
+                f"(relative; tolerance {self.energy_tolerance:g}) at step {bad_step} (t = {bad_time:.6g}); "
+                f"{where}. Try a smaller h than {self._h:g} or an implicit integrator (ho4, gtr-1/2); "
+                f"energy_tolerance (scene: integrator.energy_tolerance) sets the guard")
+        try:
+            self.stability_guard.check(self)
+        except SimulationError as exc:
+            where = self._rewind_to_previous_stop()
+            raise type(exc)(f"{exc}; {where}. Use a smaller h or an implicit integrator (ho4, gtr-1/2), or pass "
+                            f"--allow-unstable-step (scene: integrator.check_step = false; API: "
+                            f"stability_guard='warn') to only warn") from None
+
+    def _rewind_to_previous_stop(self) -> str:
+        """Drop the last diagnostics row and rewind the state to the row before (where the
+        backup allows); returns where the state now is, in words."""
+        rows = self.diagnostics.rows
+        backup = getattr(self, "_backup", None)
+        dropped = rows.pop()
+        last = rows[-1]["step"] if rows else -1
+        if rows and self._backup_usable() and backup.step <= last:
+            self._rewind(backup, last - backup.step)
+            return (f"the state was rewound to step {last} (t = {self._state.time:.6g}), "
+                    "the last diagnostics stop before")
+        rows.append(dropped)  # no earlier state to go back to: the row stays
+        return f"the state is that of step {self._state.step}"
+
+    def _record(self, _sim=None) -> None:
+        row = self.stepper.diagnostics_row(self.system, self._state)  # a device-resident state
+        if row is None:
+            sums = self.stepper.closing_sums(self._state)  # reduced by the last advance
+            if sums is not None:
+                s = self._state
+                entropy = float(np.sum(s.entropy)) if self.system.thermal else None
+                row = diagnostics_row(self.system, s, entropy=entropy, **sums)
+            else:
+                row = measure(self.system, self._state, self.parallel)
+        row.update(getattr(self, "_last_stats", {}) or {})
+        self.diagnostics.append(row)
+        self._check_physical(row)
+
+    def _check_physical(self, row: dict) -> None:
+        """Stop with a :class:`SimulationError` naming the node or spring once the state is no
+        longer physical: a non-finite value (typically h above the stability limit) or a
+        temperature θ ≤ 0 (possible in models such as "quadratic"). Checked at the diagnostics
+        cadence and at the end of every run, so a run never silently returns such a state."""
+        if math.isfinite(row["energy"]) and row.get("theta_min", 1.0) > 0:
+            return
+        s, lay = self.internal_state(), self.layout
+        where = f"at step {s.step} (t = {s.time:.6g})"
+        unstable = f"; h = {self.h} may be above the stability limit"
+        bad = ~(np.isfinite(s.positions).all(axis=1) & np.isfinite(s.momenta).all(axis=1))
+        if bad.any():
+            a = int(lay.node_order[np.flatnonzero(bad)[0]])
+            raise SimulationError(f"node {a} has a non-finite position or momentum {where}{unstable}")
+        if self.system.thermal:
+            theta = self.temperatures()
+            bad = ~(np.isfinite(theta) & (theta > 0))
+            if bad.any():
+                e = int(np.flatnonzero(bad)[0])
+                raise SimulationError(
+                    f"spring {e} has temperature {theta[e]:.6g} {where}: the state left the range of model "
+                    f"{self.model.name!r}, where θ must stay > 0, or h = {self.h} is too large"
+                )
+        raise SimulationError(f"the energy is not finite {where}{unstable}")
+
+
+def _flushes(observers) -> list:
+    """The ``flush`` methods of the objects whose bound methods are among the observers (each
+    object once)."""
+    owners = {}
+    for _, cb in observers:
+        owner = getattr(cb, "__self__", None)
+        flush = getattr(owner, "flush", None)
+        if callable(flush):
+            owners[id(owner)] = flush
+    return list(owners.values())
