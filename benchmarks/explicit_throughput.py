@@ -147,7 +147,7 @@ def make_simulation(k: int, parallel: bool | None, threads: int | None, varied: 
         params = {key: value * rng.uniform(0.9, 1.1, m) for key, value in params.items()}
     return tn.Simulation(net, model="hencky", parameters=params, temperatures=rng.uniform(250.0, 350.0, m),
                          velocities=rng.normal(0.0, 0.01, (net.n_nodes, 3)), integrator="co2", h=H,
-                         parallel=parallel, threads=threads)
+                         parallel=parallel, threads=threads, stability_guard="off", energy_tolerance=None)
 
 
 def kernel_bytes_per_step(sim) -> int:

@@ -59,7 +59,8 @@ def lattice_sim(target_springs: int, backend: str) -> tn.Simulation:
     rng = np.random.default_rng(1)
     temps = 250.0 + 100.0 * rng.random(net.n_springs)
     v = rng.normal(0.0, 0.05, (net.n_nodes, 3))
-    return tn.Simulation(net, temperatures=temps, velocities=v, integrator="co2", h=H, backend=backend)
+    return tn.Simulation(net, temperatures=temps, velocities=v, integrator="co2", h=H, backend=backend,
+                         stability_guard="off", energy_tolerance=None)
 
 
 def bytes_per_step(n: int, m: int, params_per_spring: int) -> int:
