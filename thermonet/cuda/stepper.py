@@ -248,7 +248,8 @@ class CudaSplittingStepper(Stepper):
             target.copy_to_device(source)
         replay = state.step - backup_step + done
         if replay > 0 and self._steps(backup_time, replay, h) is not None:
-            raise RuntimeError("the replay of good steps stopped again")  # cannot happen: same steps, same bits
+            # the same launches from the same state: only a nondeterministic device could stop again
+            raise RuntimeError("the replay of the good steps stopped again")
         raise failure
 
     # ------------------------------------------------------------------------------------------

@@ -1,6 +1,6 @@
-"""The records the explicit kernels take: a few named tuples of arrays instead of dozens of
-positional arguments. Numba passes a named tuple of arrays like the arrays themselves (a struct of
-pointers, unpacked once per call), on the CPU and on CUDA alike.
+"""The records the explicit kernels take: a few named tuples of arrays, grouped by what they
+describe. Numba passes a named tuple of arrays like the arrays themselves (a struct of pointers,
+unpacked once per call), on the CPU and on CUDA alike.
 
 Arrays are in the internal numbering (:class:`~thermonet.layout.Layout`); index arrays are
 unsigned views (a negative-index test per access would otherwise cost a third of the gather
