@@ -171,3 +171,13 @@ def test_any_edge_list_gives_a_net_or_an_input_error(n, edges, coincide):
     sim = tn.Simulation(net, temperatures=350.0, integrator="co2", h=1e-3)
     sim.run(steps=5)
     assert np.isfinite(sim.state.positions).all()
+
+
+def test_velocities_whose_momentum_overflows_are_named_without_a_numpy_warning():
+    net = tn.Net([[0, 0, 0], [1, 0, 0]], [[0, 1]], masses=[1.0, 10.0])
+    v = np.zeros((2, 3))
+    v[1] = [1e308, 0.0, 0.0]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(tn.InputError, match=r"node 1: initial momentum m v overflows \(velocity \[1e\+308"):
+            tn.Simulation(net, velocities=v)

@@ -150,7 +150,14 @@ def initial_momenta(net, momenta, velocities) -> np.ndarray:
         a = int(np.flatnonzero(moving)[0])
         raise InputError(f"node {a} is anchored but has initial {what} {arr[a].tolist()}")
     if velocities is not None:
-        arr = arr * net.masses[:, None]
+        with np.errstate(over="ignore"):
+            momenta = arr * net.masses[:, None]
+        bad = ~np.isfinite(momenta).all(axis=1)
+        if bad.any():
+            a = int(np.flatnonzero(bad)[0])
+            raise InputError(f"node {a}: initial momentum m v overflows (velocity {arr[a].tolist()}, mass "
+                             f"{net.masses[a]:g})")
+        arr = momenta
     return arr
 
 
