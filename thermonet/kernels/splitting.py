@@ -1,13 +1,18 @@
-"""Fused Numba kernels for the explicit integrators, all written as kick/drift splittings.
+"""The CPU kernel of the explicit integrators: the rows of a stage table, fused.
 
 Every explicit integrator of thermonet is a sequence ``K(k0) D(d0) K(k1) … D(d_{S−1}) K(k_S)``
-of sub-flows with coefficients (fractions of h):
+of sub-flows with coefficients (fractions of h), possibly with further sub-flows between them,
+given to the kernel as the rows of a :class:`~thermonet.integrators.schedule.StageTable`:
 
 - kick ``K(k)``: at the current positions x, per spring θ = θ(l, η) and T = T(l, θ);
   ``p += k h f(x, θ)`` and ``Φ += k h θ`` (entropy η is untouched, so it is conserved exactly);
-- drift ``D(d)``: ``x += d h M⁻¹ p``.
+- drift ``D(d)``: ``x += d h M⁻¹ p``;
+- a flow row: an extra :class:`~thermonet.integrators.schedule.SubFlow`, one parallel pass over
+  its elements.
 
-One *stage* is a kick followed by a drift and costs two passes over memory:
+What each sub-flow does to one spring or node is :mod:`thermonet.kernels.subflows` (shared with
+the CUDA kernels); this module decides how the CPU runs them. One *stage* is a kick followed by a
+drift and costs two passes over memory:
 
 1. per spring, in blocks of ``BLOCK`` springs (parallel over blocks): a scalar loop gathers the
    squared lengths |x_b − x_a|² into ``s``; a second loop over the same block, now reading only
