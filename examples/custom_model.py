@@ -1,6 +1,6 @@
 """A user-defined constitutive model, run without touching any thermonet kernel.
 
-The law: the paper's Hencky spring (spec §1.1) whose stiffness softens as it heats,
+The law: the paper's Hencky spring (Mata & Lew 2011, (31)) whose stiffness softens as it heats,
 c(θ) = c (1 − a (θ − θ0)/θ0). With L = ln(l/l0) and Δθ = θ − θ0:
 
     F(l, θ) = c(θ)/2 L² − β Δθ L + C0 (Δθ − θ ln(θ/θ0))

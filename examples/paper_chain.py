@@ -1,4 +1,4 @@
-"""The paper's chain of three thermo-elastic springs (spec §3.1, Mata & Lew §5.1): Figs. 6–15.
+"""The paper's chain of three thermo-elastic springs (Mata & Lew 2011, §5.1): Figs. 6–15.
 
     python examples/paper_chain.py [--out DIR] [--smoke] [--serial | --scheduler ADDRESS]
 

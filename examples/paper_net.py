@@ -1,4 +1,4 @@
-"""The paper's thermo-elastic net, a triangle of three masses (spec §3.2, Mata & Lew §5.2):
+"""The paper's thermo-elastic net, a triangle of three masses (Mata & Lew 2011, §5.2):
 Figs. 17–19. CO2, h = 0.001, to t = 10.
 
     python examples/paper_net.py [--out DIR] [--smoke]

@@ -1,4 +1,4 @@
-"""The paper's two examples (spec §3), ready to run: nets, parameters and initial data."""
+"""The paper's two examples (Mata & Lew 2011, §5), ready to run: nets, parameters and initial data."""
 
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ TRIANGLE_MOMENTA = np.array([[0.0, 0.0, -7.0], [0.0, 0.0, 7.0], [0.0, 5.0, 0.0]]
 
 
 def chain_simulation(integrator="co2", h=0.01, momentum_scale: float = 1.0, **kwargs) -> Simulation:
-    """The chain of three springs (spec §3.1, paper §5.1). Initial energy 7983.333…"""
+    """The chain of three springs (Mata & Lew 2011, §5.1, Table II). Initial energy 7983.333…"""
     return Simulation(
         chain(), model="hencky", parameters=CHAIN_PARAMETERS, temperatures=CHAIN_TEMPERATURES,
         momenta=momentum_scale * CHAIN_MOMENTA, integrator=integrator, h=h, **kwargs,
@@ -25,7 +25,7 @@ def chain_simulation(integrator="co2", h=0.01, momentum_scale: float = 1.0, **kw
 
 
 def triangle_simulation(integrator="co2", h=1e-3, **kwargs) -> Simulation:
-    """The triangle net of three masses (spec §3.2, paper §5.2)."""
+    """The triangle net of three masses (Mata & Lew 2011, §5.2, Table III)."""
     return Simulation(
         triangle(), model="hencky", parameters=TRIANGLE_PARAMETERS, temperatures=TRIANGLE_TEMPERATURES,
         momenta=TRIANGLE_MOMENTA, integrator=integrator, h=h, **kwargs,

@@ -1,6 +1,6 @@
 """The reference solution every study measures errors against, and how far it can be trusted.
 
-Choice: SciPy's DOP853 (8th-order Dormand–Prince) on Hamilton's equations (spec (18)) at
+Choice: SciPy's DOP853 (8th-order Dormand–Prince) on Hamilton's equations (Mata & Lew 2011, (18)) at
 rtol = atol = 1e-13, with the NumPy right-hand side of :mod:`thermonet.reference` (independent
 of the engine's kernels). It is *checked* against a second, unrelated solution: the explicit
 6th-order composition CO6 at a small step (default h = 5e-4), or HO4 (the paper's own choice,
