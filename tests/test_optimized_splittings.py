@@ -1,11 +1,12 @@
-"""Blanes & Moan's optimized symmetric RKN splittings (``bm4``, ``bm6``): their tables, their
+"""Blanes & Moan's optimized symmetric RKN splittings (``bm4``, ``bm6``, ``bm6a``): their tables, their
 measured orders on the paper's chain, exact entropy, and the CUDA backend under the simulator.
 
 Orders are log-log slopes of the error at t = 1 against DOP853 at rtol = atol = 1e-13 (the
 ``chain_reference`` fixture; good to ≈ 5e-14 in positions, ≈ 2e-13 in momenta). These methods'
-errors are small: BM4 at h = 0.1·2⁻⁷ is 7e-12, BM6 at h = 0.1·2⁻⁵ is 1.2e-12, so the fitted
-ranges stop there (the next halving meets the reference's floor), and start where the local
-slopes have settled (BM4's are 6.7, 4.5 at i = 2, 3; BM6's 6.7 at i = 2). Positions and momenta
+errors are small: BM4 at h = 0.1·2⁻⁷ is 7e-12, BM6 and BM6A at h = 0.1·2⁻⁵ are 1.2e-12 and
+4.9e-13, so the fitted ranges stop there (the next halving meets the reference's floor), and
+start where the local slopes have settled (BM4's are 6.7, 4.5 at i = 2, 3; BM6's 6.7 at i = 2;
+BM6A's 8.6, 4.4 at i = 1, 2). Positions and momenta
 give the order within ``TOLERANCE``. Temperatures converge *faster* than the order over every
 range above the floor (BM4: local slopes 6.4, 6.0, 5.6, 4.8 from i = 2; the leading h⁴ term of
 θ's error is still smaller than the next one there), so for them the test asserts a slope of at
@@ -24,24 +25,29 @@ import numpy as np
 import pytest
 
 import thermonet as tn
-from thermonet.integrators.splitting import BM4, BM6, CO4, CO6
+from thermonet.integrators.splitting import BM4, BM6, BM6A, CO4, CO6
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 T_END = 1.0
 TOLERANCE = 0.15
 
-# integrator -> (order, force evaluations per step, range of i in h = 0.1·2⁻ⁱ for the fit)
-CASES = {"bm4": (4, 6, range(4, 8)), "bm6": (6, 11, range(3, 6))}
+# integrator -> (order, force evaluations per step, range of i in h = 0.1·2⁻ⁱ for the fit, the
+# smallest error allowed in the fit: ≥ 5x the reference's error, except BM6A, whose smallest
+# (4.9e-13 at i = 5, in both) is 10x the reference's error in positions but 2.4x in momenta)
+CASES = {"bm4": (4, 6, range(4, 8), 1e-12), "bm6": (6, 11, range(3, 6), 1e-12),
+         "bm6a": (6, 14, range(3, 6), 4e-13)}
 
 
-@pytest.mark.parametrize("integrator", [BM4, BM6])
-def test_tables_are_symmetric_consistent_and_kick_first(integrator):
+@pytest.mark.parametrize("integrator", [BM4, BM6, BM6A])
+def test_tables_are_symmetric_and_consistent(integrator):
     k, d = np.array(integrator.kicks), np.array(integrator.drifts)
     assert len(k) == len(d) + 1
     assert abs(k.sum() - 1.0) < 1e-15 and abs(d.sum() - 1.0) < 1e-15
     np.testing.assert_array_equal(k, k[::-1])
     np.testing.assert_array_equal(d, d[::-1])
-    assert k[0] != 0.0  # first and last kick share one force evaluation in a long run
+    # BM4, BM6 start with a kick (first and last share one force evaluation in a long run); BM6A
+    # with a drift
+    assert (k[0] == 0.0) == (integrator.name == "bm6a")
     assert tn.get_integrator(integrator.name) is integrator
     assert integrator.force_evaluations == CASES[integrator.name][1]
 
@@ -54,6 +60,8 @@ def test_tables_are_the_papers():
     assert BM4.drifts[2] == pytest.approx(-0.350171622895351, abs=1e-15)
     assert BM6.kicks[5] == pytest.approx(0.2366699247869311, abs=1e-15)
     assert BM6.drifts[5] == pytest.approx(0.20477705429147, abs=1e-14)
+    assert BM6A.kicks[7] == pytest.approx(-0.19641146648645423, abs=1e-15)
+    assert BM6A.drifts[7] == pytest.approx(0.2073050690568954, abs=1e-15)
     # same number of force evaluations as a classical method's stages: 6 and 11, versus CO4's 3, CO6's 7
     assert (CO4.force_evaluations, CO6.force_evaluations) == (3, 7)
 
@@ -69,11 +77,11 @@ def _errors(name, h, reference):
 
 @pytest.mark.parametrize("name", list(CASES))
 def test_order_on_the_chain(name, chain_reference):
-    order, _, exponents = CASES[name]
+    order, _, exponents, smallest = CASES[name]
     assert tn.get_integrator(name).order == order
     h = np.array([0.1 * 2.0**-i for i in exponents])
     errs = np.array([_errors(name, hi, chain_reference) for hi in h])
-    assert errs[:, :2].min() > 1e-12  # ≥ 5x the reference's own error
+    assert errs[:, :2].min() > smallest
     slopes = [np.polyfit(np.log(h), np.log(errs[:, k]), 1)[0] for k in range(3)]
     for k, quantity in enumerate(("positions", "momenta")):
         assert abs(slopes[k] - order) <= TOLERANCE, f"{name}: slope {slopes[k]:.3f} in {quantity}, expected {order}"
@@ -91,7 +99,7 @@ def test_more_accurate_than_the_triple_jumps_at_equal_force_evaluations(name, ch
     assert _errors(name, h_new, chain_reference)[0] < 0.2 * _errors(other, h_old, chain_reference)[0]
 
 
-@pytest.mark.parametrize("name", ["bm4", "bm6"])
+@pytest.mark.parametrize("name", ["bm4", "bm6", "bm6a"])
 @pytest.mark.parametrize("parallel", [False, True])
 def test_entropy_exact_and_momenta_conserved(name, parallel):
     net = tn.lattice((2, 2, 2), neighbours=18, jitter=0.1, seed=3)
@@ -121,7 +129,7 @@ _CUDA_SIM_SCRIPT = textwrap.dedent("""
     out = {}
     for model in ("hencky", "quadratic"):
         params = quadratic_parameters() if model == "quadratic" else None
-        for name in ("bm4", "bm6"):
+        for name in ("bm4", "bm6", "bm6a"):
             for backend in ("cpu", "cuda"):
                 sim = tn.Simulation(net, model=model, parameters=params, temperatures=temps, velocities=v,
                                     integrator=name, h=2e-3, backend=backend)
@@ -149,7 +157,7 @@ def cuda_sim_runs(tmp_path_factory):
         return dict(data)
 
 
-@pytest.mark.parametrize("case", [f"{m}-{n}" for m in ("hencky", "quadratic") for n in ("bm4", "bm6")])
+@pytest.mark.parametrize("case", [f"{m}-{n}" for m in ("hencky", "quadratic") for n in ("bm4", "bm6", "bm6a")])
 def test_cuda_simulator_equals_cpu(cuda_sim_runs, case):
     runs = cuda_sim_runs
     cpu, gpu = f"{case}/cpu", f"{case}/cuda"
@@ -161,3 +169,41 @@ def test_cuda_simulator_equals_cpu(cuda_sim_runs, case):
     # a kick never writes η: bit for bit on both backends
     np.testing.assert_array_equal(runs[f"{gpu}/eta"], runs[f"{gpu}/eta0"])
     np.testing.assert_array_equal(runs[f"{gpu}/eta"], runs[f"{cpu}/eta"])
+
+
+@pytest.mark.parametrize("name,expected,above,steps", [("bm4", 3.1635, 1.0008, 2000), ("bm6", 3.1414, 1.0001, 20000),
+                                                       ("bm6a", 3.1409, None, 20000)])
+def test_stability_interval_is_the_measured_limit(name, expected, above, steps):
+    """h·ω_max from the coefficients (the step matrix of a linear spring), checked by running a
+    linear spring just below (energy bounded) and just above it (grows or stops). For these
+    methods the limit is a narrow resonance band at hω ≈ π, where the step's rotation angle
+    reaches π and the trace touches −2: from c to 1.0016 c for BM4 (largest eigenvalue modulus
+    1.0024 at 1.0008 c) and to 1.0003 c for BM6 (1.0004 at 1.0001 c); beyond the band the linear
+    step is stable again. So "just above" is inside the band (for BM6A: where the modulus is
+    largest below 1.002 c), and BM6, BM6A run longer to show the growth."""
+    from test_hard_cases import linear_spring_energy_growth
+
+    from thermonet.stability import stability_interval
+
+    c = stability_interval(tn.get_integrator(name))
+    assert c == pytest.approx(expected, abs=1e-4)
+    assert linear_spring_energy_growth(name, 0.99 * c, steps=steps) < 1.5
+    if above is None:
+        above = _widest_growth(name, c)
+    grown = linear_spring_energy_growth(name, above * c, steps=steps)
+    assert not np.isfinite(grown) or grown > 10.0
+
+
+def _widest_growth(name, c):
+    """The factor f in [1, 1.002] where the linear step's eigenvalue modulus at f·c is largest."""
+    I = tn.get_integrator(name)
+
+    def modulus(hw):
+        A = np.eye(2)
+        for k, d in zip(I.kicks[:-1], I.drifts):
+            A = np.array([[1.0, d * hw], [0.0, 1.0]]) @ (np.array([[1.0, 0.0], [-k * hw, 1.0]]) @ A)
+        A = np.array([[1.0, 0.0], [-I.kicks[-1] * hw, 1.0]]) @ A
+        return np.abs(np.linalg.eigvals(A)).max()
+
+    fs = np.linspace(1.0, 1.002, 201)
+    return float(fs[np.argmax([modulus(f * c) for f in fs])])

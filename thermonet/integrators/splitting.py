@@ -143,6 +143,21 @@ BM6 = register_integrator(Splitting(
 ))
 
 
+# SRKN_14^a, order 6, 14 force evaluations per step, drift first (the first stage is "a"):
+# a1 b1 a2 b2 … a7 b7 a8 b7 a7 … b1 a1, with b7 = 1/2 − (b1 + … + b6), a8 = 1 − 2 (a1 + … + a7).
+_BM6A_A = (0.0378593198406116, 0.102635633102435, -0.0258678882665587, 0.314241403071447,
+           -0.130144459517415, 0.106417700369543, -0.00879424312851058)
+_BM6A_B = (0.09171915262446165, 0.183983170005006, -0.05653436583288827, 0.004914688774712854,
+           0.143761127168358, 0.328567693746804)
+BM6A = register_integrator(Splitting(
+    "bm6a", 6,
+    palindrome((0.0,) + _BM6A_B + (0.5 - sum(_BM6A_B),)),
+    palindrome(_BM6A_A, 1.0 - 2.0 * sum(_BM6A_A)),
+    description="Blanes & Moan's optimized symmetric RKN splitting SRKN_14^a, order 6, 14 force evaluations, "
+                "drift first (J. Comput. Appl. Math. 142 (2002) 313, Table 3)",
+))
+
+
 class SplittingStepper(Stepper):
     """A :class:`Splitting` bound to a system: owns the scratch buffers, calls the fused kernel."""
 
