@@ -207,3 +207,26 @@ def _widest_growth(name, c):
 
     fs = np.linspace(1.0, 1.002, 201)
     return float(fs[np.argmax([modulus(f * c) for f in fs])])
+
+
+@pytest.mark.parametrize("name", ["bm4", "bm6", "bm6a"])
+@pytest.mark.parametrize("case_name", ["chain", "lattice-quadratic"])
+def test_kernel_step_matches_the_numpy_reference(name, case_name):
+    """The fused kernel reading the table against :func:`thermonet.reference.splitting_step`
+    (the NumPy reference's own kick and drift), to round-off, one step and then a chunk."""
+    from test_kernels_vs_reference import CASES as REFERENCE_CASES
+    from test_kernels_vs_reference import assert_round_off, start
+
+    from thermonet import reference as ref
+
+    integrator = tn.get_integrator(name)
+    sim, rnet, s = start(REFERENCE_CASES[case_name](), name, 0.005)
+    step = ref.splitting_step(integrator.kicks, integrator.drifts)
+    for n_steps in (1, 4):
+        sim.run(steps=n_steps, diagnostics_every=10**9)
+        s = ref.run(rnet, s, step, 0.005, n_steps)
+        got = sim.state
+        assert_round_off(got.positions, s.x, f"{name} positions")
+        assert_round_off(got.momenta, s.p, f"{name} momenta")
+        assert_round_off(got.thermal_displacement, s.phi, f"{name} Φ")
+        assert np.array_equal(got.entropy, s.eta)
