@@ -23,7 +23,9 @@ excludes reading the data file), thermonet mechanics-only on 1 and 2 threads, an
 thermal coupling on (same springs, β = 0.5, C0 = 5, θ0 = 300, θ(0) = 300) on 1 and 2 threads
 (``Simulation.run`` wall time, after JIT warm-up). Rates are bond-steps per second. LAMMPS' total
 energy is printed every ``steps/10`` steps in the timed runs; its largest relative deviation is
-reported (bounded dynamics in the configuration timed).
+reported (bounded dynamics in the configuration timed). For thermonet's runs, the compulsory
+bytes per bond-step of its kernel and the fraction of the STREAM-triad bound reached, counted as
+in ``explicit_throughput.py``.
 """
 
 from __future__ import annotations
@@ -40,7 +42,7 @@ import time
 
 import numpy as np
 
-sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+sys.path[:0] = [os.path.dirname(os.path.dirname(os.path.abspath(__file__))), os.path.dirname(os.path.abspath(__file__))]
 
 import thermonet as tn  # noqa: E402
 
@@ -191,14 +193,24 @@ def main(argv=None):
                     sim.run(steps=args.steps, diagnostics_every=args.steps)
                     t = time.perf_counter() - start
                 times[label].append(t)
-        print("\n| run | M bond-steps/s (median) | range over rounds | LAMMPS energy drift |")
-        print("|---|---|---|---|")
+        from explicit_throughput import kernel_bytes_per_step, triad_bandwidth
+
+        triad = triad_bandwidth()
+        print(f"\nSTREAM triad (best, 24 B/element): {triad / 1e9:.1f} GB/s")
+        print("\n| run | M bond-steps/s (median) | range over rounds | LAMMPS energy drift "
+              "| bytes/bond-step | % of triad bound |")
+        print("|---|---|---|---|---|---|")
         rate = {}
-        for label, _ in configs:
+        for label, (kind, k) in configs:
             r = [m * args.steps / t / 1e6 for t in times[label]]
             rate[label] = statistics.median(r)
             d = f"{drift[label]:.1e}" if label in drift else ""
-            print(f"| {label} | {rate[label]:.0f} | {min(r):.0f}–{max(r):.0f} | {d} |")
+            if kind == "lammps":
+                b = pct = ""
+            else:
+                per = kernel_bytes_per_step(sims[(kind, k)]) / m
+                b, pct = f"{per:.0f}", f"{100 * rate[label] * 1e6 * per / triad:.0f} %"
+            print(f"| {label} | {rate[label]:.0f} | {min(r):.0f}–{max(r):.0f} | {d} | {b} | {pct} |")
         ref = "LAMMPS, 2 MPI ranks" if "LAMMPS, 2 MPI ranks" in rate else "LAMMPS, 1 process"
         print(f"\nthermonet mechanics-only, 2 threads / {ref}: {rate['thermonet mechanics-only, 2 threads'] / rate[ref]:.2f}×; "
               f"thermal, 2 threads / {ref}: {rate['thermonet thermal, 2 threads'] / rate[ref]:.2f}×; "
