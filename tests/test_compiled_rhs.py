@@ -55,3 +55,25 @@ def test_dop853_on_either_right_hand_side_agrees():
     a = solve_hamilton(sim, 0.5, "DOP853", 1e-10, 1e-10)
     b = solve_hamilton(random_simulation("hencky", 3), 0.5, "DOP853", 1e-10, 1e-10, compiled=True)
     assert np.abs(a.snapshot.positions - b.snapshot.positions).max() < 1e-12
+
+
+def test_cost_study_times_scipy_on_both_right_hand_sides():
+    from thermonet.studies import cost_study
+
+    study = cost_study("chain", ["co2"], dt=0.05, halvings=1, t_end=0.5, repeats=1, scipy={"DOP853": [1e-6]},
+                       scipy_rhs="both", check=None)
+    rows = {r["solver"]: r for r in study.rows if r["solver"].startswith("scipy")}
+    assert set(rows) == {"scipy-DOP853", "scipy-DOP853-numpy"}
+    # the same ODE, tolerance and steps: the same error up to round-off
+    assert rows["scipy-DOP853"]["work"] == rows["scipy-DOP853-numpy"]["work"]
+    assert rows["scipy-DOP853"]["position"] == pytest.approx(rows["scipy-DOP853-numpy"]["position"], rel=1e-6)
+    assert "Numba-compiled, and NumPy" in study.summary()
+
+
+def test_lattice_scene_is_the_cost_studys_net():
+    from thermonet.studies.scenes import make_simulation
+
+    sim = make_simulation("lattice", "bm4", 0.01)
+    assert (sim.net.n_nodes, sim.net.n_springs) == (729, 1944)
+    theta = sim.temperatures()
+    assert 250.0 <= theta.min() and theta.max() <= 350.0
