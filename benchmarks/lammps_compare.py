@@ -87,7 +87,7 @@ def write_input(path, data, steps, thermo_every, dump=None):
     lines = [
         "units lj", "atom_style bond", "boundary s s s", "atom_modify map array sort 0 0.0",
         f"read_data {data}", "pair_style zero 0.5", "pair_coeff * *",
-        "special_bonds lj 1 1 1", f"bond_style harmonic", f"bond_coeff 1 {E_MODULUS / 2.0!r} 1.0",
+        "special_bonds lj 1 1 1", "bond_style harmonic", f"bond_coeff 1 {E_MODULUS / 2.0!r} 1.0",
         "neighbor 0.3 bin", "neigh_modify every 20 delay 0 check yes",
         "comm_modify cutoff 2.0",  # ghosts reach every bond partner across a subdomain boundary
         "fix 1 all nve", f"timestep {H!r}", "thermo_style custom step pe ke etotal",

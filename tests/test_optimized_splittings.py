@@ -106,7 +106,7 @@ def test_entropy_exact_and_momenta_conserved(name, parallel):
     rng = np.random.default_rng(3)
     sim = tn.Simulation(net, temperatures=250.0 + 100.0 * rng.random(net.n_springs),
                         velocities=rng.normal(0.0, 0.5, (net.n_nodes, 3)), integrator=name, h=2e-3,
-                        threads=2 if parallel else 1)
+                        parallel=parallel, threads=2 if parallel else 1)
     eta0 = sim.state.entropy.copy()
     p0 = sim.state.momenta.sum(axis=0)
     sim.run(steps=200, diagnostics_every=50)
