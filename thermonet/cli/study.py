@@ -14,7 +14,7 @@ import sys
 HELP = "convergence, cost (work-precision) and long-run energy studies of the integrators"
 
 DEFAULT_INTEGRATORS = {"convergence": "gtr-0,gtr-1,gtr-1/2,co2,ho4,co4",
-                       "cost": "gtr-0,gtr-1,gtr-1/2,co2,ho4,co4,co6", "energy": "co2,ho4"}
+                       "cost": "gtr-0,gtr-1,gtr-1/2,co2,ho4,co4,co6,bm4,bm6", "energy": "co2,ho4"}
 
 
 def add_args(p) -> None:
@@ -23,7 +23,7 @@ def add_args(p) -> None:
                            ("cost", "error against wall-clock time, with SciPy solve_ivp as baseline (paper Fig. 9)"),
                            ("energy", "energy, entropy and momenta over a long run (paper Fig. 15)")):
         s = sub.add_parser(name, help=helptext, description=helptext)
-        s.add_argument("scene", help='built-in scene ("chain", "triangle") or a scene file')
+        s.add_argument("scene", help='built-in scene ("chain", "triangle", "lattice") or a scene file')
         s.add_argument("--integrators", default=None,
                        help=f"comma-separated integrator names (default {DEFAULT_INTEGRATORS[name]}, "
                             "those that exist in this installation)")
@@ -46,6 +46,8 @@ def add_args(p) -> None:
             s.add_argument("--repeats", type=int, default=5, help="timed repeats per run, median reported (default 5)")
             s.add_argument("--scipy", default="DOP853:1e-3..1e-12,RK45:1e-3..1e-9",
                            help="SciPy solve_ivp baselines METHOD:TOLMAX..TOLMIN (decades), comma-separated; 'none'")
+            s.add_argument("--scipy-rhs", default="compiled", choices=("compiled", "numpy", "both"),
+                           help="SciPy's right-hand side: Numba-compiled (default), NumPy, or both")
             s.add_argument("--one-at-a-time", action="store_true",
                            help="never run two timed runs at once (for a machine shared with other jobs)")
             s.add_argument("--accuracy", default=None,
@@ -132,7 +134,7 @@ def handle(args) -> int:
         elif args.study == "cost":
             study = cost_study(args.scene, integrators, plan["dt"], args.halvings, plan["t_end"], repeats=args.repeats,
                                scipy=plan["scipy"], runner=runner, one_at_a_time=args.one_at_a_time,
-                               rtol=args.reference_rtol, check=plan["check"])
+                               rtol=args.reference_rtol, check=plan["check"], scipy_rhs=args.scipy_rhs)
             files = study.write(out, accuracies=plan["accuracies"])
             say(study.summary(accuracies=plan["accuracies"]))
         else:

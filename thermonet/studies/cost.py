@@ -1,6 +1,10 @@
 """Work-precision study: the error at t_end against wall-clock time for every (integrator, h),
 with SciPy's ``solve_ivp`` (DOP853 and RK45 over a range of tolerances, on Hamilton's equations)
-as the curve a Python user would otherwise pick (the paper's Fig. 9).
+as the curve a Python user would otherwise pick (the paper's Fig. 9). SciPy drives a
+Numba-compiled right-hand side (:mod:`thermonet.studies.compiled_rhs`, for the built-in models),
+what a performance-aware user would write; ``scipy_rhs="numpy"`` times the NumPy one instead
+and ``"both"`` both (the NumPy runs labelled ``scipy-<method>-numpy``). The reference solution
+always uses the NumPy right-hand side (independent of the compiled one and of the engine).
 
 How the timings are kept honest:
 
@@ -47,6 +51,7 @@ class CostStudy:
     rows: list[dict] = field(default_factory=list)
     repeats: int = 5
     runner: str = ""
+    scipy_rhs: str = "compiled"
 
     def curves(self) -> list[tuple[str, list[dict]]]:
         """(label, rows) per integrator or SciPy method, from the coarsest step or loosest
@@ -89,7 +94,9 @@ class CostStudy:
     def summary(self, quantity: str = "position", accuracies=None) -> str:
         lines = [f"cost study: {self.scene}, error in {quantity} at t = {self.t_end:g} against wall-clock time",
                  f"reference: {self.reference.description}",
-                 f"timings: median of {self.repeats} repeats after a warm-up run, {self.runner}"]
+                 f"timings: median of {self.repeats} repeats after a warm-up run, {self.runner}",
+                 "SciPy's right-hand side: " + {"compiled": "Numba-compiled", "numpy": "NumPy (labels -numpy)",
+                                                "both": "Numba-compiled, and NumPy (labels -numpy)"}[self.scipy_rhs]]
         for acc in accuracies or self.accuracies(quantity):
             best = self.cheapest(acc, quantity)
             if best is None:
@@ -131,11 +138,20 @@ def _describe(r: dict) -> str:
 
 def cost_study(scene: str, integrators, dt: float = 0.1, halvings: int = 8, t_end: float = 1.0,
                repeats: int = 5, scipy=None, runner: Runner | None = None, one_at_a_time: bool = False,
-               rtol: float = DEFAULT_RTOL, check=DEFAULT_CHECK, progress=None) -> CostStudy:
+               rtol: float = DEFAULT_RTOL, check=DEFAULT_CHECK, progress=None,
+               scipy_rhs: str = "compiled") -> CostStudy:
     """Time every (integrator, h = dt·2⁻ⁱ) and every SciPy (method, tolerance) run to t_end.
 
     scipy: method -> list of tolerances (rtol = atol); default :data:`DEFAULT_SCIPY`; {} for none.
+    scipy_rhs: "compiled" (Numba right-hand side, labels ``scipy-<method>``), "numpy" (labels
+    ``scipy-<method>-numpy``) or "both".
     """
+    if scipy_rhs not in ("compiled", "numpy", "both"):
+        from ..errors import InputError
+
+        raise InputError(f"scipy_rhs must be 'compiled', 'numpy' or 'both', got {scipy_rhs!r}")
+    variants = {"compiled": [(True, "")], "numpy": [(False, "-numpy")],
+                "both": [(True, ""), (False, "-numpy")]}[scipy_rhs]
     check_scene(scene)
     runner = runner or Runner(serial=True)
     integrators = [get_integrator(name).name for name in integrators]
@@ -150,12 +166,14 @@ def cost_study(scene: str, integrators, dt: float = 0.1, halvings: int = 8, t_en
              for n in integrators for h in hs]
     labels = [(n, h, float("nan")) for n in integrators for h in hs]
     for method, tolerances in scipy.items():
-        timed += [(timed_ode_run, dict(scene=scene, t_end=t_end, method=method, rtol=tol, repeats=repeats))
-                  for tol in tolerances]
-        labels += [(f"scipy-{method}", float("nan"), tol) for tol in tolerances]
+        for compiled, tag in variants:
+            timed += [(timed_ode_run, dict(scene=scene, t_end=t_end, method=method, rtol=tol, repeats=repeats,
+                                           compiled=compiled)) for tol in tolerances]
+            labels += [(f"scipy-{method}{tag}", float("nan"), tol) for tol in tolerances]
     results = runner.run(timed, one_at_a_time=one_at_a_time, progress=progress)
     study = CostStudy(scene, t_end, reference, repeats=repeats,
-                      runner=runner.description + (", one run at a time" if one_at_a_time else ""))
+                      runner=runner.description + (", one run at a time" if one_at_a_time else ""),
+                      scipy_rhs=scipy_rhs)
     for (solver, h, tol), res in zip(labels, results):
         times = np.asarray(res["times"], dtype=float)
         study.rows.append({

@@ -5,6 +5,8 @@ The state is y = [x_free (3k), p_free (3k), Φ (m)] (see :class:`thermonet.refer
 :mod:`thermonet.reference` (code independent of the engine's kernels, so a reference solution
 built on it checks the engine rather than repeating it); any other model goes through its own
 scalar functions mapped over the springs (:func:`thermonet.kernels.springs.map_springs`).
+With ``compiled=True`` the built-in models get a Numba-compiled right-hand side instead
+(:mod:`thermonet.studies.compiled_rhs`): what the cost study times SciPy with.
 """
 
 from __future__ import annotations
@@ -52,10 +54,13 @@ class _GravityRHS(HamiltonRHS):
         return dy
 
 
-def hamilton_rhs(sim) -> tuple[HamiltonRHS, np.ndarray]:
+def hamilton_rhs(sim, compiled: bool = False) -> tuple[HamiltonRHS, np.ndarray]:
     """The right-hand side for ``sim``'s net and model, and y(0) from its *initial* state.
 
-    ``sim`` must not have been run (its state is the initial data).
+    ``sim`` must not have been run (its state is the initial data). ``compiled``: for the
+    built-in models, the Numba-compiled right-hand side
+    (:class:`~thermonet.studies.compiled_rhs.CompiledHamiltonRHS`) instead of the NumPy one;
+    other models always use their own compiled scalar functions mapped over the springs.
     """
     from ..models import get_model
 
@@ -72,7 +77,11 @@ def hamilton_rhs(sim) -> tuple[HamiltonRHS, np.ndarray]:
     ref_net = ReferenceNet(np.asarray(net.edges), np.asarray(net.rest_lengths, dtype=np.float64),
                            np.asarray(net.masses, dtype=np.float64), np.asarray(net.anchored, dtype=bool),
                            law, parameters)
-    if system.gravity is not None:
+    if compiled and builtin:
+        from .compiled_rhs import CompiledHamiltonRHS
+
+        rhs = CompiledHamiltonRHS(ref_net, state.positions, state.entropy, sim.model.name, system.gravity)
+    elif system.gravity is not None:
         rhs = _GravityRHS(ref_net, state.positions, state.entropy, system.gravity)
     else:
         rhs = HamiltonRHS(ref_net, state.positions, state.entropy)
@@ -95,11 +104,12 @@ class ODEResult:
 
 
 def solve_hamilton(sim, t_end: float, method: str = "DOP853", rtol: float = 1e-13, atol: float = 1e-13,
-                   t_eval=None) -> ODEResult:
-    """Integrate Hamilton's equations of ``sim`` (not yet run) from 0 to ``t_end``."""
+                   t_eval=None, compiled: bool = False) -> ODEResult:
+    """Integrate Hamilton's equations of ``sim`` (not yet run) from 0 to ``t_end``; ``compiled``:
+    see :func:`hamilton_rhs`."""
     from scipy.integrate import solve_ivp
 
-    rhs, y0 = hamilton_rhs(sim)
+    rhs, y0 = hamilton_rhs(sim, compiled)
     start = time.perf_counter()
     sol = solve_ivp(rhs, (0.0, float(t_end)), y0, method=method, rtol=rtol, atol=atol, t_eval=t_eval)
     wall = time.perf_counter() - start

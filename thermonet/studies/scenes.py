@@ -1,7 +1,8 @@
 """Resolve a study's SCENE argument into simulations.
 
 A scene is named by a string so that it can travel to Dask workers: the built-in names
-``"chain"`` and ``"triangle"`` (the paper's examples, :mod:`thermonet.paper`), or the path of a
+``"chain"`` and ``"triangle"`` (the paper's examples, :mod:`thermonet.paper`), ``"lattice"`` (a
+free jittered 8³ lattice of hencky springs, :func:`lattice_simulation`), or the path of a
 scene file, read by :mod:`thermonet.scenes` (imported only when a path is given) with the
 study's integrator and step as overrides. A scene file must be readable by the Dask workers
 (same path on every machine).
@@ -14,7 +15,7 @@ import os
 from ..errors import InputError
 from ..simulation import Simulation
 
-BUILTIN = ("chain", "triangle")
+BUILTIN = ("chain", "triangle", "lattice")
 
 
 def make_simulation(scene: str, integrator: str, h: float, **options) -> Simulation:
@@ -30,7 +31,26 @@ def make_simulation(scene: str, integrator: str, h: float, **options) -> Simulat
         from ..paper import triangle_simulation
 
         return triangle_simulation(integrator, h, **options)
+    if scene == "lattice":
+        return lattice_simulation(integrator, h, **options)
     return _scene_file_simulation(scene, integrator, h, **options)
+
+
+def lattice_simulation(integrator: str, h: float, cells: int = 8, **options) -> Simulation:
+    """The cost study's net: a free cubic lattice of ``cells``³ cells ((cells+1)³ nodes; 8³: 729
+    nodes, 1944 springs), 6 neighbours, jitter 0.1 (rest lengths the jittered lengths), unit
+    masses, default "hencky" springs (c = 100, β = 0.2, C0 = 5, θ0 = 300), temperatures uniform in
+    250–350, velocities normal with standard deviation 0.2 per component; all seeded (seed 1)."""
+    import numpy as np
+
+    from ..builders import lattice
+
+    net = lattice((cells, cells, cells), neighbours=6, jitter=0.1, seed=1)
+    rng = np.random.default_rng(1)
+    temperatures = rng.uniform(250.0, 350.0, net.n_springs)
+    velocities = rng.normal(0.0, 0.2, (net.n_nodes, 3))
+    return Simulation(net, model="hencky", temperatures=temperatures, velocities=velocities,
+                      integrator=integrator, h=h, **options)
 
 
 def check_scene(scene: str) -> None:

