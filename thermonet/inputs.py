@@ -20,8 +20,10 @@ def check_backend(backend, integrator) -> str:
         raise InputError(f"unknown backend {backend!r}; known: cpu, cuda")
     if name == "cuda":
         if not integrator.explicit:
+            from .integrators import explicit_integrators
+
             raise InputError(f"integrator {integrator.name!r} is implicit; backend 'cuda' runs only the explicit "
-                             "integrators (gtr-0, gtr-1, co2, f10, nm2, co4, co6)")
+                             f"integrators ({', '.join(explicit_integrators())})")
         from .cuda import require_cuda
 
         require_cuda()

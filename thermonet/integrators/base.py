@@ -102,3 +102,8 @@ def get_integrator(name_or_integrator, **options) -> Integrator:
 
 def available_integrators() -> list[str]:
     return sorted(_REGISTRY)
+
+
+def explicit_integrators() -> list[str]:
+    """The registered names of explicit integrators (aliases included)."""
+    return sorted(k for k, v in _REGISTRY.items() if isinstance(v, Integrator) and v.explicit)
