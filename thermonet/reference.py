@@ -1,8 +1,8 @@
 """A plain NumPy reference implementation of the physics and the explicit integrators.
 
-Everything here is written directly from the spec (``/work/shared/spec.md``) with vectorized
+Everything here is written directly from the paper's equations (Mata & Lew 2011) with vectorized
 per-spring arithmetic and a ``np.bincount`` scatter, in the user's numbering, with no Numba and
-no shared code with the kernels: the model laws are NumPy formulas of their own (spec §1.1–1.2),
+no shared code with the kernels: the model laws are NumPy formulas of their own (the paper's (31) and (26)),
 not the engine's scalar functions. It is the yardstick the kernels are tested against, the
 right-hand side of Hamilton's equations for a tight SciPy reference solution, and the NumPy
 baseline the benchmarks time.
@@ -19,7 +19,7 @@ from typing import Callable, Mapping
 import numpy as np
 
 # ---------------------------------------------------------------------------------------------
-# constitutive laws, as NumPy formulas (spec §1.1 and §1.2). Every function takes (m,) arrays
+# constitutive laws, as NumPy formulas (Mata & Lew 2011, (31) and (26)). Every function takes (m,) arrays
 # and a mapping of (m,) parameter arrays and returns (m,).
 
 
@@ -156,7 +156,7 @@ class ReferenceNet:
         return self.spring_vectors(x)[1]
 
     def entropies(self, x: np.ndarray, theta: np.ndarray) -> np.ndarray:
-        """(m,) η = Γ(l(x), θ): the initial entropies of spec §1.3."""
+        """(m,) η = Γ(l(x), θ) = −∂F/∂θ: the initial entropies (Mata & Lew 2011, (11))."""
         return self.law.entropy(self.lengths(x), theta, self.rest_lengths, self.parameters)
 
     def temperatures(self, x: np.ndarray, eta: np.ndarray) -> np.ndarray:
@@ -192,7 +192,7 @@ class ReferenceNet:
 
     # -- conserved quantities ------------------------------------------------------------------
     def energy(self, x: np.ndarray, p: np.ndarray, eta: np.ndarray) -> float:
-        """H = Σ |p|²/2m + Σ U(l, η) (spec (17)), free nodes only."""
+        """H = Σ |p|²/2m + Σ U(l, η) (Mata & Lew 2011, (17)), free nodes only."""
         free = self.free
         kinetic = 0.5 * np.sum(np.einsum("ij,ij->i", p[free], p[free]) / self.masses[free])
         internal = np.sum(self.law.internal_energy(self.lengths(x), eta, self.rest_lengths, self.parameters))
@@ -216,7 +216,7 @@ class ReferenceState:
 
 
 # ---------------------------------------------------------------------------------------------
-# one step of each explicit integrator, formula by formula from spec §2
+# one step of each explicit integrator, formula by formula from the paper's (51), (52), (64)–(66), (41)–(44)
 
 
 def _velocity(net: ReferenceNet, p: np.ndarray) -> np.ndarray:
@@ -335,7 +335,7 @@ def run(net: ReferenceNet, state: ReferenceState, step, h: float, n_steps: int) 
 
 
 # ---------------------------------------------------------------------------------------------
-# Hamilton's equations (spec (18)) for SciPy's solve_ivp
+# Hamilton's equations (Mata & Lew 2011, (18)) for SciPy's solve_ivp
 
 
 class HamiltonRHS:

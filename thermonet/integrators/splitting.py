@@ -1,4 +1,4 @@
-"""Explicit integrators as kick/drift splittings (spec §2.1 GTR-0/1, §2.3 CO2/F10, §2.4 NM2),
+"""Explicit integrators as kick/drift splittings (Mata & Lew 2011: GTR-0/1 (51)–(52), CO2/F10 (64)–(66), NM2 §4.2),
 and higher-order compositions of CO2 (CO4, CO6).
 
 A scheme ``K(k0) D(d0) K(k1) … D(d_{S−1}) K(k_S)`` is data: the ``kicks`` (S+1) and ``drifts`` (S)

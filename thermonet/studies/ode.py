@@ -1,4 +1,4 @@
-"""Hamilton's equations (spec (18)) of any simulation's net, for SciPy's ``solve_ivp``.
+"""Hamilton's equations (Mata & Lew 2011, (18)) of any simulation's net, for SciPy's ``solve_ivp``.
 
 The state is y = [x_free (3k), p_free (3k), Φ (m)] (see :class:`thermonet.reference.HamiltonRHS`),
 η constant. For the built-in models the right-hand side uses the NumPy laws of
