@@ -1,4 +1,4 @@
-"""Hamilton's equations (spec (18)) compiled with Numba, for SciPy's ``solve_ivp``: the baseline a
+"""Hamilton's equations (Mata & Lew 2011, (18)) compiled with Numba, for SciPy's ``solve_ivp``: the baseline a
 performance-aware user would write, for the built-in models ("hencky", "quadratic").
 
 Same state vector and interface as :class:`thermonet.reference.HamiltonRHS` (which it subclasses:
