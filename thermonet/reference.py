@@ -133,7 +133,7 @@ class ReferenceNet:
     @classmethod
     def build(cls, net, model: str, parameters: Mapping[str, object] | None = None) -> "ReferenceNet":
         """From a :class:`thermonet.Net`, a model name and its parameters (scalars or (m,);
-        missing ones take the spec's default values)."""
+        missing ones take the models' default values)."""
         law = LAWS[model]
         defaults = {"c": 100.0, "E": 100.0, "beta": 0.2, "C0": 5.0, "theta0": 300.0, "eta0": 0.0}
         values = {**defaults, **(parameters or {})}

@@ -6,8 +6,8 @@ Same state vector and interface as :class:`thermonet.reference.HamiltonRHS` (whi
 
     ẋ_a = p_a / m_a,   ṗ_a = Σ_e ±T_e n_e (+ m_a g),   Φ̇_e = θ(l_e, η_e)
 
-One compiled loop over the springs (tension and temperature from the model's closed forms of spec
-§1.1/§1.2, scatter into the free nodes' force) and one over the free nodes, writing into a
+One compiled loop over the springs (tension and temperature from the model's closed forms, the
+paper's (31) and (26), scatter into the free nodes' force) and one over the free nodes, writing into a
 preallocated output; no NumPy temporaries per call. It shares no code with the engine's kernels
 nor with the NumPy reference (a test checks it against the latter to round-off).
 """
