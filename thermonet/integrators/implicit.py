@@ -23,7 +23,8 @@ from ..kernels.implicit_common import KEEP_ROWS, STATUS_TEXT, implicit_kernels
 from ..kernels.implicit_records import (BlockPlaces, NextState, NodeData, Residuals, SpringParameters, StartWork,
                                         StepStart, Topology)
 from ..kernels.local_update import neighbourhood, scan
-from ..solvers import BlockPattern, NewtonOptions, NewtonResult, NewtonTimers, make_linear_solver, newton
+from ..solvers import BlockPattern, NewtonOptions, NewtonResult, NewtonTimers, make_linear_solver
+from ..solvers.newton import newton
 from .base import Stepper, StepFailure
 
 

@@ -24,7 +24,7 @@ from numba import prange
 from .fastmath import exp as exp_
 from .implicit_common import (BLOCK, INLINE, LOCAL_ITERATIONS, MAX_LOG_STEP, NO_TEMPERATURE, NOT_FINITE, OK,
                               OPTIONS, THETA_STOP, UNIFORM, COLLAPSED, _admissible, _first_flagged, _log_step,
-                              _usable, register_scheme)
+                              _usable, register_scheme, scatter_spring_block)
 from .implicit_records import StartWork
 from .specialize import specialize
 
@@ -280,7 +280,6 @@ def _gtr_jacobian(topo, spring, node, work, places, alpha, h, data):
     l0, P = spring.rest_length, spring.parameters
     len0, dir0, dir1, theta, dtheta = work.start.len0, work.start.dir0, work.dir1, work.theta, work.dtheta
     node_base, node_stride = places.node_base, places.node_stride
-    spring_base, spring_stride = places.spring_base, places.spring_stride
     data[:] = 0.0
     for a in range(free_index.shape[0]):
         k = free_index[a]
@@ -298,15 +297,7 @@ def _gtr_jacobian(topo, spring, node, work, places, alpha, h, data):
         for i in range(3):
             for j in range(3):
                 B[i, j] = c * dir0[i, e] * dir1[j, e]
-        for q in range(4):
-            base = spring_base[e, q]
-            if base < 0:
-                continue
-            sign = 1.0 if (q == 0 or q == 3) else -1.0
-            stride = spring_stride[e, q]
-            for i in range(3):
-                for j in range(3):
-                    data[base + i * stride + j] += sign * B[i, j]
+        scatter_spring_block(data, places, e, B)
 
 
 def _gtr_finish(step, topo, spring, node, work, alpha, u, phi, new):

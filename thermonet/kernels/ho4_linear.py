@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from .implicit_common import BLOCK, OPTIONS, UNIFORM
+from .implicit_common import BLOCK, OPTIONS, UNIFORM, scatter_spring_block
 from .specialize import specialize
 
 # Bound per model by specialize(); listed so the templates read as ordinary code.
@@ -75,7 +75,6 @@ def _ho4_jacobian(topo, spring, node, work, places, h, data):
     len0, dir0 = work.start.len0, work.start.dir0
     lenh, dirh, len1, dir1, th0, th1, dth = work.lenh, work.dirh, work.len1, work.dir1, work.th0, work.th1, work.dth
     node_base, node_stride = places.node_base, places.node_stride
-    spring_base, spring_stride = places.spring_base, places.spring_stride
     data[:] = 0.0
     for a in range(free_index.shape[0]):
         k = free_index[a]
@@ -110,15 +109,7 @@ def _ho4_jacobian(topo, spring, node, work, places, h, data):
                 nn = dirh[i, e] * dirh[j, e]
                 B[3 + i, j] = (axial - lateral) * nn + (lateral if i == j else 0.0)
                 B[3 + i, 3 + j] = c21 * dirh[i, e] * dir1[j, e]
-        for q in range(4):
-            base = spring_base[e, q]
-            if base < 0:
-                continue
-            sign = 1.0 if (q == 0 or q == 3) else -1.0
-            stride = spring_stride[e, q]
-            for i in range(6):
-                for j in range(6):
-                    data[base + i * stride + j] += sign * B[i, j]
+        scatter_spring_block(data, places, e, B)
 
 
 def _ho4_sweep(topo, node, work, h, du, R, r, update, first):

@@ -234,6 +234,23 @@ def _first_flagged(flag, lo, n, none):
     return none
 
 
+@njit(cache=True, inline="always")
+def scatter_spring_block(data, places, e, B):
+    """Add spring e's Jacobian block B (b, b) into the CSR values ``data`` at its four places
+    (BlockPlaces), with sign s_c s_g (s_a = +1, s_b = −1); none where an end is anchored."""
+    spring_base, spring_stride = places.spring_base, places.spring_stride
+    b = B.shape[0]
+    for q in range(4):
+        base = spring_base[e, q]
+        if base < 0:
+            continue
+        sign = 1.0 if (q == 0 or q == 3) else -1.0
+        stride = spring_stride[e, q]
+        for i in range(b):
+            for j in range(b):
+                data[base + i * stride + j] += sign * B[i, j]
+
+
 # Every kernel below is two loops, each parallel when compiled with parallel=True: a spring
 # loop (over blocks of springs) writes per-spring results (lengths, temperatures, the spring's
 # force contribution ``fs``) and a node loop gathers them over the node's incident springs (CSR
