@@ -17,6 +17,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..kernels.gtr_alpha import GTRWork
+from ..kernels.implicit_records import plain
 from .base import Integrator, register_integrator
 from .implicit import ImplicitStepper, newton_options
 
@@ -59,25 +60,27 @@ class GTRAlphaStepper(ImplicitStepper):
         return np.array([[h, self.alpha * h * h, 0.0, 0.0]])
 
     def residual(self, u: np.ndarray):
-        status, spring, rmax, smax = self.kernels.residual(self.step_start, self.topology, self.springs, self.nodes,
-                                                           self.work, self.alpha, u, self.warm, self.residuals)
+        status, spring, rmax, smax = self.kernels.residual(plain(self.step_start), plain(self.topology), plain(self.springs),
+                                                           plain(self.nodes), plain(self.work), self.alpha, u, self.warm,
+                                                           plain(self.residuals))
         self.norms = (rmax, smax)
         self.warm = status == 0
         return status, spring
 
     def linearize(self) -> None:
-        self.kernels.linearize(self.springs, self.work, self.alpha, self.h)
+        self.kernels.linearize(plain(self.springs), plain(self.work), self.alpha, self.h)
 
     def apply_inverse_inertia(self, v):
         """(h/m) v per free node."""
         return (np.asarray(v).reshape(-1, 3) * (self.h / self.block_mass)[:, None]).ravel()
 
     def jacobian(self, data: np.ndarray) -> None:
-        self.kernels.jacobian(self.topology, self.springs, self.nodes, self.work, self.places, self.alpha, self.h, data)
+        self.kernels.jacobian(plain(self.topology), plain(self.springs), plain(self.nodes), plain(self.work),
+                              plain(self.places), self.alpha, self.h, data)
 
     def finish(self, phi0, new):
-        return self.kernels.finish(self.step_start, self.topology, self.springs, self.nodes, self.work, self.alpha,
-                                   self.u, phi0, new)
+        return self.kernels.finish(plain(self.step_start), plain(self.topology), plain(self.springs), plain(self.nodes),
+                                   plain(self.work), self.alpha, self.u, phi0, plain(new))
 
 
 def gtr_alpha(alpha: float = 0.5) -> GTRAlpha:

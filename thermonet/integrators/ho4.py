@@ -18,6 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..kernels.ho4 import HO4Work
+from ..kernels.implicit_records import plain
 from .base import Integrator, register_integrator
 from .implicit import ImplicitStepper, newton_options
 
@@ -81,13 +82,13 @@ class HO4Stepper(ImplicitStepper):
         return self.kernels.jacobi_rows(u, self.R, blocks, self.block_mass, self.h)
 
     def _residual(self, kernel, u, springs, nodes):
-        out = kernel(self.step_start, self.topology, self.springs, self.nodes, self.work, u, self.warm, self.residuals,
-                     springs, nodes)
+        out = kernel(plain(self.step_start), plain(self.topology), plain(self.springs), plain(self.nodes), plain(self.work),
+                     u, self.warm, plain(self.residuals), springs, nodes)
         self.warm = out[0] == 0
         return out
 
     def linearize(self) -> None:
-        self.kernels.linearize(self.springs, self.work, self.h)
+        self.kernels.linearize(plain(self.springs), plain(self.work), self.h)
 
     def apply_inverse_inertia(self, v):
         """Per free node, (h/m) ½ [[1, 1/3], [2, 8/3]] applied to (v^½, v¹)."""
@@ -99,11 +100,12 @@ class HO4Stepper(ImplicitStepper):
         return out.ravel()
 
     def jacobian(self, data: np.ndarray) -> None:
-        self.kernels.jacobian(self.topology, self.springs, self.nodes, self.work, self.places, self.h, data)
+        self.kernels.jacobian(plain(self.topology), plain(self.springs), plain(self.nodes), plain(self.work),
+                              plain(self.places), self.h, data)
 
     def finish(self, phi0, new):
-        return self.kernels.finish(self.step_start, self.topology, self.springs, self.nodes, self.work, self.u, phi0,
-                                   new)
+        return self.kernels.finish(plain(self.step_start), plain(self.topology), plain(self.springs), plain(self.nodes),
+                                   plain(self.work), self.u, phi0, plain(new))
 
 
 HO4_INTEGRATOR = register_integrator(HO4())

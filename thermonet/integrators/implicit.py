@@ -21,7 +21,7 @@ import numpy as np
 from ..errors import InputError
 from ..kernels.implicit_common import KEEP_ROWS, STATUS_TEXT, implicit_kernels
 from ..kernels.implicit_records import (BlockPlaces, NextState, NodeData, Residuals, SpringParameters, StartWork,
-                                        StepStart, Topology)
+                                        StepStart, Topology, plain)
 from ..kernels.local_update import neighbourhood, scan
 from ..solvers import BlockPattern, NewtonOptions, NewtonResult, NewtonTimers, make_linear_solver
 from ..solvers.newton import newton
@@ -155,7 +155,8 @@ class ImplicitStepper(Stepper):
     def sweep(self, du: np.ndarray, rhs: np.ndarray, r: np.ndarray, update: bool, first: bool = False) -> float:
         """r = rhs − J du, then (update) du += D⁻¹ r, r written out only without ``update``;
         returns max |r| (matrix-free J, the scheme's ``sweep`` kernel). ``first``: du is zero."""
-        return self.kernels.sweep(self.topology, self.nodes, self.work, self.h, du, rhs, r, update, first)
+        return self.kernels.sweep(plain(self.topology), plain(self.nodes), plain(self.work), self.h, du, rhs, r, update,
+                                  first)
 
     @abstractmethod
     def apply_inverse_inertia(self, v: np.ndarray) -> np.ndarray:
@@ -207,7 +208,8 @@ class ImplicitStepper(Stepper):
         """Start a step at (x, p, η) with step h: geometry and explicit forces at x."""
         self.step_start = StepStart(x, p, eta, float(h))
         self.warm = False
-        status, spring = self.kernels.start(self.step_start, self.topology, self.springs, self.nodes, self.work.start,
+        status, spring = self.kernels.start(plain(self.step_start), plain(self.topology), plain(self.springs),
+                                            plain(self.nodes), plain(self.work.start),
                                             self.predictor_coefficients(self.h), self.prediction)
         if status != 0:
             raise _StepError("invalid state at the start of the step", None, status, spring)

@@ -128,14 +128,13 @@ def _gtr_residual(step, topo, spring, node, work, alpha, u, warm, res):
     (3, m), θ̄ and dθ̄/dl¹ (m,) for the Jacobian and the finish. With ``warm``, the θ̄ of the
     previous call (at nearby u), moved along dθ̄/dl¹, seeds each thermal solve. The start
     record's fs (≥ 3, m), guess, code (m,): scratch. Returns (status, spring, max |R|, max Rabs)."""
-    x0, p, eta, h = step.x0, step.p, step.eta, step.h
-    edges, free_index = topo.edges, topo.free_index
-    inc_ptr, inc_spring, inc_sign = topo.inc_ptr, topo.inc_spring, topo.inc_sign
-    l0, P = spring.rest_length, spring.parameters
-    masses, gravity, with_gravity = node.masses, node.gravity, node.with_gravity
-    len0, dir0, fs, guess, code = work.start.len0, work.start.dir0, work.start.fs, work.start.guess, work.start.code
-    len1, dir1, theta, dtheta = work.len1, work.dir1, work.theta, work.dtheta
-    R, Rabs = res.R, res.Rabs
+    x0, p, eta, h = step
+    edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
+    l0, P = spring
+    masses, inv_mass, gravity, with_gravity = node
+    start, len1, dir1, theta, dtheta, jc = work
+    len0, dir0, keep, fs, ws, sweep, nodal, guess, code = start
+    R, Rabs, peak = res
     m = edges.shape[0]
     bad = m
     for blk in prange((m + BLOCK - 1) // BLOCK):
@@ -260,8 +259,9 @@ def _gtr_residual(step, topo, spring, node, work, alpha, u, warm, res):
 def _gtr_linearize(spring, work, alpha, h):
     """Per-spring coefficient of the Jacobian at the last residual's point (matrix-free use):
     spring e's block is jc[e] n⁰ n¹ᵀ, jc[e] = α h F_lθ(l⁰, θ̄) dθ̄/dl¹ (m,) (``work.jc``)."""
-    l0, P = spring.rest_length, spring.parameters
-    len0, theta, dtheta, jc = work.start.len0, work.theta, work.dtheta, work.jc
+    l0, P = spring
+    start, len1, dir1, theta, dtheta, jc = work
+    len0, dir0, keep, fs, ws, sweep, nodal, guess, code = start
     m = len0.shape[0]
     for blk in prange((m + BLOCK - 1) // BLOCK):
         lo = blk * BLOCK
@@ -276,10 +276,12 @@ def _gtr_jacobian(topo, spring, node, work, places, alpha, h, data):
     (nnz,), at the places of ``places`` (BlockPlaces).
 
     ∂R_c/∂d_g = δ_cg m_c/h I + α h s_c s_g F_lθ(l⁰, θ̄) (dθ̄/dl¹) n⁰ n¹ᵀ, s_a = +1, s_b = −1."""
-    free_index, edges, masses = topo.free_index, topo.edges, node.masses
-    l0, P = spring.rest_length, spring.parameters
-    len0, dir0, dir1, theta, dtheta = work.start.len0, work.start.dir0, work.dir1, work.theta, work.dtheta
-    node_base, node_stride = places.node_base, places.node_stride
+    edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
+    l0, P = spring
+    masses, inv_mass, gravity, with_gravity = node
+    start, len1, dir1, theta, dtheta, jc = work
+    len0, dir0, keep, fs, ws, sweep, nodal, guess, code = start
+    node_base, node_stride, spring_base, spring_stride = places
     data[:] = 0.0
     for a in range(free_index.shape[0]):
         k = free_index[a]
@@ -307,12 +309,12 @@ def _gtr_finish(step, topo, spring, node, work, alpha, u, phi, new):
     central pairs, conserves linear momentum to round-off whatever the solver residual.
     fs must hold the last residual's per-spring terms (that residual was evaluated at u).
     Returns (status, spring)."""
-    h = step.h
-    edges = topo.edges
-    l0, P = spring.rest_length, spring.parameters
-    eta, len0, fs, code = step.eta, work.start.len0, work.start.fs, work.start.code
-    len1, dir1, theta = work.len1, work.dir1, work.theta
-    phi_new, eta_new = new.phi, new.eta
+    x0, p, eta, h = step
+    edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
+    l0, P = spring
+    start, len1, dir1, theta, dtheta, jc = work
+    len0, dir0, keep, fs, ws, sweep, nodal, guess, code = start
+    x_new, p_new, phi_new, eta_new = new
     m = edges.shape[0]
     bad = m
     for blk in prange((m + BLOCK - 1) // BLOCK):
@@ -344,9 +346,10 @@ def _gtr_sweep(topo, node, work, h, du, R, r, update, first):
     written). Returns max |r|. ``first``: du is taken as zero (not read; the spring loop is skipped).
 
     Spring e's block is jc[e] n⁰ n¹ᵀ: w[e, :3] = n⁰ jc[e] n¹·(du_a − du_b)."""
-    free_index, ends = topo.free_index, topo.ends
-    inc_ptr, inc_spring, inc_sign = topo.inc_ptr, topo.inc_spring, topo.inc_sign
-    masses, w, jc, dir0, dir1 = node.masses, work.start.sweep, work.jc, work.start.dir0, work.dir1
+    edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
+    masses, inv_mass, gravity, with_gravity = node
+    start, len1, dir1, theta, dtheta, jc = work
+    len0, dir0, keep, fs, ws, w, nodal, guess, code = start
     m = ends.shape[0]
     for e in prange(0 if first else m):
         eu = np.uint64(e)

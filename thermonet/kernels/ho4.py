@@ -108,16 +108,13 @@ def _ho4_residual(step, topo, spring, node, work, u, warm, res, springs, nodes):
     springs' ends, and the rest keep the values of the last call (in the full kernel both lists
     are empty and unused). Returns (status, spring, max |R|, max Rabs), the maxima over the rows
     computed."""
-    x0, p, eta, h = step.x0, step.p, step.eta, step.h
-    edges, free_index = topo.edges, topo.free_index
-    inc_ptr, inc_spring, inc_sign = topo.inc_ptr, topo.inc_spring, topo.inc_sign
-    l0, P = spring.rest_length, spring.parameters
-    masses, gravity, with_gravity = node.masses, node.gravity, node.with_gravity
-    start = work.start
-    len0, dir0, keep, fs, guess, code = start.len0, start.dir0, start.keep, start.fs, start.guess, start.code
-    lenh, dirh, len1, dir1 = work.lenh, work.dirh, work.len1, work.dir1
-    th0, th1, dth, gs = work.th0, work.th1, work.dth, work.gs
-    R, Rabs, peak = res.R, res.Rabs, res.peak
+    x0, p, eta, h = step
+    edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
+    l0, P = spring
+    masses, inv_mass, gravity, with_gravity = node
+    start, lenh, dirh, len1, dir1, th0, th1, dth, gs, jc = work
+    len0, dir0, keep, fs, ws, sweep, nodal, guess, code = start
+    R, Rabs, peak = res
     none = edges.shape[0]
     m = listed_count(springs, none)
     bad = none
@@ -327,12 +324,12 @@ def _ho4_finish(step, topo, spring, node, work, u, phi, new):
     and p¹ = p⁰ + h (f⁰ + 4 f^½ + f¹)/6, which is (58b) given (58a) and (57a) and conserves
     linear momentum to round-off whatever the solver residual. fs must hold the last residual's
     per-spring terms (that residual was evaluated at u). Returns (status, spring)."""
-    h = step.h
-    edges = topo.edges
-    l0, P = spring.rest_length, spring.parameters
-    eta, len0, fs, code = step.eta, work.start.len0, work.start.fs, work.start.code
-    lenh, len1, dir1, th0, th1 = work.lenh, work.len1, work.dir1, work.th0, work.th1
-    phi_new, eta_new = new.phi, new.eta
+    x0, p, eta, h = step
+    edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
+    l0, P = spring
+    start, lenh, dirh, len1, dir1, th0, th1, dth, gs, jc = work
+    len0, dir0, keep, fs, ws, sweep, nodal, guess, code = start
+    x_new, p_new, phi_new, eta_new = new
     m = edges.shape[0]
     bad = m
     for blk in prange((m + BLOCK - 1) // BLOCK):

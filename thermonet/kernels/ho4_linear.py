@@ -36,8 +36,9 @@ def _ho4_linearize(spring, work, h):
     ``work.jc`` (5, m): spring e's block (rows R1, R2; columns d^½, d¹) is
       [[a₁ n⁰ n^½ᵀ, a₂ n⁰ n¹ᵀ], [(k − t) n^½ n^½ᵀ + t I, c n^½ n¹ᵀ]],   jc[:, e] = (a₁, a₂, k − t, t, c)
     with the terms of :func:`_ho4_jacobian`."""
-    l0, P = spring.rest_length, spring.parameters
-    len0, lenh, len1, th0, th1, dth, jc = work.start.len0, work.lenh, work.len1, work.th0, work.th1, work.dth, work.jc
+    l0, P = spring
+    start, lenh, dirh, len1, dir1, th0, th1, dth, gs, jc = work
+    len0, dir0, keep, fs, ws, sweep, nodal, guess, code = start
     m = len0.shape[0]
     for blk in prange((m + BLOCK - 1) // BLOCK):
         lo = blk * BLOCK
@@ -70,11 +71,12 @@ def _ho4_jacobian(topo, spring, node, work, places, h, data):
       ∂R1/∂x^σ = h/6 F_lθ(l⁰, θ⁰) dθ⁰/dl^σ n⁰ n^σᵀ
       ∂R2/∂x^½ = h/4 [(F_ll + F_lθ dθ^½/dl^½) n^½ n^½ᵀ + T/l (I − n^½ n^½ᵀ)] at (l^½, θ^½)
       ∂R2/∂x¹  = h/4 F_lθ(l^½, θ^½) dθ^½/dl¹ n^½ n¹ᵀ."""
-    free_index, edges, masses = topo.free_index, topo.edges, node.masses
-    l0, P = spring.rest_length, spring.parameters
-    len0, dir0 = work.start.len0, work.start.dir0
-    lenh, dirh, len1, dir1, th0, th1, dth = work.lenh, work.dirh, work.len1, work.dir1, work.th0, work.th1, work.dth
-    node_base, node_stride = places.node_base, places.node_stride
+    edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
+    l0, P = spring
+    masses, inv_mass, gravity, with_gravity = node
+    start, lenh, dirh, len1, dir1, th0, th1, dth, gs, jc = work
+    len0, dir0, keep, fs, ws, sweep, nodal, guess, code = start
+    node_base, node_stride, spring_base, spring_stride = places
     data[:] = 0.0
     for a in range(free_index.shape[0]):
         k = free_index[a]
@@ -118,10 +120,10 @@ def _ho4_sweep(topo, node, work, h, du, R, r, update, first):
 
     Spring e's block applied to the difference (v^½, v¹) = du_a − du_b, into w[e, :] (6,):
     rows R1: n⁰ (a₁ n^½·v^½ + a₂ n¹·v¹); rows R2: n^½ ((k − t) n^½·v^½ + c n¹·v¹) + t v^½."""
-    free_index, ends = topo.free_index, topo.ends
-    inc_ptr, inc_spring, inc_sign = topo.inc_ptr, topo.inc_spring, topo.inc_sign
-    masses, w, jc = node.masses, work.start.sweep, work.jc
-    dir0, dirh, dir1 = work.start.dir0, work.dirh, work.dir1
+    edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
+    masses, inv_mass, gravity, with_gravity = node
+    start, lenh, dirh, len1, dir1, th0, th1, dth, gs, jc = work
+    len0, dir0, keep, fs, ws, w, nodal, guess, code = start
     m = ends.shape[0]
     for e in prange(0 if first else m):
         eu = np.uint64(e)

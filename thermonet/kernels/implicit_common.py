@@ -28,7 +28,7 @@ so the fallback is for custom models and bad states.
 
 Kernels take records (:mod:`.implicit_records`): the topology, the spring parameters, the node
 data, the step's start, the scheme's work record (per-spring unknowns and scratch), the
-residual's arrays. Per-spring arrays are component-major, (k, m) (``dir0[i, e]``), so that the
+residual's arrays; each kernel unpacks them by position, in their fields' order, at its top. Per-spring arrays are component-major, (k, m) (``dir0[i, e]``), so that the
 vectorized loop reads and writes unit-stride rows. Indices are read as unsigned in the spring
 passes.
 
@@ -238,7 +238,7 @@ def _first_flagged(flag, lo, n, none):
 def scatter_spring_block(data, places, e, B):
     """Add spring e's Jacobian block B (b, b) into the CSR values ``data`` at its four places
     (BlockPlaces), with sign s_c s_g (s_a = +1, s_b = −1); none where an end is anchored."""
-    spring_base, spring_stride = places.spring_base, places.spring_stride
+    node_base, node_stride, spring_base, spring_stride = places
     b = B.shape[0]
     for q in range(4):
         base = spring_base[e, q]
@@ -293,12 +293,11 @@ def _start(step, topo, spring, node, work, coef, pred):
     ḟ = T' l̇ n + T ṅ;  f̈ = T'' l̇² n + T' l̈ n + 2 T' l̇ ṅ + T n̈ with l̈ = n·α + (|v|² − l̇²)/l,
     n̈ = (α − n l̈ − 2 ṅ l̇)/l; T'' by a forward difference of T'. ä needs the nodes' a: a second
     spring pass and node pass."""
-    x0, p, eta, h = step.x0, step.p, step.eta, step.h
-    edges, free_index = topo.edges, topo.free_index
-    inc_ptr, inc_spring, inc_sign = topo.inc_ptr, topo.inc_spring, topo.inc_sign
-    l0, P = spring.rest_length, spring.parameters
-    inv_mass, gravity, with_gravity = node.inv_mass, node.gravity, node.with_gravity
-    len0, dir0, keep, fs, ws, nodal, code = work.len0, work.dir0, work.keep, work.fs, work.ws, work.nodal, work.code
+    x0, p, eta, h = step
+    edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
+    l0, P = spring
+    masses, inv_mass, gravity, with_gravity = node
+    len0, dir0, keep, fs, ws, sweep, nodal, guess, code = work
     m = edges.shape[0]
     bad = m
     for blk in prange((m + BLOCK - 1) // BLOCK):
@@ -479,10 +478,10 @@ def _finish_nodes(step, topo, node, fs, u, stride, offset, new):
     """The nodes' part of every finish kernel, into ``new`` (NextState): x¹ = x⁰ + u[stride k +
     offset + i] for free node k, p¹ = p⁰ (+ h m g) − Σ± fs over the incident springs (fs: the
     per-spring impulses of the step, (≥ 3, m)). Returns (status, −1)."""
-    x0, p, h = step.x0, step.p, step.h
-    free_index, inc_ptr, inc_spring, inc_sign = topo.free_index, topo.inc_ptr, topo.inc_spring, topo.inc_sign
-    masses, gravity, with_gravity = node.masses, node.gravity, node.with_gravity
-    x_new, p_new = new.x, new.p
+    x0, p, eta, h = step
+    edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
+    masses, inv_mass, gravity, with_gravity = node
+    x_new, p_new, phi_new, eta_new = new
     n = x0.shape[0]
     bad_node = n
     for a in prange(n):
