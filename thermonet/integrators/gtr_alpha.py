@@ -60,27 +60,27 @@ class GTRAlphaStepper(ImplicitStepper):
         return np.array([[h, self.alpha * h * h, 0.0, 0.0]])
 
     def residual(self, u: np.ndarray):
-        status, spring, rmax, smax = self.kernels.residual(plain(self.step_start), plain(self.topology), plain(self.springs),
-                                                           plain(self.nodes), plain(self.work), self.alpha, u, self.warm,
-                                                           plain(self.residuals))
+        status, spring, rmax, smax = self.kernels.residual(self._step_start, self._topology, self._springs,
+                                                           self._nodes, self._work, self.alpha, u, self.warm,
+                                                           self._residuals)
         self.norms = (rmax, smax)
         self.warm = status == 0
         return status, spring
 
     def linearize(self) -> None:
-        self.kernels.linearize(plain(self.springs), plain(self.work), self.alpha, self.h)
+        self.kernels.linearize(self._springs, self._work, self.alpha, self.h)
 
     def apply_inverse_inertia(self, v):
         """(h/m) v per free node."""
         return (np.asarray(v).reshape(-1, 3) * (self.h / self.block_mass)[:, None]).ravel()
 
     def jacobian(self, data: np.ndarray) -> None:
-        self.kernels.jacobian(plain(self.topology), plain(self.springs), plain(self.nodes), plain(self.work),
-                              plain(self.places), self.alpha, self.h, data)
+        self.kernels.jacobian(self._topology, self._springs, self._nodes, self._work,
+                              self._places, self.alpha, self.h, data)
 
     def finish(self, phi0, new):
-        return self.kernels.finish(plain(self.step_start), plain(self.topology), plain(self.springs), plain(self.nodes),
-                                   plain(self.work), self.alpha, self.u, phi0, plain(new))
+        return self.kernels.finish(self._step_start, self._topology, self._springs, self._nodes,
+                                   self._work, self.alpha, self.u, phi0, plain(new))
 
 
 def gtr_alpha(alpha: float = 0.5) -> GTRAlpha:

@@ -82,13 +82,13 @@ class HO4Stepper(ImplicitStepper):
         return self.kernels.jacobi_rows(u, self.R, blocks, self.block_mass, self.h)
 
     def _residual(self, kernel, u, springs, nodes):
-        out = kernel(plain(self.step_start), plain(self.topology), plain(self.springs), plain(self.nodes), plain(self.work),
-                     u, self.warm, plain(self.residuals), springs, nodes)
+        out = kernel(self._step_start, self._topology, self._springs, self._nodes, self._work,
+                     u, self.warm, self._residuals, springs, nodes)
         self.warm = out[0] == 0
         return out
 
     def linearize(self) -> None:
-        self.kernels.linearize(plain(self.springs), plain(self.work), self.h)
+        self.kernels.linearize(self._springs, self._work, self.h)
 
     def apply_inverse_inertia(self, v):
         """Per free node, (h/m) ½ [[1, 1/3], [2, 8/3]] applied to (v^½, v¹)."""
@@ -100,12 +100,12 @@ class HO4Stepper(ImplicitStepper):
         return out.ravel()
 
     def jacobian(self, data: np.ndarray) -> None:
-        self.kernels.jacobian(plain(self.topology), plain(self.springs), plain(self.nodes), plain(self.work),
-                              plain(self.places), self.h, data)
+        self.kernels.jacobian(self._topology, self._springs, self._nodes, self._work,
+                              self._places, self.h, data)
 
     def finish(self, phi0, new):
-        return self.kernels.finish(plain(self.step_start), plain(self.topology), plain(self.springs), plain(self.nodes),
-                                   plain(self.work), self.u, phi0, plain(new))
+        return self.kernels.finish(self._step_start, self._topology, self._springs, self._nodes,
+                                   self._work, self.u, phi0, plain(new))
 
 
 HO4_INTEGRATOR = register_integrator(HO4())

@@ -39,6 +39,22 @@ class _StepError(Exception):
         self.spring = spring
 
 
+class _KernelRecord:
+    """A stepper attribute holding a record of :mod:`thermonet.kernels.implicit_records`; each
+    assignment also keeps, as ``_<name>``, the plain tuple the kernels are called with (made once,
+    not at every call: a kernel call then costs what it cost with separate arguments)."""
+
+    def __set_name__(self, owner, name):
+        self.record, self.args = f"_{name}_record", f"_{name}"
+
+    def __get__(self, obj, owner=None):
+        return self if obj is None else getattr(obj, self.record)
+
+    def __set__(self, obj, value):
+        setattr(obj, self.record, value)
+        setattr(obj, self.args, None if value is None else plain(value))
+
+
 class ImplicitStepper(Stepper):
     """Shared driver of an implicit integrator bound to one system (internal numbering).
 
@@ -59,6 +75,13 @@ class ImplicitStepper(Stepper):
     #: a local Jacobi step (:meth:`local_jacobi`) updates at most this fraction of the free
     #: nodes; with more, a global one (one sweep, one full residual) costs less
     LOCAL_MAX_FRACTION = 0.05
+    topology = _KernelRecord()
+    springs = _KernelRecord()
+    nodes = _KernelRecord()
+    places = _KernelRecord()
+    work = _KernelRecord()
+    residuals = _KernelRecord()
+    step_start = _KernelRecord()
 
     def __init__(self, integrator, system, options: NewtonOptions, parallel: bool = False):
         if not system.thermal:
@@ -121,7 +144,7 @@ class ImplicitStepper(Stepper):
     @property
     def h(self) -> float:
         """The step of the current step (set by :meth:`begin`)."""
-        return self.step_start.h
+        return self._step_start[3]
 
     # -- scheme hooks ---------------------------------------------------------------------------
     @abstractmethod
@@ -155,7 +178,7 @@ class ImplicitStepper(Stepper):
     def sweep(self, du: np.ndarray, rhs: np.ndarray, r: np.ndarray, update: bool, first: bool = False) -> float:
         """r = rhs − J du, then (update) du += D⁻¹ r, r written out only without ``update``;
         returns max |r| (matrix-free J, the scheme's ``sweep`` kernel). ``first``: du is zero."""
-        return self.kernels.sweep(plain(self.topology), plain(self.nodes), plain(self.work), self.h, du, rhs, r, update,
+        return self.kernels.sweep(self._topology, self._nodes, self._work, self.h, du, rhs, r, update,
                                   first)
 
     @abstractmethod
@@ -208,8 +231,8 @@ class ImplicitStepper(Stepper):
         """Start a step at (x, p, η) with step h: geometry and explicit forces at x."""
         self.step_start = StepStart(x, p, eta, float(h))
         self.warm = False
-        status, spring = self.kernels.start(plain(self.step_start), plain(self.topology), plain(self.springs),
-                                            plain(self.nodes), plain(self.work.start),
+        status, spring = self.kernels.start(self._step_start, self._topology, self._springs,
+                                            self._nodes, self._work[0],
                                             self.predictor_coefficients(self.h), self.prediction)
         if status != 0:
             raise _StepError("invalid state at the start of the step", None, status, spring)
