@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import thermonet as tn
-from thermonet.integrators.newton import NewtonOptions, NewtonTimers, newton
+from thermonet.solvers.newton import NewtonOptions, NewtonTimers, newton
 from thermonet.paper import CHAIN_MOMENTA, CHAIN_TEMPERATURES
 
 
@@ -235,7 +235,7 @@ def test_a_residual_near_the_tolerance_is_finished_by_jacobi_steps(monkeypatch):
     """On the benchmark-like lattice most HO4 steps end one Newton iteration at 1–1000× the
     tolerance; inertia-preconditioned corrections then bring them below it. Same states as
     full Newton iterations, to the tolerance's size, with fewer sweeps."""
-    import thermonet.integrators.newton as newton_module
+    import thermonet.solvers.newton as newton_module
 
     def lattice_run():
         net = tn.lattice((10, 10, 10), jitter=0.1, seed=1)
@@ -324,7 +324,7 @@ def test_jacobi_steps_are_taken_while_their_contraction_says_two_reach_the_toler
 def test_uniform_parameter_kernels_give_the_per_spring_kernels_numbers(integrator):
     """With every spring's parameters equal the kernels read one shared column (UNIFORM); the
     kernels that stream the (k, m) array must give the same bits."""
-    from thermonet.kernels.implicit import implicit_kernels
+    from thermonet.kernels.implicit_common import implicit_kernels
 
     net = tn.lattice((5, 4, 4), jitter=0.1, seed=3)
     rng = np.random.default_rng(2)
@@ -333,17 +333,17 @@ def test_uniform_parameter_kernels_give_the_per_spring_kernels_numbers(integrato
                         momenta=rng.normal(0.0, 1.0, (net.n_nodes, 3)), integrator=integrator, h=0.01,
                         integrator_options=dict(linear_solver="matfree"))
     st, s = sim.stepper, sim._state
-    assert st.P.shape[1] == 1
+    assert st.springs.parameters.shape[1] == 1
     outputs = []
-    for kernels, P in ((st.kernels, st.P),
+    for kernels, P in ((st.kernels, st.springs.parameters),
                        (implicit_kernels(sim.model, st.scheme, sim.parallel, False, st.rate), sim.system.parameters)):
-        st.kernels, st.P = kernels, P
+        st.kernels, st.springs = kernels, st.springs._replace(parameters=P)
         st.begin(s.positions, s.momenta, s.entropy, sim.h)
         st.predict(st.u)
         assert st.residual(st.u) == (0, -1)
         st.linearize()
-        assert st.finish(s.thermal_displacement, *st._new) == (0, -1)
-        outputs.append([a.copy() for a in (st.prediction, st.R, st.Rabs, st.jc, *st._new)])
+        assert st.finish(s.thermal_displacement, st._new) == (0, -1)
+        outputs.append([a.copy() for a in (st.prediction, st.R, st.Rabs, st.work.jc, *st._new)])
     for a, b in zip(*outputs):
         np.testing.assert_array_equal(a, b)
 
@@ -395,11 +395,11 @@ def test_a_local_jacobi_step_leaves_the_residual_a_full_evaluation_gives(model):
     assert status == 0 and increment > 0
     moved = np.abs(st.u - before).reshape(-1, 6).max(axis=1) > 0
     assert np.array_equal(moved, rows)
-    local = (st.R.copy(), st.Rabs.copy(), st.norms, st.th0.copy(), st.th1.copy(), st.peak.copy())
+    local = (st.R.copy(), st.Rabs.copy(), st.norms, st.work.th0.copy(), st.work.th1.copy(), st.residuals.peak.copy())
     st.residual(st.u)
-    full = (st.R, st.Rabs, st.norms, st.th0, st.th1, st.peak)
+    full = (st.R, st.Rabs, st.norms, st.work.th0, st.work.th1, st.residuals.peak)
     # the per-node maxima the node selection reads are those of the rows
-    assert np.array_equal(st.peak, np.stack([np.abs(st.R).reshape(-1, 6).max(axis=1),
+    assert np.array_equal(st.residuals.peak, np.stack([np.abs(st.R).reshape(-1, 6).max(axis=1),
                                              st.Rabs.reshape(-1, 6).max(axis=1)]))
     if model == "hencky":
         for a, b in zip(local, full):
@@ -442,10 +442,10 @@ def test_a_nan_residual_row_shows_in_the_norm():
     p = s.momenta.copy()
     a = int(st.node_of_block[7])
     p[a, 1] = np.nan
-    st.p0 = p  # (only the residual's node rows read it)
+    st.step_start = st.step_start._replace(p=p)  # (only the residual's node rows read it)
     assert st.residual(st.u) == (0, -1)
     assert np.isnan(st.R[6 * 7 + 1]) and st.norms[0] == np.inf
-    assert st.peak[0, 7] == np.inf
+    assert st.residuals.peak[0, 7] == np.inf
 
 
 def test_the_matfree_solve_stops_a_sweep_early_only_when_the_update_settles_it():

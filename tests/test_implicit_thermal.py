@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import thermonet as tn
-from thermonet.kernels.implicit import implicit_kernels
+from thermonet.kernels.implicit_common import implicit_kernels
 from thermonet.models import get_model
 
 PARAMS = {"hencky": dict(c=100.0, beta=2.0, C0=5.0, theta0=300.0),
@@ -102,10 +102,10 @@ def test_residual_falls_back_to_the_scalar_solve_for_flagged_springs(integrator,
     clean = st.R.copy()
     spoiled = rng.random(net.n_springs) < 1 / 3
     if integrator == "ho4":
-        st.gs[spoiled] += 500.0
+        st.work.gs[spoiled] += 500.0
         assert not sim.model.entropy_log_affine
     else:
-        st.theta[spoiled] = 1e-40
+        st.work.theta[spoiled] = 1e-40
     st.warm = True
     assert st.residual(st.u) == (0, -1)
     assert np.abs(st.R - clean).max() <= 1e-12 * np.abs(st.Rabs).max()
@@ -132,7 +132,7 @@ def test_closed_form_residual_from_the_start_kernel_is_the_iterated_one():
                             integrator_options=dict(linear_solver="matfree"))
         st = sim.stepper
         assert st.kernels.keep_start == model.entropy_log_affine
-        assert st.keep.shape == (4, net.n_springs if model.entropy_log_affine else 0)
+        assert st.work.start.keep.shape == (4, net.n_springs if model.entropy_log_affine else 0)
         if state is None:  # strained and heated: θ⁰, θ¹ differ; both start from these bits
             sim.run(steps=3, diagnostics_every=10**9)
             state = sim._state
@@ -141,7 +141,7 @@ def test_closed_form_residual_from_the_start_kernel_is_the_iterated_one():
         rows = []
         for _ in range(2):
             assert st.residual(st.u) == (0, -1)
-            rows.append([a.copy() for a in (st.R, st.Rabs, st.th0, st.th1)])
+            rows.append([a.copy() for a in (st.R, st.Rabs, st.work.th0, st.work.th1)])
             st.linearize()
             st.u -= st.solver.solve(st.R, 1e-3 * st.norms[0])
         out.append(rows)

@@ -16,6 +16,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InputError
+from ..kernels.gtr_alpha import GTRWork
+from ..kernels.implicit_records import plain
 from .base import Integrator, register_integrator
 from .implicit import ImplicitStepper, newton_options
 
@@ -48,13 +50,9 @@ class GTRAlphaStepper(ImplicitStepper):
     block = 3
     scheme = "gtr"
 
-    def _allocate(self, n: int, m: int) -> None:
+    def make_work(self, start) -> GTRWork:
         self.alpha = self.integrator.alpha
-        self.len1 = np.empty(m)
-        self.dir1 = np.empty((3, m))
-        self.theta = np.empty(m)
-        self.dtheta = np.empty(m)
-        self.jc = np.empty(m)
+        return GTRWork.allocate(start)
 
     def predictor_coefficients(self, h: float) -> np.ndarray:
         """d = h M⁻¹ (p + α h f(x⁰, θ(l⁰, η))) = h v + α h² a: (48a) with θ̄ frozen at the start
@@ -62,44 +60,27 @@ class GTRAlphaStepper(ImplicitStepper):
         return np.array([[h, self.alpha * h * h, 0.0, 0.0]])
 
     def residual(self, u: np.ndarray):
-        s = self.system
-        status, spring, rmax, smax = self.kernels.residual(
-            self.x0, u, self.p0, self.eta0, s.rest_lengths, self.P, self.edges_u, self.free_index, *self.incidence,
-            s.masses, self.alpha, self.h, self.gravity, self.with_gravity, self.len0, self.dir0, self.len1,
-            self.dir1, self.theta, self.dtheta, self.warm, self.fs, self.guess, self.code, self.R, self.Rabs,
-        )
+        status, spring, rmax, smax = self.kernels.residual(self._step_start, self._topology, self._springs,
+                                                           self._nodes, self._work, self.alpha, u, self.warm,
+                                                           self._residuals)
         self.norms = (rmax, smax)
         self.warm = status == 0
         return status, spring
 
     def linearize(self) -> None:
-        s = self.system
-        self.kernels.linearize(self.alpha, self.h, s.rest_lengths, self.P, self.len0, self.theta, self.dtheta,
-                               self.jc)
-
-    def sweep(self, du, rhs, r, update, first=False):
-        return self.sweeper(du, rhs, r, self.sweep_w, self.jc, self.dir0, self.dir1, self.ends,
-                            self.free_index, *self.incidence, self.system.masses, self.h, update, first)
+        self.kernels.linearize(self._springs, self._work, self.alpha, self.h)
 
     def apply_inverse_inertia(self, v):
         """(h/m) v per free node."""
         return (np.asarray(v).reshape(-1, 3) * (self.h / self.block_mass)[:, None]).ravel()
 
     def jacobian(self, data: np.ndarray) -> None:
-        s, p = self.system, self.pattern
-        self.kernels.jacobian(
-            self.free_index, s.masses, self.alpha, self.h, s.rest_lengths, self.P, s.edges, self.len0,
-            self.dir0, self.dir1, self.theta, self.dtheta, p.node_base, p.node_stride, p.spring_base,
-            p.spring_stride, data,
-        )
+        self.kernels.jacobian(self._topology, self._springs, self._nodes, self._work,
+                              self._places, self.alpha, self.h, data)
 
-    def finish(self, phi0, x_new, p_new, phi_new, eta_new):
-        s = self.system
-        return self.kernels.finish(
-            self.x0, self.u, self.p0, phi0, self.eta0, s.rest_lengths, self.P, self.edges_u, self.free_index,
-            *self.incidence, s.masses, self.alpha, self.h, self.gravity, self.with_gravity, self.len0, self.dir0,
-            self.len1, self.dir1, self.theta, self.fs, self.code, x_new, p_new, phi_new, eta_new,
-        )
+    def finish(self, phi0, new):
+        return self.kernels.finish(self._step_start, self._topology, self._springs, self._nodes,
+                                   self._work, self.alpha, self.u, phi0, plain(new))
 
 
 def gtr_alpha(alpha: float = 0.5) -> GTRAlpha:

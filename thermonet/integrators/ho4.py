@@ -17,7 +17,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..kernels.local_update import ho4_jacobi_rows
+from ..kernels.ho4 import HO4Work
+from ..kernels.implicit_records import plain
 from .base import Integrator, register_integrator
 from .implicit import ImplicitStepper, newton_options
 
@@ -39,21 +40,11 @@ class HO4Stepper(ImplicitStepper):
 
     block = 6
     scheme = "ho4"
-
-    def _allocate(self, n: int, m: int) -> None:
-        self._subset_compiled = False
-        self.lenh = np.empty(m)
-        self.dirh = np.empty((3, m))
-        self.len1 = np.empty(m)
-        self.dir1 = np.empty((3, m))
-        self.th0 = np.empty(m)
-        self.th1 = np.empty(m)
-        self.dth = np.empty((4, m))
-        self.jc = np.empty((5, m))
-        self.gs = np.empty(m)
-        self.peak = np.zeros((2, self.pattern.n_free))
-
     rate = 2
+    _subset_compiled = False
+
+    def make_work(self, start) -> HO4Work:
+        return HO4Work.allocate(start)
 
     def predictor_coefficients(self, h: float) -> np.ndarray:
         """(58a) and (57a) give the unknowns exactly in terms of the acceleration at the midpoint
@@ -88,27 +79,16 @@ class HO4Stepper(ImplicitStepper):
 
     def jacobi_rows(self, u: np.ndarray, blocks: np.ndarray) -> float:
         """u −= D⁻¹ R on the free nodes ``blocks`` (int64); max |change|."""
-        return ho4_jacobi_rows(u, self.R, blocks, self.block_mass, self.h)
+        return self.kernels.jacobi_rows(u, self.R, blocks, self.block_mass, self.h)
 
     def _residual(self, kernel, u, springs, nodes):
-        s = self.system
-        out = kernel(
-            self.x0, u, self.p0, self.eta0, s.rest_lengths, self.P, self.edges_u, self.free_index, *self.incidence,
-            s.masses, self.h, self.gravity, self.with_gravity, self.len0, self.dir0, self.keep, self.lenh, self.dirh,
-            self.len1, self.dir1, self.th0, self.th1, self.dth, self.gs, self.warm, self.fs, self.guess, self.code, self.R,
-            self.Rabs, self.peak, springs, nodes,
-        )
+        out = kernel(self._step_start, self._topology, self._springs, self._nodes, self._work,
+                     u, self.warm, self._residuals, springs, nodes)
         self.warm = out[0] == 0
         return out
 
     def linearize(self) -> None:
-        s = self.system
-        self.kernels.linearize(self.h, s.rest_lengths, self.P, self.len0, self.lenh, self.len1, self.th0, self.th1,
-                               self.dth, self.jc)
-
-    def sweep(self, du, rhs, r, update, first=False):
-        return self.sweeper(du, rhs, r, self.sweep_w, self.jc, self.dir0, self.dirh, self.dir1,
-                            self.ends, self.free_index, *self.incidence, self.system.masses, self.h, update, first)
+        self.kernels.linearize(self._springs, self._work, self.h)
 
     def apply_inverse_inertia(self, v):
         """Per free node, (h/m) ½ [[1, 1/3], [2, 8/3]] applied to (v^½, v¹)."""
@@ -120,20 +100,12 @@ class HO4Stepper(ImplicitStepper):
         return out.ravel()
 
     def jacobian(self, data: np.ndarray) -> None:
-        s, p = self.system, self.pattern
-        self.kernels.jacobian(
-            self.free_index, s.masses, self.h, s.rest_lengths, self.P, s.edges, self.len0, self.dir0,
-            self.lenh, self.dirh, self.len1, self.dir1, self.th0, self.th1, self.dth, p.node_base, p.node_stride,
-            p.spring_base, p.spring_stride, data,
-        )
+        self.kernels.jacobian(self._topology, self._springs, self._nodes, self._work,
+                              self._places, self.h, data)
 
-    def finish(self, phi0, x_new, p_new, phi_new, eta_new):
-        s = self.system
-        return self.kernels.finish(
-            self.x0, self.u, self.p0, phi0, self.eta0, s.rest_lengths, self.P, self.edges_u, self.free_index,
-            *self.incidence, s.masses, self.h, self.gravity, self.with_gravity, self.len0, self.dir0, self.lenh,
-            self.dirh, self.len1, self.dir1, self.th0, self.th1, self.fs, self.code, x_new, p_new, phi_new, eta_new,
-        )
+    def finish(self, phi0, new):
+        return self.kernels.finish(self._step_start, self._topology, self._springs, self._nodes,
+                                   self._work, self.u, phi0, plain(new))
 
 
 HO4_INTEGRATOR = register_integrator(HO4())

@@ -1,8 +1,11 @@
 """What every implicit stepper does around its step equations: predictor, Newton solve, update,
 checks, loud and safe failure, opt-in retry with substeps, and the statistics it reports.
 
-A subclass (GTR-α, HO4) supplies the scheme: the block size, the kernels, the predictor and
-its per-spring scratch. A step is computed from the current state into separate buffers and
+A subclass (GTR-α, HO4) supplies the scheme: the block size, the name its kernels are
+registered under (``kernels.implicit_common.register_scheme``), the predictor, its work record,
+and the calls of its kernels. A new implicit scheme is two files, its kernels
+(``kernels/<scheme>.py``) and its integrator and stepper (``integrators/<scheme>.py``), each
+registered by name. A step is computed from the current state into separate buffers and
 copied into the state only once it has converged and passed the checks, so a failed step leaves
 the state exactly at the last good step.
 """
@@ -16,11 +19,13 @@ from abc import abstractmethod
 import numpy as np
 
 from ..errors import InputError
-from ..kernels.implicit import KEEP_ROWS, STATUS_TEXT, implicit_kernels
-from ..kernels.implicit_operator import operator_kernels
+from ..kernels.implicit_common import KEEP_ROWS, STATUS_TEXT, implicit_kernels
+from ..kernels.implicit_records import (BlockPlaces, NextState, NodeData, Residuals, SpringParameters, StartWork,
+                                        StepStart, Topology, plain)
 from ..kernels.local_update import neighbourhood, scan
+from ..solvers import BlockPattern, NewtonOptions, NewtonResult, NewtonTimers, make_linear_solver
+from ..solvers.newton import newton
 from .base import Stepper, StepFailure
-from .newton import BlockPattern, NewtonOptions, NewtonResult, NewtonTimers, make_linear_solver, newton
 
 
 class _StepError(Exception):
@@ -34,17 +39,33 @@ class _StepError(Exception):
         self.spring = spring
 
 
+class _KernelRecord:
+    """A stepper attribute holding a record of :mod:`thermonet.kernels.implicit_records`; each
+    assignment also keeps, as ``_<name>``, the plain tuple the kernels are called with (made once,
+    not at every call: a kernel call then costs what it cost with separate arguments)."""
+
+    def __set_name__(self, owner, name):
+        self.record, self.args = f"_{name}_record", f"_{name}"
+
+    def __get__(self, obj, owner=None):
+        return self if obj is None else getattr(obj, self.record)
+
+    def __set__(self, obj, value):
+        setattr(obj, self.record, value)
+        setattr(obj, self.args, None if value is None else plain(value))
+
+
 class ImplicitStepper(Stepper):
     """Shared driver of an implicit integrator bound to one system (internal numbering).
 
-    Attributes a subclass relies on: ``x0, p0, eta0`` the step's start (n, 3), (n, 3), (m,);
-    ``h``; ``len0`` (m,), ``dir0`` (3, m) from the start kernel; ``R``, ``Rabs`` (size,) and
-    ``norms`` (max |R|, max Rabs) of the last residual; ``data`` (nnz,) the Jacobian values;
-    ``jc`` the per-spring coefficients of the matrix-free Jacobian; ``fs`` (6, m), ``guess`` and
-    ``code`` (m,) kernel scratch; ``warm``: whether the per-spring temperatures of the last
-    residual may seed the next one (same step); ``incidence`` the node→spring CSR (inc_ptr,
-    inc_spring); ``pattern``, ``kernels``, ``sweeper``. Per-spring arrays are component-major,
-    (k, m), as the kernels want them.
+    What the kernels read, as records (:mod:`thermonet.kernels.implicit_records`): ``topology``,
+    ``springs`` (parameters), ``nodes`` (masses, gravity), ``places`` (the Jacobian's block
+    places), ``step_start`` (the step's start state and h, set by :meth:`begin`), ``work`` (the
+    scheme's per-spring record, made by :meth:`make_work`; ``work.start`` the start kernel's),
+    ``residuals`` (R, Rabs (size,), peak (2, n_free)). Besides: ``u`` (size,) the unknowns,
+    ``norms`` (max |R|, max Rabs) of the last residual, ``data`` (nnz,) the Jacobian values,
+    ``warm`` whether the per-spring temperatures of the last residual may seed the next one
+    (same step), ``pattern``, ``kernels``, ``solver``.
     """
 
     block: int
@@ -54,6 +75,13 @@ class ImplicitStepper(Stepper):
     #: a local Jacobi step (:meth:`local_jacobi`) updates at most this fraction of the free
     #: nodes; with more, a global one (one sweep, one full residual) costs less
     LOCAL_MAX_FRACTION = 0.05
+    topology = _KernelRecord()
+    springs = _KernelRecord()
+    nodes = _KernelRecord()
+    places = _KernelRecord()
+    work = _KernelRecord()
+    residuals = _KernelRecord()
+    step_start = _KernelRecord()
 
     def __init__(self, integrator, system, options: NewtonOptions, parallel: bool = False):
         if not system.thermal:
@@ -61,63 +89,67 @@ class ImplicitStepper(Stepper):
         self.integrator = integrator
         self.system = system
         self.options = options
-        #: the parameters as the kernels read them: (k, m), or one (k, 1) column shared by all
-        self.P, uniform = system.kernel_parameters
+        # the parameters as the kernels read them: (k, m), or one (k, 1) column shared by all
+        P, uniform = system.kernel_parameters
         self.kernels = implicit_kernels(system.model, self.scheme, parallel, uniform, self.rate)
-        self.sweeper = operator_kernels(self.scheme, parallel)
+        self.pattern = pattern = BlockPattern.build(system.edges, system.anchored, self.block)
+        self.free_index = free_index = pattern.free_index
         # the kernels read the int32 index arrays as unsigned (no negative-index wrap-around),
-        # and the incidence with each spring's sign at that node (+1 at its first end)
+        # and the incidence with each spring's sign at that node (+1 at its first end; int8: the
+        # node passes are memory-bound, and ±1 times a float is exact in any type)
         lay = system.layout
-        self.edges_u = system.edges.view(np.uint32)
         first_end = system.edges[lay.inc_spring, 0] == np.repeat(np.arange(system.n_nodes), np.diff(lay.inc_ptr))
-        # (int8: the node passes are memory-bound, and ±1 times a float is exact in any type)
-        self.incidence = (lay.inc_ptr, lay.inc_spring.view(np.uint32), np.where(first_end, 1, -1).astype(np.int8))
-        self.pattern = BlockPattern.build(system.edges, system.anchored, self.block)
-        #: (m, 2) the unknown blocks of each spring's ends (−1: anchored), for the sweeps
-        self.ends = np.ascontiguousarray(self.pattern.free_index[system.edges], dtype=np.int32)
-        self.solver = make_linear_solver(options.linear_solver, self.pattern, self)
-        n, m, size = system.n_nodes, system.n_springs, self.pattern.size
-        self.free_index = self.pattern.free_index
-        free = np.flatnonzero(self.free_index >= 0)
-        self._free_nodes = free
-        self._free_blocks = self.free_index[free]
-        self.node_of_block = np.empty(self.pattern.n_free, dtype=np.int64)
-        self.node_of_block[self._free_blocks] = free
+        self.topology = Topology(edges=system.edges.view(np.uint32), free_index=free_index,
+                                 ends=np.ascontiguousarray(free_index[system.edges], dtype=np.int32),
+                                 inc_ptr=lay.inc_ptr, inc_spring=lay.inc_spring.view(np.uint32),
+                                 inc_sign=np.where(first_end, 1, -1).astype(np.int8))
+        self.springs = SpringParameters(system.rest_lengths, P)
+        gravity = np.zeros(3) if system.gravity is None else np.asarray(system.gravity, dtype=np.float64)
+        self.nodes = NodeData(system.masses, system.inv_mass, gravity, system.gravity is not None)
+        self.places = BlockPlaces(pattern.node_base, pattern.node_stride, pattern.spring_base, pattern.spring_stride)
+        self.solver = make_linear_solver(options.linear_solver, pattern, self)
+        n, m, size = system.n_nodes, system.n_springs, pattern.size
+        free = np.flatnonzero(free_index >= 0)
+        self.node_of_block = np.empty(pattern.n_free, dtype=np.int64)
+        self.node_of_block[free_index[free]] = free
         self.block_mass = system.masses[self.node_of_block]  # (n_free,)
-        self.R = np.zeros(size)
-        self.Rabs = np.zeros(size)
+        local = hasattr(self.kernels, "residual_subset")
+        self.residuals = Residuals(np.zeros(size), np.zeros(size), np.zeros((2, pattern.n_free if local else 0)))
         self.norms = (math.inf, math.inf)
         self.u = np.zeros(size)
         #: the start kernel writes the explicit predictor straight into the unknowns (no copy)
         self.prediction = self.u
-        self.data = np.zeros(self.pattern.nnz if self.solver.assembled else 0)
-        self.fs = np.empty((6, m))
-        self.sweep_scratch = np.empty((self.block, m))
-        #: the sweeps' spring-major (m, B) scratch: the same memory (the start kernel's use ends first)
-        self.sweep_w = self.sweep_scratch.reshape(m, self.block)
-        self.guess = np.empty(m)
-        self.code = np.zeros(m, dtype=np.int8)
+        self.data = np.zeros(pattern.nnz if self.solver.assembled else 0)
+        self.work = self.make_work(StartWork.allocate(n, m, self.block, KEEP_ROWS, self.kernels.keep_start, self.rate))
         self.warm = False
-        self.len0 = np.empty(m)
-        self.dir0 = np.empty((3, m))
-        #: what the start kernel keeps of the step's start for the residuals (kernels.keep_start)
-        self.keep = np.empty((KEEP_ROWS, m if self.kernels.keep_start else 0))
-        self.nodal = np.empty((n if self.rate > 1 else 0, 6))
-        self._new = (np.empty((n, 3)), np.empty((n, 3)), np.empty(m), np.empty(m))
-        self.gravity = np.zeros(3) if system.gravity is None else np.asarray(system.gravity, dtype=np.float64)
-        self.with_gravity = system.gravity is not None
+        self.step_start = None
+        self._new = NextState(np.empty((n, 3)), np.empty((n, 3)), np.empty(m), np.empty(m))
         self._no_index = np.empty(0, dtype=np.int64)
         self._local = None  # index scratch of local_jacobi, made at its first use
         self._active = None  # the number of nodes local_jacobi's last scan found (None: no scan of this R)
         self.timers = NewtonTimers()
         self.totals = dict(steps=0, iterations=0, iterations_max=0, residual_max=0.0, retried_steps=0,
                            substeps_max=1)
-        self._allocate(n, m)
+
+    @property
+    def R(self) -> np.ndarray:
+        """(size,) the last residual."""
+        return self.residuals.R
+
+    @property
+    def Rabs(self) -> np.ndarray:
+        """(size,) the sum of the magnitudes of the terms of each row of the last residual."""
+        return self.residuals.Rabs
+
+    @property
+    def h(self) -> float:
+        """The step of the current step (set by :meth:`begin`)."""
+        return self._step_start[3]
 
     # -- scheme hooks ---------------------------------------------------------------------------
     @abstractmethod
-    def _allocate(self, n: int, m: int) -> None:
-        """Per-spring scratch of the scheme."""
+    def make_work(self, start: StartWork):
+        """The scheme's work record (per-spring unknowns and scratch) around ``start``."""
 
     @abstractmethod
     def predictor_coefficients(self, h: float) -> np.ndarray:
@@ -141,20 +173,22 @@ class ImplicitStepper(Stepper):
 
     @abstractmethod
     def linearize(self) -> None:
-        """Fill ``jc``, the matrix-free Jacobian's coefficients at the last residual's point."""
+        """Fill ``work.jc``, the matrix-free Jacobian's coefficients at the last residual's point."""
 
-    @abstractmethod
     def sweep(self, du: np.ndarray, rhs: np.ndarray, r: np.ndarray, update: bool, first: bool = False) -> float:
         """r = rhs − J du, then (update) du += D⁻¹ r, r written out only without ``update``;
-        returns max |r| (matrix-free J). ``first``: du is zero."""
+        returns max |r| (matrix-free J, the scheme's ``sweep`` kernel). ``first``: du is zero."""
+        return self.kernels.sweep(self._topology, self._nodes, self._work, self.h, du, rhs, r, update,
+                                  first)
 
     @abstractmethod
     def apply_inverse_inertia(self, v: np.ndarray) -> np.ndarray:
         """D⁻¹ v for the nodal inertia blocks D (a new array)."""
 
     @abstractmethod
-    def finish(self, phi0, x_new, p_new, phi_new, eta_new) -> tuple[int, int]:
-        """The next state from the converged unknowns; (status, spring)."""
+    def finish(self, phi0: np.ndarray, new: NextState) -> tuple[int, int]:
+        """The next state into ``new`` from the converged unknowns and Φ⁰ ``phi0`` (m,);
+        (status, spring)."""
 
     def local_jacobi(self, u: np.ndarray, fraction: float):
         """One Jacobi step u −= D⁻¹ R restricted to the free nodes with a residual row above
@@ -162,16 +196,16 @@ class ImplicitStepper(Stepper):
         (the springs at those nodes, the rows of the nodes at those springs' ends) with the
         kernel's own arithmetic: the residual a full evaluation at the new u gives, bit for bit
         for models whose thermal solve is closed-form (else within that solve's tolerance, from
-        the last seeds). Such a scheme's residuals also write ``peak`` (2, n_free), each free
-        node's largest |R| and Rabs, which the node selection reads. None where the scheme has
-        no such residual or more than
-        LOCAL_MAX_FRACTION of the free nodes are above the threshold (a global step is then
-        cheaper); else (status, spring, max |change of u|), with ``norms`` of the new residual.
+        the last seeds). Such a scheme's residuals also write ``residuals.peak`` (2, n_free),
+        each free node's largest |R| and Rabs, which the node selection reads. None where the
+        scheme has no such residual or more than LOCAL_MAX_FRACTION of the free nodes are above
+        the threshold (a global step is then cheaper); else (status, spring, max |change of u|), with ``norms`` of the new residual.
         The pass that takes the new norms also finds the next step's nodes (at this step's
         threshold), so a step reads the per-node maxima once."""
         residual_subset = getattr(self, "residual_subset", None)
         if residual_subset is None:
             return None  # (a scheme that has one also has jacobi_rows(u, blocks) -> max |change|)
+        peak = self.residuals.peak
         if self._local is None:
             n, m, lay = self.system.n_nodes, self.system.n_springs, self.system.layout
             self._local = (np.empty(int(self.LOCAL_MAX_FRACTION * self.pattern.n_free) + 1, dtype=np.int64),
@@ -179,7 +213,7 @@ class ImplicitStepper(Stepper):
                            np.empty(m, dtype=np.int64), np.empty(n, dtype=np.int64), lay.inc_ptr, lay.inc_spring)
         out, spring_mark, node_mark, springs, nodes, inc_ptr, inc_spring = self._local
         threshold = fraction * self.norms[1]
-        count = self._active if self._active is not None else scan(self.peak, threshold, out)[2]
+        count = self._active if self._active is not None else scan(peak, threshold, out)[2]
         if count > out.shape[0]:
             return None
         blocks = out[:count]
@@ -188,21 +222,18 @@ class ImplicitStepper(Stepper):
                                spring_mark, node_mark, springs, nodes)
         # in index order: each thread of the kernel then works on nearby memory
         status, spring = residual_subset(u, np.sort(springs[:ns]), np.sort(nodes[:nn]))
-        rmax, smax, self._active = scan(self.peak, threshold, out)
+        rmax, smax, self._active = scan(peak, threshold, out)
         self.norms = (rmax, smax)
         return status, spring, increment
 
     # -- one step ---------------------------------------------------------------------------------
     def begin(self, x, p, eta, h: float) -> None:
         """Start a step at (x, p, η) with step h: geometry and explicit forces at x."""
-        s = self.system
-        self.x0, self.p0, self.eta0, self.h = x, p, eta, float(h)
+        self.step_start = StepStart(x, p, eta, float(h))
         self.warm = False
-        status, spring = self.kernels.start(x, p, s.inv_mass, eta, s.rest_lengths, self.P, self.edges_u,
-                                            *self.incidence, self.free_index, self.gravity, self.with_gravity,
-                                            self.len0, self.dir0, self.fs, self.sweep_scratch, self.nodal,
-                                            self.code, self.keep, self.h, self.predictor_coefficients(self.h),
-                                            self.prediction)
+        status, spring = self.kernels.start(self._step_start, self._topology, self._springs,
+                                            self._nodes, self._work[0],
+                                            self.predictor_coefficients(self.h), self.prediction)
         if status != 0:
             raise _StepError("invalid state at the start of the step", None, status, spring)
 
@@ -214,13 +245,13 @@ class ImplicitStepper(Stepper):
         result = newton(self, self.u, self.options, self.solver, self.timers)
         if not result.converged:
             raise _StepError(result.reason, result, result.status, result.spring)
-        status, spring = self.finish(phi, *self._new)
+        status, spring = self.finish(phi, self._new)
         if status != 0:
             raise _StepError("non-physical state after the step", result, status, spring)
         return self._new, result
 
     # -- the Stepper interface --------------------------------------------------------------------
-    def advance(self, state, n_steps: int, h: float):
+    def advance(self, state, n_steps: int, h: float, measure: bool = False):
         if n_steps <= 0:
             return None
         iters, finals = [], []
@@ -233,7 +264,7 @@ class ImplicitStepper(Stepper):
                 it, final, substeps = result.full_iterations, result.history[-1], 1
                 # the new state's buffers become the state's; the old ones the next step's outputs
                 state.positions, state.momenta, state.thermal_displacement, state.entropy = new
-                self._new = (x, p, phi, eta)
+                self._new = NextState(x, p, phi, eta)
             except _StepError as err:
                 it, final, substeps = self._retry(state, h, err, i)
                 retried += 1
@@ -306,7 +337,7 @@ class ImplicitStepper(Stepper):
             per_node = np.abs(self.R).reshape(-1, self.block).max(axis=1)
             kb = int(np.argmax(per_node))
             details["worst_node"] = int(lay.node_order[self.node_of_block[kb]])
-            strain = np.abs(self.len_end() / self.len0 - 1.0)
+            strain = np.abs(self.len_end() / self.work.start.len0 - 1.0)
             strain = np.where(np.isfinite(strain), strain, np.inf)
             e = int(np.argmax(strain))
             details["worst_spring"] = int(lay.spring_order[e])
@@ -319,7 +350,7 @@ class ImplicitStepper(Stepper):
 
     def len_end(self) -> np.ndarray:
         """(m,) spring lengths at the end of the step, at the last iterate."""
-        return self.len1
+        return self.work.len1
 
     # -- summaries --------------------------------------------------------------------------------
     def summary(self) -> dict:

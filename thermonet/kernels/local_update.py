@@ -1,10 +1,11 @@
-"""The pieces of a local Jacobi step of the implicit integrators (``ImplicitStepper.local_jacobi``):
-the free nodes whose residual rows are large, the springs at those nodes and the free nodes at
-those springs' ends (whose residual rows the step changes), the step's update of the listed
-nodes (HO4), and the one pass over the residual's per-node maxima that gives its norms and the
-next step's nodes. Serial: the sets are small (a few per cent of the net at most, else the
-caller takes a global step), and their order does not change any result (each spring and each
-node row is computed on its own; a node sums its springs in incidence order)."""
+"""The scheme-independent pieces of a local Jacobi step of the implicit integrators
+(``ImplicitStepper.local_jacobi``): the springs at the free nodes whose residual rows are large
+and the free nodes at those springs' ends (whose residual rows the step changes), and the one
+pass over the residual's per-node maxima that gives its norms and the next step's nodes (the
+step's update of the listed nodes is the scheme's: ``ho4_linear.ho4_jacobi_rows``). Serial: the
+sets are small (a few per cent of the net at most, else the caller takes a global step), and
+their order does not change any result (each spring and each node row is computed on its own;
+a node sums its springs in incidence order)."""
 
 from __future__ import annotations
 
@@ -60,22 +61,3 @@ def scan(peak, threshold, out):
                 out[count] = k
             count += 1
     return rmax, smax, min(count, out.shape[0] + 1)
-
-
-@njit(cache=True, boundscheck=False)
-def ho4_jacobi_rows(u, R, blocks, block_mass, h):
-    """HO4's Jacobi step on the free nodes ``blocks``: u −= D⁻¹ R there, D⁻¹ = (h/m) ½ [[1, 1/3],
-    [2, 8/3]] on (R^½, R¹) per node (as HO4Stepper.apply_inverse_inertia); returns max |change|."""
-    big = 0.0
-    for q in range(blocks.shape[0]):
-        k = blocks[q]
-        c = 0.5 * h / block_mass[k]
-        for i in range(3):
-            rh = R[6 * k + i]
-            r1 = R[6 * k + 3 + i]
-            dh = c * (rh + r1 / 3.0)
-            d1 = c * (2.0 * rh + 8.0 / 3.0 * r1)
-            u[6 * k + i] -= dh
-            u[6 * k + 3 + i] -= d1
-            big = max(big, max(abs(dh), abs(d1)))
-    return big

@@ -1,0 +1,404 @@
+"""GTR-α's kernels (spec §2.1, paper (45)–(48)): residual, Jacobian values (assembled, and as
+per-spring coefficients for the matrix-free sweep), the matrix-free sweep and the finish, as Numba
+templates compiled per model by :func:`build` (registered as scheme "gtr"). Conventions (records,
+blocking, status codes): :mod:`.implicit_common`.
+
+Unknown d = x¹ − x⁰ per free node (block of 3); θ̄ condensed per spring:
+
+    R_c = m_c d_c / h − α h f_c(x⁰, θ̄) − p_c                                         (48a)
+    α Γ(l⁰, θ̄) + (1 − α) Γ(l¹, θ̄) = η                                     per spring (48c)
+
+The work record is :class:`GTRWork`: per spring len1 (m,), dir1 (3, m) at x¹, θ̄ ``theta`` and
+dθ̄/dl¹ ``dtheta`` (m,), the matrix-free coefficient ``jc`` (m,), and the start kernel's
+:class:`~.implicit_records.StartWork` (``start``).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+from numba import prange
+
+from .fastmath import exp as exp_
+from .implicit_common import (BLOCK, INLINE, LOCAL_ITERATIONS, MAX_LOG_STEP, NO_TEMPERATURE, NOT_FINITE, OK,
+                              OPTIONS, THETA_STOP, UNIFORM, COLLAPSED, _admissible, _first_flagged, _log_step,
+                              _usable, register_scheme, scatter_spring_block)
+from .implicit_records import StartWork
+from .specialize import specialize
+
+# Bound per model by specialize(); listed so the templates read as ordinary code.
+entropy = temperature = tension = d2F_dl_dtheta = d2F_dtheta2 = None
+gtr_thermal = gtr_thermal_vector = gtr_correct = finish_nodes = None
+
+
+class GTRWork(NamedTuple):
+    """GTR-α's per-spring arrays (see the module doc); shapes for m springs."""
+
+    start: StartWork
+    len1: np.ndarray
+    dir1: np.ndarray
+    theta: np.ndarray
+    dtheta: np.ndarray
+    jc: np.ndarray
+
+    @classmethod
+    def allocate(cls, start: StartWork) -> "GTRWork":
+        m = start.len0.shape[0]
+        return cls(start, np.empty(m), np.empty((3, m)), np.empty(m), np.empty(m), np.empty(m))
+
+
+def build(ns: dict, tag: str, ptag: str, parallel: bool) -> dict:
+    """GTR-α's kernels for the model namespace ``ns`` (see implicit_common.register_scheme)."""
+    ns["gtr_correct"] = specialize(_gtr_correct, tag, ns, **INLINE)
+    ns["gtr_thermal"] = specialize(_gtr_thermal, tag, ns, **OPTIONS)
+    ns["gtr_thermal_vector"] = specialize(_gtr_thermal_vector, tag, ns, **INLINE)
+    return dict(
+        residual=specialize(_gtr_residual, ptag, ns, parallel=parallel, **OPTIONS),
+        linearize=specialize(_gtr_linearize, ptag, ns, parallel=parallel, **OPTIONS),
+        jacobian=specialize(_gtr_jacobian, tag, ns, **OPTIONS),
+        finish=specialize(_gtr_finish, ptag, ns, parallel=parallel, **OPTIONS),
+        sweep=sweep_kernel(parallel),
+        thermal=ns["gtr_thermal"],
+        # the two per-spring solves, callable alone (tests)
+        thermal_vector=specialize(_gtr_thermal_vector, f"{tag}_alone", ns, **OPTIONS),
+    )
+
+
+_SWEEPS: dict = {}
+
+
+def sweep_kernel(parallel: bool):
+    """The matrix-free sweep (model-independent: compiled once per threading)."""
+    if parallel not in _SWEEPS:
+        _SWEEPS[parallel] = specialize(_gtr_sweep, "par" if parallel else "ser", {}, parallel=parallel, **OPTIONS)
+    return _SWEEPS[parallel]
+
+
+def _gtr_thermal(la, lb, eta, l0, P, e, alpha, guess):
+    """θ̄ with α Γ(la, θ̄) + (1 − α) Γ(lb, θ̄) = η, its derivative dθ̄/dlb, and success (1, else
+    0: an integer, which Numba's alias analysis of a parallel loop treats as immutable).
+
+    Newton in ln θ from ``guess`` when usable, else from θ(α la + (1 − α) lb, η) (the answer
+    itself when α is 0 or 1). The scalar solve: iterates to convergence."""
+    beta = 1.0 - alpha
+    th = guess if _usable(guess) else temperature(alpha * la + beta * lb, eta, l0, P, e)
+    if not _usable(th):
+        return th, 0.0, 0
+    done = False
+    for _ in range(LOCAL_ITERATIONS):
+        G = alpha * entropy(la, th, l0, P, e) + beta * entropy(lb, th, l0, P, e) - eta
+        Gt = -(alpha * d2F_dtheta2(la, th, l0, P, e) + beta * d2F_dtheta2(lb, th, l0, P, e))
+        step = _log_step(G / (Gt * th))
+        th = th * math.exp(-step)
+        if abs(step) <= THETA_STOP:
+            done = True
+            break
+    if not (done and _usable(th)):
+        return th, 0.0, 0
+    Gt = -(alpha * d2F_dtheta2(la, th, l0, P, e) + beta * d2F_dtheta2(lb, th, l0, P, e))
+    return th, beta * d2F_dl_dtheta(lb, th, l0, P, e) / Gt, 1
+
+
+def _gtr_correct(la, lb, eta, l0, P, e, alpha, th):
+    """One Newton correction of :func:`_gtr_thermal` (branch-free): (new θ̄, the ln θ step)."""
+    beta = 1.0 - alpha
+    G = alpha * entropy(la, th, l0, P, e) + beta * entropy(lb, th, l0, P, e) - eta
+    Gt = -(alpha * d2F_dtheta2(la, th, l0, P, e) + beta * d2F_dtheta2(lb, th, l0, P, e))
+    s = G / (Gt * th)
+    step = min(max(s, -MAX_LOG_STEP), MAX_LOG_STEP)
+    return th * exp_(-step), s
+
+
+def _gtr_thermal_vector(la, lb, eta, l0, P, e, alpha, guess):
+    """The vectorized loop's solve of :func:`_gtr_thermal`: VECTOR_CORRECTIONS corrections from
+    the same start; success when the last one is below THETA_STOP. Same returns."""
+    beta = 1.0 - alpha
+    th = guess if _admissible(guess) else temperature(alpha * la + beta * lb, eta, l0, P, e)
+    th, s = gtr_correct(la, lb, eta, l0, P, e, alpha, th)
+    th, s = gtr_correct(la, lb, eta, l0, P, e, alpha, th)
+    ok = 1 if (abs(s) <= THETA_STOP) & _admissible(th) else 0
+    Gt = -(alpha * d2F_dtheta2(la, th, l0, P, e) + beta * d2F_dtheta2(lb, th, l0, P, e))
+    return th, beta * d2F_dl_dtheta(lb, th, l0, P, e) / Gt, ok
+
+
+def _gtr_residual(step, topo, spring, node, work, alpha, u, warm, res):
+    """R, Rabs (3 n_free,) of ``res`` at unknowns u (3 n_free,); fills ``work``'s len1 (m,), dir1
+    (3, m), θ̄ and dθ̄/dl¹ (m,) for the Jacobian and the finish. With ``warm``, the θ̄ of the
+    previous call (at nearby u), moved along dθ̄/dl¹, seeds each thermal solve. The start
+    record's fs (≥ 3, m), guess, code (m,): scratch. Returns (status, spring, max |R|, max Rabs)."""
+    x0, p, eta, h = step
+    edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
+    l0, P = spring
+    masses, inv_mass, gravity, with_gravity = node
+    start, len1, dir1, theta, dtheta, jc = work
+    len0, dir0, keep, fs, ws, sweep, nodal, guess, code = start
+    R, Rabs, peak = res
+    m = edges.shape[0]
+    bad = m
+    for blk in prange((m + BLOCK - 1) // BLOCK):
+        lo = blk * BLOCK
+        n = min(BLOCK, m - lo)
+        for i in range(n):  # gather: the spring vector at x¹
+            e = np.uint64(lo + i)
+            a = edges[e, 0]
+            b = edges[e, 1]
+            ka = free_index[a]
+            kb = free_index[b]
+            dx = x0[b, 0] - x0[a, 0]
+            dy = x0[b, 1] - x0[a, 1]
+            dz = x0[b, 2] - x0[a, 2]
+            if kb >= 0:
+                dx += u[3 * kb]
+                dy += u[3 * kb + 1]
+                dz += u[3 * kb + 2]
+            if ka >= 0:
+                dx -= u[3 * ka]
+                dy -= u[3 * ka + 1]
+                dz -= u[3 * ka + 2]
+            fs[0, e] = dx
+            fs[1, e] = dy
+            fs[2, e] = dz
+        for i in range(n):  # arithmetic and thermal solve (vectorized)
+            e = np.uint64(lo + i)
+            pe = np.uint64(0) if UNIFORM else np.uint64(e)
+            dx = fs[0, e]
+            dy = fs[1, e]
+            dz = fs[2, e]
+            l1 = math.sqrt(dx * dx + dy * dy + dz * dz)
+            # read unconditionally: a conditional read of len1 before its store made LLVM's
+            # runtime alias check always fail (the loop ran its scalar version)
+            g = theta[e] + dtheta[e] * (l1 - len1[e])
+            g = g if warm else -1.0
+            guess[e] = g
+            len1[e] = l1
+            i1 = 1.0 / l1
+            dir1[0, e] = dx * i1
+            dir1[1, e] = dy * i1
+            dir1[2, e] = dz * i1
+            la = len0[e]
+            th, dth, ok = gtr_thermal_vector(la, l1, eta[e], l0[e], P, pe, alpha, g)
+            theta[e] = th
+            dtheta[e] = dth
+            c = alpha * h * tension(la, th, l0[e], P, pe)
+            fs[0, e] = c * dir0[0, e]
+            fs[1, e] = c * dir0[1, e]
+            fs[2, e] = c * dir0[2, e]
+            code[e] = OK if ((ok != 0) & (l1 > 0.0) & (l1 < math.inf)) else NO_TEMPERATURE
+        for i in range(n):  # the scalar solve where the vectorized one did not converge
+            e = lo + i
+            pe = np.uint64(0) if UNIFORM else np.uint64(e)
+            if code[e] == OK:
+                continue
+            l1 = len1[e]
+            if not (l1 > 0.0 and l1 < math.inf):
+                code[e] = COLLAPSED
+                continue
+            la = len0[e]
+            th, dth, ok = gtr_thermal(la, l1, eta[e], l0[e], P, pe, alpha, guess[e])
+            if not ok:
+                continue
+            code[e] = OK
+            theta[e] = th
+            dtheta[e] = dth
+            c = alpha * h * tension(la, th, l0[e], P, pe)
+            for j in range(3):
+                fs[j, e] = c * dir0[j, e]
+        bad = min(bad, _first_flagged(code, lo, n, m))
+    if bad < m:
+        return code[bad], bad, math.inf, math.inf
+    rmax = 0.0
+    smax = 0.0
+    for a in prange(x0.shape[0]):
+        k = free_index[a]
+        if k < 0:
+            continue
+        w = masses[a] / h
+        # the node's rows and their magnitudes in registers, written once (the same sums in the
+        # same order as accumulating in R, Rabs)
+        inertia = w * u[3 * k + 0]
+        g = alpha * h * masses[a] * gravity[0] if with_gravity else 0.0
+        r0 = inertia - p[a, 0] - g
+        s0 = abs(inertia) + abs(p[a, 0]) + abs(g)
+        inertia = w * u[3 * k + 1]
+        g = alpha * h * masses[a] * gravity[1] if with_gravity else 0.0
+        r1 = inertia - p[a, 1] - g
+        s1 = abs(inertia) + abs(p[a, 1]) + abs(g)
+        inertia = w * u[3 * k + 2]
+        g = alpha * h * masses[a] * gravity[2] if with_gravity else 0.0
+        r2 = inertia - p[a, 2] - g
+        s2 = abs(inertia) + abs(p[a, 2]) + abs(g)
+        for j in range(inc_ptr[a], inc_ptr[a + 1]):
+            e = inc_spring[j]
+            sg = -inc_sign[j]
+            v0 = fs[0, e]
+            v1 = fs[1, e]
+            v2 = fs[2, e]
+            r0 += sg * v0
+            s0 += abs(v0)
+            r1 += sg * v1
+            s1 += abs(v1)
+            r2 += sg * v2
+            s2 += abs(v2)
+        R[3 * k + 0] = r0
+        Rabs[3 * k + 0] = s0
+        R[3 * k + 1] = r1
+        Rabs[3 * k + 1] = s1
+        R[3 * k + 2] = r2
+        Rabs[3 * k + 2] = s2
+        rmax = max(rmax, abs(r0))
+        smax = max(smax, s0)
+        rmax = max(rmax, abs(r1))
+        smax = max(smax, s1)
+        rmax = max(rmax, abs(r2))
+        smax = max(smax, s2)
+    return 0, -1, rmax, smax
+
+
+def _gtr_linearize(spring, work, alpha, h):
+    """Per-spring coefficient of the Jacobian at the last residual's point (matrix-free use):
+    spring e's block is jc[e] n⁰ n¹ᵀ, jc[e] = α h F_lθ(l⁰, θ̄) dθ̄/dl¹ (m,) (``work.jc``)."""
+    l0, P = spring
+    start, len1, dir1, theta, dtheta, jc = work
+    len0, dir0, keep, fs, ws, sweep, nodal, guess, code = start
+    m = len0.shape[0]
+    for blk in prange((m + BLOCK - 1) // BLOCK):
+        lo = blk * BLOCK
+        for i in range(min(BLOCK, m - lo)):
+            e = np.uint64(lo + i)
+            pe = np.uint64(0) if UNIFORM else np.uint64(e)
+            jc[e] = alpha * h * d2F_dl_dtheta(len0[e], theta[e], l0[e], P, pe) * dtheta[e]
+
+
+def _gtr_jacobian(topo, spring, node, work, places, alpha, h, data):
+    """Values of ∂R/∂u at the last residual's point into the CSR value array ``data``
+    (nnz,), at the places of ``places`` (BlockPlaces).
+
+    ∂R_c/∂d_g = δ_cg m_c/h I + α h s_c s_g F_lθ(l⁰, θ̄) (dθ̄/dl¹) n⁰ n¹ᵀ, s_a = +1, s_b = −1."""
+    edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
+    l0, P = spring
+    masses, inv_mass, gravity, with_gravity = node
+    start, len1, dir1, theta, dtheta, jc = work
+    len0, dir0, keep, fs, ws, sweep, nodal, guess, code = start
+    node_base, node_stride, spring_base, spring_stride = places
+    data[:] = 0.0
+    for a in range(free_index.shape[0]):
+        k = free_index[a]
+        if k < 0:
+            continue
+        w = masses[a] / h
+        for i in range(3):
+            data[node_base[k] + i * node_stride[k] + i] += w
+    B = np.zeros((3, 3))
+    for e in range(edges.shape[0]):
+        pe = np.uint64(0) if UNIFORM else np.uint64(e)
+        c = alpha * h * d2F_dl_dtheta(len0[e], theta[e], l0[e], P, pe) * dtheta[e]
+        if c == 0.0:
+            continue
+        for i in range(3):
+            for j in range(3):
+                B[i, j] = c * dir0[i, e] * dir1[j, e]
+        scatter_spring_block(data, places, e, B)
+
+
+def _gtr_finish(step, topo, spring, node, work, alpha, u, phi, new):
+    """The next state from converged unknowns u into ``new`` (NextState; phi (m,) the step's
+    start): x¹ = x⁰ + d; Φ¹ = Φ⁰ + h θ̄; η¹ = α Γ(l⁰, θ̄) + (1 − α) Γ(l¹, θ̄) measured (48d); and
+    p¹ = p⁰ + h [α f(x⁰, θ̄) + (1 − α) f(x¹, θ̄)], which is (48b) given (48a) and, forces being
+    central pairs, conserves linear momentum to round-off whatever the solver residual.
+    fs must hold the last residual's per-spring terms (that residual was evaluated at u).
+    Returns (status, spring)."""
+    x0, p, eta, h = step
+    edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
+    l0, P = spring
+    start, len1, dir1, theta, dtheta, jc = work
+    len0, dir0, keep, fs, ws, sweep, nodal, guess, code = start
+    x_new, p_new, phi_new, eta_new = new
+    m = edges.shape[0]
+    bad = m
+    for blk in prange((m + BLOCK - 1) // BLOCK):
+        lo = blk * BLOCK
+        n = min(BLOCK, m - lo)
+        for i in range(n):  # vectorized
+            e = np.uint64(lo + i)
+            pe = np.uint64(0) if UNIFORM else np.uint64(e)
+            th = theta[e]
+            phi_new[e] = phi[e] + h * th
+            l1 = len1[e]
+            eta1 = alpha * entropy(len0[e], th, l0[e], P, pe) + (1.0 - alpha) * entropy(l1, th, l0[e], P, pe)
+            eta_new[e] = eta1
+            th1 = temperature(l1, eta1, l0[e], P, pe)
+            c1 = (1.0 - alpha) * h * tension(l1, th, l0[e], P, pe)
+            fs[0, e] += c1 * dir1[0, e]  # fs holds α h T(l⁰, θ̄) n⁰ from the last residual
+            fs[1, e] += c1 * dir1[1, e]
+            fs[2, e] += c1 * dir1[2, e]
+            code[e] = (OK if _admissible(th1) else NO_TEMPERATURE) if abs(eta1) < math.inf else NOT_FINITE
+        bad = min(bad, _first_flagged(code, lo, n, m))
+    if bad < m:
+        return code[bad], bad
+    return finish_nodes(step, topo, node, fs, u, 3, 0, new)
+
+
+
+def _gtr_sweep(topo, node, work, h, du, R, r, update, first):
+    """r = R − J du (du, R, r: (3 n_free,)); with ``update``, then du += D⁻¹ r (and r is not
+    written). Returns max |r|. ``first``: du is taken as zero (not read; the spring loop is skipped).
+
+    Spring e's block is jc[e] n⁰ n¹ᵀ: w[e, :3] = n⁰ jc[e] n¹·(du_a − du_b)."""
+    edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
+    masses, inv_mass, gravity, with_gravity = node
+    start, len1, dir1, theta, dtheta, jc = work
+    len0, dir0, keep, fs, ws, w, nodal, guess, code = start
+    m = ends.shape[0]
+    for e in prange(0 if first else m):
+        eu = np.uint64(e)
+        ka = ends[eu, 0]
+        kb = ends[eu, 1]
+        s = 0.0
+        for i in range(3):
+            d = 0.0
+            if ka >= 0:
+                d += du[3 * ka + i]
+            if kb >= 0:
+                d -= du[3 * kb + i]
+            s += dir1[i, eu] * d
+        c = jc[eu] * s
+        w[eu, 0] = c * dir0[0, eu]
+        w[eu, 1] = c * dir0[1, eu]
+        w[eu, 2] = c * dir0[2, eu]
+    rmax = 0.0
+    for a in prange(free_index.shape[0]):
+        k = free_index[a]
+        if k < 0:
+            continue
+        wm = masses[a] / h
+        # the node's rows in registers (r written once; the same sums in the same order)
+        d0 = 0.0 if first else du[3 * k]
+        d1 = 0.0 if first else du[3 * k + 1]
+        d2 = 0.0 if first else du[3 * k + 2]
+        r0 = R[3 * k] - (0.0 if first else wm * d0)
+        r1 = R[3 * k + 1] - (0.0 if first else wm * d1)
+        r2 = R[3 * k + 2] - (0.0 if first else wm * d2)
+        if not first:
+            for j in range(inc_ptr[a], inc_ptr[a + 1]):
+                e = inc_spring[j]
+                sg = -inc_sign[j]
+                r0 += sg * w[e, 0]
+                r1 += sg * w[e, 1]
+                r2 += sg * w[e, 2]
+        if not update:  # a sweep that updates du keeps r in registers (no caller reads it then)
+            r[3 * k] = r0
+            r[3 * k + 1] = r1
+            r[3 * k + 2] = r2
+        rmax = max(rmax, abs(r0))
+        rmax = max(rmax, abs(r1))
+        rmax = max(rmax, abs(r2))
+        if update:
+            du[3 * k] = d0 + r0 / wm
+            du[3 * k + 1] = d1 + r1 / wm
+            du[3 * k + 2] = d2 + r2 / wm
+    return rmax
+
+
+register_scheme("gtr", build)

@@ -1,0 +1,512 @@
+"""The implicit integrators' shared kernels and their registry: the start kernel (geometry at x⁰,
+explicit forces, the predictor), the nodes' part of the finish kernels, the small helpers of the
+per-spring thermal solves, and :func:`implicit_kernels`, which compiles a registered scheme's
+kernels for one model (:mod:`.gtr_alpha`, spec §2.1; :mod:`.ho4`, spec §2.2).
+
+The unknowns are per free node: the displacement over the step ``d = x¹ − x⁰`` for GTR-α
+(block of 3), and ``d^½ = x^½ − x⁰, d¹ = x¹ − x⁰`` for HO4 (block of 6). Working with
+displacements, not positions, keeps the inertial terms ``M d / h`` free of the cancellation
+``M (x¹ − x⁰) / h`` would suffer at small h. Block k of the unknown vector ``u`` belongs to the
+node ``a`` with ``free_index[a] == k``; anchored nodes have ``free_index == −1`` and no unknowns.
+
+The thermal unknowns (θ̄ for GTR-α; θ⁰, θ¹ — equivalently Φ^½, Φ¹ — for HO4) enter only the
+equations of their own spring, so each residual evaluation solves them exactly (to round-off)
+per spring given the spring's lengths, and the Jacobian carries their derivatives with respect
+to those lengths (implicit function theorem). This condensation is exact: the converged step
+satisfies every equation of the monolithic system. Within a Newton solve the previous iterate's
+temperatures, moved along those derivatives, seed the per-spring solves.
+
+The per-spring solves are vectorized: every spring pass is blocked like the explicit kernel's
+(:mod:`.splitting`): per block of ``BLOCK`` springs a scalar loop gathers the node data, then a
+loop over contiguous arrays does the arithmetic, which LLVM vectorizes. In that loop every
+thermal solve makes a fixed number of Newton corrections (``VECTOR_CORRECTIONS``, no early
+exit); a spring whose last correction is not below ``THETA_STOP`` (a cold start of a model that
+is not affine in the right variable, a wild iterate), or whose state is not admissible, is
+flagged and redone by the scalar solve (iterate to convergence, report the failure) in a third
+loop over the block. For the shipped models one correction is exact (the second confirms it),
+so the fallback is for custom models and bad states.
+
+Kernels take records (:mod:`.implicit_records`): the topology, the spring parameters, the node
+data, the step's start, the scheme's work record (per-spring unknowns and scratch), the
+residual's arrays; each kernel unpacks them by position, in their fields' order, at its top. Per-spring arrays are component-major, (k, m) (``dir0[i, e]``), so that the
+vectorized loop reads and writes unit-stride rows. Indices are read as unsigned in the spring
+passes.
+
+Residual rows are in momentum units. Next to the residual ``R`` a kernel fills ``Rabs``, the sum
+of the magnitudes of the terms of each row, so the Newton test can judge ``|R|`` against the size
+of what cancelled in it (its round-off floor is then a few ulps). The residual kernels return
+max |R| and max Rabs too.
+
+The Newton matrix of every scheme is ``J = D + Σ_e (spring e's block)``, ``D`` the nodal inertia
+block and spring e = (a, b) adding ``s_c s_g B_e`` to block (c, g), s_a = +1, s_b = −1. So
+``(J v)_c = D_c v_c + s_c Σ_e B_e (v_a − v_b)``: a scheme's matrix-free sweep is one pass over
+the springs (``B_e`` from a few per-spring coefficients, ``jc``, and the unit vectors the
+residual stored) and one gather per node, a fraction of a residual's cost. A sweep computes the
+linear residual ``r = R − J du`` and then ``du += D⁻¹ r`` (r written out only by a sweep that
+does not update du: a product for GMRES): Richardson's iteration preconditioned by the inertia,
+which dominates J for steps below the explicit stability limit (the contraction per sweep is
+about h² times the largest stiffness over mass; measured ≈ 0.02–0.05 on the benchmark lattices
+at h = 0.01). Its scratch is ``work.start.sweep`` (m, B), spring-major (the node gather reads a
+spring's B values from one cache line).
+
+Per-spring Jacobian blocks are scattered into a CSR value array at the places of
+:class:`~.implicit_records.BlockPlaces`. Status codes returned by residual and finish kernels:
+0 fine, 1 a spring collapsed (length ≤ 0 or not finite), 2 no positive finite temperature solves
+the spring's thermal equations, 3 a non-finite momentum or entropy; with the spring's index.
+
+Adding a scheme: a module with its templates and a ``build(ns, tag, ptag, parallel)`` that
+specializes them, registered with :func:`register_scheme`; its integrator module holds the
+stepper (see ``integrators/implicit.py``).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from .specialize import model_fingerprint, model_namespace, specialize
+
+# Bound per model by specialize(); listed so the templates read as ordinary code.
+temperature = tension = d2F_dl2 = d2F_dl_dtheta = d2F_dtheta2 = adiabatic_stiffness = None
+#: the model's entropy is affine in ln θ (Model.entropy_log_affine): HO4's thermal solve in closed form
+LOG_AFFINE = False
+#: the time derivatives of the acceleration the start kernel's predictor uses (ImplicitStepper.rate)
+RATE = 0
+#: the start kernel keeps, per spring, what a scheme's residual reads of the step's start (a
+#: scheme registered with ``keeps_start`` and a LOG_AFFINE model; see ho4._ho4_thermal_closed)
+KEEP_START = False
+#: rows of the start kernel's ``keep`` (4, m): θ(l⁰, η), T(l⁰, θ(l⁰, η)), F_lθ(l⁰), C
+KEEP_ROWS = 4
+#: every spring has the same parameters: P is the shared (k, 1) column of System.kernel_parameters,
+#: read at column 0 (``pe``) and not streamed per spring
+UNIFORM = False
+
+_CACHE: dict = {}
+_SCHEMES: dict = {}
+OPTIONS = dict(cache=True, error_model="numpy", boundscheck=False)
+INLINE = dict(inline="always", error_model="numpy", boundscheck=False)
+
+#: a per-spring Newton solve stops after a correction of ln θ this small: its error is then of
+#: the order of the correction squared (quadratic convergence), below round-off
+THETA_STOP = 1e-9
+LOCAL_ITERATIONS = 60
+#: springs per block of a spring pass (as the explicit kernel's)
+BLOCK = 512
+#: Newton corrections of a vectorized thermal solve (warm-started: the first one is exact or
+#: leaves an error ~ its square; the second must then be below THETA_STOP)
+VECTOR_CORRECTIONS = 2
+
+OK, COLLAPSED, NO_TEMPERATURE, NOT_FINITE = 0, 1, 2, 3
+STATUS_TEXT = {
+    COLLAPSED: "spring collapsed (length not positive or not finite)",
+    NO_TEMPERATURE: "no positive finite temperature solves the spring's thermal equations",
+    NOT_FINITE: "non-finite momentum or entropy after the step",
+}
+
+
+class ImplicitKernels:
+    """The compiled kernels of one scheme for one model (attributes: ``start``, ``keep_start``,
+    whether the start kernel fills ``work.start.keep`` (KEEP_ROWS, m), and the scheme's own:
+    ``residual``, ``linearize``, ``jacobian``, ``finish``, ``sweep``, the per-spring thermal
+    solves ``thermal`` and ``thermal_vector``, and any others the scheme builds)."""
+
+    def __init__(self, **kernels):
+        self.__dict__.update(kernels)
+
+
+def register_scheme(name: str, build, keeps_start: bool = False) -> None:
+    """Make scheme ``name`` known to :func:`implicit_kernels`. ``build(ns, tag, ptag, parallel)``
+    returns a dict of its compiled kernels, specializing its templates with the model namespace
+    ``ns`` (which it may extend) and the cache tags ``tag`` (model) and ``ptag`` (model and
+    threading); ``keeps_start``: the start kernel keeps per spring what the scheme's residual
+    reads of the step's start (KEEP_START), for LOG_AFFINE models."""
+    _SCHEMES[name] = (build, bool(keeps_start))
+
+
+def implicit_kernels(model, scheme: str, parallel: bool = False, uniform: bool = False, rate: int = 0) -> ImplicitKernels:
+    """Kernels for ``scheme`` ("gtr" or "ho4", or another registered one) compiled for ``model``
+    (cached on disk); the residual, linearization, start and finish kernels multi-threaded when
+    ``parallel``; reading the parameters as one shared (k, 1) column when ``uniform``
+    (System.kernel_parameters); the start kernel's predictor with the acceleration's first
+    ``rate`` time derivatives (a compile-time constant: the spring loops then carry no branches
+    they do not take)."""
+    key = (scheme, model_fingerprint(model), bool(parallel), bool(uniform), int(rate))
+    if key not in _CACHE:
+        if scheme not in _SCHEMES:
+            raise ValueError(f"unknown implicit scheme {scheme!r}; known: {', '.join(sorted(_SCHEMES))}")
+        build, keeps_start = _SCHEMES[scheme]
+        tag = f"{model.name}_{key[1]}{'_uniform' if uniform else ''}"
+        ptag = f"{tag}_{'par' if parallel else 'ser'}"
+        ns = model_namespace(model)
+        ns["RATE"] = int(rate)
+        ns["LOG_AFFINE"] = bool(getattr(model, "entropy_log_affine", False))
+        ns["KEEP_START"] = keeps_start and ns["LOG_AFFINE"]
+        ns["UNIFORM"] = bool(uniform)
+        ns["adiabatic_stiffness"] = specialize(_adiabatic_stiffness, tag, ns, **INLINE)
+        start = specialize(_start, f"{ptag}_rate{int(rate)}{'_keep' if ns['KEEP_START'] else ''}", ns,
+                           parallel=parallel, **OPTIONS)
+        ns["finish_nodes"] = specialize(_finish_nodes, ptag, ns, parallel=parallel, **OPTIONS)
+        _CACHE[key] = ImplicitKernels(start=start, keep_start=ns["KEEP_START"], **build(ns, tag, ptag, parallel))
+    return _CACHE[key]
+
+
+# ---------------------------------------------------------------------------------------------
+# helpers of the per-spring solves and spring passes
+
+# The per-spring thermal solves are Newton's method in ln θ (the θ-Newton correction δθ applied
+# as θ ← θ exp(−δθ/θ)): temperatures stay positive without step halving, and for an entropy
+# that is affine in ln θ (model "hencky") it is exact in one step.
+MAX_LOG_STEP = 20.0
+SIXTH = 1.0 / 6.0
+
+
+@njit(cache=True, inline="always")
+def _log_step(s):
+    """Newton correction of ln θ, bounded so exp() cannot overflow on a wild iterate."""
+    if s > MAX_LOG_STEP:
+        return MAX_LOG_STEP
+    if s < -MAX_LOG_STEP:
+        return -MAX_LOG_STEP
+    return s
+
+
+@njit(cache=True, inline="always")
+def _usable(t):
+    """A warm-start temperature that can seed a thermal solve."""
+    return t > 0.0 and t < math.inf
+
+
+@njit(cache=True, inline="always")
+def _admissible(t):
+    """Positive and finite, written without branches (for the vectorized loops)."""
+    return (t > 0.0) & (t < math.inf)
+
+
+@njit(cache=True, inline="always")
+def _listed_position(indices, j):
+    """j: the index of a full kernel's loop (its ``listed``)."""
+    return j
+
+
+@njit(cache=True, inline="always")
+def _listed_entry(indices, j):
+    """indices[j]: the index of a SUBSET kernel's loop (its ``listed``)."""
+    return indices[j]
+
+
+@njit(cache=True, inline="always")
+def _all_count(indices, n):
+    """n: a full kernel's loop length (its ``listed_count``)."""
+    return n
+
+
+@njit(cache=True, inline="always")
+def _listed_count(indices, n):
+    """len(indices): a SUBSET kernel's loop length (its ``listed_count``)."""
+    return indices.shape[0]
+
+
+@njit(cache=True, inline="always")
+def _first_flagged_position(flag, indices, lo, n, none):
+    """:func:`_first_flagged` (a full kernel's ``first_flagged_listed``)."""
+    return _first_flagged(flag, lo, n, none)
+
+
+@njit(cache=True, inline="always")
+def _first_flagged_entry(flag, indices, lo, n, none):
+    """The smallest e = indices[lo + i], 0 ≤ i < n, with flag[e] != 0, else ``none`` (a SUBSET
+    kernel's ``first_flagged_listed``)."""
+    bad = none
+    for i in range(n):
+        if flag[indices[lo + i]] != 0:
+            bad = min(bad, indices[lo + i])
+    return bad
+
+
+@njit(cache=True, inline="always")
+def _first_flagged(flag, lo, n, none):
+    """The smallest index lo ≤ e < lo + n with flag[e] != 0, else ``none``."""
+    for i in range(n):
+        if flag[lo + i] != 0:
+            return lo + i
+    return none
+
+
+@njit(cache=True, inline="always")
+def scatter_spring_block(data, places, e, B):
+    """Add spring e's Jacobian block B (b, b) into the CSR values ``data`` at its four places
+    (BlockPlaces), with sign s_c s_g (s_a = +1, s_b = −1); none where an end is anchored."""
+    node_base, node_stride, spring_base, spring_stride = places
+    b = B.shape[0]
+    for q in range(4):
+        base = spring_base[e, q]
+        if base < 0:
+            continue
+        sign = 1.0 if (q == 0 or q == 3) else -1.0
+        stride = spring_stride[e, q]
+        for i in range(b):
+            for j in range(b):
+                data[base + i * stride + j] += sign * B[i, j]
+
+
+# Every kernel below is two loops, each parallel when compiled with parallel=True: a spring
+# loop (over blocks of springs) writes per-spring results (lengths, temperatures, the spring's
+# force contribution ``fs``) and a node loop gathers them over the node's incident springs (CSR
+# ``inc_ptr``/``inc_spring``). No two threads write the same element, each node sums its springs
+# in a fixed order, and the blocks do not depend on the number of threads, so neither do the
+# results. A spring loop cannot return early: a failing spring stores its status in ``code``
+# and the smallest failing index is kept by a min-reduction. (The schemes' kernels are built the
+# same way.)
+
+
+def _adiabatic_stiffness(l, eta, l0, P, e):
+    """dT/dl at constant entropy η: F_ll − F_lθ²/F_θθ at (l, θ(l, η))."""
+    th = temperature(l, eta, l0, P, e)
+    flt = d2F_dl_dtheta(l, th, l0, P, e)
+    return d2F_dl2(l, th, l0, P, e) - flt * flt / d2F_dtheta2(l, th, l0, P, e)
+
+
+#: the predictor's ä term is used at a node only where h²/8 |ä| ≤ SNAP_TRUST (|a| + h/2 |ȧ|)
+SNAP_TRUST = 0.1
+#: relative length step of the forward difference for d²T/dl² along an adiabat (the model gives
+#: second derivatives of F only): its error ~ STIFFNESS_STEP, its round-off ~ 1e-16/STIFFNESS_STEP,
+#: both far below what a predictor term needs (a central difference costs one more evaluation)
+STIFFNESS_STEP = 1e-5
+
+
+def _start(step, topo, spring, node, work, coef, pred):
+    """Lengths ``work.len0`` (m,) and unit vectors ``work.dir0`` (3, m) at x0 (n, 3) (``work``: a
+    StartWork record), and the explicit predictor of the step's unknowns into pred (B n_free,):
+    per free node and sub-block j (B = 3 × rows
+    of coef), pred = coef[j, 0] v + coef[j, 1] a + coef[j, 2] ȧ + coef[j, 3] ä with v = p/m,
+    a = f/m (+ g) the acceleration at (x0, θ(l0, η)) and its first (``RATE`` ≥ 1) and second
+    (``RATE`` 2) time derivatives along the exact (adiabatic) flow at (x0, p0) (else 0), for a
+    Taylor-like predictor. Scratch: fs (6, m), ws (6, m) (``RATE`` 2), nodal (n, 6) (``RATE``
+    2), code (m,). h: step.h. With KEEP_START, keep (KEEP_ROWS, m) receives per spring θ(l⁰, η),
+    T(l⁰, θ(l⁰, η)), F_lθ(l⁰) and the log-affine coefficient C = −θ F_θθ (HO4's closed-form
+    thermal solve reads them at every residual of the step). Returns (status, spring).
+
+    Per spring f = T n, T = T(l, θ(l, η)) along the adiabat with T' = dT/dl (adiabatic
+    stiffness), l̇ = n·v, ṅ = (v − n l̇)/l (v, α: relative velocity and acceleration of the ends):
+    ḟ = T' l̇ n + T ṅ;  f̈ = T'' l̇² n + T' l̈ n + 2 T' l̇ ṅ + T n̈ with l̈ = n·α + (|v|² − l̇²)/l,
+    n̈ = (α − n l̈ − 2 ṅ l̇)/l; T'' by a forward difference of T'. ä needs the nodes' a: a second
+    spring pass and node pass."""
+    x0, p, eta, h = step
+    edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
+    l0, P = spring
+    masses, inv_mass, gravity, with_gravity = node
+    len0, dir0, keep, fs, ws, sweep, nodal, guess, code = work
+    m = edges.shape[0]
+    bad = m
+    for blk in prange((m + BLOCK - 1) // BLOCK):
+        lo = blk * BLOCK
+        n = min(BLOCK, m - lo)
+        for i in range(n):  # gather: spring vector and relative velocity
+            e = np.uint64(lo + i)
+            a = edges[e, 0]
+            b = edges[e, 1]
+            dir0[0, e] = x0[b, 0] - x0[a, 0]
+            dir0[1, e] = x0[b, 1] - x0[a, 1]
+            dir0[2, e] = x0[b, 2] - x0[a, 2]
+            if RATE > 0:
+                fs[3, e] = p[b, 0] * inv_mass[b] - p[a, 0] * inv_mass[a]
+                fs[4, e] = p[b, 1] * inv_mass[b] - p[a, 1] * inv_mass[a]
+                fs[5, e] = p[b, 2] * inv_mass[b] - p[a, 2] * inv_mass[a]
+        for i in range(n):  # arithmetic (vectorized)
+            e = np.uint64(lo + i)
+            pe = np.uint64(0) if UNIFORM else np.uint64(e)
+            dx = dir0[0, e]
+            dy = dir0[1, e]
+            dz = dir0[2, e]
+            l = math.sqrt(dx * dx + dy * dy + dz * dz)
+            il = 1.0 / l
+            nx = dx * il
+            ny = dy * il
+            nz = dz * il
+            len0[e] = l
+            dir0[0, e] = nx
+            dir0[1, e] = ny
+            dir0[2, e] = nz
+            rest = l0[e]
+            th = temperature(l, eta[e], rest, P, pe)
+            T = tension(l, th, rest, P, pe)
+            fs[0, e] = T * nx
+            fs[1, e] = T * ny
+            fs[2, e] = T * nz
+            if KEEP_START:
+                keep[0, e] = th
+                keep[1, e] = T
+                keep[2, e] = d2F_dl_dtheta(l, th, rest, P, pe)
+                keep[3, e] = -th * d2F_dtheta2(l, th, rest, P, pe)
+            if RATE > 0:
+                vx = fs[3, e]
+                vy = fs[4, e]
+                vz = fs[5, e]
+                ldot = nx * vx + ny * vy + nz * vz
+                flt = d2F_dl_dtheta(l, th, rest, P, pe)
+                Tl = d2F_dl2(l, th, rest, P, pe) - flt * flt / d2F_dtheta2(l, th, rest, P, pe)
+                Tdot = Tl * ldot
+                q = T / l
+                fs[3, e] = Tdot * nx + q * (vx - nx * ldot)
+                fs[4, e] = Tdot * ny + q * (vy - ny * ldot)
+                fs[5, e] = Tdot * nz + q * (vz - nz * ldot)
+                if RATE > 1:
+                    dl = STIFFNESS_STEP * l
+                    ws[0, e] = vx
+                    ws[1, e] = vy
+                    ws[2, e] = vz
+                    ws[3, e] = T
+                    ws[4, e] = Tl
+                    ws[5, e] = (adiabatic_stiffness(l + dl, eta[e], rest, P, pe) - Tl) / dl
+            lok = (l > 0.0) & (l < math.inf)
+            code[e] = OK if (lok & _admissible(th)) else (NO_TEMPERATURE if lok else COLLAPSED)
+        bad = min(bad, _first_flagged(code, lo, n, m))
+    if bad < m:
+        return code[bad], bad
+    J = coef.shape[0]
+    for a in prange(x0.shape[0]):
+        k = free_index[a]
+        if k < 0:
+            if RATE > 1:
+                for i in range(6):
+                    nodal[a, i] = 0.0
+            continue
+        f0 = 0.0
+        f1 = 0.0
+        f2 = 0.0
+        r0 = 0.0
+        r1 = 0.0
+        r2 = 0.0
+        for j in range(inc_ptr[a], inc_ptr[a + 1]):
+            e = inc_spring[j]
+            sg = inc_sign[j]
+            f0 += sg * fs[0, e]
+            f1 += sg * fs[1, e]
+            f2 += sg * fs[2, e]
+            if RATE > 0:
+                r0 += sg * fs[3, e]
+                r1 += sg * fs[4, e]
+                r2 += sg * fs[5, e]
+        w = inv_mass[a]
+        for i in range(3):
+            f = f0 if i == 0 else (f1 if i == 1 else f2)
+            r = r0 if i == 0 else (r1 if i == 1 else r2)
+            v = w * p[a, i]
+            acc = w * f + (gravity[i] if with_gravity else 0.0)
+            jerk = w * r
+            if RATE > 1:  # the prediction waits for ä
+                nodal[a, i] = acc
+                nodal[a, 3 + i] = jerk
+                continue
+            for s in range(J):
+                pred[3 * J * k + 3 * s + i] = coef[s, 0] * v + coef[s, 1] * acc + coef[s, 2] * jerk
+    if RATE < 2:
+        return 0, -1
+    for blk in prange((m + BLOCK - 1) // BLOCK):
+        lo = blk * BLOCK
+        n = min(BLOCK, m - lo)
+        for i in range(n):  # gather: relative acceleration
+            e = np.uint64(lo + i)
+            a = edges[e, 0]
+            b = edges[e, 1]
+            fs[0, e] = nodal[b, 0] - nodal[a, 0]
+            fs[1, e] = nodal[b, 1] - nodal[a, 1]
+            fs[2, e] = nodal[b, 2] - nodal[a, 2]
+        for i in range(n):  # f̈ (vectorized)
+            e = np.uint64(lo + i)
+            l = len0[e]
+            nx = dir0[0, e]
+            ny = dir0[1, e]
+            nz = dir0[2, e]
+            vx = ws[0, e]
+            vy = ws[1, e]
+            vz = ws[2, e]
+            ax = fs[0, e]
+            ay = fs[1, e]
+            az = fs[2, e]
+            T = ws[3, e]
+            Tl = ws[4, e]
+            Tll = ws[5, e]
+            ldot = nx * vx + ny * vy + nz * vz
+            mx = (vx - nx * ldot) / l  # ṅ
+            my = (vy - ny * ldot) / l
+            mz = (vz - nz * ldot) / l
+            lddot = nx * ax + ny * ay + nz * az + (vx * vx + vy * vy + vz * vz - ldot * ldot) / l
+            radial = Tll * ldot * ldot + Tl * lddot - T * lddot / l
+            side = 2.0 * (Tl - T / l) * ldot
+            q = T / l
+            fs[3, e] = radial * nx + side * mx + q * ax
+            fs[4, e] = radial * ny + side * my + q * ay
+            fs[5, e] = radial * nz + side * mz + q * az
+    for a in prange(x0.shape[0]):
+        k = free_index[a]
+        if k < 0:
+            continue
+        s0 = 0.0
+        s1 = 0.0
+        s2 = 0.0
+        for j in range(inc_ptr[a], inc_ptr[a + 1]):
+            e = inc_spring[j]
+            sg = inc_sign[j]
+            s0 += sg * fs[3, e]
+            s1 += sg * fs[4, e]
+            s2 += sg * fs[5, e]
+        w = inv_mass[a]
+        # the series a + τ ȧ + τ²/2 ä (τ ≤ h) is trusted with its ä term only where that term
+        # is small next to the others (ω h ≲ 1 locally); a step near the stability limit keeps
+        # the third-order guess
+        lower = 0.0
+        top = 0.0
+        for i in range(3):
+            lower = max(lower, abs(nodal[a, i]) + 0.5 * h * abs(nodal[a, 3 + i]))
+            top = max(top, 0.125 * h * h * w * abs(s0 if i == 0 else (s1 if i == 1 else s2)))
+        use = top <= SNAP_TRUST * lower
+        for i in range(3):
+            sn = w * (s0 if i == 0 else (s1 if i == 1 else s2)) if use else 0.0
+            v = w * p[a, i]
+            acc = nodal[a, i]
+            jerk = nodal[a, 3 + i]
+            for s in range(J):
+                pred[3 * J * k + 3 * s + i] = (coef[s, 0] * v + coef[s, 1] * acc + coef[s, 2] * jerk
+                                               + coef[s, 3] * sn)
+    return 0, -1
+
+
+def _finish_nodes(step, topo, node, fs, u, stride, offset, new):
+    """The nodes' part of every finish kernel, into ``new`` (NextState): x¹ = x⁰ + u[stride k +
+    offset + i] for free node k, p¹ = p⁰ (+ h m g) − Σ± fs over the incident springs (fs: the
+    per-spring impulses of the step, (≥ 3, m)). Returns (status, −1)."""
+    x0, p, eta, h = step
+    edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
+    masses, inv_mass, gravity, with_gravity = node
+    x_new, p_new, phi_new, eta_new = new
+    n = x0.shape[0]
+    bad_node = n
+    for a in prange(n):
+        k = free_index[a]
+        if k < 0:
+            for i in range(3):
+                x_new[a, i] = x0[a, i]
+                p_new[a, i] = p[a, i]
+            continue
+        F0 = 0.0
+        F1 = 0.0
+        F2 = 0.0
+        for j in range(inc_ptr[a], inc_ptr[a + 1]):
+            e = inc_spring[j]
+            sg = -inc_sign[j]
+            F0 += sg * fs[0, e]
+            F1 += sg * fs[1, e]
+            F2 += sg * fs[2, e]
+        for i in range(3):
+            F = F0 if i == 0 else (F1 if i == 1 else F2)
+            x_new[a, i] = x0[a, i] + u[stride * k + offset + i]
+            q = p[a, i] + (h * masses[a] * gravity[i] if with_gravity else 0.0) - F
+            p_new[a, i] = q
+            if not (abs(q) < math.inf):
+                bad_node = min(bad_node, a)
+    if bad_node < n:
+        return NOT_FINITE, -1
+    return 0, -1

@@ -1,0 +1,243 @@
+"""Newton's method on the step equations of an implicit integrator: its options, the iteration
+with its convergence test and its finishing Jacobi steps, its record and its timings. The
+problem (the stepper) supplies the residual and the linearization; the linear solver
+(:mod:`.linear`) the corrections.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import InputError
+from .linear import LINEAR_SOLVERS
+
+
+@dataclass(frozen=True)
+class NewtonOptions:
+    """Convergence control of the Newton iteration of one step.
+
+    tolerance: converged when ‖R‖∞ / max(Rabs) ≤ tolerance, the residual scaled by the largest
+        sum of magnitudes of the terms in a row (its round-off floor is a few 1e-16).
+    rtol, atol: also converged when the last Newton correction is ≤ rtol ‖u‖∞ + atol (u: the
+        displacements over the step) and the scaled residual is ≤ 1e3 tolerance: the unknowns
+        have reached their round-off floor.
+    max_iterations: linear solves allowed per step before the step fails.
+    retry: on a failed step, retry it as 2, 4, …, 2**retry substeps (0: never; reported).
+    linear_solver: "splu" (SciPy SuperLU), "matfree" (matrix-free inertia-preconditioned
+        sweeps, GMRES fallback; each solve ends when the linear residual is below
+        LINEAR_FRACTION × tolerance in the Newton scaling, so the inexact step cannot hold
+        Newton above its tolerance), "gmres" (SciPy GMRES on the assembled matrix with a nodal
+        block-Jacobi preconditioner, relative tolerance 1e-10 per solve), or "auto" (default:
+        splu up to DIRECT_MAX_UNKNOWNS unknowns, matfree above; see benchmarks/README.md).
+    """
+
+    tolerance: float = 1e-12
+    rtol: float = 1e-14
+    atol: float = 0.0
+    max_iterations: int = 12
+    retry: int = 0
+    linear_solver: str = "auto"
+
+    @classmethod
+    def from_options(cls, **options) -> "NewtonOptions":
+        unknown = set(options) - set(cls.__dataclass_fields__)
+        if unknown:
+            raise InputError(f"unknown Newton option(s) {', '.join(sorted(unknown))}; "
+                             f"known: {', '.join(cls.__dataclass_fields__)}")
+        opts = cls(**options)
+        if not (opts.tolerance > 0 and opts.rtol >= 0 and opts.atol >= 0):
+            raise InputError(f"Newton tolerances must be positive: {opts}")
+        if int(opts.max_iterations) < 1 or int(opts.retry) < 0:
+            raise InputError(f"max_iterations must be >= 1 and retry >= 0: {opts}")
+        if opts.linear_solver not in LINEAR_SOLVERS and opts.linear_solver != "auto":
+            raise InputError(f"unknown linear_solver {opts.linear_solver!r}; known: auto, "
+                             f"{', '.join(LINEAR_SOLVERS)}")
+        return opts
+
+
+#: an inexact linear solve leaves a residual below this fraction of max(tolerance, ρ²) (in the
+#: Newton scaling, ρ the current scaled residual): Newton stays quadratic and the last linear
+#: error cannot keep the next Newton residual above the tolerance
+LINEAR_FRACTION = 0.1
+#: After a full Newton iteration, a scaled residual that few inertia-preconditioned (block-Jacobi)
+#: steps u −= D⁻¹ R can bring below the tolerance is finished by them, without linearizing or
+#: sweeping: below the stability limit the inertia dominates the Newton matrix, so each is an
+#: inexact Newton step whose linear residual is a fraction of R, the fraction by which a sweep
+#: of the last linear solve contracted (measured 0.005–0.05 on the benchmark lattices; the
+#: scaled residual then falls 0.006–0.015× per Jacobi step). A Jacobi step costs a residual and
+#: a node-only sweep, about a third of a full iteration (linearization, two or three full
+#: sweeps, residual), so Jacobi steps are taken while that contraction says that at most
+#: JACOBI_MAX_STEPS of them reach the tolerance (after each, by the contraction it achieved),
+#: and never from above JACOBI_RANGE times the tolerance. Each result is checked like any other
+#: iterate (matrix-free solver only).
+JACOBI_RANGE = 1e4
+JACOBI_MAX_STEPS = 2
+#: Where the problem offers local Jacobi steps (HO4), a Jacobi step first updates only the free
+#: nodes whose residual rows exceed LOCAL_FRACTION × the tolerance (after a full iteration, a few
+#: per cent of the nodes at most on the benchmark lattices) and recomputes the residual only at
+#: their springs and the ends of those: the same new residual as a global step's evaluation where
+#: the rest are left, at a few per cent of its cost. Local steps go on while each reduces the
+#: scaled residual at least LOCAL_STALL×, at most LOCAL_MAX_ROUNDS per solve.
+LOCAL_FRACTION = 0.1
+LOCAL_STALL = 0.5
+LOCAL_MAX_ROUNDS = 8
+
+
+def _jacobi_pays(rho: float, contraction: float, tolerance: float) -> bool:
+    """Whether at most JACOBI_MAX_STEPS Jacobi steps, each reducing the scaled residual ``rho``
+    by ``contraction``, reach ``tolerance``."""
+    return (rho <= JACOBI_RANGE * tolerance and contraction < 1.0
+            and rho * contraction**JACOBI_MAX_STEPS <= tolerance)
+
+
+@dataclass
+class NewtonTimers:
+    """Cumulative seconds spent in each phase and counts, over the life of a stepper."""
+
+    residual: float = 0.0
+    assembly: float = 0.0
+    factorization: float = 0.0
+    solve: float = 0.0
+    linear_solves: int = 0
+    residuals: int = 0
+    jacobi_steps: int = 0
+    local_steps: int = 0
+
+    def as_dict(self) -> dict:
+        return dict(self.__dict__)
+
+
+@dataclass
+class NewtonResult:
+    """What one Newton solve did: converged or why not, scaled residual history (one entry per
+    residual evaluation, the predictor's first), the linear solves made, and for a
+    non-physical iterate the status code and spring (internal numbering)."""
+
+    converged: bool
+    iterations: int
+    history: list = field(default_factory=list)
+    status: int = 0
+    spring: int = -1
+    reason: str = ""
+    #: of the iterations, those that were Jacobi steps (u −= D⁻¹ R, no linearization)
+    jacobi_steps: int = 0
+
+    @property
+    def full_iterations(self) -> int:
+        """Iterations that linearized and solved: what ``newton_iterations`` reports."""
+        return self.iterations - self.jacobi_steps
+
+
+def newton(problem, u: np.ndarray, options: NewtonOptions, solver, timers: NewtonTimers) -> NewtonResult:
+    """Solve ``problem.residual(u) = 0`` for ``u`` in place, from the predictor in ``u``.
+
+    problem: ``residual(u) -> (status, spring)`` fills ``problem.R`` and ``problem.Rabs`` (and,
+    optionally, ``problem.norms`` = (max |R|, max Rabs)) and whatever the Jacobian needs;
+    ``jacobian(data)`` fills the CSR values at the last residual's point, ``data`` its value
+    array (assembled solvers); ``linearize()`` the per-spring coefficients of a matrix-free
+    product (:class:`MatrixFree`); optionally ``local_jacobi(u, fraction)``, a Jacobi step on
+    the nodes whose residual rows exceed that fraction of max Rabs, which also brings R and
+    ``norms`` up to date (None where it declines). The residual is always evaluated last at the
+    returned ``u``.
+
+    ``max_iterations`` bounds the full iterations and global Jacobi steps; local Jacobi steps
+    are bounded by LOCAL_MAX_ROUNDS.
+    """
+    history: list[float] = []
+    increment = math.inf
+    jacobi = getattr(solver, "jacobi", None)
+    local = getattr(problem, "local_jacobi", None) if jacobi is not None else None
+    last = "full"  # the kind of the last correction: "full", "jacobi" (global) or "local"
+    corrections = 0  # of every kind
+    local_rounds = 0
+    jacobi_steps = 0
+    evaluated = None  # (status, spring) of the residual a local step brought up to date
+    while True:
+        it = corrections
+        if evaluated is None:
+            t0 = time.perf_counter()
+            status, spring = problem.residual(u)
+            timers.residual += time.perf_counter() - t0
+            timers.residuals += 1
+        else:
+            status, spring = evaluated
+            evaluated = None
+        if status != 0:
+            return NewtonResult(False, it, history, status, spring, "non-physical iterate", jacobi_steps)
+        norms = getattr(problem, "norms", None)  # (max |R|, max Rabs), where the kernel had them
+        if norms is not None:
+            rmax, scale = norms
+        else:
+            scale = problem.Rabs.max() if problem.Rabs.size else 0.0
+            rmax = np.abs(problem.R).max() if problem.R.size else 0.0
+        rho = float(rmax / scale) if scale > 0 else 0.0
+        history.append(rho)
+        if not math.isfinite(rho):
+            return NewtonResult(False, it, history, 0, -1, "residual not finite", jacobi_steps)
+        if rho <= options.tolerance:
+            return NewtonResult(True, it, history, jacobi_steps=jacobi_steps)
+        if it > 0 and rho <= 1e3 * options.tolerance and increment <= options.rtol * np.abs(u).max() + options.atol:
+            return NewtonResult(True, it, history, jacobi_steps=jacobi_steps)
+        if corrections - local_rounds == options.max_iterations:
+            break
+        use_jacobi = False
+        if jacobi is not None and it > 0:
+            if last == "full":  # what the sweeps of that iteration's solve promise
+                use_jacobi = _jacobi_pays(rho, getattr(solver, "contraction", math.inf), options.tolerance)
+            else:
+                contraction = rho / history[-2]
+                if last == "local":  # each costs a few per cent of a global step
+                    use_jacobi = contraction <= LOCAL_STALL and local_rounds < LOCAL_MAX_ROUNDS
+                else:
+                    use_jacobi = _jacobi_pays(rho, contraction, options.tolerance)
+                if not use_jacobi:
+                    jacobi = local = None  # they contract too slowly: full iterations from here on
+        corrections += 1
+        if use_jacobi and local is not None:
+            t0 = time.perf_counter()
+            done = local(u, LOCAL_FRACTION * options.tolerance)
+            if done is not None:
+                evaluated, increment = done[:2], done[2]
+                timers.residual += time.perf_counter() - t0
+                timers.local_steps += 1
+                timers.jacobi_steps += 1
+                jacobi_steps += 1
+                local_rounds += 1
+                last = "local"
+                continue
+        last = "jacobi" if use_jacobi else "full"
+        t0 = t1 = t2 = time.perf_counter()
+        if use_jacobi:
+            du = jacobi(problem.R)
+            timers.jacobi_steps += 1
+            jacobi_steps += 1
+        else:
+            if solver.assembled:
+                problem.jacobian(problem.data)
+                t1 = time.perf_counter()
+                solver.factorize(problem.data)
+            else:
+                problem.linearize()
+                t1 = time.perf_counter()
+            t2 = time.perf_counter()
+            # forcing term ∝ ρ (Eisenstat–Walker): the linear error stays below Newton's own
+            # quadratic term, so an early, far-from-converged step is not solved to round-off;
+            # and no sweep is spent once the one before leaves a linear error that a converged
+            # step could not tell from zero
+            du = solver.solve(problem.R, LINEAR_FRACTION * max(options.tolerance, rho * rho) * scale,
+                              LINEAR_FRACTION * options.tolerance * scale)
+        t3 = time.perf_counter()
+        timers.assembly += t1 - t0
+        timers.factorization += t2 - t1
+        timers.solve += t3 - t2
+        timers.linear_solves += 1
+        u -= du
+        increment = float(np.abs(du).max())
+        if not math.isfinite(increment):
+            return NewtonResult(False, corrections, history, 0, -1, "Newton correction not finite", jacobi_steps)
+    return NewtonResult(False, corrections, history, 0, -1,
+                        f"no convergence in {options.max_iterations} iterations", jacobi_steps)
