@@ -47,7 +47,8 @@ from . import FLAG_ROW, FLAG_SET, FLAG_STAGES, FLAG_STEP, simulator_enabled
 
 # Bound per model by cuda_kernels(); see thermonet.kernels.splitting for their meaning.
 temperature = tension = internal_energy = free_energy = None
-spring_force = outside_admissible = advance_thermal_displacement = squared_length = None
+spring_force = spring_energy = spring_temperature = outside_admissible = advance_thermal_displacement = None
+squared_length = None
 gather_force = kick_momentum = drift_position = load_row = store_row = update = None
 flow_update_0 = flow_update_1 = flow_update_2 = flow_update_3 = None
 THERMAL = True
@@ -309,13 +310,10 @@ def _spring_sums_kernel(x, eta, l0, P, edges, partial):
     for e in range(cuda.grid(1), edges.shape[0], cuda.gridsize(1)):
         l = _spring_length(x, edges, e)
         c = 0 if UNIFORM else e
-        if THERMAL:
-            th = temperature(l, eta[e], l0[e], P, c)
-            energy += internal_energy(l, eta[e], l0[e], P, c)
-            entropy_sum += eta[e]
-        else:
-            th = P[REFERENCE_TEMPERATURE, c]
-            energy += free_energy(l, th, l0[e], P, c)
+        eta_e = eta[e] if THERMAL else 0.0
+        th = spring_temperature(l, eta_e, l0[e], P, c)
+        energy += spring_energy(l, eta_e, th, l0[e], P, c)
+        entropy_sum += eta_e
         theta_min = min(theta_min, th)
         theta_max = max(theta_max, th)
     sh[0, t] = energy

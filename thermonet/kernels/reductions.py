@@ -7,14 +7,15 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import prange
+from numba import njit, prange
 
-from .splitting import BLOCK, node_diagnostic_terms, squared_lengths
+from . import subflows
+from .splitting import BLOCK, bind_subflows, node_diagnostic_terms, squared_lengths
 from .specialize import kernel_namespace, model_fingerprint, specialize
 
 # Bound per model by specialize(); see kernels/splitting.py for THERMAL / REFERENCE_TEMPERATURE /
 # UNIFORM.
-temperature = internal_energy = free_energy = None
+spring_temperature = spring_energy = None
 THERMAL = True
 REFERENCE_TEMPERATURE = 0
 UNIFORM = False
@@ -30,7 +31,8 @@ def diagnostic_sums_kernel(model, thermal: bool, parallel: bool, uniform: bool =
     if key not in _CACHE:
         ns = kernel_namespace(model, thermal, uniform)
         tag = (f"{model.name}_{key[0]}_{'thermal' if thermal else 'mech'}_{'par' if parallel else 'ser'}"
-               f"{'_uniform' if uniform else ''}")
+               f"{'_uniform' if uniform else ''}_s{subflows.source_digest()}")
+        bind_subflows(ns, tag, njit(inline="always", error_model="numpy", boundscheck=False))
         opts = dict(cache=True, error_model="numpy", parallel=bool(parallel))
         _CACHE[key] = (specialize(_spring_sums, tag, ns, **opts), specialize(_node_sums, tag, ns, **opts))
     return _CACHE[key]
@@ -58,13 +60,10 @@ def _spring_sums(x, eta, l0, P, edges):
             e = np.uint64(lo + i)
             c = np.uint64(0) if UNIFORM else e
             l = math.sqrt(length[i])
-            if THERMAL:
-                theta[i] = temperature(l, eta[e], l0[e], P, c)
-                energy_block[i] = internal_energy(l, eta[e], l0[e], P, c)
-            else:
-                th = P[REFERENCE_TEMPERATURE, c]
-                theta[i] = th
-                energy_block[i] = free_energy(l, th, l0[e], P, c)
+            eta_e = eta[e] if THERMAL else 0.0
+            th = spring_temperature(l, eta_e, l0[e], P, c)
+            theta[i] = th
+            energy_block[i] = spring_energy(l, eta_e, th, l0[e], P, c)
         block_sum = 0.0
         block_min = math.inf
         block_max = -math.inf

@@ -70,9 +70,9 @@ from .specialize import function_fingerprint, kernel_namespace, model_fingerprin
 # parameter row REFERENCE_TEMPERATURE; no η, θ or Φ is read or written); with UNIFORM, P is
 # (k, 1) and shared. The sub-flows (spring_force, gather_force, ...) are those of
 # thermonet.kernels.subflows; flow_pass_0 … flow_pass_3 run the integrator's extra sub-flows.
-internal_energy = free_energy = spring_pass = node_pass = boundary_spring_pass = boundary_node_pass = None
+spring_pass = node_pass = boundary_spring_pass = boundary_node_pass = None
 thermal_kick = copy_rows = apply_flow = None
-spring_force = outside_admissible = advance_thermal_displacement = None
+spring_force = spring_energy = spring_temperature = outside_admissible = advance_thermal_displacement = None
 gather_force = kick_momentum = drift_position = load_row = store_row = None
 flow_pass_0 = flow_pass_1 = flow_pass_2 = flow_pass_3 = update = None
 THERMAL = True
@@ -211,10 +211,7 @@ def _spring_pass(x, eta, phi, topology, springs, scratch, steps, run, keep):
                 if THERMAL and keep:
                     theta_keep[e] = theta
                 if want_sums:
-                    if THERMAL:
-                        energy_buf[e] = internal_energy(l, eta[e], rest, P, c)
-                    else:
-                        energy_buf[e] = free_energy(l, theta, rest, P, c)
+                    energy_buf[e] = spring_energy(l, eta[e] if THERMAL else 0.0, theta, rest, P, c)
             if THERMAL and track_phi:
                 advance_thermal_displacement(phi, e, theta, phi_h1, phi_h2)
         if CLOSING:

@@ -7,15 +7,16 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import prange
+from numba import njit, prange
 
 from .fastmath import log
-from .splitting import BLOCK, squared_lengths
+from . import subflows
+from .splitting import BLOCK, bind_subflows, squared_lengths
 from .specialize import MODEL_FUNCTIONS, kernel_namespace, model_fingerprint, specialize
 
 # Bound per model by specialize(); THERMAL False: every spring at its reference temperature
 # (parameter row REFERENCE_TEMPERATURE) and "energy" is the free energy F(l, θ0).
-temperature = tension = internal_energy = free_energy = scalar = None
+tension = scalar = spring_temperature = spring_energy = None
 THERMAL = True
 REFERENCE_TEMPERATURE = 0
 
@@ -47,7 +48,9 @@ def _spring_pass(template, model, thermal: bool, parallel: bool):
     key = (template.__name__, model_fingerprint(model), bool(thermal), bool(parallel))
     if key not in _CACHE:
         ns = kernel_namespace(model, thermal)
-        tag = f"{model.name}_{key[1]}_{'thermal' if thermal else 'mech'}_{'par' if parallel else 'ser'}"
+        tag = (f"{model.name}_{key[1]}_{'thermal' if thermal else 'mech'}_{'par' if parallel else 'ser'}"
+               f"_s{subflows.source_digest()}")
+        bind_subflows(ns, tag, njit(inline="always", error_model="numpy", boundscheck=False))
         _CACHE[key] = specialize(template, tag, ns, parallel=bool(parallel), **_OPTIONS)
     return _CACHE[key]
 
@@ -88,12 +91,9 @@ def _spring_fields(x, eta, l0, P, edges, length, theta, tens, energy):
             e = np.uint64(lo + i)
             l = math.sqrt(length[e])
             length[e] = l
-            if THERMAL:
-                th = temperature(l, eta[e], l0[e], P, e)
-                energy[e] = internal_energy(l, eta[e], l0[e], P, e)
-            else:
-                th = P[REFERENCE_TEMPERATURE, e]
-                energy[e] = free_energy(l, th, l0[e], P, e)
+            eta_e = eta[e] if THERMAL else 0.0
+            th = spring_temperature(l, eta_e, l0[e], P, e)
+            energy[e] = spring_energy(l, eta_e, th, l0[e], P, e)
             theta[e] = th
             tens[e] = tension(l, th, l0[e], P, e)
 
@@ -123,10 +123,7 @@ def _frame_springs(x, eta, phi, springs, edges, order, scratch, fields, theta_in
         for i in range(n):
             e = np.uint64(lo + i)
             l = math.sqrt(scratch[0, e])
-            if THERMAL:
-                th = temperature(l, eta[e], l0[e], P, e)
-            else:
-                th = P[REFERENCE_TEMPERATURE, e]
+            th = spring_temperature(l, eta[e] if THERMAL else 0.0, l0[e], P, e)
             scratch[1, e] = th
             scratch[2, e] = tension(l, th, l0[e], P, e)
             if with_strain:

@@ -32,7 +32,7 @@ import sys
 import numpy as np
 
 # Bound per model by the kernels' factories; listed so the functions read as ordinary code.
-temperature = tension = None
+temperature = tension = internal_energy = free_energy = None
 THERMAL = True
 REFERENCE_TEMPERATURE = 0
 
@@ -47,14 +47,26 @@ def squared_length(x, edges, e):
     return dx * dx + dy * dy + dz * dz
 
 
-def spring_force(l, eta_e, rest, P, c):
-    """(θ, T/l) of a spring of length l and entropy eta_e: θ = θ(l, η) (the reference temperature,
-    parameter row ``REFERENCE_TEMPERATURE``, when not THERMAL) and the tension over the length.
-    P: (k, m) parameters, c the spring's column (0 when all springs share one)."""
+def spring_temperature(l, eta_e, rest, P, c):
+    """θ = θ(l, η) of a spring of length l and entropy eta_e (the reference temperature, parameter
+    row ``REFERENCE_TEMPERATURE``, when not THERMAL). P: (k, m) parameters, c the spring's column
+    (0 when all springs share one)."""
     if THERMAL:
-        theta = temperature(l, eta_e, rest, P, c)
-    else:
-        theta = P[REFERENCE_TEMPERATURE, c]
+        return temperature(l, eta_e, rest, P, c)
+    return P[REFERENCE_TEMPERATURE, c]
+
+
+def spring_energy(l, eta_e, theta, rest, P, c):
+    """A spring's energy in a diagnostics row: its internal energy U(l, η) when THERMAL, else its
+    free energy F(l, θ) at the reference temperature theta."""
+    if THERMAL:
+        return internal_energy(l, eta_e, rest, P, c)
+    return free_energy(l, theta, rest, P, c)
+
+
+def spring_force(l, eta_e, rest, P, c):
+    """(θ, T/l): :func:`spring_temperature` and the tension over the length."""
+    theta = spring_temperature(l, eta_e, rest, P, c)
     return theta, tension(l, theta, rest, P, c) / l
 
 
@@ -129,7 +141,8 @@ def store_row(v, a, v0, v1, v2):
 
 
 #: the functions above, in the order a kernel factory binds them (callees first)
-SHARED = ("load_row", "store_row", "squared_length", "spring_force", "outside_admissible",
+SHARED = ("load_row", "store_row", "squared_length", "spring_temperature", "spring_energy", "spring_force",
+          "outside_admissible",
           "advance_thermal_displacement", "gather_force", "kick_momentum", "drift_position")
 
 
