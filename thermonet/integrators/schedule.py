@@ -23,6 +23,8 @@ from typing import Callable, NamedTuple
 
 import numpy as np
 
+from ..errors import InputError
+
 #: most distinct sub-flows one integrator may add to its kicks and drifts (the kernels dispatch
 #: over a fixed number of slots, so that each stays a compile-time call)
 MAX_FLOWS = 4
@@ -74,7 +76,7 @@ def flow_slots(flows) -> tuple[SubFlow, ...]:
         if flow not in slots:
             slots.append(flow)
     if len(slots) > MAX_FLOWS:
-        raise ValueError(f"an integrator may add at most {MAX_FLOWS} distinct sub-flows, not {len(slots)}")
+        raise InputError(f"an integrator may add at most {MAX_FLOWS} distinct sub-flows, not {len(slots)}")
     return tuple(slots)
 
 
@@ -86,7 +88,7 @@ def stage_table(kicks, drifts, flows=()) -> StageTable:
     at: dict[int, list] = {}
     for position, flow, coefficient in flows:
         if not 0 <= position <= n_stages + 1:
-            raise ValueError(f"sub-flow {flow.name}: position {position} outside 0..{n_stages + 1}")
+            raise InputError(f"sub-flow {flow.name}: position {position} outside 0..{n_stages + 1}")
         at.setdefault(position, []).append((slots.index(flow), float(coefficient)))
     shared = not at.get(0) and not at.get(n_stages + 1)
     rows: list[tuple[int, float, float]] = []

@@ -15,6 +15,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from ..errors import InputError
 from .base import Integrator, StepFailure, Stepper, register_integrator
 from .schedule import StageTable, flow_slots, stage_table
 
@@ -80,7 +81,7 @@ def compose(base: Splitting, gammas, name: str, order: int, description: str) ->
     """The composition ``base(γ_1 h) ∘ … ∘ base(γ_s h)``, adjacent kicks merged (of a base
     without extra sub-flows; compose first, then add flows around the result)."""
     if base.flows:
-        raise ValueError(f"compose(): {base.name} has sub-flows; compose the splitting without them")
+        raise InputError(f"compose(): {base.name} has sub-flows; compose the splitting without them")
     kicks: list[float] = [0.0]
     drifts: list[float] = []
     for g in gammas:
