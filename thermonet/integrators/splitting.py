@@ -16,8 +16,9 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..errors import InputError
+from ..kernels.records import Run, StateArrays
 from .base import Integrator, StepFailure, Stepper, register_integrator
-from .schedule import StageTable, flow_slots, stage_table
+from .schedule import MAX_FLOWS, StageTable, flow_slots, stage_table
 
 
 @dataclass(frozen=True, repr=False)
@@ -216,8 +217,6 @@ class SplittingStepper(Stepper):
     def advance(self, state, n_steps: int, h: float, measure: bool = False):
         """``n_steps`` steps of h from ``state`` (in place). With ``measure`` the closing kick
         also reduces the end state's diagnostics sums: :meth:`closing_sums` returns them."""
-        from ..kernels.records import Run, StateArrays
-
         self._measured = None
         if n_steps <= 0:
             return None
@@ -255,8 +254,6 @@ class SplittingStepper(Stepper):
 def flow_data(flows, system) -> tuple:
     """The kernels' ``effects`` record: one data tuple per flow slot (4), each flow's
     ``prepare(system)`` (as contiguous arrays), an unused slot a one-array placeholder."""
-    from .schedule import MAX_FLOWS
-
     data = [tuple(np.ascontiguousarray(a) for a in f.prepare(system)) for f in flows]
     return tuple(data + [(np.empty(0),)] * (MAX_FLOWS - len(data)))
 
