@@ -146,6 +146,11 @@ class Diagnostics:
             else:
                 scale = abs(float(v[0]))
             out[name] = {"initial": float(v[0]), "max_deviation": dev, "relative": dev / scale if scale > 0 else dev}
+        for name, of in (("energy_balance", "energy"), ("entropy_balance", "entropy")):
+            if self.rows and name in self.rows[0]:  # heat flow: a balance, zero at the start
+                dev = float(np.max(np.abs(self.column(name))))
+                scale = abs(float(self.rows[0][of]))
+                out[name] = {"initial": 0.0, "max_deviation": dev, "relative": dev / scale if scale > 0 else dev}
         return out
 
     def to_csv(self, path) -> None:

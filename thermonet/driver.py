@@ -18,6 +18,7 @@ import numpy as np
 from .compile_watch import CompileWatch
 from .diagnostics import Diagnostics, diagnostics_row, measure
 from .errors import InputError, SimulationError
+from .heat.logs import balances, heat_columns
 from .integrators.base import StepFailure
 from .run_guards import energy_departure
 from .state import State
@@ -168,6 +169,8 @@ class RunDriver:
             np.copyto(b.momenta, s.momenta)
             if s.thermal_displacement is not None:
                 np.copyto(b.thermal_displacement, s.thermal_displacement)
+            if self.system.heat is not None:  # heat flow changes η and its logs
+                _copy_heat(s, b)
         b.step, b.time = s.step, s.time
         self._backup_of = (s, self._h)  # a loaded state or a new h makes the copy useless for replays
         return b
@@ -188,6 +191,8 @@ class RunDriver:
         np.copyto(s.momenta, backup.momenta)
         if s.thermal_displacement is not None:
             np.copyto(s.thermal_displacement, backup.thermal_displacement)
+        if self.system.heat is not None:
+            _copy_heat(backup, s)
         self._set_step(backup.step)
         if steps > 0:
             self.stepper.advance(s, steps, self._h)
@@ -254,6 +259,9 @@ class RunDriver:
                 row = diagnostics_row(self.system, s, entropy=entropy, **sums)
             else:
                 row = measure(self.system, self._state, self.parallel)
+        if self.system.heat is not None:
+            row.update(heat_columns(self.system.heat, self._state))
+            row.update(balances(row, self.diagnostics.rows[0] if self.diagnostics.rows else row))
         row.update(getattr(self, "_last_stats", {}) or {})
         self.diagnostics.append(row)
         self._check_physical(row)
@@ -282,6 +290,13 @@ class RunDriver:
                     f"{self.model.name!r}, where θ must stay > 0, or h = {self.h} is too large"
                 )
         raise SimulationError(f"the energy is not finite {where}{unstable}")
+
+
+def _copy_heat(source: State, target: State) -> None:
+    """Copy what heat flow changes (η and the heat logs) from ``source`` into ``target``."""
+    np.copyto(target.entropy, source.entropy)
+    for k, v in source.extra["heat"].items():
+        np.copyto(target.extra["heat"][k], v)
 
 
 def _flushes(observers) -> list:

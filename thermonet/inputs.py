@@ -50,11 +50,11 @@ def check_step(h) -> float:
     return h
 
 
-def build_system(net: Net, model, layout, P_user, gravity, thermal: bool, stretch_bounds) -> System:
+def build_system(net: Net, model, layout, P_user, gravity, thermal: bool, stretch_bounds, heat=None) -> System:
     """The :class:`System` of a net in the internal numbering of ``layout``: rest lengths,
     parameters (P_user: (k, m), user numbering), masses, anchors, the reference point of
     angular momentum, gravity (checked: a finite 3-vector or None), thermal coupling and the
-    admissible stretches (checked)."""
+    admissible stretches (checked), the heat flow (a checked HeatSetup or None)."""
     gravity_vec = None
     if gravity is not None:
         gravity_vec = np.asarray(gravity, dtype=np.float64).reshape(-1)
@@ -75,6 +75,7 @@ def build_system(net: Net, model, layout, P_user, gravity, thermal: bool, stretc
         gravity=gravity_vec,
         thermal=bool(thermal),
         stretch_bounds=check_stretch_bounds(stretch_bounds),
+        heat=heat,
     )
 
 

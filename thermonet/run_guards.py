@@ -196,11 +196,14 @@ class StabilityGuard:
 
 
 def energy_departure(rows: list, tolerance: float | None) -> float | None:
-    """The relative departure |H − H(0)|/|H(0)| of the last diagnostics row when it exceeds
-    ``tolerance`` (None: no guard), else None."""
+    """The relative departure |H − H(0)|/|H(0)| of the last diagnostics row (with heat flow,
+    of its energy balance |H − H(0) − ΣQ|/|H(0)|) when it exceeds ``tolerance`` (None: no
+    guard), else None."""
     if tolerance is None or len(rows) < 2:
         return None
     e0, e = rows[0]["energy"], rows[-1]["energy"]
+    if "energy_balance" in rows[-1]:  # heat flows in or out: the balance is what must hold
+        e = e0 + rows[-1]["energy_balance"]
     if abs(e - e0) <= tolerance * max(abs(e0), np.finfo(float).tiny):
         return None
     return abs(e - e0) / max(abs(e0), 1e-300)
@@ -214,6 +217,8 @@ def broken_conservation(sim, energy_tolerance: float | None = None) -> list[str]
     tol = DEFAULT_ENERGY_TOLERANCE if energy_tolerance is None else energy_tolerance
     out = []
     checks = [("energy", tol)] + ([("entropy", ENTROPY_TOLERANCE)] if "entropy" in summary else [])
+    if "energy_balance" in summary:  # heat flow: energy and entropy change, their balances hold
+        checks = [("energy_balance", tol), ("entropy_balance", ENTROPY_TOLERANCE)]
     for name, limit in checks:
         s = summary.get(name)
         if s is None:

@@ -28,6 +28,10 @@ from .layout import build_layout
 from .models import get_model
 from .net import Net
 from .run_guards import DEFAULT_ENERGY_TOLERANCE, StabilityGuard
+from .heat.parameters import split_parameters
+from .heat.setup import build_heat
+from .heat.stepper import ConductionAround, integrator_with_heat
+from .integrators.splitting import heat_logs
 from .state import State
 
 #: nets with at least this many springs use the multi-threaded kernels
@@ -93,6 +97,10 @@ class Simulation(RunDriver):
         stretch_bounds=STRETCH_BOUNDS,
         energy_tolerance: float | None = DEFAULT_ENERGY_TOLERANCE,
         stability_guard="stop",
+        conduction: bool | None = None,
+        thermal_waves: bool | None = None,
+        baths: Mapping | None = None,
+        sources: Mapping | None = None,
     ):
         if not isinstance(net, Net):
             raise InputError(f"net must be a thermonet.Net, got {type(net).__name__}")
@@ -108,9 +116,14 @@ class Simulation(RunDriver):
             stepper_options["backend"] = self.backend
         self.threads = threads
         self.layout = layout = build_layout(net, renumber=renumber)
-        P_user = self.model.parameter_array(parameters or {}, net.n_springs)
+        model_parameters, transport = split_parameters(parameters)
+        P_user = self.model.parameter_array(model_parameters, net.n_springs)
         self.angular_momentum_about = angular_momentum_reference(net)
-        self.system = build_system(net, self.model, layout, P_user, gravity, thermal, stretch_bounds)
+        heat = build_heat(net, layout, self.model, P_user, transport, thermal=thermal, conduction=conduction,
+                          waves=thermal_waves, baths=baths, sources=sources)
+        self.system = build_system(net, self.model, layout, P_user, gravity, thermal, stretch_bounds, heat)
+        if heat is not None:
+            self.integrator = integrator_with_heat(self.integrator, heat, self.backend)
         self.energy_tolerance = check_energy_tolerance(energy_tolerance)
         self.stability_guard = StabilityGuard(self, guard_mode(stability_guard))
         self._state = initial_state(net, self.model, layout, P_user, thermal, temperatures, momenta, velocities)
@@ -118,6 +131,10 @@ class Simulation(RunDriver):
             parallel = threads != 1 and net.n_springs >= PARALLEL_MIN_SPRINGS
         self.parallel = bool(parallel)
         self.stepper = self.integrator.make_stepper(self.system, parallel=self.parallel, **stepper_options)
+        if heat is not None and not getattr(self.integrator, "explicit", False):
+            self.stepper = ConductionAround(self.stepper, self.system, self.parallel)
+        if heat is not None:
+            heat_logs(self._state, heat)
         self.diagnostics = Diagnostics()
         #: seconds spent stepping (Numba compilation excluded) and steps run, over all runs
         self.wall_time = 0.0

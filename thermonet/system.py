@@ -30,6 +30,8 @@ class System:
     thermal: False for a purely mechanical run (every spring held at its reference temperature;
         no entropies or thermal displacements exist).
     stretch_bounds: (lo, hi) admissible stretches l/l0; the explicit kernel stops a run outside.
+    heat: the :class:`~thermonet.heat.setup.HeatSetup` (conduction, thermal waves, baths,
+        sources), or None when heat does not flow (the paper's adiabatic nets).
     """
 
     model: Model
@@ -43,6 +45,7 @@ class System:
     gravity: np.ndarray | None = None
     thermal: bool = True
     stretch_bounds: tuple[float, float] = (1e-4, 1e4)
+    heat: object = None
 
     def __repr__(self) -> str:
         return (f"<System {self.n_nodes} nodes, {self.n_springs} springs, model {self.model.name}, "

@@ -9,7 +9,8 @@ turns that into the one table every target reads — the CPU kernel
 - a *stage* row ``(−1, k, d)``: a kick of k h fused with the drift of d h that follows it (one
   spring pass and one node pass);
 - a *flow* row ``(j, c, τ)``: sub-flow j of the integrator over c h, at the time t + τ h of the
-  positions it sees.
+  positions it sees; a negative j other than −1 is a built-in heat-flow row (conduction swept
+  forward or in reverse, thermal waves: :data:`CONDUCTION`, :data:`WAVES`).
 
 The last kick of a step and the first of the next act at the same positions when no flow stands
 between them: the table's ``carry`` is then that last kick, applied with the next step's first
@@ -30,6 +31,29 @@ from ..errors import InputError
 MAX_FLOWS = 4
 
 STAGE = -1
+#: built-in heat-flow rows (spec-heat §1–2): conduction swept forward, conduction swept in
+#: reverse (the second half of a symmetric step), the Green–Naghdi Φ-gradient flow
+CONDUCTION_FORWARD = -2
+CONDUCTION_REVERSE = -3
+THERMAL_WAVES = -4
+
+
+@dataclass(frozen=True)
+class BuiltinFlow:
+    """A heat-flow sub-flow every kernel knows (not a :class:`SubFlow` slot): its table code is
+    one of the negative codes above."""
+
+    name: str
+    code: int
+
+    def __repr__(self) -> str:
+        return f"<built-in sub-flow {self.name}>"
+
+
+#: the heat-flow sub-flows, for ``Splitting.flows``
+CONDUCTION = (BuiltinFlow("conduction", CONDUCTION_FORWARD), BuiltinFlow("conduction (reverse sweep)",
+                                                                          CONDUCTION_REVERSE))
+WAVES = BuiltinFlow("thermal waves", THERMAL_WAVES)
 
 
 @dataclass(frozen=True, eq=False)
@@ -57,7 +81,7 @@ class SubFlow:
 class StageTable(NamedTuple):
     """The schedule of one step as arrays (see the module docstring).
 
-    code: (R,) int64, −1 for a stage, else the flow's slot; kick: (R,) a stage's kick or a flow's
+    code: (R,) int64, −1 for a stage, ≤ −2 a built-in heat-flow row, else the flow's slot; kick: (R,) a stage's kick or a flow's
     coefficient; drift: (R,) a stage's drift or, for a flow, the time fraction τ of its
     positions; carry: the closing kick shared with the next step (0 when none).
     """
@@ -73,6 +97,8 @@ def flow_slots(flows) -> tuple[SubFlow, ...]:
     first appearance: slot j of the kernels runs ``slots[j]``."""
     slots: list[SubFlow] = []
     for _, flow, _ in flows:
+        if isinstance(flow, BuiltinFlow):
+            continue
         if flow not in slots:
             slots.append(flow)
     if len(slots) > MAX_FLOWS:
@@ -89,7 +115,8 @@ def stage_table(kicks, drifts, flows=()) -> StageTable:
     for position, flow, coefficient in flows:
         if not 0 <= position <= n_stages + 1:
             raise InputError(f"sub-flow {flow.name}: position {position} outside 0..{n_stages + 1}")
-        at.setdefault(position, []).append((slots.index(flow), float(coefficient)))
+        code = flow.code if isinstance(flow, BuiltinFlow) else slots.index(flow)
+        at.setdefault(position, []).append((code, float(coefficient)))
     shared = not at.get(0) and not at.get(n_stages + 1)
     rows: list[tuple[int, float, float]] = []
     time = 0.0

@@ -16,9 +16,9 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..errors import InputError
-from ..kernels.records import Run, StateArrays
+from ..kernels.records import Run, StateArrays, no_heat
 from .base import Integrator, StepFailure, Stepper, register_integrator
-from .schedule import MAX_FLOWS, StageTable, flow_slots, stage_table
+from .schedule import CONDUCTION, MAX_FLOWS, WAVES, BuiltinFlow, StageTable, flow_slots, stage_table
 
 
 @dataclass(frozen=True, repr=False)
@@ -39,6 +39,9 @@ class Splitting(Integrator):
     #: further sub-flows, ((position, SubFlow, coefficient), ...): position i ≤ S runs before
     #: kick i, S + 1 after the last kick (see :mod:`thermonet.integrators.schedule`)
     flows: tuple = ()
+    #: (base, gammas) when this splitting is ``compose(base, gammas, ...)``: a composition with
+    #: thermal waves composes the base with the waves' flow (:meth:`with_heat`)
+    composition: tuple = ()
 
     def __post_init__(self):
         assert len(self.kicks) == len(self.drifts) + 1
@@ -62,6 +65,37 @@ class Splitting(Integrator):
                        flows=self.flows + ((0, flow, coefficient), (last, flow, coefficient)),
                        description=f"{flow.name}({coefficient:g} h) around {self.name}")
 
+    def with_heat(self, conduction: bool, waves: bool) -> "Splitting":
+        """This splitting with heat flow (spec-heat §1–2): thermal waves as ``W(h/2) ∘ A ∘ W(h/2)``
+        (a composition ``A = Π base(γ h)`` composes ``W ∘ base ∘ W`` instead, keeping its order),
+        conduction as ``K(h/2) ∘ … ∘ K(h/2)`` around everything (second order at most: conduction
+        cannot run backwards, so it is not composed)."""
+        out = self
+        if waves:
+            if not self.track_phi:
+                raise InputError(f"thermal waves need the thermal displacement Φ, which {self.name} does not "
+                                 "integrate; use co2, co4 or co6")
+            if self.composition:
+                base, gammas = self.composition
+                out = compose(base.with_heat(False, True), gammas, self.name, self.order, self.description)
+            else:
+                last = len(self.drifts) + 1
+                out = replace(self, flows=self.flows + ((0, WAVES, 0.5), (last, WAVES, 0.5)))
+        if conduction:
+            last = len(out.drifts) + 1
+            out = replace(out, flows=((0, CONDUCTION[0], 0.5),) + out.flows + ((last, CONDUCTION[1], 0.5),))
+        effects = [e for e, on in (("conduction", conduction), ("thermal waves", waves)) if on]
+        if not effects:
+            return self
+        return replace(out, name=f"{self.name}+{'+'.join(e.split()[-1] for e in effects)}",
+                       description=f"{self.description}; with {' and '.join(effects)} (spec-heat §1–2)")
+
+    @property
+    def heat_rows(self) -> tuple[bool, bool]:
+        """(conduction, thermal waves): which built-in heat-flow rows the schedule has."""
+        codes = {f.code for _, f, _ in self.flows if isinstance(f, BuiltinFlow)}
+        return CONDUCTION[0].code in codes, WAVES.code in codes
+
     @property
     def force_evaluations(self) -> int:
         """Force evaluations per step in a long run (the first and last kick share one)."""
@@ -79,10 +113,11 @@ class Splitting(Integrator):
 
 
 def compose(base: Splitting, gammas, name: str, order: int, description: str) -> Splitting:
-    """The composition ``base(γ_1 h) ∘ … ∘ base(γ_s h)``, adjacent kicks merged (of a base
-    without extra sub-flows; compose first, then add flows around the result)."""
+    """The composition ``base(γ_1 h) ∘ … ∘ base(γ_s h)``: adjacent kicks merged, or, when the base
+    has sub-flows, kept apart (a zero drift between them) with the base's flows in every
+    substep at γ times their coefficient."""
     if base.flows:
-        raise InputError(f"compose(): {base.name} has sub-flows; compose the splitting without them")
+        return _compose_with_flows(base, gammas, name, order, description)
     kicks: list[float] = [0.0]
     drifts: list[float] = []
     for g in gammas:
@@ -90,7 +125,25 @@ def compose(base: Splitting, gammas, name: str, order: int, description: str) ->
         for k, d in zip(base.kicks[1:], base.drifts):
             drifts.append(g * d)
             kicks.append(g * k)
-    return Splitting(name, order, tuple(kicks), tuple(drifts), base.track_phi, description)
+    return Splitting(name, order, tuple(kicks), tuple(drifts), base.track_phi, description,
+                     composition=(base, tuple(gammas)))
+
+
+def _compose_with_flows(base: Splitting, gammas, name: str, order: int, description: str) -> Splitting:
+    if any(isinstance(f, BuiltinFlow) and f.code != WAVES.code for _, f, _ in base.flows):
+        raise InputError(f"compose(): {base.name} has conduction rows, which cannot run backwards in time")
+    kicks: list[float] = []
+    drifts: list[float] = []
+    flows: list = []
+    per = len(base.kicks)
+    for j, g in enumerate(gammas):
+        if j:
+            drifts.append(0.0)
+        kicks.extend(g * k for k in base.kicks)
+        drifts.extend(g * d for d in base.drifts)
+        flows.extend((j * per + position, flow, g * c) for position, flow, c in base.flows)
+    return Splitting(name, order, tuple(kicks), tuple(drifts), base.track_phi, description, flows=tuple(flows),
+                     composition=(base, tuple(gammas)))
 
 
 GTR0 = register_integrator(
@@ -185,6 +238,9 @@ BM6A = register_integrator(Splitting(
 ))
 
 
+_NO_HEAT = no_heat()
+
+
 class SplittingStepper(Stepper):
     """A :class:`Splitting` bound to a system: owns the scratch buffers, calls the fused kernel."""
 
@@ -196,7 +252,16 @@ class SplittingStepper(Stepper):
         self.system = system
         P, uniform = kernel_parameters(system.parameters)
         flows = integrator.subflows
-        self._advance = splitting_kernels(system.model, parallel, system.thermal, uniform, flows)
+        conduction, waves = integrator.heat_rows
+        heat = getattr(system, "heat", None)
+        if (conduction or waves) and heat is None:
+            raise InputError(f"{integrator.name} has heat-flow rows but the system has no heat flow set up")
+        self._advance = splitting_kernels(system.model, parallel, system.thermal, uniform, flows, conduction, waves)
+        self._heat = heat
+        self._heat_tau = sorted({c for _, f, c in integrator.flows if isinstance(f, BuiltinFlow)
+                                 and f.code != WAVES.code})
+        if len(self._heat_tau) > 1:
+            raise InputError(f"{integrator.name}: conduction rows with different coefficients {self._heat_tau}")
         self._table = integrator.table
         n, m = system.n_nodes, system.n_springs
         self._scratch = records.Scratch(np.empty((n, 3)), np.empty(m), np.empty((n, 3)),
@@ -230,7 +295,7 @@ class SplittingStepper(Stepper):
         run = Run(float(h), float(state.time), int(n_steps), bool(self.integrator.track_phi), float(lo), float(hi),
                   bool(reuse), bool(measure))
         done, detected, summed = self._advance(arrays, self._scratch, self._topology, self._springs, self._nodes,
-                                               self._table, self._effects, run)
+                                               self._table, self._effects, self._heat_record(state, h), run)
         if not detected and self._table.carry != 0.0:
             self._boundary = (state, state.step + int(n_steps))
         if summed:
@@ -238,6 +303,13 @@ class SplittingStepper(Stepper):
         if detected:
             raise blowup_failure(self.system, state.positions, state.entropy, done)
         return None
+
+    def _heat_record(self, state, h: float):
+        """The kernels' Heat record: conduction factors for this h, logs in the state."""
+        if self._heat is None:
+            return _NO_HEAT
+        tau = self._heat_tau[0] * h if self._heat_tau else 0.0
+        return self._heat.record(tau, heat_logs(state, self._heat))
 
     def closing_sums(self, state) -> dict | None:
         """See :meth:`Stepper.closing_sums`."""
@@ -249,6 +321,14 @@ class SplittingStepper(Stepper):
         U, tmin, tmax, K, V, px, py, pz, lx, ly, lz = (float(v) for v in sums)
         return dict(kinetic=K, internal=U, potential=V, momentum=(px, py, pz), angular_momentum=(lx, ly, lz),
                     theta_min=tmin, theta_max=tmax)
+
+
+def heat_logs(state, heat) -> dict:
+    """The heat-flow logs kept in ``state.extra["heat"]`` (created zeroed the first time)."""
+    logs = state.extra.get("heat")
+    if logs is None:
+        logs = state.extra["heat"] = heat.new_logs()
+    return logs
 
 
 def flow_data(flows, system) -> tuple:

@@ -85,6 +85,51 @@ class Run(NamedTuple):
     want_sums: bool
 
 
+class Heat(NamedTuple):
+    """Heat flow (spec-heat §1–2): the coloured spring pairs, the bath and source entries, and
+    the logs (all arrays empty when heat flow is off; the kernels then compile its rows out).
+
+    first, second: (P,) int64 springs of each pair; factor: (P,) the conduction factor
+    c_r (1 − exp(−κ τ/c_r)) for the run's τ; wave: (P,) k* of each pair; colour_ptr: (C+1,)
+    int64, colour c is pairs colour_ptr[c]:colour_ptr[c+1] (no two share a spring);
+    capacity, inv_capacity: (m,) C and 1/C per spring; bound_spring: (S,) int64 springs with
+    bath ends or sources; bound_ptr: (S+1,) int64 their entries; entry_kind (E,) int64 (0 bath,
+    1 source), entry_fn (E,) int64 the entry's time function, entry_rate (E,) g/C of a bath end;
+    fn_*: the time functions (:func:`thermonet.timefunctions.pack`); produced: (m,) cumulative
+    entropy produced, per spring; entry_heat, entry_flux: (E,) cumulative heat given and entropy
+    brought by each entry.
+    """
+
+    first: np.ndarray
+    second: np.ndarray
+    factor: np.ndarray
+    wave: np.ndarray
+    colour_ptr: np.ndarray
+    capacity: np.ndarray
+    inv_capacity: np.ndarray
+    bound_spring: np.ndarray
+    bound_ptr: np.ndarray
+    entry_kind: np.ndarray
+    entry_fn: np.ndarray
+    entry_rate: np.ndarray
+    fn_kind: np.ndarray
+    fn_params: np.ndarray
+    fn_ptr: np.ndarray
+    fn_times: np.ndarray
+    fn_values: np.ndarray
+    produced: np.ndarray
+    entry_heat: np.ndarray
+    entry_flux: np.ndarray
+
+
+def no_heat() -> Heat:
+    """The :class:`Heat` record of a run without heat flow (empty arrays)."""
+    i = np.empty(0, dtype=np.int64)
+    f = np.empty(0)
+    return Heat(i, i, f, f, np.zeros(1, dtype=np.int64), f, f, i, np.zeros(1, dtype=np.int64), i, i, f,
+                i, np.empty((0, 4)), np.zeros(1, dtype=np.int64), f, f, f, f, f)
+
+
 def topology(layout) -> Topology:
     """The :class:`Topology` of a :class:`~thermonet.layout.Layout`, as unsigned views."""
     return Topology(np.ascontiguousarray(layout.edges).view(np.uint32),

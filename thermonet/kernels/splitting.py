@@ -61,7 +61,8 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from . import subflows
+from . import heat_flow, subflows
+from .heat_passes import bind_heat_flow, bind_heat_passes
 from .specialize import function_fingerprint, kernel_namespace, model_fingerprint, rebind, specialize
 
 # Bound per kernel variant by splitting_kernels(); listed so the templates read as ordinary code.
@@ -75,7 +76,10 @@ thermal_kick = copy_rows = apply_flow = None
 spring_force = spring_energy = spring_temperature = outside_admissible = advance_thermal_displacement = None
 gather_force = kick_momentum = drift_position = load_row = store_row = None
 flow_pass_0 = flow_pass_1 = flow_pass_2 = flow_pass_3 = update = None
+temperature_pass = conduction_sweep = wave_sweep = None
 THERMAL = True
+CONDUCTION = False
+WAVES = False
 CLOSING = False
 REFERENCE_TEMPERATURE = 0
 UNIFORM = False
@@ -109,21 +113,31 @@ def bind_subflows(ns: dict, tag: str, compile_) -> None:
         ns[name] = compile_(rebind(getattr(subflows, name), tag, ns))
 
 
-def splitting_kernels(model, parallel: bool, thermal: bool = True, uniform: bool = False, flows=()):
+def splitting_kernels(model, parallel: bool, thermal: bool = True, uniform: bool = False, flows=(),
+                      conduction: bool = False, waves: bool = False):
     """``advance(state, scratch, topology, springs, nodes, table, effects, run)`` compiled for
     ``model`` (multi-threaded when ``parallel``; purely mechanical when not ``thermal``, in which
     case ``phi`` and ``eta`` may be empty arrays; for a ``(k, 1)`` parameter array shared by all
     springs when ``uniform``, see :func:`kernel_parameters`) with the extra sub-flows ``flows``
-    (:class:`~thermonet.integrators.schedule.SubFlow` s, slot order) in its flow slots."""
+    (:class:`~thermonet.integrators.schedule.SubFlow` s, slot order) in its flow slots, and the
+    heat-flow rows it may meet compiled in (``conduction``, ``waves``; both need ``thermal``)."""
     key = (model_fingerprint(model), bool(parallel), bool(thermal), bool(uniform),
-           tuple(id(f) for f in flows))
+           tuple(id(f) for f in flows), bool(conduction), bool(waves))
     if key not in _CACHE:
         flows_tag = f"_f{function_fingerprint(*(f.update for f in flows))}" if flows else ""
         tag = (f"{model.name}_{key[0]}_{'par' if parallel else 'ser'}_{'thermal' if thermal else 'mech'}"
                f"{'_uniform' if uniform else ''}_s{subflows.source_digest()}{flows_tag}")
+        if conduction or waves:
+            tag += f"_{'k' if conduction else ''}{'w' if waves else ''}{heat_flow.source_digest()}"
         ns = kernel_namespace(model, thermal, uniform)
         ns["CLOSING"] = False
-        bind_subflows(ns, tag, njit(inline="always", error_model="numpy", boundscheck=False))
+        ns["CONDUCTION"] = bool(conduction)
+        ns["WAVES"] = bool(waves)
+        inline = njit(inline="always", error_model="numpy", boundscheck=False)
+        bind_subflows(ns, tag, inline)
+        if conduction or waves:
+            bind_heat_flow(ns, tag, inline)
+            bind_heat_passes(ns, tag, parallel)
         ns["spring_pass"] = specialize(_spring_pass, tag, ns, parallel=parallel, **_OPTIONS)
         ns["node_pass"] = specialize(_node_pass, tag, ns, parallel=parallel, **_OPTIONS)
         boundary = dict(ns, CLOSING=True)
@@ -207,9 +221,9 @@ def _spring_pass(x, eta, phi, topology, springs, scratch, steps, run, keep):
             theta, force = spring_force(l, eta[e] if THERMAL else 0.0, rest, P, c)
             s[e] = force
             bad += outside_admissible(l, rest, force, theta, stretch_min, stretch_max)
+            if THERMAL and ((CLOSING and keep) or CONDUCTION):  # conduction sweeps start from θ
+                theta_keep[e] = theta
             if CLOSING:
-                if THERMAL and keep:
-                    theta_keep[e] = theta
                 if want_sums:
                     energy_buf[e] = spring_energy(l, eta[e] if THERMAL else 0.0, theta, rest, P, c)
             if THERMAL and track_phi:
@@ -334,7 +348,7 @@ def _apply_flow(slot, effects, tau, t, x, p, phi, eta):
         flow_pass_3(effects[3], tau, t, x, p, phi, eta)
 
 
-def _advance(state, scratch, topology, springs, nodes, table, effects, run):
+def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run):
     """Advance ``state`` (x, p, Φ in place; η too where a sub-flow changes it) by ``run.n_steps``
     steps of the schedule ``table`` (a :class:`~thermonet.integrators.schedule.StageTable`).
 
@@ -349,6 +363,10 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, run):
     states (see the module docstring); then ``x`` holds the positions where it was found and only
     the first ``steps completed`` steps are known good (x, p, Φ are mid-step: rewind and replay).
     ``summed``: the sums were written (a schedule without a closing kick writes none).
+
+    Heat-flow rows (CONDUCTION, WAVES: :class:`~thermonet.kernels.records.Heat`) sweep from the
+    springs' temperatures in theta_keep, valid after a spring pass not followed by a drift or
+    after a conduction sweep; otherwise a temperature pass computes them first.
     """
     x = state.x
     p = state.p
@@ -364,11 +382,24 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, run):
     nxt = x_buf
     swaps = 0
     pending = 0.0
+    theta_valid = False
     for step in range(n_steps):
         for r in range(n_rows):
             if codes[r] >= 0:
                 apply_flow(codes[r], effects, table.kick[r] * h, run.t0 + (step + table.drift[r]) * h,
                            cur, p, phi, eta)
+                theta_valid = False
+                continue
+            if codes[r] <= -2:
+                if WAVES and codes[r] == -4:
+                    wave_sweep(heat, phi, eta, table.kick[r] * h)
+                    theta_valid = False
+                elif CONDUCTION and codes[r] >= -3:
+                    if not theta_valid:
+                        temperature_pass(cur, eta, topology, springs, scratch.theta_keep)
+                    conduction_sweep(heat, scratch.theta_keep, eta, table.kick[r] * h,
+                                     run.t0 + (step + table.drift[r]) * h, codes[r] == -3)
+                    theta_valid = True
                 continue
             k1 = pending if r == 0 else 0.0
             k2 = table.kick[r]
@@ -380,11 +411,14 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, run):
                     thermal_kick(phi, scratch.theta_keep, k2 * h)
             elif with_force:
                 bad = spring_pass(cur, eta, phi, topology, springs, scratch, (k1 * h, k2 * h), run, False)[0]
+                theta_valid = table.drift[r] == 0.0
                 if bad > 0:
                     if swaps % 2 == 1:
                         copy_rows(x_buf, x)
                     # positions at row 0 are the end of the previous step: that step was the bad one
                     return (step - 1 if r == 0 and step > 0 else step), True, False
+            if table.drift[r] != 0.0:
+                theta_valid = False
             if reuse:
                 boundary_node_pass(cur, nxt, p, topology, nodes, scratch, steps, 2, False)
             else:

@@ -184,7 +184,7 @@ def material_parameters(scene: Scene, net: Net, model) -> tuple[dict, np.ndarray
         material_id[springs] = i
         for k, v in params.items():
             if k != "model":
-                values[k][springs] = v
+                values.setdefault(k, np.zeros(m))[springs] = v  # transport parameters default to 0
     for p, arr in values.items():
         if np.isnan(arr).any():
             e = int(np.flatnonzero(np.isnan(arr))[0])

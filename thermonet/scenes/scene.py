@@ -202,6 +202,7 @@ def check(scene: Scene) -> None:
         raise scene.error(f"materials.{second}.model",
                           f"a run uses one model, but the scene names several ({listing}); "
                           "per-region materials are per-region parameter values of one model")
+    from ..heat.parameters import TRANSPORT_PARAMETERS
     from ..models import get_model
 
     model = get_model(next(iter(models), "hencky"))
@@ -209,8 +210,13 @@ def check(scene: Scene) -> None:
         for k, v in params.items():
             if k == "model":
                 continue
+            if k in TRANSPORT_PARAMETERS:
+                if not v >= 0:
+                    raise scene.error(f"materials.{region}.{k}", f"must be ≥ 0, got {v:g}")
+                continue
             if k not in model.parameters:
                 raise scene.error(f"materials.{region}.{k}",
-                                  f"model {model.name!r} has no parameter {k!r}; its parameters: {', '.join(model.parameters)}")
+                                  f"model {model.name!r} has no parameter {k!r}; its parameters: {', '.join(model.parameters)} "
+                                  f"(and the heat-flow ones: {', '.join(TRANSPORT_PARAMETERS)})")
             if k in model.positive and not v > 0:
                 raise scene.error(f"materials.{region}.{k}", f"must be > 0, got {v:g}")

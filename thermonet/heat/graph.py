@@ -1,0 +1,172 @@
+"""The conduction graph of a net: which springs exchange heat, through which conductance.
+
+Nodes are heat junctions without heat capacity (spec-heat §1.1). Eliminating junction i (a
+star–mesh transform, exact because it holds no heat) couples every pair of springs e ≠ f meeting
+at i with ``κ_ef = g_e g_f / G_i``, ``G_i = Σ_{s at i} g_s``, summed over the nodes e and f share.
+A node held at a bath temperature is not eliminated: each spring touching it exchanges with the
+bath through its own g (:func:`bath_ends`).
+
+For parallel sweeps the pairs are coloured (:func:`colour_pairs`): no two pairs of one colour
+share a spring, so a colour's exchanges run in parallel and the result does not depend on the
+thread count.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+
+
+class PairGraph(NamedTuple):
+    """Spring pairs sorted by colour.
+
+    first, second: (P,) int64 springs of each pair (first < second); kappa: (P,) conductance of
+    each pair for the weights it was built from (one column per weight: (P, W));
+    colour_ptr: (C+1,) int64, colour c is pairs colour_ptr[c]:colour_ptr[c+1].
+    """
+
+    first: np.ndarray
+    second: np.ndarray
+    kappa: np.ndarray
+    colour_ptr: np.ndarray
+
+    @property
+    def n_pairs(self) -> int:
+        return len(self.first)
+
+    @property
+    def n_colours(self) -> int:
+        return len(self.colour_ptr) - 1
+
+
+@njit(cache=True)
+def _count_pairs(inc_ptr, inc_spring, weight_sum, skip):
+    total = 0
+    for i in range(len(inc_ptr) - 1):
+        if skip[i] or weight_sum[i] <= 0.0:
+            continue
+        d = inc_ptr[i + 1] - inc_ptr[i]
+        total += d * (d - 1) // 2
+    return total
+
+
+@njit(cache=True)
+def _junction_pairs(inc_ptr, inc_spring, weights, weight_sum, skip, first, second, kappa):
+    """Every pair of springs at each eliminated junction, with g_e g_f / G_i per weight column."""
+    k = 0
+    G = np.empty(weights.shape[0])
+    for i in range(len(inc_ptr) - 1):
+        if skip[i] or weight_sum[i] <= 0.0:
+            continue
+        lo = inc_ptr[i]
+        hi = inc_ptr[i + 1]
+        for w in range(weights.shape[0]):
+            total = 0.0
+            for s in range(lo, hi):
+                total += weights[w, inc_spring[s]]
+            G[w] = total
+        for u in range(lo, hi):
+            for v in range(u + 1, hi):
+                e = inc_spring[u]
+                f = inc_spring[v]
+                first[k] = min(e, f)
+                second[k] = max(e, f)
+                for w in range(weights.shape[0]):
+                    kappa[k, w] = weights[w, e] * weights[w, f] / G[w] if G[w] > 0.0 else 0.0
+                k += 1
+    return k
+
+
+@njit(cache=True)
+def _greedy_colours(first, second, n_springs):
+    """The smallest colour free at both springs, pair by pair (at most 2Δ − 1 colours for a
+    spring pair degree Δ). Colours of each spring kept as bit masks of 64 colours per word."""
+    n = len(first)
+    colour = np.empty(n, dtype=np.int64)
+    words = 1
+    used = np.zeros((n_springs, words), dtype=np.uint64)
+    for k in range(n):
+        e = first[k]
+        f = second[k]
+        c = -1
+        w = 0
+        while c < 0:
+            if w == words:  # grow the masks by one word
+                grown = np.zeros((n_springs, words + 1), dtype=np.uint64)
+                grown[:, :words] = used
+                used = grown
+                words += 1
+            free = ~(used[e, w] | used[f, w])
+            if free != 0:
+                bit = 0
+                while (free >> np.uint64(bit)) & np.uint64(1) == 0:
+                    bit += 1
+                c = 64 * w + bit
+            else:
+                w += 1
+        mask = np.uint64(1) << np.uint64(c - 64 * (c // 64))
+        used[e, c // 64] |= mask
+        used[f, c // 64] |= mask
+        colour[k] = c
+    return colour
+
+
+def colour_pairs(first: np.ndarray, second: np.ndarray, n_springs: int) -> np.ndarray:
+    """(P,) int64 colour of each pair: no two pairs of one colour share a spring."""
+    if len(first) == 0:
+        return np.empty(0, dtype=np.int64)
+    return _greedy_colours(first.astype(np.int64), second.astype(np.int64), int(n_springs))
+
+
+def pair_graph(layout, weights: np.ndarray, junction: np.ndarray | None = None) -> PairGraph:
+    """The coloured spring pairs of the junctions of ``layout`` (internal numbering).
+
+    weights: (W, m) per-spring conductances (g, and g* for thermal waves; a pair is kept when any
+    column couples it); junction: (n,) bool, the nodes to eliminate (default all; bath nodes are
+    not junctions). Pairs meeting at several junctions (parallel springs) are merged, their κ
+    summed.
+    """
+    weights = np.ascontiguousarray(np.atleast_2d(weights), dtype=np.float64)
+    n, m = layout.n_nodes, layout.n_springs
+    skip = np.zeros(n, dtype=np.bool_) if junction is None else ~np.asarray(junction, dtype=np.bool_)
+    inc_ptr = layout.inc_ptr.astype(np.int64)
+    inc_spring = layout.inc_spring.astype(np.int64)
+    node_of = np.repeat(np.arange(n), np.diff(inc_ptr))
+    weight_sum = np.zeros(n)
+    np.add.at(weight_sum, node_of, weights.sum(axis=0)[inc_spring])
+    total = _count_pairs(inc_ptr, inc_spring, weight_sum, skip)
+    first = np.empty(total, dtype=np.int64)
+    second = np.empty(total, dtype=np.int64)
+    kappa = np.empty((total, weights.shape[0]))
+    _junction_pairs(inc_ptr, inc_spring, weights, weight_sum, skip, first, second, kappa)
+    keep = kappa.max(axis=1, initial=0.0) > 0.0
+    first, second, kappa = first[keep], second[keep], kappa[keep]
+    key = first * m + second
+    order = np.argsort(key, kind="stable")
+    key, first, second, kappa = key[order], first[order], second[order], kappa[order]
+    starts = np.flatnonzero(np.r_[True, key[1:] != key[:-1]]) if len(key) else np.empty(0, dtype=np.int64)
+    if len(starts) < len(key):
+        kappa = np.add.reduceat(kappa, starts, axis=0)
+        first, second = first[starts], second[starts]
+    colour = colour_pairs(first, second, m)
+    order = np.argsort(colour, kind="stable")
+    n_colours = int(colour.max()) + 1 if len(colour) else 0
+    colour_ptr = np.zeros(n_colours + 1, dtype=np.int64)
+    colour_ptr[1:] = np.cumsum(np.bincount(colour, minlength=n_colours))
+    return PairGraph(np.ascontiguousarray(first[order]), np.ascontiguousarray(second[order]),
+                     np.ascontiguousarray(kappa[order]), colour_ptr)
+
+
+def bath_ends(layout, bath_of_node: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(spring, bath) of every spring end on a bath node, sorted by spring: (B,) int64 each.
+    bath_of_node: (n,) int64, the bath holding each node (−1: none)."""
+    edges = layout.edges.astype(np.int64)
+    springs, ends = np.nonzero(bath_of_node[edges] >= 0)
+    return springs.astype(np.int64), bath_of_node[edges[springs, ends]].astype(np.int64)
+
+
+def pairs_per_spring(graph: PairGraph, n_springs: int) -> float:
+    """Mean number of pairs a spring belongs to (2 P / m)."""
+    return 2.0 * graph.n_pairs / max(n_springs, 1)

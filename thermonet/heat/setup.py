@@ -1,0 +1,234 @@
+"""Heat flow as a run sets it up: conduction, thermal waves, baths and sources (spec-heat §1–2).
+
+Users give :class:`Bath` and :class:`Source` records (or mappings with the same keys) and the
+transport parameters ``g``, ``g_star`` (:mod:`thermonet.heat.parameters`); :func:`build_heat`
+checks them against the net and the model and returns the :class:`HeatSetup` a stepper runs, in
+the engine's internal numbering.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Mapping
+
+import numpy as np
+
+from ..errors import InputError
+from ..kernels.heat_flow import BATH, SOURCE
+from ..kernels.records import Heat
+from ..timefunctions import TimeFunction, pack, time_function
+from .graph import PairGraph, bath_ends, pair_graph
+
+
+@dataclass(frozen=True)
+class Bath:
+    """A node group held at temperature θ_b(t) > 0: every spring touching one of its nodes
+    exchanges heat with it through its conductance g. group: a node group name of the net, or
+    node indices; temperature: a number or a :class:`~thermonet.timefunctions.TimeFunction`
+    (or a mapping of one, see :func:`~thermonet.timefunctions.time_function`)."""
+
+    group: object
+    temperature: object
+
+
+@dataclass(frozen=True)
+class Source:
+    """A spring group receiving power P(t) per spring (heat per time; negative: a sink). group:
+    a spring group name of the net (a material region), or spring indices."""
+
+    group: object
+    power: object
+
+
+@dataclass(eq=False)
+class HeatSetup:
+    """What the kernels need for heat flow, internal numbering.
+
+    conduction, waves: which flows run. graph: the coloured pairs, kappa (P, 2): κ from g and
+    k* from g*. capacity: (m,) C per spring. names: the baths' then the sources' names;
+    functions: their time functions (same order). Entries (E,) sorted by spring:
+    entry_spring, entry_kind (BATH/SOURCE), entry_fn (index into functions and names),
+    entry_rate (g/C of a bath end). bath_nodes: (n,) int64 bath of each node (−1 none).
+    conductance, wave_conductance: (m,) g and g*; n_baths: the first n_baths names are baths.
+    """
+
+    conduction: bool
+    waves: bool
+    graph: PairGraph
+    capacity: np.ndarray
+    names: list
+    functions: list
+    entry_spring: np.ndarray
+    entry_kind: np.ndarray
+    entry_fn: np.ndarray
+    entry_rate: np.ndarray
+    bath_nodes: np.ndarray
+    conductance: np.ndarray
+    wave_conductance: np.ndarray
+    n_baths: int
+
+    def new_logs(self) -> dict:
+        """Zeroed logs: produced (m,), entry_heat (E,), entry_flux (E,)."""
+        return {"produced": np.zeros(len(self.capacity)), "entry_heat": np.zeros(len(self.entry_spring)),
+                "entry_flux": np.zeros(len(self.entry_spring))}
+
+    def factor(self, tau: float) -> np.ndarray:
+        """(P,) each pair's exchange factor c_r (1 − exp(−κ τ / c_r)) for a sweep over τ."""
+        cached = self.__dict__.setdefault("_factors", {})
+        if tau not in cached:
+            g = self.graph
+            ce, cf = self.capacity[g.first], self.capacity[g.second]
+            reduced = ce * cf / (ce + cf)
+            cached.clear()
+            cached[tau] = np.ascontiguousarray(-reduced * np.expm1(-g.kappa[:, 0] * tau / reduced))
+        return cached[tau]
+
+    def record(self, tau: float, logs: dict) -> Heat:
+        """The kernels' :class:`~thermonet.kernels.records.Heat` for conduction sweeps over τ,
+        logging into ``logs`` (:meth:`new_logs`, kept in the state)."""
+        cached = self.__dict__.get("_static")
+        if cached is None:
+            spring = self.entry_spring
+            bound, starts = np.unique(spring, return_index=True)
+            ptr = np.append(starts, len(spring)).astype(np.int64)
+            packed = pack(self.functions) if self.functions else pack([TimeFunction.constant(0.0)])
+            cached = (bound.astype(np.int64), ptr, packed)
+            self.__dict__["_static"] = cached
+        bound, ptr, packed = cached
+        g = self.graph
+        return Heat(g.first, g.second, self.factor(tau) if self.conduction else g.kappa[:, 0],
+                    np.ascontiguousarray(g.kappa[:, 1]), g.colour_ptr, self.capacity, 1.0 / self.capacity,
+                    bound, ptr, self.entry_kind, self.entry_fn, self.entry_rate, *packed,
+                    logs["produced"], logs["entry_heat"], logs["entry_flux"])
+
+
+def _named(spec, where: str, kind):
+    if isinstance(spec, kind):
+        return spec
+    if isinstance(spec, Mapping):
+        keys = {"group", "temperature"} if kind is Bath else {"group", "power"}
+        unknown = set(spec) - keys
+        missing = keys - set(spec)
+        if unknown or missing:
+            raise InputError(f"{where}: expected keys {sorted(keys)}"
+                             + (f"; unknown {sorted(unknown)}" if unknown else "")
+                             + (f"; missing {sorted(missing)}" if missing else ""))
+        return kind(**spec)
+    raise InputError(f"{where}: expected a {kind.__name__} or a table with keys group and "
+                     f"{'temperature' if kind is Bath else 'power'}, got {spec!r}")
+
+
+def _members(group, groups: dict, count: int, where: str, what: str) -> np.ndarray:
+    if isinstance(group, str):
+        if group not in groups:
+            known = ", ".join(sorted(groups)) or "none"
+            raise InputError(f"{where}.group: the net has no {what} group {group!r} ({what} groups: {known})")
+        idx = np.asarray(groups[group], dtype=np.int64)
+    else:
+        try:
+            idx = np.asarray(group, dtype=np.int64).reshape(-1)
+        except (TypeError, ValueError):
+            raise InputError(f"{where}.group: expected a {what} group name or {what} indices, got {group!r}") from None
+        bad = (idx < 0) | (idx >= count)
+        if bad.any():
+            raise InputError(f"{where}.group: {what} index {int(idx[bad][0])} out of range (0..{count - 1})")
+    if len(idx) == 0:
+        raise InputError(f"{where}.group: the group has no {what}s")
+    return idx
+
+
+def _lowest(f: TimeFunction) -> float:
+    """The smallest value f takes for t ≥ 0."""
+    if f.kind == "constant":
+        return f.params[0]
+    if f.kind == "linear":
+        return f.params[0] if f.params[1] >= 0.0 else -np.inf
+    if f.kind == "ramp":
+        return min(f.params[0], f.params[1])
+    if f.kind == "sine":
+        return f.params[3] - abs(f.params[0])
+    return float(np.min(f.values))
+
+
+def build_heat(net, layout, model, P_user, transport: dict, *, thermal: bool, conduction, waves, baths,
+               sources) -> HeatSetup | None:
+    """The :class:`HeatSetup` of a run, or None when no heat flow is asked for.
+
+    transport: the user's ``g`` / ``g_star`` (user numbering, see
+    :func:`~thermonet.heat.parameters.transport_array`); conduction, waves: on, off, or None
+    (on when ``g`` / ``g_star`` is given); baths, sources: name -> :class:`Bath` /
+    :class:`Source` (or mappings). Errors name the key.
+    """
+    from .parameters import transport_array
+
+    m, n = net.n_springs, net.n_nodes
+    baths = dict(baths or {})
+    sources = dict(sources or {})
+    conduction = ("g" in transport) if conduction is None else bool(conduction)
+    waves = ("g_star" in transport) if waves is None else bool(waves)
+    if not (conduction or waves):
+        if baths or sources:
+            raise InputError(f"{'baths' if baths else 'sources'} need conduction on (conduction=True, scene: "
+                             "effects.conduction = true) and a conductance g")
+        return None
+    if not thermal:
+        raise InputError(f"{'conduction' if conduction else 'thermal waves'} needs thermal coupling on "
+                         "(thermal=True, scene: effects.thermal = true)")
+    if (baths or sources) and not conduction:
+        raise InputError("baths and sources need conduction on (conduction=True, scene: effects.conduction = true)")
+    if "C0" not in model.parameters:
+        raise InputError(f"heat flow needs a model with a constant heat capacity (parameter C0); model "
+                         f"{model.name!r} has parameters {', '.join(model.parameters)}")
+    for key, on in (("g", conduction), ("g_star", waves)):
+        if on and key not in transport:
+            raise InputError(f"{'conduction' if key == 'g' else 'thermal waves'} is on but no conductance "
+                             f"{key!r} is given (parameters, scene: a material region's {key} = ...)")
+    g_user = transport_array("g", transport.get("g", 0.0), m) if conduction else np.zeros(m)
+    gs_user = transport_array("g_star", transport.get("g_star", 0.0), m) if waves else np.zeros(m)
+    capacity_user = P_user[model.parameter_index("C0")]
+
+    bath_of_node_user = np.full(n, -1, dtype=np.int64)
+    names, functions = [], []
+    for i, (name, spec) in enumerate(baths.items()):
+        where = f"baths.{name}"
+        bath = _named(spec, where, Bath)
+        nodes = _members(bath.group, net.node_groups, n, where, "node")
+        f = time_function(bath.temperature, f"{where}.temperature")
+        if not _lowest(f) > 0.0:
+            raise InputError(f"{where}.temperature: a bath temperature must stay > 0, but it reaches {_lowest(f):g}")
+        taken = bath_of_node_user[nodes] >= 0
+        if taken.any():
+            a = int(nodes[taken][0])
+            raise InputError(f"{where}.group: node {a} is already in bath {names[bath_of_node_user[a]]!r}")
+        bath_of_node_user[nodes] = i
+        names.append(name)
+        functions.append(f)
+    source_springs = []
+    for name, spec in sources.items():
+        where = f"sources.{name}"
+        source = _named(spec, where, Source)
+        source_springs.append(layout.spring_rank[_members(source.group, net.spring_groups, m, where, "spring")])
+        names.append(name)
+        functions.append(time_function(source.power, f"{where}.power"))
+
+    g = np.ascontiguousarray(layout.springs_to_internal(g_user))
+    g_star = np.ascontiguousarray(layout.springs_to_internal(gs_user))
+    capacity = np.ascontiguousarray(layout.springs_to_internal(capacity_user))
+    bath_nodes = np.ascontiguousarray(layout.nodes_to_internal(bath_of_node_user))
+    graph = pair_graph(layout, np.vstack([g, g_star]), junction=bath_nodes < 0)
+
+    spring_b, bath_b = bath_ends(layout, bath_nodes)
+    keep = g[spring_b] > 0.0
+    spring_b, bath_b = spring_b[keep], bath_b[keep]
+    spring_s = np.concatenate(source_springs) if source_springs else np.empty(0, dtype=np.int64)
+    fn_s = (np.concatenate([np.full(len(s), len(baths) + j) for j, s in enumerate(source_springs)])
+            if source_springs else np.empty(0, dtype=np.int64))
+    spring = np.concatenate([spring_b, spring_s]).astype(np.int64)
+    kind = np.concatenate([np.full(len(spring_b), BATH), np.full(len(spring_s), SOURCE)]).astype(np.int64)
+    fn = np.concatenate([bath_b, fn_s]).astype(np.int64)
+    rate = np.where(kind == BATH, g[spring] / capacity[spring], 0.0)
+    order = np.argsort(spring, kind="stable")
+    return HeatSetup(conduction, waves, graph, capacity, names, functions,
+                     np.ascontiguousarray(spring[order]), np.ascontiguousarray(kind[order]),
+                     np.ascontiguousarray(fn[order]), np.ascontiguousarray(rate[order]), bath_nodes, g, g_star,
+                     len(baths))

@@ -1,0 +1,91 @@
+"""Heat flow around any adiabatic integrator.
+
+Explicit splittings run conduction and thermal waves as rows of their own schedule
+(:meth:`~thermonet.integrators.splitting.Splitting.with_heat`, compiled into the fused kernel).
+Every other stepper (the implicit ones) is wrapped by :class:`ConductionAround`:
+``K_f(h/2) ∘ A(h) ∘ K_r(h/2)`` per step, the sweeps compiled
+(:func:`thermonet.kernels.heat_passes.heat_kernels`), the step A the stepper's own.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import InputError
+from ..integrators.base import StepFailure, Stepper
+from ..kernels import records
+
+
+def integrator_with_heat(integrator, heat, backend: str):
+    """The integrator a run with heat flow uses: an explicit splitting with the heat rows in its
+    schedule; an implicit integrator as it is (its stepper is wrapped), which supports
+    conduction but not thermal waves."""
+    if backend != "cpu":
+        raise InputError(f"heat flow (conduction, baths, sources, thermal waves) runs on the cpu backend; "
+                         f"backend {backend!r} does not support it yet")
+    if getattr(integrator, "explicit", False):
+        return integrator.with_heat(heat.conduction, heat.waves)
+    if heat.waves:
+        raise InputError(f"thermal waves (g_star) run with the explicit splittings (co2, co4, co6); "
+                         f"{integrator.name} is implicit")
+    return integrator
+
+
+class ConductionAround(Stepper):
+    """``K_f(h/2) ∘ inner(h) ∘ K_r(h/2)`` per step, for a stepper without heat rows of its own."""
+
+    def __init__(self, inner: Stepper, system, parallel: bool = False):
+        from ..kernels.heat_passes import heat_kernels
+
+        self.inner = inner
+        self.system = system
+        self.heat = system.heat
+        P, uniform = system.kernel_parameters
+        self._temperature_pass, self._sweep = heat_kernels(system.model, parallel, uniform)
+        self._topology = records.topology(system.layout)
+        self._springs = records.Springs(system.rest_lengths, P)
+        self._theta = np.empty(system.n_springs)
+
+    def _conduct(self, state, tau: float, t: float, reverse: bool) -> None:
+        from ..integrators.splitting import heat_logs
+
+        record = self.heat.record(tau, heat_logs(state, self.heat))
+        self._temperature_pass(state.positions, state.entropy, self._topology, self._springs, self._theta)
+        self._sweep(record, self._theta, state.entropy, tau, t, reverse)
+
+    def advance(self, state, n_steps: int, h: float, measure: bool = False):
+        """``n_steps`` steps; on a failed step the state is restored to the step's start (η and
+        the logs included) and the StepFailure says how many steps were done."""
+        from ..integrators.splitting import heat_logs
+
+        stats = None
+        step0, t0 = state.step, state.time
+        for i in range(int(n_steps)):
+            t = t0 + i * h
+            eta = state.entropy.copy()
+            logs = {k: v.copy() for k, v in heat_logs(state, self.heat).items()}
+            state.step, state.time = step0 + i, t
+            self._conduct(state, 0.5 * h, t, False)
+            try:
+                stats = self.inner.advance(state, 1, h)
+            except StepFailure as exc:
+                np.copyto(state.entropy, eta)
+                for k, v in logs.items():
+                    np.copyto(state.extra["heat"][k], v)
+                state.step, state.time = step0, t0
+                raise StepFailure(str(exc), steps_done=i, details=exc.details) from None
+            self._conduct(state, 0.5 * h, t0 + (i + 1) * h, True)
+        state.step, state.time = step0, t0
+        return stats
+
+    def diagnostics_row(self, system, state):
+        return self.inner.diagnostics_row(system, state)
+
+    def sync(self, state) -> None:
+        self.inner.sync(state)
+
+    def summary(self):
+        return self.inner.summary()
+
+    def __getattr__(self, name):
+        return getattr(self.inner, name)

@@ -1,0 +1,101 @@
+"""The CPU passes of the heat-flow rows (templates compiled per model by
+:func:`thermonet.kernels.splitting.splitting_kernels` and :func:`heat_kernels`).
+
+A conduction row is a sweep: the boundary entries (baths, sources: parallel over their
+springs), then the pair colours in order, each colour's pairs in parallel (they share no
+spring); the reverse sweep runs the colours backwards and the boundary entries last, so that
+``K_f(h/2) ∘ A(h) ∘ K_r(h/2)`` is symmetric. Each element is computed by one thread with a fixed
+order, so results do not depend on the thread count.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from . import heat_flow
+from .specialize import kernel_namespace, model_fingerprint, rebind, specialize
+
+# Bound per kernel variant (see thermonet.kernels.splitting).
+pair_exchange = boundary_exchange = wave_exchange = spring_temperature = squared_length = None
+UNIFORM = False
+
+_OPTIONS = dict(cache=True, error_model="numpy", boundscheck=False)
+
+
+def bind_heat_flow(ns: dict, tag: str, compile_) -> None:
+    """Bind :mod:`thermonet.kernels.heat_flow`'s functions into the kernel namespace ``ns``,
+    each compiled by ``compile_`` (the time functions' ``evaluate`` with it)."""
+    from ..timefunctions import evaluate_py
+
+    ns["evaluate"] = compile_(evaluate_py)
+    for name in heat_flow.SHARED:
+        ns[name] = compile_(rebind(getattr(heat_flow, name), tag, ns))
+
+
+def bind_heat_passes(ns: dict, tag: str, parallel: bool) -> None:
+    """Compile the passes below into ``ns`` (which must hold the model, subflows and heat_flow
+    bindings)."""
+    ns["temperature_pass"] = specialize(_temperature_pass, tag, ns, parallel=parallel, **_OPTIONS)
+    ns["conduction_sweep"] = specialize(_conduction_sweep, tag, ns, parallel=parallel, **_OPTIONS)
+    ns["wave_sweep"] = specialize(_wave_sweep, tag, ns, parallel=parallel, **_OPTIONS)
+
+
+def _temperature_pass(x, eta, topology, springs, theta):
+    """theta[e] = θ(l_e, η_e) at positions x, per spring."""
+    edges = topology.edges
+    for e in prange(edges.shape[0]):
+        eu = np.uint64(e)
+        c = np.uint64(0) if UNIFORM else eu
+        l = math.sqrt(squared_length(x, edges, eu))
+        theta[e] = spring_temperature(l, eta[e], springs.rest[eu], springs.P, c)
+
+
+def _conduction_sweep(heat, theta, eta, tau, t, reverse):
+    """One conduction sweep over τ at time t (see the module docstring); theta must hold the
+    springs' temperatures at the current positions, and is kept so."""
+    ptr = heat.colour_ptr
+    n_colours = ptr.shape[0] - 1
+    if not reverse:
+        for j in prange(heat.bound_spring.shape[0]):
+            boundary_exchange(j, heat, tau, t, False, theta, eta)
+    for i in range(n_colours):
+        colour = n_colours - 1 - i if reverse else i
+        for k in prange(ptr[colour], ptr[colour + 1]):
+            pair_exchange(k, heat.first, heat.second, heat.factor, heat.capacity, heat.inv_capacity, theta, eta,
+                          heat.produced)
+    if reverse:
+        for j in prange(heat.bound_spring.shape[0]):
+            boundary_exchange(j, heat, tau, t, True, theta, eta)
+
+
+def _wave_sweep(heat, phi, eta, tau):
+    """The Green–Naghdi flow over τ, colour by colour (total entropy exact)."""
+    ptr = heat.colour_ptr
+    for colour in range(ptr.shape[0] - 1):
+        for k in prange(ptr[colour], ptr[colour + 1]):
+            wave_exchange(k, heat.first, heat.second, heat.wave, tau, phi, eta)
+
+
+_CACHE: dict = {}
+
+
+def heat_kernels(model, parallel: bool, uniform: bool):
+    """(temperature_pass, conduction_sweep) for steppers that run conduction around their own
+    steps (the implicit ones): ``temperature_pass(x, eta, topology, springs, theta)``,
+    ``conduction_sweep(heat, theta, eta, tau, t, reverse)``."""
+    from .splitting import bind_subflows
+
+    key = (model_fingerprint(model), bool(parallel), bool(uniform))
+    if key not in _CACHE:
+        tag = (f"{model.name}_{key[0]}_{'par' if parallel else 'ser'}{'_uniform' if uniform else ''}"
+               f"_h{heat_flow.source_digest()}")
+        ns = kernel_namespace(model, True, uniform)
+        inline = njit(inline="always", error_model="numpy", boundscheck=False)
+        bind_subflows(ns, tag, inline)
+        bind_heat_flow(ns, tag, inline)
+        bind_heat_passes(ns, tag, parallel)
+        _CACHE[key] = (ns["temperature_pass"], ns["conduction_sweep"])
+    return _CACHE[key]
