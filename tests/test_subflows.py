@@ -34,10 +34,19 @@ def test_a_flow_around_a_step_gets_rows_at_both_ends_and_no_shared_kick():
     assert table.carry == 0.0
 
 
+def test_a_composition_with_flows_keeps_them_in_every_substep():
+    flow = push([0], [1.0, 0.0, 0.0])
+    table = compose(CO2.with_flow(flow, 0.5), (0.25, 0.75), "x", 2, "").table
+    # substeps' kicks stay apart (a zero drift), each substep's flows scaled by its γ
+    assert rows(table) == [(0, 0.125, 0.0), (STAGE, 0.125, 0.25), (STAGE, 0.125, 0.0),
+                           (0, 0.125, 0.25), (0, 0.375, 0.25), (STAGE, 0.375, 0.75), (STAGE, 0.375, 0.0),
+                           (0, 0.375, 1.0)]
+
+
 def test_schedule_errors_name_the_problem():
     flow = push([0], [1.0, 0.0, 0.0])
-    with pytest.raises(ValueError, match="compose the splitting without them"):
-        compose(CO2.with_flow(flow), (0.5, 0.5), "x", 2, "")
+    with pytest.raises(ValueError, match="cannot run backwards"):
+        compose(CO2.with_heat(True, False), (0.5, 0.5), "x", 2, "")
     many = tuple((0, SubFlow(f"f{i}", flow.update, flow.prepare), 1.0) for i in range(MAX_FLOWS + 1))
     with pytest.raises(ValueError, match=f"at most {MAX_FLOWS} distinct sub-flows"):
         stage_table(CO2.kicks, CO2.drifts, many)

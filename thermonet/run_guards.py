@@ -202,11 +202,14 @@ def energy_departure(rows: list, tolerance: float | None) -> float | None:
     if tolerance is None or len(rows) < 2:
         return None
     e0, e = rows[0]["energy"], rows[-1]["energy"]
-    if "energy_balance" in rows[-1]:  # heat flows in or out: the balance is what must hold
-        e = e0 + rows[-1]["energy_balance"]
-    if abs(e - e0) <= tolerance * max(abs(e0), np.finfo(float).tiny):
+    scale = abs(e0)
+    if "energy_balance" in rows[-1]:  # heat flows in or out: the balance is what must hold,
+        last = rows[-1]                # against the energy that moved as well as H(0)
+        scale = max(scale, abs(e - e0), abs(last["heat_in"] - rows[0]["heat_in"]))
+        e = e0 + last["energy_balance"]
+    if abs(e - e0) <= tolerance * max(scale, np.finfo(float).tiny):
         return None
-    return abs(e - e0) / max(abs(e0), 1e-300)
+    return abs(e - e0) / max(scale, 1e-300)
 
 
 def broken_conservation(sim, energy_tolerance: float | None = None) -> list[str]:

@@ -13,7 +13,7 @@ def format_summary(sim, scene: str, out: str | None = None) -> str:
         f"  ran {run['steps']} steps to t = {sim.time:.6g} in {run['wall_time_s']:.3g} s "
         f"({run['steps_per_s']:.4g} steps/s, {run['spring_steps_per_s']:.4g} spring-steps/s)"
         + (f", after {run['compile_s']:.3g} s compiling kernels" if run.get("compile_s", 0) >= 0.05 else ""),
-        f"  {'quantity':<10} {'initial':>22} {'max |deviation|':>16} {'relative':>10}",
+        f"  {'quantity':<15} {'initial':>17} {'max |deviation|':>16} {'relative':>10}",
     ]
     if "newton" in run:
         nw = run["newton"]
@@ -23,7 +23,7 @@ def format_summary(sim, scene: str, out: str | None = None) -> str:
                         + f", final scaled residual <= {nw['residual_max']:.2e}, {nw['retried_steps']} retried steps")
     for name, v in s.items():
         flag = "" if name in conserved else "   (not conserved here)"
-        lines.append(f"  {name:<10} {v['initial']:>22.15g} {v['max_deviation']:>16.3e} {v['relative']:>10.2e}{flag}")
+        lines.append(f"  {name:<15} {v['initial']:>17.15g} {v['max_deviation']:>16.3e} {v['relative']:>10.2e}{flag}")
     if out:
         lines.append(f"  diagnostics written to {out}")
     return "\n".join(lines)
@@ -32,6 +32,11 @@ def format_summary(sim, scene: str, out: str | None = None) -> str:
 def conserved_quantities(sim) -> set[str]:
     """Which diagnostics the exact flow conserves for this net (momenta depend on anchors/gravity)."""
     names = {"energy", "entropy"}
+    heat = sim.system.heat
+    if heat is not None:  # heat flows: the balances hold; energy too when no heat enters or leaves
+        names = {"energy_balance", "entropy_balance"} | ({"energy"} if not heat.names else set())
+        if not heat.conduction:  # thermal waves alone are Hamiltonian: entropy is conserved
+            names.add("entropy")
     anchored = bool(sim.net.anchored.any())
     gravity = sim.system.gravity is not None
     if not anchored and not gravity:

@@ -11,6 +11,7 @@ import numpy as np
 
 from ..builders import chain, from_meshio, lattice, read_meshio, triangle
 from ..errors import InputError
+from ..heat.setup import Bath, Source
 from ..models import get_model
 from ..net import Net
 from .scene import Scene
@@ -65,9 +66,17 @@ def build_scene(scene: Scene) -> BuiltScene:
             stretch_bounds=tuple(integ["stretch_bounds"]),
             energy_tolerance=integ["energy_tolerance"] or None,
             stability_guard="stop" if integ["check_step"] else "warn",
+            conduction=d["effects"]["conduction"],
+            thermal_waves=d["effects"]["thermal_waves"],
+            baths={name: Bath(b["group"], b["temperature"]) for name, b in d["baths"].items()},
+            sources={name: Source(b["group"], b["power"]) for name, b in d["sources"].items()},
         )
     except InputError as exc:
-        raise scene.error("", str(exc)) from None
+        message = str(exc)
+        if message.startswith(("baths.", "sources.")) and ": " in message:  # point at the key's line
+            key, _, rest = message.partition(": ")
+            raise scene.error(key, rest) from None
+        raise scene.error("", message) from None
     except TypeError as exc:  # an option the integrator does not take
         raise scene.error("integrator", f"integrator {integ['name']!r} does not accept these options: {exc}") from None
     return BuiltScene(scene, net, sim, material_id, names, mesh)

@@ -193,6 +193,14 @@ def check(scene: Scene) -> None:
         for f in out.get("fields") or ():
             if f in THERMAL_OUTPUTS:
                 raise scene.error("output.fields", f"field {f!r} needs effects.thermal = true")
+    for key in ("conduction", "thermal_waves"):
+        if effects[key] and not effects["thermal"]:
+            raise scene.error(f"effects.{key}", f"effects.{key} needs effects.thermal = true (heat flows between "
+                              "springs' temperatures)")
+    for table in ("baths", "sources"):
+        if d[table] and not effects["conduction"]:
+            name = next(iter(d[table]))
+            raise scene.error(f"{table}.{name}", f"{table} need effects.conduction = true")
     if out["diagnostics_every"] == 0:
         raise scene.error("output.diagnostics_every", 'must be >= 1 or "auto" (diagnostics cannot be switched off)')
     models = {r.get("model", "hencky"): region for region, r in d["materials"].items()}

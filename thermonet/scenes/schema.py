@@ -224,6 +224,19 @@ def material(v):
     return out
 
 
+def time_function_value(v):
+    """A number or a table of one time function's keys (:mod:`thermonet.timefunctions`), kept as
+    given; checked here so that an error points at the key."""
+    from ..errors import InputError
+    from ..timefunctions import time_function
+
+    try:
+        time_function(v, "value")
+    except InputError as exc:
+        raise Invalid(str(exc).replace("value: ", "", 1).replace("value.", "", 1)) from None
+    return v
+
+
 def _fail(message, path=()):
     raise Invalid(message, path)
 
@@ -337,7 +350,25 @@ SCHEMA = Table({
                        "node groups and/or node indices fixed in space (default: the net's own; [] for none)"),
         "gravity": Key(gravity, "false | [gx, gy, gz]",
                        "uniform acceleration, an added potential −Σ m g·x (energy stays conserved); false: off", None),
+        "conduction": Key(boolean, "boolean", "Fourier heat conduction between springs through their conductance "
+                          "g (a material parameter); needs thermal", False),
+        "thermal_waves": Key(boolean, "boolean", "Green–Naghdi type II thermal waves through g_star (a material "
+                             "parameter); explicit splittings only; needs thermal", False),
     }, "the physics the scene switches on; what is off is not computed"),
+    "baths": Named(Table({
+        "group": Key(string, "string", "node group held at the bath temperature", required=True),
+        "temperature": Key(time_function_value, "number > 0 | time function",
+                           "θ_b(t): a number, {start, end, duration} (ramp), {start, rate}, "
+                           "{amplitude, frequency, phase, offset} or {table = [[t, θ], ...]}", required=True),
+    }, "a heat bath"), "heat baths (need effects.conduction): every spring touching the group's nodes exchanges "
+        "heat with the bath through its g; the heat each bath gives is a diagnostics column", "<bath>"),
+    "sources": Named(Table({
+        "group": Key(string, "string", "spring group (a material region of the mesh) receiving the power",
+                     required=True),
+        "power": Key(time_function_value, "number | time function", "P(t) per spring (negative: a sink), "
+                     "same forms as a bath temperature", required=True),
+    }, "a heat source"), "heat sources (need effects.conduction); the heat each gives is a diagnostics column",
+        "<source>"),
     "integrator": Table({
         "name": Key(choice(_integrators), "string", "integrator (thermonet.available_integrators())", "co2"),
         "h": Key(number(above=0), "number > 0", "time step", required=True),
