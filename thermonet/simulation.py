@@ -34,6 +34,9 @@ from .heat.stepper import ConductionAround, integrator_with_heat
 from .integrators.splitting import heat_logs
 from .state import State
 
+#: heat-flow logs with one value per spring (stored in the user's numbering outside the engine)
+PER_SPRING_LOGS = ("produced", "theta")
+
 #: nets with at least this many springs use the multi-threaded kernels
 PARALLEL_MIN_SPRINGS = 16384
 
@@ -178,7 +181,19 @@ class Simulation(RunDriver):
             entropy=None if s.entropy is None else lay.springs_to_user(s.entropy),
             time=s.time,
             step=s.step,
+            extra=self._heat_logs_to_user(s),
         )
+
+    def _heat_logs_to_user(self, s: State) -> dict:
+        """The heat-flow logs of internal state ``s`` as a State's ``extra`` (per-spring ones in the
+        user's numbering; the bath and source entries as they are)."""
+        logs = s.extra.get("heat")
+        if logs is None:
+            return {}
+        out = {k: v.copy() for k, v in logs.items()}
+        for k in PER_SPRING_LOGS:
+            out[k] = self.layout.springs_to_user(logs[k])
+        return {"heat": out}
 
     def load_state(self, state: State) -> None:
         """Replace the current state by ``state`` (user numbering), e.g. from a checkpoint."""
@@ -200,6 +215,17 @@ class Simulation(RunDriver):
             time=float(state.time),
             step=int(state.step),
         )
+        heat = self.system.heat
+        if heat is not None:
+            logs = heat.new_logs()
+            given = (state.extra or {}).get("heat")
+            if given is not None:
+                for k, v in logs.items():
+                    a = np.asarray(given[k], dtype=np.float64)
+                    if a.shape != v.shape:
+                        raise InputError(f"the state's heat log {k!r} has shape {a.shape}, this run's has {v.shape}")
+                    v[:] = springs(a) if k in PER_SPRING_LOGS else a
+            self._state.extra["heat"] = logs
         step, time = self._state.step, self._state.time
         # a state of a run that started at t = 0 with this h keeps time = step·h exactly (resume is
         # then bit-identical); any other state starts a new time origin

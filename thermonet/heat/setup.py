@@ -68,9 +68,11 @@ class HeatSetup:
     n_baths: int
 
     def new_logs(self) -> dict:
-        """Zeroed logs: produced (m,), entry_heat (E,), entry_flux (E,)."""
+        """Zeroed logs: produced (m,), entry_heat (E,), entry_flux (E,), and the sweeps' working
+        temperatures theta (m,) with theta_ok (1,) = 0 (not valid yet)."""
         return {"produced": np.zeros(len(self.capacity)), "entry_heat": np.zeros(len(self.entry_spring)),
-                "entry_flux": np.zeros(len(self.entry_spring))}
+                "entry_flux": np.zeros(len(self.entry_spring)), "theta": np.zeros(len(self.capacity)),
+                "theta_ok": np.zeros(1)}
 
     def factor(self, tau: float) -> np.ndarray:
         """(P,) each pair's exchange factor c_r (1 − exp(−κ τ / c_r)) for a sweep over τ."""
@@ -99,7 +101,7 @@ class HeatSetup:
         return Heat(g.first, g.second, self.factor(tau) if self.conduction else g.kappa[:, 0],
                     np.ascontiguousarray(g.kappa[:, 1]), g.colour_ptr, self.capacity, 1.0 / self.capacity,
                     bound, ptr, self.entry_kind, self.entry_fn, self.entry_rate, *packed,
-                    logs["produced"], logs["entry_heat"], logs["entry_flux"])
+                    logs["produced"], logs["entry_heat"], logs["entry_flux"], logs["theta"], logs["theta_ok"])
 
 
 def _named(spec, where: str, kind):

@@ -1,5 +1,5 @@
-"""Checkpoints: the full integrator state (user numbering, exact float64), the step counter, the
-scene hash and what the outputs need to continue (diagnostics rows, frames written so far).
+"""Checkpoints: the full integrator state (user numbering, exact float64; with heat flow its logs),
+the step counter, the scene hash and what the outputs need to continue (diagnostics rows, frames written so far).
 
 A ``.npz`` file written atomically; resuming from it continues a run bit for bit.
 """
@@ -31,6 +31,8 @@ def save_checkpoint(path, state: State, meta: dict) -> None:
     if state.entropy is not None:
         arrays["entropy"] = state.entropy
         arrays["thermal_displacement"] = state.thermal_displacement
+    for key, value in (state.extra.get("heat") or {}).items():  # heat-flow logs
+        arrays[f"heat_{key}"] = value
     with atomic_write(path) as f:
         np.savez(f, **arrays)
 
@@ -60,6 +62,9 @@ def load_checkpoint(path) -> tuple[State, dict]:
                 time=float(z["time"]),
                 step=int(z["step"]),
             )
+            logs = {k[len("heat_"):]: z[k].copy() for k in z.files if k.startswith("heat_")}
+            if logs:
+                state.extra["heat"] = logs
     except Exception as exc:  # zipfile.BadZipFile, EOFError, zlib.error, OSError, ValueError, KeyError, ...
         reason = str(exc) or type(exc).__name__
         raise InputError(f"{path}: not a readable thermonet checkpoint (corrupt or truncated? {reason})") from None

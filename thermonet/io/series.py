@@ -37,15 +37,28 @@ FIELDS: dict[str, tuple[str, bool, str]] = {
     "velocity": ("point", False, "p / m, (n, 3) (0 on anchored nodes)"),
     "momentum": ("point", False, "p, (n, 3)"),
     "anchored": ("point", False, "1 on anchored nodes, else 0 (UInt8)"),
-    "node_temperature": ("point", True, "mean temperature of the springs meeting at a node, for smooth colouring"),
+    "node_temperature": ("point", True, "mean temperature of the springs meeting at a node, for smooth colouring "
+                         "(with conduction: the junction temperature Σ g θ / Σ g)"),
     "temperature": ("cell", True, "spring temperature θ(l, η)"),
     "entropy": ("cell", True, "spring entropy η"),
     "strain": ("cell", False, "logarithmic strain ln(l / l0)"),
     "tension": ("cell", False, "spring tension T = ∂F/∂l"),
     "thermal_displacement": ("cell", True, "thermal displacement Φ"),
     "material": ("cell", False, "material region id (Int32; the order of the [materials.*] tables)"),
+    "heat_rate": ("cell", True, "net heat flowing into each spring per time (conduction, baths, sources; needs "
+                  "conduction)"),
 }
 THERMAL_FIELDS = tuple(k for k, v in FIELDS.items() if v[1])
+#: fields that need conduction
+CONDUCTION_FIELDS = ("heat_rate",)
+
+
+def available_fields(sim) -> list[str]:
+    """The fields ``sim`` has: thermal ones with thermal coupling, heat_rate with conduction."""
+    heat = sim.system.heat
+    conduction = heat is not None and heat.conduction
+    return [f for f in FIELDS if (sim.system.thermal or f not in THERMAL_FIELDS)
+            and (conduction or f not in CONDUCTION_FIELDS)]
 
 
 #: stored dtype and components (0: scalar) of each field
@@ -162,7 +175,7 @@ class RunOutput:
 
         prepare_output_folder(folder, overwrite=overwrite)
         if fields is None:
-            fields = [f for f in FIELDS if sim.system.thermal or f not in THERMAL_FIELDS]
+            fields = available_fields(sim)
         unknown = [f for f in fields if f not in FIELDS]
         if unknown:
             from ..errors import InputError

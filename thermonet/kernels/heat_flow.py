@@ -51,9 +51,11 @@ def pair_exchange(k, first, second, factor, capacity, inv_capacity, theta, eta, 
     produced[e] += de + df
 
 
-def boundary_exchange(j, heat, tau, t, reverse, theta, eta):
+def boundary_exchange(j, heat, tau, t, reverse, theta, eta, logs):
     """The bath and source entries of boundary spring j (heat.bound_spring[j]), in order, or in
-    reverse order when ``reverse``, over τ at time t."""
+    reverse order when ``reverse``, over τ at time t. logs: (produced, entry_heat, entry_flux),
+    the record's arrays passed on their own (a parallel loop must not write through the record)."""
+    produced, entry_heat, entry_flux = logs
     e = heat.bound_spring[j]
     lo = heat.bound_ptr[j]
     hi = heat.bound_ptr[j + 1]
@@ -68,14 +70,14 @@ def boundary_exchange(j, heat, tau, t, reverse, theta, eta):
             heat_in = c * (te_new - te)
             ds = c * math.log(te_new / te)
             flux = heat_in / value
-            heat.produced[e] += ds - flux
+            produced[e] += ds - flux
         else:
             heat_in = value * tau
             te_new = te + heat_in * heat.inv_capacity[e]
             ds = c * math.log(te_new / te)
             flux = ds
-        heat.entry_heat[q] += heat_in
-        heat.entry_flux[q] += flux
+        entry_heat[q] += heat_in
+        entry_flux[q] += flux
         theta[e] = te_new
         eta[e] += ds
 

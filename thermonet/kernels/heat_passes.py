@@ -58,25 +58,32 @@ def _conduction_sweep(heat, theta, eta, tau, t, reverse):
     springs' temperatures at the current positions, and is kept so."""
     ptr = heat.colour_ptr
     n_colours = ptr.shape[0] - 1
+    # the arrays written in parallel loops are taken out of the record first: Numba's parallel
+    # loops lose writes made through a record's attribute
+    produced = heat.produced
+    logs = (produced, heat.entry_heat, heat.entry_flux)
+    first, second, factor = heat.first, heat.second, heat.factor
+    capacity, inv_capacity = heat.capacity, heat.inv_capacity
+    n_bound = heat.bound_spring.shape[0]
     if not reverse:
-        for j in prange(heat.bound_spring.shape[0]):
-            boundary_exchange(j, heat, tau, t, False, theta, eta)
+        for j in prange(n_bound):
+            boundary_exchange(j, heat, tau, t, False, theta, eta, logs)
     for i in range(n_colours):
         colour = n_colours - 1 - i if reverse else i
         for k in prange(ptr[colour], ptr[colour + 1]):
-            pair_exchange(k, heat.first, heat.second, heat.factor, heat.capacity, heat.inv_capacity, theta, eta,
-                          heat.produced)
+            pair_exchange(k, first, second, factor, capacity, inv_capacity, theta, eta, produced)
     if reverse:
-        for j in prange(heat.bound_spring.shape[0]):
-            boundary_exchange(j, heat, tau, t, True, theta, eta)
+        for j in prange(n_bound):
+            boundary_exchange(j, heat, tau, t, True, theta, eta, logs)
 
 
 def _wave_sweep(heat, phi, eta, tau):
     """The Green–Naghdi flow over τ, colour by colour (total entropy exact)."""
     ptr = heat.colour_ptr
+    first, second, wave = heat.first, heat.second, heat.wave
     for colour in range(ptr.shape[0] - 1):
         for k in prange(ptr[colour], ptr[colour + 1]):
-            wave_exchange(k, heat.first, heat.second, heat.wave, tau, phi, eta)
+            wave_exchange(k, first, second, wave, tau, phi, eta)
 
 
 _CACHE: dict = {}

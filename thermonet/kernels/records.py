@@ -97,7 +97,8 @@ class Heat(NamedTuple):
     1 source), entry_fn (E,) int64 the entry's time function, entry_rate (E,) g/C of a bath end;
     fn_*: the time functions (:func:`thermonet.timefunctions.pack`); produced: (m,) cumulative
     entropy produced, per spring; entry_heat, entry_flux: (E,) cumulative heat given and entropy
-    brought by each entry.
+    brought by each entry; theta: (m,) the springs' temperatures where a call ended, valid for
+    the next call when theta_ok[0] == 1 (a call continues its predecessor's sweeps bit for bit).
     """
 
     first: np.ndarray
@@ -120,6 +121,8 @@ class Heat(NamedTuple):
     produced: np.ndarray
     entry_heat: np.ndarray
     entry_flux: np.ndarray
+    theta: np.ndarray
+    theta_ok: np.ndarray
 
 
 def no_heat() -> Heat:
@@ -127,7 +130,7 @@ def no_heat() -> Heat:
     i = np.empty(0, dtype=np.int64)
     f = np.empty(0)
     return Heat(i, i, f, f, np.zeros(1, dtype=np.int64), f, f, i, np.zeros(1, dtype=np.int64), i, i, f,
-                i, np.empty((0, 4)), np.zeros(1, dtype=np.int64), f, f, f, f, f)
+                i, np.empty((0, 4)), np.zeros(1, dtype=np.int64), f, f, f, f, f, f, np.zeros(1))
 
 
 def topology(layout) -> Topology:

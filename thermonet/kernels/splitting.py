@@ -322,6 +322,13 @@ def _copy_rows(source, target):
         target[a, 2] = source[a, 2]
 
 
+@njit(inline="always", error_model="numpy", boundscheck=False)
+def _copy_values(source, target):
+    """target[:] = source for (m,) arrays."""
+    for e in range(source.shape[0]):
+        target[e] = source[e]
+
+
 def _flow_pass(data, tau, t, x, p, phi, eta):
     """One extra sub-flow over tau at time t: ``update(i, data, tau, t, x, p, phi, eta)`` for
     every element i of range(len(data[0])), in parallel."""
@@ -383,6 +390,9 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run
     swaps = 0
     pending = 0.0
     theta_valid = False
+    if CONDUCTION and heat.theta_ok[0] == 1.0:  # continue the previous call's sweeps
+        _copy_values(heat.theta, scratch.theta_keep)
+        theta_valid = True
     for step in range(n_steps):
         for r in range(n_rows):
             if codes[r] >= 0:
@@ -415,6 +425,8 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run
                 if bad > 0:
                     if swaps % 2 == 1:
                         copy_rows(x_buf, x)
+                    if CONDUCTION:
+                        heat.theta_ok[0] = 0.0
                     # positions at row 0 are the end of the previous step: that step was the bad one
                     return (step - 1 if r == 0 and step > 0 else step), True, False
             if table.drift[r] != 0.0:
@@ -426,6 +438,10 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run
             cur, nxt = nxt, cur
             swaps += 1
         pending = carry
+    if CONDUCTION:
+        if theta_valid:
+            _copy_values(scratch.theta_keep, heat.theta)
+        heat.theta_ok[0] = 1.0 if theta_valid else 0.0
     summed = False
     if pending != 0.0:
         bad, energy, theta_min, theta_max = boundary_spring_pass(cur, eta, phi, topology, springs, scratch,

@@ -18,7 +18,7 @@ from .source import SceneError, apply_overrides, key_lines, parse_toml
 #: the scene ``thermonet run`` runs when given none (a 3D truss block from meshes/)
 DEFAULT_SCENE = Path(__file__).resolve().parents[2] / "scenes" / "default.toml"
 
-THERMAL_OUTPUTS = ("temperature", "node_temperature", "entropy", "thermal_displacement")
+THERMAL_OUTPUTS = ("temperature", "node_temperature", "entropy", "thermal_displacement", "heat_rate")
 
 
 @dataclass
@@ -104,7 +104,9 @@ class Scene:
     def output_fields(self) -> list[str]:
         fields = self.data["output"].get("fields")
         if fields is None:
-            fields = [f for f in FIELD_NAMES if self.data["effects"]["thermal"] or f not in THERMAL_OUTPUTS]
+            effects = self.data["effects"]
+            fields = [f for f in FIELD_NAMES if (effects["thermal"] or f not in THERMAL_OUTPUTS)
+                      and (effects["conduction"] or f != "heat_rate")]
         return fields
 
     def describe(self) -> dict:
@@ -197,6 +199,8 @@ def check(scene: Scene) -> None:
         if effects[key] and not effects["thermal"]:
             raise scene.error(f"effects.{key}", f"effects.{key} needs effects.thermal = true (heat flows between "
                               "springs' temperatures)")
+    if "heat_rate" in (out.get("fields") or ()) and not effects["conduction"]:
+        raise scene.error("output.fields", "field 'heat_rate' needs effects.conduction = true")
     for table in ("baths", "sources"):
         if d[table] and not effects["conduction"]:
             name = next(iter(d[table]))

@@ -267,7 +267,7 @@ BACKENDS = ("cpu", "cuda")
 
 GENERATORS = ("chain", "triangle", "lattice")
 FIELD_NAMES = ("displacement", "velocity", "momentum", "anchored", "node_temperature", "temperature",
-               "entropy", "strain", "tension", "thermal_displacement", "material")
+               "entropy", "strain", "tension", "thermal_displacement", "material", "heat_rate")
 
 
 # ----------------------------------------------------------------------------------------------

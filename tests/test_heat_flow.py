@@ -1,0 +1,236 @@
+"""Fourier conduction, baths and sources (spec-heat §1): the checks of §1.5 and the issue's."""
+
+import numpy as np
+import pytest
+
+import thermonet as tn
+from thermonet.errors import InputError
+from thermonet.heat import Bath, Source
+from thermonet.heat.graph import pair_graph
+from thermonet.layout import build_layout
+
+QUIET = dict(stability_guard="off", energy_tolerance=None)
+
+
+def chain_net(n_springs: int, spacing: float = 1.0) -> tn.Net:
+    x = np.zeros((n_springs + 1, 3))
+    x[:, 0] = spacing * np.arange(n_springs + 1)
+    edges = np.column_stack([np.arange(n_springs), np.arange(1, n_springs + 1)])
+    return tn.Net(x, edges, masses=np.ones(n_springs + 1),
+                  node_groups={"left": np.array([0]), "right": np.array([n_springs])},
+                  spring_groups={"middle": np.array([n_springs // 2])})
+
+
+def test_junction_rule_on_a_star_and_the_colouring():
+    # four springs meeting at node 0, conductances 1, 2, 3, 4: κ_ef = g_e g_f / 10
+    net = tn.Net([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [-1, 0, 0]], [[0, 1], [0, 2], [0, 3], [0, 4]])
+    layout = build_layout(net, renumber=False)
+    g = np.array([1.0, 2.0, 3.0, 4.0])
+    graph = pair_graph(layout, g[None, :])
+    assert graph.n_pairs == 6
+    for a, b, k in zip(graph.first, graph.second, graph.kappa[:, 0]):
+        assert k == pytest.approx(g[a] * g[b] / g.sum())
+    ptr = graph.colour_ptr
+    for c in range(graph.n_colours):  # no spring twice in a colour
+        springs = np.r_[graph.first[ptr[c]:ptr[c + 1]], graph.second[ptr[c]:ptr[c + 1]]]
+        assert len(set(springs.tolist())) == len(springs)
+    assert graph.n_colours == 3  # K4's edges need exactly three colours
+
+
+def test_two_springs_relax_along_the_exact_exponential_with_energy_to_round_off():
+    net = chain_net(2)
+    C = np.array([5.0, 2.0])
+    sim = tn.Simulation(net, parameters=dict(c=100, beta=0.0, C0=C, theta0=300, g=0.7), temperatures=[800, 400],
+                        h=0.01, renumber=False, **QUIET)
+    d = sim.run(t_end=2.0, diagnostics_every=10)
+    kappa = 0.7 * 0.7 / 1.4  # two springs at the middle node
+    reduced = C[0] * C[1] / C.sum()
+    theta = sim.temperatures()
+    assert theta[0] - theta[1] == pytest.approx(400.0 * np.exp(-kappa * 2.0 / reduced), rel=1e-12)
+    assert (C * theta).sum() / C.sum() == pytest.approx((C[0] * 800 + C[1] * 400) / C.sum(), rel=1e-14)
+    assert np.max(np.abs(d.energy - d.energy[0])) < 1e-12 * abs(d.energy[0])
+    # the production log is the entropy gained (no baths)
+    assert d.entropy_produced[-1] == pytest.approx(d.entropy[-1] - d.entropy[0], rel=1e-12)
+
+
+def fourier_decay_rate(h: float, n_springs: int = 16, mode: int = 3, t_end: float = 2.0) -> float:
+    net = chain_net(n_springs)
+    C, g, amp = 2.0, 1.0, 1e-3
+    e = np.arange(n_springs)
+    q = np.pi * mode / n_springs
+    theta0 = 300.0 * (1 + amp * np.cos(q * (e + 0.5)))  # a Neumann eigenvector of the chain
+    sim = tn.Simulation(net, parameters=dict(c=100, beta=0.0, C0=C, theta0=300, g=g), temperatures=theta0, h=h,
+                        renumber=False, **QUIET)
+    sim.run(t_end=t_end, diagnostics_every=10 ** 6)
+    shape = np.cos(q * (e + 0.5))
+    a0 = shape @ (theta0 - 300.0)
+    a1 = shape @ (sim.temperatures() - 300.0)
+    return -np.log(a1 / a0) / t_end
+
+
+def test_a_fourier_mode_decays_at_the_lattice_rate_with_order_2():
+    q = np.pi * 3 / 16
+    exact = (2 * 0.5 / 2.0) * (1 - np.cos(q))  # κ = g/2 between neighbours, C = 2
+    hs = np.array([0.2, 0.1, 0.05])
+    errors = np.array([abs(fourier_decay_rate(h) - exact) for h in hs])
+    assert errors[-1] < 1e-3 * exact
+    slope = np.polyfit(np.log(hs), np.log(errors), 1)[0]
+    assert 1.8 < slope < 2.2, (errors, slope)
+
+
+def hot_jittered_net(seed: int = 3) -> tuple[tn.Net, np.ndarray]:
+    net = tn.lattice((3, 3, 2), neighbours=18, jitter=0.2, seed=seed)
+    rng = np.random.default_rng(seed)
+    return net, rng.uniform(300.0, 1500.0, net.n_springs)
+
+
+def test_entropy_never_decreases_and_the_production_log_is_the_entropy_gained():
+    net, theta = hot_jittered_net()
+    sim = tn.Simulation(net, parameters=dict(c=200, beta=2.0, C0=1.0, theta0=300, g=0.5), temperatures=theta,
+                        h=0.005, **QUIET)
+    d = sim.run(steps=10_000, diagnostics_every=1)
+    steps = np.diff(d.entropy)
+    assert steps.min() > -1e-12 * np.abs(d.entropy).max(), steps.min()
+    assert d.entropy[-1] - d.entropy[0] > 1.0  # it did mix
+    assert np.max(np.abs(d.entropy_balance)) < 1e-11 * abs(d.entropy[-1] - d.entropy[0])
+    # momenta of a free net stay exact
+    assert np.abs(d.linear_momentum).max() < 1e-11 and np.abs(d.angular_momentum).max() < 1e-10
+
+
+def energy_oscillation(h: float, steps: int) -> tuple[float, float]:
+    net, theta = hot_jittered_net(5)
+    sim = tn.Simulation(net, parameters=dict(c=100, beta=1.0, C0=1.0, theta0=300, g=0.3), temperatures=theta,
+                        velocities=np.random.default_rng(1).normal(0, 0.3, (net.n_nodes, 3)), h=h, **QUIET)
+    d = sim.run(steps=steps, diagnostics_every=max(1, steps // 2000))
+    e = d.energy
+    tenth = len(e) // 10
+    drift = abs(e[-tenth:].mean() - e[:tenth].mean())
+    return float(np.max(np.abs(e - e[0]))), float(drift)
+
+
+def test_energy_bounded_without_drift_and_its_oscillation_is_order_2():
+    osc, drift = energy_oscillation(0.004, 100_000)
+    assert drift < 0.2 * osc
+    osc_half, _ = energy_oscillation(0.002, 20_000)
+    osc_full, _ = energy_oscillation(0.004, 10_000)
+    assert 3.0 < osc_full / osc_half < 5.0, (osc_full, osc_half)
+
+
+def steady_chain(h: float, n: int = 8, g: float = 2.0, hot: float = 600.0, cold: float = 300.0):
+    sim = tn.Simulation(chain_net(n), parameters=dict(c=100, beta=0.0, C0=1.0, theta0=300, g=g), temperatures=300.0,
+                        h=h, baths={"hot": Bath("left", hot), "cold": Bath("right", cold)}, renumber=False, **QUIET)
+    d = sim.run(t_end=200.0, diagnostics_every=round(1 / h))
+    return sim, d
+
+
+def test_a_chain_between_two_baths_reaches_the_linear_profile_and_the_series_heat_flow():
+    n, g, hot, cold = 8, 2.0, 600.0, 300.0
+    e = np.arange(n)
+    profile = hot - (hot - cold) * (2 * e + 1) / (2 * n)  # 2n half-springs of conductance g in series
+    series = g / (2 * n) * (hot - cold)
+    errors, flows = [], []
+    for h in (0.05, 0.025):
+        sim, d = steady_chain(h)
+        errors.append(np.abs(sim.temperatures() - profile).max())
+        rate = (d.heat_hot[-1] - d.heat_hot[-2]) / (d.time[-1] - d.time[-2])
+        flows.append(abs(rate / series - 1))
+        cold_rate = (d.heat_cold[-1] - d.heat_cold[-2]) / (d.time[-1] - d.time[-2])
+        assert cold_rate == pytest.approx(-rate, rel=1e-9)  # steady: what enters leaves
+        assert np.max(np.abs(d.energy_balance)) < 1e-10 * d.heat_hot[-1]
+        # Clausius: S − S(0) = Σ Q/θ_b + production, production ≥ 0
+        assert np.max(np.abs(d.entropy_balance)) < 1e-12 * d.entropy_in.max()
+        assert np.all(np.diff(d.entropy_produced) >= 0)
+    # the splitting's steady state is the exact one up to O(h²)
+    assert errors[1] < 2e-5 * hot and flows[1] < 5e-4
+    assert 3.5 < errors[0] / errors[1] < 4.5 and 3.5 < flows[0] / flows[1] < 4.5, (errors, flows)
+
+
+def bath_balance(h: float) -> float:
+    net, theta = hot_jittered_net(7)
+    net.node_groups["hot"] = np.arange(4)
+    sim = tn.Simulation(net, parameters=dict(c=100, beta=2.0, C0=1.0, theta0=300, g=0.4), temperatures=theta,
+                        h=h, baths={"b": Bath("hot", {"start": 300.0, "end": 900.0, "duration": 1.0})},
+                        sources={"s": Source(np.arange(5), {"amplitude": 20.0, "frequency": 1.0, "offset": 10.0})},
+                        **QUIET)
+    d = sim.run(t_end=2.0, diagnostics_every=max(1, round(0.01 / h)))
+    return float(np.max(np.abs(d.energy_balance)))
+
+
+def test_with_baths_and_sources_the_energy_balance_is_order_2():
+    coarse, fine = bath_balance(0.004), bath_balance(0.002)
+    assert 3.0 < coarse / fine < 5.0, (coarse, fine)
+
+
+def test_no_conductance_is_bit_identical_to_no_conduction():
+    net, theta = hot_jittered_net(11)
+    common = dict(temperatures=theta, h=0.004, velocities=np.full((net.n_nodes, 3), 0.1), **QUIET)
+    a = tn.Simulation(net, parameters=dict(c=100, beta=1.0, C0=1.0, theta0=300), **common)
+    b = tn.Simulation(net, parameters=dict(c=100, beta=1.0, C0=1.0, theta0=300, g=0.0), conduction=True, **common)
+    a.run(steps=300, diagnostics_every=100)
+    b.run(steps=300, diagnostics_every=100)
+    assert a.integrator.name == "co2" and b.integrator.name == "co2+conduction"
+    assert np.array_equal(a.state.positions, b.state.positions)
+    assert np.array_equal(a.state.momenta, b.state.momenta)
+    assert np.array_equal(a.state.entropy, b.state.entropy)
+
+
+def test_chunked_threaded_and_resumed_runs_are_bit_identical(tmp_path):
+    from thermonet.io.checkpoint import load_checkpoint, save_checkpoint
+
+    net, theta = hot_jittered_net(13)
+    net.node_groups["hot"] = np.arange(3)
+
+    def make(**kw):
+        return tn.Simulation(net, parameters=dict(c=100, beta=1.0, C0=1.0, theta0=300, g=0.4), temperatures=theta,
+                             h=0.004, baths={"b": Bath("hot", 700.0)}, sources={"s": Source([0, 1], 5.0)},
+                             **QUIET, **kw)
+
+    one = make()
+    one.run(steps=400, diagnostics_every=400)
+    chunked = make(parallel=True, threads=2)
+    for _ in range(4):
+        chunked.run(steps=100, diagnostics_every=7)
+    first = make()
+    first.run(steps=150, diagnostics_every=50)
+    save_checkpoint(tmp_path / "c.npz", first.state, {})
+    state, _ = load_checkpoint(tmp_path / "c.npz")
+    resumed = make()
+    resumed.load_state(state)
+    resumed.run(steps=250, diagnostics_every=50)
+    for other in (chunked, resumed):
+        assert np.array_equal(one.state.positions, other.state.positions)
+        assert np.array_equal(one.state.entropy, other.state.entropy)
+        for k in ("produced", "entry_heat", "entry_flux"):
+            assert np.array_equal(one.state.extra["heat"][k], other.state.extra["heat"][k]), k
+
+
+def test_conduction_around_an_implicit_integrator_keeps_its_balances():
+    net, theta = hot_jittered_net(17)
+    sim = tn.Simulation(net, parameters=dict(c=100, beta=1.0, C0=1.0, theta0=300, g=0.4), temperatures=theta,
+                        integrator="gtr-alpha", integrator_options={"alpha": 0.5}, h=0.004, **QUIET)
+    d = sim.run(steps=200, diagnostics_every=20)
+    assert np.all(np.diff(d.entropy) > -1e-12)
+    assert np.max(np.abs(d.entropy_balance)) < 1e-11
+    assert d.entropy[-1] > d.entropy[0]
+    assert np.max(np.abs(d.energy - d.energy[0])) < 1e-3 * abs(d.energy[0])
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    (dict(parameters=dict(g=-1.0)), "parameter 'g' of spring 0 must be finite and ≥ 0"),
+    (dict(parameters=dict(g=np.nan)), "must be finite and ≥ 0"),
+    (dict(parameters=dict(g=1.0), baths={"hot": Bath("nowhere", 500.0)}), "baths.hot.group: the net has no node group"),
+    (dict(parameters=dict(g=1.0), baths={"hot": Bath("left", -5.0)}), "baths.hot.temperature: a bath temperature must stay > 0"),
+    (dict(parameters=dict(g=1.0), baths={"hot": Bath("left", {"table": [[0, 300], [0, 400]]})}),
+     "baths.hot.temperature.table: times must increase strictly"),
+    (dict(parameters=dict(g=1.0), thermal=False), "conduction needs thermal coupling on"),
+    (dict(baths={"hot": Bath("left", 500.0)}), "baths need conduction on"),
+    (dict(conduction=True), "no conductance 'g' is given"),
+    (dict(parameters=dict(g=1.0), sources={"s": Source("nope", 1.0)}), "sources.s.group: the net has no spring group"),
+    (dict(parameters=dict(g=1.0), baths={"a": Bath("left", 500.0), "b": Bath([0], 400.0)}), "node 0 is already in bath 'a'"),
+])
+def test_bad_heat_input_names_the_key(kwargs, message):
+    kwargs = dict(kwargs)
+    params = dict(c=10, beta=0.1, C0=1.0, theta0=300)
+    params.update(kwargs.pop("parameters", {}))
+    with pytest.raises(InputError, match=message):
+        tn.Simulation(chain_net(4), parameters=params, **kwargs)
