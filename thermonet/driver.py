@@ -18,7 +18,7 @@ import numpy as np
 from .compile_watch import CompileWatch
 from .diagnostics import Diagnostics, diagnostics_row, measure
 from .errors import InputError, SimulationError
-from .heat.logs import balances, heat_columns
+from .heat.logs import balances, heat_columns, wave_energy
 from .integrators.base import StepFailure
 from .run_guards import energy_departure
 from .state import State
@@ -259,8 +259,12 @@ class RunDriver:
                 row = diagnostics_row(self.system, s, entropy=entropy, **sums)
             else:
                 row = measure(self.system, self._state, self.parallel)
-        if self.system.heat is not None:
-            row.update(heat_columns(self.system.heat, self._state))
+        heat = self.system.heat
+        if heat is not None:
+            if heat.waves:
+                row["wave_energy"] = wave_energy(heat, self._state.thermal_displacement)
+                row["energy"] += row["wave_energy"]
+            row.update(heat_columns(heat, self._state))
             row.update(balances(row, self.diagnostics.rows[0] if self.diagnostics.rows else row))
         row.update(getattr(self, "_last_stats", {}) or {})
         self.diagnostics.append(row)

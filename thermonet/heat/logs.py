@@ -4,6 +4,7 @@
   the run's logs started;
 - ``heat_<name>``: heat given to the net by each bath and source; ``heat_in``: their sum;
 - ``entropy_in``: entropy brought in (Q/θ_b by baths, C ln(θ'/θ) by sources);
+- ``wave_energy`` (thermal waves): W(Φ), included in ``energy``;
 - ``energy_balance``: ``H − H(0) − (heat_in − heat_in(0))``, zero but for the integrator's
   error (bounded and O(h²) with an explicit splitting, the Newton tolerance with EM2);
 - ``entropy_balance``: ``S − S(0) − Δentropy_in − Δentropy_produced``, zero to round-off.
@@ -29,6 +30,14 @@ def heat_columns(heat, state) -> dict:
     row["heat_in"] = float(np.sum(per_name))
     row["entropy_in"] = flux
     return row
+
+
+def wave_energy(heat, phi: np.ndarray) -> float:
+    """The Green–Naghdi gradient energy W(Φ) = Σ_pairs k*/2 (Φ_e − Φ_f)² (part of H with thermal
+    waves)."""
+    g = heat.graph
+    d = phi[g.first] - phi[g.second]
+    return float(0.5 * np.sum(g.kappa[:, 1] * d * d))
 
 
 def balances(row: dict, first: dict) -> dict:
