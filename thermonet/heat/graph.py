@@ -22,7 +22,7 @@ from numba import njit
 class PairGraph(NamedTuple):
     """Spring pairs sorted by colour.
 
-    first, second: (P,) int64 springs of each pair (first < second); kappa: (P,) conductance of
+    first, second: (P,) int32 springs of each pair (first < second); kappa: (P,) conductance of
     each pair for the weights it was built from (one column per weight: (P, W));
     colour_ptr: (C+1,) int64, colour c is pairs colour_ptr[c]:colour_ptr[c+1].
     """
@@ -155,7 +155,7 @@ def pair_graph(layout, weights: np.ndarray, junction: np.ndarray | None = None) 
     n_colours = int(colour.max()) + 1 if len(colour) else 0
     colour_ptr = np.zeros(n_colours + 1, dtype=np.int64)
     colour_ptr[1:] = np.cumsum(np.bincount(colour, minlength=n_colours))
-    return PairGraph(np.ascontiguousarray(first[order]), np.ascontiguousarray(second[order]),
+    return PairGraph(np.ascontiguousarray(first[order], dtype=np.int32), np.ascontiguousarray(second[order], dtype=np.int32),
                      np.ascontiguousarray(kappa[order]), colour_ptr)
 
 

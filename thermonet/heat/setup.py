@@ -75,14 +75,16 @@ class HeatSetup:
                 "theta_ok": np.zeros(1)}
 
     def factor(self, tau: float) -> np.ndarray:
-        """(P,) each pair's exchange factor c_r (1 − exp(−κ τ / c_r)) for a sweep over τ."""
+        """(2, P): each pair's exchange factor c_r (1 − exp(−κ τ / c_r)) for a sweep over τ,
+        divided by the first spring's C (row 0) and by the second's (row 1)."""
         cached = self.__dict__.setdefault("_factors", {})
         if tau not in cached:
             g = self.graph
             ce, cf = self.capacity[g.first], self.capacity[g.second]
             reduced = ce * cf / (ce + cf)
+            factor = -reduced * np.expm1(-g.kappa[:, 0] * tau / reduced)
             cached.clear()
-            cached[tau] = np.ascontiguousarray(-reduced * np.expm1(-g.kappa[:, 0] * tau / reduced))
+            cached[tau] = np.ascontiguousarray(np.vstack([factor / ce, factor / cf]))
         return cached[tau]
 
     def record(self, tau: float, logs: dict) -> Heat:
@@ -98,7 +100,7 @@ class HeatSetup:
             self.__dict__["_static"] = cached
         bound, ptr, packed = cached
         g = self.graph
-        return Heat(g.first, g.second, self.factor(tau) if self.conduction else g.kappa[:, 0],
+        return Heat(g.first, g.second, self.factor(tau) if self.conduction else np.zeros((2, g.n_pairs)),
                     np.ascontiguousarray(g.kappa[:, 1]), g.colour_ptr, self.capacity, 1.0 / self.capacity,
                     bound, ptr, self.entry_kind, self.entry_fn, self.entry_rate, *packed,
                     logs["produced"], logs["entry_heat"], logs["entry_flux"], logs["theta"], logs["theta_ok"])

@@ -45,13 +45,14 @@ class ConductionAround(Stepper):
         self._topology = records.topology(system.layout)
         self._springs = records.Springs(system.rest_lengths, P)
         self._theta = np.empty(system.n_springs)
+        self._theta_start = np.empty(system.n_springs)
 
     def _conduct(self, state, tau: float, t: float, reverse: bool) -> None:
         from ..integrators.splitting import heat_logs
 
         record = self.heat.record(tau, heat_logs(state, self.heat))
         self._temperature_pass(state.positions, state.entropy, self._topology, self._springs, self._theta)
-        self._sweep(record, self._theta, state.entropy, tau, t, reverse)
+        self._sweep(record, self._theta, self._theta_start, state.entropy, tau, t, reverse)
 
     def advance(self, state, n_steps: int, h: float, measure: bool = False):
         """``n_steps`` steps; on a failed step the state is restored to the step's start (η and

@@ -19,7 +19,7 @@ from . import heat_flow
 from .specialize import kernel_namespace, model_fingerprint, rebind, specialize
 
 # Bound per kernel variant (see thermonet.kernels.splitting).
-pair_exchange = boundary_exchange = wave_exchange = spring_temperature = squared_length = None
+pair_exchange = boundary_exchange = finish_spring = wave_exchange = spring_temperature = squared_length = None
 UNIFORM = False
 
 _OPTIONS = dict(cache=True, error_model="numpy", boundscheck=False)
@@ -29,8 +29,10 @@ def bind_heat_flow(ns: dict, tag: str, compile_) -> None:
     """Bind :mod:`thermonet.kernels.heat_flow`'s functions into the kernel namespace ``ns``,
     each compiled by ``compile_`` (the time functions' ``evaluate`` with it)."""
     from ..timefunctions import evaluate_py
+    from .fastmath import log
 
     ns["evaluate"] = compile_(evaluate_py)
+    ns["log"] = log
     for name in heat_flow.SHARED:
         ns[name] = compile_(rebind(getattr(heat_flow, name), tag, ns))
 
@@ -53,28 +55,34 @@ def _temperature_pass(x, eta, topology, springs, theta):
         theta[e] = spring_temperature(l, eta[e], springs.rest[eu], springs.P, c)
 
 
-def _conduction_sweep(heat, theta, eta, tau, t, reverse):
-    """One conduction sweep over τ at time t (see the module docstring); theta must hold the
-    springs' temperatures at the current positions, and is kept so."""
+def _conduction_sweep(heat, theta, theta_start, eta, tau, t, reverse):
+    """One conduction half step over τ at time t (see the module docstring): theta must hold the
+    springs' temperatures at the current positions, and is kept so; theta_start (m,) is
+    scratch. Ends with each spring's entropy update (:func:`finish_spring`)."""
     ptr = heat.colour_ptr
     n_colours = ptr.shape[0] - 1
     # the arrays written in parallel loops are taken out of the record first: Numba's parallel
     # loops lose writes made through a record's attribute
     produced = heat.produced
     logs = (produced, heat.entry_heat, heat.entry_flux)
-    first, second, factor = heat.first, heat.second, heat.factor
-    capacity, inv_capacity = heat.capacity, heat.inv_capacity
+    first, second, gain = heat.first, heat.second, heat.factor
+    capacity = heat.capacity
     n_bound = heat.bound_spring.shape[0]
+    m = theta.shape[0]
+    for e in prange(m):
+        theta_start[e] = theta[e]
     if not reverse:
         for j in prange(n_bound):
-            boundary_exchange(j, heat, tau, t, False, theta, eta, logs)
+            boundary_exchange(j, heat, tau, t, False, theta, logs)
     for i in range(n_colours):
         colour = n_colours - 1 - i if reverse else i
         for k in prange(ptr[colour], ptr[colour + 1]):
-            pair_exchange(k, first, second, factor, capacity, inv_capacity, theta, eta, produced)
+            pair_exchange(k, first, second, gain, theta)
     if reverse:
         for j in prange(n_bound):
-            boundary_exchange(j, heat, tau, t, True, theta, eta, logs)
+            boundary_exchange(j, heat, tau, t, True, theta, logs)
+    for e in prange(m):
+        finish_spring(e, theta, theta_start, eta, capacity, produced)
 
 
 def _wave_sweep(heat, phi, eta, tau):
@@ -92,7 +100,7 @@ _CACHE: dict = {}
 def heat_kernels(model, parallel: bool, uniform: bool):
     """(temperature_pass, conduction_sweep) for steppers that run conduction around their own
     steps (the implicit ones): ``temperature_pass(x, eta, topology, springs, theta)``,
-    ``conduction_sweep(heat, theta, eta, tau, t, reverse)``."""
+    ``conduction_sweep(heat, theta, theta_start, eta, tau, t, reverse)``."""
     from .splitting import bind_subflows
 
     key = (model_fingerprint(model), bool(parallel), bool(uniform))

@@ -89,8 +89,8 @@ class Heat(NamedTuple):
     """Heat flow (spec-heat §1–2): the coloured spring pairs, the bath and source entries, and
     the logs (all arrays empty when heat flow is off; the kernels then compile its rows out).
 
-    first, second: (P,) int64 springs of each pair; factor: (P,) the conduction factor
-    c_r (1 − exp(−κ τ/c_r)) for the run's τ; wave: (P,) k* of each pair; colour_ptr: (C+1,)
+    first, second: (P,) int32 springs of each pair; factor: (2, P) the conduction factor
+    c_r (1 − exp(−κ τ/c_r)) for the run's τ over the first and over the second spring's C; wave: (P,) k* of each pair; colour_ptr: (C+1,)
     int64, colour c is pairs colour_ptr[c]:colour_ptr[c+1] (no two share a spring);
     capacity, inv_capacity: (m,) C and 1/C per spring; bound_spring: (S,) int64 springs with
     bath ends or sources; bound_ptr: (S+1,) int64 their entries; entry_kind (E,) int64 (0 bath,
@@ -129,7 +129,8 @@ def no_heat() -> Heat:
     """The :class:`Heat` record of a run without heat flow (empty arrays)."""
     i = np.empty(0, dtype=np.int64)
     f = np.empty(0)
-    return Heat(i, i, f, f, np.zeros(1, dtype=np.int64), f, f, i, np.zeros(1, dtype=np.int64), i, i, f,
+    i32 = np.empty(0, dtype=np.int32)
+    return Heat(i32, i32, np.empty((2, 0)), f, np.zeros(1, dtype=np.int64), f, f, i, np.zeros(1, dtype=np.int64), i, i, f,
                 i, np.empty((0, 4)), np.zeros(1, dtype=np.int64), f, f, f, f, f, f, np.zeros(1))
 
 

@@ -407,7 +407,7 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run
                 elif CONDUCTION and codes[r] >= -3:
                     if not theta_valid:
                         temperature_pass(cur, eta, topology, springs, scratch.theta_keep)
-                    conduction_sweep(heat, scratch.theta_keep, eta, table.kick[r] * h,
+                    conduction_sweep(heat, scratch.theta_keep, scratch.energy_buf, eta, table.kick[r] * h,
                                      run.t0 + (step + table.drift[r]) * h, codes[r] == -3)
                     theta_valid = True
                 continue
