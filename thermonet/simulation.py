@@ -35,7 +35,7 @@ from .integrators.splitting import heat_logs
 from .state import State
 
 #: heat-flow logs with one value per spring (stored in the user's numbering outside the engine)
-PER_SPRING_LOGS = ("produced", "theta")
+PER_SPRING_LOGS = ("produced", "theta", "length")
 
 #: nets with at least this many springs use the multi-threaded kernels
 PARALLEL_MIN_SPRINGS = 16384

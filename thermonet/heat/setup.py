@@ -69,10 +69,10 @@ class HeatSetup:
 
     def new_logs(self) -> dict:
         """Zeroed logs: produced (m,), entry_heat (E,), entry_flux (E,), and the sweeps' working
-        temperatures theta (m,) with theta_ok (1,) = 0 (not valid yet)."""
+        temperatures and lengths theta, length (m,) with theta_ok (1,) = 0 (not valid yet)."""
         return {"produced": np.zeros(len(self.capacity)), "entry_heat": np.zeros(len(self.entry_spring)),
                 "entry_flux": np.zeros(len(self.entry_spring)), "theta": np.zeros(len(self.capacity)),
-                "theta_ok": np.zeros(1)}
+                "theta_ok": np.zeros(1), "length": np.zeros(len(self.capacity))}
 
     def factor(self, tau: float) -> np.ndarray:
         """(2, P): each pair's exchange factor c_r (1 − exp(−κ τ / c_r)) for a sweep over τ,
@@ -103,7 +103,16 @@ class HeatSetup:
         return Heat(g.first, g.second, self.factor(tau) if self.conduction else np.zeros((2, g.n_pairs)),
                     np.ascontiguousarray(g.kappa[:, 1]), g.colour_ptr, self.capacity, 1.0 / self.capacity,
                     bound, ptr, self.entry_kind, self.entry_fn, self.entry_rate, *packed,
-                    logs["produced"], logs["entry_heat"], logs["entry_flux"], logs["theta"], logs["theta_ok"])
+                    logs["produced"], logs["entry_heat"], logs["entry_flux"], logs["theta"], logs["theta_ok"],
+                    logs["length"], *self._work())
+
+    def _work(self) -> tuple:
+        """The working arrays s_before, theta_start (m,) of the kernels (allocated once)."""
+        work = self.__dict__.get("_work_arrays")
+        if work is None:
+            m = len(self.capacity)
+            work = self.__dict__["_work_arrays"] = (np.empty(m), np.empty(m))
+        return work
 
 
 def _named(spec, where: str, kind):

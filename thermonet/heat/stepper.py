@@ -46,12 +46,14 @@ class ConductionAround(Stepper):
         self._springs = records.Springs(system.rest_lengths, P)
         self._theta = np.empty(system.n_springs)
         self._theta_start = np.empty(system.n_springs)
+        self._length = np.empty(system.n_springs)
 
     def _conduct(self, state, tau: float, t: float, reverse: bool) -> None:
         from ..integrators.splitting import heat_logs
 
         record = self.heat.record(tau, heat_logs(state, self.heat))
-        self._temperature_pass(state.positions, state.entropy, self._topology, self._springs, self._theta)
+        self._temperature_pass(state.positions, state.entropy, self._topology, self._springs, self._theta,
+                               self._length)
         self._sweep(record, self._theta, self._theta_start, state.entropy, tau, t, reverse)
 
     def advance(self, state, n_steps: int, h: float, measure: bool = False):

@@ -20,6 +20,7 @@ from .specialize import kernel_namespace, model_fingerprint, rebind, specialize
 
 # Bound per kernel variant (see thermonet.kernels.splitting).
 pair_exchange = boundary_exchange = finish_spring = wave_exchange = spring_temperature = squared_length = None
+tension = outside_admissible = advance_thermal_displacement = None
 UNIFORM = False
 
 _OPTIONS = dict(cache=True, error_model="numpy", boundscheck=False)
@@ -41,18 +42,45 @@ def bind_heat_passes(ns: dict, tag: str, parallel: bool) -> None:
     """Compile the passes below into ``ns`` (which must hold the model, subflows and heat_flow
     bindings)."""
     ns["temperature_pass"] = specialize(_temperature_pass, tag, ns, parallel=parallel, **_OPTIONS)
+    ns["refresh_pass"] = specialize(_refresh_pass, tag, ns, parallel=parallel, **_OPTIONS)
     ns["conduction_sweep"] = specialize(_conduction_sweep, tag, ns, parallel=parallel, **_OPTIONS)
     ns["wave_sweep"] = specialize(_wave_sweep, tag, ns, parallel=parallel, **_OPTIONS)
 
 
-def _temperature_pass(x, eta, topology, springs, theta):
-    """theta[e] = θ(l_e, η_e) at positions x, per spring."""
+def _temperature_pass(x, eta, topology, springs, theta, length):
+    """theta[e] = θ(l_e, η_e) and length[e] = l_e at positions x, per spring."""
     edges = topology.edges
     for e in prange(edges.shape[0]):
         eu = np.uint64(e)
         c = np.uint64(0) if UNIFORM else eu
         l = math.sqrt(squared_length(x, edges, eu))
+        length[e] = l
         theta[e] = spring_temperature(l, eta[e], springs.rest[eu], springs.P, c)
+
+
+def _refresh_pass(theta, length, phi, springs, s, steps, run):
+    """The spring pass of a kick at the positions of the last full one, after conduction sweeps
+    changed θ: per spring T/l from the stored length and the swept θ into s, Φ += steps[0] θ,
+    += steps[1] θ. No gather, no square root, no θ(l, η): a stream over contiguous arrays.
+    Returns the number of springs outside the admissible states."""
+    P = springs.P
+    rest = springs.rest
+    phi_h1, phi_h2 = steps
+    track_phi = run.track_phi
+    stretch_min = run.stretch_min
+    stretch_max = run.stretch_max
+    bad = 0
+    for e in prange(theta.shape[0]):
+        eu = np.uint64(e)
+        c = np.uint64(0) if UNIFORM else eu
+        l = length[e]
+        th = theta[e]
+        force = tension(l, th, rest[eu], P, c) / l
+        s[e] = force
+        bad += outside_admissible(l, rest[eu], force, th, stretch_min, stretch_max)
+        if track_phi:
+            advance_thermal_displacement(phi, eu, th, phi_h1, phi_h2)
+    return bad
 
 
 def _conduction_sweep(heat, theta, theta_start, eta, tau, t, reverse):
@@ -99,7 +127,7 @@ _CACHE: dict = {}
 
 def heat_kernels(model, parallel: bool, uniform: bool):
     """(temperature_pass, conduction_sweep) for steppers that run conduction around their own
-    steps (the implicit ones): ``temperature_pass(x, eta, topology, springs, theta)``,
+    steps (the implicit ones): ``temperature_pass(x, eta, topology, springs, theta, length)``,
     ``conduction_sweep(heat, theta, theta_start, eta, tau, t, reverse)``."""
     from .splitting import bind_subflows
 

@@ -97,8 +97,10 @@ class Heat(NamedTuple):
     1 source), entry_fn (E,) int64 the entry's time function, entry_rate (E,) g/C of a bath end;
     fn_*: the time functions (:func:`thermonet.timefunctions.pack`); produced: (m,) cumulative
     entropy produced, per spring; entry_heat, entry_flux: (E,) cumulative heat given and entropy
-    brought by each entry; theta: (m,) the springs' temperatures where a call ended, valid for
-    the next call when theta_ok[0] == 1 (a call continues its predecessor's sweeps bit for bit).
+    brought by each entry; theta, length: (m,) the springs' temperatures and lengths where a call
+    ended, valid for the next call when theta_ok[0] == 1 (a call continues its predecessor's
+    sweeps bit for bit); s_before, theta_start: (m,) working arrays (the forces of a kick
+    deferred past the sweeps; the temperatures a sweep started from).
     """
 
     first: np.ndarray
@@ -123,6 +125,9 @@ class Heat(NamedTuple):
     entry_flux: np.ndarray
     theta: np.ndarray
     theta_ok: np.ndarray
+    length: np.ndarray
+    s_before: np.ndarray
+    theta_start: np.ndarray
 
 
 def no_heat() -> Heat:
@@ -131,7 +136,7 @@ def no_heat() -> Heat:
     f = np.empty(0)
     i32 = np.empty(0, dtype=np.int32)
     return Heat(i32, i32, np.empty((2, 0)), f, np.zeros(1, dtype=np.int64), f, f, i, np.zeros(1, dtype=np.int64), i, i, f,
-                i, np.empty((0, 4)), np.zeros(1, dtype=np.int64), f, f, f, f, f, f, np.zeros(1))
+                i, np.empty((0, 4)), np.zeros(1, dtype=np.int64), f, f, f, f, f, f, np.zeros(1), f, f, f)
 
 
 def topology(layout) -> Topology:

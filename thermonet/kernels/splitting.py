@@ -76,7 +76,7 @@ thermal_kick = copy_rows = apply_flow = None
 spring_force = spring_energy = spring_temperature = outside_admissible = advance_thermal_displacement = None
 gather_force = kick_momentum = drift_position = load_row = store_row = None
 flow_pass_0 = flow_pass_1 = flow_pass_2 = flow_pass_3 = update = None
-temperature_pass = conduction_sweep = wave_sweep = None
+temperature_pass = refresh_pass = conduction_sweep = wave_sweep = None
 THERMAL = True
 CONDUCTION = False
 WAVES = False
@@ -157,6 +157,7 @@ def splitting_kernels(model, parallel: bool, thermal: bool = True, uniform: bool
                 fn = _no_flow
             ns[f"flow_pass_{slot}"] = fn
         ns["apply_flow"] = specialize(_apply_flow, tag, ns, inline="always", **_OPTIONS)
+        ns["_stopped"] = specialize(_stopped, tag, ns, inline="always", **_OPTIONS)
         _CACHE[key] = specialize(_advance, tag, ns, **_OPTIONS)
     return _CACHE[key]
 
@@ -182,7 +183,7 @@ def node_diagnostic_terms(x0, x1, x2, p0, p1, p2, mass, gravity, ref):
             r1 * p2 - r2 * p1, r2 * p0 - r0 * p2, r0 * p1 - r1 * p0)
 
 
-def _spring_pass(x, eta, phi, topology, springs, scratch, steps, run, keep):
+def _spring_pass(x, eta, phi, topology, springs, scratch, steps, run, keep, length):
     """Per spring e: s[e] = T/l at x; Φ[e] += steps[0] θ, += steps[1] θ (two additions); θ into
     theta_keep[e] when ``keep`` (THERMAL only); with ``run.want_sums`` (CLOSING only) the
     spring's internal energy (free energy at θ0 when not THERMAL) into energy_buf[e] and the
@@ -191,7 +192,9 @@ def _spring_pass(x, eta, phi, topology, springs, scratch, steps, run, keep):
     x: (n, 3); eta, phi: (m,); steps: (2,) tuple of floats. Returns (the number of springs
     outside the admissible states, Σ energy, min θ, max θ); the sums are 0, inf, −inf unless
     summed. Compiled twice: with CLOSING for the calls' first and last kicks, and without (keep
-    and sums compiled out) for every other.
+    and sums compiled out) for every other. With CONDUCTION each spring's length goes to
+    length (m,) and its θ to theta_keep, where the conduction sweeps and :func:`_refresh_pass`
+    take them.
     """
     edges = topology.edges
     l0 = springs.rest
@@ -223,6 +226,8 @@ def _spring_pass(x, eta, phi, topology, springs, scratch, steps, run, keep):
             bad += outside_admissible(l, rest, force, theta, stretch_min, stretch_max)
             if THERMAL and ((CLOSING and keep) or CONDUCTION):  # conduction sweeps start from θ
                 theta_keep[e] = theta
+            if CONDUCTION:
+                length[e] = l
             if CLOSING:
                 if want_sums:
                     energy_buf[e] = spring_energy(l, eta[e] if THERMAL else 0.0, theta, rest, P, c)
@@ -245,13 +250,14 @@ def _spring_pass(x, eta, phi, topology, springs, scratch, steps, run, keep):
     return bad, energy, theta_min, theta_max
 
 
-def _node_pass(x, x_new, p, topology, nodes, scratch, steps, force_source, want_sums):
+def _node_pass(x, x_new, p, topology, nodes, scratch, steps, force_source, want_sums, s_before):
     """Per node a: f = Σ s_e (x_b − x_a) (+ m g); p += kick1 f; p += kick2 f; x_new = x + drift p/m,
     with steps = (kick1, kick2, drift, with_force) (fractions of h already multiplied by h).
 
     x, x_new, p: (n, 3). force_source: 0 gather f; 1 gather f and keep it in f_keep (n, 3) (a
     call's closing kick, whose drift is 0: x_new is then not written, the positions stay in
-    x); 2 take f from f_keep. Returns, with ``want_sums`` (CLOSING only), the sums over free
+    x); 2 take f from f_keep; 3 (CONDUCTION) kick1 with the forces of s_before (m,) (a kick
+    deferred past the conduction sweeps, which do not touch p), kick2 with those of s. Returns, with ``want_sums`` (CLOSING only), the sums over free
     nodes at (x, the new p) of kinetic energy, gravity potential −Σ m g·x, p and (x − ref) × p
     (else 0).
     """
@@ -284,7 +290,14 @@ def _node_pass(x, x_new, p, topology, nodes, scratch, steps, force_source, want_
                 store_row(x_new, a, xa0, xa1, xa2)
             continue
         p0, p1, p2 = load_row(p, a)
-        if with_force:
+        if CONDUCTION and force_source == 3:  # not CLOSING: no sums, no keep
+            f0, f1, f2 = gather_force(a, x, s_before, inc_ptr, inc_spring, inc_other, masses, gravity, with_gravity)
+            p0, p1, p2 = kick_momentum(p0, p1, p2, f0, f1, f2, 0.0, kick1)
+            if kick2 != 0.0:
+                f0, f1, f2 = gather_force(a, x, s, inc_ptr, inc_spring, inc_other, masses, gravity, with_gravity)
+                p0, p1, p2 = kick_momentum(p0, p1, p2, f0, f1, f2, 0.0, kick2)
+            store_row(p, a, p0, p1, p2)
+        elif with_force:
             if CLOSING and force_source == 2:
                 f0, f1, f2 = load_row(f_keep, a)
             else:
@@ -355,6 +368,16 @@ def _apply_flow(slot, effects, tau, t, x, p, phi, eta):
         flow_pass_3(effects[3], tau, t, x, p, phi, eta)
 
 
+def _stopped(x, x_buf, swaps, heat, steps_done):
+    """What ``advance`` returns when a spring left the admissible states: the positions where it
+    was found back in x, the heat sweeps' saved temperatures no longer valid."""
+    if swaps % 2 == 1:
+        copy_rows(x_buf, x)
+    if CONDUCTION:
+        heat.theta_ok[0] = 0.0
+    return steps_done, True, False
+
+
 def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run):
     """Advance ``state`` (x, p, Φ in place; η too where a sub-flow changes it) by ``run.n_steps``
     steps of the schedule ``table`` (a :class:`~thermonet.integrators.schedule.StageTable`).
@@ -389,13 +412,21 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run
     nxt = x_buf
     swaps = 0
     pending = 0.0
+    # CONDUCTION: the springs' θ and l at cur are in theta_keep and heat.length when theta_valid;
+    # a kick just before the sweeps is deferred past them (they do not touch p) and applied with
+    # the next one in one node pass: ``deferred`` its coefficient, its forces in heat.s_before
     theta_valid = False
+    deferred = 0.0
     if CONDUCTION and heat.theta_ok[0] == 1.0:  # continue the previous call's sweeps
         _copy_values(heat.theta, scratch.theta_keep)
         theta_valid = True
     for step in range(n_steps):
         for r in range(n_rows):
             if codes[r] >= 0:
+                if CONDUCTION and deferred != 0.0:  # a sub-flow may read p: apply the kick first
+                    node_pass(cur, nxt, p, topology, nodes, scratch, (deferred * h, 0.0, 0.0, True), 3, False,
+                              heat.s_before)
+                    deferred = 0.0
                 apply_flow(codes[r], effects, table.kick[r] * h, run.t0 + (step + table.drift[r]) * h,
                            cur, p, phi, eta)
                 theta_valid = False
@@ -406,53 +437,72 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run
                     theta_valid = False
                 elif CONDUCTION and codes[r] >= -3:
                     if not theta_valid:
-                        temperature_pass(cur, eta, topology, springs, scratch.theta_keep)
-                    conduction_sweep(heat, scratch.theta_keep, scratch.energy_buf, eta, table.kick[r] * h,
+                        temperature_pass(cur, eta, topology, springs, scratch.theta_keep, heat.length)
+                    conduction_sweep(heat, scratch.theta_keep, heat.theta_start, eta, table.kick[r] * h,
                                      run.t0 + (step + table.drift[r]) * h, codes[r] == -3)
                     theta_valid = True
                 continue
             k1 = pending if r == 0 else 0.0
             k2 = table.kick[r]
             with_force = k1 != 0.0 or k2 != 0.0
+            if (CONDUCTION and deferred == 0.0 and k1 == 0.0 and k2 != 0.0 and table.drift[r] == 0.0
+                    and r + 1 < n_rows and codes[r + 1] == -3):
+                # the kick before the reverse sweep: its spring pass now, its node pass deferred
+                bad = spring_pass(cur, eta, phi, topology, springs, scratch, (0.0, k2 * h), run, False,
+                                  heat.length)[0]
+                if bad > 0:
+                    return _stopped(x, x_buf, swaps, heat, step)
+                _copy_values(scratch.s, heat.s_before)
+                deferred = k2
+                theta_valid = True
+                continue
             steps = (k1 * h, k2 * h, table.drift[r] * h, with_force)
             reuse = run.reuse_boundary and step == 0 and r == 0 and with_force
             if reuse:  # the previous call's closing kick evaluated these at these positions
                 if THERMAL and run.track_phi:
                     thermal_kick(phi, scratch.theta_keep, k2 * h)
             elif with_force:
-                bad = spring_pass(cur, eta, phi, topology, springs, scratch, (k1 * h, k2 * h), run, False)[0]
-                theta_valid = table.drift[r] == 0.0
+                if CONDUCTION and theta_valid:
+                    bad = refresh_pass(scratch.theta_keep, heat.length, phi, springs, scratch.s, (k1 * h, k2 * h), run)
+                else:
+                    bad = spring_pass(cur, eta, phi, topology, springs, scratch, (k1 * h, k2 * h), run, False,
+                                      heat.length)[0]
+                    theta_valid = table.drift[r] == 0.0
                 if bad > 0:
-                    if swaps % 2 == 1:
-                        copy_rows(x_buf, x)
-                    if CONDUCTION:
-                        heat.theta_ok[0] = 0.0
+                    if CONDUCTION and deferred != 0.0:  # p still misses it: the step is replayed anyway
+                        deferred = 0.0
                     # positions at row 0 are the end of the previous step: that step was the bad one
-                    return (step - 1 if r == 0 and step > 0 else step), True, False
+                    return _stopped(x, x_buf, swaps, heat, step - 1 if r == 0 and step > 0 else step)
             if table.drift[r] != 0.0:
                 theta_valid = False
             if reuse:
-                boundary_node_pass(cur, nxt, p, topology, nodes, scratch, steps, 2, False)
+                boundary_node_pass(cur, nxt, p, topology, nodes, scratch, steps, 2, False, heat.s_before)
+            elif CONDUCTION and deferred != 0.0:
+                node_pass(cur, nxt, p, topology, nodes, scratch, (deferred * h, k2 * h, table.drift[r] * h, True), 3,
+                          False, heat.s_before)
+                deferred = 0.0
             else:
-                node_pass(cur, nxt, p, topology, nodes, scratch, steps, 0, False)
+                node_pass(cur, nxt, p, topology, nodes, scratch, steps, 0, False, heat.s_before)
             cur, nxt = nxt, cur
             swaps += 1
         pending = carry
     if CONDUCTION:
+        if deferred != 0.0:  # the call ends with the deferred kick (drift 0: the positions stay)
+            node_pass(cur, nxt, p, topology, nodes, scratch, (deferred * h, 0.0, 0.0, True), 3, False, heat.s_before)
         if theta_valid:
             _copy_values(scratch.theta_keep, heat.theta)
         heat.theta_ok[0] = 1.0 if theta_valid else 0.0
     summed = False
     if pending != 0.0:
         bad, energy, theta_min, theta_max = boundary_spring_pass(cur, eta, phi, topology, springs, scratch,
-                                                                 (0.0, pending * h), run, True)
+                                                                 (0.0, pending * h), run, True, heat.length)
         if bad > 0:
             if swaps % 2 == 1:
                 copy_rows(x_buf, x)
             return n_steps - 1, True, False
         # drift 0: the positions stay in cur
         node_sums = boundary_node_pass(cur, nxt, p, topology, nodes, scratch, (0.0, pending * h, 0.0, True), 1,
-                                       run.want_sums)
+                                       run.want_sums, heat.s_before)
         if run.want_sums:
             sums = scratch.sums
             sums[0] = energy
