@@ -22,6 +22,8 @@ from .specialize import kernel_namespace, model_fingerprint, rebind, specialize
 pair_exchange = boundary_exchange = finish_spring = wave_exchange = spring_temperature = squared_length = None
 tension = outside_admissible = advance_thermal_displacement = None
 UNIFORM = False
+#: springs per block of the temperature pass (see thermonet.kernels.splitting.BLOCK)
+BLOCK = 512
 
 _OPTIONS = dict(cache=True, error_model="numpy", boundscheck=False)
 
@@ -48,14 +50,24 @@ def bind_heat_passes(ns: dict, tag: str, parallel: bool) -> None:
 
 
 def _temperature_pass(x, eta, topology, springs, theta, length):
-    """theta[e] = θ(l_e, η_e) and length[e] = l_e at positions x, per spring."""
+    """theta[e] = θ(l_e, η_e) and length[e] = l_e at positions x, per spring: in blocks, the
+    gather first (squared lengths into length), then a loop over contiguous arrays that
+    vectorizes (as the spring pass of :mod:`thermonet.kernels.splitting`)."""
     edges = topology.edges
-    for e in prange(edges.shape[0]):
-        eu = np.uint64(e)
-        c = np.uint64(0) if UNIFORM else eu
-        l = math.sqrt(squared_length(x, edges, eu))
-        length[e] = l
-        theta[e] = spring_temperature(l, eta[e], springs.rest[eu], springs.P, c)
+    m = edges.shape[0]
+    P = springs.P
+    rest = springs.rest
+    for blk in prange((m + BLOCK - 1) // BLOCK):
+        lo = blk * BLOCK
+        n = min(BLOCK, m - lo)
+        for i in range(n):
+            length[lo + i] = squared_length(x, edges, np.uint64(lo + i))
+        for i in range(n):
+            e = np.uint64(lo + i)
+            c = np.uint64(0) if UNIFORM else e
+            l = math.sqrt(length[e])
+            length[e] = l
+            theta[e] = spring_temperature(l, eta[e], rest[e], P, c)
 
 
 def _refresh_pass(theta, length, phi, springs, s, steps, run):
