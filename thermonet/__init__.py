@@ -7,12 +7,14 @@ dimensional thermo-elasto-dynamics without heat conduction", IJNME 88 (2011) 1-3
 from .builders import chain, from_meshio, lattice, read_mesh, triangle
 from .diagnostics import Diagnostics
 from .errors import InputError, MeshError, SimulationError, ThermonetError, UnknownNameError
+from .heat import Bath, Source
 from .integrators import Integrator, available_integrators, get_integrator, register_integrator
 from .models import Model, available_models, get_model, register_model
 from .net import Net
 from .paper import chain_simulation, triangle_simulation
 from .simulation import Simulation
 from .state import State
+from .timefunctions import TimeFunction
 
 __version__ = "0.1.0"
 
@@ -22,4 +24,5 @@ __all__ = [
     "Integrator", "get_integrator", "register_integrator", "available_integrators",
     "Simulation", "State", "Diagnostics", "chain_simulation", "triangle_simulation",
     "ThermonetError", "InputError", "MeshError", "SimulationError", "UnknownNameError",
+    "Bath", "Source", "TimeFunction",
 ]

@@ -78,6 +78,16 @@ class Simulation(RunDriver):
         state rewound to the previous stop.
     backend: "cpu" (default) or "cuda": the explicit integrators on an NVIDIA GPU through
         numba-cuda, the state resident on the device (see :mod:`thermonet.cuda`).
+    conduction: Fourier heat conduction between springs (spec-heat §1) through each spring's
+        conductance ``g``, given in ``parameters`` like a model parameter (scalar or (m,), ≥ 0);
+        default: on when ``g`` is given. Each step becomes ``K(h/2) ∘ A(h) ∘ K(h/2)`` with exact
+        pairwise exchanges (:mod:`thermonet.heat`); the diagnostics gain the entropy produced,
+        the heat of each bath and source and the energy and entropy balances.
+    thermal_waves: Green–Naghdi type II thermal waves (spec-heat §2) through ``g_star`` (in
+        ``parameters``); explicit splittings only; default: on when ``g_star`` is given.
+    baths: name -> :class:`thermonet.heat.Bath` (a node group held at θ_b(t)), needs conduction.
+    sources: name -> :class:`thermonet.heat.Source` (a spring group receiving power P(t) per
+        spring), needs conduction.
     """
 
     def __init__(
