@@ -6,6 +6,9 @@
 - truss_block.msh: a 3D tetrahedral truss block 4×1×1 made of four unit slabs: materials
   "soft" (x < 2) and "stiff" (x > 2), a "hot" tip slab (x > 3), a clamped face "clamp" (x = 0)
   and the free end face "tip" (x = 4).
+- thermal_bar.msh: a 3D tetrahedral bar 8×1×1 (mesh size 0.5), spring group "bar", node groups
+  "hot_end" (the face x = 0, held by a heat bath in scenes/thermal_shock.toml) and "far_end"
+  (the face x = 8, insulated).
 
 Physical groups become node groups (anchors, masses, velocities) and spring groups (materials,
 temperatures) in scenes. Files are gmsh 4.1 ASCII, small enough to read in a diff.
@@ -116,9 +119,30 @@ def truss_block(size: float = 0.25) -> None:
     _finish("truss_block.msh")
 
 
+def thermal_bar(length: float = 8.0, size: float = 0.5) -> None:
+    _start("thermal_bar")
+    occ = gmsh.model.occ
+    bar = occ.addBox(0, 0, 0, length, 1, 1)
+    occ.synchronize()
+    gmsh.option.setNumber("Mesh.MeshSizeMin", size)
+    gmsh.option.setNumber("Mesh.MeshSizeMax", size)
+    gmsh.model.addPhysicalGroup(3, [bar], name="bar")
+
+    def face_at(x):
+        return [t for d, t in gmsh.model.getEntitiesInBoundingBox(x - 1e-3, -1e-3, -1e-3, x + 1e-3, 1.001, 1.001, dim=2)]
+
+    gmsh.model.addPhysicalGroup(2, face_at(0.0), name="hot_end")
+    gmsh.model.addPhysicalGroup(2, face_at(length), name="far_end")
+    gmsh.option.setNumber("Mesh.Algorithm3D", 1)
+    gmsh.option.setNumber("Mesh.RandomSeed", 1)
+    gmsh.model.mesh.generate(3)
+    _finish("thermal_bar.msh")
+
+
 if __name__ == "__main__":
     chain()
     triangle()
     lattice2d()
     truss_block()
+    thermal_bar()
     print("wrote", ", ".join(f for f in sorted(os.listdir(HERE)) if f.endswith(".msh")))
