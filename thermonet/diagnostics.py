@@ -133,7 +133,8 @@ class Diagnostics:
     def summary(self) -> dict[str, dict[str, float]]:
         """Initial value, max absolute deviation and max relative deviation of each conserved
         quantity (relative to the quantity's scale: |initial|, or for momenta the largest
-        component magnitude seen, so a zero component is judged against a meaningful size)."""
+        component magnitude seen, so a zero component is judged against a meaningful size; for
+        the heat-flow balances the larger of |H(0)| and the largest |H − H(0)|, resp. for S)."""
         out = {}
         for name in CONSERVED:
             if not self.rows or name not in self.rows[0]:
@@ -147,9 +148,10 @@ class Diagnostics:
                 scale = abs(float(v[0]))
             out[name] = {"initial": float(v[0]), "max_deviation": dev, "relative": dev / scale if scale > 0 else dev}
         for name, of in (("energy_balance", "energy"), ("entropy_balance", "entropy")):
-            if self.rows and name in self.rows[0]:  # heat flow: a balance, zero at the start
-                dev = float(np.max(np.abs(self.column(name))))
-                scale = abs(float(self.rows[0][of]))
+            if self.rows and name in self.rows[0]:  # heat flow: a balance, zero at the start,
+                dev = float(np.max(np.abs(self.column(name))))  # judged against what moved too
+                v = self.column(of)
+                scale = max(abs(float(v[0])), float(np.max(np.abs(v - v[0]))))
                 out[name] = {"initial": 0.0, "max_deviation": dev, "relative": dev / scale if scale > 0 else dev}
         return out
 
