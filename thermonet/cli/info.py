@@ -96,15 +96,80 @@ def describe_scene(path: str, overrides) -> list[str]:
     e = d["effects"]
     out.append(f"  effects: thermal {'on' if e['thermal'] else 'off'}, gravity {e['gravity'] or 'off'}, "
                f"{int(net.anchored.sum())} anchored nodes")
+    out += _heat_flow(sim, {**(d.get('baths') or {}), **(d.get('sources') or {})})
     out.append(f"  integrator {sim.integrator.name} (order {sim.integrator.order}), h = {sim.h:g}, {total} steps "
                f"to t = {total * sim.h:g}")
     out.append(f"  output every {scene.cadence('frames_every', total)} steps (frames), "
                f"{scene.cadence('diagnostics_every', total)} (diagnostics), "
                f"{scene.cadence('checkpoint_every', total)} (checkpoints); fields {', '.join(scene.output_fields())}")
-    out.append(f"  memory of the run: about "
-               f"{_mb(engine_bytes(net.n_nodes, net.n_springs, len(sim.model.parameters), e['thermal']))}")
+    memory = engine_bytes(net.n_nodes, net.n_springs, len(sim.model.parameters), e['thermal'])
+    heat = sim.system.heat
+    extra = heat_bytes(net.n_springs, heat.graph.n_pairs) if heat is not None else 0
+    out.append(f"  memory of the run: about {_mb(memory + extra)}"
+               + (f" ({_mb(extra)} of it for heat flow)" if extra else ""))
     out.append(_stable_step(sim, "initial state"))
     return out
+
+
+def heat_bytes(n_springs: int, n_pairs: int) -> int:
+    """Bytes heat flow adds to a run: per pair its two springs, κ and k*, the sweep's factor; per
+    spring g, g*, C, 1/C, the entropy production log and the sweeps' temperatures."""
+    return n_pairs * (8 + 8 + 16 + 8) + n_springs * 6 * 8
+
+
+def _heat_flow(sim, specs: dict) -> list[str]:
+    """The heat-flow lines: conduction and thermal waves, the pair graph, baths, sources (specs:
+    the scene's bath and source tables by name)."""
+    from ..heat.graph import pairs_per_spring
+    from ..kernels.heat_flow import BATH
+
+    heat = sim.system.heat
+    if heat is None:
+        return ["  heat flow: off (adiabatic springs; effects.conduction, effects.thermal_waves)"]
+    m = sim.net.n_springs
+    parts = []
+    for on, name, values in ((heat.conduction, "conduction", heat.conductance),
+                             (heat.waves, "thermal waves", heat.wave_conductance)):
+        key = "g" if name == "conduction" else "g_star"
+        parts.append(f"{name} {'on' if on else 'off'}" + (f" ({key} {_span(values)})" if on else ""))
+    g = heat.graph
+    out = [f"  heat flow: {', '.join(parts)}",
+           f"    {g.n_pairs} spring pairs ({pairs_per_spring(g, m):.3g} per spring, {g.n_colours} colours)"]
+    for i, name in enumerate(heat.names):
+        mine = heat.entry_fn == i
+        if i < heat.n_baths:
+            group = specs.get(name, {}).get("group", "?")
+            nodes = int(np.sum(heat.bath_nodes == i))
+            ends = int(np.sum(mine & (heat.entry_kind == BATH)))
+            out.append(f"    bath {name}: node group {group!r} ({nodes} nodes, {ends} spring ends), "
+                       f"θ_b(t) = {_function(heat.functions[i])}")
+        else:
+            group = specs.get(name, {}).get("group", "?")
+            out.append(f"    source {name}: spring group {group!r} ({int(np.sum(mine))} springs), P(t) = {_function(heat.functions[i])} "
+                       "per spring")
+    if not heat.names:
+        out.append("    no baths or sources (an isolated net: heat only moves inside)")
+    return out
+
+
+def _span(values) -> str:
+    lo, hi = float(np.min(values)), float(np.max(values))
+    return f"{lo:g}" if lo == hi else f"{lo:g} .. {hi:g}"
+
+
+def _function(f) -> str:
+    """A time function in words."""
+    p = f.params
+    if f.kind == "constant":
+        return f"{p[0]:g}"
+    if f.kind == "linear":
+        return f"{p[0]:g} + {p[1]:g} t"
+    if f.kind == "ramp":
+        return f"ramp {p[0]:g} → {p[1]:g} over t ≤ {p[2]:g}"
+    if f.kind == "sine":
+        return f"{p[3]:g} + {p[0]:g} sin(2π·{p[1]:g} t + {p[2]:g})"
+    return (f"table of {len(f.times)} points, t {f.times[0]:g} .. {f.times[-1]:g}, "
+            f"values {f.values.min():g} .. {f.values.max():g}")
 
 
 def _groups(net) -> list[str]:
