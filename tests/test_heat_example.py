@@ -1,0 +1,90 @@
+"""The thermal-shock scene and example (examples/thermal_shock.py): the run's spring temperatures
+against the exact solution of the net's linear heat equations (β = 0), agreeing to the
+integrator's O(h²) error with the order measured; the example's heat operator against the
+star–mesh elimination written out; ``thermonet info`` on a scene with heat flow."""
+
+import importlib.util
+import math
+import pathlib
+
+import numpy as np
+import pytest
+
+import thermonet as tn
+from thermonet.cli.main import main as thermonet
+
+ROOT = pathlib.Path(__file__).resolve().parent.parent
+
+
+def load_example():
+    spec = importlib.util.spec_from_file_location("example_thermal_shock", ROOT / "examples" / "thermal_shock.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def star_mesh_operator(net, g, capacity, bath_nodes):
+    """C⁻¹ K, K the springs' block of the conduction network after eliminating every junction
+    (a Schur complement): spring middles joined to both their end nodes through g_e; bath nodes
+    held, every other node eliminated (spec-heat §1.1, §1.4). Dense; for small nets."""
+    m, n = net.n_springs, net.n_nodes
+    B = np.zeros((m, n))
+    B[np.arange(m), net.edges[:, 0]] += g
+    B[np.arange(m), net.edges[:, 1]] += g
+    junction = np.ones(n, dtype=bool)
+    junction[bath_nodes] = False
+    BJ = B[:, junction]
+    K = np.diag(B.sum(axis=1)) - BJ @ np.diag(1.0 / BJ.sum(axis=0)) @ BJ.T
+    return K / capacity[:, None]
+
+
+def test_the_examples_operator_is_the_star_mesh_elimination():
+    example = load_example()
+    net = tn.read_mesh(ROOT / "meshes" / "thermal_bar.msh", cell_types=["tetra"])
+    rng = np.random.default_rng(3)
+    g = rng.uniform(0.5, 2.0, net.n_springs)
+    capacity = rng.uniform(1.0, 3.0, net.n_springs)
+    bath = net.node_groups["hot_end"]
+    M = example.heat_operator(net, g, capacity, bath).toarray()
+    reference = star_mesh_operator(net, g, capacity, bath)
+    assert np.abs(M - reference).max() <= 1e-12 * np.abs(reference).max()
+
+
+def test_thermal_shock_matches_the_lattice_solution_at_second_order(tmp_path):
+    example = load_example()
+    numbers = example.main(["--smoke", "--out", str(tmp_path)])
+    err_h, err_h2 = np.array(numbers["error_h"]), np.array(numbers["error_h2"])
+    # relative to the 600 K shock: the splitting error only (no continuum error on the lattice)
+    assert (err_h < 1e-4).all() and (err_h2 < 3e-5).all()
+    assert (err_h2 > 1e-7).all()                       # an error to measure, not round-off
+    slopes = np.log2(err_h / err_h2)
+    assert np.all(np.abs(slopes - 2.0) < 0.05), slopes
+    # the heat has entered: the hottest springs are well above the initial 300 K
+    assert numbers["exact"][-1].max() > 800.0
+    # beta = 0.002 changes temperatures by the thermo-elastic work, by far less than a kelvin
+    assert 0.0 < max(numbers["coupling"]) < 0.1
+    assert (tmp_path / "thermal_shock_profiles.png").stat().st_size > 10_000
+
+
+def test_info_lists_conduction_baths_and_pairs(capsys):
+    assert thermonet(["info", str(ROOT / "scenes" / "thermal_shock.toml"),
+                      "--set", "sources.s.group=bar", "--set", "sources.s.power=0.5"]) == 0
+    text = capsys.readouterr().out
+    assert "heat flow: conduction on (g 4), thermal waves off" in text
+    pairs = int(text.split(" spring pairs")[0].split()[-1])
+    net = tn.read_mesh(ROOT / "meshes" / "thermal_bar.msh", cell_types=["tetra"])
+    # every pair of springs meeting at a node that is not a bath node (no two springs share two nodes)
+    bath = np.zeros(net.n_nodes, dtype=bool)
+    bath[net.node_groups["hot_end"]] = True
+    degree = np.bincount(net.edges.ravel(), minlength=net.n_nodes)
+    assert pairs == int(sum(d * (d - 1) // 2 for d in degree[~bath]))
+    assert f"({2 * pairs / net.n_springs:.3g} per spring" in text
+    ends = int(np.isin(net.edges, net.node_groups["hot_end"]).sum())
+    assert f"bath hot: node group 'hot_end' (12 nodes, {ends} spring ends), θ_b(t) = 900" in text
+    assert "source s: spring group 'bar' (673 springs), P(t) = 0.5 per spring" in text
+    assert "of it for heat flow" in text and "co2+conduction" in text
+
+
+def test_info_says_heat_flow_is_off(capsys):
+    assert thermonet(["info", str(ROOT / "scenes" / "chain.toml")]) == 0
+    assert "heat flow: off" in capsys.readouterr().out
