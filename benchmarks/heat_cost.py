@@ -3,25 +3,22 @@ without it (adiabatic), on a jittered 6-neighbour lattice and on a gmsh tetrahed
 one thread (serial kernels) and the default thread count.
 
     python benchmarks/heat_cost.py [--cells 32] [--mesh-size 0.06] [--steps 200] [--repeats 5]
-    python benchmarks/heat_cost.py --cells 69 --mesh-size 0.03 --steps 20 --repeats 3   # ~1e6
+    python benchmarks/heat_cost.py --cells 69 --mesh-size 0.03 --steps 5 --repeats 3   # ~1e6
 
-Per net and thread count, the runs alternate (adiabatic, conduction, the two conduction sweeps
-of a step alone) once per repeat after a warm-up, so that drifts of a shared machine hit all
-alike; times are medians over the repeats and the ratio is the median of the per-repeat ratios.
-Also reported: the pair count per spring (``thermonet.heat.graph.pairs_per_spring``) and the
-colours of the pair graph. Target (issue 17): the whole step with conduction ≤ 2× the adiabatic
-thermal step.
+Per net and thread count the runs alternate once per repeat after a warm-up (adiabatic,
+conduction, conduction with g = 0, the sweeps alone, the star sketch), so that drifts of a
+shared machine hit all alike; times are medians over the repeats and the ratio is the median
+of the per-repeat ratios. Also reported: the pair count per spring
+(``thermonet.heat.graph.pairs_per_spring``) and the colours of the pair graph. Target
+(issue 17): the whole step with conduction ≤ 2× the adiabatic thermal step.
 
-The "g = 0" column runs the conduction step with g = 0: the same schedule (sweeps at both ends
-of the step, so CO2's last kick is no longer shared with the next step's first) without a pair
-to exchange. The "sweeps" column times ``conduction_sweep`` forward and reverse over h/2 (what one step
-runs) on a copy of the state; the "sketch" column times the same exchanges updating θ only,
-with each spring's η and production from one logarithm per spring per sweep (the per-exchange
-entropy changes telescope), a measurement of what that rewrite would save, not code the
-engine runs. The "star" column times another sketch, not the engine's model: node-star exchanges
-(the springs at a node relax together toward their weighted mean temperature, energy exact and
-entropy non-decreasing, nodes coloured so that a colour's nodes share no spring), two visits
-per spring instead of one per pair.
+"g = 0" runs the conduction step with g = 0: the same schedule (sweeps at both ends of the
+step, so CO2's closing kick is no longer shared with the next step's opening kick) without a
+pair to exchange. "sweeps" times ``conduction_sweep`` forward and reverse over h/2 (what one
+step runs) on a copy of the state. "star" times a sketch that is not the engine's model:
+node-star exchanges (the springs at a node relax together toward their weighted mean
+temperature; energy exact, entropy non-decreasing; nodes coloured so that a colour's nodes share
+no spring), two visits per spring instead of one per pair.
 """
 
 from __future__ import annotations
@@ -98,7 +95,7 @@ def step_seconds(sim, steps: int) -> float:
 
 class Sweeps:
     """The two conduction sweeps of one step (over h/2, forward then reverse) on a copy of the
-    state of ``sim``, with the engine's sweep and with the telescoped sketch."""
+    state of ``sim``, with the engine's sweep and with the node-star sketch."""
 
     def __init__(self, sim):
         system = sim.system
@@ -110,6 +107,7 @@ class Sweeps:
         temperature_pass(s.positions, s.entropy, records.topology(system.layout),
                          records.Springs(system.rest_lengths, P), self.theta)
         self.theta0 = self.theta.copy()
+        self.theta_start = np.empty_like(self.theta)
         self.eta = s.entropy.copy()
         self.logs = self.heat.new_logs()
         self.tau = 0.5 * sim.h
@@ -128,19 +126,8 @@ class Sweeps:
     def engine(self) -> float:
         np.copyto(self.theta, self.theta0)
         t0 = time.perf_counter()
-        self.sweep(self.record, self.theta, self.eta, self.tau, 0.0, False)
-        self.sweep(self.record, self.theta, self.eta, self.tau, 0.0, True)
-        return time.perf_counter() - t0
-
-    def sketch(self) -> float:
-        np.copyto(self.theta, self.theta0)
-        r = self.record
-        fn = _sketch_par if self.parallel else _sketch_ser
-        t0 = time.perf_counter()
-        fn(r.first, r.second, r.factor, r.colour_ptr, r.capacity, r.inv_capacity, self.theta, self.eta,
-           r.produced, False)
-        fn(r.first, r.second, r.factor, r.colour_ptr, r.capacity, r.inv_capacity, self.theta, self.eta,
-           r.produced, True)
+        self.sweep(self.record, self.theta, self.theta_start, self.eta, self.tau, 0.0, False)
+        self.sweep(self.record, self.theta, self.theta_start, self.eta, self.tau, 0.0, True)
         return time.perf_counter() - t0
 
     def star(self) -> float:
@@ -152,32 +139,6 @@ class Sweeps:
         fn(*args, False)
         fn(*args, True)
         return time.perf_counter() - t0
-
-
-def _sketch(first, second, factor, colour_ptr, capacity, inv_capacity, theta, eta, produced, reverse):
-    """Pair exchanges on θ alone, colour by colour; then η += C ln(θ'/θ) once per spring (the
-    logarithms of one spring's exchanges telescope; their sum is the sweep's production)."""
-    m = theta.shape[0]
-    start = np.empty(m)
-    for e in prange(m):
-        start[e] = theta[e]
-    n_colours = colour_ptr.shape[0] - 1
-    for i in range(n_colours):
-        c = n_colours - 1 - i if reverse else i
-        for k in prange(colour_ptr[c], colour_ptr[c + 1]):
-            e = first[k]
-            f = second[k]
-            q = factor[k] * (theta[f] - theta[e])
-            theta[e] += q * inv_capacity[e]
-            theta[f] -= q * inv_capacity[f]
-    for e in prange(m):
-        d = capacity[e] * math.log(theta[e] / start[e])
-        eta[e] += d
-        produced[e] += d
-
-
-_sketch_par = njit(parallel=True, cache=True, error_model="numpy", boundscheck=False)(_sketch)
-_sketch_ser = njit(cache=True, error_model="numpy", boundscheck=False)(_sketch)
 
 
 @njit(cache=True)
@@ -238,14 +199,13 @@ def measure(name: str, net: tn.Net, threads: int | None, steps: int, repeats: in
     sweeps = Sweeps(conduction)
     for sim in (adiabatic, conduction, empty):  # warm-up: compile or load the kernels, touch the memory
         sim.run(steps=2, diagnostics_every=2)
-    sweeps.engine(), sweeps.sketch(), sweeps.star()
-    samples = {"adiabatic": [], "conduction": [], "schedule": [], "sweeps": [], "sketch": [], "star": []}
+    sweeps.engine(), sweeps.star()
+    samples = {"adiabatic": [], "conduction": [], "schedule": [], "sweeps": [], "star": []}
     for _ in range(repeats):
         samples["adiabatic"].append(step_seconds(adiabatic, steps))
         samples["conduction"].append(step_seconds(conduction, steps))
         samples["schedule"].append(step_seconds(empty, steps))
         samples["sweeps"].append(statistics.median(sweeps.engine() for _ in range(3)))
-        samples["sketch"].append(statistics.median(sweeps.sketch() for _ in range(3)))
         samples["star"].append(statistics.median(sweeps.star() for _ in range(3)))
     graph = conduction.system.heat.graph
     return {
@@ -286,13 +246,13 @@ def main() -> None:
     print(f"\nco2, hencky, g = {G}, {args.steps} steps per run, {args.repeats} interleaved repeats, "
           f"{os.cpu_count()} cores, load average {load:.2f}\n")
     print("| net | springs | pairs/spring | colours | threads | adiabatic ms/step | conduction ms/step | "
-          "ratio | g = 0 ms/step | sweeps ms/step | sketch ms/step | star ms/step |")
-    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+          "ratio | g = 0 ms/step | sweeps ms/step | star ms/step |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for r in rows:
         print(f"| {r['net']} | {r['springs']:,} | {r['pairs_per_spring']:.1f} | {r['colours']} | {r['threads']} "
               f"({r['kernels']}) | {1e3 * r['adiabatic']:.3g} | {1e3 * r['conduction']:.3g} | "
               f"**{r['ratio']:.2f}×** | {1e3 * r['schedule']:.3g} | {1e3 * r['sweeps']:.3g} | "
-              f"{1e3 * r['sketch']:.3g} | {1e3 * r['star']:.3g} |")
+              f"{1e3 * r['star']:.3g} |")
 
 
 if __name__ == "__main__":
