@@ -16,7 +16,7 @@ D_b the diagonal of g_e over the springs' bath ends, C the heat capacities. Thei
 yardstick: the integrator (CO2 with conduction sweeps of exact pairwise exchanges around it)
 differs from it by its O(h²) splitting error only, which the example measures at h and h/2.
 The scene's small beta = 0.002 lets the hot end expand (a 1.2 % thermal strain at 900 K);
-the mechanical work this takes and gives back changes temperatures by a few hundredths of a
+the mechanical work this takes and gives back changes temperatures by a few thousandths of a
 kelvin (reported as the "coupling" difference to the beta = 0 run at the same h: a change of
 the physics, not an error, so it does not shrink with h).
 

@@ -62,7 +62,7 @@ def test_thermal_shock_matches_the_lattice_solution_at_second_order(tmp_path):
     # the heat has entered: the hottest springs are well above the initial 300 K
     assert numbers["exact"][-1].max() > 800.0
     # beta = 0.002 changes temperatures by the thermo-elastic work, by far less than a kelvin
-    assert 0.0 < max(numbers["coupling"]) < 0.1
+    assert 0.0 < max(numbers["coupling"]) < 0.05
     assert (tmp_path / "thermal_shock_profiles.png").stat().st_size > 10_000
 
 
