@@ -5,7 +5,7 @@ profiles against the exact solution of the net's own linear heat equations.
 
 The bar (meshes/thermal_bar.msh, 673 springs) starts at 300 K; from t = 0 its end face x = 0 is
 a heat bath at 900 K, its far end is insulated. With thermal coupling beta = 0 the springs'
-temperatures obey exactly the linear lattice equations of spec-heat §1.2 with a bath (§1.4),
+temperatures obey exactly the linear lattice equations of docs/heat.md with a bath,
 
     C dθ/dt = −(L + D_b) (θ − θ_b),
 
@@ -20,8 +20,8 @@ the mechanical work this takes and gives back changes temperatures by a few thou
 kelvin (reported as the "coupling" difference to the beta = 0 run at the same h: a change of
 the physics, not an error, so it does not shrink with h).
 
-Writes, in OUT (default thermonet-out/thermal_shock_example): the scene's run (thermal_shock.pvd
-with its frames, diagnostics.csv, summary.json) and thermal_shock_profiles.png (temperature
+Writes, in OUT (default thermonet-out/thermal_shock_example): the scene's run in OUT/run
+(thermal_shock.pvd with its frames, diagnostics.csv, summary.json) and thermal_shock_profiles.png (temperature
 against x at four times, the run's springs averaged in slices of the bar, the lattice solution
 as lines), and prints the errors. ``--smoke``: the profiles to t = 2 only, no ParaView run.
 """
