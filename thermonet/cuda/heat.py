@@ -189,3 +189,31 @@ class DeviceHeat:
             _, lo, hi = _phase_span(code, phase, self.colour_ptr, self.n_bound)
             out.append((phase, int(hi - lo)))
         return out
+
+
+def compile_heat_ptx(model, uniform: bool = True, cc=(9, 0)) -> dict[str, str]:
+    """PTX of the heat kernels (conduction and thermal waves compiled in) for ``model`` and
+    compute capability ``cc``, as :func:`thermonet.cuda.kernels.compile_ptx` does for the
+    stepping kernels (the toolkit, no GPU). Returns name -> PTX text."""
+    from numba import njit, typeof
+
+    from ..kernels import records
+    from ..kernels.specialize import kernel_namespace
+    from ..kernels.splitting import bind_subflows
+
+    ns = kernel_namespace(model, True, uniform)
+    ns["CONDUCTION"] = ns["WAVES"] = True
+    tag = f"{model.name}_heat_ptx"
+    inline = njit(inline="always")
+    bind_subflows(ns, tag, inline)
+    bind_device_heat(ns, tag, inline)
+    v, x, i = np.empty(1), np.empty((1, 3)), np.empty(1, np.int64)
+    heat = records.Heat(i, i, v, v, i, v, v, i, i, i, i, v, i, np.empty((1, 4)), i, v, v, v, v, v, v, v)
+    springs = records.Springs(v, np.empty((len(model.parameters), 1)))
+    flag = np.zeros(4, np.int64)
+    samples = {"sweep": (_sweep_kernel, (-2, 0, heat, 1.0, 0.0, v, v, flag)),
+               "temperature": (_temperature_kernel, (x, v, np.empty((1, 2), np.uint32), springs, v, flag))}
+    out = {}
+    for name, (template, args) in samples.items():
+        out[name], _ = cuda.compile_ptx(rebind(template, tag, ns), tuple(typeof(a) for a in args), cc=cc)
+    return out
