@@ -271,6 +271,48 @@ def test_heat_kernels_compile_to_ptx_for_h100():
     assert all(".target sm_90" in text for text in ptx.values())
 
 
+@pytest.mark.skipif(not _toolkit_compiles(), reason="needs the CUDA toolkit libraries (NVVM, NVRTC) of "
+                    "numba-cuda[cu12] or [cu13]; no GPU needed")
+def test_fused_kernel_with_heat_rows_compiles_for_h100_but_for_its_grid_barriers():
+    """The fused ``_steps_kernel`` with conduction and thermal waves compiled in, typed and
+    compiled to PTX as for a GPU. numba-cuda types the grid-wide barrier only with a driver, so
+    here it is replaced by a block barrier (source rewritten); everything else is the kernel's."""
+    import inspect
+    import textwrap
+
+    from numba import cuda, njit, typeof
+
+    from thermonet.cuda import heat as device_heat
+    from thermonet.cuda import kernels
+    from thermonet.integrators.schedule import MAX_FLOWS, StageTable
+    from thermonet.kernels import records
+    from thermonet.kernels.specialize import kernel_namespace, rebind
+    from thermonet.kernels.splitting import bind_subflows
+
+    ns = kernel_namespace(tn.get_model("hencky"), True, True)
+    ns.update(CONDUCTION=True, WAVES=True)
+    tag, inline = "fused_heat_ptx", njit(inline="always")
+    bind_subflows(ns, tag, inline)
+    device_heat.bind_device_heat(ns, tag, inline)
+    for slot in range(MAX_FLOWS):
+        ns[f"flow_update_{slot}"] = inline(kernels._no_update)
+    for name, template in kernels._SHARED:
+        ns[name] = inline(rebind(template, tag, ns))
+    source = textwrap.dedent(inspect.getsource(kernels._steps_kernel))
+    assert source.count("grid.sync()") >= 5
+    source = source.replace("grid = cuda.cg.this_grid()", "pass").replace("grid.sync()", "cuda.syncthreads()")
+    namespace = dict(vars(kernels), **ns)
+    exec(source, namespace)
+    v, x, i, u = np.empty(1), np.empty((1, 3)), np.empty(1, np.int64), np.empty(1, np.uint32)
+    heat = records.Heat(i, i, v, v, i, v, v, i, i, i, i, v, i, np.empty((1, 4)), i, v, v, v, v, v, v, v)
+    args = (records.StateArrays(x, x, v, v), x, v,
+            records.Topology(np.empty((1, 2), np.uint32), i, u, u), records.Springs(v, np.empty((4, 1))),
+            records.Nodes(v, v, np.empty(1, np.bool_), np.empty(3), True, np.empty(3)), StageTable(i, v, v, 0.5),
+            (((v,),) * MAX_FLOWS, heat), records.Run(1.0, 0.0, 1, True, 0.1, 10.0, False, False), np.zeros(4, np.int64))
+    ptx, _ = cuda.compile_ptx(namespace["_steps_kernel"], tuple(typeof(a) for a in args), cc=(9, 0))
+    assert ".target sm_90" in ptx
+
+
 def _gpu_available() -> bool:
     if not HAVE_NUMBA_CUDA:
         return False

@@ -128,7 +128,8 @@ def cuda_kernels(model, thermal: bool = True, uniform: bool = False, flows=(), c
             ns["sweep_phase"], ns["temperature_update"] = inline(_no_sweep), inline(_no_temperature)
         # --- end heat flow ---
         for slot in range(MAX_FLOWS):
-            ns[f"flow_update_{slot}"] = _device_update(flows[slot].update, sim) if slot < len(flows) else _no_update
+            update = _device_update(flows[slot].update, sim) if slot < len(flows) else inline(_no_update)
+            ns[f"flow_update_{slot}"] = update  # (a device function even when empty: the fused kernel calls it)
         for name, template in _SHARED:  # in order: later ones call earlier ones
             ns[name] = inline(rebind(template, tag, ns))  # shared by the two-launch and the fused path
 
