@@ -41,7 +41,7 @@ STATE_RTOL = 1e-13
 DIAG_RTOL = 1e-12
 HEAT_COLUMNS = ("entropy_produced", "heat_in", "entropy_in", "energy_balance", "entropy_balance")
 COLUMNS = ("energy", "kinetic", "internal", "entropy", "px", "Lz", "theta_min", "theta_max") + HEAT_COLUMNS
-LOGS = ("produced", "entry_heat", "entry_flux", "theta", "theta_ok")
+LOGS = ("produced", "entry_heat", "entry_flux", "theta", "theta_ok", "length")
 
 
 def small_net(shape=(1, 1, 1), neighbours=6, seed=5):
@@ -204,7 +204,7 @@ def test_baths_and_sources_give_their_heat_on_the_device(runs, case):
     # a source gives P τ per spring and half step, exactly
     assert runs[f"{gpu}/col/heat_s"][-1] == pytest.approx(SOURCE_POWER * len(SOURCE_SPRINGS) * STEPS * H, rel=1e-12)
     assert runs[f"{gpu}/col/heat_hot"][-1] != 0.0
-    assert np.all(runs[f"{gpu}/produced"] >= 0.0) and runs[f"{gpu}/produced"].sum() > 0.0
+    assert runs[f"{gpu}/produced"].sum() > 0.0  # (per spring it is ΔS less what entries brought: any sign)
     assert abs(runs[f"{gpu}/col/entropy_balance"][-1]) < 1e-12 * abs(runs[f"{gpu}/col/entropy"][-1])
     assert runs[f"{gpu}/theta_ok"][0] == 1.0
 
@@ -304,7 +304,7 @@ def test_fused_kernel_with_heat_rows_compiles_for_h100_but_for_its_grid_barriers
     namespace = dict(vars(kernels), **ns)
     exec(source, namespace)
     v, x, i, u = np.empty(1), np.empty((1, 3)), np.empty(1, np.int64), np.empty(1, np.uint32)
-    heat = records.Heat(i, i, v, v, i, v, v, i, i, i, i, v, i, np.empty((1, 4)), i, v, v, v, v, v, v, v)
+    heat = device_heat.sample_heat()
     args = (records.StateArrays(x, x, v, v), x, v,
             records.Topology(np.empty((1, 2), np.uint32), i, u, u), records.Springs(v, np.empty((4, 1))),
             records.Nodes(v, v, np.empty(1, np.bool_), np.empty(3), True, np.empty(3)), StageTable(i, v, v, 0.5),

@@ -52,7 +52,7 @@ squared_length = None
 gather_force = kick_momentum = drift_position = load_row = store_row = update = None
 flow_update_0 = flow_update_1 = flow_update_2 = flow_update_3 = None
 # --- heat flow (thermonet.cuda.heat): compiled in only with CONDUCTION / WAVES ---
-sweep_phase = temperature_update = None
+sweep_phase = temperature_update = phase_count = None
 CONDUCTION = False
 WAVES = False
 # --- end heat flow ---
@@ -126,6 +126,7 @@ def cuda_kernels(model, thermal: bool = True, uniform: bool = False, flows=(), c
             heat.bind_device_heat(ns, tag, inline)
         else:
             ns["sweep_phase"], ns["temperature_update"] = inline(_no_sweep), inline(_no_temperature)
+            ns["phase_count"] = inline(_no_phases)
         # --- end heat flow ---
         for slot in range(MAX_FLOWS):
             update = _device_update(flows[slot].update, sim) if slot < len(flows) else inline(_no_update)
@@ -174,9 +175,14 @@ def _no_sweep(code, phase, heat, tau, t, phi, eta, first, stride):
     return None
 
 
-def _no_temperature(e, x, eta, edges, springs, theta):
+def _no_temperature(e, x, eta, edges, springs, heat):
     """No heat flow compiled in."""
     return None
+
+
+def _no_phases(code, colour_ptr):
+    """No heat flow compiled in."""
+    return 0
 
 
 # ----------------------------------------------------------------------------------------------
@@ -254,13 +260,13 @@ def _steps_kernel(state, x_buf, s, topology, springs, nodes, table, flows, run, 
                     elif CONDUCTION and code >= -3:
                         if not theta_valid:
                             for e in range(first, edges.shape[0], stride):
-                                temperature_update(e, xs, eta, edges, springs, heat.theta)
+                                temperature_update(e, xs, eta, edges, springs, heat)
                             grid.sync()
                         theta_valid = True
                     else:
                         continue
                     t = run.t0 + (step + table.drift[r]) * h
-                    for phase in range(heat.colour_ptr.shape[0] - (1 if code == -4 else 0)):
+                    for phase in range(phase_count(code, heat.colour_ptr)):
                         sweep_phase(code, phase, heat, table.kick[r] * h, t, phi, eta, first, stride)
                         grid.sync()
                     continue

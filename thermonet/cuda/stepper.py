@@ -217,7 +217,7 @@ class CudaSplittingStepper(Stepper):
         k = self._k
         m = self.system.n_springs
         if code != -4 and not theta_valid and m > 0:
-            k.temperature[k.blocks(m), k.threads](self._x, self._eta, self._topology.edges, self._springs, heat.theta,
+            k.temperature[k.blocks(m), k.threads](self._x, self._eta, self._topology.edges, self._springs, heat,
                                                   self._flag)
         for phase, count in self._heat.phases(code):
             if count > 0:
