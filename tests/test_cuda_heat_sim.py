@@ -5,11 +5,11 @@ Under Numba's CUDA simulator: this file, run as a script in a process of its own
 ``NUMBA_ENABLE_CUDASIM=1`` (the variable must be set before Numba is imported), runs tiny nets on
 both backends and both launch modes and saves the results; the tests compare them. The device
 runs the CPU's per-element functions (``thermonet/kernels/heat_flow.py``) in the CPU's order per
-element, and the simulator executes them as Python with the same libm ``exp`` / ``log`` as the
-compiled CPU kernels, so states and logs agree bit for bit in practice; the tests allow
-``STATE_RTOL`` (1e-13) of each quantity's scale, as ``tests/test_cuda_sim.py`` does, for a libm
-whose compiled and Python entry points differ in the last bit. On a real GPU (``gpu`` tests)
-fused multiply-adds change the last bits of each step: 1e-10 there.
+element, but not bit for bit: the CPU's entropy update uses a vectorizing ``log``
+(``thermonet.kernels.fastmath``), the device ``math.log``, and the CPU's kick after the sweeps
+takes the swept θ where the device evaluates θ(l, η) (docs/gpu.md). The tests allow
+``STATE_RTOL`` (1e-13) of each quantity's scale. On a real GPU (``gpu`` tests) fused
+multiply-adds change the last bits of each step too: 1e-10 there.
 
     python tests/test_cuda_heat_sim.py OUT.npz     # with NUMBA_ENABLE_CUDASIM=1
 """
