@@ -40,7 +40,7 @@ import numpy as np
 from numba import cuda, float64, njit
 
 from ..integrators.schedule import MAX_FLOWS
-from ..kernels import subflows
+from ..kernels import heat_flow, subflows
 from ..kernels.specialize import MODEL_FUNCTIONS, function_fingerprint, kernel_namespace, model_fingerprint, rebind
 from ..kernels.splitting import bind_subflows
 from . import FLAG_ROW, FLAG_SET, FLAG_STAGES, FLAG_STEP, simulator_enabled
@@ -51,6 +51,11 @@ spring_force = spring_energy = spring_temperature = outside_admissible = advance
 squared_length = None
 gather_force = kick_momentum = drift_position = load_row = store_row = update = None
 flow_update_0 = flow_update_1 = flow_update_2 = flow_update_3 = None
+# --- heat flow (thermonet.cuda.heat): compiled in only with CONDUCTION / WAVES ---
+sweep_phase = temperature_update = phase_count = None
+CONDUCTION = False
+WAVES = False
+# --- end heat flow ---
 THERMAL = True
 REFERENCE_TEMPERATURE = 0
 UNIFORM = False
@@ -81,6 +86,7 @@ class CudaKernels:
     def __init__(self, spring, node, flows, steps, spring_sums, node_sums, finish, threads, reduce_threads,
                  reduce_blocks):
         self.spring, self.node, self.flows, self.steps = spring, node, flows, steps
+        self.sweep = self.temperature = None  # heat flow: see cuda_kernels(conduction=, waves=)
         self.spring_sums, self.node_sums, self.finish = spring_sums, node_sums, finish
         self.threads, self.reduce_threads, self.reduce_blocks = threads, reduce_threads, reduce_blocks
 
@@ -89,13 +95,16 @@ class CudaKernels:
         return (n + self.threads - 1) // self.threads
 
 
-def cuda_kernels(model, thermal: bool = True, uniform: bool = False, flows=()) -> CudaKernels:
+def cuda_kernels(model, thermal: bool = True, uniform: bool = False, flows=(), conduction: bool = False,
+                 waves: bool = False) -> CudaKernels:
     """The CUDA kernels for ``model`` (purely mechanical when not ``thermal``; parameters shared
     by all springs, a ``(k, 1)`` array, when ``uniform``: see
     :func:`thermonet.kernels.splitting.kernel_parameters`), with the extra sub-flows ``flows``
-    (:class:`~thermonet.integrators.schedule.SubFlow` s, slot order)."""
+    (:class:`~thermonet.integrators.schedule.SubFlow` s, slot order) and the heat-flow rows it
+    may meet compiled in (``conduction``, ``waves``: :mod:`thermonet.cuda.heat`)."""
     sim = simulator_enabled()
-    key = (model_fingerprint(model), bool(thermal), bool(uniform), sim, tuple(id(f) for f in flows))
+    key = (model_fingerprint(model), bool(thermal), bool(uniform), sim, tuple(id(f) for f in flows),
+           bool(conduction), bool(waves))
     if key not in _CACHE:
         ns = kernel_namespace(model, thermal, uniform)
         if sim:
@@ -108,8 +117,20 @@ def cuda_kernels(model, thermal: bool = True, uniform: bool = False, flows=()) -
         jit = cuda.jit if sim else cuda.jit(cache=True)
         inline = (lambda fn: fn) if sim else njit(inline="always")
         bind_subflows(ns, tag, inline)
+        # --- heat flow ---
+        ns["CONDUCTION"], ns["WAVES"] = bool(conduction), bool(waves)
+        if conduction or waves:
+            from . import heat
+
+            tag += f"_{'k' * conduction}{'w' * waves}{heat_flow.source_digest()}{heat.source_digest()}"
+            heat.bind_device_heat(ns, tag, inline)
+        else:
+            ns["sweep_phase"], ns["temperature_update"] = inline(_no_sweep), inline(_no_temperature)
+            ns["phase_count"] = inline(_no_phases)
+        # --- end heat flow ---
         for slot in range(MAX_FLOWS):
-            ns[f"flow_update_{slot}"] = _device_update(flows[slot].update, sim) if slot < len(flows) else _no_update
+            update = _device_update(flows[slot].update, sim) if slot < len(flows) else inline(_no_update)
+            ns[f"flow_update_{slot}"] = update  # (a device function even when empty: the fused kernel calls it)
         for name, template in _SHARED:  # in order: later ones call earlier ones
             ns[name] = inline(rebind(template, tag, ns))  # shared by the two-launch and the fused path
 
@@ -118,10 +139,13 @@ def cuda_kernels(model, thermal: bool = True, uniform: bool = False, flows=()) -
 
         flow_kernels = tuple(compile_(_flow_kernel, dict(ns, update=ns[f"flow_update_{slot}"]), f"_{slot}")
                              for slot in range(len(flows)))
-        _CACHE[key] = CudaKernels(
+        kernels = CudaKernels(
             compile_(_spring_kernel), compile_(_node_kernel), flow_kernels, compile_(_steps_kernel),
             compile_(_spring_sums_kernel), compile_(_node_sums_kernel), compile_(_finish_kernel),
             SIMULATOR_THREADS if sim else THREADS, reduce_threads, SIMULATOR_REDUCE_BLOCKS if sim else REDUCE_BLOCKS)
+        if conduction or waves:  # heat flow
+            kernels.sweep, kernels.temperature = heat.heat_kernels(compile_)
+        _CACHE[key] = kernels
     return _CACHE[key]
 
 
@@ -144,6 +168,21 @@ def _device_update(update, sim: bool):
 def _no_update(i, data, tau, t, x, p, phi, eta):
     """An empty flow slot."""
     return None
+
+
+def _no_sweep(code, phase, heat, tau, t, phi, eta, first, stride):
+    """No heat flow compiled in."""
+    return None
+
+
+def _no_temperature(e, x, eta, edges, springs, heat):
+    """No heat flow compiled in."""
+    return None
+
+
+def _no_phases(code, colour_ptr):
+    """No heat flow compiled in."""
+    return 0
 
 
 # ----------------------------------------------------------------------------------------------
@@ -176,14 +215,16 @@ def _flow_kernel(data, tau, t, x, p, phi, eta, flag):
         update(i, data, tau, t, x, p, phi, eta)
 
 
-def _steps_kernel(state, x_buf, s, topology, springs, nodes, table, effects, run, flag):
+def _steps_kernel(state, x_buf, s, topology, springs, nodes, table, flows, run, flag):
     """``run.n_steps`` whole steps in one cooperative launch: every row of the schedule ``table``
     over grid-stride loops, separated by grid-wide barriers, in the order and with the
     coefficients of :meth:`~thermonet.cuda.stepper.CudaSplittingStepper.advance`'s two-launch
     path (the same per-spring and per-node updates, so the same numbers), and the call's closing
     kick. Positions alternate between ``state.x`` and ``x_buf`` stage by stage; the caller counts
     the stages to know which holds the result. A spring outside the admissible states stops the
-    launch after its spring pass, with ``flag`` saying where.
+    launch after its spring pass, with ``flag`` saying where. flows: (the extra sub-flows' data,
+    the :class:`~thermonet.kernels.records.Heat` record); heat rows run their phases
+    (:mod:`thermonet.cuda.heat`) between barriers.
     """
     grid = cuda.cg.this_grid()
     first = cuda.grid(1)
@@ -192,6 +233,9 @@ def _steps_kernel(state, x_buf, s, topology, springs, nodes, table, effects, run
     p = state.p
     phi = state.phi
     eta = state.eta
+    effects = flows[0]
+    heat = flows[1]
+    theta_valid = CONDUCTION and heat.theta_ok[0] == 1.0  # the previous call's sweeps continue
     h = run.h
     n_rows = table.code.shape[0]
     edges = topology.edges
@@ -208,6 +252,23 @@ def _steps_kernel(state, x_buf, s, topology, springs, nodes, table, effects, run
                     t = run.t0 + (step + table.drift[r]) * h
                     _flow_grid(code, effects, tau, t, xs, p, phi, eta, first, stride)
                     grid.sync()
+                    theta_valid = False
+                    continue
+                if code <= -2:  # --- heat flow (as the CPU's _advance) ---
+                    if WAVES and code == -4:
+                        theta_valid = False
+                    elif CONDUCTION and code >= -3:
+                        if not theta_valid:
+                            for e in range(first, edges.shape[0], stride):
+                                temperature_update(e, xs, eta, edges, springs, heat)
+                            grid.sync()
+                        theta_valid = True
+                    else:
+                        continue
+                    t = run.t0 + (step + table.drift[r]) * h
+                    for phase in range(phase_count(code, heat.colour_ptr)):
+                        sweep_phase(code, phase, heat, table.kick[r] * h, t, phi, eta, first, stride)
+                        grid.sync()
                     continue
                 k1 = pending if r == 0 else 0.0
                 k2 = table.kick[r]
@@ -219,6 +280,8 @@ def _steps_kernel(state, x_buf, s, topology, springs, nodes, table, effects, run
             else:
                 break
             with_force = k1 != 0.0 or k2 != 0.0
+            if with_force or d != 0.0:
+                theta_valid = False  # (a stage without drift leaves θ(l, η), recomputed the same)
             if with_force:
                 for e in range(first, edges.shape[0], stride):
                     if _spring_update(e, xs, eta, phi, springs, edges, s, (k1 * h, k2 * h), run):
@@ -231,6 +294,8 @@ def _steps_kernel(state, x_buf, s, topology, springs, nodes, table, effects, run
             grid.sync()
             parity = 1 - parity
         pending = table.carry
+    if CONDUCTION and first == 0:
+        heat.theta_ok[0] = 1.0 if theta_valid else 0.0
 
 
 def _flow_grid(slot, effects, tau, t, x, p, phi, eta, first, stride):

@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..diagnostics import diagnostics_row
+from ..errors import InputError
 from ..integrators.base import Stepper
 from ..kernels import records
 from ..kernels.splitting import kernel_parameters
@@ -48,6 +49,7 @@ class CudaSplittingStepper(Stepper):
         from numba import cuda
 
         from ..integrators.splitting import flow_data
+        from .heat import DeviceHeat
         from .kernels import NODE_OPS, SPRING_OPS, cuda_kernels
 
         self.integrator = integrator
@@ -55,10 +57,15 @@ class CudaSplittingStepper(Stepper):
         self._cuda = cuda
         P, uniform = kernel_parameters(system.parameters)
         flows = integrator.subflows
-        self._k = cuda_kernels(system.model, system.thermal, uniform, flows)
         table = integrator.table
         n, m = system.n_nodes, system.n_springs
         dev = cuda.to_device
+        # --- heat flow: the record and its logs on the device (thermonet.cuda.heat) ---
+        conduction, waves = integrator.heat_rows
+        if (conduction or waves) and getattr(system, "heat", None) is None:
+            raise InputError(f"{integrator.name} has heat-flow rows but the system has no heat flow set up")
+        self._heat = DeviceHeat(system.heat if (conduction or waves) else None, integrator, dev)
+        self._k = cuda_kernels(system.model, system.thermal, uniform, flows, conduction, waves)
         self._table = records_to_device(table, dev)
         self._rows = [(int(c), float(k), float(d)) for c, k, d in zip(table.code, table.kick, table.drift)]
         self._carry = float(table.carry)
@@ -97,6 +104,7 @@ class CudaSplittingStepper(Stepper):
         if self.system.thermal:
             self._phi.copy_to_device(np.ascontiguousarray(state.thermal_displacement))
             self._eta.copy_to_device(np.ascontiguousarray(state.entropy))
+        self._heat.upload(state)
         self._bound = state
         self._device_newer = False
 
@@ -109,10 +117,15 @@ class CudaSplittingStepper(Stepper):
         if self.system.thermal:
             self._phi.copy_to_host(state.thermal_displacement)
             self._eta.copy_to_host(state.entropy)
+        self._heat.download(state)
         self._device_newer = False
 
     def _state_arrays(self):
         return records.StateArrays(self._x, self._p, self._phi, self._eta)
+
+    def _changing_arrays(self) -> tuple:
+        """The device arrays a step changes, which a backup copies: the state's and the heat logs."""
+        return tuple(self._state_arrays()) + self._heat.logs
 
     # ------------------------------------------------------------------------------------------
     # stepping
@@ -172,31 +185,54 @@ class CudaSplittingStepper(Stepper):
         x_start = self._x
         pending = 0.0
         stages = 0
+        heat = self._heat.record(h) if self._heat.setup is not None else None
+        theta_valid = heat is not None and self._heat.theta_ok()
         for step in range(n_steps):
             t_step = t0 + step * h
             for r, (code, kick, drift) in enumerate(self._rows):
                 if code >= 0:
                     self._flow(code, kick * h, t_step + drift * h)
+                    theta_valid = False
+                    continue
+                if code <= -2:
+                    self._heat_row(heat, code, kick * h, t_step + drift * h, theta_valid)
+                    theta_valid = code != -4
                     continue
                 k1 = pending if r == 0 else 0.0
                 self._stage(k1 * h, kick * h, drift * h, k1 != 0.0 or kick != 0.0, run, (step, r, stages))
+                if k1 != 0.0 or kick != 0.0 or drift != 0.0:
+                    theta_valid = False  # see _steps_kernel
                 stages += 1
             pending = self._carry
+        if heat is not None and self._heat.setup.conduction:
+            self._heat.set_theta_ok(theta_valid)
         if pending != 0.0:
             self._stage(0.0, pending * h, 0.0, True, run, (n_steps, len(self._rows), stages))
         flag = self._flag.copy_to_host()
         return (flag, 0, x_start) if flag[FLAG_SET] else None
+
+    def _heat_row(self, heat, code: int, tau: float, t: float, theta_valid: bool) -> None:
+        """Heat row ``code`` over τ at time t, one launch per phase (:mod:`thermonet.cuda.heat`),
+        after a temperature pass when a conduction sweep has no valid θ."""
+        k = self._k
+        m = self.system.n_springs
+        if code != -4 and not theta_valid and m > 0:
+            k.temperature[k.blocks(m), k.threads](self._x, self._eta, self._topology.edges, self._springs, heat,
+                                                  self._flag)
+        for phase, count in self._heat.phases(code):
+            if count > 0:
+                k.sweep[k.blocks(count), k.threads](code, phase, heat, tau, t, self._phi, self._eta, self._flag)
 
     def _fused_steps(self, run) -> None:
         """``run.n_steps`` steps as one cooperative launch; the same rows as :meth:`advance`'s
         two-launch loop (including the closing half kick), so a chunk ends in the same state."""
         k = self._k
         args = (self._state_arrays(), self._x_buf, self._s, self._topology, self._springs, self._nodes, self._table,
-                self._effects, run, self._flag)
+                (self._effects, self._heat.record(run.h)), run, self._flag)
         if self._fused_blocks is None:
             self._fused_blocks = self._cooperative_blocks(args)
         k.steps[self._fused_blocks, k.threads](*args)
-        stages = run.n_steps * sum(1 for c, _, _ in self._rows if c < 0) + (1 if self._carry != 0.0 else 0)
+        stages = run.n_steps * sum(1 for c, _, _ in self._rows if c == -1) + (1 if self._carry != 0.0 else 0)
         if stages % 2:
             self._x, self._x_buf = self._x_buf, self._x
 
@@ -222,7 +258,7 @@ class CudaSplittingStepper(Stepper):
         b = self._backup
         if b is not None and b[0] is state and b[2] == h and 0 <= state.step - b[1] < self.BACKUP_SPAN:
             return
-        arrays = self._state_arrays()
+        arrays = self._changing_arrays()
         copies = b[4] if b is not None else tuple(self._cuda.device_array_like(a) for a in arrays)
         for source, target in zip(arrays, copies):
             target.copy_to_device(source)
@@ -244,7 +280,7 @@ class CudaSplittingStepper(Stepper):
         failure = blowup_failure(self.system, positions, entropy, done)
         self._flag.copy_to_device(np.zeros(4, np.int64))
         _, backup_step, _, backup_time, copies = self._backup
-        for source, target in zip(copies, self._state_arrays()):
+        for source, target in zip(copies, self._changing_arrays()):
             target.copy_to_device(source)
         replay = state.step - backup_step + done
         if replay > 0 and self._steps(backup_time, replay, h) is not None:
@@ -269,6 +305,10 @@ class CudaSplittingStepper(Stepper):
                                      self._node_partial)
         k.finish[1, threads](self._node_partial, self._node_ops, self._node_out)
         internal, entropy, theta_min, theta_max = (float(v) for v in self._spring_out.copy_to_host())
+        if self._heat.setup is not None and self._device_newer:  # the heat columns read the logs (and W(Φ) Φ)
+            self._heat.download(state)
+            if self._heat.setup.waves:
+                self._phi.copy_to_host(state.thermal_displacement)
         kinetic, potential, px, py, pz, Lx, Ly, Lz = (float(v) for v in self._node_out.copy_to_host())
         return diagnostics_row(system, state, kinetic, internal, potential, entropy, (px, py, pz), (Lx, Ly, Lz),
                                theta_min, theta_max)

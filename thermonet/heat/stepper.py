@@ -20,9 +20,9 @@ def integrator_with_heat(integrator, heat, backend: str):
     """The integrator a run with heat flow uses: an explicit splitting with the heat rows in its
     schedule; an implicit integrator as it is (its stepper is wrapped), which supports
     conduction but not thermal waves."""
-    if backend != "cpu":
-        raise InputError(f"heat flow (conduction, baths, sources, thermal waves) runs on the cpu backend; "
-                         f"backend {backend!r} does not support it yet")
+    if backend != "cpu" and not getattr(integrator, "explicit", False):
+        raise InputError(f"heat flow (conduction, baths, sources, thermal waves) on backend {backend!r} runs with "
+                         f"the explicit integrators; {integrator.name} is implicit")
     if getattr(integrator, "explicit", False):
         return integrator.with_heat(heat.conduction, heat.waves)
     if heat.waves:

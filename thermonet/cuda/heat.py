@@ -1,0 +1,258 @@
+"""Heat flow on the GPU: the conduction and thermal-wave rows of the explicit schedule
+(spec-heat §1–2), built from the CPU's per-element functions (:mod:`thermonet.kernels.heat_flow`).
+
+A heat row is a sequence of *phases*, each a parallel pass whose elements share no spring:
+
+- conduction forward (code −2): the springs' θ kept as the sweep's start (``theta_start``), the
+  boundary entries (baths, sources: one thread per boundary spring), the pair colours in order,
+  then each spring's entropy update ``η += C ln(θ'/θ)`` (``finish_spring``); in reverse (−3) the
+  colours run backwards and the boundary entries after them (each spring's entries in reverse);
+- thermal waves (−4): the pair colours in order.
+
+:func:`_sweep_phase` runs one phase over a grid-stride loop: the two-launch path launches
+:func:`_sweep_kernel` once per phase (one thread per element), the fused kernel calls it between
+grid-wide barriers. A conduction sweep works on the springs' temperatures in the device copy of
+the ``theta`` log (``heat.theta``), valid when ``theta_ok`` says so, as the CPU's ``theta_keep``:
+after a sweep, and across calls. Where the CPU reuses the θ its spring pass computed (a stage
+without drift), the GPU recomputes it with a temperature pass (:func:`_temperature_update`, the
+same function of the same l and η) instead of writing θ from the spring update, and the kick
+after the sweeps evaluates θ(l, η) again where the CPU takes the swept θ and the stored length
+(``refresh_pass``): equal to round-off. The temperature pass also keeps the lengths in
+``heat.length``, so the logs stay valid for a CPU run continuing from the state.
+
+:class:`DeviceHeat` keeps the heat record and its logs on the device for the stepper.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import inspect
+import math
+import sys
+
+import numpy as np
+from numba import cuda
+
+from ..errors import InputError
+from ..integrators.schedule import CONDUCTION_REVERSE, THERMAL_WAVES, BuiltinFlow
+from ..kernels import heat_flow
+from ..kernels.records import Heat, no_heat
+from ..kernels.specialize import rebind
+from . import FLAG_SET
+
+# Bound per kernel variant by bind_device_heat() (see thermonet.kernels.heat_flow).
+pair_exchange = boundary_exchange = finish_spring = wave_exchange = spring_temperature = squared_length = None
+phase_span = phase_count = sweep_phase = temperature_update = None
+CONDUCTION = False
+WAVES = False
+UNIFORM = False
+
+#: the record's logs (kept in the state) and working arrays, after its static fields
+LOGS = ("produced", "entry_heat", "entry_flux", "theta", "theta_ok", "length")
+WORK = ("s_before", "theta_start")
+#: what a phase runs over (see _phase_span)
+PAIRS, BOUNDARY, START, FINISH = range(4)
+
+
+def _phase_span(code, phase, colour_ptr, n_bound, m):
+    """(kind, lo, hi): phase ``phase`` of heat row ``code`` runs elements lo:hi of kind PAIRS
+    (one colour's pairs), BOUNDARY (boundary springs), START or FINISH (all m springs)."""
+    n_colours = colour_ptr.shape[0] - 1
+    if code == THERMAL_WAVES:
+        colour = phase
+    else:
+        if phase == 0:
+            return START, 0, m
+        if phase == n_colours + 2:
+            return FINISH, 0, m
+        reverse = code == CONDUCTION_REVERSE
+        if phase == (n_colours + 1 if reverse else 1):
+            return BOUNDARY, 0, n_bound
+        colour = n_colours - phase if reverse else phase - 2
+    return PAIRS, colour_ptr[colour], colour_ptr[colour + 1]
+
+
+def _phase_count(code, colour_ptr):
+    """Phases of heat row ``code``: the colours, and for conduction the start, boundary and
+    finish phases."""
+    return colour_ptr.shape[0] - 1 + (0 if code == THERMAL_WAVES else 3)
+
+
+def _sweep_phase(code, phase, heat, tau, t, phi, eta, first, stride):
+    """The elements first, first + stride, ... of phase ``phase`` of heat row ``code`` over τ at
+    time t (conduction on heat.theta; see the module docstring). phi, eta: (m,)."""
+    kind, lo, hi = phase_span(code, phase, heat.colour_ptr, heat.bound_spring.shape[0], heat.capacity.shape[0])
+    if WAVES and code == THERMAL_WAVES:
+        for k in range(lo + first, hi, stride):
+            wave_exchange(k, heat.first, heat.second, heat.wave, tau, phi, eta)
+    elif CONDUCTION and kind == PAIRS:
+        for k in range(lo + first, hi, stride):
+            pair_exchange(k, heat.first, heat.second, heat.factor, heat.theta)
+    elif CONDUCTION and kind == BOUNDARY:
+        logs = (heat.produced, heat.entry_heat, heat.entry_flux)
+        for j in range(lo + first, hi, stride):
+            boundary_exchange(j, heat, tau, t, code == CONDUCTION_REVERSE, heat.theta, logs)
+    elif CONDUCTION and kind == START:
+        for e in range(lo + first, hi, stride):
+            heat.theta_start[e] = heat.theta[e]
+    elif CONDUCTION:
+        for e in range(lo + first, hi, stride):
+            finish_spring(e, heat.theta, heat.theta_start, eta, heat.capacity, heat.produced)
+
+
+def _temperature_update(e, x, eta, edges, springs, heat):
+    """heat.theta[e] = θ(l_e, η_e) and heat.length[e] = l_e at positions x (the CPU's
+    temperature pass, per spring)."""
+    l = math.sqrt(squared_length(x, edges, e))
+    c = 0 if UNIFORM else e
+    heat.length[e] = l
+    heat.theta[e] = spring_temperature(l, eta[e], springs.rest[e], springs.P, c)
+
+
+def _sweep_kernel(code, phase, heat, tau, t, phi, eta, flag):
+    """Thread i: element i of the phase (see :func:`_sweep_phase`), unless the call stopped."""
+    if flag[FLAG_SET] == 0:
+        sweep_phase(code, phase, heat, tau, t, phi, eta, cuda.grid(1), cuda.gridsize(1))
+
+
+def _temperature_kernel(x, eta, edges, springs, heat, flag):
+    """Thread e: :func:`_temperature_update` of spring e, unless the call stopped."""
+    e = cuda.grid(1)
+    if e < edges.shape[0] and flag[FLAG_SET] == 0:
+        temperature_update(e, x, eta, edges, springs, heat)
+
+
+def source_digest() -> str:
+    """A short hash of this module's source (part of the kernels' cache names)."""
+    return hashlib.sha256(inspect.getsource(sys.modules[__name__]).encode()).hexdigest()[:8]
+
+
+def bind_device_heat(ns: dict, tag: str, inline) -> None:
+    """Bind the heat-flow device functions into the kernel namespace ``ns`` (which holds the
+    model, the sub-flows and CONDUCTION / WAVES), each compiled by ``inline``."""
+    from ..timefunctions import evaluate_py
+
+    ns["evaluate"] = inline(evaluate_py)
+    ns["log"] = math.log  # (the CPU binds a vectorizing log; one call per spring here)
+    for name in heat_flow.SHARED:
+        ns[name] = inline(rebind(getattr(heat_flow, name), tag, ns))
+    for name, template in (("phase_span", _phase_span), ("phase_count", _phase_count), ("sweep_phase", _sweep_phase),
+                           ("temperature_update", _temperature_update)):
+        ns[name] = inline(rebind(template, tag, ns))
+
+
+def heat_kernels(compile_):
+    """(sweep, temperature) kernels compiled by ``compile_(template)``."""
+    return compile_(_sweep_kernel), compile_(_temperature_kernel)
+
+
+def conduction_coefficient(integrator) -> float:
+    """The coefficient c of the integrator's conduction rows (τ = c h; 0 when none), as the CPU
+    stepper requires: one for all of them."""
+    taus = sorted({c for _, f, c in integrator.flows if isinstance(f, BuiltinFlow) and f.code != THERMAL_WAVES})
+    if len(taus) > 1:
+        raise InputError(f"{integrator.name}: conduction rows with different coefficients {taus}")
+    return taus[0] if taus else 0.0
+
+
+class DeviceHeat:
+    """The heat record on the device: static arrays uploaded once, the conduction factors per
+    step size, the logs (:meth:`HeatSetup.new_logs`) uploaded with the state and copied back
+    with it. ``setup`` None: the empty record of a run without heat flow."""
+
+    def __init__(self, setup, integrator, to_device):
+        self.setup = setup
+        self._to_device = to_device
+        self.coefficient = conduction_coefficient(integrator) if setup is not None else 0.0
+        host = setup.record(0.0, setup.new_logs()) if setup is not None else no_heat()
+        self.colour_ptr = np.asarray(host.colour_ptr)
+        self.n_bound = int(host.bound_spring.shape[0])
+        self.m = int(host.capacity.shape[0])
+        n_static = len(Heat._fields) - len(LOGS) - len(WORK)
+        assert Heat._fields[n_static:] == LOGS + WORK
+        self._static = [to_device(np.ascontiguousarray(a)) for a in host[:n_static]]
+        self.logs = tuple(to_device(np.ascontiguousarray(getattr(host, k))) for k in LOGS)
+        self._work = tuple(to_device(np.zeros_like(getattr(host, k))) for k in WORK)
+        self._factor = (None, None)  # (τ, device factors)
+
+    def record(self, h: float) -> Heat:
+        """The device :class:`Heat` for sweeps over τ = coefficient · h."""
+        static = list(self._static)
+        if self.setup is not None and self.setup.conduction:
+            tau = self.coefficient * h
+            if self._factor[0] != tau:
+                self._factor = (tau, self._to_device(self.setup.factor(tau)))
+            static[Heat._fields.index("factor")] = self._factor[1]
+        return Heat(*static, *self.logs, *self._work)
+
+    def upload(self, state) -> None:
+        """The logs of ``state`` onto the device."""
+        if self.setup is None:
+            return
+        from ..integrators.splitting import heat_logs
+
+        logs = heat_logs(state, self.setup)
+        for name, target in zip(LOGS, self.logs):
+            if target.size:
+                target.copy_to_device(np.ascontiguousarray(logs[name]))
+
+    def download(self, state) -> None:
+        """The device logs into ``state.extra["heat"]``."""
+        if self.setup is None:
+            return
+        from ..integrators.splitting import heat_logs
+
+        logs = heat_logs(state, self.setup)
+        for name, source in zip(LOGS, self.logs):
+            if source.size:
+                source.copy_to_host(logs[name])
+
+    def theta_ok(self) -> bool:
+        """Whether heat.theta holds the springs' temperatures where the last call ended."""
+        return self.setup is not None and bool(self.logs[LOGS.index("theta_ok")].copy_to_host()[0] == 1.0)
+
+    def set_theta_ok(self, valid: bool) -> None:
+        self.logs[LOGS.index("theta_ok")].copy_to_device(np.array([1.0 if valid else 0.0]))
+
+    def phases(self, code: int):
+        """(phase, number of elements) of heat row ``code``, in order (see :func:`_phase_span`)."""
+        out = []
+        for phase in range(_phase_count(code, self.colour_ptr)):
+            _, lo, hi = _phase_span(code, phase, self.colour_ptr, self.n_bound, self.m)
+            out.append((phase, int(hi - lo)))
+        return out
+
+
+def compile_heat_ptx(model, uniform: bool = True, cc=(9, 0)) -> dict[str, str]:
+    """PTX of the heat kernels (conduction and thermal waves compiled in) for ``model`` and
+    compute capability ``cc``, as :func:`thermonet.cuda.kernels.compile_ptx` does for the
+    stepping kernels (the toolkit, no GPU). Returns name -> PTX text."""
+    from numba import njit, typeof
+
+    from ..kernels import records
+    from ..kernels.specialize import kernel_namespace
+    from ..kernels.splitting import bind_subflows
+
+    ns = kernel_namespace(model, True, uniform)
+    ns["CONDUCTION"] = ns["WAVES"] = True
+    tag = f"{model.name}_heat_ptx"
+    inline = njit(inline="always")
+    bind_subflows(ns, tag, inline)
+    bind_device_heat(ns, tag, inline)
+    v, x, i = np.empty(1), np.empty((1, 3)), np.empty(1, np.int64)
+    heat = sample_heat()
+    springs = records.Springs(v, np.empty((len(model.parameters), 1)))
+    flag = np.zeros(4, np.int64)
+    samples = {"sweep": (_sweep_kernel, (-2, 0, heat, 1.0, 0.0, v, v, flag)),
+               "temperature": (_temperature_kernel, (x, v, np.empty((1, 2), np.uint32), springs, heat, flag))}
+    out = {}
+    for name, (template, args) in samples.items():
+        out[name], _ = cuda.compile_ptx(rebind(template, tag, ns), tuple(typeof(a) for a in args), cc=cc)
+    return out
+
+
+def sample_heat():
+    """A :class:`Heat` record of one-element arrays of the kernels' types (for compiling)."""
+    v, i, i32 = np.empty(1), np.empty(1, np.int64), np.empty(1, np.int32)
+    return Heat(i32, i32, np.empty((2, 1)), v, i, v, v, i, i, i, i, v, i, np.empty((1, 4)), i, v, v, v, v, v, v, v, v,
+                v, v)
