@@ -34,7 +34,57 @@ class EM2(Integrator):
     description = "energy–momentum (discrete-gradient midpoint) step at fixed entropy, implicit in x¹, order 2"
 
     def make_stepper(self, system, parallel: bool = False, **options) -> "EM2Stepper":
+        options.setdefault("max_iterations", MAX_ITERATIONS)
         return EM2Stepper(self, system, newton_options(options), parallel)
+
+
+#: EM2's default Newton iterations per step (other schemes: 12): far above the explicit limit
+#: the corrections are shortened (LENGTH_LIMIT) and take a few more iterations
+MAX_ITERATIONS = 30
+#: a Newton correction changes no spring's vector by more than this fraction of its length
+LENGTH_LIMIT = 0.5
+#: a correction is searched along (halved until the residual falls) while the scaled residual
+#: is above this; below it Newton converges quadratically from the whole correction
+LINE_SEARCH_ABOVE = 1e-3
+LINE_SEARCH_HALVINGS = 12
+
+
+class LengthLimited:
+    """The stepper's linear solver, its corrections made safe far from the solution (a damped
+    Newton step): each correction is first shortened so that no spring's vector changes by more
+    than LENGTH_LIMIT times its length, and then, while the scaled residual is above
+    LINE_SEARCH_ABOVE, halved until the residual's 2-norm falls (Armijo; the Newton direction
+    descends on it). Far above the explicit limit a full Newton correction would stretch a stiff
+    spring by thousands of lengths, or through zero; near the solution the correction is taken
+    whole and Newton converges quadratically. Everything else is the wrapped solver's."""
+
+    def __init__(self, solver, stepper):
+        self.inner = solver
+        self.stepper = stepper
+
+    def __getattr__(self, name):
+        return getattr(self.inner, name)
+
+    def solve(self, rhs, target: float = 0.0, settled: float = 0.0):
+        du = self.inner.solve(rhs, target, settled)
+        st = self.stepper
+        scale = st.kernels.step_scale(st._topology, st._work, du, LENGTH_LIMIT)
+        rmax, smax = st.norms
+        if not rmax > LINE_SEARCH_ABOVE * smax:
+            if scale < 1.0:
+                du *= scale
+            return du
+        u = st.u
+        r0 = float(np.linalg.norm(st.R))
+        trial = np.empty_like(u)
+        for _ in range(LINE_SEARCH_HALVINGS):
+            np.subtract(u, scale * du, out=trial)
+            status, _ = st.residual(trial)
+            if status == 0 and float(np.linalg.norm(st.R)) <= (1.0 - 1e-4 * scale) * r0:
+                break
+            scale *= 0.5
+        du *= scale
+        return du
 
 
 class EM2Stepper(ImplicitStepper):
@@ -42,6 +92,10 @@ class EM2Stepper(ImplicitStepper):
 
     block = 3
     scheme = "em2"
+
+    def __init__(self, integrator, system, options, parallel: bool = False):
+        super().__init__(integrator, system, options, parallel)
+        self.solver = LengthLimited(self.solver, self)
 
     def make_work(self, start) -> EM2Work:
         # the start kernel writes the acceleration at x⁰ here; predict() makes the guess from it

@@ -102,6 +102,7 @@ def build(ns: dict, tag: str, ptag: str, parallel: bool) -> dict:
         jacobian=specialize(_em2_jacobian, tag, ns, **OPTIONS),
         finish=specialize(_em2_finish, ptag, ns, parallel=parallel, **OPTIONS),
         sweep=specialize(_em2_sweep, "par" if parallel else "ser", {}, parallel=parallel, **OPTIONS),
+        step_scale=specialize(_em2_step_scale, "ser", {}, **OPTIONS),
         # the per-spring functions, callable alone (tests; other compiled loops)
         slope=specialize(_em2_slope, f"{tag}_alone", ns, **OPTIONS),
         direct=specialize(_em2_direct, f"{tag}_alone", ns, **OPTIONS),
@@ -162,11 +163,13 @@ def _em2_slope(l, l1, eta, l0, P, e, U0, T0):
 
 def _em2_predict(step, topo, spring, node, work, accel, pred):
     """Per spring, U and T at l⁰ (``work.energy0``, ``tension0``); then the predictor of the
-    unknowns into pred (3 n_free,): per free node the midpoint rule's step on a spring of the
-    node's own stiffness, d = (h v + h²/2 a) / (1 + h² κ/(4 m)), v = p/m, a the acceleration
-    at x⁰ (``accel`` (3 n_free,), from the start kernel), κ = Σ_e max(dT/dl|η, 0) + max(T/l, 0)
-    over the node's springs. Third order for small h ω, like d = h v + h²/2 a, and bounded
-    (≈ 4 v/(h ω²)) far above the explicit limit, where h²/2 a is not."""
+    unknowns into pred (3 n_free,): per free node d = h v + h²/2 a / (1 + h² κ/(4 m)), v = p/m,
+    a the acceleration at x⁰ (``accel`` (3 n_free,), from the start kernel), κ = Σ_e
+    max(dT/dl|η, 0) + max(T/l, 0) over the node's springs: the acceleration's part damped as in
+    the midpoint rule's step on a spring of the node's own stiffness. Third order for small h ω,
+    like h v + h²/2 a, and bounded far above the explicit limit (|h²/2 a| ≲ 2 m |a|/κ, the
+    static displacement), where h²/2 a is not. The velocity's part is kept whole: a stiff
+    cluster moving as a body keeps its slow motion in the guess."""
     x0, p, eta, h = step
     edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
     l0, P = spring
@@ -195,7 +198,7 @@ def _em2_predict(step, topo, spring, node, work, accel, pred):
             kappa += stiff[inc_spring[j]]
         damp = 1.0 / (1.0 + q * kappa * inv_mass[a])
         for i in range(3):
-            pred[3 * k + i] = damp * (h * inv_mass[a] * p[a, i] + 0.5 * h * h * accel[3 * k + i])
+            pred[3 * k + i] = h * inv_mass[a] * p[a, i] + damp * 0.5 * h * h * accel[3 * k + i]
 
 
 def _em2_residual(step, topo, spring, node, work, u, res):
@@ -429,6 +432,26 @@ def _em2_sweep(topo, node, work, h, du, R, r, update, first):
             du[3 * k + 1] = d1 + r1 / wm
             du[3 * k + 2] = d2 + r2 / wm
     return rmax
+
+
+def _em2_step_scale(topo, work, du, limit):
+    """The largest factor ≤ 1 by which a Newton correction du (3 n_free,; applied as u −= du)
+    may be scaled so that no spring's vector changes by more than ``limit`` times its length at
+    the last residual's point (``work.len1``)."""
+    edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
+    len1 = work[1]
+    scale = 1.0
+    for e in range(ends.shape[0]):
+        ka = ends[e, 0]
+        kb = ends[e, 1]
+        v2 = 0.0
+        for i in range(3):
+            v = (du[3 * kb + i] if kb >= 0 else 0.0) - (du[3 * ka + i] if ka >= 0 else 0.0)
+            v2 += v * v
+        reach = limit * len1[e]
+        if v2 > reach * reach:
+            scale = min(scale, reach / math.sqrt(v2))
+    return scale
 
 
 register_scheme("em2", build)
