@@ -12,6 +12,7 @@ entropy are kept exactly. Φ is a diagnostic here (θ at the mean length).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -35,12 +36,19 @@ class EM2(Integrator):
 
     def make_stepper(self, system, parallel: bool = False, **options) -> "EM2Stepper":
         options.setdefault("max_iterations", MAX_ITERATIONS)
-        return EM2Stepper(self, system, newton_options(options), parallel)
+        stepper = EM2Stepper(self, system, newton_options(options), parallel)
+        stepper.rounding_atol = "atol" not in options
+        return stepper
 
 
 #: EM2's default Newton iterations per step (other schemes: 12): far above the explicit limit
 #: the corrections are shortened (LENGTH_LIMIT) and take a few more iterations
 MAX_ITERATIONS = 30
+#: without a given ``atol``, Newton's absolute increment tolerance is this many ulps of the
+#: largest coordinate: a correction below the positions' own rounding is noise (near rest, the
+#: forces' rounding, c ε per spring from ln(l/l0), can hold the scaled residual above 1e-12
+#: while the displacements are tiny; measured on a chain's slow mode at 1e-4 amplitude)
+ATOL_ULPS = 8
 #: a Newton correction changes no spring's vector by more than this fraction of its length
 LENGTH_LIMIT = 0.5
 #: a correction is searched along (halved until the residual falls) while the scaled residual
@@ -92,6 +100,8 @@ class EM2Stepper(ImplicitStepper):
 
     block = 3
     scheme = "em2"
+    #: Newton's atol follows the positions' rounding (ATOL_ULPS; set by EM2.make_stepper)
+    rounding_atol = False
 
     def __init__(self, integrator, system, options, parallel: bool = False):
         super().__init__(integrator, system, options, parallel)
@@ -101,6 +111,13 @@ class EM2Stepper(ImplicitStepper):
         # the start kernel writes the acceleration at x⁰ here; predict() makes the guess from it
         self.accel = self.prediction = np.zeros(self.pattern.size)
         return EM2Work.allocate(start)
+
+    def begin(self, x, p, eta, h: float) -> None:
+        super().begin(x, p, eta, h)
+        if self.rounding_atol:
+            floor = ATOL_ULPS * np.finfo(np.float64).eps * float(np.abs(x).max(initial=0.0))
+            if not 0.5 * self.options.atol <= floor <= 2.0 * self.options.atol:
+                self.options = dataclasses.replace(self.options, atol=floor)
 
     def predictor_coefficients(self, h: float) -> np.ndarray:
         """The start kernel's output is the acceleration a (the predictor is EM2's own)."""
