@@ -36,6 +36,7 @@ class EM2(Integrator):
 
     def make_stepper(self, system, parallel: bool = False, **options) -> "EM2Stepper":
         options.setdefault("max_iterations", MAX_ITERATIONS)
+        options.setdefault("retry", RETRY)
         stepper = EM2Stepper(self, system, newton_options(options), parallel)
         stepper.rounding_atol = "atol" not in options
         return stepper
@@ -44,6 +45,12 @@ class EM2(Integrator):
 #: EM2's default Newton iterations per step (other schemes: 12): far above the explicit limit
 #: the corrections are shortened (LENGTH_LIMIT) and take a few more iterations
 MAX_ITERATIONS = 30
+#: EM2's default retry levels (other schemes: 0): a step whose Newton solve fails is redone as
+#: 2, 4, …, 2**RETRY substeps (warned, and in the diagnostics), each keeping the energy exactly.
+#: Far above the explicit limit (hω ≳ 10 on nets whose springs turn or stretch a lot per step)
+#: a whole step's Newton solve does not always converge from the predictor: measured on the
+#: heated plate (scenes/lattice2d.toml) at 7.6× CO2's limit, 8 of 20 steps needed 2–4 substeps
+RETRY = 4
 #: without a given ``atol``, Newton's absolute increment tolerance is this many ulps of the
 #: largest coordinate: a correction below the positions' own rounding is noise (near rest, the
 #: forces' rounding, c ε per spring from ln(l/l0), can hold the scaled residual above 1e-12
