@@ -74,11 +74,14 @@ class LengthLimited:
     whole and Newton converges quadratically. Everything else is the wrapped solver's."""
 
     def __init__(self, solver, stepper):
-        self.inner = solver
-        self.stepper = stepper
+        object.__setattr__(self, "inner", solver)
+        object.__setattr__(self, "stepper", stepper)
 
     def __getattr__(self, name):
         return getattr(self.inner, name)
+
+    def __setattr__(self, name, value):  # statistics (iterations, ...) live in the wrapped solver
+        setattr(self.inner, name, value)
 
     def solve(self, rhs, target: float = 0.0, settled: float = 0.0):
         du = self.inner.solve(rhs, target, settled)
