@@ -277,3 +277,38 @@ def test_matrix_free_product_is_the_assembled_jacobian():
     r = np.empty_like(du)
     st.sweep(du.copy(), rhs, r, False)
     assert np.abs(r - (rhs - J @ du)).max() <= 1e-12 * np.abs(J @ du).max()
+
+
+# ---------------------------------------------------------------------------------------------
+# what the messages recommend
+
+
+def test_messages_recommend_em2_above_the_limit_and_never_refuse_it():
+    from thermonet.blowup import remedy
+    from thermonet.cli.info import _stable_step
+
+    co2, gtr, em2 = (tn.get_integrator(n) for n in ("co2", "gtr-1/2", "em2"))
+    for integ in (co2, gtr):
+        text = remedy(integ, 0.01)
+        assert "smaller h than 0.01" in text and "em2, which has none" in text and "ho4" not in text
+    assert "gtr-1/2 has a stability limit too" in remedy(gtr, 0.01)
+    assert "em2" not in remedy(co2, 0.01).split("em2", 1)[1]  # named once
+    assert "smaller h" in remedy(em2, 0.01) and "retry" in remedy(em2, 0.01)
+
+    # the blow-up of an explicit run names em2 (one linear spring just above CO2's limit)
+    net = tn.Net([[0, 0, 0], [1, 0, 0]], [[0, 1]], masses=[1.0, 2.0], anchored=[0], rest_lengths=[1.0])
+    sim = tn.Simulation(net, model="quadratic", parameters=dict(E=100.0, beta=0.0), momenta=[[0, 0, 0], [0.01, 0, 0]],
+                        h=1.05 * 2.0 / np.sqrt(50.0), stability_guard="off", energy_tolerance=None)
+    with pytest.raises(tn.SimulationError, match="the integrator em2, which has none"):
+        sim.run(steps=100000, diagnostics_every=10**9)
+
+    # EM2 far above the limit: the policy says ok, the guard is off, info says there is no limit
+    sim = tn.Simulation(net, model="quadratic", parameters=dict(E=100.0, beta=0.0), momenta=[[0, 0, 0], [1.0, 0, 0]],
+                        integrator="em2", h=100.0 / np.sqrt(50.0), integrator_options=TIGHT)
+    verdict = check_step(sim)
+    assert verdict.verdict == "ok" and math.isinf(verdict.h_max) and not sim.stability_guard.active
+    assert "no stability limit" in _stable_step(sim, "initial state")
+    d = sim.run(steps=200, diagnostics_every=20)
+    # at h ω = 100 the residual's scale is the step's force term, ~ h ω/2 × |p|: measured 3.8e-13
+    # (the default tolerance 1e-12: 1.7e-12)
+    assert relative_drift(d.energy) <= 1e-12
