@@ -30,15 +30,19 @@ The Jacobian block of spring e (added with sign s_c s_g to block (c, g), s_a = +
 
     B_e = (h/2) [ (s/2) I + (ds/dl¹) d̄ n¹ᵀ ],   ds/dl¹ = (dQ/dl¹) / l̄ − s / (2 l̄)
 
-with dQ/dl¹ = (T(l¹) − Q)/δ (direct) or the rule's Σ wᵢ ξᵢ k(l⁰ + ξᵢ δ) (nodes ξᵢ ∈ [0, 1]), k = dT/dl at fixed η
-(the adiabatic stiffness). The work record is :class:`EM2Work`.
+with dQ/dl¹ = (T(l¹) − Q)/δ (direct) or the rule's Σ wᵢ ξᵢ k(l⁰ + ξᵢ δ) (nodes ξᵢ ∈ [0, 1]),
+k = dT/dl at fixed η (the adiabatic stiffness). The work record is :class:`EM2Work`.
 
 Callable from other compiled code (the records are plain tuples of arrays, see
 ``implicit_records.plain``): ``residual(step, topo, spring, node, work, u, res) -> (status,
 spring, max|R|, max Rabs)``, ``jacobian(topo, spring, node, work, places, h, data)``,
 ``predict(step, topo, spring, node, work, accel, pred)``, ``finish(step, topo, spring, node,
-work, u, phi, new) -> (status, spring)``, and the per-spring ``slope(l, l1, eta, l0, P, e, U0,
-T0) -> (s, ds/dl1, θ(l1, η))``.
+work, u, phi, new) -> (status, spring)``, ``linearize(work, h)``, ``sweep(topo, node, work, h,
+du, R, r, update, first) -> max|r|``, ``step_scale(topo, work, du, limit) -> factor`` (the damped
+Newton step's length limit), and the per-spring ``slope(l, l1, eta, l0, P, e, U0, T0) -> (s,
+ds/dl1, θ(l1, η))``. A step: the shared start kernel with predictor coefficients [[0, 1, 0, 0]]
+(it writes the acceleration a), ``predict`` (U, T at l⁰ into ``work``, the guess into u), then
+``residual``/``jacobian`` per Newton iteration, ``finish``.
 """
 
 from __future__ import annotations
