@@ -1,7 +1,7 @@
 """What the implicit integrators cost (issue 3).
 
 Part 1, scaling: jittered 6-neighbour 3D lattices of about 1e2 … 1e5 springs, random momenta and
-temperatures, h = 0.01 (about a fifth of CO2's stability limit there). For GTR-1/2 and HO4 with
+temperatures, h = 0.01 (about a fifth of CO2's stability limit there). For GTR-1/2, HO4 and EM2 with
 each linear solver: seconds per step, Newton iterations per step (full, linearized ones), Jacobi
 finishing steps per step (matfree), linear iterations per solve (matfree: sweeps, the Jacobi
 steps' included; gmres: GMRES iterations), the split of a step's time into residual
@@ -67,7 +67,7 @@ def scaling(sizes, steps, h, direct_max_springs, solvers, settle=0):
         co2_steps = max(50, int(3e7 / m))  # ≈ 0.2 s per sample at 1e5 springs
         samples = [seconds_per_step(co2, co2_steps) for _ in range(3)]
         rows = []
-        for method in ("gtr-1/2", "ho4"):
+        for method in ("gtr-1/2", "ho4", "em2"):
             for solver in solvers:
                 if solver == "splu" and m > direct_max_springs:
                     continue
@@ -96,7 +96,7 @@ def chain(t_end):
 
     print("chain: Newton iterations per step to t = 10")
     print("| method | h | mean | max |\n|---|---:|---:|---:|")
-    for method in ("gtr-1/2", "ho4"):
+    for method in ("gtr-1/2", "ho4", "em2"):
         for h in (0.01, 0.005, 0.001):
             sim = tn.chain_simulation(method, h=h)
             sim.run(t_end=10.0, diagnostics_every=10**9)
@@ -113,7 +113,8 @@ def chain(t_end):
     print(f"\nchain: max error in positions at t = {t_end} against wall time")
     print("| method | h | error | wall s |\n|---|---:|---:|---:|")
     for method, exps in (("gtr-0", range(4, 10)), ("gtr-1", range(4, 10)), ("co2", range(1, 8)),
-                         ("co4", range(1, 7)), ("co6", range(1, 6)), ("gtr-1/2", range(1, 8)), ("ho4", range(0, 6))):
+                         ("co4", range(1, 7)), ("co6", range(1, 6)), ("gtr-1/2", range(1, 8)), ("ho4", range(0, 6)),
+                         ("em2", range(1, 8))):
         for i in exps:
             h = 0.1 * 2.0**-i
             sim = tn.chain_simulation(method, h=h)

@@ -8,12 +8,36 @@ temperature θ ≤ 0, or a non-finite tension.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from .kernels.springs import map_springs
 
 #: default admissible stretches l/l0 of the blow-up detector (open interval)
 STRETCH_BOUNDS = (1e-4, 1e4)
+
+#: what the messages recommend for steps above a stability limit: the integrator without one
+UNLIMITED = "em2"
+
+
+def remedy(integrator, h: float) -> str:
+    """What helps a run of ``integrator`` with step ``h`` that blew up or went above its stability
+    limit, in words: a smaller h, and, for an integrator with a stability limit (the explicit
+    ones, and GTR-1/2 and HO4, whose limits are hω < 2 and 2√2), EM2, which has none (energy is
+    exact at any step; the fast modes lose accuracy, not stability). For EM2 itself: a smaller h
+    (its failures are Newton's) or retries as substeps."""
+    from .stability import stability_interval
+
+    smaller = f"a smaller h than {h:g} (`thermonet info` estimates the stable step)"
+    if getattr(integrator, "unconditionally_stable", False):
+        return (f"Try a smaller h than {h:g}, or let {integrator.name} retry failed steps as substeps "
+                f"(integrator option retry)")
+    limited = "" if integrator.explicit else f" ({integrator.name} has a stability limit too)"
+    if not math.isfinite(stability_interval(integrator)):
+        return f"Try {smaller}"
+    return (f"Try {smaller}, or, for steps above the stability limit{limited}, the integrator {UNLIMITED}, "
+            f"which has none (energy exact at any step; fast modes lose accuracy, not stability)")
 
 
 def diagnose(system, positions: np.ndarray, entropy: np.ndarray | None) -> dict:

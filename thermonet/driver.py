@@ -15,6 +15,7 @@ from typing import Callable, Iterable
 
 import numpy as np
 
+from .blowup import remedy
 from .compile_watch import CompileWatch
 from .diagnostics import Diagnostics, diagnostics_row, measure
 from .errors import InputError, SimulationError
@@ -203,8 +204,7 @@ class RunDriver:
         good_time = self._state.time
         return (f"the run left the admissible states in step {bad_step} (t = {good_time + self._h:.6g}): {exc}. "
                 f"Stopped; the state is the last good one (step {bad_step - 1}, t = {good_time:.6g}). "
-                f"Try a smaller h than {self._h:g} (`thermonet info` estimates the stable step) or an implicit "
-                f"integrator (ho4, gtr-1/2).")
+                f"{remedy(self.integrator, self._h)}.")
 
     def record_diagnostics(self) -> None:
         """Record a diagnostics row for the current state unless the last row is of this step
@@ -225,13 +225,13 @@ class RunDriver:
             raise SimulationError(
                 f"the energy departed from its initial value {e0:.10g} by {departure:.3g} "
                 f"(relative; tolerance {self.energy_tolerance:g}) at step {bad_step} (t = {bad_time:.6g}); "
-                f"{where}. Try a smaller h than {self._h:g} or an implicit integrator (ho4, gtr-1/2); "
+                f"{where}. {remedy(self.integrator, self._h)}; "
                 f"energy_tolerance (scene: integrator.energy_tolerance) sets the guard")
         try:
             self.stability_guard.check(self)
         except SimulationError as exc:
             where = self._rewind_to_previous_stop()
-            raise type(exc)(f"{exc}; {where}. Use a smaller h or an implicit integrator (ho4, gtr-1/2), or pass "
+            raise type(exc)(f"{exc}; {where}. {remedy(self.integrator, self._h)}; or pass "
                             f"--allow-unstable-step (scene: integrator.check_step = false; API: "
                             f"stability_guard='warn') to only warn") from None
 

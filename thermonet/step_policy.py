@@ -10,7 +10,10 @@ At the state a run starts from, :func:`check_step` estimates ``h_max = c / ω_ma
   which h to use), unless ``allow_unstable=True`` (``thermonet run --allow-unstable-step``, scene
   key ``integrator.check_step = false``), which turns the refusal into a warning.
 
-Integrators without a known interval (a user's) are never refused (verdict ``"unknown"``). The
+An unconditionally stable integrator (``unconditionally_stable``: EM2) has no limit: verdict
+``"ok"`` without an estimate. Integrators without a known interval (a user's) are never refused
+(verdict ``"unknown"``). A refusal or warning recommends a smaller h and, for steps above the
+limit, EM2 (``blowup.UNLIMITED``), not another integrator with a limit of its own. The
 policy looks at the initial state only: a net that stiffens on its way (a spring driven towards
 collapse) is caught while running, by the simulation's blow-up detection.
 """
@@ -58,8 +61,12 @@ def check_step(sim, *, allow_unstable: bool = False, warn: bool = True) -> StepC
     """Apply the policy to ``sim`` (a :class:`~thermonet.simulation.Simulation`) at its current
     state. Raises :class:`UnstableStepError` for a refused step unless ``allow_unstable``; emits a
     :class:`StepWarning` for "warn" and "allowed" verdicts when ``warn``."""
+    from .blowup import UNLIMITED
     from .stability import stable_step
 
+    if getattr(sim.integrator, "unconditionally_stable", False):
+        return StepCheck(float(sim.h), math.inf, 0.0, "ok", "",
+                         {"integrator": sim.integrator.name, "h_max": math.inf, "interval": math.inf})
     est = stable_step(sim)
     h, h_max = float(sim.h), float(est["h_max"])
     if not math.isfinite(est["interval"]):
@@ -81,11 +88,14 @@ def check_step(sim, *, allow_unstable: bool = False, warn: bool = True) -> StepC
         return StepCheck(h, h_max, ratio, "ok", "", est)
     if ratio <= REFUSE:
         msg = (f"h = {h:.4g} is {ratio:.2f}× the {where}, above the safety fraction {SAFETY:g}; "
-               f"the run may blow up: consider h ≤ {safe:.3g}")
+               f"the run may blow up: consider h ≤ {safe:.3g} (or the integrator {UNLIMITED}, which has no "
+               f"stability limit)")
         verdict = "warn"
     else:
         msg = (f"h = {h:.4g} is {ratio:.3g}× the {where}: the run would blow up; use h ≤ {safe:.3g}, "
-               f"or pass --allow-unstable-step (scene: integrator.check_step = false) to run anyway")
+               f"or the integrator {UNLIMITED}, which has no stability limit (energy exact at any step; fast "
+               f"modes lose accuracy, not stability), or pass --allow-unstable-step (scene: "
+               f"integrator.check_step = false) to run anyway")
         if not allow_unstable:
             raise UnstableStepError(msg)
         verdict = "allowed"

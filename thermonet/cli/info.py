@@ -188,11 +188,17 @@ def _stable_step(sim, where: str) -> str:
 
     from ..stability import stability_interval, stable_step
 
+    from ..blowup import UNLIMITED
+
+    if getattr(sim.integrator, "unconditionally_stable", False):
+        return (f"  stable step: none, {sim.integrator.name} has no stability limit (energy exact at any step; "
+                f"steps far above the explicit limit lose accuracy in the fast modes, not stability)")
     if not math.isfinite(stability_interval(sim.integrator)):
         return f"  stable step: not estimated for the implicit integrator {sim.integrator.name}"
     s = stable_step(sim)
     text = (f"  stable step of {s['integrator']}: h_max ≈ {s['h_max']:.4g} (ω_max {s['omega_max']:.4g}, "
             f"{s['method']}; {where})")
     if sim.h > s["h_max"] and sim.h != 1.0:
-        text += f"\n  warning: h = {sim.h:g} exceeds the estimated limit; the run will blow up"
+        text += (f"\n  warning: h = {sim.h:g} exceeds the estimated limit; the run will blow up: use h ≤ "
+                 f"{0.9 * s['h_max']:.3g}, or the integrator {UNLIMITED}, which has no stability limit")
     return text

@@ -154,9 +154,15 @@ def _run(args, progress) -> int:
     broken = broken_conservation(sim, sim.energy_tolerance)
     if broken:
         raise SimulationError(f"the run ended with broken conservation: {'; '.join(broken)}; the result is not a "
-                              f"solution to trust (the files in {folder} are kept). Use a smaller h than {sim.h:g} "
-                              "or an implicit integrator (ho4, gtr-1/2)")
+                              f"solution to trust (the files in {folder} are kept). "
+                              f"{_remedy(sim.integrator, sim.h)}")
     return 0
+
+
+def _remedy(integrator, h) -> str:
+    from ..blowup import remedy
+
+    return remedy(integrator, h)
 
 
 def _try(write, *args) -> None:

@@ -1,0 +1,314 @@
+"""EM2, the energy–momentum integrator (spec-heat §4): exact Jacobian, the discrete gradient's
+two forms agreeing at their switch, energy, momenta and entropy kept exactly, order 2, and no
+stability limit (a stiff net far above the explicit step, where the explicit integrators are
+refused or stopped)."""
+
+import math
+import warnings
+
+import numpy as np
+import pytest
+
+import thermonet as tn
+from thermonet.kernels import em2 as em2_kernels
+from thermonet.kernels.implicit_common import implicit_kernels
+from thermonet.stability import stable_step
+from thermonet.step_policy import UnstableStepError, check_step
+
+#: Newton to its round-off floor: the residual enters the energy and angular momentum balances
+TIGHT = dict(tolerance=1e-15, rtol=1e-12)
+
+
+def relative_drift(series) -> float:
+    s = np.asarray(series, dtype=float)
+    return float(np.max(np.abs(s - s[0])) / np.max(np.abs(s[0])))
+
+
+def vector_drift(d, names) -> float:
+    v = np.column_stack([getattr(d, n) for n in names])
+    return float(np.max(np.linalg.norm(v - v[0], axis=1)) / max(np.linalg.norm(v[0]), 1e-300))
+
+
+def test_em2_is_registered():
+    assert "em2" in tn.available_integrators()
+    integ = tn.get_integrator("em2")
+    assert integ.order == 2 and not integ.explicit and math.isinf(integ.stability_interval)
+
+
+# ---------------------------------------------------------------------------------------------
+# the discrete gradient of one spring
+
+
+MODELS = [
+    ("hencky", dict(c=100.0, beta=2.0, C0=1.0, theta0=300.0)),
+    ("quadratic", dict(E=100.0, beta=0.2, C0=5.0, theta0=300.0, eta0=0.0)),
+]
+
+
+def spring_functions(model_name, params):
+    model = tn.get_model(model_name)
+    P = model.parameter_array(params, 1)
+    kernels = implicit_kernels(model, "em2")
+    return model, P, kernels
+
+
+@pytest.mark.parametrize("model_name, params", MODELS)
+def test_the_two_forms_of_the_discrete_gradient_agree_at_the_switch(model_name, params):
+    """At |l¹ − l⁰| = SWITCH l̄ the quotient ΔU/δ (its rounding ≈ ε|U|/δ) and the Gauss–Lobatto
+    rule (its error ≈ 7e-10 δ⁸ T⁽⁸⁾) give the same Q and dQ/dl¹; s is continuous across."""
+    model, P, k = spring_functions(model_name, params)
+    th = np.array([200.0, 300.0, 900.0])
+    for l in (0.4, 1.0, 2.5):
+        for theta in th:
+            eta = model.entropy(l, theta, 1.0, P, 0)
+            U0 = model.internal_energy(l, eta, 1.0, P, 0)
+            T0 = model.tension(l, theta, 1.0, P, 0)
+            for sign in (1.0, -1.0):
+                # δ = ±SWITCH l̄: l1 − l = r (l + l1)/2
+                r = sign * em2_kernels.SWITCH
+                l1 = l * (1 + r / 2) / (1 - r / 2)
+                T1 = model.tension(l1, model.temperature(l1, eta, 1.0, P, 0), 1.0, P, 0)
+                Qd, dQd = k.direct(l, l1, eta, 1.0, P, 0, U0, T1)
+                Qq, dQq = k.quadrature(l, l1, eta, 1.0, P, 0, T0, T1)
+                scale = abs(Qd) + abs(U0) / l + abs(T0)
+                assert abs(Qd - Qq) <= 2e-13 * scale, (l, theta, Qd, Qq)
+                assert abs(dQd - dQq) <= 1e-9 * (abs(dQq) + scale / l), (l, theta, dQd, dQq)
+                # s just inside and just outside the switch: no jump beyond its slope times the distance
+                la, lb = l + (1 - 1e-9) * (l1 - l), l + (1 + 1e-9) * (l1 - l)
+                below, ds = k.slope(l, la, eta, 1.0, P, 0, U0, T0)[:2]
+                above = k.slope(l, lb, eta, 1.0, P, 0, U0, T0)[0]
+                assert abs(above - below - ds * (lb - la)) <= 2e-13 * scale / l
+
+
+@pytest.mark.parametrize("model_name, params", MODELS)
+def test_the_discrete_gradient_at_vanishing_length_change(model_name, params):
+    """l¹ → l⁰: s → T(l̄)/l̄ with no cancellation (the quotient itself loses all digits there)."""
+    model, P, k = spring_functions(model_name, params)
+    l, theta = 1.3, 700.0
+    eta = model.entropy(l, theta, 1.0, P, 0)
+    U0 = model.internal_energy(l, eta, 1.0, P, 0)
+    T0 = model.tension(l, theta, 1.0, P, 0)
+    s, ds, th1 = k.slope(l, l, eta, 1.0, P, 0, U0, T0)
+    assert s == pytest.approx(T0 / l, rel=1e-14) and th1 == pytest.approx(theta, rel=1e-14)
+    k_ad = ds * l + 0.5 * s  # ds/dl¹ = (dQ/dl¹ − s/2)/l̄ and dQ/dl¹ → k/2 as l¹ → l
+    F_lt = model.d2F_dl_dtheta(l, theta, 1.0, P, 0)
+    stiffness = model.d2F_dl2(l, theta, 1.0, P, 0) - F_lt**2 / model.d2F_dtheta2(l, theta, 1.0, P, 0)
+    assert 2 * k_ad == pytest.approx(stiffness, rel=1e-12)
+    l1 = l * (1 + 1e-10)
+    Tm = model.tension(0.5 * (l + l1), model.temperature(0.5 * (l + l1), eta, 1.0, P, 0), 1.0, P, 0)
+    assert k.slope(l, l1, eta, 1.0, P, 0, U0, T0)[0] == pytest.approx(Tm / (0.5 * (l + l1)), rel=1e-14)
+
+
+# ---------------------------------------------------------------------------------------------
+# the Newton step
+
+
+def random_simulation(model_name, gravity, seed=3, h=0.05, **options):
+    """A jittered 3×2×2 lattice with face diagonals, one anchored node, random masses, pre-stress,
+    temperatures and momenta, optionally gravity."""
+    rng = np.random.default_rng(seed)
+    base = tn.lattice((3, 2, 2), neighbours=18, jitter=0.2, seed=seed)
+    anchored = np.zeros(base.n_nodes, dtype=bool)
+    anchored[5] = True
+    net = tn.Net(base.positions, base.edges, rng.uniform(0.5, 2.0, base.n_nodes), anchored,
+                 rest_lengths=base.lengths() * rng.uniform(0.8, 1.2, base.n_springs))
+    momenta = rng.normal(0.0, 3.0, (net.n_nodes, 3))
+    momenta[anchored] = 0.0
+    params = dict(MODELS)[model_name]
+    return tn.Simulation(net, model=model_name, parameters=params, temperatures=rng.uniform(250.0, 400.0, net.n_springs),
+                         momenta=momenta, integrator="em2", h=h, gravity=[0.0, 0.0, -9.81] if gravity else None,
+                         integrator_options=options, stability_guard="off", energy_tolerance=None)
+
+
+def residual_at(stepper, u):
+    status, spring = stepper.residual(u)
+    assert status == 0
+    return stepper.R.copy()
+
+
+@pytest.mark.parametrize("model_name, gravity", [("hencky", True), ("quadratic", False)])
+def test_jacobian_matches_finite_differences(model_name, gravity):
+    sim = random_simulation(model_name, gravity)
+    st, s = sim.stepper, sim._state
+    st.begin(s.positions, s.momenta, s.entropy, sim.h)
+    st.predict(st.u)
+    u = st.u + np.random.default_rng(0).normal(0.0, 0.03, st.u.shape)  # away from the solution
+    residual_at(st, u)
+    change = np.abs(st.work.len1 - st.work.start.len0) / (0.5 * (st.work.len1 + st.work.start.len0))
+    # both forms of the discrete gradient are in play, none within the differences' reach of the switch
+    assert (change > em2_kernels.SWITCH).any() and (change < em2_kernels.SWITCH).any()
+    assert np.abs(change - em2_kernels.SWITCH).min() > 1e-4
+    st.jacobian(st.data)
+    J = st.pattern.matrix(st.data.copy()).toarray()
+    eps = 1e-6
+    J_fd = np.empty_like(J)
+    for j in range(len(u)):
+        up, um = u.copy(), u.copy()
+        up[j] += eps
+        um[j] -= eps
+        J_fd[:, j] = (residual_at(st, up) - residual_at(st, um)) / (2 * eps)
+    coupling = J.copy()
+    for kb in range(st.pattern.n_free):
+        coupling[3 * kb:3 * kb + 3, 3 * kb:3 * kb + 3] = 0.0
+    assert np.abs(coupling).max() > 1e-2 * np.abs(J).max()
+    assert np.abs(J - J_fd).max() <= 1e-6 * np.abs(J).max()
+
+
+@pytest.mark.parametrize("model_name, gravity", [("hencky", True), ("quadratic", False)])
+def test_energy_kept_exactly_with_anchors_and_gravity(model_name, gravity):
+    sim = random_simulation(model_name, gravity, h=0.02, **TIGHT)
+    eta0 = sim.state.entropy.copy()
+    d = sim.run(steps=300, diagnostics_every=30)
+    # measured: 8.1e-16 (hencky, gravity), 8.3e-16 (quadratic)
+    assert relative_drift(d.energy) <= 1e-13
+    assert np.array_equal(sim.state.entropy, eta0)
+
+
+def test_conservation_over_1e5_steps_on_the_chain():
+    """The paper's chain, h = 0.01: energy, angular momentum (node 0 is anchored at the origin,
+    so L about it is conserved) and every spring's entropy."""
+    sim = tn.chain_simulation("em2", h=0.01, integrator_options=TIGHT)
+    eta0 = sim.state.entropy.copy()
+    d = sim.run(steps=100_000, diagnostics_every=10_000)
+    # measured: energy 9.9e-15, L 3.6e-13 (Newton to ≤ 4.5e-15 scaled, 1.8 iterations per step)
+    assert relative_drift(d.energy) <= 1e-13
+    assert vector_drift(d, ("Lx", "Ly", "Lz")) <= 1e-12
+    assert np.array_equal(sim.state.entropy, eta0)
+
+
+def test_conservation_on_a_jittered_lattice():
+    """No anchors, random momenta of zero sum: energy, linear and angular momentum, entropy."""
+    net = tn.lattice((3, 2, 2), neighbours=18, jitter=0.2, seed=2)
+    rng = np.random.default_rng(1)
+    momenta = rng.normal(0.0, 2.0, (net.n_nodes, 3))
+    sim = tn.Simulation(net, parameters=dict(c=100.0, beta=0.5), temperatures=rng.uniform(250, 450, net.n_springs),
+                        momenta=momenta, integrator="em2", h=0.02, integrator_options=TIGHT)
+    eta0 = sim.state.entropy.copy()
+    d = sim.run(steps=1000, diagnostics_every=100)
+    # measured: energy 1.8e-15, p 4.6e-15, L 3.3e-14
+    assert relative_drift(d.energy) <= 1e-13
+    assert vector_drift(d, ("px", "py", "pz")) <= 1e-12
+    assert vector_drift(d, ("Lx", "Ly", "Lz")) <= 1e-12
+    assert np.array_equal(sim.state.entropy, eta0)
+
+
+# ---------------------------------------------------------------------------------------------
+# order 2 against DOP853 (as tests/test_implicit_orders.py)
+
+STEPS = np.array([0.1 * 2.0**-i for i in range(3, 8)])
+
+
+def test_order_two_on_the_chain(chain_reference):
+    x, p, theta = chain_reference
+    errs = []
+    for h in STEPS:
+        sim = tn.chain_simulation("em2", h=h)
+        sim.run(t_end=1.0, diagnostics_every=10**9)
+        s = sim.state
+        errs.append((np.abs(s.positions - x).max(), np.abs(s.momenta - p).max(), np.abs(sim.temperatures() - theta).max()))
+    errs = np.array(errs)
+    assert errs.min() > 1e-9
+    for k, quantity in enumerate(("positions", "momenta", "temperatures")):
+        slope = np.polyfit(np.log(STEPS), np.log(errs[:, k]), 1)[0]
+        assert abs(slope - 2) <= 0.15, f"slope {slope:.3f} in {quantity}"
+
+
+# ---------------------------------------------------------------------------------------------
+# no stability limit
+
+
+def stiff_net(integrator, factor, **kw):
+    """Springs of c = 1e6 (every fourth) among springs of c = 1e2 on a jittered 18-neighbour
+    2×2×2 lattice (27 nodes, 126 springs), hot (thermal stress), random momenta of zero sum; h =
+    ``factor`` × CO2's stable step."""
+    net = tn.lattice((2, 2, 2), neighbours=18, jitter=0.1, seed=1)
+    c = np.full(net.n_springs, 1e2)
+    c[::4] = 1e6
+    momenta = np.random.default_rng(0).normal(size=(net.n_nodes, 3))
+    momenta -= momenta.mean(axis=0)
+
+    def make(name, h, **options):
+        return tn.Simulation(net, parameters=dict(c=c, beta=0.2), temperatures=400.0, momenta=momenta,
+                             integrator=name, h=h, **options)
+
+    h = factor * stable_step(make("co2", 1.0))["h_max"]
+    return make(integrator, h, **kw), net.rest_lengths
+
+
+@pytest.mark.parametrize("factor", [10, 100])
+def test_a_stiff_net_far_above_the_explicit_limit(factor):
+    sim, rest = stiff_net("em2", factor, integrator_options=dict(TIGHT, retry=3))
+    assert check_step(sim).verdict == "ok"  # EM2 is never refused
+    stretches = []
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # retried steps (100×) are reported, not errors
+        d = sim.run(steps=100, diagnostics_every=10,
+                    observers=[(1, lambda s: stretches.append((s.lengths() / rest).min()))])
+    assert sim.step == 100
+    # measured 10×: energy 1.4e-15, stretch ≥ 0.70, no retries; 100×: 9.9e-15, ≥ 0.697, 26 of 100 steps
+    # retried (up to 4 substeps)
+    assert relative_drift(d.energy) <= 1e-13
+    assert relative_drift(d.entropy) == 0.0
+    assert min(stretches) > 0.5
+    assert np.isfinite(sim.state.positions).all() and np.abs(sim.state.positions).max() < 10.0
+    if factor == 10:
+        assert sim.stepper.summary()["retried_steps"] == 0
+    for name in ("co2", "gtr-1/2", "ho4"):
+        explicit = stiff_net(name, factor)[0]
+        with pytest.raises(UnstableStepError, match="em2"):
+            check_step(explicit)
+        # forced past the policy: the run-time guards stop it
+        with pytest.raises(tn.SimulationError):
+            explicit.run(steps=100, diagnostics_every=10)
+
+
+def test_matrix_free_product_is_the_assembled_jacobian():
+    """The matrix-free sweep's r = R − J du (the large nets' solver) against the assembled J."""
+    sim = random_simulation("hencky", True)
+    st, s = sim.stepper, sim._state
+    st.begin(s.positions, s.momenta, s.entropy, sim.h)
+    st.predict(st.u)
+    residual_at(st, st.u + np.random.default_rng(1).normal(0.0, 0.03, st.u.shape))
+    st.jacobian(st.data)
+    st.linearize()
+    J = st.pattern.matrix(st.data.copy()).toarray()
+    du = np.random.default_rng(2).normal(size=st.u.shape)
+    rhs = np.random.default_rng(3).normal(size=st.u.shape)
+    r = np.empty_like(du)
+    st.sweep(du.copy(), rhs, r, False)
+    assert np.abs(r - (rhs - J @ du)).max() <= 1e-12 * np.abs(J @ du).max()
+
+
+# ---------------------------------------------------------------------------------------------
+# what the messages recommend
+
+
+def test_messages_recommend_em2_above_the_limit_and_never_refuse_it():
+    from thermonet.blowup import remedy
+    from thermonet.cli.info import _stable_step
+
+    co2, gtr, em2 = (tn.get_integrator(n) for n in ("co2", "gtr-1/2", "em2"))
+    for integ in (co2, gtr):
+        text = remedy(integ, 0.01)
+        assert "smaller h than 0.01" in text and "em2, which has none" in text and "ho4" not in text
+    assert "gtr-1/2 has a stability limit too" in remedy(gtr, 0.01)
+    assert "em2" not in remedy(co2, 0.01).split("em2", 1)[1]  # named once
+    assert "smaller h" in remedy(em2, 0.01) and "retry" in remedy(em2, 0.01)
+
+    # the blow-up of an explicit run names em2 (one linear spring just above CO2's limit)
+    net = tn.Net([[0, 0, 0], [1, 0, 0]], [[0, 1]], masses=[1.0, 2.0], anchored=[0], rest_lengths=[1.0])
+    sim = tn.Simulation(net, model="quadratic", parameters=dict(E=100.0, beta=0.0), momenta=[[0, 0, 0], [0.01, 0, 0]],
+                        h=1.05 * 2.0 / np.sqrt(50.0), stability_guard="off", energy_tolerance=None)
+    with pytest.raises(tn.SimulationError, match="the integrator em2, which has none"):
+        sim.run(steps=100000, diagnostics_every=10**9)
+
+    # EM2 far above the limit: the policy says ok, the guard is off, info says there is no limit
+    sim = tn.Simulation(net, model="quadratic", parameters=dict(E=100.0, beta=0.0), momenta=[[0, 0, 0], [1.0, 0, 0]],
+                        integrator="em2", h=100.0 / np.sqrt(50.0), integrator_options=TIGHT)
+    verdict = check_step(sim)
+    assert verdict.verdict == "ok" and math.isinf(verdict.h_max) and not sim.stability_guard.active
+    assert "no stability limit" in _stable_step(sim, "initial state")
+    d = sim.run(steps=200, diagnostics_every=20)
+    # at h ω = 100 the residual's scale is the step's force term, ~ h ω/2 × |p|: measured 3.8e-13
+    # (the default tolerance 1e-12: 1.7e-12)
+    assert relative_drift(d.energy) <= 1e-12

@@ -1,0 +1,162 @@
+"""EM2, the energy–momentum (discrete-gradient midpoint) integrator (spec-heat §4; Gonzalez 1996,
+Simo & Tarnow 1992): implicit in x¹ only, second order, symmetric.
+
+    x¹ = x⁰ + h M⁻¹ (p⁰ + p¹)/2,   p¹ = p⁰ + h m g − h Σ_e ∇̄U_e,   η¹ = η,   Φ¹ = Φ⁰ + h θ(l̄, η)
+
+with the discrete gradient ∇̄U_e = ∓s_e d̄_e, s_e = [U(l¹, η) − U(l⁰, η)] / [(l¹ − l⁰) l̄]
+(kernels in :mod:`thermonet.kernels.em2`). Total energy is conserved exactly (to the Newton
+tolerance) at any step, so EM2 has no stability limit: far above the explicit limit the fast
+modes lose accuracy (their phase), not stability. Linear and angular momentum and every spring's
+entropy are kept exactly. Φ is a diagnostic here (θ at the mean length).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+from ..kernels.em2 import EM2Work
+from ..kernels.implicit_records import plain
+from .base import Integrator, register_integrator
+from .implicit import ImplicitStepper, newton_options
+
+
+class EM2(Integrator):
+    """The energy–momentum integrator: unconditionally stable (no h_max)."""
+
+    name = "em2"
+    order = 2
+    explicit = False
+    #: no stability limit: the step policy and the run-time guard never refuse its step
+    stability_interval = math.inf
+    unconditionally_stable = True
+    description = "energy–momentum (discrete-gradient midpoint) step at fixed entropy, implicit in x¹, order 2"
+
+    def make_stepper(self, system, parallel: bool = False, **options) -> "EM2Stepper":
+        options.setdefault("max_iterations", MAX_ITERATIONS)
+        options.setdefault("retry", RETRY)
+        stepper = EM2Stepper(self, system, newton_options(options), parallel)
+        stepper.rounding_atol = "atol" not in options
+        return stepper
+
+
+#: EM2's default Newton iterations per step (other schemes: 12): far above the explicit limit
+#: the corrections are shortened (LENGTH_LIMIT) and take a few more iterations
+MAX_ITERATIONS = 30
+#: EM2's default retry levels (other schemes: 0): a step whose Newton solve fails is redone as
+#: 2, 4, …, 2**RETRY substeps (warned, and in the diagnostics), each keeping the energy exactly.
+#: Far above the explicit limit (hω ≳ 10 on nets whose springs turn or stretch a lot per step)
+#: a whole step's Newton solve does not always converge from the predictor: measured on the
+#: heated plate (scenes/lattice2d.toml) at 7.6× CO2's limit, 8 of 20 steps needed 2–4 substeps
+RETRY = 4
+#: without a given ``atol``, Newton's absolute increment tolerance is this many ulps of the
+#: largest coordinate: a correction below the positions' own rounding is noise (near rest, the
+#: forces' rounding, c ε per spring from ln(l/l0), can hold the scaled residual above 1e-12
+#: while the displacements are tiny; measured on a chain's slow mode at 1e-4 amplitude)
+ATOL_ULPS = 8
+#: a Newton correction changes no spring's vector by more than this fraction of its length
+LENGTH_LIMIT = 0.5
+#: a correction is searched along (halved until the residual falls) while the scaled residual
+#: is above this; below it Newton converges quadratically from the whole correction
+LINE_SEARCH_ABOVE = 1e-3
+LINE_SEARCH_HALVINGS = 12
+
+
+class LengthLimited:
+    """The stepper's linear solver, its corrections made safe far from the solution (a damped
+    Newton step): each correction is first shortened so that no spring's vector changes by more
+    than LENGTH_LIMIT times its length, and then, while the scaled residual is above
+    LINE_SEARCH_ABOVE, halved until the residual's 2-norm falls (Armijo; the Newton direction
+    descends on it). Far above the explicit limit a full Newton correction would stretch a stiff
+    spring by thousands of lengths, or through zero; near the solution the correction is taken
+    whole and Newton converges quadratically. Everything else is the wrapped solver's."""
+
+    def __init__(self, solver, stepper):
+        object.__setattr__(self, "inner", solver)
+        object.__setattr__(self, "stepper", stepper)
+
+    def __getattr__(self, name):
+        return getattr(self.inner, name)
+
+    def __setattr__(self, name, value):  # statistics (iterations, ...) live in the wrapped solver
+        setattr(self.inner, name, value)
+
+    def solve(self, rhs, target: float = 0.0, settled: float = 0.0):
+        du = self.inner.solve(rhs, target, settled)
+        st = self.stepper
+        scale = st.kernels.step_scale(st._topology, st._work, du, LENGTH_LIMIT)
+        rmax, smax = st.norms
+        if not rmax > LINE_SEARCH_ABOVE * smax:
+            if scale < 1.0:
+                du *= scale
+            return du
+        u = st.u
+        r0 = float(np.linalg.norm(st.R))
+        trial = np.empty_like(u)
+        for _ in range(LINE_SEARCH_HALVINGS):
+            np.subtract(u, scale * du, out=trial)
+            status, _ = st.residual(trial)
+            if status == 0 and float(np.linalg.norm(st.R)) <= (1.0 - 1e-4 * scale) * r0:
+                break
+            scale *= 0.5
+        du *= scale
+        return du
+
+
+class EM2Stepper(ImplicitStepper):
+    """EM2 bound to a system: 3 unknowns (the displacement) per free node."""
+
+    block = 3
+    scheme = "em2"
+    #: Newton's atol follows the positions' rounding (ATOL_ULPS; set by EM2.make_stepper)
+    rounding_atol = False
+
+    def __init__(self, integrator, system, options, parallel: bool = False):
+        super().__init__(integrator, system, options, parallel)
+        self.solver = LengthLimited(self.solver, self)
+
+    def make_work(self, start) -> EM2Work:
+        # the start kernel writes the acceleration at x⁰ here; predict() makes the guess from it
+        self.accel = self.prediction = np.zeros(self.pattern.size)
+        return EM2Work.allocate(start)
+
+    def begin(self, x, p, eta, h: float) -> None:
+        super().begin(x, p, eta, h)
+        if self.rounding_atol:
+            floor = ATOL_ULPS * np.finfo(np.float64).eps * float(np.abs(x).max(initial=0.0))
+            if not 0.5 * self.options.atol <= floor <= 2.0 * self.options.atol:
+                self.options = dataclasses.replace(self.options, atol=floor)
+
+    def predictor_coefficients(self, h: float) -> np.ndarray:
+        """The start kernel's output is the acceleration a (the predictor is EM2's own)."""
+        return np.array([[0.0, 1.0, 0.0, 0.0]])
+
+    def predict(self, u: np.ndarray) -> None:
+        """The midpoint step of each node on its own springs' stiffness (kernels.em2)."""
+        self.kernels.predict(self._step_start, self._topology, self._springs, self._nodes, self._work,
+                             self.accel, u)
+
+    def residual(self, u: np.ndarray):
+        status, spring, rmax, smax = self.kernels.residual(self._step_start, self._topology, self._springs,
+                                                           self._nodes, self._work, u, self._residuals)
+        self.norms = (rmax, smax)
+        return status, spring
+
+    def linearize(self) -> None:
+        self.kernels.linearize(self._work, self.h)
+
+    def apply_inverse_inertia(self, v):
+        """(h/m) v per free node."""
+        return (np.asarray(v).reshape(-1, 3) * (self.h / self.block_mass)[:, None]).ravel()
+
+    def jacobian(self, data: np.ndarray) -> None:
+        self.kernels.jacobian(self._topology, self._springs, self._nodes, self._work, self._places, self.h, data)
+
+    def finish(self, phi0, new):
+        return self.kernels.finish(self._step_start, self._topology, self._springs, self._nodes,
+                                   self._work, self.u, phi0, plain(new))
+
+
+EM2_INTEGRATOR = register_integrator(EM2())

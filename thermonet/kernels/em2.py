@@ -1,0 +1,461 @@
+"""EM2's kernels (spec-heat §4): the discrete-gradient (energy–momentum) midpoint step at fixed
+entropy per spring, as Numba templates compiled per model by :func:`build` (registered as scheme
+"em2"). Conventions (records, blocking, status codes): :mod:`.implicit_common`.
+
+Unknown d = x¹ − x⁰ per free node (block of 3). With the spring vectors d⁰, d¹ (end minus start
+node), l⁰, l¹ their lengths, d̄ = (d⁰ + d¹)/2, l̄ = (l⁰ + l¹)/2 and δ = l¹ − l⁰:
+
+    R_c = m_c d_c / h − p_c − (h/2) m_c g − (h/2) Σ_e ±s_e d̄_e        (+ at a spring's first end)
+    s_e = [U(l¹, η) − U(l⁰, η)] / (δ l̄)                                 (the discrete gradient)
+
+so that x¹ − x⁰ = h (p⁰ + p¹)/(2m) with p¹ = p⁰ + h (m g + Σ ±s d̄): since d̄·(d¹ − d⁰) = l̄ δ,
+the kinetic energy gains exactly what U loses; the forces are central (along d̄) and opposite,
+so linear and angular momentum are kept exactly. η¹ = η; Φ¹ = Φ⁰ + h θ(l̄, η).
+
+The quotient Q = ΔU/δ cancels as δ → 0: its rounding is about ε |U| / |δ| (|U| includes the
+model's offsets, e.g. C0 θ), a noise in the residual as a function of the unknowns that would
+hold Newton above 1e-14 (measured on the paper's chain with the switch at 1e-3). So for
+|δ| ≤ SWITCH l̄ the 5-point Gauss–Lobatto rule on T = dU/dl (fixed η) replaces it,
+
+    Q ≈ [T(l⁰) + T(l¹)]/20 + 49/180 [T(l⁰ + ξ δ) + T(l¹ − ξ δ)] + 16/45 T(l̄),  ξ = (1 − √(3/7))/2
+
+which is the midpoint form T(l̄) with the Taylor corrections of ΔU about l̄ up to δ⁶ (exact for
+a polynomial T of degree 7; error 7.0e-10 δ⁸ T⁽⁸⁾) and has no cancellation. At SWITCH = 0.03
+its error, checked against 40-digit arithmetic for hencky springs (β = 0.2 and 2, l ∈ [0.3, 3]
+l0), is below 1e-15 relative to the force, and the quotient's rounding above the switch 30×
+smaller than at 1e-3; the energy error of the rule per spring and step, δ × that, is below
+U's own rounding.
+
+The Jacobian block of spring e (added with sign s_c s_g to block (c, g), s_a = +1, s_b = −1) is
+
+    B_e = (h/2) [ (s/2) I + (ds/dl¹) d̄ n¹ᵀ ],   ds/dl¹ = (dQ/dl¹) / l̄ − s / (2 l̄)
+
+with dQ/dl¹ = (T(l¹) − Q)/δ (direct) or the rule's Σ wᵢ ξᵢ k(l⁰ + ξᵢ δ) (nodes ξᵢ ∈ [0, 1]),
+k = dT/dl at fixed η (the adiabatic stiffness). The work record is :class:`EM2Work`.
+
+Callable from other compiled code (the records are plain tuples of arrays, see
+``implicit_records.plain``): ``residual(step, topo, spring, node, work, u, res) -> (status,
+spring, max|R|, max Rabs)``, ``jacobian(topo, spring, node, work, places, h, data)``,
+``predict(step, topo, spring, node, work, accel, pred)``, ``finish(step, topo, spring, node,
+work, u, phi, new) -> (status, spring)``, ``linearize(work, h)``, ``sweep(topo, node, work, h,
+du, R, r, update, first) -> max|r|``, ``step_scale(topo, work, du, limit) -> factor`` (the damped
+Newton step's length limit), and the per-spring ``slope(l, l1, eta, l0, P, e, U0, T0) -> (s,
+ds/dl1, θ(l1, η))``. A step: the shared start kernel with predictor coefficients [[0, 1, 0, 0]]
+(it writes the acceleration a), ``predict`` (U, T at l⁰ into ``work``, the guess into u), then
+``residual``/``jacobian`` per Newton iteration, ``finish``.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+from numba import prange
+
+from .implicit_common import (BLOCK, COLLAPSED, INLINE, NO_TEMPERATURE, NOT_FINITE, OK, OPTIONS, UNIFORM,
+                              _admissible, _first_flagged, register_scheme, scatter_spring_block)
+from .implicit_records import StartWork
+from .specialize import specialize
+
+# Bound per model by specialize(); listed so the templates read as ordinary code.
+temperature = tension = internal_energy = adiabatic_stiffness = None
+em2_slope = em2_direct = em2_quadrature = tension_at = finish_nodes = None
+
+#: |l¹ − l⁰| ≤ SWITCH l̄: the discrete gradient by the Gauss–Lobatto rule, not by the quotient ΔU/δ
+SWITCH = 0.03
+#: the interior nodes and weights of the 5-point Gauss–Lobatto rule on [0, 1] (besides 1/2, 16/45)
+LOBATTO_NODE = 0.5 * (1.0 - math.sqrt(3.0 / 7.0))
+LOBATTO_WEIGHT = 49.0 / 180.0
+
+
+class EM2Work(NamedTuple):
+    """EM2's per-spring arrays for m springs: len1 (m,), dir1 (3, m) the length and unit vector
+    at x¹; mean (3, m) the mean spring vector d̄; slope, dslope (m,) s and ds/dl¹; energy0,
+    tension0 (m,) U and T at l⁰ (fixed over the step); jc (2, m) the matrix-free coefficients
+    (h s/4, h ds/dl¹ / 2); and the start kernel's record ``start`` (its ``guess`` (m,) holds the
+    predictor's per-spring stiffness)."""
+
+    start: StartWork
+    len1: np.ndarray
+    dir1: np.ndarray
+    mean: np.ndarray
+    slope: np.ndarray
+    dslope: np.ndarray
+    energy0: np.ndarray
+    tension0: np.ndarray
+    jc: np.ndarray
+
+    @classmethod
+    def allocate(cls, start: StartWork) -> "EM2Work":
+        m = start.len0.shape[0]
+        return cls(start, np.empty(m), np.empty((3, m)), np.empty((3, m)), np.empty(m), np.empty(m),
+                   np.empty(m), np.empty(m), np.empty((2, m)))
+
+
+def build(ns: dict, tag: str, ptag: str, parallel: bool) -> dict:
+    """EM2's kernels for the model namespace ``ns`` (see implicit_common.register_scheme)."""
+    ns["tension_at"] = specialize(_tension_at, tag, ns, **INLINE)
+    ns["em2_direct"] = specialize(_em2_direct, tag, ns, **INLINE)
+    ns["em2_quadrature"] = specialize(_em2_quadrature, tag, ns, **INLINE)
+    ns["em2_slope"] = specialize(_em2_slope, tag, ns, **INLINE)
+    return dict(
+        predict=specialize(_em2_predict, ptag, ns, parallel=parallel, **OPTIONS),
+        residual=specialize(_em2_residual, ptag, ns, parallel=parallel, **OPTIONS),
+        linearize=specialize(_em2_linearize, ptag, {}, parallel=parallel, **OPTIONS),
+        jacobian=specialize(_em2_jacobian, tag, ns, **OPTIONS),
+        finish=specialize(_em2_finish, ptag, ns, parallel=parallel, **OPTIONS),
+        sweep=specialize(_em2_sweep, "par" if parallel else "ser", {}, parallel=parallel, **OPTIONS),
+        step_scale=specialize(_em2_step_scale, "ser", {}, **OPTIONS),
+        # the per-spring functions, callable alone (tests; other compiled loops)
+        slope=specialize(_em2_slope, f"{tag}_alone", ns, **OPTIONS),
+        direct=specialize(_em2_direct, f"{tag}_alone", ns, **OPTIONS),
+        quadrature=specialize(_em2_quadrature, f"{tag}_alone", ns, **OPTIONS),
+    )
+
+
+# ---------------------------------------------------------------------------------------------
+# one spring
+
+
+def _em2_direct(l, l1, eta, l0, P, e, U0, T1):
+    """Q = (U(l1, η) − U0)/(l1 − l) and dQ/dl1 = (T1 − Q)/(l1 − l), T1 = T(l1, θ(l1, η))
+    (l1 ≠ l)."""
+    d = l1 - l
+    Q = (internal_energy(l1, eta, l0, P, e) - U0) / d
+    return Q, (T1 - Q) / d
+
+
+def _tension_at(l, eta, l0, P, e):
+    """T(l, θ(l, η))."""
+    return tension(l, temperature(l, eta, l0, P, e), l0, P, e)
+
+
+def _em2_quadrature(l, l1, eta, l0, P, e, T0, T1):
+    """Q = ΔU/δ by the 5-point Gauss–Lobatto rule (module doc) and dQ/dl1 = Σ wᵢ ξᵢ k(l + ξᵢ δ),
+    without cancellation (T0 = T at l, T1 at l1, k the adiabatic stiffness)."""
+    d = l1 - l
+    la = l + LOBATTO_NODE * d
+    lm = l + 0.5 * d
+    lb = l1 - LOBATTO_NODE * d
+    Q = 0.05 * (T0 + T1) + LOBATTO_WEIGHT * (tension_at(la, eta, l0, P, e) + tension_at(lb, eta, l0, P, e)) \
+        + (16.0 / 45.0) * tension_at(lm, eta, l0, P, e)
+    dQ = (0.05 * adiabatic_stiffness(l1, eta, l0, P, e)
+          + LOBATTO_WEIGHT * (LOBATTO_NODE * adiabatic_stiffness(la, eta, l0, P, e)
+                              + (1.0 - LOBATTO_NODE) * adiabatic_stiffness(lb, eta, l0, P, e))
+          + (8.0 / 45.0) * adiabatic_stiffness(lm, eta, l0, P, e))
+    return Q, dQ
+
+
+def _em2_slope(l, l1, eta, l0, P, e, U0, T0):
+    """The discrete gradient's s = ΔU/(δ l̄), ds/dl1 and θ(l1, η) of one spring from its start
+    length l (with U0 = U(l, η), T0 = T(l, θ(l, η))) and its end length l1."""
+    th1 = temperature(l1, eta, l0, P, e)
+    T1 = tension(l1, th1, l0, P, e)
+    lm = 0.5 * (l + l1)
+    if abs(l1 - l) > SWITCH * lm:
+        Q, dQ = em2_direct(l, l1, eta, l0, P, e, U0, T1)
+    else:
+        Q, dQ = em2_quadrature(l, l1, eta, l0, P, e, T0, T1)
+    s = Q / lm
+    return s, (dQ - 0.5 * s) / lm, th1
+
+
+# ---------------------------------------------------------------------------------------------
+# the step's kernels
+
+
+def _em2_predict(step, topo, spring, node, work, accel, pred):
+    """Per spring, U and T at l⁰ (``work.energy0``, ``tension0``); then the predictor of the
+    unknowns into pred (3 n_free,): per free node d = h v + h²/2 a / (1 + h² κ/(4 m)), v = p/m,
+    a the acceleration at x⁰ (``accel`` (3 n_free,), from the start kernel), κ = Σ_e
+    max(dT/dl|η, 0) + max(T/l, 0) over the node's springs: the acceleration's part damped as in
+    the midpoint rule's step on a spring of the node's own stiffness. Third order for small h ω,
+    like h v + h²/2 a, and bounded far above the explicit limit (|h²/2 a| ≲ 2 m |a|/κ, the
+    static displacement), where h²/2 a is not. The velocity's part is kept whole: a stiff
+    cluster moving as a body keeps its slow motion in the guess."""
+    x0, p, eta, h = step
+    edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
+    l0, P = spring
+    masses, inv_mass, gravity, with_gravity = node
+    start, len1, dir1, mean, slope, dslope, energy0, tension0, jc = work
+    len0, dir0, keep, fs, ws, sweep, nodal, stiff, code = start
+    m = edges.shape[0]
+    for blk in prange((m + BLOCK - 1) // BLOCK):
+        lo = blk * BLOCK
+        for i in range(min(BLOCK, m - lo)):
+            e = np.uint64(lo + i)
+            pe = np.uint64(0) if UNIFORM else np.uint64(e)
+            l = len0[e]
+            th = temperature(l, eta[e], l0[e], P, pe)
+            T = tension(l, th, l0[e], P, pe)
+            energy0[e] = internal_energy(l, eta[e], l0[e], P, pe)
+            tension0[e] = T
+            stiff[e] = max(adiabatic_stiffness(l, eta[e], l0[e], P, pe), 0.0) + max(T / l, 0.0)
+    q = 0.25 * h * h
+    for a in prange(x0.shape[0]):
+        k = free_index[a]
+        if k < 0:
+            continue
+        kappa = 0.0
+        for j in range(inc_ptr[a], inc_ptr[a + 1]):
+            kappa += stiff[inc_spring[j]]
+        damp = 1.0 / (1.0 + q * kappa * inv_mass[a])
+        for i in range(3):
+            pred[3 * k + i] = h * inv_mass[a] * p[a, i] + damp * 0.5 * h * h * accel[3 * k + i]
+
+
+def _em2_residual(step, topo, spring, node, work, u, res):
+    """R, Rabs (3 n_free,) of ``res`` at unknowns u (3 n_free,) (module doc); fills ``work``'s
+    len1, dir1, mean, slope, dslope for the Jacobian and the finish, and the start record's fs
+    (≥ 3, m) with each spring's (h/2) s d̄. Needs ``work.energy0``, ``tension0`` (predict).
+    Returns (status, spring, max |R|, max Rabs)."""
+    x0, p, eta, h = step
+    edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
+    l0, P = spring
+    masses, inv_mass, gravity, with_gravity = node
+    start, len1, dir1, mean, slope, dslope, energy0, tension0, jc = work
+    len0, dir0, keep, fs, ws, sweep, nodal, guess, code = start
+    R, Rabs, peak = res
+    m = edges.shape[0]
+    half = 0.5 * h
+    bad = m
+    for blk in prange((m + BLOCK - 1) // BLOCK):
+        lo = blk * BLOCK
+        n = min(BLOCK, m - lo)
+        for i in range(n):  # gather: the spring vectors at x⁰ and x¹
+            e = np.uint64(lo + i)
+            a = edges[e, 0]
+            b = edges[e, 1]
+            ka = free_index[a]
+            kb = free_index[b]
+            for j in range(3):
+                d0 = x0[b, j] - x0[a, j]
+                d1 = d0
+                if kb >= 0:
+                    d1 += u[3 * kb + j]
+                if ka >= 0:
+                    d1 -= u[3 * ka + j]
+                fs[j, e] = d1
+                mean[j, e] = 0.5 * (d0 + d1)
+        for i in range(n):  # per spring
+            e = np.uint64(lo + i)
+            pe = np.uint64(0) if UNIFORM else np.uint64(e)
+            dx = fs[0, e]
+            dy = fs[1, e]
+            dz = fs[2, e]
+            l1 = math.sqrt(dx * dx + dy * dy + dz * dz)
+            len1[e] = l1
+            i1 = 1.0 / l1
+            dir1[0, e] = dx * i1
+            dir1[1, e] = dy * i1
+            dir1[2, e] = dz * i1
+            s, ds, th1 = em2_slope(len0[e], l1, eta[e], l0[e], P, pe, energy0[e], tension0[e])
+            slope[e] = s
+            dslope[e] = ds
+            g = half * s
+            fs[0, e] = g * mean[0, e]
+            fs[1, e] = g * mean[1, e]
+            fs[2, e] = g * mean[2, e]
+            lok = (l1 > 0.0) & (l1 < math.inf)
+            fine = _admissible(th1) & (abs(s) < math.inf) & (abs(ds) < math.inf)
+            code[e] = OK if (lok & fine) else (COLLAPSED if not lok else
+                                               (NO_TEMPERATURE if not _admissible(th1) else NOT_FINITE))
+        bad = min(bad, _first_flagged(code, lo, n, m))
+    if bad < m:
+        return code[bad], bad, math.inf, math.inf
+    rmax = 0.0
+    smax = 0.0
+    for a in prange(x0.shape[0]):
+        k = free_index[a]
+        if k < 0:
+            continue
+        w = masses[a] / h
+        r0 = 0.0
+        r1 = 0.0
+        r2 = 0.0
+        s0 = 0.0
+        s1 = 0.0
+        s2 = 0.0
+        for i in range(3):
+            inertia = w * u[3 * k + i]
+            g = half * masses[a] * gravity[i] if with_gravity else 0.0
+            r = inertia - p[a, i] - g
+            sa = abs(inertia) + abs(p[a, i]) + abs(g)
+            if i == 0:
+                r0, s0 = r, sa
+            elif i == 1:
+                r1, s1 = r, sa
+            else:
+                r2, s2 = r, sa
+        for j in range(inc_ptr[a], inc_ptr[a + 1]):
+            e = inc_spring[j]
+            sg = -inc_sign[j]
+            v0 = fs[0, e]
+            v1 = fs[1, e]
+            v2 = fs[2, e]
+            r0 += sg * v0
+            s0 += abs(v0)
+            r1 += sg * v1
+            s1 += abs(v1)
+            r2 += sg * v2
+            s2 += abs(v2)
+        R[3 * k] = r0
+        Rabs[3 * k] = s0
+        R[3 * k + 1] = r1
+        Rabs[3 * k + 1] = s1
+        R[3 * k + 2] = r2
+        Rabs[3 * k + 2] = s2
+        rmax = max(rmax, max(abs(r0), max(abs(r1), abs(r2))))
+        smax = max(smax, max(s0, max(s1, s2)))
+    return 0, -1, rmax, smax
+
+
+def _em2_linearize(work, h):
+    """The matrix-free coefficients at the last residual's point: jc (2, m) = (h s/4,
+    h (ds/dl¹)/2), spring e's block being jc[0] I + jc[1] d̄ n¹ᵀ."""
+    start, len1, dir1, mean, slope, dslope, energy0, tension0, jc = work
+    m = len1.shape[0]
+    for e in prange(m):
+        jc[0, e] = 0.25 * h * slope[e]
+        jc[1, e] = 0.5 * h * dslope[e]
+
+
+def _em2_jacobian(topo, spring, node, work, places, h, data):
+    """Values of ∂R/∂u at the last residual's point into the CSR value array ``data`` (nnz,),
+    at the places of ``places`` (BlockPlaces): m_c/h I on the diagonal blocks, and each spring's
+    B = (h/2) [(s/2) I + (ds/dl¹) d̄ n¹ᵀ] with sign s_c s_g."""
+    edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
+    masses, inv_mass, gravity, with_gravity = node
+    start, len1, dir1, mean, slope, dslope, energy0, tension0, jc = work
+    node_base, node_stride, spring_base, spring_stride = places
+    data[:] = 0.0
+    for a in range(free_index.shape[0]):
+        k = free_index[a]
+        if k < 0:
+            continue
+        w = masses[a] / h
+        for i in range(3):
+            data[node_base[k] + i * node_stride[k] + i] += w
+    B = np.zeros((3, 3))
+    for e in range(edges.shape[0]):
+        c1 = 0.25 * h * slope[e]
+        c2 = 0.5 * h * dslope[e]
+        for i in range(3):
+            for j in range(3):
+                B[i, j] = c2 * mean[i, e] * dir1[j, e] + (c1 if i == j else 0.0)
+        scatter_spring_block(data, places, e, B)
+
+
+def _em2_finish(step, topo, spring, node, work, u, phi, new):
+    """The next state from converged unknowns u into ``new`` (NextState; phi (m,) the step's
+    start): x¹ = x⁰ + d; p¹ = p⁰ + h m g + h Σ ±s d̄ (fs, from the last residual, evaluated at u,
+    doubled: exact); η¹ = η; Φ¹ = Φ⁰ + h θ(l̄, η). Returns (status, spring)."""
+    x0, p, eta, h = step
+    edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
+    l0, P = spring
+    start, len1, dir1, mean, slope, dslope, energy0, tension0, jc = work
+    len0, dir0, keep, fs, ws, sweep, nodal, guess, code = start
+    x_new, p_new, phi_new, eta_new = new
+    m = edges.shape[0]
+    bad = m
+    for blk in prange((m + BLOCK - 1) // BLOCK):
+        lo = blk * BLOCK
+        n = min(BLOCK, m - lo)
+        for i in range(n):
+            e = np.uint64(lo + i)
+            pe = np.uint64(0) if UNIFORM else np.uint64(e)
+            th = temperature(0.5 * (len0[e] + len1[e]), eta[e], l0[e], P, pe)
+            phi_new[e] = phi[e] + h * th
+            eta_new[e] = eta[e]
+            fs[0, e] *= 2.0
+            fs[1, e] *= 2.0
+            fs[2, e] *= 2.0
+            code[e] = OK if _admissible(th) else NO_TEMPERATURE
+        bad = min(bad, _first_flagged(code, lo, n, m))
+    if bad < m:
+        return code[bad], bad
+    return finish_nodes(step, topo, node, fs, u, 3, 0, new)
+
+
+def _em2_sweep(topo, node, work, h, du, R, r, update, first):
+    """r = R − J du (du, R, r: (3 n_free,)); with ``update``, then du += D⁻¹ r (and r is not
+    written). Returns max |r|. ``first``: du is taken as zero. Spring e's block applied to
+    v = du_a − du_b: jc[0] v + jc[1] (n¹·v) d̄."""
+    edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
+    masses, inv_mass, gravity, with_gravity = node
+    start, len1, dir1, mean, slope, dslope, energy0, tension0, jc = work
+    len0, dir0, keep, fs, ws, w, nodal, guess, code = start
+    m = ends.shape[0]
+    for e in prange(0 if first else m):
+        eu = np.uint64(e)
+        ka = ends[eu, 0]
+        kb = ends[eu, 1]
+        v0 = 0.0
+        v1 = 0.0
+        v2 = 0.0
+        if ka >= 0:
+            v0 += du[3 * ka]
+            v1 += du[3 * ka + 1]
+            v2 += du[3 * ka + 2]
+        if kb >= 0:
+            v0 -= du[3 * kb]
+            v1 -= du[3 * kb + 1]
+            v2 -= du[3 * kb + 2]
+        c = jc[1, eu] * (dir1[0, eu] * v0 + dir1[1, eu] * v1 + dir1[2, eu] * v2)
+        c1 = jc[0, eu]
+        w[eu, 0] = c1 * v0 + c * mean[0, eu]
+        w[eu, 1] = c1 * v1 + c * mean[1, eu]
+        w[eu, 2] = c1 * v2 + c * mean[2, eu]
+    rmax = 0.0
+    for a in prange(free_index.shape[0]):
+        k = free_index[a]
+        if k < 0:
+            continue
+        wm = masses[a] / h
+        d0 = 0.0 if first else du[3 * k]
+        d1 = 0.0 if first else du[3 * k + 1]
+        d2 = 0.0 if first else du[3 * k + 2]
+        r0 = R[3 * k] - wm * d0
+        r1 = R[3 * k + 1] - wm * d1
+        r2 = R[3 * k + 2] - wm * d2
+        if not first:
+            for j in range(inc_ptr[a], inc_ptr[a + 1]):
+                e = inc_spring[j]
+                sg = -inc_sign[j]
+                r0 += sg * w[e, 0]
+                r1 += sg * w[e, 1]
+                r2 += sg * w[e, 2]
+        if not update:
+            r[3 * k] = r0
+            r[3 * k + 1] = r1
+            r[3 * k + 2] = r2
+        rmax = max(rmax, max(abs(r0), max(abs(r1), abs(r2))))
+        if update:
+            du[3 * k] = d0 + r0 / wm
+            du[3 * k + 1] = d1 + r1 / wm
+            du[3 * k + 2] = d2 + r2 / wm
+    return rmax
+
+
+def _em2_step_scale(topo, work, du, limit):
+    """The largest factor ≤ 1 by which a Newton correction du (3 n_free,; applied as u −= du)
+    may be scaled so that no spring's vector changes by more than ``limit`` times its length at
+    the last residual's point (``work.len1``)."""
+    edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
+    len1 = work[1]
+    scale = 1.0
+    for e in range(ends.shape[0]):
+        ka = ends[e, 0]
+        kb = ends[e, 1]
+        v2 = 0.0
+        for i in range(3):
+            v = (du[3 * kb + i] if kb >= 0 else 0.0) - (du[3 * ka + i] if ka >= 0 else 0.0)
+            v2 += v * v
+        reach = limit * len1[e]
+        if v2 > reach * reach:
+            scale = min(scale, reach / math.sqrt(v2))
+    return scale
+
+
+register_scheme("em2", build)
