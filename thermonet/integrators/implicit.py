@@ -26,6 +26,7 @@ from ..kernels.local_update import neighbourhood, scan
 from ..solvers import BlockPattern, NewtonOptions, NewtonResult, NewtonTimers, make_linear_solver
 from ..solvers.newton import newton
 from .base import Stepper, StepFailure
+from .compiled_path import CompiledNewton, use_compiled
 
 
 class _StepError(Exception):
@@ -128,6 +129,9 @@ class ImplicitStepper(Stepper):
         self._local = None  # index scratch of local_jacobi, made at its first use
         self._active = None  # the number of nodes local_jacobi's last scan found (None: no scan of this R)
         self.timers = NewtonTimers()
+        #: the compiled path (integrators/compiled_path.py), or None: the sparse one
+        self.compiled = (CompiledNewton(self) if use_compiled(options.newton_path, size, self.kernels,
+                                                               integrator.name) else None)
         self.totals = dict(steps=0, iterations=0, iterations_max=0, residual_max=0.0, retried_steps=0,
                            substeps_max=1)
 
@@ -150,6 +154,10 @@ class ImplicitStepper(Stepper):
     @abstractmethod
     def make_work(self, start: StartWork):
         """The scheme's work record (per-spring unknowns and scratch) around ``start``."""
+
+    def compiled_extra(self) -> tuple:
+        """The ``extra`` tuple the scheme's compiled_* kernels take (kernels/newton_compiled.py)."""
+        return ()
 
     @abstractmethod
     def predictor_coefficients(self, h: float) -> np.ndarray:
@@ -240,6 +248,11 @@ class ImplicitStepper(Stepper):
     def attempt(self, x, p, phi, eta, h: float):
         """One step from (x, p, Φ, η); returns the new (x, p, Φ, η) buffers and the Newton
         record, or raises _StepError. Never modifies its inputs."""
+        if self.compiled is not None:
+            done, failure = self.compiled.attempt(x, p, phi, eta, h)
+            if failure is not None:
+                raise _StepError(failure[1], failure[0], failure[2], failure[3])
+            return done
         self.begin(x, p, eta, h)
         self.predict(self.u)
         result = newton(self, self.u, self.options, self.solver, self.timers)
@@ -254,6 +267,8 @@ class ImplicitStepper(Stepper):
     def advance(self, state, n_steps: int, h: float, measure: bool = False):
         if n_steps <= 0:
             return None
+        if self.compiled is not None:
+            return self._advance_compiled(state, n_steps, h)
         iters, finals = [], []
         retried = 0
         substeps_max = 1
@@ -271,6 +286,34 @@ class ImplicitStepper(Stepper):
                 substeps_max = max(substeps_max, substeps)
             iters.append(it)
             finals.append(final)
+        return self._record(state, h, n_steps, iters, finals, retried, substeps_max)
+
+    def _advance_compiled(self, state, n_steps: int, h: float):
+        """advance() on the compiled path: runs of steps in one call each; a failed step is
+        redone as the sparse path does (retry policy, then StepFailure)."""
+        iters, finals = [], []
+        retried = 0
+        substeps_max = 1
+        i = 0
+        while i < n_steps:
+            done, its, fin, failure = self.compiled.run(state.positions, state.momenta, state.thermal_displacement,
+                                                        state.entropy, h, n_steps - i)
+            iters.extend(its.tolist())
+            finals.extend(fin.tolist())
+            i += done
+            if failure is None:
+                continue
+            result, reason, status, spring = failure
+            it, final, substeps = self._retry(state, h, _StepError(reason, result, status, spring), i)
+            retried += 1
+            substeps_max = max(substeps_max, substeps)
+            iters.append(it)
+            finals.append(final)
+            i += 1
+        return self._record(state, h, n_steps, iters, finals, retried, substeps_max)
+
+    def _record(self, state, h, n_steps, iters, finals, retried, substeps_max) -> dict:
+        """The totals updated with a chunk's steps, and the chunk's statistics."""
         t = self.totals
         t["steps"] += n_steps
         t["iterations"] += int(sum(iters))

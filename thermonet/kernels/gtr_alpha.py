@@ -31,6 +31,7 @@ from .specialize import specialize
 # Bound per model by specialize(); listed so the templates read as ordinary code.
 entropy = temperature = tension = d2F_dl_dtheta = d2F_dtheta2 = None
 gtr_thermal = gtr_thermal_vector = gtr_correct = finish_nodes = None
+gtr_residual = gtr_jacobian = gtr_finish = None
 
 
 class GTRWork(NamedTuple):
@@ -54,11 +55,19 @@ def build(ns: dict, tag: str, ptag: str, parallel: bool) -> dict:
     ns["gtr_correct"] = specialize(_gtr_correct, tag, ns, **INLINE)
     ns["gtr_thermal"] = specialize(_gtr_thermal, tag, ns, **OPTIONS)
     ns["gtr_thermal_vector"] = specialize(_gtr_thermal_vector, tag, ns, **INLINE)
+    residual = specialize(_gtr_residual, ptag, ns, parallel=parallel, **OPTIONS)
+    jacobian = specialize(_gtr_jacobian, tag, ns, **OPTIONS)
+    finish = specialize(_gtr_finish, ptag, ns, parallel=parallel, **OPTIONS)
+    calls = dict(ns, gtr_residual=residual, gtr_jacobian=jacobian, gtr_finish=finish)
     return dict(
-        residual=specialize(_gtr_residual, ptag, ns, parallel=parallel, **OPTIONS),
+        residual=residual,
         linearize=specialize(_gtr_linearize, ptag, ns, parallel=parallel, **OPTIONS),
-        jacobian=specialize(_gtr_jacobian, tag, ns, **OPTIONS),
-        finish=specialize(_gtr_finish, ptag, ns, parallel=parallel, **OPTIONS),
+        jacobian=jacobian,
+        finish=finish,
+        # the compiled Newton path's signatures (kernels/newton_compiled.py), extra = (α,)
+        compiled_residual=specialize(_gtr_compiled_residual, ptag, calls, **INLINE),
+        compiled_jacobian=specialize(_gtr_compiled_jacobian, ptag, calls, **INLINE),
+        compiled_finish=specialize(_gtr_compiled_finish, ptag, calls, **INLINE),
         sweep=sweep_kernel(parallel),
         thermal=ns["gtr_thermal"],
         # the two per-spring solves, callable alone (tests)
@@ -399,6 +408,18 @@ def _gtr_sweep(topo, node, work, h, du, R, r, update, first):
             du[3 * k + 1] = d1 + r1 / wm
             du[3 * k + 2] = d2 + r2 / wm
     return rmax
+
+
+def _gtr_compiled_residual(step, topo, spring, node, work, extra, u, warm, res):
+    return gtr_residual(step, topo, spring, node, work, extra[0], u, warm, res)
+
+
+def _gtr_compiled_jacobian(topo, spring, node, work, places, extra, h, data):
+    gtr_jacobian(topo, spring, node, work, places, extra[0], h, data)
+
+
+def _gtr_compiled_finish(step, topo, spring, node, work, extra, u, phi, new):
+    return gtr_finish(step, topo, spring, node, work, extra[0], u, phi, new)
 
 
 register_scheme("gtr", build)
