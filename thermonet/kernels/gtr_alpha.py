@@ -31,7 +31,7 @@ from .specialize import specialize
 # Bound per model by specialize(); listed so the templates read as ordinary code.
 entropy = temperature = tension = d2F_dl_dtheta = d2F_dtheta2 = None
 gtr_thermal = gtr_thermal_vector = gtr_correct = finish_nodes = None
-gtr_residual = gtr_jacobian = gtr_finish = None
+gtr_residual = gtr_jacobian = gtr_finish = gtr_linearize = None
 
 
 class GTRWork(NamedTuple):
@@ -58,16 +58,18 @@ def build(ns: dict, tag: str, ptag: str, parallel: bool) -> dict:
     residual = specialize(_gtr_residual, ptag, ns, parallel=parallel, **OPTIONS)
     jacobian = specialize(_gtr_jacobian, tag, ns, **OPTIONS)
     finish = specialize(_gtr_finish, ptag, ns, parallel=parallel, **OPTIONS)
-    calls = dict(ns, gtr_residual=residual, gtr_jacobian=jacobian, gtr_finish=finish)
+    linearize = specialize(_gtr_linearize, ptag, ns, parallel=parallel, **OPTIONS)
+    calls = dict(ns, gtr_residual=residual, gtr_jacobian=jacobian, gtr_finish=finish, gtr_linearize=linearize)
     return dict(
         residual=residual,
-        linearize=specialize(_gtr_linearize, ptag, ns, parallel=parallel, **OPTIONS),
+        linearize=linearize,
         jacobian=jacobian,
         finish=finish,
         # the compiled Newton path's signatures (kernels/newton_compiled.py), extra = (α,)
         compiled_residual=specialize(_gtr_compiled_residual, ptag, calls, **INLINE),
         compiled_jacobian=specialize(_gtr_compiled_jacobian, ptag, calls, **INLINE),
         compiled_finish=specialize(_gtr_compiled_finish, ptag, calls, **INLINE),
+        compiled_linearize=specialize(_gtr_compiled_linearize, ptag, calls, **INLINE),
         sweep=sweep_kernel(parallel),
         thermal=ns["gtr_thermal"],
         # the two per-spring solves, callable alone (tests)
@@ -420,6 +422,10 @@ def _gtr_compiled_jacobian(topo, spring, node, work, places, extra, h, data):
 
 def _gtr_compiled_finish(step, topo, spring, node, work, extra, u, phi, new):
     return gtr_finish(step, topo, spring, node, work, extra[0], u, phi, new)
+
+
+def _gtr_compiled_linearize(spring, work, extra, h):
+    gtr_linearize(spring, work, extra[0], h)
 
 
 register_scheme("gtr", build)

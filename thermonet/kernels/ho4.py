@@ -35,7 +35,7 @@ from . import ho4_linear as _linear, ho4_thermal as _thermal
 # Bound per model by specialize(); listed so the templates read as ordinary code.
 entropy = temperature = tension = d2F_dtheta2 = None
 ho4_thermal = ho4_thermal_vector = ho4_thermal_closed = finish_nodes = None
-ho4_residual = ho4_jacobian = ho4_finish = None
+ho4_residual = ho4_jacobian = ho4_finish = ho4_linearize = None
 #: the residual's index helpers, bound per variant (a kernel compiled with a conditional index
 #: ran 25 % slower): in the full kernel ``listed(indices, j)`` is j, ``listed_count(indices, n)``
 #: is n and ``first_flagged_listed`` is :func:`_first_flagged`; in the SUBSET kernel, which
@@ -80,11 +80,12 @@ def build(ns: dict, tag: str, ptag: str, parallel: bool) -> dict:
     residual = specialize(_ho4_residual, ptag, ns, parallel=parallel, **OPTIONS)
     jacobian = specialize(_linear._ho4_jacobian, tag, ns, **OPTIONS)
     finish = specialize(_ho4_finish, ptag, ns, parallel=parallel, **OPTIONS)
-    calls = dict(ns, ho4_residual=residual, ho4_jacobian=jacobian, ho4_finish=finish)
+    linearize = specialize(_linear._ho4_linearize, ptag, ns, parallel=parallel, **OPTIONS)
+    calls = dict(ns, ho4_residual=residual, ho4_jacobian=jacobian, ho4_finish=finish, ho4_linearize=linearize)
     return dict(
         residual=residual,
         residual_subset=specialize(_ho4_residual, f"{ptag}_subset", subset, parallel=parallel, **OPTIONS),
-        linearize=specialize(_linear._ho4_linearize, ptag, ns, parallel=parallel, **OPTIONS),
+        linearize=linearize,
         jacobian=jacobian,
         finish=finish,
         # the compiled Newton path's signatures (kernels/newton_compiled.py), extra = (springs,
@@ -92,6 +93,7 @@ def build(ns: dict, tag: str, ptag: str, parallel: bool) -> dict:
         compiled_residual=specialize(_ho4_compiled_residual, ptag, calls, **INLINE),
         compiled_jacobian=specialize(_ho4_compiled_jacobian, ptag, calls, **INLINE),
         compiled_finish=specialize(_ho4_compiled_finish, ptag, calls, **INLINE),
+        compiled_linearize=specialize(_ho4_compiled_linearize, ptag, calls, **INLINE),
         sweep=_linear.sweep_kernel(parallel),
         jacobi_rows=_linear.ho4_jacobi_rows,
         thermal=ns["ho4_thermal"],
@@ -382,6 +384,10 @@ def _ho4_compiled_jacobian(topo, spring, node, work, places, extra, h, data):
 
 def _ho4_compiled_finish(step, topo, spring, node, work, extra, u, phi, new):
     return ho4_finish(step, topo, spring, node, work, u, phi, new)
+
+
+def _ho4_compiled_linearize(spring, work, extra, h):
+    ho4_linearize(spring, work, h)
 
 
 register_scheme("ho4", build, keeps_start=True)
