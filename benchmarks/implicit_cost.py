@@ -1,4 +1,12 @@
-"""What the implicit integrators cost (issue 3).
+"""What the implicit integrators cost (issues 3 and 19).
+
+Part 0, ratio (issue 19's targets): the per-step cost of each implicit scheme (ho4, gtr-1/2,
+and em2 where registered) relative to a CO2 step of the same net, on the paper's chain and on
+jittered lattices of ``--sizes`` cells per side (5: 540 springs, 11: 4752, 25: 50 700, 32:
+104 544), for each Newton path (``--paths``: compiled, sparse). All simulations of a net are
+built and warmed up first, then ``--rounds`` rounds each time a chunk of every simulation in
+turn (interleaved: a drift of a shared machine hits all alike); the ratio is the median over
+rounds of (implicit step time / CO2 step time of the same round).
 
 Part 1, scaling: jittered 6-neighbour 3D lattices of about 1e2 … 1e5 springs, random momenta and
 temperatures, h = 0.01 (about a fifth of CO2's stability limit there). For GTR-1/2 and HO4 with
@@ -17,7 +25,8 @@ Part 2, the paper's chain: Newton iterations per step at h ≤ 0.01, and error i
 t = 100 against wall time for every integrator (the paper's Fig. 9), to find where HO4 starts
 to pay off. The reference is DOP853 at rtol = atol = 1e-13 on Hamilton's equations.
 
-    python benchmarks/implicit_cost.py                    # both parts
+    python benchmarks/implicit_cost.py                    # all parts
+    python benchmarks/implicit_cost.py --part ratio --sizes 0 5 11 25 32
     python benchmarks/implicit_cost.py --part scaling --sizes 3 7 15 32
     python benchmarks/implicit_cost.py --part scaling --sizes 32 --solvers matfree --settle 40
     python benchmarks/implicit_cost.py --part chain
@@ -90,6 +99,47 @@ def scaling(sizes, steps, h, direct_max_springs, solvers, settle=0):
                   flush=True)
 
 
+def ratio_nets(cells: int, method: str, h: float, **options) -> tn.Simulation:
+    """cells 0: the paper's chain (h = 0.01); else the lattice of ``lattice_simulation``."""
+    if cells == 0:
+        return tn.chain_simulation(method, h=0.01, integrator_options=options)
+    return lattice_simulation(cells, method, h, **options)
+
+
+def ratio(sizes, h, paths, rounds, seconds):
+    methods = [m for m in ("ho4", "gtr-1/2", "em2") if m in tn.available_integrators()]
+    print(f"per-step cost × CO2 on the same net, median of {rounds} interleaved rounds "
+          f"(h = 0.01 on the chain, {h} on the lattices)\n")
+    print("| net | springs | CO2 µs/step | " + " | ".join(f"{m} {p}" for m in methods for p in paths) + " |")
+    print("|---|---:|---:|" + "---:|" * (len(methods) * len(paths)))
+    for k in sizes:
+        sims = {("co2", "-"): ratio_nets(k, "co2", h)}
+        for m in methods:
+            for p in paths:
+                sims[(m, p)] = ratio_nets(k, m, h, newton_path=p)
+        steps = {}
+        for key, sim in sims.items():  # warm-up (compilation) and the chunk size of ~seconds
+            sim.run(steps=2, diagnostics_every=10**9)
+            n, t = 1, 0.0
+            while t < 0.2 * seconds:
+                t0 = time.perf_counter()
+                sim.run(steps=n, diagnostics_every=10**9)
+                t = time.perf_counter() - t0
+                n *= 2
+            steps[key] = max(1, int(n / 2 * seconds / max(t, 1e-9)))
+        per = {key: [] for key in sims}
+        for _ in range(rounds):
+            for key, sim in sims.items():
+                t0 = time.perf_counter()
+                sim.run(steps=steps[key], diagnostics_every=10**9)
+                per[key].append((time.perf_counter() - t0) / steps[key])
+        co2 = per[("co2", "-")]
+        cells = [f"{statistics.median(a / b for a, b in zip(per[(m, p)], co2)):.1f}" for m in methods for p in paths]
+        name = "chain" if k == 0 else f"lattice {k}³"
+        print(f"| {name} | {sims[('co2', '-')].net.n_springs} | {1e6 * statistics.median(co2):.2f} | "
+              + " | ".join(cells) + " |", flush=True)
+
+
 def chain(t_end):
     from thermonet import reference as ref
     from thermonet.paper import CHAIN_MOMENTA, CHAIN_PARAMETERS, CHAIN_TEMPERATURES
@@ -132,8 +182,13 @@ def chain(t_end):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--part", choices=("scaling", "chain", "all"), default="all")
-    ap.add_argument("--sizes", type=int, nargs="+", default=[3, 7, 15, 32], help="lattice cells per side")
+    ap.add_argument("--part", choices=("ratio", "scaling", "chain", "all"), default="all")
+    ap.add_argument("--sizes", type=int, nargs="+", default=None,
+                    help="lattice cells per side (ratio: 0 is the paper's chain); default: ratio 0 5 11 25 32, "
+                         "scaling 3 7 15 32")
+    ap.add_argument("--paths", nargs="+", default=["compiled", "sparse"], help="Newton paths (ratio)")
+    ap.add_argument("--rounds", type=int, default=7, help="interleaved rounds (ratio)")
+    ap.add_argument("--seconds", type=float, default=0.1, help="seconds per timed chunk (ratio)")
     ap.add_argument("--steps", type=int, default=20)
     ap.add_argument("--h", type=float, default=0.01)
     ap.add_argument("--direct-max-springs", type=int, default=12000,
@@ -144,8 +199,11 @@ def main(argv=None):
                     help="untimed steps of each implicit run before the timed ones (the later regime)")
     ap.add_argument("--t-end", type=float, default=100.0)
     args = ap.parse_args(argv)
+    if args.part in ("ratio", "all"):
+        ratio(args.sizes or [0, 5, 11, 25, 32], args.h, args.paths, args.rounds, args.seconds)
+        print()
     if args.part in ("scaling", "all"):
-        scaling(args.sizes, args.steps, args.h, args.direct_max_springs, args.solvers, args.settle)
+        scaling(args.sizes or [3, 7, 15, 32], args.steps, args.h, args.direct_max_springs, args.solvers, args.settle)
         print()
     if args.part in ("chain", "all"):
         chain(args.t_end)
