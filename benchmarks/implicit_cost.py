@@ -6,7 +6,8 @@ jittered lattices of ``--sizes`` cells per side (5: 540 springs, 11: 4752, 25: 5
 104 544), for each Newton path (``--paths``: compiled, sparse). All simulations of a net are
 built and warmed up first, then ``--rounds`` rounds each time a chunk of every simulation in
 turn (interleaved: a drift of a shared machine hits all alike); the ratio is the median over
-rounds of (implicit step time / CO2 step time of the same round).
+rounds of (implicit step time / CO2 step time of the same round). ``--serial --cpu-time``: all
+single-threaded, timed by CPU time (for a shared, oversubscribed machine).
 
 Part 1, scaling: jittered 6-neighbour 3D lattices of about 1e2 … 1e5 springs, random momenta and
 temperatures, h = 0.01 (about a fifth of CO2's stability limit there). For GTR-1/2 and HO4 with
@@ -43,13 +44,13 @@ import numpy as np
 import thermonet as tn
 
 
-def lattice_simulation(cells: int, integrator: str, h: float, **options) -> tn.Simulation:
+def lattice_simulation(cells: int, integrator: str, h: float, parallel=None, **options) -> tn.Simulation:
     net = tn.lattice((cells, cells, cells), jitter=0.1, seed=1)
     rng = np.random.default_rng(0)
     return tn.Simulation(
         net, model="hencky", parameters=dict(c=100.0, beta=0.2, C0=5.0, theta0=300.0),
         temperatures=rng.uniform(300.0, 600.0, net.n_springs), momenta=rng.normal(0.0, 1.0, (net.n_nodes, 3)),
-        integrator=integrator, h=h, integrator_options=options,
+        integrator=integrator, h=h, integrator_options=options, parallel=parallel,
     )
 
 
@@ -99,40 +100,41 @@ def scaling(sizes, steps, h, direct_max_springs, solvers, settle=0):
                   flush=True)
 
 
-def ratio_nets(cells: int, method: str, h: float, **options) -> tn.Simulation:
+def ratio_nets(cells: int, method: str, h: float, parallel, **options) -> tn.Simulation:
     """cells 0: the paper's chain (h = 0.01); else the lattice of ``lattice_simulation``."""
     if cells == 0:
         return tn.chain_simulation(method, h=0.01, integrator_options=options)
-    return lattice_simulation(cells, method, h, **options)
+    return lattice_simulation(cells, method, h, parallel=parallel, **options)
 
 
-def ratio(sizes, h, paths, rounds, seconds):
+def ratio(sizes, h, paths, rounds, seconds, parallel=None, clock=time.perf_counter):
     methods = [m for m in ("ho4", "gtr-1/2", "em2") if m in tn.available_integrators()]
     print(f"per-step cost × CO2 on the same net, median of {rounds} interleaved rounds "
-          f"(h = 0.01 on the chain, {h} on the lattices)\n")
+          f"(h = 0.01 on the chain, {h} on the lattices; {'CPU' if clock is time.process_time else 'wall'} time, "
+          f"{'serial' if parallel is False else 'threaded from 16384 springs'})\n")
     print("| net | springs | CO2 µs/step | " + " | ".join(f"{m} {p}" for m in methods for p in paths) + " |")
     print("|---|---:|---:|" + "---:|" * (len(methods) * len(paths)))
     for k in sizes:
-        sims = {("co2", "-"): ratio_nets(k, "co2", h)}
+        sims = {("co2", "-"): ratio_nets(k, "co2", h, parallel)}
         for m in methods:
             for p in paths:
-                sims[(m, p)] = ratio_nets(k, m, h, newton_path=p)
+                sims[(m, p)] = ratio_nets(k, m, h, parallel, newton_path=p)
         steps = {}
         for key, sim in sims.items():  # warm-up (compilation) and the chunk size of ~seconds
             sim.run(steps=2, diagnostics_every=10**9)
             n, t = 1, 0.0
             while t < 0.2 * seconds:
-                t0 = time.perf_counter()
+                t0 = clock()
                 sim.run(steps=n, diagnostics_every=10**9)
-                t = time.perf_counter() - t0
+                t = clock() - t0
                 n *= 2
             steps[key] = max(1, int(n / 2 * seconds / max(t, 1e-9)))
         per = {key: [] for key in sims}
         for _ in range(rounds):
             for key, sim in sims.items():
-                t0 = time.perf_counter()
+                t0 = clock()
                 sim.run(steps=steps[key], diagnostics_every=10**9)
-                per[key].append((time.perf_counter() - t0) / steps[key])
+                per[key].append((clock() - t0) / steps[key])
         co2 = per[("co2", "-")]
         cells = [f"{statistics.median(a / b for a, b in zip(per[(m, p)], co2)):.1f}" for m in methods for p in paths]
         name = "chain" if k == 0 else f"lattice {k}³"
@@ -187,8 +189,13 @@ def main(argv=None):
                     help="lattice cells per side (ratio: 0 is the paper's chain); default: ratio 0 5 11 25 32, "
                          "scaling 3 7 15 32")
     ap.add_argument("--paths", nargs="+", default=["compiled", "sparse"], help="Newton paths (ratio)")
-    ap.add_argument("--rounds", type=int, default=7, help="interleaved rounds (ratio)")
-    ap.add_argument("--seconds", type=float, default=0.1, help="seconds per timed chunk (ratio)")
+    ap.add_argument("--rounds", type=int, default=15, help="interleaved rounds (ratio)")
+    ap.add_argument("--seconds", type=float, default=0.03, help="seconds per timed chunk (ratio)")
+    ap.add_argument("--serial", action="store_true",
+                    help="single-threaded kernels at every size (ratio; default: threaded from 16384 springs)")
+    ap.add_argument("--cpu-time", action="store_true",
+                    help="time by the process's CPU time, not wall time (ratio, with --serial: on a shared, "
+                         "oversubscribed machine the time a process waits for a core is left out)")
     ap.add_argument("--steps", type=int, default=20)
     ap.add_argument("--h", type=float, default=0.01)
     ap.add_argument("--direct-max-springs", type=int, default=12000,
@@ -200,7 +207,8 @@ def main(argv=None):
     ap.add_argument("--t-end", type=float, default=100.0)
     args = ap.parse_args(argv)
     if args.part in ("ratio", "all"):
-        ratio(args.sizes or [0, 5, 11, 25, 32], args.h, args.paths, args.rounds, args.seconds)
+        ratio(args.sizes or [0, 5, 11, 25, 32], args.h, args.paths, args.rounds, args.seconds,
+              False if args.serial else None, time.process_time if args.cpu_time else time.perf_counter)
         print()
     if args.part in ("scaling", "all"):
         scaling(args.sizes or [3, 7, 15, 32], args.steps, args.h, args.direct_max_springs, args.solvers, args.settle)

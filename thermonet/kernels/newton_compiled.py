@@ -33,7 +33,7 @@ import numpy as np
 from numba import njit
 
 from .implicit_common import INLINE, OPTIONS
-from .specialize import model_fingerprint, specialize
+from .specialize import function_fingerprint, model_fingerprint, specialize
 
 # Bound per scheme and model by newton_steps_kernel(); listed so the template reads as ordinary code.
 scheme_start = scheme_residual = scheme_jacobian = scheme_finish = scheme_linearize = scheme_sweep = None
@@ -64,7 +64,11 @@ def newton_steps_kernel(model, scheme: str, kernels, uniform: bool, rate: int, s
                   scheme_jacobian=kernels.compiled_jacobian, scheme_finish=kernels.compiled_finish,
                   scheme_linearize=getattr(kernels, "compiled_linearize", _no_linearize),
                   scheme_sweep=getattr(kernels, "sweep", _no_sweep), SWEEPS=bool(sweeps))
-        tag = (f"{scheme}_{model.name}_{key[1]}{'_uniform' if uniform else ''}_rate{int(rate)}"
+        # Numba's disk cache of the driver holds its callees' machine code but checks only this
+        # file: the callees' code (the scheme's kernels, recursively) goes into the name
+        code = function_fingerprint(*(ns[k] for k in ("scheme_start", "scheme_residual", "scheme_jacobian",
+                                                       "scheme_finish", "scheme_linearize", "scheme_sweep")))
+        tag = (f"{scheme}_{model.name}_{key[1]}_{code}{'_uniform' if uniform else ''}_rate{int(rate)}"
                f"_{'sweeps' if sweeps else 'dense'}_{'par' if parallel else 'ser'}")
         ns["_solve_sweeps"] = specialize(_solve_sweeps, tag, ns, **INLINE)
         _DRIVERS[key] = specialize(_newton_steps, tag, ns, **OPTIONS)
