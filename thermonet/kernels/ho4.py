@@ -165,7 +165,8 @@ def _ho4_residual(step, topo, spring, node, work, u, warm, res, springs, nodes):
             fs[3, e] = ex
             fs[4, e] = ey
             fs[5, e] = ez
-        for i in range(n):  # arithmetic and thermal solve (vectorized)
+        for i in range(n):  # geometry (vectorized; a loop of its own: with the thermal solve's
+            # stores in the same loop, LLVM did not vectorize it)
             e = np.uint64(listed(springs, lo + i))
             pe = np.uint64(0) if UNIFORM else np.uint64(e)
             hx = fs[0, e]
@@ -176,11 +177,9 @@ def _ho4_residual(step, topo, spring, node, work, u, warm, res, springs, nodes):
             ez = fs[5, e]
             lh = math.sqrt(hx * hx + hy * hy + hz * hz)
             l1 = math.sqrt(ex * ex + ey * ey + ez * ez)
-            la = len0[e]
-            rest = l0[e]
             if not LOG_AFFINE:  # a seed (the closed form needs none): G = Γ(l⁰, θ⁰) moved along dG/dl
-                g = gs[e] - d2F_dtheta2(la, th0[e], rest, P, pe) * (dth[0, e] * (lh - lenh[e]) + dth[1, e] * (l1 - len1[e]))
-                guess[e] = g
+                guess[e] = gs[e] - d2F_dtheta2(len0[e], th0[e], l0[e], P, pe) * (
+                    dth[0, e] * (lh - lenh[e]) + dth[1, e] * (l1 - len1[e]))
             lenh[e] = lh
             ih = 1.0 / lh
             dirh[0, e] = hx * ih
@@ -191,6 +190,13 @@ def _ho4_residual(step, topo, spring, node, work, u, warm, res, springs, nodes):
             dir1[0, e] = ex * i1
             dir1[1, e] = ey * i1
             dir1[2, e] = ez * i1
+        for i in range(n):  # thermal solve and forces (vectorized)
+            e = np.uint64(listed(springs, lo + i))
+            pe = np.uint64(0) if UNIFORM else np.uint64(e)
+            lh = lenh[e]
+            l1 = len1[e]
+            la = len0[e]
+            rest = l0[e]
             if LOG_AFFINE:
                 A = keep[0, e]
                 G, t0, t1 = ho4_thermal_closed(A, temperature(l1, eta[e], rest, P, pe), keep[3, e], lh, eta[e],
@@ -198,7 +204,7 @@ def _ho4_residual(step, topo, spring, node, work, u, warm, res, springs, nodes):
                 ok = 1 if _admissible(t0) & _admissible(t1) else 0
                 c0 = h / 6.0 * (keep[1, e] + keep[2, e] * (t0 - A))
             else:
-                G, t0, t1, d0h, d01, d1h, d11, ok = ho4_thermal_vector(la, lh, l1, eta[e], rest, P, pe, g, warm)
+                G, t0, t1, d0h, d01, d1h, d11, ok = ho4_thermal_vector(la, lh, l1, eta[e], rest, P, pe, guess[e], warm)
                 # the warm seed and its derivatives (else recomputed where needed)
                 gs[e] = G
                 dth[0, e] = d0h
