@@ -31,11 +31,17 @@ to pay off. The reference is DOP853 at rtol = atol = 1e-13 on Hamilton's equatio
     python benchmarks/implicit_cost.py --part scaling --sizes 3 7 15 32
     python benchmarks/implicit_cost.py --part scaling --sizes 32 --solvers matfree --settle 40
     python benchmarks/implicit_cost.py --part chain
+    python benchmarks/implicit_cost.py --part study                   # the cost study on the chain
+
+Part 3, study: the cost study of docs/paper-reproduction.md (Fig. 9) on the chain, t = 10,
+thermonet only: per accuracy, the cheapest of the paper's five integrators and the cheapest run
+of each method (CO4 and CO6 included).
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import statistics
 import time
 
@@ -182,9 +188,36 @@ def chain(t_end):
             print(f"| {method} | {h:.4g} | {err:.2e} | {wall:.3f} |", flush=True)
 
 
+def study(t_end, repeats, halvings):
+    """The cost study on the paper's chain (thermonet.studies.cost_study, no SciPy runs): per
+    accuracy, the cheapest of the paper's five integrators and each method's interpolated time."""
+    from thermonet.studies import Runner, cost_study
+
+    paper = ["gtr-0", "gtr-1", "gtr-1/2", "co2", "ho4"]
+    names = paper + ["co4", "co6"]
+    cost = cost_study("chain", names, dt=0.1, halvings=halvings, t_end=t_end, repeats=repeats, scipy={},
+                      runner=Runner(serial=True))
+    print(f"cost study, chain, error in position at t = {t_end} (median of {repeats}); the cheapest run of each "
+          "method reaching the accuracy, ms (h)")
+    print("| accuracy | cheapest of the paper's five | " + " | ".join(names) + " |")
+    print("|---:|---|" + "---:|" * len(names))
+    for acc in [10.0**-k for k in range(0, 11)]:
+        cells = []
+        for name in names:
+            rows = [r for r in cost.rows if r["solver"] == name and math.isfinite(r["time"]) and r["position"] <= acc]
+            best = min(rows, key=lambda r: r["time"]) if rows else None
+            cells.append(f"{1e3 * best['time']:.3g} ({best['h']:.3g})" if best else "–")
+        ok = [r for r in cost.rows if r["solver"] in paper and math.isfinite(r["time"]) and r["position"] <= acc]
+        best = min(ok, key=lambda r: r["time"])["solver"] if ok else "–"
+        print(f"| {acc:.0e} | {best} | " + " | ".join(cells) + " |", flush=True)
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--part", choices=("ratio", "scaling", "chain", "all"), default="all")
+    ap.add_argument("--part", choices=("ratio", "scaling", "chain", "study", "all"), default="all")
+    ap.add_argument("--study-t-end", type=float, default=10.0, help="study: t_end of the cost study")
+    ap.add_argument("--study-repeats", type=int, default=3)
+    ap.add_argument("--study-halvings", type=int, default=8)
     ap.add_argument("--sizes", type=int, nargs="+", default=None,
                     help="lattice cells per side (ratio: 0 is the paper's chain); default: ratio 0 5 11 25 32, "
                          "scaling 3 7 15 32")
@@ -215,6 +248,9 @@ def main(argv=None):
         print()
     if args.part in ("chain", "all"):
         chain(args.t_end)
+        print()
+    if args.part in ("study", "all"):
+        study(args.study_t_end, args.study_repeats, args.study_halvings)
 
 
 if __name__ == "__main__":
