@@ -31,6 +31,7 @@ to pay off. The reference is DOP853 at rtol = atol = 1e-13 on Hamilton's equatio
     python benchmarks/implicit_cost.py --part scaling --sizes 3 7 15 32
     python benchmarks/implicit_cost.py --part scaling --sizes 32 --solvers matfree --settle 40
     python benchmarks/implicit_cost.py --part chain
+    python benchmarks/implicit_cost.py --part crossover               # dense LU against sweeps (compiled)
     python benchmarks/implicit_cost.py --part study                   # the cost study on the chain
 
 Part 3, study: the cost study of docs/paper-reproduction.md (Fig. 9) on the chain, t = 10,
@@ -188,6 +189,37 @@ def chain(t_end):
             print(f"| {method} | {h:.4g} | {err:.2e} | {wall:.3f} |", flush=True)
 
 
+def crossover(rounds):
+    """The compiled path's dense LU against its sweeps on the chain and small lattices: µs per step
+    (CPU time, serial, median of interleaved rounds)."""
+    print("compiled path, dense LU against matrix-free sweeps, µs per step (CPU time, serial)")
+    print("| lattice | springs | method | unknowns | dense | sweeps |\n|---|---:|---|---:|---:|---:|")
+    rng = np.random.default_rng(0)
+    for shape in ("chain", (1, 1, 1), (2, 1, 1), (2, 2, 1), (2, 2, 2), (3, 2, 2), (3, 3, 3)):
+        net = tn.chain() if shape == "chain" else tn.lattice(shape, jitter=0.1, seed=1)
+        temps, moms = rng.uniform(300.0, 600.0, net.n_springs), rng.normal(0.0, 1.0, (net.n_nodes, 3))
+        for method in ("gtr-1/2", "ho4"):
+            sims = {}
+            for kind, path in (("dense", "compiled-dense"), ("sweeps", "compiled")):
+                if shape == "chain":
+                    sims[kind] = tn.chain_simulation(method, h=0.01, integrator_options=dict(newton_path=path))
+                else:
+                    sims[kind] = tn.Simulation(
+                        net, model="hencky", parameters=dict(c=100.0, beta=0.2, C0=5.0, theta0=300.0),
+                        temperatures=temps, momenta=moms, integrator=method, h=0.01, parallel=False,
+                        integrator_options=dict(newton_path=path))
+                sims[kind].run(steps=2, diagnostics_every=10**9)
+            per = {kind: [] for kind in sims}
+            for _ in range(rounds):
+                for kind, sim in sims.items():
+                    t0 = time.process_time()
+                    sim.run(steps=200, diagnostics_every=10**9)
+                    per[kind].append((time.process_time() - t0) / 200)
+            size = sims["dense"].stepper.pattern.size
+            print(f"| {shape} | {net.n_springs} | {method} | {size} | {1e6 * statistics.median(per['dense']):.1f} | "
+                  f"{1e6 * statistics.median(per['sweeps']):.1f} |", flush=True)
+
+
 def study(t_end, repeats, halvings):
     """The cost study on the paper's chain (thermonet.studies.cost_study, no SciPy runs): per
     accuracy, the cheapest of the paper's five integrators and each method's interpolated time."""
@@ -214,7 +246,7 @@ def study(t_end, repeats, halvings):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--part", choices=("ratio", "scaling", "chain", "study", "all"), default="all")
+    ap.add_argument("--part", choices=("ratio", "crossover", "scaling", "chain", "study", "all"), default="all")
     ap.add_argument("--study-t-end", type=float, default=10.0, help="study: t_end of the cost study")
     ap.add_argument("--study-repeats", type=int, default=3)
     ap.add_argument("--study-halvings", type=int, default=8)
@@ -242,6 +274,9 @@ def main(argv=None):
     if args.part in ("ratio", "all"):
         ratio(args.sizes or [0, 5, 11, 25, 32], args.h, args.paths, args.rounds, args.seconds,
               False if args.serial else None, time.process_time if args.cpu_time else time.perf_counter)
+        print()
+    if args.part in ("crossover", "all"):
+        crossover(args.rounds)
         print()
     if args.part in ("scaling", "all"):
         scaling(args.sizes or [3, 7, 15, 32], args.steps, args.h, args.direct_max_springs, args.solvers, args.settle)

@@ -3,10 +3,12 @@ driver (:mod:`thermonet.kernels.newton_compiled`); and the choice between it and
 (:func:`thermonet.solvers.newton.newton`, one Python call per kernel, SuperLU, GMRES or
 matrix-free sweeps).
 
-``newton_path`` (a stepper option): "compiled", "sparse", or "auto" (default): compiled where the
-scheme offers it and ``linear_solver`` is left at "auto", sparse otherwise. The compiled path's
-linear solves are a dense LU up to DENSE_MAX_UNKNOWNS unknowns and inertia-preconditioned
-matrix-free sweeps above (measured crossover: benchmarks/README.md, "Implicit integrators").
+``newton_path`` (a stepper option): "compiled", "compiled-dense", "sparse", or "auto" (default):
+compiled where the scheme offers it and ``linear_solver`` is left at "auto", sparse otherwise.
+The compiled path's linear solves are the inertia-preconditioned matrix-free sweeps (faster than
+a dense LU at every size measured, the paper's chain included: benchmarks/README.md, "Implicit
+integrators"); a dense LU where the scheme has no sweeps (up to DENSE_MAX_UNKNOWNS unknowns) or
+with "compiled-dense" (robust at any step: no sweeps to stall).
 """
 
 from __future__ import annotations
@@ -20,9 +22,9 @@ from ..solvers import NewtonResult
 from ..solvers.matrix_free import MatrixFree
 from ..solvers.newton import JACOBI_MAX_STEPS, JACOBI_RANGE, LINEAR_FRACTION
 
-#: the compiled path solves its linear systems by a dense LU up to this many unknowns (B per
-#: free node), where the LU (size³/3 multiply-adds) costs less than the sweeps
-DENSE_MAX_UNKNOWNS = 60
+#: a scheme without matrix-free sweeps takes the compiled path (dense LU) up to this many
+#: unknowns (B per free node); the LU's size³/3 multiply-adds cost more than SuperLU above
+DENSE_MAX_UNKNOWNS = 200
 
 
 def offers_compiled(kernels) -> bool:
@@ -40,7 +42,11 @@ def use_compiled(options, size: int, kernels, name: str) -> bool:
     path = options.newton_path
     if path == "sparse":
         return False
-    usable = offers_compiled(kernels) and (size <= DENSE_MAX_UNKNOWNS or offers_sweeps(kernels))
+    if path == "compiled-dense":
+        if not offers_compiled(kernels):
+            raise InputError(f"{name}: newton_path='compiled-dense' is not available for this scheme")
+        return True
+    usable = offers_compiled(kernels) and (offers_sweeps(kernels) or size <= DENSE_MAX_UNKNOWNS)
     if path == "compiled":
         if not usable:
             raise InputError(f"{name}: newton_path='compiled' is not available for this scheme at {size} unknowns")
@@ -59,7 +65,7 @@ class CompiledNewton:
         _, uniform = system.kernel_parameters
         pattern = stepper.pattern
         size = pattern.size
-        self.sweeps = sweeps = size > DENSE_MAX_UNKNOWNS or not hasattr(stepper.kernels, "compiled_jacobian")
+        self.sweeps = sweeps = stepper.options.newton_path != "compiled-dense" and offers_sweeps(stepper.kernels)
         self.linear_solver = "sweeps" if sweeps else "dense"
         self.driver = newton_steps_kernel(system.model, stepper.scheme, stepper.kernels, uniform, stepper.rate,
                                           sweeps, stepper.kernels_parallel)

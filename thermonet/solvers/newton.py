@@ -33,9 +33,10 @@ class NewtonOptions:
         Newton above its tolerance), "gmres" (SciPy GMRES on the assembled matrix with a nodal
         block-Jacobi preconditioner, relative tolerance 1e-10 per solve), or "auto" (default:
         splu up to DIRECT_MAX_UNKNOWNS unknowns, matfree above; see benchmarks/README.md).
-    newton_path: "compiled" (whole steps, many per call, in one compiled driver with a dense LU:
-        thermonet.kernels.newton_compiled), "sparse" (this module's iteration with
-        ``linear_solver``), or "auto" (default: compiled on small nets, see
+    newton_path: "compiled" (whole steps, many per call, in one compiled driver:
+        thermonet.kernels.newton_compiled; matrix-free sweeps), "compiled-dense" (the same with a
+        dense LU), "sparse" (this module's iteration with ``linear_solver``), or "auto" (default:
+        compiled where the scheme offers it and linear_solver is "auto"; see
         thermonet.integrators.compiled_path).
     """
 
@@ -67,7 +68,7 @@ class NewtonOptions:
 
 
 #: the values of NewtonOptions.newton_path
-NEWTON_PATHS = ("auto", "compiled", "sparse")
+NEWTON_PATHS = ("auto", "compiled", "compiled-dense", "sparse")
 #: an inexact linear solve leaves a residual below this fraction of max(tolerance, ρ²) (in the
 #: Newton scaling, ρ the current scaled residual): Newton stays quadratic and the last linear
 #: error cannot keep the next Newton residual above the tolerance
