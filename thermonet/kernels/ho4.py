@@ -190,30 +190,41 @@ def _ho4_residual(step, topo, spring, node, work, u, warm, res, springs, nodes):
             dir1[0, e] = ex * i1
             dir1[1, e] = ey * i1
             dir1[2, e] = ez * i1
-        for i in range(n):  # thermal solve and forces (vectorized)
+        for i in range(n):  # thermal solve (vectorized; the forces in a loop of their own, as above)
             e = np.uint64(listed(springs, lo + i))
             pe = np.uint64(0) if UNIFORM else np.uint64(e)
             lh = lenh[e]
             l1 = len1[e]
-            la = len0[e]
             rest = l0[e]
             if LOG_AFFINE:
-                A = keep[0, e]
-                G, t0, t1 = ho4_thermal_closed(A, temperature(l1, eta[e], rest, P, pe), keep[3, e], lh, eta[e],
-                                               rest, P, pe)
-                ok = 1 if _admissible(t0) & _admissible(t1) else 0
-                c0 = h / 6.0 * (keep[1, e] + keep[2, e] * (t0 - A))
+                G, t0, t1 = ho4_thermal_closed(keep[0, e], temperature(l1, eta[e], rest, P, pe), keep[3, e], lh,
+                                               eta[e], rest, P, pe)
             else:
-                G, t0, t1, d0h, d01, d1h, d11, ok = ho4_thermal_vector(la, lh, l1, eta[e], rest, P, pe, guess[e], warm)
+                G, t0, t1, d0h, d01, d1h, d11, ok = ho4_thermal_vector(len0[e], lh, l1, eta[e], rest, P, pe, guess[e],
+                                                                       warm)
                 # the warm seed and its derivatives (else recomputed where needed)
                 gs[e] = G
                 dth[0, e] = d0h
                 dth[1, e] = d01
                 dth[2, e] = d1h
                 dth[3, e] = d11
-                c0 = h / 6.0 * tension(la, t0, rest, P, pe)
+                code[e] = ok  # the solve's success, read by the force loop
             th0[e] = t0
             th1[e] = t1
+        for i in range(n):  # forces (vectorized)
+            e = np.uint64(listed(springs, lo + i))
+            pe = np.uint64(0) if UNIFORM else np.uint64(e)
+            lh = lenh[e]
+            l1 = len1[e]
+            rest = l0[e]
+            t0 = th0[e]
+            t1 = th1[e]
+            if LOG_AFFINE:  # T(l⁰, θ⁰) = T(l⁰, A) + F_lθ(l⁰) (θ⁰ − A), exact (see the doc)
+                c0 = h / 6.0 * (keep[1, e] + keep[2, e] * (t0 - keep[0, e]))
+                ok = _admissible(t0) & _admissible(t1)
+            else:
+                c0 = h / 6.0 * tension(len0[e], t0, rest, P, pe)
+                ok = code[e] != 0
             ch = h / 4.0 * tension(lh, 0.5 * (t0 + t1), rest, P, pe)
             fs[0, e] = c0 * dir0[0, e]
             fs[1, e] = c0 * dir0[1, e]
@@ -222,7 +233,7 @@ def _ho4_residual(step, topo, spring, node, work, u, warm, res, springs, nodes):
             fs[4, e] = ch * dirh[1, e]
             fs[5, e] = ch * dirh[2, e]
             lok = (lh > 0.0) & (lh < math.inf) & (l1 > 0.0) & (l1 < math.inf)
-            code[e] = OK if ((ok != 0) & lok) else NO_TEMPERATURE
+            code[e] = OK if (ok & lok) else NO_TEMPERATURE
         for i in range(n):  # the scalar solve where the vectorized one did not converge
             e = listed(springs, lo + i)
             pe = np.uint64(0) if UNIFORM else np.uint64(e)
