@@ -159,7 +159,7 @@ def test_retry_with_substeps_on_the_compiled_path():
 
 
 def test_the_automatic_choice():
-    assert tn.chain_simulation("ho4").stepper.summary()["linear_solver"] == "compiled, sweeps"
+    assert tn.chain_simulation("ho4").stepper.summary()["linear_solver"] == "compiled, dense"  # 18 unknowns
     assert lattice_simulation((2, 2, 2), "gtr-1/2").stepper.summary()["linear_solver"] == "compiled, sweeps"
     dense = tn.chain_simulation("gtr-1/2", integrator_options=dict(newton_path="compiled-dense"))
     assert dense.stepper.summary()["linear_solver"] == "compiled, dense"

@@ -7,8 +7,9 @@ matrix-free sweeps).
 compiled where the scheme offers it and ``linear_solver`` is left at "auto", sparse otherwise.
 The compiled path's linear solves are the inertia-preconditioned matrix-free sweeps (faster than
 a dense LU at every size measured, the paper's chain included: benchmarks/README.md, "Implicit
-integrators"); a dense LU where the scheme has no sweeps (up to DENSE_MAX_UNKNOWNS unknowns) or
-with "compiled-dense" (robust at any step: no sweeps to stall).
+integrators"); a dense LU where the scheme has no sweeps (up to DENSE_MAX_UNKNOWNS unknowns), with
+"auto" up to AUTO_DENSE_MAX_UNKNOWNS, or with "compiled-dense" (exact Newton steps; no sweeps to
+stall).
 """
 
 from __future__ import annotations
@@ -25,6 +26,10 @@ from ..solvers.newton import JACOBI_MAX_STEPS, JACOBI_RANGE, LINEAR_FRACTION
 #: a scheme without matrix-free sweeps takes the compiled path (dense LU) up to this many
 #: unknowns (B per free node); the LU's size³/3 multiply-adds cost more than SuperLU above
 DENSE_MAX_UNKNOWNS = 200
+#: "auto" solves by the dense LU up to this many unknowns even where sweeps exist: exact Newton
+#: steps, which converge where inexact ones need more iterations (steps near the stability
+#: limit), at ≈ 1.2–1.6× the sweeps' cost on nets this small (the paper's chain: 9 and 18)
+AUTO_DENSE_MAX_UNKNOWNS = 24
 
 
 def offers_compiled(kernels) -> bool:
@@ -65,7 +70,9 @@ class CompiledNewton:
         _, uniform = system.kernel_parameters
         pattern = stepper.pattern
         size = pattern.size
-        self.sweeps = sweeps = stepper.options.newton_path != "compiled-dense" and offers_sweeps(stepper.kernels)
+        path = stepper.options.newton_path
+        self.sweeps = sweeps = (path != "compiled-dense" and offers_sweeps(stepper.kernels)
+                                and not (path == "auto" and size <= AUTO_DENSE_MAX_UNKNOWNS))
         self.linear_solver = "sweeps" if sweeps else "dense"
         self.driver = newton_steps_kernel(system.model, stepper.scheme, stepper.kernels, uniform, stepper.rate,
                                           sweeps, stepper.kernels_parallel)
