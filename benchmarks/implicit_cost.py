@@ -1,4 +1,13 @@
-"""What the implicit integrators cost (issue 3).
+"""What the implicit integrators cost (issues 3 and 19).
+
+Part 0, ratio (issue 19's targets): the per-step cost of each implicit scheme (ho4, gtr-1/2,
+and em2 where registered) relative to a CO2 step of the same net, on the paper's chain and on
+jittered lattices of ``--sizes`` cells per side (5: 540 springs, 11: 4752, 25: 50 700, 32:
+104 544), for each Newton path (``--paths``: compiled, sparse). All simulations of a net are
+built and warmed up first, then ``--rounds`` rounds each time a chunk of every simulation in
+turn (interleaved: a drift of a shared machine hits all alike); the ratio is the median over
+rounds of (implicit step time / CO2 step time of the same round). ``--serial --cpu-time``: all
+single-threaded, timed by CPU time (for a shared, oversubscribed machine).
 
 Part 1, scaling: jittered 6-neighbour 3D lattices of about 1e2 … 1e5 springs, random momenta and
 temperatures, h = 0.01 (about a fifth of CO2's stability limit there). For GTR-1/2, HO4 and EM2 with
@@ -17,15 +26,23 @@ Part 2, the paper's chain: Newton iterations per step at h ≤ 0.01, and error i
 t = 100 against wall time for every integrator (the paper's Fig. 9), to find where HO4 starts
 to pay off. The reference is DOP853 at rtol = atol = 1e-13 on Hamilton's equations.
 
-    python benchmarks/implicit_cost.py                    # both parts
+    python benchmarks/implicit_cost.py                    # all parts
+    python benchmarks/implicit_cost.py --part ratio --sizes 0 5 11 25 32
     python benchmarks/implicit_cost.py --part scaling --sizes 3 7 15 32
     python benchmarks/implicit_cost.py --part scaling --sizes 32 --solvers matfree --settle 40
     python benchmarks/implicit_cost.py --part chain
+    python benchmarks/implicit_cost.py --part crossover               # dense LU against sweeps (compiled)
+    python benchmarks/implicit_cost.py --part study                   # the cost study on the chain
+
+Part 3, study: the cost study of docs/paper-reproduction.md (Fig. 9) on the chain, t = 10,
+thermonet only: per accuracy, the cheapest of the paper's five integrators and the cheapest run
+of each method (CO4 and CO6 included).
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import statistics
 import time
 
@@ -34,13 +51,13 @@ import numpy as np
 import thermonet as tn
 
 
-def lattice_simulation(cells: int, integrator: str, h: float, **options) -> tn.Simulation:
+def lattice_simulation(cells: int, integrator: str, h: float, parallel=None, **options) -> tn.Simulation:
     net = tn.lattice((cells, cells, cells), jitter=0.1, seed=1)
     rng = np.random.default_rng(0)
     return tn.Simulation(
         net, model="hencky", parameters=dict(c=100.0, beta=0.2, C0=5.0, theta0=300.0),
         temperatures=rng.uniform(300.0, 600.0, net.n_springs), momenta=rng.normal(0.0, 1.0, (net.n_nodes, 3)),
-        integrator=integrator, h=h, integrator_options=options,
+        integrator=integrator, h=h, integrator_options=options, parallel=parallel,
     )
 
 
@@ -90,6 +107,48 @@ def scaling(sizes, steps, h, direct_max_springs, solvers, settle=0):
                   flush=True)
 
 
+def ratio_nets(cells: int, method: str, h: float, parallel, **options) -> tn.Simulation:
+    """cells 0: the paper's chain (h = 0.01); else the lattice of ``lattice_simulation``."""
+    if cells == 0:
+        return tn.chain_simulation(method, h=0.01, integrator_options=options)
+    return lattice_simulation(cells, method, h, parallel=parallel, **options)
+
+
+def ratio(sizes, h, paths, rounds, seconds, parallel=None, clock=time.perf_counter):
+    methods = [m for m in ("ho4", "gtr-1/2", "em2") if m in tn.available_integrators()]
+    print(f"per-step cost × CO2 on the same net, median of {rounds} interleaved rounds "
+          f"(h = 0.01 on the chain, {h} on the lattices; {'CPU' if clock is time.process_time else 'wall'} time, "
+          f"{'serial' if parallel is False else 'threaded from 16384 springs'})\n")
+    print("| net | springs | CO2 µs/step | " + " | ".join(f"{m} {p}" for m in methods for p in paths) + " |")
+    print("|---|---:|---:|" + "---:|" * (len(methods) * len(paths)))
+    for k in sizes:
+        sims = {("co2", "-"): ratio_nets(k, "co2", h, parallel)}
+        for m in methods:
+            for p in paths:
+                sims[(m, p)] = ratio_nets(k, m, h, parallel, newton_path=p)
+        steps = {}
+        for key, sim in sims.items():  # warm-up (compilation) and the chunk size of ~seconds
+            sim.run(steps=2, diagnostics_every=10**9)
+            n, t = 1, 0.0
+            while t < 0.2 * seconds:
+                t0 = clock()
+                sim.run(steps=n, diagnostics_every=10**9)
+                t = clock() - t0
+                n *= 2
+            steps[key] = max(1, int(n / 2 * seconds / max(t, 1e-9)))
+        per = {key: [] for key in sims}
+        for _ in range(rounds):
+            for key, sim in sims.items():
+                t0 = clock()
+                sim.run(steps=steps[key], diagnostics_every=10**9)
+                per[key].append((clock() - t0) / steps[key])
+        co2 = per[("co2", "-")]
+        cells = [f"{statistics.median(a / b for a, b in zip(per[(m, p)], co2)):.1f}" for m in methods for p in paths]
+        name = "chain" if k == 0 else f"lattice {k}³"
+        print(f"| {name} | {sims[('co2', '-')].net.n_springs} | {1e6 * statistics.median(co2):.2f} | "
+              + " | ".join(cells) + " |", flush=True)
+
+
 def chain(t_end):
     from thermonet import reference as ref
     from thermonet.paper import CHAIN_MOMENTA, CHAIN_PARAMETERS, CHAIN_TEMPERATURES
@@ -131,10 +190,78 @@ def chain(t_end):
             print(f"| {method} | {h:.4g} | {err:.2e} | {wall:.3f} |", flush=True)
 
 
+def crossover(rounds):
+    """The compiled path's dense LU against its sweeps on the chain and small lattices: µs per step
+    (CPU time, serial, median of interleaved rounds)."""
+    print("compiled path, dense LU against matrix-free sweeps, µs per step (CPU time, serial)")
+    print("| lattice | springs | method | unknowns | dense | sweeps |\n|---|---:|---|---:|---:|---:|")
+    rng = np.random.default_rng(0)
+    for shape in ("chain", (1, 1, 1), (2, 1, 1), (2, 2, 1), (2, 2, 2), (3, 2, 2), (3, 3, 3)):
+        net = tn.chain() if shape == "chain" else tn.lattice(shape, jitter=0.1, seed=1)
+        temps, moms = rng.uniform(300.0, 600.0, net.n_springs), rng.normal(0.0, 1.0, (net.n_nodes, 3))
+        for method in ("gtr-1/2", "ho4"):
+            sims = {}
+            for kind, path in (("dense", "compiled-dense"), ("sweeps", "compiled")):
+                if shape == "chain":
+                    sims[kind] = tn.chain_simulation(method, h=0.01, integrator_options=dict(newton_path=path))
+                else:
+                    sims[kind] = tn.Simulation(
+                        net, model="hencky", parameters=dict(c=100.0, beta=0.2, C0=5.0, theta0=300.0),
+                        temperatures=temps, momenta=moms, integrator=method, h=0.01, parallel=False,
+                        integrator_options=dict(newton_path=path))
+                sims[kind].run(steps=2, diagnostics_every=10**9)
+            per = {kind: [] for kind in sims}
+            for _ in range(rounds):
+                for kind, sim in sims.items():
+                    t0 = time.process_time()
+                    sim.run(steps=200, diagnostics_every=10**9)
+                    per[kind].append((time.process_time() - t0) / 200)
+            size = sims["dense"].stepper.pattern.size
+            print(f"| {shape} | {net.n_springs} | {method} | {size} | {1e6 * statistics.median(per['dense']):.1f} | "
+                  f"{1e6 * statistics.median(per['sweeps']):.1f} |", flush=True)
+
+
+def study(t_end, repeats, halvings):
+    """The cost study on the paper's chain (thermonet.studies.cost_study, no SciPy runs): per
+    accuracy, the cheapest of the paper's five integrators and each method's interpolated time."""
+    from thermonet.studies import Runner, cost_study
+
+    paper = ["gtr-0", "gtr-1", "gtr-1/2", "co2", "ho4"]
+    names = paper + ["co4", "co6"]
+    cost = cost_study("chain", names, dt=0.1, halvings=halvings, t_end=t_end, repeats=repeats, scipy={},
+                      runner=Runner(serial=True))
+    print(f"cost study, chain, error in position at t = {t_end} (median of {repeats}); the cheapest run of each "
+          "method reaching the accuracy, ms (h)")
+    print("| accuracy | cheapest of the paper's five | " + " | ".join(names) + " |")
+    print("|---:|---|" + "---:|" * len(names))
+    for acc in [10.0**-k for k in range(0, 11)]:
+        cells = []
+        for name in names:
+            rows = [r for r in cost.rows if r["solver"] == name and math.isfinite(r["time"]) and r["position"] <= acc]
+            best = min(rows, key=lambda r: r["time"]) if rows else None
+            cells.append(f"{1e3 * best['time']:.3g} ({best['h']:.3g})" if best else "–")
+        ok = [r for r in cost.rows if r["solver"] in paper and math.isfinite(r["time"]) and r["position"] <= acc]
+        best = min(ok, key=lambda r: r["time"])["solver"] if ok else "–"
+        print(f"| {acc:.0e} | {best} | " + " | ".join(cells) + " |", flush=True)
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--part", choices=("scaling", "chain", "all"), default="all")
-    ap.add_argument("--sizes", type=int, nargs="+", default=[3, 7, 15, 32], help="lattice cells per side")
+    ap.add_argument("--part", choices=("ratio", "crossover", "scaling", "chain", "study", "all"), default="all")
+    ap.add_argument("--study-t-end", type=float, default=10.0, help="study: t_end of the cost study")
+    ap.add_argument("--study-repeats", type=int, default=3)
+    ap.add_argument("--study-halvings", type=int, default=8)
+    ap.add_argument("--sizes", type=int, nargs="+", default=None,
+                    help="lattice cells per side (ratio: 0 is the paper's chain); default: ratio 0 5 11 25 32, "
+                         "scaling 3 7 15 32")
+    ap.add_argument("--paths", nargs="+", default=["compiled", "sparse"], help="Newton paths (ratio)")
+    ap.add_argument("--rounds", type=int, default=15, help="interleaved rounds (ratio)")
+    ap.add_argument("--seconds", type=float, default=0.03, help="seconds per timed chunk (ratio)")
+    ap.add_argument("--serial", action="store_true",
+                    help="single-threaded kernels at every size (ratio; default: threaded from 16384 springs)")
+    ap.add_argument("--cpu-time", action="store_true",
+                    help="time by the process's CPU time, not wall time (ratio, with --serial: on a shared, "
+                         "oversubscribed machine the time a process waits for a core is left out)")
     ap.add_argument("--steps", type=int, default=20)
     ap.add_argument("--h", type=float, default=0.01)
     ap.add_argument("--direct-max-springs", type=int, default=12000,
@@ -145,11 +272,21 @@ def main(argv=None):
                     help="untimed steps of each implicit run before the timed ones (the later regime)")
     ap.add_argument("--t-end", type=float, default=100.0)
     args = ap.parse_args(argv)
+    if args.part in ("ratio", "all"):
+        ratio(args.sizes or [0, 5, 11, 25, 32], args.h, args.paths, args.rounds, args.seconds,
+              False if args.serial else None, time.process_time if args.cpu_time else time.perf_counter)
+        print()
+    if args.part in ("crossover", "all"):
+        crossover(args.rounds)
+        print()
     if args.part in ("scaling", "all"):
-        scaling(args.sizes, args.steps, args.h, args.direct_max_springs, args.solvers, args.settle)
+        scaling(args.sizes or [3, 7, 15, 32], args.steps, args.h, args.direct_max_springs, args.solvers, args.settle)
         print()
     if args.part in ("chain", "all"):
         chain(args.t_end)
+        print()
+    if args.part in ("study", "all"):
+        study(args.study_t_end, args.study_repeats, args.study_halvings)
 
 
 if __name__ == "__main__":

@@ -121,7 +121,8 @@ class Simulation(RunDriver):
         self.model = get_model(model)
         self.h = check_step(h)
         integrator_options = dict(integrator_options or {})
-        stepper_keys = {"tolerance", "max_iterations", "retry", "linear_solver", "rtol", "atol"}
+        stepper_keys = {"tolerance", "max_iterations", "retry", "linear_solver", "rtol", "atol",
+                        "newton_path"}
         stepper_options = {k: integrator_options.pop(k) for k in list(integrator_options) if k in stepper_keys}
         self.integrator = get_integrator(integrator, **integrator_options)
         self.backend = check_backend(backend, self.integrator)

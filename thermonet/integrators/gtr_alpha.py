@@ -59,6 +59,9 @@ class GTRAlphaStepper(ImplicitStepper):
         temperature, CO2's drift at α = ½ and the exact step at α = 0 or 1."""
         return np.array([[h, self.alpha * h * h, 0.0, 0.0]])
 
+    def compiled_extra(self) -> tuple:
+        return (self.alpha,)
+
     def residual(self, u: np.ndarray):
         status, spring, rmax, smax = self.kernels.residual(self._step_start, self._topology, self._springs,
                                                            self._nodes, self._work, self.alpha, u, self.warm,

@@ -57,6 +57,9 @@ class HO4Stepper(ImplicitStepper):
         return np.array([[0.5 * h, h * h / 8.0, h**3 / 48.0, h**4 / 192.0],
                          [h, 0.5 * h * h, h**3 / 6.0, h**4 / 24.0]])
 
+    def compiled_extra(self) -> tuple:
+        return (self._no_index, self._no_index)
+
     def residual(self, u: np.ndarray):
         status, spring, rmax, smax = self._residual(self.kernels.residual, u, self._no_index, self._no_index)
         self.norms = (rmax, smax)

@@ -26,6 +26,7 @@ from ..kernels.local_update import neighbourhood, scan
 from ..solvers import BlockPattern, NewtonOptions, NewtonResult, NewtonTimers, make_linear_solver
 from ..solvers.newton import newton
 from .base import Stepper, StepFailure
+from .compiled_path import CompiledNewton, use_compiled
 
 
 class _StepError(Exception):
@@ -92,6 +93,7 @@ class ImplicitStepper(Stepper):
         # the parameters as the kernels read them: (k, m), or one (k, 1) column shared by all
         P, uniform = system.kernel_parameters
         self.kernels = implicit_kernels(system.model, self.scheme, parallel, uniform, self.rate)
+        self.kernels_parallel = bool(parallel)
         self.pattern = pattern = BlockPattern.build(system.edges, system.anchored, self.block)
         self.free_index = free_index = pattern.free_index
         # the kernels read the int32 index arrays as unsigned (no negative-index wrap-around),
@@ -128,6 +130,8 @@ class ImplicitStepper(Stepper):
         self._local = None  # index scratch of local_jacobi, made at its first use
         self._active = None  # the number of nodes local_jacobi's last scan found (None: no scan of this R)
         self.timers = NewtonTimers()
+        #: the compiled path (integrators/compiled_path.py), or None: the sparse one
+        self.compiled = CompiledNewton(self) if use_compiled(options, size, self.kernels, integrator.name) else None
         self.totals = dict(steps=0, iterations=0, iterations_max=0, residual_max=0.0, retried_steps=0,
                            substeps_max=1)
 
@@ -150,6 +154,10 @@ class ImplicitStepper(Stepper):
     @abstractmethod
     def make_work(self, start: StartWork):
         """The scheme's work record (per-spring unknowns and scratch) around ``start``."""
+
+    def compiled_extra(self) -> tuple:
+        """The ``extra`` tuple the scheme's compiled_* kernels take (kernels/newton_compiled.py)."""
+        return ()
 
     @abstractmethod
     def predictor_coefficients(self, h: float) -> np.ndarray:
@@ -239,7 +247,14 @@ class ImplicitStepper(Stepper):
 
     def attempt(self, x, p, phi, eta, h: float):
         """One step from (x, p, Φ, η); returns the new (x, p, Φ, η) buffers and the Newton
-        record, or raises _StepError. Never modifies its inputs."""
+        record, or raises _StepError. Never modifies its inputs. On the compiled path, a step
+        whose matrix-free sweeps stall is made by the sparse path (its GMRES fallback)."""
+        if self.compiled is not None:
+            done, failure = self.compiled.attempt(x, p, phi, eta, h)
+            if failure is None:
+                return done
+            if not failure[-1]:
+                raise _StepError(*failure[:4])
         self.begin(x, p, eta, h)
         self.predict(self.u)
         result = newton(self, self.u, self.options, self.solver, self.timers)
@@ -255,22 +270,52 @@ class ImplicitStepper(Stepper):
         if n_steps <= 0:
             return None
         iters, finals = [], []
-        retried = 0
-        substeps_max = 1
-        for i in range(n_steps):
-            x, p, phi, eta = state.positions, state.momenta, state.thermal_displacement, state.entropy
+        counts = [0, 1]  # retried steps, most substeps
+        i = 0
+        while i < n_steps:
+            if self.compiled is not None:  # a run of steps in one call, up to a failed step
+                done, its, fin, failure = self.compiled.run(state.positions, state.momenta,
+                                                            state.thermal_displacement, state.entropy, h, n_steps - i)
+                iters.extend(its.tolist())
+                finals.extend(fin.tolist())
+                i += done
+                if failure is None:
+                    break
+                if not failure[-1]:  # failed: the retry policy, as the sparse path's
+                    self._retry_step(state, h, _StepError(*failure[:4]), i, iters, finals, counts)
+                    i += 1
+                    continue
+            self._step(state, h, i, iters, finals, counts)  # sparse (or stalled sweeps)
+            i += 1
+        return self._record(state, h, n_steps, iters, finals, *counts)
+
+    def _step(self, state, h: float, i: int, iters: list, finals: list, counts: list) -> None:
+        """Step i of a chunk on the sparse path, committed to ``state``."""
+        x, p, phi, eta = state.positions, state.momenta, state.thermal_displacement, state.entropy
+        try:
+            compiled, self.compiled = self.compiled, None
             try:
                 new, result = self.attempt(x, p, phi, eta, h)
-                it, final, substeps = result.full_iterations, result.history[-1], 1
-                # the new state's buffers become the state's; the old ones the next step's outputs
-                state.positions, state.momenta, state.thermal_displacement, state.entropy = new
-                self._new = NextState(x, p, phi, eta)
-            except _StepError as err:
-                it, final, substeps = self._retry(state, h, err, i)
-                retried += 1
-                substeps_max = max(substeps_max, substeps)
-            iters.append(it)
-            finals.append(final)
+            finally:
+                self.compiled = compiled
+        except _StepError as err:
+            self._retry_step(state, h, err, i, iters, finals, counts)
+            return
+        # the new state's buffers become the state's; the old ones the next step's outputs
+        state.positions, state.momenta, state.thermal_displacement, state.entropy = new
+        self._new = NextState(x, p, phi, eta)
+        iters.append(result.full_iterations)
+        finals.append(result.history[-1])
+
+    def _retry_step(self, state, h, err, i, iters, finals, counts) -> None:
+        it, final, substeps = self._retry(state, h, err, i)
+        counts[0] += 1
+        counts[1] = max(counts[1], substeps)
+        iters.append(it)
+        finals.append(final)
+
+    def _record(self, state, h, n_steps, iters, finals, retried, substeps_max) -> dict:
+        """The totals updated with a chunk's steps, and the chunk's statistics."""
         t = self.totals
         t["steps"] += n_steps
         t["iterations"] += int(sum(iters))
@@ -280,7 +325,7 @@ class ImplicitStepper(Stepper):
         t["substeps_max"] = max(t["substeps_max"], substeps_max)
         if retried:
             warnings.warn(f"{self.integrator.name}: {retried} step(s) of h = {h:g} near t = {state.time:.6g} "
-                          f"needed up to {substeps_max} substeps (retry policy)", RuntimeWarning, stacklevel=2)
+                          f"needed up to {substeps_max} substeps (retry policy)", RuntimeWarning, stacklevel=3)
         return {
             "newton_iterations": iters[-1],
             "newton_iterations_max": max(iters),
@@ -358,7 +403,7 @@ class ImplicitStepper(Stepper):
         largest final scaled residual, retried steps, and seconds per phase."""
         t = dict(self.totals)
         t["iterations_mean"] = t["iterations"] / t["steps"] if t["steps"] else math.nan
-        t["linear_solver"] = self.solver.name
+        t["linear_solver"] = self.solver.name if self.compiled is None else f"compiled, {self.compiled.linear_solver}"
         t["unknowns"] = self.pattern.size
         t["jacobian_nnz"] = self.pattern.nnz
         t["jacobi_steps"] = self.timers.jacobi_steps  # finishing steps u −= D⁻¹ R, not counted as iterations

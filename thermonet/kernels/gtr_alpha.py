@@ -8,6 +8,12 @@ Unknown d = x¹ − x⁰ per free node (block of 3); θ̄ condensed per spring:
     R_c = m_c d_c / h − α h f_c(x⁰, θ̄) − p_c                                         (48a)
     α Γ(l⁰, θ̄) + (1 − α) Γ(l¹, θ̄) = η                                     per spring (48c)
 
+For a model whose entropy is affine in ln θ, Γ(l, θ) = a(l) + C ln θ (LOG_AFFINE; the start
+kernel then keeps A = θ(l⁰, η), T(l⁰, A), F_lθ(l⁰) and C per spring, KEEP_START), (48c) is
+solved in closed form: Γ(l⁰, θ̄) = η + C ln(θ̄/A), so C ln(θ̄/A) = (1 − α)(η − Γ(l¹, A)), and
+dθ̄/dl¹ = (1 − α) F_lθ(l¹) θ̄/C (F_lθ does not depend on θ); T(l⁰, θ̄) = T(l⁰, A) + F_lθ(l⁰)
+(θ̄ − A). A temperature that is not admissible goes to the scalar solve as before.
+
 The work record is :class:`GTRWork`: per spring len1 (m,), dir1 (3, m) at x¹, θ̄ ``theta`` and
 dθ̄/dl¹ ``dtheta`` (m,), the matrix-free coefficient ``jc`` (m,), and the start kernel's
 :class:`~.implicit_records.StartWork` (``start``).
@@ -22,7 +28,7 @@ import numpy as np
 from numba import prange
 
 from .fastmath import exp as exp_
-from .implicit_common import (BLOCK, INLINE, LOCAL_ITERATIONS, MAX_LOG_STEP, NO_TEMPERATURE, NOT_FINITE, OK,
+from .implicit_common import (BLOCK, INLINE, KEEP_START, LOCAL_ITERATIONS, MAX_LOG_STEP, NO_TEMPERATURE, NOT_FINITE, OK,
                               OPTIONS, THETA_STOP, UNIFORM, COLLAPSED, _admissible, _first_flagged, _log_step,
                               _usable, register_scheme, scatter_spring_block)
 from .implicit_records import StartWork
@@ -31,6 +37,7 @@ from .specialize import specialize
 # Bound per model by specialize(); listed so the templates read as ordinary code.
 entropy = temperature = tension = d2F_dl_dtheta = d2F_dtheta2 = None
 gtr_thermal = gtr_thermal_vector = gtr_correct = finish_nodes = None
+gtr_residual = gtr_jacobian = gtr_finish = gtr_linearize = None
 
 
 class GTRWork(NamedTuple):
@@ -54,11 +61,21 @@ def build(ns: dict, tag: str, ptag: str, parallel: bool) -> dict:
     ns["gtr_correct"] = specialize(_gtr_correct, tag, ns, **INLINE)
     ns["gtr_thermal"] = specialize(_gtr_thermal, tag, ns, **OPTIONS)
     ns["gtr_thermal_vector"] = specialize(_gtr_thermal_vector, tag, ns, **INLINE)
+    residual = specialize(_gtr_residual, ptag, ns, parallel=parallel, **OPTIONS)
+    jacobian = specialize(_gtr_jacobian, tag, ns, **OPTIONS)
+    finish = specialize(_gtr_finish, ptag, ns, parallel=parallel, **OPTIONS)
+    linearize = specialize(_gtr_linearize, ptag, ns, parallel=parallel, **OPTIONS)
+    calls = dict(ns, gtr_residual=residual, gtr_jacobian=jacobian, gtr_finish=finish, gtr_linearize=linearize)
     return dict(
-        residual=specialize(_gtr_residual, ptag, ns, parallel=parallel, **OPTIONS),
-        linearize=specialize(_gtr_linearize, ptag, ns, parallel=parallel, **OPTIONS),
-        jacobian=specialize(_gtr_jacobian, tag, ns, **OPTIONS),
-        finish=specialize(_gtr_finish, ptag, ns, parallel=parallel, **OPTIONS),
+        residual=residual,
+        linearize=linearize,
+        jacobian=jacobian,
+        finish=finish,
+        # the compiled Newton path's signatures (kernels/newton_compiled.py), extra = (α,)
+        compiled_residual=specialize(_gtr_compiled_residual, ptag, calls, **INLINE),
+        compiled_jacobian=specialize(_gtr_compiled_jacobian, ptag, calls, **INLINE),
+        compiled_finish=specialize(_gtr_compiled_finish, ptag, calls, **INLINE),
+        compiled_linearize=specialize(_gtr_compiled_linearize, ptag, calls, **INLINE),
         sweep=sweep_kernel(parallel),
         thermal=ns["gtr_thermal"],
         # the two per-spring solves, callable alone (tests)
@@ -178,10 +195,19 @@ def _gtr_residual(step, topo, spring, node, work, alpha, u, warm, res):
             dir1[1, e] = dy * i1
             dir1[2, e] = dz * i1
             la = len0[e]
-            th, dth, ok = gtr_thermal_vector(la, l1, eta[e], l0[e], P, pe, alpha, g)
+            if KEEP_START:  # closed form (see the module doc), T affine in θ
+                A = keep[0, e]
+                C = keep[3, e]
+                th = A * exp_((1.0 - alpha) * (eta[e] - entropy(l1, A, l0[e], P, pe)) / C)
+                dth = (1.0 - alpha) * d2F_dl_dtheta(l1, th, l0[e], P, pe) * th / C
+                ok = 1 if _admissible(th) else 0
+                T = keep[1, e] + keep[2, e] * (th - A)
+            else:
+                th, dth, ok = gtr_thermal_vector(la, l1, eta[e], l0[e], P, pe, alpha, g)
+                T = tension(la, th, l0[e], P, pe)
             theta[e] = th
             dtheta[e] = dth
-            c = alpha * h * tension(la, th, l0[e], P, pe)
+            c = alpha * h * T
             fs[0, e] = c * dir0[0, e]
             fs[1, e] = c * dir0[1, e]
             fs[2, e] = c * dir0[2, e]
@@ -401,4 +427,20 @@ def _gtr_sweep(topo, node, work, h, du, R, r, update, first):
     return rmax
 
 
-register_scheme("gtr", build)
+def _gtr_compiled_residual(step, topo, spring, node, work, extra, u, warm, res):
+    return gtr_residual(step, topo, spring, node, work, extra[0], u, warm, res)
+
+
+def _gtr_compiled_jacobian(topo, spring, node, work, places, extra, h, data):
+    gtr_jacobian(topo, spring, node, work, places, extra[0], h, data)
+
+
+def _gtr_compiled_finish(step, topo, spring, node, work, extra, u, phi, new):
+    return gtr_finish(step, topo, spring, node, work, extra[0], u, phi, new)
+
+
+def _gtr_compiled_linearize(spring, work, extra, h):
+    gtr_linearize(spring, work, extra[0], h)
+
+
+register_scheme("gtr", build, keeps_start=True)

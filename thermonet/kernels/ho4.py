@@ -35,6 +35,7 @@ from . import ho4_linear as _linear, ho4_thermal as _thermal
 # Bound per model by specialize(); listed so the templates read as ordinary code.
 entropy = temperature = tension = d2F_dtheta2 = None
 ho4_thermal = ho4_thermal_vector = ho4_thermal_closed = finish_nodes = None
+ho4_residual = ho4_jacobian = ho4_finish = ho4_linearize = None
 #: the residual's index helpers, bound per variant (a kernel compiled with a conditional index
 #: ran 25 % slower): in the full kernel ``listed(indices, j)`` is j, ``listed_count(indices, n)``
 #: is n and ``first_flagged_listed`` is :func:`_first_flagged`; in the SUBSET kernel, which
@@ -76,12 +77,23 @@ def build(ns: dict, tag: str, ptag: str, parallel: bool) -> dict:
     ns["ho4_thermal_vector"] = specialize(t._ho4_thermal_vector, tag, ns, **INLINE)
     subset = dict(ns, listed=_listed_entry, listed_count=_listed_count, first_flagged_listed=_first_flagged_entry)
     ns.update(listed=_listed_position, listed_count=_all_count, first_flagged_listed=_first_flagged_position)
+    residual = specialize(_ho4_residual, ptag, ns, parallel=parallel, **OPTIONS)
+    jacobian = specialize(_linear._ho4_jacobian, tag, ns, **OPTIONS)
+    finish = specialize(_ho4_finish, ptag, ns, parallel=parallel, **OPTIONS)
+    linearize = specialize(_linear._ho4_linearize, ptag, ns, parallel=parallel, **OPTIONS)
+    calls = dict(ns, ho4_residual=residual, ho4_jacobian=jacobian, ho4_finish=finish, ho4_linearize=linearize)
     return dict(
-        residual=specialize(_ho4_residual, ptag, ns, parallel=parallel, **OPTIONS),
+        residual=residual,
         residual_subset=specialize(_ho4_residual, f"{ptag}_subset", subset, parallel=parallel, **OPTIONS),
-        linearize=specialize(_linear._ho4_linearize, ptag, ns, parallel=parallel, **OPTIONS),
-        jacobian=specialize(_linear._ho4_jacobian, tag, ns, **OPTIONS),
-        finish=specialize(_ho4_finish, ptag, ns, parallel=parallel, **OPTIONS),
+        linearize=linearize,
+        jacobian=jacobian,
+        finish=finish,
+        # the compiled Newton path's signatures (kernels/newton_compiled.py), extra = (springs,
+        # nodes): the residual's two empty index lists
+        compiled_residual=specialize(_ho4_compiled_residual, ptag, calls, **INLINE),
+        compiled_jacobian=specialize(_ho4_compiled_jacobian, ptag, calls, **INLINE),
+        compiled_finish=specialize(_ho4_compiled_finish, ptag, calls, **INLINE),
+        compiled_linearize=specialize(_ho4_compiled_linearize, ptag, calls, **INLINE),
         sweep=_linear.sweep_kernel(parallel),
         jacobi_rows=_linear.ho4_jacobi_rows,
         thermal=ns["ho4_thermal"],
@@ -153,7 +165,8 @@ def _ho4_residual(step, topo, spring, node, work, u, warm, res, springs, nodes):
             fs[3, e] = ex
             fs[4, e] = ey
             fs[5, e] = ez
-        for i in range(n):  # arithmetic and thermal solve (vectorized)
+        for i in range(n):  # geometry (vectorized; a loop of its own: with the thermal solve's
+            # stores in the same loop, LLVM did not vectorize it)
             e = np.uint64(listed(springs, lo + i))
             pe = np.uint64(0) if UNIFORM else np.uint64(e)
             hx = fs[0, e]
@@ -164,11 +177,9 @@ def _ho4_residual(step, topo, spring, node, work, u, warm, res, springs, nodes):
             ez = fs[5, e]
             lh = math.sqrt(hx * hx + hy * hy + hz * hz)
             l1 = math.sqrt(ex * ex + ey * ey + ez * ez)
-            la = len0[e]
-            rest = l0[e]
             if not LOG_AFFINE:  # a seed (the closed form needs none): G = Γ(l⁰, θ⁰) moved along dG/dl
-                g = gs[e] - d2F_dtheta2(la, th0[e], rest, P, pe) * (dth[0, e] * (lh - lenh[e]) + dth[1, e] * (l1 - len1[e]))
-                guess[e] = g
+                guess[e] = gs[e] - d2F_dtheta2(len0[e], th0[e], l0[e], P, pe) * (
+                    dth[0, e] * (lh - lenh[e]) + dth[1, e] * (l1 - len1[e]))
             lenh[e] = lh
             ih = 1.0 / lh
             dirh[0, e] = hx * ih
@@ -179,23 +190,41 @@ def _ho4_residual(step, topo, spring, node, work, u, warm, res, springs, nodes):
             dir1[0, e] = ex * i1
             dir1[1, e] = ey * i1
             dir1[2, e] = ez * i1
+        for i in range(n):  # thermal solve (vectorized; the forces in a loop of their own, as above)
+            e = np.uint64(listed(springs, lo + i))
+            pe = np.uint64(0) if UNIFORM else np.uint64(e)
+            lh = lenh[e]
+            l1 = len1[e]
+            rest = l0[e]
             if LOG_AFFINE:
-                A = keep[0, e]
-                G, t0, t1 = ho4_thermal_closed(A, temperature(l1, eta[e], rest, P, pe), keep[3, e], lh, eta[e],
-                                               rest, P, pe)
-                ok = 1 if _admissible(t0) & _admissible(t1) else 0
-                c0 = h / 6.0 * (keep[1, e] + keep[2, e] * (t0 - A))
+                G, t0, t1 = ho4_thermal_closed(keep[0, e], temperature(l1, eta[e], rest, P, pe), keep[3, e], lh,
+                                               eta[e], rest, P, pe)
             else:
-                G, t0, t1, d0h, d01, d1h, d11, ok = ho4_thermal_vector(la, lh, l1, eta[e], rest, P, pe, g, warm)
+                G, t0, t1, d0h, d01, d1h, d11, ok = ho4_thermal_vector(len0[e], lh, l1, eta[e], rest, P, pe, guess[e],
+                                                                       warm)
                 # the warm seed and its derivatives (else recomputed where needed)
                 gs[e] = G
                 dth[0, e] = d0h
                 dth[1, e] = d01
                 dth[2, e] = d1h
                 dth[3, e] = d11
-                c0 = h / 6.0 * tension(la, t0, rest, P, pe)
+                code[e] = ok  # the solve's success, read by the force loop
             th0[e] = t0
             th1[e] = t1
+        for i in range(n):  # forces (vectorized)
+            e = np.uint64(listed(springs, lo + i))
+            pe = np.uint64(0) if UNIFORM else np.uint64(e)
+            lh = lenh[e]
+            l1 = len1[e]
+            rest = l0[e]
+            t0 = th0[e]
+            t1 = th1[e]
+            if LOG_AFFINE:  # T(l⁰, θ⁰) = T(l⁰, A) + F_lθ(l⁰) (θ⁰ − A), exact (see the doc)
+                c0 = h / 6.0 * (keep[1, e] + keep[2, e] * (t0 - keep[0, e]))
+                ok = _admissible(t0) & _admissible(t1)
+            else:
+                c0 = h / 6.0 * tension(len0[e], t0, rest, P, pe)
+                ok = code[e] != 0
             ch = h / 4.0 * tension(lh, 0.5 * (t0 + t1), rest, P, pe)
             fs[0, e] = c0 * dir0[0, e]
             fs[1, e] = c0 * dir0[1, e]
@@ -204,7 +233,7 @@ def _ho4_residual(step, topo, spring, node, work, u, warm, res, springs, nodes):
             fs[4, e] = ch * dirh[1, e]
             fs[5, e] = ch * dirh[2, e]
             lok = (lh > 0.0) & (lh < math.inf) & (l1 > 0.0) & (l1 < math.inf)
-            code[e] = OK if ((ok != 0) & lok) else NO_TEMPERATURE
+            code[e] = OK if (ok & lok) else NO_TEMPERATURE
         for i in range(n):  # the scalar solve where the vectorized one did not converge
             e = listed(springs, lo + i)
             pe = np.uint64(0) if UNIFORM else np.uint64(e)
@@ -360,6 +389,22 @@ def _ho4_finish(step, topo, spring, node, work, u, phi, new):
     if bad < m:
         return code[bad], bad
     return finish_nodes(step, topo, node, fs, u, 6, 3, new)
+
+
+def _ho4_compiled_residual(step, topo, spring, node, work, extra, u, warm, res):
+    return ho4_residual(step, topo, spring, node, work, u, warm, res, extra[0], extra[1])
+
+
+def _ho4_compiled_jacobian(topo, spring, node, work, places, extra, h, data):
+    ho4_jacobian(topo, spring, node, work, places, h, data)
+
+
+def _ho4_compiled_finish(step, topo, spring, node, work, extra, u, phi, new):
+    return ho4_finish(step, topo, spring, node, work, u, phi, new)
+
+
+def _ho4_compiled_linearize(spring, work, extra, h):
+    ho4_linearize(spring, work, h)
 
 
 register_scheme("ho4", build, keeps_start=True)

@@ -33,6 +33,11 @@ class NewtonOptions:
         Newton above its tolerance), "gmres" (SciPy GMRES on the assembled matrix with a nodal
         block-Jacobi preconditioner, relative tolerance 1e-10 per solve), or "auto" (default:
         splu up to DIRECT_MAX_UNKNOWNS unknowns, matfree above; see benchmarks/README.md).
+    newton_path: "compiled" (whole steps, many per call, in one compiled driver:
+        thermonet.kernels.newton_compiled; matrix-free sweeps), "compiled-dense" (the same with a
+        dense LU), "sparse" (this module's iteration with ``linear_solver``), or "auto" (default:
+        compiled where the scheme offers it and linear_solver is "auto"; see
+        thermonet.integrators.compiled_path).
     """
 
     tolerance: float = 1e-12
@@ -41,6 +46,7 @@ class NewtonOptions:
     max_iterations: int = 12
     retry: int = 0
     linear_solver: str = "auto"
+    newton_path: str = "auto"
 
     @classmethod
     def from_options(cls, **options) -> "NewtonOptions":
@@ -56,9 +62,13 @@ class NewtonOptions:
         if opts.linear_solver not in LINEAR_SOLVERS and opts.linear_solver != "auto":
             raise InputError(f"unknown linear_solver {opts.linear_solver!r}; known: auto, "
                              f"{', '.join(LINEAR_SOLVERS)}")
+        if opts.newton_path not in NEWTON_PATHS:
+            raise InputError(f"unknown newton_path {opts.newton_path!r}; known: {', '.join(NEWTON_PATHS)}")
         return opts
 
 
+#: the values of NewtonOptions.newton_path
+NEWTON_PATHS = ("auto", "compiled", "compiled-dense", "sparse")
 #: an inexact linear solve leaves a residual below this fraction of max(tolerance, ρ²) (in the
 #: Newton scaling, ρ the current scaled residual): Newton stays quadratic and the last linear
 #: error cannot keep the next Newton residual above the tolerance

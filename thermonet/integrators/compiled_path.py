@@ -1,0 +1,128 @@
+"""The compiled Newton path of an implicit stepper: whole steps, many per call, in one compiled
+driver (:mod:`thermonet.kernels.newton_compiled`); and the choice between it and the sparse path
+(:func:`thermonet.solvers.newton.newton`, one Python call per kernel, SuperLU, GMRES or
+matrix-free sweeps).
+
+``newton_path`` (a stepper option): "compiled", "compiled-dense", "sparse", or "auto" (default):
+compiled where the scheme offers it and ``linear_solver`` is left at "auto", sparse otherwise.
+The compiled path's linear solves are the inertia-preconditioned matrix-free sweeps (faster than
+a dense LU at every size measured, the paper's chain included: benchmarks/README.md, "Implicit
+integrators"); a dense LU where the scheme has no sweeps (up to DENSE_MAX_UNKNOWNS unknowns), with
+"auto" up to AUTO_DENSE_MAX_UNKNOWNS, or with "compiled-dense" (exact Newton steps; no sweeps to
+stall).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import InputError
+from ..kernels.implicit_records import NextState, plain
+from ..kernels.newton_compiled import NO_CONVERGENCE, REASONS, STALLED, newton_steps_kernel
+from ..solvers import NewtonResult
+from ..solvers.matrix_free import MatrixFree
+from ..solvers.newton import JACOBI_MAX_STEPS, JACOBI_RANGE, LINEAR_FRACTION
+
+#: a scheme without matrix-free sweeps takes the compiled path (dense LU) up to this many
+#: unknowns (B per free node); the LU's size³/3 multiply-adds cost more than SuperLU above
+DENSE_MAX_UNKNOWNS = 200
+#: "auto" solves by the dense LU up to this many unknowns even where sweeps exist: exact Newton
+#: steps, which converge where inexact ones need more iterations (steps near the stability
+#: limit), at ≈ 1.2–1.6× the sweeps' cost on nets this small (the paper's chain: 9 and 18)
+AUTO_DENSE_MAX_UNKNOWNS = 24
+
+
+def offers_compiled(kernels) -> bool:
+    """Whether a scheme's kernels include the compiled path's (compiled_residual, …)."""
+    return all(hasattr(kernels, k) for k in ("compiled_residual", "compiled_jacobian", "compiled_finish"))
+
+
+def offers_sweeps(kernels) -> bool:
+    """Whether they include the matrix-free ones too (compiled_linearize, sweep)."""
+    return hasattr(kernels, "compiled_linearize") and hasattr(kernels, "sweep")
+
+
+def use_compiled(options, size: int, kernels, name: str) -> bool:
+    """The choice of ``options.newton_path`` for a net of ``size`` unknowns."""
+    path = options.newton_path
+    if path == "sparse":
+        return False
+    if path == "compiled-dense":
+        if not offers_compiled(kernels):
+            raise InputError(f"{name}: newton_path='compiled-dense' is not available for this scheme")
+        return True
+    usable = offers_compiled(kernels) and (offers_sweeps(kernels) or size <= DENSE_MAX_UNKNOWNS)
+    if path == "compiled":
+        if not usable:
+            raise InputError(f"{name}: newton_path='compiled' is not available for this scheme at {size} unknowns")
+        return True
+    return usable and options.linear_solver == "auto"
+
+
+class CompiledNewton:
+    """The compiled driver bound to one stepper (its records, kernels, pattern and options) and
+    the driver's buffers: the CSR values, the dense matrix and its pivots (dense solves), the
+    correction and linear residual, the next state, per-step iteration counts and final
+    residuals, the failure's history and info."""
+
+    def __init__(self, stepper):
+        system = stepper.system
+        _, uniform = system.kernel_parameters
+        pattern = stepper.pattern
+        size = pattern.size
+        path = stepper.options.newton_path
+        self.sweeps = sweeps = (path != "compiled-dense" and offers_sweeps(stepper.kernels)
+                                and not (path == "auto" and size <= AUTO_DENSE_MAX_UNKNOWNS))
+        self.linear_solver = "sweeps" if sweeps else "dense"
+        self.driver = newton_steps_kernel(system.model, stepper.scheme, stepper.kernels, uniform, stepper.rate,
+                                          sweeps, stepper.kernels_parallel)
+        n, m = system.n_nodes, system.n_springs
+        self.stepper = stepper
+        self._new = NextState(np.empty((n, 3)), np.empty((n, 3)), np.empty(m), np.empty(m))
+        self._linear = None
+        dense = 0 if sweeps else size
+        self._buffers = (pattern.indptr, pattern.indices, np.zeros(pattern.nnz if dense else 0),
+                         np.zeros((dense, dense)), np.zeros(dense, dtype=np.int64), np.zeros(size), np.zeros(size))
+        opts = stepper.options
+        self._control = (float(opts.tolerance), float(opts.rtol), float(opts.atol), int(opts.max_iterations))
+        self._solves = (float(LINEAR_FRACTION), (float(JACOBI_RANGE), float(JACOBI_MAX_STEPS)),
+                        (int(MatrixFree.MAX_SWEEPS), float(MatrixFree.STALL)))
+        self._history = np.zeros(int(opts.max_iterations) + 2)
+        self._info = np.zeros(5, dtype=np.int64)
+        self._out = None
+        self._coef = (None, None)
+
+    def run(self, x, p, phi, eta, h: float, n_steps: int):
+        """Up to n_steps steps from (x, p, Φ, η), committed in place step by step. Returns (steps
+        done, iterations (done,), final scaled residuals (done,), the failure or None): a
+        failure of step ``done`` is (reason, NewtonResult or None, status, spring, stalled),
+        ``stalled``: the sweeps stalled (the sparse path should make that step)."""
+        s = self.stepper
+        if self._coef[0] != h:
+            self._coef = (h, s.predictor_coefficients(h))
+        if self._out is None or self._out[0].shape[0] < n_steps:
+            self._out = (np.zeros(n_steps, dtype=np.int64), np.zeros(n_steps), self._history, self._info)
+        if self._linear is None:
+            self._linear = self._buffers + (s.u, plain(s.residuals), tuple(self._new))
+        records = (s._topology, s._springs, s._nodes, s._work, s._places)
+        done = self.driver((x, p, phi, eta, float(h), self._coef[1]), records, s.compiled_extra(), self._linear,
+                           self._control + (int(n_steps),) + self._solves, self._out)
+        iterations, finals = self._out[0][:done], self._out[1][:done]
+        s.warm = False
+        if done == n_steps:
+            return done, iterations, finals, None
+        _, reason, status, spring, nh = (int(v) for v in self._info)
+        its = int(self._out[0][done]) if nh else 0
+        history = [float(r) for r in self._history[:nh]]
+        text = f"no convergence in {s.options.max_iterations} iterations" if reason == NO_CONVERGENCE else REASONS[reason]
+        result = NewtonResult(False, its, history, status, spring, text) if nh else None
+        return done, iterations, finals, (text, result, status, spring, reason == STALLED)
+
+    def attempt(self, x, p, phi, eta, h: float):
+        """One step from copies of (x, p, Φ, η): ((the new state's buffers, the NewtonResult),
+        None), or (None, the failure of :meth:`run`)."""
+        xs, ps, phis, etas = x.copy(), p.copy(), phi.copy(), eta.copy()
+        done, iterations, finals, failure = self.run(xs, ps, phis, etas, h, 1)
+        if failure is not None:
+            return None, failure
+        return (NextState(xs, ps, phis, etas), NewtonResult(True, int(iterations[0]), [float(finals[0])])), None

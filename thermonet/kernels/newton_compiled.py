@@ -1,0 +1,311 @@
+"""Whole implicit steps in one compiled call: the start kernel, Newton's iteration (residual,
+Jacobian, dense LU with partial pivoting, update, convergence test) and the finish, for many
+steps per call, generic over a scheme's compiled kernels. For small nets, where Python's share of
+a step (one call per kernel, SuperLU's set-up) would cost far more than the arithmetic.
+
+The driver template :func:`_newton_steps` calls four kernels by global name, bound per scheme
+and model by :func:`newton_steps_kernel`:
+
+    scheme_start(step, topo, spring, node, start, coef, u) -> (status, spring)
+        the start kernel of :mod:`.implicit_common` (predictor into u)
+    scheme_residual(step, topo, spring, node, work, extra, u, warm, res) -> (status, spring, max |R|, max Rabs)
+    scheme_jacobian(topo, spring, node, work, places, extra, h, data)       CSR values into data
+    scheme_finish(step, topo, spring, node, work, extra, u, phi, new) -> (status, spring)
+
+``extra`` is a tuple of whatever else the scheme's kernels take (GTR-α: (α,); HO4: its two
+empty index lists), made once by the stepper (``ImplicitStepper.compiled_extra``). A scheme
+offers the compiled path by returning ``compiled_residual``, ``compiled_jacobian`` and
+``compiled_finish`` (these signatures, serial) from its ``build``.
+
+The iteration is :func:`thermonet.solvers.newton.newton`'s with a direct solver, test for test
+(scaled residual ≤ tolerance; or a correction at the round-off floor with the scaled residual ≤
+1e3 tolerance; at most ``max_iterations`` linear solves), so both paths converge to the same
+solution within the tolerance. The matrix is the scheme's CSR values scattered into a dense
+(size, size) array, whose LU costs ~ size³/3 multiply-adds: the path pays only for a few
+hundred unknowns (the automatic choice, ``integrators/compiled_path.py``).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from .implicit_common import INLINE, OPTIONS
+from .specialize import function_fingerprint, model_fingerprint, specialize
+
+# Bound per scheme and model by newton_steps_kernel(); listed so the template reads as ordinary code.
+scheme_start = scheme_residual = scheme_jacobian = scheme_finish = scheme_linearize = scheme_sweep = None
+#: the linear solves: inertia-preconditioned matrix-free sweeps (True) or dense LU (False)
+SWEEPS = False
+
+#: why a step failed (``info[1]``), as the Python path words it (ImplicitStepper, solvers.newton)
+CONVERGED, START, NON_PHYSICAL, NOT_FINITE_RESIDUAL, NO_CONVERGENCE, NOT_FINITE_CORRECTION, FINISH, STALLED = range(8)
+REASONS = {
+    START: "invalid state at the start of the step",
+    NON_PHYSICAL: "non-physical iterate",
+    NOT_FINITE_RESIDUAL: "residual not finite",
+    NOT_FINITE_CORRECTION: "Newton correction not finite",
+    FINISH: "non-physical state after the step",
+    STALLED: "matrix-free sweeps stalled",
+}
+
+_DRIVERS: dict = {}
+
+
+def newton_steps_kernel(model, scheme: str, kernels, uniform: bool, rate: int, sweeps: bool, parallel: bool):
+    """The compiled driver for ``scheme`` and ``model`` around ``kernels`` (ImplicitKernels with
+    the compiled_* entries, threaded or not as ``parallel`` says), its linear solves dense
+    (``sweeps`` False) or matrix-free; cached on disk."""
+    key = (scheme, model_fingerprint(model), bool(uniform), int(rate), bool(sweeps), bool(parallel))
+    if key not in _DRIVERS:
+        ns = dict(scheme_start=kernels.start, scheme_residual=kernels.compiled_residual,
+                  scheme_jacobian=kernels.compiled_jacobian, scheme_finish=kernels.compiled_finish,
+                  scheme_linearize=getattr(kernels, "compiled_linearize", _no_linearize),
+                  scheme_sweep=getattr(kernels, "sweep", _no_sweep), SWEEPS=bool(sweeps))
+        # Numba's disk cache of the driver holds its callees' machine code but checks only this
+        # file: the callees' code (the scheme's kernels, recursively) goes into the name
+        code = function_fingerprint(*(ns[k] for k in ("scheme_start", "scheme_residual", "scheme_jacobian",
+                                                       "scheme_finish", "scheme_linearize", "scheme_sweep")))
+        tag = (f"{scheme}_{model.name}_{key[1]}_{code}{'_uniform' if uniform else ''}_rate{int(rate)}"
+               f"_{'sweeps' if sweeps else 'dense'}_{'par' if parallel else 'ser'}")
+        ns["_solve_sweeps"] = specialize(_solve_sweeps, tag, ns, **INLINE)
+        _DRIVERS[key] = specialize(_newton_steps, tag, ns, **OPTIONS)
+    return _DRIVERS[key]
+
+
+@njit(cache=True)
+def _no_linearize(spring, work, extra, h):
+    """Stands in for a scheme without matrix-free kernels (dense driver only)."""
+
+
+@njit(cache=True)
+def _no_sweep(topo, node, work, h, du, R, r, update, first):
+    """Stands in for a scheme without matrix-free kernels (dense driver only)."""
+    return 0.0
+
+
+@njit(cache=True, error_model="numpy", boundscheck=False)
+def csr_to_dense(indptr, indices, data, A):
+    """A (size, size) = the CSR matrix (indptr, indices, data)."""
+    A[:] = 0.0
+    for row in range(A.shape[0]):
+        for j in range(indptr[row], indptr[row + 1]):
+            A[row, indices[j]] = data[j]
+
+
+@njit(cache=True, error_model="numpy", boundscheck=False)
+def lu_factor(A, piv):
+    """LU with partial pivoting of A (size, size) in place (L unit lower, U upper), row
+    exchanges in piv (size,) int64; False on a zero pivot."""
+    n = A.shape[0]
+    for k in range(n):
+        big = abs(A[k, k])
+        q = k
+        for i in range(k + 1, n):
+            if abs(A[i, k]) > big:
+                big = abs(A[i, k])
+                q = i
+        piv[k] = q
+        if not big > 0.0:
+            return False
+        if q != k:
+            for j in range(n):
+                t = A[k, j]
+                A[k, j] = A[q, j]
+                A[q, j] = t
+        inv = 1.0 / A[k, k]
+        for i in range(k + 1, n):
+            f = A[i, k] * inv
+            A[i, k] = f
+            if f != 0.0:
+                for j in range(k + 1, n):
+                    A[i, j] -= f * A[k, j]
+    return True
+
+
+@njit(cache=True, error_model="numpy", boundscheck=False)
+def lu_solve(A, piv, b):
+    """Solve with :func:`lu_factor`'s factors, b (size,) overwritten by the solution."""
+    n = A.shape[0]
+    for k in range(n):
+        q = piv[k]
+        if q != k:
+            t = b[k]
+            b[k] = b[q]
+            b[q] = t
+    for i in range(n):
+        s = b[i]
+        for j in range(i):
+            s -= A[i, j] * b[j]
+        b[i] = s
+    for i in range(n - 1, -1, -1):
+        s = b[i]
+        for j in range(i + 1, n):
+            s -= A[i, j] * b[j]
+        b[i] = s / A[i, i]
+
+
+def _solve_sweeps(topo, node, work, h, du, R, r, target, settled, sweeps):
+    """MatrixFree.solve's sweeps (solvers/matrix_free.py): du with max |R − J du| ≤ target, or
+    until the residual left is estimated below ``settled``. sweeps: (MAX_SWEEPS, STALL).
+    Returns the largest contraction of a sweep (inf: unknown), or −1 when the sweeps stalled
+    (the sparse path's GMRES fallback is then needed)."""
+    max_sweeps, stall = sweeps
+    previous = math.inf
+    worst = -1.0
+    for k in range(max_sweeps):
+        rmax = scheme_sweep(topo, node, work, h, du, R, r, True, k == 0)
+        if k > 0:
+            c = rmax / previous
+            worst = c if worst < 0.0 else max(worst, c)
+        if rmax <= target or (k > 0 and rmax * worst <= settled):
+            return math.inf if worst < 0.0 else worst
+        if not (rmax < math.inf) or rmax > stall * previous:
+            return -1.0
+        previous = rmax
+    return -1.0
+
+
+@njit(cache=True, inline="always")
+def _jacobi_pays(rho, contraction, tolerance, jacobi):
+    """solvers.newton._jacobi_pays; jacobi: (JACOBI_RANGE, JACOBI_MAX_STEPS)."""
+    return (rho <= jacobi[0] * tolerance and contraction < 1.0
+            and rho * contraction ** jacobi[1] <= tolerance)
+
+
+def _newton_steps(state, records, extra, linear, control, out):
+    """Up to ``n_steps`` steps of h, each committed into the state on success.
+
+    state: (x (n, 3), p (n, 3), phi (m,), eta (m,), h, coef (B/3, 4) the predictor's
+        coefficients), x, p, phi, eta overwritten step by step.
+    records: (topo, spring, node, work, places) as plain tuples.
+    linear: (indptr, indices, data (nnz,), A (size, size), piv (size,) int64, du (size,),
+        r (size,), u (size,), res (R, Rabs, peak), new (NextState buffers)); with SWEEPS data,
+        A and piv are not read (may be empty).
+    control: (tolerance, rtol, atol, max_iterations, n_steps, linear_fraction, (JACOBI_RANGE,
+        JACOBI_MAX_STEPS), (MAX_SWEEPS, STALL)).
+    out: (iterations (n_steps,) int64, finals (n_steps,), history (max_iterations + 1,),
+        info (5,) int64): per committed step its linear solves and last scaled residual; for a
+        failed step info = (step, reason, status, spring, length of its scaled residual
+        history), its linear solves in iterations[step].
+    Returns the number of steps committed (< n_steps: step info[0] failed, the state is at it).
+
+    With SWEEPS the linear solves are inertia-preconditioned sweeps and a full iteration may be
+    followed by Jacobi steps, as in solvers.newton with the matrix-free solver (its local
+    Jacobi steps are global ones here); sweeps that stall end the call with reason STALLED.
+    """
+    x, p, phi, eta, h, coef = state
+    topo, spring, node, work, places = records
+    indptr, indices, data, A, piv, du, r, u, res, new = linear
+    tolerance, rtol, atol, max_iterations, n_steps, fraction, jacobi, sweeps = control
+    iterations, finals, history, info = out
+    R = res[0]
+    x_new, p_new, phi_new, eta_new = new
+    size = u.shape[0]
+    for k in range(n_steps):
+        step = (x, p, eta, h)
+        info[0] = k
+        info[2] = 0
+        info[3] = -1
+        info[4] = 0
+        status, bad = scheme_start(step, topo, spring, node, work[0], coef, u)
+        if status != 0:
+            info[1] = START
+            info[2] = status
+            info[3] = bad
+            return k
+        warm = False
+        corrections = 0
+        jacobi_steps = 0
+        increment = math.inf
+        nh = 0
+        reason = CONVERGED
+        use_jacobi_ever = SWEEPS
+        last_full = True
+        contraction = math.inf
+        while True:
+            status, bad, rmax, scale = scheme_residual(step, topo, spring, node, work, extra, u, warm, res)
+            warm = status == 0
+            if status != 0:
+                reason = NON_PHYSICAL
+                info[2] = status
+                info[3] = bad
+                break
+            rho = rmax / scale if scale > 0.0 else 0.0
+            history[nh] = rho
+            nh += 1
+            if not (abs(rho) < math.inf):
+                reason = NOT_FINITE_RESIDUAL
+                break
+            if rho <= tolerance:
+                break
+            if corrections > 0 and rho <= 1e3 * tolerance:
+                umax = 0.0
+                for i in range(size):
+                    umax = max(umax, abs(u[i]))
+                if increment <= rtol * umax + atol:
+                    break
+            if corrections == max_iterations:
+                reason = NO_CONVERGENCE
+                break
+            use_jacobi = False
+            if use_jacobi_ever and corrections > 0:
+                if last_full:
+                    use_jacobi = _jacobi_pays(rho, contraction, tolerance, jacobi)
+                else:
+                    use_jacobi = _jacobi_pays(rho, rho / history[nh - 2], tolerance, jacobi)
+                    if not use_jacobi:
+                        use_jacobi_ever = False
+            corrections += 1
+            if SWEEPS:
+                if use_jacobi:
+                    scheme_sweep(topo, node, work, h, du, R, r, True, True)
+                    jacobi_steps += 1
+                    last_full = False
+                else:
+                    scheme_linearize(spring, work, extra, h)
+                    contraction = _solve_sweeps(topo, node, work, h, du, R, r,
+                                                fraction * max(tolerance, rho * rho) * scale,
+                                                fraction * tolerance * scale, sweeps)
+                    if contraction < 0.0:
+                        reason = STALLED
+                        break
+                    last_full = True
+            else:
+                scheme_jacobian(topo, spring, node, work, places, extra, h, data)
+                csr_to_dense(indptr, indices, data, A)
+                for i in range(size):
+                    du[i] = R[i]
+                if lu_factor(A, piv):
+                    lu_solve(A, piv, du)
+                else:
+                    du[:] = math.nan
+            increment = 0.0
+            finite = True
+            for i in range(size):
+                u[i] -= du[i]
+                d = abs(du[i])
+                finite &= d < math.inf
+                increment = max(increment, d)
+            if not finite:
+                reason = NOT_FINITE_CORRECTION
+                break
+        iterations[k] = corrections - jacobi_steps
+        info[4] = nh
+        if reason != CONVERGED:
+            info[1] = reason
+            return k
+        status, bad = scheme_finish(step, topo, spring, node, work, extra, u, phi, new)
+        if status != 0:
+            info[1] = FINISH
+            info[2] = status
+            info[3] = bad
+            return k
+        x[:] = x_new
+        p[:] = p_new
+        phi[:] = phi_new
+        eta[:] = eta_new
+        finals[k] = history[nh - 1]
+    return n_steps
