@@ -121,7 +121,7 @@ def test_a_1d_net_gets_c_equal_e_a_l_and_g_equal_2_k_a_over_l():
     mesh = meshio.Mesh(pts, [("line", np.column_stack([np.arange(4), np.arange(1, 5)]))])
     net = from_meshio(mesh, source="rod")
     params = {"youngs_modulus": 7.0, "density": 3.0, "heat_capacity": 2.0, "conductivity": 5.0, "area": 0.01,
-              "thermal_expansion": 1e-3, "theta0": 300.0}
+              "thermal_expansion": 1e-3, "gn2_constant": 0.5, "theta0": 300.0}
     sim = Simulation(net, parameters=params, integrator="co2", h=1e-3)
     P = sim.layout.springs_to_user(sim.system.parameters.T).T
     l = 0.5
@@ -130,11 +130,51 @@ def test_a_1d_net_gets_c_equal_e_a_l_and_g_equal_2_k_a_over_l():
     np.testing.assert_allclose(P[2], 2.0 * 0.01 * l, rtol=1e-12)  # C0 = c_v A l
     g = sim.layout.springs_to_user(sim.system.heat.conductance)
     np.testing.assert_allclose(g, 2 * 5.0 * 0.01 / l, rtol=1e-12)  # g = 2 k A / l
+    g_star = sim.layout.springs_to_user(sim.system.heat.wave_conductance)
+    np.testing.assert_allclose(g_star, 2 * 0.5 * 0.01 / l, rtol=1e-12)  # g* = 2 k* A / l
     np.testing.assert_allclose(sim.net.masses, 3.0 * 0.01 * l * np.array([0.5, 1, 1, 1, 0.5]), rtol=1e-12)
+
+
+def test_the_quadratic_model_gets_the_same_spring_stiffness_and_expands_by_alpha_dtheta(bars):
+    import dataclasses
+
+    net, dtheta = bars[0], 40.0
+    alpha = checks.MATERIAL["thermal_expansion"]
+    params = {k: v for k, v in checks.parameters().items() if k != "conductivity"}
+    hencky = Simulation(net, parameters=params, thermal=False, h=1e-3)
+    P_h = hencky.layout.springs_to_user(hencky.system.parameters.T).T
+    heated = dataclasses.replace(net, positions=net.positions * (1 + alpha * dtheta), rest_lengths=net.rest_lengths)
+    quad = Simulation(heated, model="quadratic", parameters=params, temperatures=checks.THETA0 + dtheta, h=1e-3)
+    P_q = quad.layout.springs_to_user(quad.system.parameters.T).T
+    np.testing.assert_allclose(P_q[0], P_h[0] / net.rest_lengths, rtol=1e-12)  # E = c / l0
+    np.testing.assert_allclose(P_q[1], alpha * P_q[0], rtol=1e-12)  # beta = α E
+    scale = P_q[0] * alpha * dtheta
+    assert np.max(np.abs(quad.tensions())) < 1e-12 * np.max(scale)  # l = l0 (1 + α Δθ): no stress
+
+
+def test_a_curved_2d_net_is_refused():
+    mesh = _square_triangles()
+    pts = mesh.points.copy()
+    mesh.points = np.column_stack([pts, 0.3 * pts[:, 0] ** 2])
+    net = from_meshio(mesh, source="bent")
+    with pytest.raises(InputError, match="do not lie in a plane"):
+        Simulation(net, parameters={"youngs_modulus": 1.0, "density": 1.0, "heat_capacity": 1.0,
+                                    "thickness": 0.1}, h=1e-3)
 
 
 # ----------------------------------------------------------------------------------------------
 # mechanisms
+
+
+def test_a_space_chain_of_line_cells_is_a_mechanism_and_a_straight_bar_is_not():
+    from thermonet.builders import read_mesh
+
+    chain = read_mesh(os.path.join(SCENES, os.pardir, "meshes", "chain.msh"))
+    found = floppy_modes(chain)
+    assert found.dimension == 3 and found.count == 3 * chain.n_nodes - 6 - chain.n_springs
+    pts = np.column_stack([np.linspace(0, 1, 4), np.zeros(4), np.zeros(4)])
+    bar = from_meshio(meshio.Mesh(pts, [("line", np.array([[0, 1], [1, 2], [2, 3]]))]))
+    assert floppy_modes(bar) == (0, True, 1, 1, "eigenvalues")
 
 
 def _hexahedra(n=2):

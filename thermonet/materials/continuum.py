@@ -46,7 +46,8 @@ DERIVED = ("beta", "C0", "g", "g_star")
 
 class ContinuumMap(NamedTuple):
     """What the rule made of a net: volume (m,) per spring (with thickness or area; NaN for
-    springs set by spring parameters), dimension d, and the per-spring properties used."""
+    springs set by spring parameters), the dimension the net is elastic in (its cells', or the
+    span of a net of line cells), and the per-spring properties used."""
 
     volume: np.ndarray
     dimension: int
@@ -112,6 +113,12 @@ def spring_volumes(net, properties: Mapping, springs: np.ndarray, where: str) ->
         raise InputError(f"{where}: continuum properties need a net read from a mesh (read_mesh, from_meshio), "
                          f"which knows each spring's share of the cells' volume; {net.source} does not")
     d = int(net.cell_dimension)
+    if d == 2:
+        from .rigidity import span_dimension
+
+        if span_dimension(net.positions) == 3:
+            raise InputError(f"{where}: the triangles or quads of {net.source} do not lie in a plane; the rule "
+                             "knows flat 2D nets (membranes in their plane), not shells")
     extra = {2: "thickness", 1: "area"}.get(d)
     for key in ("thickness", "area"):
         if key in properties and key != extra:
@@ -165,7 +172,7 @@ def lumped_masses(net, density: np.ndarray, volume: np.ndarray) -> np.ndarray:
     return out
 
 
-def with_masses(net, masses: np.ndarray, where: str):
+def with_masses(net, masses: np.ndarray):
     """``net`` with node masses from the continuum where it gives any (> 0); other nodes keep theirs."""
     merged = np.where(masses > 0, masses, net.masses)
     return dataclasses.replace(net, masses=merged)
@@ -190,12 +197,12 @@ def apply_continuum(net, model, parameters: Mapping | None):
     values, V = spring_parameters(net, model, properties, springs, where)
     parameters.update(values)
     density = _per_spring(properties["density"], springs)
-    net = with_masses(net, lumped_masses(net, density, V), where)
-    from .rigidity import require_rigid
+    net = with_masses(net, lumped_masses(net, density, V))
+    from .rigidity import net_dimension as rigidity_dimension, require_rigid
 
     require_rigid(net, where)
     per_spring = {k: _per_spring(v, springs) for k, v in properties.items()}
-    return net, parameters, ContinuumMap(V, int(net.cell_dimension), per_spring)
+    return net, parameters, ContinuumMap(V, rigidity_dimension(net), per_spring)
 
 
 def _per_spring(value, springs: np.ndarray) -> np.ndarray:

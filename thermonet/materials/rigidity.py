@@ -33,10 +33,16 @@ class FloppyModes(NamedTuple):
 
 
 def net_dimension(net) -> int:
-    """The net's own dimension: its mesh cells' (``Net.cell_dimension``), else its span."""
-    if net.cell_dimension:
+    """The dimension a net is rigid or elastic in: its cells' for triangles, quads and 3D cells
+    (``Net.cell_dimension``), else (line cells: a bar or a truss) the dimension its nodes span."""
+    if net.cell_dimension >= 2:
         return int(net.cell_dimension)
-    x = net.positions - net.positions.mean(axis=0)
+    return span_dimension(net.positions)
+
+
+def span_dimension(positions: np.ndarray) -> int:
+    """How many dimensions the points span (singular values above 1e-9 of the largest)."""
+    x = positions - positions.mean(axis=0)
     s = np.linalg.svd(x, compute_uv=False)
     return int(max(1, (s > 1e-9 * max(s[0], 1e-300)).sum()))
 
@@ -91,8 +97,7 @@ def floppy_modes(net) -> FloppyModes:
     _, axes = principal_frame(net.positions, d)
     K = stiffness(net.positions, net.edges, np.ones(m), axes)
     diag = K.diagonal()
-    if (diag <= 0).any():  # a coordinate no spring touches (cannot happen for a mesh's net)
-        return FloppyModes(max(maxwell, int((diag <= 0).sum())), False, rigid, d, "unconnected coordinates")
+    diag = np.where(diag > 0, diag, 1.0)  # a coordinate no spring pulls along: a zero row, a zero mode
     scale = sp.diags(1.0 / np.sqrt(diag))
     Ks = (scale @ K @ scale).tocsc()
     if dofs <= _DENSE_DOFS:

@@ -219,7 +219,7 @@ def continuum_materials(scene: Scene, net: Net, model, values: dict):
     (with those masses) and a :class:`~thermonet.materials.ContinuumMap`, or (net, None).
     A net that is a mechanism is an error."""
     from ..materials.continuum import ContinuumMap, lumped_masses, region_properties, spring_parameters, with_masses
-    from ..materials.rigidity import require_rigid
+    from ..materials.rigidity import net_dimension, require_rigid
 
     m = net.n_springs
     volume = np.full(m, np.nan)
@@ -243,12 +243,12 @@ def continuum_materials(scene: Scene, net: Net, model, values: dict):
         return net, None
     for k, v in properties.items():
         v[np.isnan(volume)] = np.nan
-    net = with_masses(net, lumped_masses(net, properties["density"], volume), "materials")
+    net = with_masses(net, lumped_masses(net, properties["density"], volume))
     try:
         require_rigid(net, "materials")
     except InputError as exc:
         raise scene.error("net.mesh", str(exc).removeprefix("materials: ")) from None
-    return net, ContinuumMap(volume, int(net.cell_dimension), properties)
+    return net, ContinuumMap(volume, net_dimension(net), properties)
 
 
 # --- end continuum materials ---
