@@ -122,7 +122,7 @@ def _continuum(built) -> list[str]:
     V = cmap.volume[inside]
     given = {k: float(np.sum(v[inside] * V) / V.sum()) for k, v in cmap.properties.items()}
     rigid = floppy_modes(net)
-    out = describe(eff, given, cmap.dimension)
+    out = describe(eff, given, cmap.dimension, cmap.junction_factor)
     out.append(f"    rigid: no zero-frequency modes beyond the {rigid.rigid} rigid-body ones ({rigid.method})")
     return out
 

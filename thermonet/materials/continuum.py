@@ -10,6 +10,9 @@ times a thickness for 2D cells, a cross-section area for 1D ones). For a net of 
     conduction  g_e = 2d k V_e / l_e²       (6 k V / l² in 3D, 4 k V / l² in 2D, 2 k A / l in 1D)
     GN-II       g*_e = 2d k* V_e / l_e²
 
+and in 2D and 3D the conductances times the net's junction factor f ≥ 1 (:func:`junction_factor`:
+what eliminating the junction nodes costs a uniform gradient, restored; f → 1 under refinement).
+
 ``c`` is the hencky model's stiffness; the quadratic model's ``E`` is the same spring stiffness
 as c / l0. A central-force net has a fixed Poisson's ratio (1/4 in 3D, 1/3 in 2D).
 """
@@ -47,11 +50,30 @@ DERIVED = ("beta", "C0", "g", "g_star")
 class ContinuumMap(NamedTuple):
     """What the rule made of a net: volume (m,) per spring (with thickness or area; NaN for
     springs set by spring parameters), the dimension the net is elastic in (its cells', or the
-    span of a net of line cells), and the per-spring properties used."""
+    span of a net of line cells), the per-spring properties used, and the junction factor the
+    conductances were scaled by (:func:`junction_factor`; 1 for line nets)."""
 
     volume: np.ndarray
     dimension: int
     properties: dict
+    junction_factor: float = 1.0
+
+
+def correct_conductances(net, values: dict, springs: np.ndarray) -> float:
+    """Scale ``values``' g and g_star (m,) on ``springs`` by :func:`junction_factor` of those
+    springs' conductances (2D and 3D nets; line nets conduct along their springs exactly)."""
+    if net.cell_dimension < 2:
+        return 1.0
+    key = "g" if "g" in values else "g_star" if "g_star" in values else None
+    if key is None:
+        return 1.0
+    own = np.zeros(net.n_springs)
+    own[springs] = values[key][springs]
+    f = junction_factor(net, own)
+    for name in ("g", "g_star"):
+        if name in values:
+            values[name][springs] *= f
+    return f
 
 
 def is_continuum(parameters: Mapping | None) -> bool:
@@ -161,6 +183,41 @@ def spring_parameters(net, model, properties: Mapping, springs: np.ndarray, wher
     return out, V
 
 
+def junction_factor(net, g: np.ndarray) -> float:
+    """The factor f by which conductances g (m,) (0 where a spring takes no part) are scaled so
+    that the net conducts a uniform gradient, averaged over its directions, at the rate the rule
+    intends, with the junction nodes eliminated as the conduction graph eliminates them.
+
+    Spring temperatures θ_e = G·x_e (x_e the spring's middle) exchange heat through junction i
+    at the rate Σ_s g_s (θ_s − T_i)², T_i = Σ_s g_s θ_s / G_i the junction's temperature. Over
+    directions of G this is A_i − |b_i|²/(3 G_i) times |G|² in 3D (d_s the spring from node i,
+    A_i = Σ_s g_s |d_s|²/(4d), b_i = Σ_s g_s d_s / 2; d: the net's dimension in the formula's 3),
+    where the rule's g makes Σ_i A_i = k V. A star of springs not balanced around its node (at
+    surfaces above all) loses |b_i|²/(d G_i): f = Σ A_i / Σ (A_i − |b_i|²/(d G_i)) ≥ 1, which
+    tends to 1 as a mesh is refined.
+    """
+    g = np.asarray(g, dtype=np.float64)
+    x, e = net.positions, net.edges
+    d = x[e[:, 1]] - x[e[:, 0]]
+    l2 = np.einsum("ij,ij->i", d, d)
+    from .rigidity import net_dimension
+
+    dim = net_dimension(net)
+    n = net.n_nodes
+    b = np.zeros((n, 3))
+    G = np.zeros(n)
+    np.add.at(b, e[:, 0], 0.5 * g[:, None] * d)
+    np.add.at(b, e[:, 1], -0.5 * g[:, None] * d)
+    np.add.at(G, e[:, 0], g)
+    np.add.at(G, e[:, 1], g)
+    A = float(np.sum(g * l2)) * 2.0 / (4.0 * dim)
+    has = G > 0
+    loss = float(np.sum(np.einsum("ij,ij->i", b[has], b[has]) / (dim * G[has])))
+    if not A > 0:
+        return 1.0
+    return A / (A - loss)
+
+
 def lumped_masses(net, density: np.ndarray, volume: np.ndarray) -> np.ndarray:
     """(n,) node masses: each spring's ρ V shared equally by its two ends (for tetrahedra,
     triangles, lines and hexahedra the same as sharing each cell's mass among its vertices).
@@ -195,6 +252,7 @@ def apply_continuum(net, model, parameters: Mapping | None):
                                   where, net.n_springs)
     springs = np.arange(net.n_springs)
     values, V = spring_parameters(net, model, properties, springs, where)
+    factor = correct_conductances(net, values, springs)
     parameters.update(values)
     density = _per_spring(properties["density"], springs)
     net = with_masses(net, lumped_masses(net, density, V))
@@ -202,7 +260,7 @@ def apply_continuum(net, model, parameters: Mapping | None):
 
     require_rigid(net, where)
     per_spring = {k: _per_spring(v, springs) for k, v in properties.items()}
-    return net, parameters, ContinuumMap(V, rigidity_dimension(net), per_spring)
+    return net, parameters, ContinuumMap(V, rigidity_dimension(net), per_spring, factor)
 
 
 def _per_spring(value, springs: np.ndarray) -> np.ndarray:

@@ -47,9 +47,10 @@ def measure(net, model, parameters: dict, volume: np.ndarray, boundary: np.ndarr
     return Effective(elastic, conduction, float(net.masses.sum()), float(C.sum()), V)
 
 
-def describe(eff: Effective, given: dict, d: int) -> list[str]:
+def describe(eff: Effective, given: dict, d: int, junction_factor: float = 1.0) -> list[str]:
     """Lines of ``thermonet info``: measured values beside the volume-weighted given ones.
-    given: volume-weighted means of the continuum properties (name -> float)."""
+    given: volume-weighted means of the continuum properties (name -> float);
+    junction_factor: what the conductances were scaled by."""
     el = eff.elastic
     frame = {3: "x, y, z", 2: "the in-plane principal axes", 1: "the line"}[d]
     nu_rule = {3: "1/4", 2: "1/3"}.get(d)
@@ -67,7 +68,8 @@ def describe(eff: Effective, given: dict, d: int) -> list[str]:
         c = eff.conduction
         k = given.get("conductivity")
         out.append(f"    conductivity {c.k:.4g}" + (f" (given {k:.4g}, ratio {c.k / k:.4f})" if k else "")
-                   + (f"; anisotropy (max − min)/mean = {c.anisotropy:.3f}" if d > 1 else ""))
+                   + (f"; anisotropy (max − min)/mean = {c.anisotropy:.3f}" if d > 1 else "")
+                   + (f"; conductances × {junction_factor:.4f} (junction factor)" if junction_factor != 1.0 else ""))
     rho, cv = given.get("density"), given.get("heat_capacity")
     out.append(f"    mass {eff.mass:.6g}" + (f" (ρ V = {rho * eff.volume:.6g})" if rho else "")
                + f"; heat capacity {eff.heat_capacity:.6g}" + (f" (c_v V = {cv * eff.volume:.6g})" if cv else ""))

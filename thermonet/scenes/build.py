@@ -218,7 +218,8 @@ def continuum_materials(scene: Scene, net: Net, model, values: dict):
     :mod:`thermonet.materials.continuum`; node masses come from their densities. Returns the net
     (with those masses) and a :class:`~thermonet.materials.ContinuumMap`, or (net, None).
     A net that is a mechanism is an error."""
-    from ..materials.continuum import ContinuumMap, lumped_masses, region_properties, spring_parameters, with_masses
+    from ..materials.continuum import (ContinuumMap, correct_conductances, lumped_masses, region_properties,
+                                       spring_parameters, with_masses)
     from ..materials.rigidity import net_dimension, require_rigid
 
     m = net.n_springs
@@ -241,6 +242,7 @@ def continuum_materials(scene: Scene, net: Net, model, values: dict):
             properties.setdefault(k, np.full(m, np.nan))[springs] = v
     if not properties:
         return net, None
+    factor = correct_conductances(net, values, np.flatnonzero(np.isfinite(volume)))
     for k, v in properties.items():
         v[np.isnan(volume)] = np.nan
     net = with_masses(net, lumped_masses(net, properties["density"], volume))
@@ -248,7 +250,7 @@ def continuum_materials(scene: Scene, net: Net, model, values: dict):
         require_rigid(net, "materials")
     except InputError as exc:
         raise scene.error("net.mesh", str(exc).removeprefix("materials: ")) from None
-    return net, ContinuumMap(volume, net_dimension(net), properties)
+    return net, ContinuumMap(volume, net_dimension(net), properties, factor)
 
 
 # --- end continuum materials ---
