@@ -284,3 +284,28 @@ def test_a_continuum_scene_builds_with_the_rule_and_info_reports_effective_prope
     mass = [ln for ln in lines if ln.strip().startswith("mass ")][0]
     shown, expected = mass.split("mass ")[1].split(" ")[0], mass.split("ρ V = ")[1].split(")")[0]
     assert shown == expected
+
+
+def test_a_scene_and_the_api_give_the_same_springs_and_masses(tmp_path):
+    from thermonet.builders import read_mesh
+
+    path = checks.bar_mesh(str(tmp_path / "bar.msh"), 0.25)
+    materials = "".join(f"{k} = {v!r}\n" for k, v in checks.parameters().items())
+    built = _scene(path, "[effects]\nconduction = true\n[materials.bar]\n" + materials).build()
+    api = Simulation(read_mesh(path), parameters=checks.parameters(), h=1e-3)
+    np.testing.assert_array_equal(built.simulation.system.parameters, api.system.parameters)
+    np.testing.assert_array_equal(built.net.masses, api.net.masses)
+    np.testing.assert_array_equal(built.simulation.system.heat.conductance, api.system.heat.conductance)
+    assert built.continuum.junction_factor == api.continuum.junction_factor
+
+
+def test_a_later_spring_parameter_region_wins_and_initial_masses_are_refused(tmp_path):
+    path = checks.bar_mesh(str(tmp_path / "bar.msh"), 0.25)
+    continuum = "[materials.all]\nyoungs_modulus = 2.0\ndensity = 1.0\nheat_capacity = 1.0\n"
+    built = _scene(path, continuum + "[materials.bar]\nc = 3.0\nbeta = 0.0\nC0 = 1.0\n").build()
+    P = built.simulation.system.parameters
+    assert np.all(P[0] == 3.0) and np.all(P[1] == 0.0)
+    assert np.isnan(built.continuum.volume[built.net.spring_groups["bar"]]).all()  # no longer continuum springs
+    assert np.all(built.net.masses == 1.0)  # so no node gets a mass from the density: the net's own
+    with pytest.raises(SceneError, match=r"initial\.mass: node masses come from the density"):
+        _scene(path, continuum + "[initial.mass]\nuniform = 2.0\n")

@@ -218,18 +218,29 @@ def continuum_materials(scene: Scene, net: Net, model, values: dict):
     :mod:`thermonet.materials.continuum`; node masses come from their densities. Returns the net
     (with those masses) and a :class:`~thermonet.materials.ContinuumMap`, or (net, None).
     A net that is a mechanism is an error."""
-    from ..materials.continuum import (ContinuumMap, correct_conductances, lumped_masses, region_properties,
-                                       spring_parameters, with_masses)
+    from ..materials.continuum import (ContinuumMap, correct_conductances, derived_parameters, lumped_masses,
+                                       region_properties, spring_parameters, with_masses)
     from ..materials.rigidity import net_dimension, require_rigid
 
+    materials = scene.data["materials"]
+    if not any(region_properties(params) for params in materials.values()):
+        return net, None
     m = net.n_springs
-    volume = np.full(m, np.nan)
+    derived_names = derived_parameters(model)
+    volume = np.full(m, np.nan)  # V_e of the springs whose parameters come from a continuum
+    conducting = np.zeros(m, dtype=bool)  # springs whose g, g_star come from a continuum
     properties: dict = {}
-    for region, params in scene.data["materials"].items():
-        given = region_properties(params)
+    for region, params in materials.items():
         springs = _spring_group(scene, net, region, f"materials.{region}")
-        if not given:
-            volume[springs] = np.nan
+        given = region_properties(params)
+        if not given:  # a spring-parameter region: applied again here, so that file order holds
+            for k, v in params.items():
+                if k != "model":
+                    values.setdefault(k, np.zeros(m))[springs] = v
+            if any(k in derived_names[:3] for k in params):
+                volume[springs] = np.nan
+            if any(k in ("g", "g_star") for k in params):
+                conducting[springs] = False
             continue
         try:
             derived, V = spring_parameters(net, model, given, springs, f"materials.{region}")
@@ -238,11 +249,10 @@ def continuum_materials(scene: Scene, net: Net, model, values: dict):
         for k, v in derived.items():
             values.setdefault(k, np.zeros(m))[springs] = v
         volume[springs] = V
+        conducting[springs] = "g" in derived or "g_star" in derived
         for k, v in given.items():
             properties.setdefault(k, np.full(m, np.nan))[springs] = v
-    if not properties:
-        return net, None
-    factor = correct_conductances(net, values, np.flatnonzero(np.isfinite(volume)))
+    factor = correct_conductances(net, values, np.flatnonzero(conducting))
     for k, v in properties.items():
         v[np.isnan(volume)] = np.nan
     net = with_masses(net, lumped_masses(net, properties["density"], volume))
