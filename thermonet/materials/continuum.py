@@ -189,12 +189,13 @@ def junction_factor(net, g: np.ndarray) -> float:
     intends, with the junction nodes eliminated as the conduction graph eliminates them.
 
     Spring temperatures θ_e = G·x_e (x_e the spring's middle) exchange heat through junction i
-    at the rate Σ_s g_s (θ_s − T_i)², T_i = Σ_s g_s θ_s / G_i the junction's temperature. Over
-    directions of G this is A_i − |b_i|²/(3 G_i) times |G|² in 3D (d_s the spring from node i,
-    A_i = Σ_s g_s |d_s|²/(4d), b_i = Σ_s g_s d_s / 2; d: the net's dimension in the formula's 3),
-    where the rule's g makes Σ_i A_i = k V. A star of springs not balanced around its node (at
-    surfaces above all) loses |b_i|²/(d G_i): f = Σ A_i / Σ (A_i − |b_i|²/(d G_i)) ≥ 1, which
-    tends to 1 as a mesh is refined.
+    at the rate Σ_s g_s (θ_s − T_i)², T_i = Σ_s g_s θ_s / G_i the junction's temperature,
+    G_i = Σ_s g_s. Averaged over the directions of G in the net's dimension d this is
+    (A_i − |b_i|²/(d G_i)) |G|², with d_s the spring from node i, A_i = Σ_s g_s |d_s|²/(4d) and
+    b_i = Σ_s g_s d_s / 2; the rule's g makes Σ_i A_i = k V. A star of springs not balanced
+    around its node (at surfaces above all) loses |b_i|²/(d G_i), so
+    f = Σ A_i / Σ (A_i − |b_i|²/(d G_i)) ≥ 1; it tends to 1 as a mesh is refined.
+    g: (m,) conductances, 0 for springs that take no part.
     """
     g = np.asarray(g, dtype=np.float64)
     x, e = net.positions, net.edges
