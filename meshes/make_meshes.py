@@ -9,6 +9,9 @@
 - thermal_bar.msh: a 3D tetrahedral bar 8×1×1 (mesh size 0.5), spring group "bar", node groups
   "hot_end" (the face x = 0, held by a heat bath in scenes/thermal_shock.toml) and "far_end"
   (the face x = 8, insulated).
+- bracket.msh: an aluminium L-bracket in metres (docs/continuum.md): a base plate 60 × 40 × 6 mm
+  ("base") and an upright flange 6 × 40 × 46 mm on it ("flange"); the whole part "bracket", the
+  bolted end face of the base "clamp" (x = 60 mm). Tetrahedra of about 5 mm.
 
 Physical groups become node groups (anchors, masses, velocities) and spring groups (materials,
 temperatures) in scenes. Files are gmsh 4.1 ASCII, small enough to read in a diff.
@@ -137,6 +140,25 @@ def thermal_bar(length: float = 8.0, size: float = 0.5) -> None:
     gmsh.option.setNumber("Mesh.RandomSeed", 1)
     gmsh.model.mesh.generate(3)
     _finish("thermal_bar.msh")
+def bracket(size: float = 0.005) -> None:
+    _start("bracket")
+    occ = gmsh.model.occ
+    base = occ.addBox(0, 0, 0, 0.06, 0.04, 0.006)
+    flange = occ.addBox(0, 0, 0.006, 0.006, 0.04, 0.046)
+    occ.fragment([(3, base)], [(3, flange)])
+    occ.synchronize()
+    gmsh.option.setNumber("Mesh.MeshSizeMin", size)
+    gmsh.option.setNumber("Mesh.MeshSizeMax", size)
+    volumes = sorted(gmsh.model.getEntities(3), key=lambda e: gmsh.model.occ.getCenterOfMass(*e)[2])
+    gmsh.model.addPhysicalGroup(3, [t for _, t in volumes], name="bracket")
+    gmsh.model.addPhysicalGroup(3, [volumes[0][1]], name="base")
+    gmsh.model.addPhysicalGroup(3, [volumes[1][1]], name="flange")
+    end = [t for d, t in gmsh.model.getEntitiesInBoundingBox(0.0599, -1e-4, -1e-4, 0.0601, 0.0401, 0.0061, dim=2)]
+    gmsh.model.addPhysicalGroup(2, end, name="clamp")
+    gmsh.option.setNumber("Mesh.Algorithm3D", 1)
+    gmsh.option.setNumber("Mesh.RandomSeed", 1)
+    gmsh.model.mesh.generate(3)
+    _finish("bracket.msh")
 
 
 if __name__ == "__main__":
@@ -145,4 +167,5 @@ if __name__ == "__main__":
     lattice2d()
     truss_block()
     thermal_bar()
+    bracket()
     print("wrote", ", ".join(f for f in sorted(os.listdir(HERE)) if f.endswith(".msh")))

@@ -245,6 +245,7 @@ def from_meshio(
     node_groups, spring_groups = _mesh_groups(mesh, source, point_to_node, cellref, inverse)
 
     masses = _node_masses(mesh, source, points, used, mass, density, wanted)
+    volumes, dimension = _spring_volumes(mesh, points, wanted, cellref, inverse, len(unique))
     anchored = np.zeros(len(used), dtype=bool)
     if anchors is not None:
         for item in np.atleast_1d(np.asarray(anchors, dtype=object)):
@@ -259,7 +260,23 @@ def from_meshio(
     return Net(
         positions, edges, masses, anchored,
         node_groups=node_groups, spring_groups=spring_groups, source=source, point_ids=used,
+        spring_volumes=volumes, cell_dimension=dimension,
     )
+
+
+def _spring_volumes(mesh, points, wanted, cellref, inverse, n_springs):
+    """(m,) each spring's share of the measure of the highest-dimensional cells (each cell split
+    equally over its edges), and that dimension."""
+    top = max(CELL_DIM[t] for t in wanted)
+    volumes = np.zeros(n_springs)
+    for bi, block in enumerate(mesh.cells):
+        if block.type not in wanted or CELL_DIM[block.type] != top or len(block.data) == 0:
+            continue
+        conn = np.asarray(block.data, dtype=np.int64)
+        share = cell_measure(block.type, points, conn) / len(CELL_EDGES[block.type])
+        rows = np.flatnonzero(cellref[:, 0] == bi)
+        np.add.at(volumes, inverse[rows], share[cellref[rows, 1]])
+    return volumes, top
 
 
 def _mesh_groups(mesh, source, point_to_node, cellref, inverse):

@@ -24,6 +24,11 @@ class Net:
     spring_groups: named spring sets (material regions), name -> int array of spring indices.
     source: where the net came from (a file path or a generator), for messages.
     point_ids: (n,) int, for nets read from a mesh: the mesh point index of each node.
+    spring_volumes: (m,) float64, for nets read from a mesh: each spring's share of the measure
+        of the mesh's cells of the highest dimension (volume in 3D, area in 2D, length in 1D;
+        every cell split equally over its edges; 0 for a spring of no such cell). Continuum
+        materials (:mod:`thermonet.materials`) turn it into spring parameters.
+    cell_dimension: the dimension of those cells (1, 2, 3); 0 when the net is not from a mesh.
     """
 
     positions: np.ndarray
@@ -35,6 +40,8 @@ class Net:
     spring_groups: dict[str, np.ndarray] = field(default_factory=dict)
     source: str = "<net>"
     point_ids: np.ndarray | None = None
+    spring_volumes: np.ndarray | None = None
+    cell_dimension: int = 0
 
     def __post_init__(self):
         where = self.source
@@ -135,6 +142,12 @@ class Net:
             e = int(np.flatnonzero(bad)[0])
             raise InputError(f"{where}: spring {e} has rest length {l0[e]}; rest lengths must be finite and > 0")
         self.rest_lengths = l0
+
+        if self.spring_volumes is not None:
+            volumes = _floats(self.spring_volumes, "spring_volumes", where)
+            if volumes.shape != (m,) or not (np.isfinite(volumes) & (volumes >= 0)).all():
+                raise InputError(f"{where}: spring_volumes must be {m} finite values >= 0")
+            self.spring_volumes = volumes
 
         for kind, groups, size in (("node", self.node_groups, n), ("spring", self.spring_groups, m)):
             for name, idx in list(groups.items()):

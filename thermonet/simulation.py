@@ -25,6 +25,7 @@ from .inputs import (angular_momentum_reference, build_system, check_backend, ch
                      guard_mode, initial_state)
 from .integrators import get_integrator
 from .layout import build_layout
+from .materials.continuum import apply_continuum
 from .models import get_model
 from .net import Net
 from .run_guards import DEFAULT_ENERGY_TOLERANCE, StabilityGuard
@@ -50,7 +51,10 @@ class Simulation(RunDriver):
     net: the :class:`~thermonet.net.Net`.
     model: a model name ("hencky", "quadratic") or a :class:`~thermonet.models.Model`.
     parameters: model parameters, name -> scalar or (m,) array (user spring numbering);
-        missing ones take the model's defaults.
+        missing ones take the model's defaults. Or, for a net read from a mesh, continuum
+        properties (``youngs_modulus``, ``density``, ``heat_capacity``, ``thermal_expansion``,
+        ``conductivity``, ...; docs/continuum.md) that set every spring's stiffness, beta, C0, g,
+        g_star and the node masses (``self.continuum`` records what the rule made).
     temperatures: initial temperature per spring θ(0), scalar or (m,); default: each spring's
         reference temperature. Entropies are η = Γ(l(0), θ(0)), Γ = −∂F/∂θ (Mata & Lew 2011,
         (11)).
@@ -117,8 +121,9 @@ class Simulation(RunDriver):
     ):
         if not isinstance(net, Net):
             raise InputError(f"net must be a thermonet.Net, got {type(net).__name__}")
-        self.net = net
         self.model = get_model(model)
+        net, parameters, self.continuum = apply_continuum(net, self.model, parameters)
+        self.net = net
         self.h = check_step(h)
         integrator_options = dict(integrator_options or {})
         stepper_keys = {"tolerance", "max_iterations", "retry", "linear_solver", "rtol", "atol",

@@ -93,6 +93,8 @@ def describe_scene(path: str, overrides) -> list[str]:
         out.append(f"    {i}: {region}, {count} springs, {params or 'model defaults'}")
     if (built.material_id < 0).any():
         out.append(f"    -1: (no region), {int((built.material_id < 0).sum())} springs, model defaults")
+    if built.continuum is not None:
+        out += _continuum(built)
     e = d["effects"]
     out.append(f"  effects: thermal {'on' if e['thermal'] else 'off'}, gravity {e['gravity'] or 'off'}, "
                f"{int(net.anchored.sum())} anchored nodes")
@@ -170,6 +172,24 @@ def _function(f) -> str:
         return f"{p[3]:g} + {p[0]:g} sin(2π·{p[1]:g} t + {p[2]:g})"
     return (f"table of {len(f.times)} points, t {f.times[0]:g} .. {f.times[-1]:g}, "
             f"values {f.values.min():g} .. {f.values.max():g}")
+
+
+def _continuum(built) -> list[str]:
+    """The effective properties the net has, measured on it (docs/continuum.md)."""
+    from ..materials.homogenize import boundary_nodes, box_boundary
+    from ..materials.report import describe, measure
+    from ..materials.rigidity import floppy_modes
+
+    net, cmap = built.net, built.continuum
+    boundary = boundary_nodes(built.mesh, net) if built.mesh is not None else box_boundary(net.positions)
+    eff = measure(net, built.simulation.model, built.parameters, cmap.volume, boundary, cmap.dimension)
+    inside = np.isfinite(cmap.volume)
+    V = cmap.volume[inside]
+    given = {k: float(np.sum(v[inside] * V) / V.sum()) for k, v in cmap.properties.items()}
+    rigid = floppy_modes(net)
+    out = describe(eff, given, cmap.dimension, cmap.junction_factor)
+    out.append(f"    rigid: no zero-frequency modes beyond the {rigid.rigid} rigid-body ones ({rigid.method})")
+    return out
 
 
 def _groups(net) -> list[str]:

@@ -12,6 +12,7 @@ import numpy as np
 from ..builders import chain, from_meshio, lattice, read_meshio, triangle
 from ..errors import InputError
 from ..heat.setup import Bath, Source
+from ..materials.continuum import CONTINUUM_KEYS
 from ..models import get_model
 from ..net import Net
 from .scene import Scene
@@ -31,6 +32,9 @@ class BuiltScene:
     material_id: np.ndarray
     material_names: list
     mesh: object = None
+    # --- continuum materials: what the rule made (None: no continuum region), the parameters ---
+    continuum: object = None
+    parameters: dict | None = None
 
 
 def build_scene(scene: Scene) -> BuiltScene:
@@ -40,6 +44,9 @@ def build_scene(scene: Scene) -> BuiltScene:
     net, mesh = build_net(scene)
     model = get_model(next((r["model"] for r in d["materials"].values() if "model" in r), "hencky"))
     parameters, material_id, names = material_parameters(scene, net, model)
+    # --- continuum materials (docs/continuum.md) ---
+    net, continuum = continuum_materials(scene, net, model, parameters)
+    # --- end continuum materials ---
     integ = d["integrator"]
     options = {k: integ[k] for k in INTEGRATOR_OPTIONS if integ.get(k) is not None}
     options.update(integ.get("options") or {})
@@ -79,7 +86,7 @@ def build_scene(scene: Scene) -> BuiltScene:
         raise scene.error("", message) from None
     except TypeError as exc:  # an option the integrator does not take
         raise scene.error("integrator", f"integrator {integ['name']!r} does not accept these options: {exc}") from None
-    return BuiltScene(scene, net, sim, material_id, names, mesh)
+    return BuiltScene(scene, net, sim, material_id, names, mesh, continuum, parameters)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -192,7 +199,7 @@ def material_parameters(scene: Scene, net: Net, model) -> tuple[dict, np.ndarray
         springs = _spring_group(scene, net, region, f"materials.{region}")
         material_id[springs] = i
         for k, v in params.items():
-            if k != "model":
+            if k != "model" and k not in CONTINUUM_KEYS:
                 values.setdefault(k, np.zeros(m))[springs] = v  # transport parameters default to 0
     for p, arr in values.items():
         if np.isnan(arr).any():
@@ -200,6 +207,63 @@ def material_parameters(scene: Scene, net: Net, model) -> tuple[dict, np.ndarray
             raise scene.error("materials", f"spring {e} has no value for parameter {p!r} of model {model.name!r} "
                               "(it has no default): set it in [materials.all] or in a region covering that spring")
     return values, material_id, names
+
+
+# --- continuum materials (docs/continuum.md) ---
+
+
+def continuum_materials(scene: Scene, net: Net, model, values: dict):
+    """Regions that give continuum properties set their springs' stiffness, beta, C0, g, g_star
+    in ``values`` (in file order, like spring parameters: later regions win) by the rule of
+    :mod:`thermonet.materials.continuum`; node masses come from their densities. Returns the net
+    (with those masses) and a :class:`~thermonet.materials.ContinuumMap`, or (net, None).
+    A net that is a mechanism is an error."""
+    from ..materials.continuum import (ContinuumMap, correct_conductances, derived_parameters, lumped_masses,
+                                       region_properties, spring_parameters, with_masses)
+    from ..materials.rigidity import net_dimension, require_rigid
+
+    materials = scene.data["materials"]
+    if not any(region_properties(params) for params in materials.values()):
+        return net, None
+    m = net.n_springs
+    derived_names = derived_parameters(model)
+    volume = np.full(m, np.nan)  # V_e of the springs whose parameters come from a continuum
+    conducting = np.zeros(m, dtype=bool)  # springs whose g, g_star come from a continuum
+    properties: dict = {}
+    for region, params in materials.items():
+        springs = _spring_group(scene, net, region, f"materials.{region}")
+        given = region_properties(params)
+        if not given:  # a spring-parameter region: applied again here, so that file order holds
+            for k, v in params.items():
+                if k != "model":
+                    values.setdefault(k, np.zeros(m))[springs] = v
+            if any(k in derived_names[:3] for k in params):
+                volume[springs] = np.nan
+            if any(k in ("g", "g_star") for k in params):
+                conducting[springs] = False
+            continue
+        try:
+            derived, V = spring_parameters(net, model, given, springs, f"materials.{region}")
+        except InputError as exc:
+            raise scene.error(f"materials.{region}", str(exc).removeprefix(f"materials.{region}: ")) from None
+        for k, v in derived.items():
+            values.setdefault(k, np.zeros(m))[springs] = v
+        volume[springs] = V
+        conducting[springs] = "g" in derived or "g_star" in derived
+        for k, v in given.items():
+            properties.setdefault(k, np.full(m, np.nan))[springs] = v
+    factor = correct_conductances(net, values, np.flatnonzero(conducting))
+    for k, v in properties.items():
+        v[np.isnan(volume)] = np.nan
+    net = with_masses(net, lumped_masses(net, properties["density"], volume))
+    try:
+        require_rigid(net, "materials")
+    except InputError as exc:
+        raise scene.error("net.mesh", str(exc).removeprefix("materials: ")) from None
+    return net, ContinuumMap(volume, net_dimension(net), properties, factor)
+
+
+# --- end continuum materials ---
 
 
 def initial_temperatures(scene: Scene, net: Net, model, parameters) -> np.ndarray | None:

@@ -218,9 +218,24 @@ def check(scene: Scene) -> None:
     from ..models import get_model
 
     model = get_model(next(iter(models), "hencky"))
+    # --- continuum materials (docs/continuum.md) ---
+    from ..materials.continuum import CONTINUUM_KEYS, region_problem
+
+    for region, params in d["materials"].items():
+        problem = region_problem(model, params)
+        if problem is not None:
+            raise scene.error(f"materials.{region}.{problem[0]}", problem[1])
+        if any(k in CONTINUUM_KEYS for k in params) and net.get("mesh") is None:
+            raise scene.error(f"materials.{region}", "continuum properties need a mesh (net.mesh): the rule uses "
+                              "each spring's share of the cells' volume")
+    continuum = [r for r, params in d["materials"].items() if any(k in CONTINUUM_KEYS for k in params)]
+    if continuum and init["mass"] is not None:
+        raise scene.error("initial.mass", f"node masses come from the density of the continuum material "
+                          f"materials.{continuum[0]}; remove initial.mass")
+    # --- end continuum materials ---
     for region, params in d["materials"].items():
         for k, v in params.items():
-            if k == "model":
+            if k == "model" or k in CONTINUUM_KEYS:
                 continue
             if k in TRANSPORT_PARAMETERS:
                 if not v >= 0:
@@ -229,6 +244,7 @@ def check(scene: Scene) -> None:
             if k not in model.parameters:
                 raise scene.error(f"materials.{region}.{k}",
                                   f"model {model.name!r} has no parameter {k!r}; its parameters: {', '.join(model.parameters)} "
-                                  f"(and the heat-flow ones: {', '.join(TRANSPORT_PARAMETERS)})")
+                                  f"(and the heat-flow ones: {', '.join(TRANSPORT_PARAMETERS)}; or continuum "
+                                  f"properties: {', '.join(CONTINUUM_KEYS)})")
             if k in model.positive and not v > 0:
                 raise scene.error(f"materials.{region}.{k}", f"must be > 0, got {v:g}")

@@ -317,7 +317,9 @@ SCHEMA = Table({
             "seed": Key(integer(0), "integer >= 0", "seed of the jitter", 0),
         }, "parameters of the lattice generator (node groups xmin, xmax, ymin, ymax, zmin, zmax)", optional=True),
     }, "the spring net: exactly one of mesh or generator"),
-    "materials": Named(Key(material, "table", "model = name (default hencky), then parameter = value (the heat-flow ones too: g, g_star)"),
+    "materials": Named(Key(material, "table", "model = name (default hencky), then parameter = value (the heat-flow ones "
+                           "too: g, g_star); or continuum properties (youngs_modulus, density, heat_capacity, thermal_expansion, "
+                           "conductivity, ...: docs/continuum.md)"),
                        "material regions, applied in file order (later regions win where they overlap). "
                        "<region> is all (every spring) or a spring group of the mesh. One model per run; "
                        "parameters not given take the model's defaults", "<region>"),
