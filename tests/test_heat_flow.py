@@ -234,3 +234,19 @@ def test_bad_heat_input_names_the_key(kwargs, message):
     params.update(kwargs.pop("parameters", {}))
     with pytest.raises(InputError, match=message):
         tn.Simulation(chain_net(4), parameters=params, **kwargs)
+
+
+def test_state_copies_do_not_share_the_heat_logs_and_orders_are_honest():
+    from thermonet.integrators.splitting import BM4, CO4
+
+    net, theta = hot_jittered_net(19)
+    sim = tn.Simulation(net, parameters=dict(c=100, beta=1.0, C0=1.0, theta0=300, g=0.4), temperatures=theta,
+                        h=0.004, **QUIET)
+    sim.run(steps=10, diagnostics_every=10)
+    state = sim.internal_state()
+    copy = state.copy()
+    assert copy.extra["heat"]["produced"] is not state.extra["heat"]["produced"]
+    assert np.array_equal(copy.extra["heat"]["produced"], state.extra["heat"]["produced"])
+    # conduction caps the order at 2; thermal waves keep it only in a composition
+    assert CO4.with_heat(True, False).order == 2 and CO4.with_heat(False, True).order == 4
+    assert BM4.with_heat(False, True).order == 2

@@ -41,5 +41,14 @@ class State:
             None if self.entropy is None else self.entropy.copy(),
             self.time,
             self.step,
-            {k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in self.extra.items()},
+            {k: _copied(v) for k, v in self.extra.items()},
         )
+
+
+def _copied(value):
+    """A copy of an ``extra`` entry: arrays and dicts of arrays (the heat-flow logs) copied."""
+    if isinstance(value, np.ndarray):
+        return value.copy()
+    if isinstance(value, dict):
+        return {k: _copied(v) for k, v in value.items()}
+    return value

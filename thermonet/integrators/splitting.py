@@ -87,7 +87,9 @@ class Splitting(Integrator):
         effects = [e for e, on in (("conduction", conduction), ("thermal waves", waves)) if on]
         if not effects:
             return self
-        return replace(out, name=f"{self.name}+{'+'.join(e.split()[-1] for e in effects)}",
+        # conduction caps the order at 2; waves keep it only in a composition of W ∘ base ∘ W
+        order = 2 if conduction or (waves and not self.composition) else self.order
+        return replace(out, name=f"{self.name}+{'+'.join(e.split()[-1] for e in effects)}", order=min(order, self.order),
                        description=f"{self.description}; with {' and '.join(effects)} (spec-heat §1–2)")
 
     @property
