@@ -250,3 +250,14 @@ def test_state_copies_do_not_share_the_heat_logs_and_orders_are_honest():
     # conduction caps the order at 2; thermal waves keep it only in a composition
     assert CO4.with_heat(True, False).order == 2 and CO4.with_heat(False, True).order == 4
     assert BM4.with_heat(False, True).order == 2
+
+
+def test_conduction_around_em2_keeps_energy_exact_and_entropy_rising():
+    net, theta = hot_jittered_net(23)
+    sim = tn.Simulation(net, parameters=dict(c=100, beta=1.0, C0=1.0, theta0=300, g=0.4), temperatures=theta,
+                        velocities=np.random.default_rng(4).normal(0, 0.3, (net.n_nodes, 3)), integrator="em2",
+                        integrator_options={"tolerance": 1e-15, "rtol": 1e-12}, h=0.01, **QUIET)
+    d = sim.run(steps=60, diagnostics_every=5)
+    assert np.max(np.abs(d.energy - d.energy[0])) < 1e-11 * abs(d.energy[0])
+    assert np.all(np.diff(d.entropy) > -1e-12 * np.abs(d.entropy).max()) and d.entropy[-1] > d.entropy[0]
+    assert np.max(np.abs(d.entropy_balance)) < 1e-10
