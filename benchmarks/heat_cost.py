@@ -105,7 +105,7 @@ class Sweeps:
         s = sim.internal_state()
         self.theta = np.empty(system.n_springs)
         temperature_pass(s.positions, s.entropy, records.topology(system.layout),
-                         records.Springs(system.rest_lengths, P), self.theta)
+                         records.Springs(system.rest_lengths, P), self.theta, np.empty(system.n_springs))
         self.theta0 = self.theta.copy()
         self.theta_start = np.empty_like(self.theta)
         self.eta = s.entropy.copy()
