@@ -224,11 +224,12 @@ def _spring_pass(x, eta, phi, topology, springs, scratch, steps, run, keep, leng
             theta, force = spring_force(l, eta[e] if THERMAL else 0.0, rest, P, c)
             s[e] = force
             bad += outside_admissible(l, rest, force, theta, stretch_min, stretch_max)
-            if THERMAL and ((CLOSING and keep) or CONDUCTION):  # conduction sweeps start from θ
+            if CONDUCTION:  # the conduction sweeps and the refresh pass start from θ and l
                 theta_keep[e] = theta
-            if CONDUCTION:
                 length[e] = l
             if CLOSING:
+                if THERMAL and keep:
+                    theta_keep[e] = theta
                 if want_sums:
                     energy_buf[e] = spring_energy(l, eta[e] if THERMAL else 0.0, theta, rest, P, c)
             if THERMAL and track_phi:
@@ -290,7 +291,10 @@ def _node_pass(x, x_new, p, topology, nodes, scratch, steps, force_source, want_
                 store_row(x_new, a, xa0, xa1, xa2)
             continue
         p0, p1, p2 = load_row(p, a)
-        if CONDUCTION and force_source == 3:  # not CLOSING: no sums, no keep
+        deferred = False
+        if CONDUCTION:
+            deferred = force_source == 3
+        if deferred:  # not CLOSING: no sums, no keep
             f0, f1, f2 = gather_force(a, x, s_before, inc_ptr, inc_spring, inc_other, masses, gravity, with_gravity)
             p0, p1, p2 = kick_momentum(p0, p1, p2, f0, f1, f2, 0.0, kick1)
             if kick2 != 0.0:
