@@ -96,12 +96,12 @@ class HeatSetup:
             bound, starts = np.unique(spring, return_index=True)
             ptr = np.append(starts, len(spring)).astype(np.int64)
             packed = pack(self.functions) if self.functions else pack([TimeFunction.constant(0.0)])
-            cached = (bound.astype(np.int64), ptr, packed)
+            cached = (bound.astype(np.int64), ptr, packed, 1.0 / self.capacity)
             self.__dict__["_static"] = cached
-        bound, ptr, packed = cached
+        bound, ptr, packed, inv_capacity = cached
         g = self.graph
         return Heat(g.first, g.second, self.factor(tau) if self.conduction else np.zeros((2, g.n_pairs)),
-                    np.ascontiguousarray(g.kappa[:, 1]), g.colour_ptr, self.capacity, 1.0 / self.capacity,
+                    np.ascontiguousarray(g.kappa[:, 1]), g.colour_ptr, self.capacity, inv_capacity,
                     bound, ptr, self.entry_kind, self.entry_fn, self.entry_rate, *packed,
                     logs["produced"], logs["entry_heat"], logs["entry_flux"], logs["theta"], logs["theta_ok"],
                     logs["length"], *self._work())
