@@ -146,6 +146,11 @@ class Diagnostics:
             else:
                 scale = abs(float(v[0]))
             out[name] = {"initial": float(v[0]), "max_deviation": dev, "relative": dev / scale if scale > 0 else dev}
+        if self.rows and "balance" in self.rows[-1]:  # loads: the largest |H − H(0) − W|
+            balance = np.abs(self.column("balance"))
+            scale = max(float(np.nanmax(np.abs(self.column("energy")))), float(np.nanmax(np.abs(self.column("work")))))
+            dev = float(np.nanmax(balance))
+            out["balance"] = {"initial": 0.0, "max_deviation": dev, "relative": dev / scale if scale > 0 else dev}
         return out
 
     def to_csv(self, path) -> None:

@@ -255,6 +255,8 @@ class RunDriver:
             else:
                 row = measure(self.system, self._state, self.parallel)
         row.update(getattr(self, "_last_stats", {}) or {})
+        if getattr(self, "loads", None) is not None:  # loads: displacement, reaction, work, balance
+            row.update(self.loads.columns(self, row))
         self.diagnostics.append(row)
         self._check_physical(row)
 

@@ -200,6 +200,9 @@ def energy_departure(rows: list, tolerance: float | None) -> float | None:
     ``tolerance`` (None: no guard), else None."""
     if tolerance is None or len(rows) < 2:
         return None
+    if "balance" in rows[-1]:  # loads: the energy changes by the work done; its balance must not
+        scale = max(abs(rows[0]["energy"]), abs(rows[-1]["energy"]), abs(rows[-1]["work"]), 1e-300)
+        return None if abs(rows[-1]["balance"]) <= tolerance * scale else abs(rows[-1]["balance"]) / scale
     e0, e = rows[0]["energy"], rows[-1]["energy"]
     if abs(e - e0) <= tolerance * max(abs(e0), np.finfo(float).tiny):
         return None
@@ -213,7 +216,8 @@ def broken_conservation(sim, energy_tolerance: float | None = None) -> list[str]
     summary = sim.diagnostics.summary()
     tol = DEFAULT_ENERGY_TOLERANCE if energy_tolerance is None else energy_tolerance
     out = []
-    checks = [("energy", tol)] + ([("entropy", ENTROPY_TOLERANCE)] if "entropy" in summary else [])
+    energy = "balance" if "balance" in summary else "energy"  # loads: the balance H − H(0) − W
+    checks = [(energy, tol)] + ([("entropy", ENTROPY_TOLERANCE)] if "entropy" in summary else [])
     for name, limit in checks:
         s = summary.get(name)
         if s is None:

@@ -71,6 +71,9 @@ class Simulation(RunDriver):
         state rewound to the previous stop.
     backend: "cpu" (default) or "cuda": the explicit integrators on an NVIDIA GPU through
         numba-cuda, the state resident on the device (see :mod:`thermonet.cuda`).
+    loads: driven node groups and forces (:class:`thermonet.loads.Drive`, :class:`thermonet.loads.Force`),
+        a sequence or a mapping name -> load; diagnostics rows then carry each load's
+        displacement, reaction and work and the balance H − H(0) − W (docs/loads.md).
     """
 
     def __init__(
@@ -93,6 +96,7 @@ class Simulation(RunDriver):
         stretch_bounds=STRETCH_BOUNDS,
         energy_tolerance: float | None = DEFAULT_ENERGY_TOLERANCE,
         stability_guard="stop",
+        loads=None,
     ):
         if not isinstance(net, Net):
             raise InputError(f"net must be a thermonet.Net, got {type(net).__name__}")
@@ -110,7 +114,13 @@ class Simulation(RunDriver):
         self.layout = layout = build_layout(net, renumber=renumber)
         P_user = self.model.parameter_array(parameters or {}, net.n_springs)
         self.angular_momentum_about = angular_momentum_reference(net)
-        self.system = build_system(net, self.model, layout, P_user, gravity, thermal, stretch_bounds)
+        # --- loads ---
+        from .loads.setup import check_load_support, resolve
+
+        load_set = resolve(loads, net)
+        check_load_support(load_set, self.integrator, self.backend)
+        # --- end loads ---
+        self.system = build_system(net, self.model, layout, P_user, gravity, thermal, stretch_bounds, load_set)
         self.energy_tolerance = check_energy_tolerance(energy_tolerance)
         self.stability_guard = StabilityGuard(self, guard_mode(stability_guard))
         self._state = initial_state(net, self.model, layout, P_user, thermal, temperatures, momenta, velocities)
@@ -118,6 +128,11 @@ class Simulation(RunDriver):
             parallel = threads != 1 and net.n_springs >= PARALLEL_MIN_SPRINGS
         self.parallel = bool(parallel)
         self.stepper = self.integrator.make_stepper(self.system, parallel=self.parallel, **stepper_options)
+        # --- loads ---
+        from .loads.setup import attach_loads
+
+        self.loads = attach_loads(self, load_set)
+        # --- end loads ---
         self.diagnostics = Diagnostics()
         #: seconds spent stepping (Numba compilation excluded) and steps run, over all runs
         self.wall_time = 0.0
@@ -161,6 +176,7 @@ class Simulation(RunDriver):
             entropy=None if s.entropy is None else lay.springs_to_user(s.entropy),
             time=s.time,
             step=s.step,
+            extra={k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in s.extra.items()},
         )
 
     def load_state(self, state: State) -> None:
@@ -182,6 +198,8 @@ class Simulation(RunDriver):
             entropy=springs(state.entropy),
             time=float(state.time),
             step=int(state.step),
+            extra={k: (np.array(v, dtype=np.float64) if isinstance(v, np.ndarray) else v)
+                   for k, v in state.extra.items()},
         )
         step, time = self._state.step, self._state.time
         # a state of a run that started at t = 0 with this h keeps time = step·h exactly (resume is

@@ -30,6 +30,8 @@ class System:
     thermal: False for a purely mechanical run (every spring held at its reference temperature;
         no entropies or thermal displacements exist).
     stretch_bounds: (lo, hi) admissible stretches l/l0; the explicit kernel stops a run outside.
+    loads: the driven groups and forces (:class:`~thermonet.loads.arrays.LoadSet`), or None;
+        nodes driven in every axis are among the ``anchored`` ones.
     """
 
     model: Model
@@ -43,6 +45,7 @@ class System:
     gravity: np.ndarray | None = None
     thermal: bool = True
     stretch_bounds: tuple[float, float] = (1e-4, 1e4)
+    loads: object = None  # loads
 
     def __repr__(self) -> str:
         return (f"<System {self.n_nodes} nodes, {self.n_springs} springs, model {self.model.name}, "

@@ -19,6 +19,7 @@ from ..errors import InputError
 from ..kernels.records import Run, StateArrays
 from .base import Integrator, StepFailure, Stepper, register_integrator
 from .schedule import MAX_FLOWS, StageTable, flow_slots, stage_table
+from ..loads.elements import NO_LOADS
 
 
 @dataclass(frozen=True, repr=False)
@@ -196,8 +197,14 @@ class SplittingStepper(Stepper):
         self.system = system
         P, uniform = kernel_parameters(system.parameters)
         flows = integrator.subflows
-        self._advance = splitting_kernels(system.model, parallel, system.thermal, uniform, flows)
         self._table = integrator.table
+        # --- loads ---
+        from ..loads.stepping import StepperLoads
+
+        self.loads = StepperLoads.of(system, self._table)
+        # --- end loads ---
+        self._advance = splitting_kernels(system.model, parallel, system.thermal, uniform, flows,
+                                          loads=self.loads is not None)
         n, m = system.n_nodes, system.n_springs
         self._scratch = records.Scratch(np.empty((n, 3)), np.empty(m), np.empty((n, 3)),
                                         np.empty(m if system.thermal else 0), np.empty(m), np.empty(11))
@@ -229,8 +236,9 @@ class SplittingStepper(Stepper):
         self._boundary = None
         run = Run(float(h), float(state.time), int(n_steps), bool(self.integrator.track_phi), float(lo), float(hi),
                   bool(reuse), bool(measure))
+        loads = self.loads.arrays_for(state, h) if self.loads is not None else NO_LOADS  # loads
         done, detected, summed = self._advance(arrays, self._scratch, self._topology, self._springs, self._nodes,
-                                               self._table, self._effects, run)
+                                               self._table, self._effects, run, loads)
         if not detected and self._table.carry != 0.0:
             self._boundary = (state, state.step + int(n_steps))
         if summed:

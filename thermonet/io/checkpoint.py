@@ -31,6 +31,9 @@ def save_checkpoint(path, state: State, meta: dict) -> None:
     if state.entropy is not None:
         arrays["entropy"] = state.entropy
         arrays["thermal_displacement"] = state.thermal_displacement
+    for key, value in state.extra.items():  # accumulators such as the loads' work
+        if isinstance(value, np.ndarray):
+            arrays[f"extra.{key}"] = value
     with atomic_write(path) as f:
         np.savez(f, **arrays)
 
@@ -59,6 +62,7 @@ def load_checkpoint(path) -> tuple[State, dict]:
                 entropy=z["entropy"].copy() if thermal else None,
                 time=float(z["time"]),
                 step=int(z["step"]),
+                extra={k[len("extra."):]: z[k].copy() for k in z.files if k.startswith("extra.")},
             )
     except Exception as exc:  # zipfile.BadZipFile, EOFError, zlib.error, OSError, ValueError, KeyError, ...
         reason = str(exc) or type(exc).__name__

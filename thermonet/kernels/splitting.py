@@ -75,6 +75,10 @@ thermal_kick = copy_rows = apply_flow = None
 spring_force = spring_energy = spring_temperature = outside_admissible = advance_thermal_displacement = None
 gather_force = kick_momentum = drift_position = load_row = store_row = None
 flow_pass_0 = flow_pass_1 = flow_pass_2 = flow_pass_3 = update = None
+# --- loads (thermonet.loads.elements): compiled in only with LOADS ---
+node_load = cpu_evaluate_loads = cpu_load_work = cpu_drive_positions = stage_time = None
+LOADS = False
+# --- end loads ---
 THERMAL = True
 CLOSING = False
 REFERENCE_TEMPERATURE = 0
@@ -109,14 +113,17 @@ def bind_subflows(ns: dict, tag: str, compile_) -> None:
         ns[name] = compile_(rebind(getattr(subflows, name), tag, ns))
 
 
-def splitting_kernels(model, parallel: bool, thermal: bool = True, uniform: bool = False, flows=()):
+def splitting_kernels(model, parallel: bool, thermal: bool = True, uniform: bool = False, flows=(),
+                      loads: bool = False):
     """``advance(state, scratch, topology, springs, nodes, table, effects, run)`` compiled for
     ``model`` (multi-threaded when ``parallel``; purely mechanical when not ``thermal``, in which
     case ``phi`` and ``eta`` may be empty arrays; for a ``(k, 1)`` parameter array shared by all
     springs when ``uniform``, see :func:`kernel_parameters`) with the extra sub-flows ``flows``
-    (:class:`~thermonet.integrators.schedule.SubFlow` s, slot order) in its flow slots."""
+    (:class:`~thermonet.integrators.schedule.SubFlow` s, slot order) in its flow slots; with
+    ``loads`` the node pass and the step read a :class:`~thermonet.loads.arrays.LoadArrays` (the
+    ``loads`` argument; otherwise a placeholder, and the loads' code is compiled out)."""
     key = (model_fingerprint(model), bool(parallel), bool(thermal), bool(uniform),
-           tuple(id(f) for f in flows))
+           tuple(id(f) for f in flows), bool(loads))
     if key not in _CACHE:
         flows_tag = f"_f{function_fingerprint(*(f.update for f in flows))}" if flows else ""
         tag = (f"{model.name}_{key[0]}_{'par' if parallel else 'ser'}_{'thermal' if thermal else 'mech'}"
@@ -124,6 +131,13 @@ def splitting_kernels(model, parallel: bool, thermal: bool = True, uniform: bool
         ns = kernel_namespace(model, thermal, uniform)
         ns["CLOSING"] = False
         bind_subflows(ns, tag, njit(inline="always", error_model="numpy", boundscheck=False))
+        # --- loads ---
+        ns["LOADS"] = bool(loads)
+        if loads:
+            from ..loads.elements import bind_loads
+
+            tag += bind_loads(ns, tag, njit(inline="always", error_model="numpy", boundscheck=False))
+        # --- end loads ---
         ns["spring_pass"] = specialize(_spring_pass, tag, ns, parallel=parallel, **_OPTIONS)
         ns["node_pass"] = specialize(_node_pass, tag, ns, parallel=parallel, **_OPTIONS)
         boundary = dict(ns, CLOSING=True)
@@ -231,7 +245,7 @@ def _spring_pass(x, eta, phi, topology, springs, scratch, steps, run, keep):
     return bad, energy, theta_min, theta_max
 
 
-def _node_pass(x, x_new, p, topology, nodes, scratch, steps, force_source, want_sums):
+def _node_pass(x, x_new, p, topology, nodes, scratch, steps, force_source, want_sums, loads):
     """Per node a: f = Σ s_e (x_b − x_a) (+ m g); p += kick1 f; p += kick2 f; x_new = x + drift p/m,
     with steps = (kick1, kick2, drift, with_force) (fractions of h already multiplied by h).
 
@@ -239,7 +253,8 @@ def _node_pass(x, x_new, p, topology, nodes, scratch, steps, force_source, want_
     call's closing kick, whose drift is 0: x_new is then not written, the positions stay in
     x); 2 take f from f_keep. Returns, with ``want_sums`` (CLOSING only), the sums over free
     nodes at (x, the new p) of kinetic energy, gravity potential −Σ m g·x, p and (x − ref) × p
-    (else 0).
+    (else 0). loads: with LOADS, the node's force load is added to f and its driven axes zeroed
+    (:func:`thermonet.loads.elements.node_load`).
     """
     inc_ptr = topology.inc_ptr
     inc_spring = topology.inc_spring
@@ -275,6 +290,8 @@ def _node_pass(x, x_new, p, topology, nodes, scratch, steps, force_source, want_
                 f0, f1, f2 = load_row(f_keep, a)
             else:
                 f0, f1, f2 = gather_force(a, x, s, inc_ptr, inc_spring, inc_other, masses, gravity, with_gravity)
+                if LOADS:
+                    f0, f1, f2 = node_load(a, f0, f1, f2, loads)
                 if CLOSING and force_source == 1:
                     store_row(f_keep, a, f0, f1, f2)
             p0, p1, p2 = kick_momentum(p0, p1, p2, f0, f1, f2, kick1, kick2)
@@ -334,7 +351,7 @@ def _apply_flow(slot, effects, tau, t, x, p, phi, eta):
         flow_pass_3(effects[3], tau, t, x, p, phi, eta)
 
 
-def _advance(state, scratch, topology, springs, nodes, table, effects, run):
+def _advance(state, scratch, topology, springs, nodes, table, effects, run, loads):
     """Advance ``state`` (x, p, Φ in place; η too where a sub-flow changes it) by ``run.n_steps``
     steps of the schedule ``table`` (a :class:`~thermonet.integrators.schedule.StageTable`).
 
@@ -349,6 +366,10 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, run):
     states (see the module docstring); then ``x`` holds the positions where it was found and only
     the first ``steps completed`` steps are known good (x, p, Φ are mid-step: rewind and replay).
     ``summed``: the sums were written (a schedule without a closing kick writes none).
+
+    With LOADS, ``loads`` (:class:`~thermonet.loads.arrays.LoadArrays`): before each kick the
+    loads are evaluated at its time, after it their reactions and work are accumulated, and after
+    each drift the driven nodes are set to the drift's end time (:mod:`thermonet.loads.elements`).
     """
     x = state.x
     p = state.p
@@ -385,12 +406,19 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, run):
                         copy_rows(x_buf, x)
                     # positions at row 0 are the end of the previous step: that step was the bad one
                     return (step - 1 if r == 0 and step > 0 else step), True, False
+            if LOADS and with_force:
+                cpu_evaluate_loads(loads, stage_time(loads, h, step, loads.kick_time[r]))
             if reuse:
-                boundary_node_pass(cur, nxt, p, topology, nodes, scratch, steps, 2, False)
+                boundary_node_pass(cur, nxt, p, topology, nodes, scratch, steps, 2, False, loads)
             else:
-                node_pass(cur, nxt, p, topology, nodes, scratch, steps, 0, False)
+                node_pass(cur, nxt, p, topology, nodes, scratch, steps, 0, False, loads)
+            if LOADS and with_force:
+                cpu_load_work(cur, scratch.s, topology, nodes, loads, k1 * h, k2 * h)
             cur, nxt = nxt, cur
             swaps += 1
+            if LOADS and table.drift[r] != 0.0:
+                cpu_evaluate_loads(loads, stage_time(loads, h, step, loads.drift_time[r]))
+                cpu_drive_positions(cur, loads)
         pending = carry
     summed = False
     if pending != 0.0:
@@ -401,8 +429,12 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, run):
                 copy_rows(x_buf, x)
             return n_steps - 1, True, False
         # drift 0: the positions stay in cur
+        if LOADS:
+            cpu_evaluate_loads(loads, stage_time(loads, h, n_steps, 0.0))
         node_sums = boundary_node_pass(cur, nxt, p, topology, nodes, scratch, (0.0, pending * h, 0.0, True), 1,
-                                       run.want_sums)
+                                       run.want_sums, loads)
+        if LOADS:
+            cpu_load_work(cur, scratch.s, topology, nodes, loads, 0.0, pending * h)
         if run.want_sums:
             sums = scratch.sums
             sums[0] = energy
