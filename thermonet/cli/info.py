@@ -96,6 +96,9 @@ def describe_scene(path: str, overrides) -> list[str]:
     e = d["effects"]
     out.append(f"  effects: thermal {'on' if e['thermal'] else 'off'}, gravity {e['gravity'] or 'off'}, "
                f"{int(net.anchored.sum())} anchored nodes")
+    if sim.loads is not None:  # loads
+        out.append(f"  loads ({len(sim.loads.set)}):")
+        out += [f"    {name}: {sim.loads.set.describe(i)}" for i, name in enumerate(sim.loads.set.names)]
     out.append(f"  integrator {sim.integrator.name} (order {sim.integrator.order}), h = {sim.h:g}, {total} steps "
                f"to t = {total * sim.h:g}")
     out.append(f"  output every {scene.cadence('frames_every', total)} steps (frames), "

@@ -31,6 +31,8 @@ def format_summary(sim, scene: str, out: str | None = None) -> str:
 
 def conserved_quantities(sim) -> set[str]:
     """Which diagnostics the exact flow conserves for this net (momenta depend on anchors/gravity)."""
+    if getattr(sim, "loads", None) is not None:  # loads: energy changes by the work; H − H(0) − W is kept
+        return {"entropy", "balance"}
     names = {"energy", "entropy"}
     anchored = bool(sim.net.anchored.any())
     gravity = sim.system.gravity is not None

@@ -45,6 +45,9 @@ def build_scene(scene: Scene) -> BuiltScene:
     init = d["initial"]
     kind = "momentum" if init["momentum"] is not None else "velocity"
     motion = node_vectors(scene, net, mesh, kind)
+    from ..loads.scene import scene_loads  # loads
+
+    loads = scene_loads(scene, net)  # loads
     try:
         sim = Simulation(
             net,
@@ -65,6 +68,7 @@ def build_scene(scene: Scene) -> BuiltScene:
             stretch_bounds=tuple(integ["stretch_bounds"]),
             energy_tolerance=integ["energy_tolerance"] or None,
             stability_guard="stop" if integ["check_step"] else "warn",
+            loads=loads,
         )
     except InputError as exc:
         raise scene.error("", str(exc)) from None
