@@ -37,6 +37,7 @@ def scene_loads(scene, net) -> dict | None:
     except InputError as exc:
         message = str(exc)
         match = _KEY.match(message)
-        path = tuple(match.group(1).split(".")) if match else ("loads",)
-        raise scene.error(path, message) from None
+        if match:
+            raise scene.error(tuple(match.group(1).split(".")), message[match.end():]) from None
+        raise scene.error(("loads",), message) from None
     return loads
