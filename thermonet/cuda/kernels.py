@@ -51,6 +51,10 @@ spring_force = spring_energy = spring_temperature = outside_admissible = advance
 squared_length = None
 gather_force = kick_momentum = drift_position = load_row = store_row = update = None
 flow_update_0 = flow_update_1 = flow_update_2 = flow_update_3 = None
+# --- loads (thermonet.loads.elements): compiled in only with LOADS ---
+node_load = evaluate_load = load_power = add_work = drive_member = None
+LOADS = False
+# --- end loads ---
 THERMAL = True
 REFERENCE_TEMPERATURE = 0
 UNIFORM = False
@@ -81,6 +85,7 @@ class CudaKernels:
     def __init__(self, spring, node, flows, steps, spring_sums, node_sums, finish, threads, reduce_threads,
                  reduce_blocks):
         self.spring, self.node, self.flows, self.steps = spring, node, flows, steps
+        self.load_start = self.load_stage = None  # loads: see cuda_kernels(loads=True)
         self.spring_sums, self.node_sums, self.finish = spring_sums, node_sums, finish
         self.threads, self.reduce_threads, self.reduce_blocks = threads, reduce_threads, reduce_blocks
 
@@ -89,13 +94,15 @@ class CudaKernels:
         return (n + self.threads - 1) // self.threads
 
 
-def cuda_kernels(model, thermal: bool = True, uniform: bool = False, flows=()) -> CudaKernels:
+def cuda_kernels(model, thermal: bool = True, uniform: bool = False, flows=(), loads: bool = False) -> CudaKernels:
     """The CUDA kernels for ``model`` (purely mechanical when not ``thermal``; parameters shared
     by all springs, a ``(k, 1)`` array, when ``uniform``: see
     :func:`thermonet.kernels.splitting.kernel_parameters`), with the extra sub-flows ``flows``
-    (:class:`~thermonet.integrators.schedule.SubFlow` s, slot order)."""
+    (:class:`~thermonet.integrators.schedule.SubFlow` s, slot order); with ``loads`` the node
+    kernel adds the loads' forces and ``load_start`` / ``load_stage`` run the loads' own passes
+    (two launches per stage only: the fused ``steps`` kernel is not compiled with them)."""
     sim = simulator_enabled()
-    key = (model_fingerprint(model), bool(thermal), bool(uniform), sim, tuple(id(f) for f in flows))
+    key = (model_fingerprint(model), bool(thermal), bool(uniform), sim, tuple(id(f) for f in flows), bool(loads))
     if key not in _CACHE:
         ns = kernel_namespace(model, thermal, uniform)
         if sim:
@@ -108,6 +115,13 @@ def cuda_kernels(model, thermal: bool = True, uniform: bool = False, flows=()) -
         jit = cuda.jit if sim else cuda.jit(cache=True)
         inline = (lambda fn: fn) if sim else njit(inline="always")
         bind_subflows(ns, tag, inline)
+        # --- loads ---
+        ns["LOADS"] = bool(loads)
+        if loads:
+            from ..loads.cuda import bind_device_loads
+
+            tag += bind_device_loads(ns, tag, inline, sim)
+        # --- end loads ---
         for slot in range(MAX_FLOWS):
             ns[f"flow_update_{slot}"] = _device_update(flows[slot].update, sim) if slot < len(flows) else _no_update
         for name, template in _SHARED:  # in order: later ones call earlier ones
@@ -118,10 +132,15 @@ def cuda_kernels(model, thermal: bool = True, uniform: bool = False, flows=()) -
 
         flow_kernels = tuple(compile_(_flow_kernel, dict(ns, update=ns[f"flow_update_{slot}"]), f"_{slot}")
                              for slot in range(len(flows)))
-        _CACHE[key] = CudaKernels(
+        kernels = CudaKernels(
             compile_(_spring_kernel), compile_(_node_kernel), flow_kernels, compile_(_steps_kernel),
             compile_(_spring_sums_kernel), compile_(_node_sums_kernel), compile_(_finish_kernel),
             SIMULATOR_THREADS if sim else THREADS, reduce_threads, SIMULATOR_REDUCE_BLOCKS if sim else REDUCE_BLOCKS)
+        if loads:  # loads
+            from ..loads.cuda import load_stage_kernel, load_start_kernel
+
+            kernels.load_start, kernels.load_stage = compile_(load_start_kernel), compile_(load_stage_kernel)
+        _CACHE[key] = kernels
     return _CACHE[key]
 
 
@@ -160,12 +179,12 @@ def _spring_kernel(x, eta, phi, springs, edges, s, steps, run, flag, where):
             _raise_flag(flag, where)
 
 
-def _node_kernel(x, x_new, p, s, topology, nodes, steps, flag):
+def _node_kernel(x, x_new, p, s, topology, nodes, steps, flag, loads):
     """Thread a: :func:`_node_update` of node a, unless the call already stopped (``flag``);
-    steps: (kick1 h, kick2 h, drift h, with_force)."""
+    steps: (kick1 h, kick2 h, drift h, with_force); loads: a LoadArrays record with LOADS."""
     a = cuda.grid(1)
     if a < x.shape[0] and flag[FLAG_SET] == 0:
-        _node_update(a, x, x_new, p, s, topology, nodes, steps)
+        _node_update(a, x, x_new, p, s, topology, nodes, steps, loads)
 
 
 def _flow_kernel(data, tau, t, x, p, phi, eta, flag):
@@ -227,7 +246,7 @@ def _steps_kernel(state, x_buf, s, topology, springs, nodes, table, effects, run
                 if flag[FLAG_SET] != 0:
                     return
             for a in range(first, xs.shape[0], stride):
-                _node_update(a, xs, xn, p, s, topology, nodes, (k1 * h, k2 * h, d * h, with_force))
+                _node_update(a, xs, xn, p, s, topology, nodes, (k1 * h, k2 * h, d * h, with_force), nodes)
             grid.sync()
             parity = 1 - parity
         pending = table.carry
@@ -279,9 +298,10 @@ def _spring_update(e, x, eta, phi, springs, edges, s, steps, run):
     return outside_admissible(l, rest, force, theta, run.stretch_min, run.stretch_max)
 
 
-def _node_update(a, x, x_new, p, s, topology, nodes, steps):
-    """Node a: f = Σ s_e (x_b − x_a) (+ m g); p += kick1 f; p += kick2 f; x_new = x + drift p/m,
-    steps = (kick1, kick2, drift, with_force). x, x_new, p: (n, 3)."""
+def _node_update(a, x, x_new, p, s, topology, nodes, steps, loads):
+    """Node a: f = Σ s_e (x_b − x_a) (+ m g) (+ its load, with LOADS); p += kick1 f; p += kick2 f;
+    x_new = x + drift p/m, steps = (kick1, kick2, drift, with_force). x, x_new, p: (n, 3).
+    The fused kernel, never compiled with LOADS, passes a placeholder for ``loads``."""
     xa0, xa1, xa2 = load_row(x, a)
     if nodes.anchored[a]:
         store_row(x_new, a, xa0, xa1, xa2)
@@ -290,6 +310,8 @@ def _node_update(a, x, x_new, p, s, topology, nodes, steps):
     if steps[3]:
         f0, f1, f2 = gather_force(a, x, s, topology.inc_ptr, topology.inc_spring, topology.inc_other, nodes.masses,
                                   nodes.gravity, nodes.with_gravity)
+        if LOADS:
+            f0, f1, f2 = node_load(a, f0, f1, f2, loads)
         p0, p1, p2 = kick_momentum(p0, p1, p2, f0, f1, f2, steps[0], steps[1])
         store_row(p, a, p0, p1, p2)
     drift_position(x_new, a, xa0, xa1, xa2, p0, p1, p2, steps[2] * nodes.inv_mass[a])
@@ -434,7 +456,7 @@ def compile_ptx(model, thermal: bool = True, uniform: bool = False, cc=(9, 0)) -
     flag = np.zeros(4, np.int64)
     samples = {
         "spring": (_spring_kernel, (x, v, v, springs, topology.edges, v, (1.0, 1.0), run, flag, (0, 0, 0))),
-        "node": (_node_kernel, (x, x, x, v, topology, nodes, (1.0, 1.0, 1.0, True), flag)),
+        "node": (_node_kernel, (x, x, x, v, topology, nodes, (1.0, 1.0, 1.0, True), flag, nodes)),
         "spring_sums": (_spring_sums_kernel, (x, v, v, springs.P, topology.edges, x)),
         "node_sums": (_node_sums_kernel, (x, x, v, nodes.anchored, v, v, x)),
         "finish": (_finish_kernel, (x, np.empty(1, np.int32), v)),

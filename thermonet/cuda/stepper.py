@@ -55,8 +55,15 @@ class CudaSplittingStepper(Stepper):
         self._cuda = cuda
         P, uniform = kernel_parameters(system.parameters)
         flows = integrator.subflows
-        self._k = cuda_kernels(system.model, system.thermal, uniform, flows)
         table = integrator.table
+        # --- loads: two launches per stage (the fused kernel does not take them) ---
+        from ..loads.stepping import StepperLoads
+
+        self.loads = StepperLoads.of(system, table)
+        if self.loads is not None:
+            self.fused = False
+        # --- end loads ---
+        self._k = cuda_kernels(system.model, system.thermal, uniform, flows, loads=self.loads is not None)
         n, m = system.n_nodes, system.n_springs
         dev = cuda.to_device
         self._table = records_to_device(table, dev)
@@ -66,6 +73,7 @@ class CudaSplittingStepper(Stepper):
         self._springs = records_to_device(records.Springs(system.rest_lengths, P), dev)
         self._nodes = records_to_device(records.nodes(system), dev)
         self._effects = records_to_device(flow_data(flows, system), dev)
+        self._loads = records_to_device(self.loads.arrays, dev) if self.loads is not None else self._nodes  # loads
         self._s = cuda.device_array(max(m, 1))
         self._x = cuda.device_array((n, 3))
         self._x_buf = cuda.device_array((n, 3))
@@ -97,6 +105,10 @@ class CudaSplittingStepper(Stepper):
         if self.system.thermal:
             self._phi.copy_to_device(np.ascontiguousarray(state.thermal_displacement))
             self._eta.copy_to_device(np.ascontiguousarray(state.entropy))
+        if self.loads is not None:  # loads: the work accumulators
+            from ..loads.stepping import work_of
+
+            self._loads.work.copy_to_device(work_of(state, len(self.loads.arrays.work)))
         self._bound = state
         self._device_newer = False
 
@@ -109,6 +121,10 @@ class CudaSplittingStepper(Stepper):
         if self.system.thermal:
             self._phi.copy_to_host(state.thermal_displacement)
             self._eta.copy_to_host(state.entropy)
+        if self.loads is not None:  # loads
+            from ..loads.stepping import work_of
+
+            self._loads.work.copy_to_host(work_of(state, len(self.loads.arrays.work)))
         self._device_newer = False
 
     def _state_arrays(self):
@@ -125,7 +141,11 @@ class CudaSplittingStepper(Stepper):
                                              self._s, (k1, k2), run, self._flag, where)
         if n > 0:
             k.node[k.blocks(n), k.threads](self._x, self._x_buf, self._p, self._s, self._topology, self._nodes,
-                                           (k1, k2, drift, with_force), self._flag)
+                                           (k1, k2, drift, with_force), self._flag, self._loads)
+        if self.loads is not None and (with_force or drift != 0.0):  # loads: work, then the drive at t_after
+            k.load_stage[1, len(self.loads.arrays.work)](self._x, self._x_buf, self._s, self._topology, self._nodes,
+                                                         self._loads, (k1, k2, with_force, drift != 0.0),
+                                                         self._t_after)
         self._x, self._x_buf = self._x_buf, self._x
 
     def _flow(self, slot: int, tau: float, t: float) -> None:
@@ -146,6 +166,7 @@ class CudaSplittingStepper(Stepper):
             return None
         self._bind(state)
         self._keep_backup(state, h)
+        self._call_step = state.step  # loads: the clock's step
         stop = self._steps(float(state.time), int(n_steps), float(h))
         self._device_newer = True
         if stop is not None:
@@ -172,12 +193,15 @@ class CudaSplittingStepper(Stepper):
         x_start = self._x
         pending = 0.0
         stages = 0
+        clock = self._load_clock(h)  # loads
         for step in range(n_steps):
             t_step = t0 + step * h
             for r, (code, kick, drift) in enumerate(self._rows):
                 if code >= 0:
                     self._flow(code, kick * h, t_step + drift * h)
                     continue
+                if clock is not None:  # loads: the time at the end of this stage's drift
+                    self._t_after = clock[0] + ((clock[1] + step) + self._drift_time[r]) * h
                 k1 = pending if r == 0 else 0.0
                 self._stage(k1 * h, kick * h, drift * h, k1 != 0.0 or kick != 0.0, run, (step, r, stages))
                 stages += 1
@@ -186,6 +210,22 @@ class CudaSplittingStepper(Stepper):
             self._stage(0.0, pending * h, 0.0, True, run, (n_steps, len(self._rows), stages))
         flag = self._flag.copy_to_host()
         return (flag, 0, x_start) if flag[FLAG_SET] else None
+
+    # --- loads ---
+    _t_after = 0.0
+
+    def _load_clock(self, h: float):
+        """(origin time, steps from it) of this call, and the loads evaluated at its first kick
+        (None without loads); see :meth:`thermonet.loads.stepping.StepperLoads.arrays_for`."""
+        if self.loads is None:
+            return None
+        step0, t0 = self.loads.time_origin()
+        clock = (float(t0), float(self._call_step - step0))
+        self._drift_time = self.loads.arrays.drift_time
+        t = clock[0] + (clock[1] + self.loads.arrays.kick_time[0]) * h
+        self._k.load_start[1, len(self.loads.arrays.work)](self._loads, t)
+        return clock
+    # --- end loads ---
 
     def _fused_steps(self, run) -> None:
         """``run.n_steps`` steps as one cooperative launch; the same rows as :meth:`advance`'s
@@ -247,6 +287,7 @@ class CudaSplittingStepper(Stepper):
         for source, target in zip(copies, self._state_arrays()):
             target.copy_to_device(source)
         replay = state.step - backup_step + done
+        self._call_step = backup_step  # loads (their work accumulators are not rewound: the run stops here)
         if replay > 0 and self._steps(backup_time, replay, h) is not None:
             # the same launches from the same state: only a nondeterministic device could stop again
             raise RuntimeError("the replay of the good steps stopped again")

@@ -20,8 +20,6 @@ def check_load_support(load_set: LoadSet | None, integrator, backend: str) -> No
 
         raise InputError(f"loads: integrator {integrator.name!r} is implicit; loads ({', '.join(load_set.names)}) "
                          f"run with the explicit integrators ({', '.join(explicit_integrators())})")
-    if backend != "cpu":
-        raise InputError(f"loads: backend {backend!r} does not run loads yet; use backend 'cpu'")
 
 
 class SimulationLoads:
