@@ -6,6 +6,8 @@
 - truss_block.msh: a 3D tetrahedral truss block 4×1×1 made of four unit slabs: materials
   "soft" (x < 2) and "stiff" (x > 2), a "hot" tip slab (x > 3), a clamped face "clamp" (x = 0)
   and the free end face "tip" (x = 4).
+- dogbone.msh: a flat tensile specimen (triangles, in the plane z = 0), 10 long: grips 2 × 2 at
+  both ends ("grip_left" x ≤ 2, "grip_right" x ≥ 8) and a gauge 6 × 1 ("gauge") between them.
 
 Physical groups become node groups (anchors, masses, velocities) and spring groups (materials,
 temperatures) in scenes. Files are gmsh 4.1 ASCII, small enough to read in a diff.
@@ -116,7 +118,27 @@ def truss_block(size: float = 0.25) -> None:
     _finish("truss_block.msh")
 
 
+def dogbone(size: float = 0.25) -> None:
+    _start("dogbone")
+    occ = gmsh.model.occ
+    left = occ.addRectangle(0, -1, 0, 2, 2)
+    gauge = occ.addRectangle(2, -0.5, 0, 6, 1)
+    right = occ.addRectangle(8, -1, 0, 2, 2)
+    occ.fragment([(2, gauge)], [(2, left), (2, right)])
+    occ.synchronize()
+    gmsh.option.setNumber("Mesh.MeshSizeMin", size)
+    gmsh.option.setNumber("Mesh.MeshSizeMax", size)
+    surfaces = sorted(gmsh.model.getEntities(2), key=lambda e: gmsh.model.occ.getCenterOfMass(*e)[0])
+    gmsh.model.addPhysicalGroup(2, [surfaces[0][1]], name="grip_left")
+    gmsh.model.addPhysicalGroup(2, [surfaces[1][1]], name="gauge")
+    gmsh.model.addPhysicalGroup(2, [surfaces[2][1]], name="grip_right")
+    gmsh.option.setNumber("Mesh.RandomSeed", 1)
+    gmsh.model.mesh.generate(2)
+    _finish("dogbone.msh")
+
+
 if __name__ == "__main__":
+    dogbone()
     chain()
     triangle()
     lattice2d()
