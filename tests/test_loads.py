@@ -201,3 +201,17 @@ def test_bad_loads_are_input_errors_naming_the_key(loads, message):
 def test_loads_with_an_implicit_integrator_are_refused_clearly():
     with pytest.raises(InputError, match="loads: integrator 'ho4' is implicit"):
         tn.Simulation(bar(2), h=1e-3, integrator="ho4", loads={"pull": Drive("grip", velocity=[1, 0, 0])})
+
+
+def test_a_blown_up_loaded_run_is_rewound_with_its_work_to_the_last_good_step():
+    def make():
+        return tn.Simulation(bar(2), h=1e-3, stretch_bounds=(0.5, 1.5), energy_tolerance=None,
+                             stability_guard="off", loads={"pull": Drive("grip", velocity=[1.0, 0, 0])})
+
+    bad = make()
+    with pytest.raises(tn.SimulationError, match="left the admissible states"):
+        bad.run(steps=3000, diagnostics_every=100)
+    good = make()
+    good.run(steps=bad.step, diagnostics_every=100)
+    assert 500 < bad.step < 3000
+    same(bad, good)

@@ -168,6 +168,7 @@ class RunDriver:
             np.copyto(b.momenta, s.momenta)
             if s.thermal_displacement is not None:
                 np.copyto(b.thermal_displacement, s.thermal_displacement)
+            b.extra = {k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in s.extra.items()}  # loads' work
         b.step, b.time = s.step, s.time
         self._backup_of = (s, self._h)  # a loaded state or a new h makes the copy useless for replays
         return b
@@ -188,6 +189,9 @@ class RunDriver:
         np.copyto(s.momenta, backup.momenta)
         if s.thermal_displacement is not None:
             np.copyto(s.thermal_displacement, backup.thermal_displacement)
+        for k, v in backup.extra.items():  # loads' work accumulators
+            if isinstance(v, np.ndarray) and isinstance(s.extra.get(k), np.ndarray):
+                np.copyto(s.extra[k], v)
         self._set_step(backup.step)
         if steps > 0:
             self.stepper.advance(s, steps, self._h)
