@@ -311,7 +311,8 @@ def _node_update(a, x, x_new, p, s, topology, nodes, steps, loads):
         f0, f1, f2 = gather_force(a, x, s, topology.inc_ptr, topology.inc_spring, topology.inc_other, nodes.masses,
                                   nodes.gravity, nodes.with_gravity)
         if LOADS:
-            f0, f1, f2 = node_load(a, f0, f1, f2, loads)
+            f0, f1, f2 = node_load(a, f0, f1, f2, loads.node_force, loads.node_weight, loads.node_drive, loads.value,
+                                   loads.free)
         p0, p1, p2 = kick_momentum(p0, p1, p2, f0, f1, f2, steps[0], steps[1])
         store_row(p, a, p0, p1, p2)
     drift_position(x_new, a, xa0, xa1, xa2, p0, p1, p2, steps[2] * nodes.inv_mass[a])

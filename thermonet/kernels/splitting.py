@@ -268,6 +268,12 @@ def _node_pass(x, x_new, p, topology, nodes, scratch, steps, force_source, want_
     s = scratch.s
     f_keep = scratch.f_keep
     kick1, kick2, drift, with_force = steps
+    if LOADS:  # unpacked once: a record handed to a per-node call would be copied at every call
+        node_force = loads.node_force
+        node_weight = loads.node_weight
+        node_drive = loads.node_drive
+        load_value = loads.value
+        load_free = loads.free
     move = not (CLOSING and force_source == 1)
     sums = CLOSING and want_sums
     kinetic = 0.0
@@ -291,7 +297,7 @@ def _node_pass(x, x_new, p, topology, nodes, scratch, steps, force_source, want_
             else:
                 f0, f1, f2 = gather_force(a, x, s, inc_ptr, inc_spring, inc_other, masses, gravity, with_gravity)
                 if LOADS:
-                    f0, f1, f2 = node_load(a, f0, f1, f2, loads)
+                    f0, f1, f2 = node_load(a, f0, f1, f2, node_force, node_weight, node_drive, load_value, load_free)
                 if CLOSING and force_source == 1:
                     store_row(f_keep, a, f0, f1, f2)
             p0, p1, p2 = kick_momentum(p0, p1, p2, f0, f1, f2, kick1, kick2)

@@ -32,20 +32,22 @@ def evaluate_load(i, loads, t):
             loads.rate[i, ax] = 0.0
 
 
-def node_load(a, f0, f1, f2, loads):
+def node_load(a, f0, f1, f2, node_force, node_weight, node_drive, value, free):
     """Node a's force with its force load's share added (w_a f(t)) and its driven axes zeroed
-    (their momentum stays 0; the drive sets their positions). Returns (f0, f1, f2)."""
-    j = loads.node_force[a]
+    (their momentum stays 0; the drive sets their positions). The arrays are those of a
+    :class:`~thermonet.loads.arrays.LoadArrays`, unpacked by the caller once per pass (a record
+    handed to a per-node call costs a copy of the record). Returns (f0, f1, f2)."""
+    j = node_force[a]
     if j >= 0:
-        w = loads.node_weight[a]
-        f0 += w * loads.value[j, 0]
-        f1 += w * loads.value[j, 1]
-        f2 += w * loads.value[j, 2]
-    d = loads.node_drive[a]
+        w = node_weight[a]
+        f0 += w * value[j, 0]
+        f1 += w * value[j, 1]
+        f2 += w * value[j, 2]
+    d = node_drive[a]
     if d >= 0:
-        f0 *= loads.free[d, 0]
-        f1 *= loads.free[d, 1]
-        f2 *= loads.free[d, 2]
+        f0 *= free[d, 0]
+        f1 *= free[d, 1]
+        f2 *= free[d, 2]
     return f0, f1, f2
 
 
