@@ -215,3 +215,61 @@ def test_a_blown_up_loaded_run_is_rewound_with_its_work_to_the_last_good_step():
     good.run(steps=bad.step, diagnostics_every=100)
     assert 500 < bad.step < 3000
     same(bad, good)
+
+
+def test_the_kernel_with_loads_follows_a_plain_numpy_co2_with_loads():
+    """The CO2 step with a drive and a force written out in NumPy (thermonet.reference's forces;
+    the drive's nodes set after the drift, kicks at the stage times, work by the kicks'
+    quadrature) against the compiled kernel, 60 steps."""
+    from dataclasses import replace
+
+    from thermonet import reference as ref
+
+    net = bar(3)
+    temps = np.array([300.0, 330.0, 290.0])
+    drive_x = TimeFunction.sine(0.05, 0.7, phase=0.3)
+    drive_y = TimeFunction.linear(0.02)
+    force = [TimeFunction.table([[0, 0.0], [0.03, 0.4], [1, 0.1]]), None, TimeFunction.constant(-0.2)]
+    h, steps = 2e-3, 60
+    sim = tn.Simulation(net, h=h, temperatures=temps,
+                        loads={"pull": Drive("grip", {"x": drive_x, "y": drive_y}), "push": Force([2], force)})
+    sim.run(steps=steps, diagnostics_every=steps)
+
+    rnet = ref.ReferenceNet.build(net, "hencky")
+    driven = np.zeros(4, dtype=bool)
+    driven[3] = True
+    fixed = replace(rnet, anchored=rnet.anchored | driven)   # the drive's node is not free
+    springs_only = replace(rnet, anchored=np.zeros(4, dtype=bool))
+    x, p = net.positions.copy(), np.zeros((4, 3))
+    eta = rnet.entropies(x, temps)
+    phi = np.zeros(3)
+    X3 = net.positions[3] - np.array([drive_x(0.0), drive_y(0.0), 0.0])
+    work = np.zeros(2)
+
+    def kick(x, t, tau):
+        f, theta = fixed.forces_and_temperatures(x, eta)
+        fv = np.array([0.0 if c is None else c(t) for c in force])
+        fr = np.array([0.0 if c is None else c.rate(t) for c in force])
+        f[2] += fv
+        reaction = springs_only.forces(x, eta)[3]
+        work[0] += tau * -(reaction @ np.array([drive_x.rate(t), drive_y.rate(t), 0.0]))
+        work[1] += tau * -(fr @ x[2])
+        return f, theta
+
+    for n in range(steps):
+        t0, t1 = n * h, (n + 1) * h
+        f0, th0 = kick(x, t0, 0.5 * h)
+        p = p + 0.5 * h * f0
+        phi = phi + 0.5 * h * th0
+        v = p / net.masses[:, None]
+        v[fixed.anchored] = 0.0
+        x = x + h * v
+        x[3] = X3 + np.array([drive_x(t1), drive_y(t1), 0.0])
+        f1, th1 = kick(x, t1, 0.5 * h)
+        p = p + 0.5 * h * f1
+        phi = phi + 0.5 * h * th1
+    s = sim.state
+    np.testing.assert_allclose(s.positions, x, rtol=0, atol=1e-13)
+    np.testing.assert_allclose(s.momenta, p, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(s.thermal_displacement, phi, rtol=1e-13)
+    np.testing.assert_allclose(s.extra["load_work"], work, rtol=1e-11, atol=1e-15)
