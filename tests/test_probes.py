@@ -84,6 +84,8 @@ def test_run_writes_probe_csvs_resume_keeps_them_and_plot_draws_everything(tmp_p
         rows = set((cut / name).read_text().splitlines())
         assert set((whole / name).read_text().splitlines()) <= rows
         assert all(r.startswith("30,") for r in rows - set((whole / name).read_text().splitlines()))
+    # the loads' work came back from the checkpoint: the last diagnostics row (work, balance) is the same
+    assert (whole / "diagnostics.csv").read_text().splitlines()[-1] == (cut / "diagnostics.csv").read_text().splitlines()[-1]
     assert main(["plot", str(whole)]) == 0
     pngs = sorted(os.listdir(whole / "plots"))
     assert pngs == ["energy.png", "entropy.png", "load_pull.png", "momenta.png", "probe_cold.png", "probe_grip.png"]
