@@ -63,3 +63,16 @@ total = true
 def test_bad_scene_loads_name_the_file_line_and_key(loads, line, message):
     with pytest.raises(InputError, match=rf"pull\.toml:{line}: {message}"):
         built(loads)
+
+
+def test_info_lists_the_loads(tmp_path, capsys):
+    from thermonet.cli.main import main
+
+    scene = tmp_path / "pull.toml"
+    scene.write_text(BASE + '[loads.pull]\ntype = "drive"\ngroup = "xmax"\nvelocity = [0.1, 0, 0]\nfree = true\n'
+                     '[loads.push]\ntype = "force"\ngroup = [5]\nforce = { y = 2.0 }\n')
+    assert main(["info", str(scene)]) == 0
+    out = capsys.readouterr().out
+    assert "loads (2):" in out
+    assert "pull: drive on 2 nodes" in out and "other axes free" in out
+    assert "push: force (per node) on 1 nodes; f = {y: <time function constant(2.0,)>}" in out

@@ -92,8 +92,9 @@ class LoadSet:
         load = self.loads[i]
         comps = ", ".join(f"{a}: {c!r}" for a, c in zip(AXES, self.components[i]) if c is not None)
         if load.kind == "drive":
-            rest = "free" if load.free else "held"
-            return f"drive on {len(self.nodes[i])} nodes; u = {{{comps}}}; other axes {rest}"
+            rest = "" if all(c is not None for c in self.components[i]) else \
+                f"; other axes {'free' if load.free else 'held'}"
+            return f"drive on {len(self.nodes[i])} nodes; u = {{{comps}}}{rest}"
         spread = "total, spread by mass" if load.total else "per node"
         return f"force ({spread}) on {len(self.nodes[i])} nodes; f = {{{comps}}}"
 

@@ -27,7 +27,7 @@ class Drive:
     group: a node group name of the net, or node indices (user numbering).
     displacement: u, per axis (a mapping of "x", "y", "z" or a 3-sequence; None: not driven)
         or one function along ``direction``; ``velocity``: a constant velocity per axis
-        instead (u = v t).
+        instead (u = v t; an axis of velocity 0 is not set, so ``free`` decides it).
     free: what the axes u does not set do: False (default) held at their initial positions,
         True free (moved by the net like any free node; a roller support).
     name: the load's name in diagnostics columns and errors.
@@ -48,7 +48,7 @@ class Drive:
             raise InputError(f"{where}: give exactly one of displacement or velocity")
         if self.velocity is not None:
             v = _vector(self.velocity, f"{where}.velocity")
-            comps = tuple(TimeFunction.linear(float(c)) for c in v)
+            comps = tuple(None if c == 0.0 else TimeFunction.linear(float(c)) for c in v)  # 0: not set
         else:
             comps = _components(self.displacement, self.direction, f"{where}.displacement")
         free = np.array([1.0 if (c is None and self.free) else 0.0 for c in comps])

@@ -304,7 +304,7 @@ LOADS_SCHEMA = Named(Table({
     "type": Key(choice(LOAD_TYPES), "drive | force", "drive: the group's positions follow X + u(t) − u(0); "
                 "force: a force f(t) on each of its nodes", required=True),
     "group": Key(node_group_or_indices, "string | array", "node group name or node indices", required=True),
-    "velocity": Key(vector(3), "[vx, vy, vz]", "drive: constant velocity (u = v t) in every axis"),
+    "velocity": Key(vector(3), "[vx, vy, vz]", "drive: constant velocity (u = v t); an axis of velocity 0 is not set (see free)"),
     "displacement": Key(time_function_value, "number | table", "drive: u as one function along direction, or a "
                         "table {x = f, y = g, z = h} of per-axis time functions (axes not given: see free)"),
     "force": Key(time_function_value, "number | table", "force: f as one function along direction, or per axis "
