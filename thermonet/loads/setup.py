@@ -16,10 +16,10 @@ def check_load_support(load_set: LoadSet | None, integrator, backend: str) -> No
     if load_set is None:
         return
     if not integrator.explicit:
-        from ..integrators import explicit_integrators
-
-        raise InputError(f"loads: integrator {integrator.name!r} is implicit; loads ({', '.join(load_set.names)}) "
-                         f"run with the explicit integrators ({', '.join(explicit_integrators())})")
+        for i, load in enumerate(load_set.loads):
+            if load.kind == "drive" and load_set.free[i].any():
+                raise InputError(f"loads.{load_set.names[i]}.free: integrator {integrator.name!r} is implicit and "
+                                 f"drives whole nodes; a drive free in some axes needs an explicit integrator")
 
 
 class SimulationLoads:
@@ -100,6 +100,10 @@ def attach_loads(sim, load_set: LoadSet | None) -> SimulationLoads | None:
     and return what the diagnostics rows need (None without loads)."""
     if load_set is None:
         return None
+    if not sim.integrator.explicit:  # loads split around each implicit step
+        from .implicit import ImplicitLoads
+
+        sim.stepper = ImplicitLoads(sim.stepper, sim.system, load_set)
     stepper_loads = getattr(sim.stepper, "loads", None)
     if stepper_loads is not None:
         stepper_loads.time_origin = lambda: sim._time_origin
