@@ -2,9 +2,10 @@
 (a) clamped at x = max too (no loads: the kernels compiled without them), (b) driven at x = max
 (a drive: its face's ~1e3 nodes set after each drift, their reaction and work per kick),
 (c) (b) + a total force on the z = max face, (d) (c) + a diagnostics row every 10 steps (each
-row's reaction needs a spring pass). Each as a cost ratio to (a).
+row's reaction needs a spring pass), (e) (a) with a diagnostics row every 10 steps (what (d)
+pays for its rows without loads). Each as a cost ratio to (a).
 
-    python benchmarks/loads_cost.py [--cells 32] [--steps 400] [--repeats 5]
+    python benchmarks/loads_cost.py [--cells 32] [--steps 400] [--repeats 5] [--threads N]
 
 The configurations run interleaved, one run each per repeat; steps/s are medians over the
 repeats and a ratio is the median of the per-repeat ratios.
@@ -44,6 +45,7 @@ CONFIGS = [
     ("(b) x = max driven", '["xmin"]', DRIVE, None),
     ("(c) + a total force on z = max", '["xmin"]', DRIVE + FORCE, None),
     ("(d) + diagnostics every 10 steps", '["xmin"]', DRIVE + FORCE, 10),
+    ("(e) (a) + diagnostics every 10 steps", '["xmin", "xmax"]', "", 10),
 ]
 
 
@@ -61,7 +63,10 @@ def main(argv=None):
     ap.add_argument("--cells", type=int, default=32)
     ap.add_argument("--steps", type=int, default=400)
     ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--threads", type=int, default=None, help="threads of the kernels (default: all)")
     args = ap.parse_args(argv)
+    if args.threads:
+        numba.set_num_threads(args.threads)
     texts = [SCENE.format(n=args.cells, steps=args.steps, anchors=a, loads=l.replace("{{", "{").replace("}}", "}"))
              for _, a, l, _ in CONFIGS]
     rates = {name: [] for name, *_ in CONFIGS}

@@ -78,18 +78,22 @@ class SimulationLoads:
         if not drives:
             return out
         fields = sim.internal_spring_fields()
-        lay = sim.layout
         s = fields.tension / fields.length
         x = state.positions
         for i in drives:
-            nodes = self._internal[i]
-            r = np.zeros(3)
-            for a in nodes:  # a handful of nodes per grip: plain loops over their CSR lists
-                lo, hi = lay.inc_ptr[a], lay.inc_ptr[a + 1]
-                springs, others = lay.inc_spring[lo:hi], lay.inc_other[lo:hi]
-                r += (s[springs, None] * (x[others] - x[a])).sum(axis=0)
-            out[i] = r
+            nodes, springs, others = self._incidence(sim.layout, i)
+            out[i] = (s[springs, None] * (x[others] - x[nodes])).sum(axis=0)
         return out
+
+    def _incidence(self, lay, i: int) -> tuple:
+        """(node, spring, other end) per incidence of drive i's nodes, each (k,): made once."""
+        cache = self.__dict__.setdefault("_incidences", {})
+        if i not in cache:
+            nodes = self._internal[i]
+            counts = lay.inc_ptr[nodes + 1] - lay.inc_ptr[nodes]
+            at = np.concatenate([np.arange(lay.inc_ptr[a], lay.inc_ptr[a + 1]) for a in nodes])
+            cache[i] = (np.repeat(nodes, counts), lay.inc_spring[at], lay.inc_other[at])
+        return cache[i]
 
     def reset_work(self, state) -> None:
         state.extra[WORK] = np.zeros(len(self.set))
