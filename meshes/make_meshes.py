@@ -12,6 +12,8 @@
 - bracket.msh: an aluminium L-bracket in metres (docs/continuum.md): a base plate 60 × 40 × 6 mm
   ("base") and an upright flange 6 × 40 × 46 mm on it ("flange"); the whole part "bracket", the
   bolted end face of the base "clamp" (x = 60 mm). Tetrahedra of about 5 mm.
+- dogbone.msh: a flat tensile specimen (triangles, in the plane z = 0), 10 long: grips 2 × 2 at
+  both ends ("grip_left" x ≤ 2, "grip_right" x ≥ 8) and a gauge 6 × 1 ("gauge") between them.
 
 Physical groups become node groups (anchors, masses, velocities) and spring groups (materials,
 temperatures) in scenes. Files are gmsh 4.1 ASCII, small enough to read in a diff.
@@ -161,7 +163,27 @@ def bracket(size: float = 0.005) -> None:
     _finish("bracket.msh")
 
 
+def dogbone(size: float = 0.25) -> None:
+    _start("dogbone")
+    occ = gmsh.model.occ
+    left = occ.addRectangle(0, -1, 0, 2, 2)
+    gauge = occ.addRectangle(2, -0.5, 0, 6, 1)
+    right = occ.addRectangle(8, -1, 0, 2, 2)
+    occ.fragment([(2, gauge)], [(2, left), (2, right)])
+    occ.synchronize()
+    gmsh.option.setNumber("Mesh.MeshSizeMin", size)
+    gmsh.option.setNumber("Mesh.MeshSizeMax", size)
+    surfaces = sorted(gmsh.model.getEntities(2), key=lambda e: gmsh.model.occ.getCenterOfMass(*e)[0])
+    gmsh.model.addPhysicalGroup(2, [surfaces[0][1]], name="grip_left")
+    gmsh.model.addPhysicalGroup(2, [surfaces[1][1]], name="gauge")
+    gmsh.model.addPhysicalGroup(2, [surfaces[2][1]], name="grip_right")
+    gmsh.option.setNumber("Mesh.RandomSeed", 1)
+    gmsh.model.mesh.generate(2)
+    _finish("dogbone.msh")
+
+
 if __name__ == "__main__":
+    dogbone()
     chain()
     triangle()
     lattice2d()

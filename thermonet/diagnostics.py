@@ -148,10 +148,12 @@ class Diagnostics:
                 scale = abs(float(v[0]))
             out[name] = {"initial": float(v[0]), "max_deviation": dev, "relative": dev / scale if scale > 0 else dev}
         for name, of in (("energy_balance", "energy"), ("entropy_balance", "entropy")):
-            if self.rows and name in self.rows[0]:  # heat flow: a balance, zero at the start,
-                dev = float(np.max(np.abs(self.column(name))))  # judged against what moved too
+            if self.rows and name in self.rows[-1]:  # heat flow, loads: a balance, zero at the start,
+                dev = float(np.nanmax(np.abs(self.column(name))))  # judged against what moved too
                 v = self.column(of)
-                scale = max(abs(float(v[0])), float(np.max(np.abs(v - v[0]))))
+                scale = max(abs(float(v[0])), float(np.nanmax(np.abs(v - v[0]))))
+                if of == "energy" and "work" in self.rows[-1]:
+                    scale = max(scale, float(np.nanmax(np.abs(self.column("work")))))
                 out[name] = {"initial": 0.0, "max_deviation": dev, "relative": dev / scale if scale > 0 else dev}
         return out
 

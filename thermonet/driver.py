@@ -170,8 +170,9 @@ class RunDriver:
             np.copyto(b.momenta, s.momenta)
             if s.thermal_displacement is not None:
                 np.copyto(b.thermal_displacement, s.thermal_displacement)
-            if self.system.heat is not None:  # heat flow changes η and its logs
-                _copy_heat(s, b)
+            if self.system.heat is not None:  # heat flow changes η
+                np.copyto(b.entropy, s.entropy)
+            _copy_extra(s.extra, b.extra)  # the heat-flow logs, the loads' work
         b.step, b.time = s.step, s.time
         self._backup_of = (s, self._h)  # a loaded state or a new h makes the copy useless for replays
         return b
@@ -193,7 +194,8 @@ class RunDriver:
         if s.thermal_displacement is not None:
             np.copyto(s.thermal_displacement, backup.thermal_displacement)
         if self.system.heat is not None:
-            _copy_heat(backup, s)
+            np.copyto(s.entropy, backup.entropy)
+        _copy_extra(backup.extra, s.extra)
         self._set_step(backup.step)
         if steps > 0:
             self.stepper.advance(s, steps, self._h)
@@ -267,6 +269,8 @@ class RunDriver:
             row.update(heat_columns(heat, self._state))
             row.update(balances(row, self.diagnostics.rows[0] if self.diagnostics.rows else row))
         row.update(getattr(self, "_last_stats", {}) or {})
+        if getattr(self, "loads", None) is not None:  # loads: displacement, reaction, work, balance
+            row.update(self.loads.columns(self, row))
         self.diagnostics.append(row)
         self._check_physical(row)
 
@@ -296,11 +300,18 @@ class RunDriver:
         raise SimulationError(f"the energy is not finite {where}{unstable}")
 
 
-def _copy_heat(source: State, target: State) -> None:
-    """Copy what heat flow changes (η and the heat logs) from ``source`` into ``target``."""
-    np.copyto(target.entropy, source.entropy)
-    for k, v in source.extra["heat"].items():
-        np.copyto(target.extra["heat"][k], v)
+def _copy_extra(source: dict, target: dict) -> None:
+    """Copy the arrays of a state's ``extra`` (the heat-flow logs, the loads' work) into another's,
+    in place where it has them (a stepper may hold those arrays)."""
+    for k, v in source.items():
+        if isinstance(v, dict):
+            _copy_extra(v, target.setdefault(k, {}))
+        elif isinstance(v, np.ndarray):
+            t = target.get(k)
+            if isinstance(t, np.ndarray) and t.shape == v.shape:
+                np.copyto(t, v)
+            else:
+                target[k] = v.copy()
 
 
 def _flushes(observers) -> list:

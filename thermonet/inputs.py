@@ -50,11 +50,13 @@ def check_step(h) -> float:
     return h
 
 
-def build_system(net: Net, model, layout, P_user, gravity, thermal: bool, stretch_bounds, heat=None) -> System:
+def build_system(net: Net, model, layout, P_user, gravity, thermal: bool, stretch_bounds, heat=None,
+                 loads=None) -> System:
     """The :class:`System` of a net in the internal numbering of ``layout``: rest lengths,
     parameters (P_user: (k, m), user numbering), masses, anchors, the reference point of
     angular momentum, gravity (checked: a finite 3-vector or None), thermal coupling and the
-    admissible stretches (checked), the heat flow (a checked HeatSetup or None)."""
+    admissible stretches (checked), the heat flow (a checked HeatSetup or None) and the loads (a resolved
+    :class:`~thermonet.loads.arrays.LoadSet` or None)."""
     gravity_vec = None
     if gravity is not None:
         gravity_vec = np.asarray(gravity, dtype=np.float64).reshape(-1)
@@ -63,6 +65,8 @@ def build_system(net: Net, model, layout, P_user, gravity, thermal: bool, stretc
     ref = net.anchor_point()
     masses = layout.nodes_to_internal(net.masses)
     anchored = layout.nodes_to_internal(net.anchored)
+    if loads is not None:  # loads: nodes driven in every axis are not free
+        anchored = anchored | layout.nodes_to_internal(loads.fully_driven)
     return System(
         model=model,
         layout=layout,
@@ -76,6 +80,7 @@ def build_system(net: Net, model, layout, P_user, gravity, thermal: bool, stretc
         thermal=bool(thermal),
         stretch_bounds=check_stretch_bounds(stretch_bounds),
         heat=heat,
+        loads=loads,
     )
 
 

@@ -197,15 +197,19 @@ class StabilityGuard:
 
 def energy_departure(rows: list, tolerance: float | None) -> float | None:
     """The relative departure |H − H(0)|/|H(0)| of the last diagnostics row (with heat flow,
-    of its energy balance |H − H(0) − ΣQ|/|H(0)|) when it exceeds ``tolerance`` (None: no
+    or loads, of its energy balance |H − H(0) − W − ΣQ|/|H(0)|) when it exceeds ``tolerance`` (None: no
     guard), else None."""
     if tolerance is None or len(rows) < 2:
         return None
     e0, e = rows[0]["energy"], rows[-1]["energy"]
     scale = abs(e0)
-    if "energy_balance" in rows[-1]:  # heat flows in or out: the balance is what must hold,
-        last = rows[-1]                # against the energy that moved as well as H(0)
-        scale = max(scale, abs(e - e0), abs(last["heat_in"] - rows[0]["heat_in"]))
+    last = rows[-1]
+    if "energy_balance" in last:  # heat or work moves energy in or out: the balance is what must
+        scale = max(scale, abs(e - e0))  # hold, against the energy that moved as well as H(0)
+        if "heat_in" in last:
+            scale = max(scale, abs(last["heat_in"] - rows[0]["heat_in"]))
+        if "work" in last:
+            scale = max(scale, abs(last["work"]))
         e = e0 + last["energy_balance"]
     if abs(e - e0) <= tolerance * max(scale, np.finfo(float).tiny):
         return None
@@ -220,8 +224,10 @@ def broken_conservation(sim, energy_tolerance: float | None = None) -> list[str]
     tol = DEFAULT_ENERGY_TOLERANCE if energy_tolerance is None else energy_tolerance
     out = []
     checks = [("energy", tol)] + ([("entropy", ENTROPY_TOLERANCE)] if "entropy" in summary else [])
-    if "energy_balance" in summary:  # heat flow: energy and entropy change, their balances hold
-        checks = [("energy_balance", tol), ("entropy_balance", ENTROPY_TOLERANCE)]
+    if "energy_balance" in summary:  # heat flow, loads: energy changes, its balance holds
+        checks[0] = ("energy_balance", tol)
+    if "entropy_balance" in summary:  # heat flow: entropy changes, its balance holds
+        checks[1:] = [("entropy_balance", ENTROPY_TOLERANCE)]
     for name, limit in checks:
         s = summary.get(name)
         if s is None:

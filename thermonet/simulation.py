@@ -92,6 +92,10 @@ class Simulation(RunDriver):
     baths: name -> :class:`thermonet.heat.Bath` (a node group held at θ_b(t)), needs conduction.
     sources: name -> :class:`thermonet.heat.Source` (a spring group receiving power P(t) per
         spring), needs conduction.
+    loads: driven node groups and forces (:class:`thermonet.loads.Drive`, :class:`thermonet.loads.Force`),
+        a sequence or a mapping name -> load; diagnostics rows then carry each load's
+        displacement, reaction and work and the energy balance H − H(0) − W
+        (− ΣQ with heat flow; docs/loads.md).
     """
 
     def __init__(
@@ -118,6 +122,7 @@ class Simulation(RunDriver):
         thermal_waves: bool | None = None,
         baths: Mapping | None = None,
         sources: Mapping | None = None,
+        loads=None,
     ):
         if not isinstance(net, Net):
             raise InputError(f"net must be a thermonet.Net, got {type(net).__name__}")
@@ -140,7 +145,11 @@ class Simulation(RunDriver):
         self.angular_momentum_about = angular_momentum_reference(net)
         heat = build_heat(net, layout, self.model, P_user, transport, thermal=thermal, conduction=conduction,
                           waves=thermal_waves, baths=baths, sources=sources)
-        self.system = build_system(net, self.model, layout, P_user, gravity, thermal, stretch_bounds, heat)
+        from .loads.setup import attach_loads, check_load_support, resolve
+
+        load_set = resolve(loads, net)
+        check_load_support(load_set, self.integrator, self.backend)
+        self.system = build_system(net, self.model, layout, P_user, gravity, thermal, stretch_bounds, heat, load_set)
         if heat is not None:
             self.integrator = integrator_with_heat(self.integrator, heat, self.backend)
         self.energy_tolerance = check_energy_tolerance(energy_tolerance)
@@ -154,6 +163,7 @@ class Simulation(RunDriver):
             self.stepper = ConductionAround(self.stepper, self.system, self.parallel)
         if heat is not None:
             heat_logs(self._state, heat)
+        self.loads = attach_loads(self, load_set)
         self.diagnostics = Diagnostics()
         #: seconds spent stepping (Numba compilation excluded) and steps run, over all runs
         self.wall_time = 0.0
@@ -197,7 +207,7 @@ class Simulation(RunDriver):
             entropy=None if s.entropy is None else lay.springs_to_user(s.entropy),
             time=s.time,
             step=s.step,
-            extra=self._heat_logs_to_user(s),
+            extra={**{k: v.copy() for k, v in s.extra.items() if isinstance(v, np.ndarray)}, **self._heat_logs_to_user(s)},
         )
 
     def _heat_logs_to_user(self, s: State) -> dict:
@@ -230,6 +240,8 @@ class Simulation(RunDriver):
             entropy=springs(state.entropy),
             time=float(state.time),
             step=int(state.step),
+            extra={k: (np.array(v, dtype=np.float64) if isinstance(v, np.ndarray) else v)
+                   for k, v in state.extra.items()},
         )
         heat = self.system.heat
         if heat is not None:

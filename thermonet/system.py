@@ -32,6 +32,8 @@ class System:
     stretch_bounds: (lo, hi) admissible stretches l/l0; the explicit kernel stops a run outside.
     heat: the :class:`~thermonet.heat.setup.HeatSetup` (conduction, thermal waves, baths,
         sources), or None when heat does not flow (the paper's adiabatic nets).
+    loads: the driven groups and forces (:class:`~thermonet.loads.arrays.LoadSet`), or None;
+        nodes driven in every axis are among the ``anchored`` ones.
     """
 
     model: Model
@@ -46,6 +48,7 @@ class System:
     thermal: bool = True
     stretch_bounds: tuple[float, float] = (1e-4, 1e4)
     heat: object = None
+    loads: object = None  # loads
 
     def __repr__(self) -> str:
         return (f"<System {self.n_nodes} nodes, {self.n_springs} springs, model {self.model.name}, "

@@ -99,6 +99,9 @@ def describe_scene(path: str, overrides) -> list[str]:
     out.append(f"  effects: thermal {'on' if e['thermal'] else 'off'}, gravity {e['gravity'] or 'off'}, "
                f"{int(net.anchored.sum())} anchored nodes")
     out += _heat_flow(sim, {**(d.get('baths') or {}), **(d.get('sources') or {})})
+    if sim.loads is not None:  # loads
+        out.append(f"  loads ({len(sim.loads.set)}):")
+        out += [f"    {name}: {sim.loads.set.describe(i)}" for i, name in enumerate(sim.loads.set.names)]
     out.append(f"  integrator {sim.integrator.name} (order {sim.integrator.order}), h = {sim.h:g}, {total} steps "
                f"to t = {total * sim.h:g}")
     out.append(f"  output every {scene.cadence('frames_every', total)} steps (frames), "

@@ -2,7 +2,8 @@
 
 Subcommands: ``run [SCENE]`` (run a scene, write ParaView output), ``info MESH|SCENE`` (what a
 mesh or scene holds, memory, stable step), ``render OUTDIR`` (a picture of a frame, needs
-PyVista), ``study`` (convergence and cost studies). ``--debug`` shows a traceback instead of the one-line error.
+PyVista), ``study`` (convergence and cost studies), ``plot OUTDIR`` (PNGs of the diagnostics,
+loads and probes). ``--debug`` shows a traceback instead of the one-line error.
 
 Exit codes: 0 success; 1 unexpected thermonet error; 2 bad input (scene, mesh, parameters,
 names, checkpoint, an output folder of a previous run, missing optional dependency); 3 the
@@ -17,9 +18,9 @@ import argparse
 import sys
 
 from ..errors import ThermonetError
-from . import info as info_cmd, render as render_cmd, run as run_cmd, study as study_cmd
+from . import info as info_cmd, plot as plot_cmd, render as render_cmd, run as run_cmd, study as study_cmd
 
-SUBCOMMANDS = {"run": run_cmd, "info": info_cmd, "render": render_cmd, "study": study_cmd}
+SUBCOMMANDS = {"run": run_cmd, "info": info_cmd, "render": render_cmd, "study": study_cmd, "plot": plot_cmd}
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -37,6 +37,8 @@ def conserved_quantities(sim) -> set[str]:
         names = {"energy_balance", "entropy_balance"} | ({"energy"} if not heat.names else set())
         if not heat.conduction:  # thermal waves alone are Hamiltonian: entropy is conserved
             names.add("entropy")
+    if getattr(sim, "loads", None) is not None:  # loads: energy changes by the work; its balance holds
+        return (names - {"energy"}) | {"energy_balance"}
     anchored = bool(sim.net.anchored.any())
     gravity = sim.system.gravity is not None
     if not anchored and not gravity:

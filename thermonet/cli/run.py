@@ -122,9 +122,19 @@ def _run(args, progress) -> int:
     if state is not None:
         sim.load_state(state)
         output.restore(meta)
+    # --- probes ---
+    from ..probes import scene_probes
+
+    probes = scene_probes(scene, sim)
+    observers = list(output.observers())
+    if probes is not None:
+        if state is not None:
+            probes.restore(folder, sim.step)
+        observers += probes.observers(output.diagnostics_every)
+    # --- end probes ---
     try:
         sim.run(steps=max(0, total - sim.step), diagnostics_every=output.diagnostics_every,
-                observers=output.observers(), progress=progress)
+                observers=observers, progress=progress)
     except BaseException as exc:
         if progress:
             progress.close()
@@ -133,6 +143,8 @@ def _run(args, progress) -> int:
         if isinstance(exc, SimulationError) and output.checkpoint_every:
             _try(output.write_checkpoint, sim)  # the last good state (the run was rewound to it)
         _try(output.write_csv)
+        if probes is not None:  # probes
+            _try(probes.to_csv, folder)
         if not args.quiet or failure is not None:
             print(_where_to_continue(sim, output, exc), file=sys.stderr)
         if failure is not None:
@@ -142,13 +154,14 @@ def _run(args, progress) -> int:
         progress.close()
     try:
         output.write_csv()
+        probe_files = probes.to_csv(folder) if probes is not None else []  # probes
         output.write_summary(sim, {"broken_conservation": broken_conservation(sim, sim.energy_tolerance)})
     except OSError as exc:
         raise OutputError(f"writing the output failed at the end of the run: {describe_os_error(exc)}") from None
     if not args.quiet:
         print(format_summary(sim, scene.name, folder))
         files = [f"{scene.name}.pvd ({len(output.pvd.frames)} frames)" if output.frames_every else None,
-                 "diagnostics.csv", "summary.json",
+                 "diagnostics.csv", *probe_files, "summary.json",
                  os.path.basename(output.checkpoint_path) if output.checkpoint_every else None]
         print(f"  wrote {', '.join(f for f in files if f)}")
     broken = broken_conservation(sim, sim.energy_tolerance)

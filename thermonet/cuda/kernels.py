@@ -56,6 +56,8 @@ sweep_phase = temperature_update = phase_count = None
 CONDUCTION = False
 WAVES = False
 # --- end heat flow ---
+node_load = evaluate_load = load_power = add_work = drive_member = None  # loads: with LOADS
+LOADS = False
 THERMAL = True
 REFERENCE_TEMPERATURE = 0
 UNIFORM = False
@@ -87,6 +89,7 @@ class CudaKernels:
                  reduce_blocks):
         self.spring, self.node, self.flows, self.steps = spring, node, flows, steps
         self.sweep = self.temperature = None  # heat flow: see cuda_kernels(conduction=, waves=)
+        self.load_start = self.load_stage = None  # loads: see cuda_kernels(loads=True)
         self.spring_sums, self.node_sums, self.finish = spring_sums, node_sums, finish
         self.threads, self.reduce_threads, self.reduce_blocks = threads, reduce_threads, reduce_blocks
 
@@ -96,15 +99,17 @@ class CudaKernels:
 
 
 def cuda_kernels(model, thermal: bool = True, uniform: bool = False, flows=(), conduction: bool = False,
-                 waves: bool = False) -> CudaKernels:
+                 waves: bool = False, loads: bool = False) -> CudaKernels:
     """The CUDA kernels for ``model`` (purely mechanical when not ``thermal``; parameters shared
     by all springs, a ``(k, 1)`` array, when ``uniform``: see
     :func:`thermonet.kernels.splitting.kernel_parameters`), with the extra sub-flows ``flows``
     (:class:`~thermonet.integrators.schedule.SubFlow` s, slot order) and the heat-flow rows it
-    may meet compiled in (``conduction``, ``waves``: :mod:`thermonet.cuda.heat`)."""
+    may meet compiled in (``conduction``, ``waves``: :mod:`thermonet.cuda.heat`); with ``loads``
+    the node kernel adds the loads' forces and ``load_start`` / ``load_stage`` run the loads' own
+    passes (two launches per stage only: the fused ``steps`` kernel is not compiled with them)."""
     sim = simulator_enabled()
     key = (model_fingerprint(model), bool(thermal), bool(uniform), sim, tuple(id(f) for f in flows),
-           bool(conduction), bool(waves))
+           bool(conduction), bool(waves), bool(loads))
     if key not in _CACHE:
         ns = kernel_namespace(model, thermal, uniform)
         if sim:
@@ -128,6 +133,11 @@ def cuda_kernels(model, thermal: bool = True, uniform: bool = False, flows=(), c
             ns["sweep_phase"], ns["temperature_update"] = inline(_no_sweep), inline(_no_temperature)
             ns["phase_count"] = inline(_no_phases)
         # --- end heat flow ---
+        ns["LOADS"] = bool(loads)
+        if loads:
+            from ..loads.cuda import bind_device_loads
+
+            tag += bind_device_loads(ns, tag, inline, sim)
         for slot in range(MAX_FLOWS):
             update = _device_update(flows[slot].update, sim) if slot < len(flows) else inline(_no_update)
             ns[f"flow_update_{slot}"] = update  # (a device function even when empty: the fused kernel calls it)
@@ -145,6 +155,10 @@ def cuda_kernels(model, thermal: bool = True, uniform: bool = False, flows=(), c
             SIMULATOR_THREADS if sim else THREADS, reduce_threads, SIMULATOR_REDUCE_BLOCKS if sim else REDUCE_BLOCKS)
         if conduction or waves:  # heat flow
             kernels.sweep, kernels.temperature = heat.heat_kernels(compile_)
+        if loads:  # loads
+            from ..loads.cuda import load_stage_kernel, load_start_kernel
+
+            kernels.load_start, kernels.load_stage = compile_(load_start_kernel), compile_(load_stage_kernel)
         _CACHE[key] = kernels
     return _CACHE[key]
 
@@ -199,12 +213,12 @@ def _spring_kernel(x, eta, phi, springs, edges, s, steps, run, flag, where):
             _raise_flag(flag, where)
 
 
-def _node_kernel(x, x_new, p, s, topology, nodes, steps, flag):
+def _node_kernel(x, x_new, p, s, topology, nodes, steps, flag, loads):
     """Thread a: :func:`_node_update` of node a, unless the call already stopped (``flag``);
-    steps: (kick1 h, kick2 h, drift h, with_force)."""
+    steps: (kick1 h, kick2 h, drift h, with_force); loads: a LoadArrays record with LOADS."""
     a = cuda.grid(1)
     if a < x.shape[0] and flag[FLAG_SET] == 0:
-        _node_update(a, x, x_new, p, s, topology, nodes, steps)
+        _node_update(a, x, x_new, p, s, topology, nodes, steps, loads)
 
 
 def _flow_kernel(data, tau, t, x, p, phi, eta, flag):
@@ -290,7 +304,7 @@ def _steps_kernel(state, x_buf, s, topology, springs, nodes, table, flows, run, 
                 if flag[FLAG_SET] != 0:
                     return
             for a in range(first, xs.shape[0], stride):
-                _node_update(a, xs, xn, p, s, topology, nodes, (k1 * h, k2 * h, d * h, with_force))
+                _node_update(a, xs, xn, p, s, topology, nodes, (k1 * h, k2 * h, d * h, with_force), nodes)
             grid.sync()
             parity = 1 - parity
         pending = table.carry
@@ -344,9 +358,10 @@ def _spring_update(e, x, eta, phi, springs, edges, s, steps, run):
     return outside_admissible(l, rest, force, theta, run.stretch_min, run.stretch_max)
 
 
-def _node_update(a, x, x_new, p, s, topology, nodes, steps):
-    """Node a: f = Σ s_e (x_b − x_a) (+ m g); p += kick1 f; p += kick2 f; x_new = x + drift p/m,
-    steps = (kick1, kick2, drift, with_force). x, x_new, p: (n, 3)."""
+def _node_update(a, x, x_new, p, s, topology, nodes, steps, loads):
+    """Node a: f = Σ s_e (x_b − x_a) (+ m g) (+ its load, with LOADS); p += kick1 f; p += kick2 f;
+    x_new = x + drift p/m, steps = (kick1, kick2, drift, with_force). x, x_new, p: (n, 3).
+    The fused kernel, never compiled with LOADS, passes a placeholder for ``loads``."""
     xa0, xa1, xa2 = load_row(x, a)
     if nodes.anchored[a]:
         store_row(x_new, a, xa0, xa1, xa2)
@@ -355,6 +370,9 @@ def _node_update(a, x, x_new, p, s, topology, nodes, steps):
     if steps[3]:
         f0, f1, f2 = gather_force(a, x, s, topology.inc_ptr, topology.inc_spring, topology.inc_other, nodes.masses,
                                   nodes.gravity, nodes.with_gravity)
+        if LOADS:
+            f0, f1, f2 = node_load(a, f0, f1, f2, loads.node_force, loads.node_weight, loads.node_drive, loads.value,
+                                   loads.free)
         p0, p1, p2 = kick_momentum(p0, p1, p2, f0, f1, f2, steps[0], steps[1])
         store_row(p, a, p0, p1, p2)
     drift_position(x_new, a, xa0, xa1, xa2, p0, p1, p2, steps[2] * nodes.inv_mass[a])
@@ -499,7 +517,7 @@ def compile_ptx(model, thermal: bool = True, uniform: bool = False, cc=(9, 0)) -
     flag = np.zeros(4, np.int64)
     samples = {
         "spring": (_spring_kernel, (x, v, v, springs, topology.edges, v, (1.0, 1.0), run, flag, (0, 0, 0))),
-        "node": (_node_kernel, (x, x, x, v, topology, nodes, (1.0, 1.0, 1.0, True), flag)),
+        "node": (_node_kernel, (x, x, x, v, topology, nodes, (1.0, 1.0, 1.0, True), flag, nodes)),
         "spring_sums": (_spring_sums_kernel, (x, v, v, springs.P, topology.edges, x)),
         "node_sums": (_node_sums_kernel, (x, x, v, nodes.anchored, v, v, x)),
         "finish": (_finish_kernel, (x, np.empty(1, np.int32), v)),

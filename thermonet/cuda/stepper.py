@@ -18,6 +18,7 @@ from ..errors import InputError
 from ..integrators.base import Stepper
 from ..kernels import records
 from ..kernels.splitting import kernel_parameters
+from ..loads.stepping import StepperLoads, work_of
 from . import FLAG_ROW, FLAG_SET, FLAG_STAGES, FLAG_STEP, require_cuda
 
 
@@ -58,6 +59,9 @@ class CudaSplittingStepper(Stepper):
         P, uniform = kernel_parameters(system.parameters)
         flows = integrator.subflows
         table = integrator.table
+        self.loads = StepperLoads.of(system, table)
+        if self.loads is not None:  # two launches per stage: the fused kernel does not take loads
+            self.fused = False
         n, m = system.n_nodes, system.n_springs
         dev = cuda.to_device
         # --- heat flow: the record and its logs on the device (thermonet.cuda.heat) ---
@@ -65,7 +69,7 @@ class CudaSplittingStepper(Stepper):
         if (conduction or waves) and getattr(system, "heat", None) is None:
             raise InputError(f"{integrator.name} has heat-flow rows but the system has no heat flow set up")
         self._heat = DeviceHeat(system.heat if (conduction or waves) else None, integrator, dev)
-        self._k = cuda_kernels(system.model, system.thermal, uniform, flows, conduction, waves)
+        self._k = cuda_kernels(system.model, system.thermal, uniform, flows, conduction, waves, self.loads is not None)
         self._table = records_to_device(table, dev)
         self._rows = [(int(c), float(k), float(d)) for c, k, d in zip(table.code, table.kick, table.drift)]
         self._carry = float(table.carry)
@@ -73,6 +77,7 @@ class CudaSplittingStepper(Stepper):
         self._springs = records_to_device(records.Springs(system.rest_lengths, P), dev)
         self._nodes = records_to_device(records.nodes(system), dev)
         self._effects = records_to_device(flow_data(flows, system), dev)
+        self._loads = records_to_device(self.loads.arrays, dev) if self.loads is not None else self._nodes  # loads
         self._s = cuda.device_array(max(m, 1))
         self._x = cuda.device_array((n, 3))
         self._x_buf = cuda.device_array((n, 3))
@@ -105,6 +110,8 @@ class CudaSplittingStepper(Stepper):
             self._phi.copy_to_device(np.ascontiguousarray(state.thermal_displacement))
             self._eta.copy_to_device(np.ascontiguousarray(state.entropy))
         self._heat.upload(state)
+        if self.loads is not None:  # loads: the work accumulators
+            self._loads.work.copy_to_device(work_of(state, len(self.loads.arrays.work)))
         self._bound = state
         self._device_newer = False
 
@@ -118,6 +125,8 @@ class CudaSplittingStepper(Stepper):
             self._phi.copy_to_host(state.thermal_displacement)
             self._eta.copy_to_host(state.entropy)
         self._heat.download(state)
+        if self.loads is not None:  # loads: the work accumulators
+            self._loads.work.copy_to_host(work_of(state, len(self.loads.arrays.work)))
         self._device_newer = False
 
     def _state_arrays(self):
@@ -138,7 +147,11 @@ class CudaSplittingStepper(Stepper):
                                              self._s, (k1, k2), run, self._flag, where)
         if n > 0:
             k.node[k.blocks(n), k.threads](self._x, self._x_buf, self._p, self._s, self._topology, self._nodes,
-                                           (k1, k2, drift, with_force), self._flag)
+                                           (k1, k2, drift, with_force), self._flag, self._loads)
+        if self.loads is not None and (with_force or drift != 0.0):  # loads: work, then the drive at t_after
+            k.load_stage[1, len(self.loads.arrays.work)](self._x, self._x_buf, self._s, self._topology, self._nodes,
+                                                         self._loads, (k1, k2, with_force, drift != 0.0),
+                                                         self._t_after)
         self._x, self._x_buf = self._x_buf, self._x
 
     def _flow(self, slot: int, tau: float, t: float) -> None:
@@ -159,6 +172,7 @@ class CudaSplittingStepper(Stepper):
             return None
         self._bind(state)
         self._keep_backup(state, h)
+        self._call_step = state.step  # loads: the clock's step
         stop = self._steps(float(state.time), int(n_steps), float(h))
         self._device_newer = True
         if stop is not None:
@@ -187,6 +201,7 @@ class CudaSplittingStepper(Stepper):
         stages = 0
         heat = self._heat.record(h) if self._heat.setup is not None else None
         theta_valid = heat is not None and self._heat.theta_ok()
+        clock = self._load_clock(h)  # loads
         for step in range(n_steps):
             t_step = t0 + step * h
             for r, (code, kick, drift) in enumerate(self._rows):
@@ -198,6 +213,8 @@ class CudaSplittingStepper(Stepper):
                     self._heat_row(heat, code, kick * h, t_step + drift * h, theta_valid)
                     theta_valid = code != -4
                     continue
+                if clock is not None:  # loads: the time at the end of this stage's drift
+                    self._t_after = clock[0] + ((clock[1] + step) + self._drift_time[r]) * h
                 k1 = pending if r == 0 else 0.0
                 self._stage(k1 * h, kick * h, drift * h, k1 != 0.0 or kick != 0.0, run, (step, r, stages))
                 if k1 != 0.0 or kick != 0.0 or drift != 0.0:
@@ -222,6 +239,20 @@ class CudaSplittingStepper(Stepper):
         for phase, count in self._heat.phases(code):
             if count > 0:
                 k.sweep[k.blocks(count), k.threads](code, phase, heat, tau, t, self._phi, self._eta, self._flag)
+
+    _t_after = 0.0  # loads: the time at the end of the current stage's drift
+
+    def _load_clock(self, h: float):
+        """(origin time, steps from it) of this call, and the loads evaluated at its first kick
+        (None without loads); see :meth:`thermonet.loads.stepping.StepperLoads.arrays_for`."""
+        if self.loads is None:
+            return None
+        step0, t0 = self.loads.time_origin()
+        clock = (float(t0), float(self._call_step - step0))
+        self._drift_time = self.loads.arrays.drift_time
+        t = clock[0] + (clock[1] + self.loads.arrays.kick_time[0]) * h
+        self._k.load_start[1, len(self.loads.arrays.work)](self._loads, t)
+        return clock
 
     def _fused_steps(self, run) -> None:
         """``run.n_steps`` steps as one cooperative launch; the same rows as :meth:`advance`'s
@@ -283,6 +314,7 @@ class CudaSplittingStepper(Stepper):
         for source, target in zip(copies, self._changing_arrays()):
             target.copy_to_device(source)
         replay = state.step - backup_step + done
+        self._call_step = backup_step  # loads (their work accumulators are not rewound: the run stops here)
         if replay > 0 and self._steps(backup_time, replay, h) is not None:
             # the same launches from the same state: only a nondeterministic device could stop again
             raise RuntimeError("the replay of the good steps stopped again")

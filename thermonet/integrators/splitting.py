@@ -17,6 +17,8 @@ import numpy as np
 
 from ..errors import InputError
 from ..kernels.records import Run, StateArrays, no_heat
+from ..loads.elements import NO_LOADS
+from ..loads.stepping import StepperLoads
 from .base import Integrator, StepFailure, Stepper, register_integrator
 from .schedule import CONDUCTION, MAX_FLOWS, WAVES, BuiltinFlow, StageTable, flow_slots, stage_table
 
@@ -258,13 +260,15 @@ class SplittingStepper(Stepper):
         heat = getattr(system, "heat", None)
         if (conduction or waves) and heat is None:
             raise InputError(f"{integrator.name} has heat-flow rows but the system has no heat flow set up")
-        self._advance = splitting_kernels(system.model, parallel, system.thermal, uniform, flows, conduction, waves)
         self._heat = heat
         self._heat_tau = sorted({c for _, f, c in integrator.flows if isinstance(f, BuiltinFlow)
                                  and f.code != WAVES.code})
         if len(self._heat_tau) > 1:
             raise InputError(f"{integrator.name}: conduction rows with different coefficients {self._heat_tau}")
         self._table = integrator.table
+        self.loads = StepperLoads.of(system, self._table)
+        self._advance = splitting_kernels(system.model, parallel, system.thermal, uniform, flows, conduction, waves,
+                                          self.loads is not None)
         n, m = system.n_nodes, system.n_springs
         self._scratch = records.Scratch(np.empty((n, 3)), np.empty(m), np.empty((n, 3)),
                                         np.empty(m if system.thermal else 0), np.empty(m), np.empty(11))
@@ -296,8 +300,9 @@ class SplittingStepper(Stepper):
         self._boundary = None
         run = Run(float(h), float(state.time), int(n_steps), bool(self.integrator.track_phi), float(lo), float(hi),
                   bool(reuse), bool(measure))
+        loads = self.loads.arrays_for(state, h) if self.loads is not None else NO_LOADS  # loads
         done, detected, summed = self._advance(arrays, self._scratch, self._topology, self._springs, self._nodes,
-                                               self._table, self._effects, self._heat_record(state, h), run)
+                                               self._table, self._effects, self._heat_record(state, h), run, loads)
         if not detected and self._table.carry != 0.0:
             self._boundary = (state, state.step + int(n_steps))
         if summed:

@@ -33,6 +33,9 @@ def save_checkpoint(path, state: State, meta: dict) -> None:
         arrays["thermal_displacement"] = state.thermal_displacement
     for key, value in (state.extra.get("heat") or {}).items():  # heat-flow logs
         arrays[f"heat_{key}"] = value
+    for key, value in state.extra.items():  # accumulators such as the loads' work
+        if isinstance(value, np.ndarray):
+            arrays[f"extra.{key}"] = value
     with atomic_write(path) as f:
         np.savez(f, **arrays)
 
@@ -61,6 +64,7 @@ def load_checkpoint(path) -> tuple[State, dict]:
                 entropy=z["entropy"].copy() if thermal else None,
                 time=float(z["time"]),
                 step=int(z["step"]),
+                extra={k[len("extra."):]: z[k].copy() for k in z.files if k.startswith("extra.")},
             )
             logs = {k[len("heat_"):]: z[k].copy() for k in z.files if k.startswith("heat_")}
             if logs:

@@ -63,6 +63,8 @@ from numba import njit, prange
 
 from . import heat_flow, subflows
 from .heat_passes import bind_heat_flow, bind_heat_passes
+from ..loads.elements import bind_loads
+from .schedule_passes import _apply_flow, _copy_rows, _copy_values, _flow_pass, _no_flow, _thermal_kick
 from .specialize import function_fingerprint, kernel_namespace, model_fingerprint, rebind, specialize
 
 # Bound per kernel variant by splitting_kernels(); listed so the templates read as ordinary code.
@@ -70,13 +72,15 @@ from .specialize import function_fingerprint, kernel_namespace, model_fingerprin
 # False the kernel is the purely mechanical one (every spring at its reference temperature,
 # parameter row REFERENCE_TEMPERATURE; no η, θ or Φ is read or written); with UNIFORM, P is
 # (k, 1) and shared. The sub-flows (spring_force, gather_force, ...) are those of
-# thermonet.kernels.subflows; flow_pass_0 … flow_pass_3 run the integrator's extra sub-flows.
+# thermonet.kernels.subflows; the small passes (thermal_kick, ...) those of .schedule_passes;
+# the loads' functions (node_load, cpu_*) those of thermonet.loads.elements, with LOADS.
 spring_pass = node_pass = boundary_spring_pass = boundary_node_pass = None
 thermal_kick = copy_rows = apply_flow = None
 spring_force = spring_energy = spring_temperature = outside_admissible = advance_thermal_displacement = None
 gather_force = kick_momentum = drift_position = load_row = store_row = None
-flow_pass_0 = flow_pass_1 = flow_pass_2 = flow_pass_3 = update = None
 temperature_pass = refresh_pass = conduction_sweep = wave_sweep = None
+node_load = cpu_evaluate_loads = cpu_load_work = cpu_drive_positions = stage_time = None
+LOADS = False
 THERMAL = True
 CONDUCTION = False
 WAVES = False
@@ -114,15 +118,17 @@ def bind_subflows(ns: dict, tag: str, compile_) -> None:
 
 
 def splitting_kernels(model, parallel: bool, thermal: bool = True, uniform: bool = False, flows=(),
-                      conduction: bool = False, waves: bool = False):
-    """``advance(state, scratch, topology, springs, nodes, table, effects, run)`` compiled for
+                      conduction: bool = False, waves: bool = False, loads: bool = False):
+    """``advance(state, scratch, topology, springs, nodes, table, effects, heat, run, loads)`` compiled for
     ``model`` (multi-threaded when ``parallel``; purely mechanical when not ``thermal``, in which
     case ``phi`` and ``eta`` may be empty arrays; for a ``(k, 1)`` parameter array shared by all
     springs when ``uniform``, see :func:`kernel_parameters`) with the extra sub-flows ``flows``
-    (:class:`~thermonet.integrators.schedule.SubFlow` s, slot order) in its flow slots, and the
-    heat-flow rows it may meet compiled in (``conduction``, ``waves``; both need ``thermal``)."""
+    (:class:`~thermonet.integrators.schedule.SubFlow` s, slot order) in its flow slots, the
+    heat-flow rows it may meet compiled in (``conduction``, ``waves``; both need ``thermal``), and
+    with ``loads`` the node pass and the step read a :class:`~thermonet.loads.arrays.LoadArrays`
+    (the ``loads`` argument; otherwise a placeholder, and the loads' code is compiled out)."""
     key = (model_fingerprint(model), bool(parallel), bool(thermal), bool(uniform),
-           tuple(id(f) for f in flows), bool(conduction), bool(waves))
+           tuple(id(f) for f in flows), bool(conduction), bool(waves), bool(loads))
     if key not in _CACHE:
         flows_tag = f"_f{function_fingerprint(*(f.update for f in flows))}" if flows else ""
         tag = (f"{model.name}_{key[0]}_{'par' if parallel else 'ser'}_{'thermal' if thermal else 'mech'}"
@@ -138,6 +144,9 @@ def splitting_kernels(model, parallel: bool, thermal: bool = True, uniform: bool
         if conduction or waves:
             bind_heat_flow(ns, tag, inline)
             bind_heat_passes(ns, tag, parallel)
+        ns["LOADS"] = bool(loads)
+        if loads:
+            tag += bind_loads(ns, tag, inline)
         ns["spring_pass"] = specialize(_spring_pass, tag, ns, parallel=parallel, **_OPTIONS)
         ns["node_pass"] = specialize(_node_pass, tag, ns, parallel=parallel, **_OPTIONS)
         boundary = dict(ns, CLOSING=True)
@@ -158,6 +167,7 @@ def splitting_kernels(model, parallel: bool, thermal: bool = True, uniform: bool
             ns[f"flow_pass_{slot}"] = fn
         ns["apply_flow"] = specialize(_apply_flow, tag, ns, inline="always", **_OPTIONS)
         ns["_stopped"] = specialize(_stopped, tag, ns, inline="always", **_OPTIONS)
+        ns["_deferred_kick"] = specialize(_deferred_kick, tag, ns, inline="always", **_OPTIONS)
         _CACHE[key] = specialize(_advance, tag, ns, **_OPTIONS)
     return _CACHE[key]
 
@@ -251,16 +261,19 @@ def _spring_pass(x, eta, phi, topology, springs, scratch, steps, run, keep, leng
     return bad, energy, theta_min, theta_max
 
 
-def _node_pass(x, x_new, p, topology, nodes, scratch, steps, force_source, want_sums, s_before):
+def _node_pass(x, x_new, p, topology, nodes, scratch, steps, force_source, want_sums, inputs):
     """Per node a: f = Σ s_e (x_b − x_a) (+ m g); p += kick1 f; p += kick2 f; x_new = x + drift p/m,
     with steps = (kick1, kick2, drift, with_force) (fractions of h already multiplied by h).
 
     x, x_new, p: (n, 3). force_source: 0 gather f; 1 gather f and keep it in f_keep (n, 3) (a
     call's closing kick, whose drift is 0: x_new is then not written, the positions stay in
     x); 2 take f from f_keep; 3 (CONDUCTION) kick1 with the forces of s_before (m,) (a kick
-    deferred past the conduction sweeps, which do not touch p), kick2 with those of s. Returns, with ``want_sums`` (CLOSING only), the sums over free
-    nodes at (x, the new p) of kinetic energy, gravity potential −Σ m g·x, p and (x − ref) × p
-    (else 0).
+    deferred past the conduction sweeps, which do not touch p), kick2 with those of s.
+    inputs = (s_before, loads): with LOADS, the node's force load (a
+    :class:`~thermonet.loads.arrays.LoadArrays`) is added to f and its driven axes zeroed
+    (:func:`thermonet.loads.elements.node_load`). Returns, with ``want_sums`` (CLOSING only), the
+    sums over free nodes at (x, the new p) of kinetic energy, gravity potential −Σ m g·x, p and
+    (x − ref) × p (else 0).
     """
     inc_ptr = topology.inc_ptr
     inc_spring = topology.inc_spring
@@ -274,6 +287,14 @@ def _node_pass(x, x_new, p, topology, nodes, scratch, steps, force_source, want_
     s = scratch.s
     f_keep = scratch.f_keep
     kick1, kick2, drift, with_force = steps
+    s_before = inputs[0]
+    loads = inputs[1]
+    if LOADS:  # unpacked once: a record handed to a per-node call would be copied at every call
+        node_force = loads.node_force
+        node_weight = loads.node_weight
+        node_drive = loads.node_drive
+        load_value = loads.value
+        load_free = loads.free
     move = not (CLOSING and force_source == 1)
     sums = CLOSING and want_sums
     kinetic = 0.0
@@ -296,9 +317,13 @@ def _node_pass(x, x_new, p, topology, nodes, scratch, steps, force_source, want_
             deferred = force_source == 3
         if deferred:  # not CLOSING: no sums, no keep
             f0, f1, f2 = gather_force(a, x, s_before, inc_ptr, inc_spring, inc_other, masses, gravity, with_gravity)
+            if LOADS:
+                f0, f1, f2 = node_load(a, f0, f1, f2, node_force, node_weight, node_drive, load_value, load_free)
             p0, p1, p2 = kick_momentum(p0, p1, p2, f0, f1, f2, 0.0, kick1)
             if kick2 != 0.0:
                 f0, f1, f2 = gather_force(a, x, s, inc_ptr, inc_spring, inc_other, masses, gravity, with_gravity)
+                if LOADS:
+                    f0, f1, f2 = node_load(a, f0, f1, f2, node_force, node_weight, node_drive, load_value, load_free)
                 p0, p1, p2 = kick_momentum(p0, p1, p2, f0, f1, f2, 0.0, kick2)
             store_row(p, a, p0, p1, p2)
         elif with_force:
@@ -306,6 +331,8 @@ def _node_pass(x, x_new, p, topology, nodes, scratch, steps, force_source, want_
                 f0, f1, f2 = load_row(f_keep, a)
             else:
                 f0, f1, f2 = gather_force(a, x, s, inc_ptr, inc_spring, inc_other, masses, gravity, with_gravity)
+                if LOADS:
+                    f0, f1, f2 = node_load(a, f0, f1, f2, node_force, node_weight, node_drive, load_value, load_free)
                 if CLOSING and force_source == 1:
                     store_row(f_keep, a, f0, f1, f2)
             p0, p1, p2 = kick_momentum(p0, p1, p2, f0, f1, f2, kick1, kick2)
@@ -325,53 +352,6 @@ def _node_pass(x, x_new, p, topology, nodes, scratch, steps, force_source, want_
     return kinetic, potential, px, py, pz, lx, ly, lz
 
 
-def _thermal_kick(phi, theta, coefficient):
-    """Φ += coefficient θ, per spring (the thermal half of a kick whose θ is known)."""
-    for e in prange(phi.shape[0]):
-        phi[e] += coefficient * theta[e]
-
-
-def _copy_rows(source, target):
-    """target[:] = source for (n, 3) arrays, rows in parallel."""
-    for a in prange(source.shape[0]):
-        target[a, 0] = source[a, 0]
-        target[a, 1] = source[a, 1]
-        target[a, 2] = source[a, 2]
-
-
-@njit(inline="always", error_model="numpy", boundscheck=False)
-def _copy_values(source, target):
-    """target[:] = source for (m,) arrays."""
-    for e in range(source.shape[0]):
-        target[e] = source[e]
-
-
-def _flow_pass(data, tau, t, x, p, phi, eta):
-    """One extra sub-flow over tau at time t: ``update(i, data, tau, t, x, p, phi, eta)`` for
-    every element i of range(len(data[0])), in parallel."""
-    for i in prange(data[0].shape[0]):
-        update(i, data, tau, t, x, p, phi, eta)
-
-
-@njit(inline="always")
-def _no_flow(data, tau, t, x, p, phi, eta):
-    """An empty flow slot."""
-    return None
-
-
-def _apply_flow(slot, effects, tau, t, x, p, phi, eta):
-    """Run the sub-flow in ``slot`` with its data ``effects[slot]`` (effects: a 4-tuple of data
-    tuples, one per slot)."""
-    if slot == 0:
-        flow_pass_0(effects[0], tau, t, x, p, phi, eta)
-    elif slot == 1:
-        flow_pass_1(effects[1], tau, t, x, p, phi, eta)
-    elif slot == 2:
-        flow_pass_2(effects[2], tau, t, x, p, phi, eta)
-    else:
-        flow_pass_3(effects[3], tau, t, x, p, phi, eta)
-
-
 def _stopped(x, x_buf, swaps, heat, steps_done):
     """What ``advance`` returns when a spring left the admissible states: the positions where it
     was found back in x, the heat sweeps' saved temperatures no longer valid."""
@@ -382,7 +362,17 @@ def _stopped(x, x_buf, swaps, heat, steps_done):
     return steps_done, True, False
 
 
-def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run):
+def _deferred_kick(x, x_new, p, topology, nodes, scratch, heat, loads, tau, t):
+    """The deferred kick of tau (already times h) by itself, with the forces in heat.s_before at
+    x and, with LOADS, the loads at time t (and their work)."""
+    if LOADS:
+        cpu_evaluate_loads(loads, t)
+    node_pass(x, x_new, p, topology, nodes, scratch, (tau, 0.0, 0.0, True), 3, False, (heat.s_before, loads))
+    if LOADS:
+        cpu_load_work(x, heat.s_before, topology, nodes, loads, 0.0, tau)
+
+
+def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run, loads):
     """Advance ``state`` (x, p, Φ in place; η too where a sub-flow changes it) by ``run.n_steps``
     steps of the schedule ``table`` (a :class:`~thermonet.integrators.schedule.StageTable`).
 
@@ -401,6 +391,10 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run
     Heat-flow rows (CONDUCTION, WAVES: :class:`~thermonet.kernels.records.Heat`) sweep from the
     springs' temperatures in theta_keep, valid after a spring pass not followed by a drift or
     after a conduction sweep; otherwise a temperature pass computes them first.
+
+    With LOADS, ``loads`` (:class:`~thermonet.loads.arrays.LoadArrays`): before each kick the
+    loads are evaluated at its time, after it their reactions and work are accumulated, and after
+    each drift the driven nodes are set to the drift's end time (:mod:`thermonet.loads.elements`).
     """
     x = state.x
     p = state.p
@@ -421,6 +415,7 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run
     # the next one in one node pass: ``deferred`` its coefficient, its forces in heat.s_before
     theta_valid = False
     deferred = 0.0
+    deferred_time = 0.0
     if CONDUCTION and heat.theta_ok[0] == 1.0:  # continue the previous call's sweeps
         _copy_values(heat.theta, scratch.theta_keep)
         theta_valid = True
@@ -428,8 +423,7 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run
         for r in range(n_rows):
             if codes[r] >= 0:
                 if CONDUCTION and deferred != 0.0:  # a sub-flow may read p: apply the kick first
-                    node_pass(cur, nxt, p, topology, nodes, scratch, (deferred * h, 0.0, 0.0, True), 3, False,
-                              heat.s_before)
+                    _deferred_kick(cur, nxt, p, topology, nodes, scratch, heat, loads, deferred * h, deferred_time)
                     deferred = 0.0
                 apply_flow(codes[r], effects, table.kick[r] * h, run.t0 + (step + table.drift[r]) * h,
                            cur, p, phi, eta)
@@ -458,6 +452,8 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run
                     return _stopped(x, x_buf, swaps, heat, step)
                 _copy_values(scratch.s, heat.s_before)
                 deferred = k2
+                if LOADS:
+                    deferred_time = stage_time(loads, h, step, loads.kick_time[r])
                 theta_valid = True
                 continue
             steps = (k1 * h, k2 * h, table.drift[r] * h, with_force)
@@ -479,20 +475,31 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run
                     return _stopped(x, x_buf, swaps, heat, step - 1 if r == 0 and step > 0 else step)
             if table.drift[r] != 0.0:
                 theta_valid = False
+            if LOADS and with_force:
+                cpu_evaluate_loads(loads, stage_time(loads, h, step, loads.kick_time[r]))
+            elif LOADS and deferred != 0.0:
+                cpu_evaluate_loads(loads, deferred_time)
             if reuse:
-                boundary_node_pass(cur, nxt, p, topology, nodes, scratch, steps, 2, False, heat.s_before)
+                boundary_node_pass(cur, nxt, p, topology, nodes, scratch, steps, 2, False, (heat.s_before, loads))
             elif CONDUCTION and deferred != 0.0:
                 node_pass(cur, nxt, p, topology, nodes, scratch, (deferred * h, k2 * h, table.drift[r] * h, True), 3,
-                          False, heat.s_before)
+                          False, (heat.s_before, loads))
+                if LOADS:
+                    cpu_load_work(cur, heat.s_before, topology, nodes, loads, 0.0, deferred * h)
                 deferred = 0.0
             else:
-                node_pass(cur, nxt, p, topology, nodes, scratch, steps, 0, False, heat.s_before)
+                node_pass(cur, nxt, p, topology, nodes, scratch, steps, 0, False, (heat.s_before, loads))
+            if LOADS and with_force:
+                cpu_load_work(cur, scratch.s, topology, nodes, loads, k1 * h, k2 * h)
             cur, nxt = nxt, cur
             swaps += 1
+            if LOADS and table.drift[r] != 0.0:
+                cpu_evaluate_loads(loads, stage_time(loads, h, step, loads.drift_time[r]))
+                cpu_drive_positions(cur, loads)
         pending = carry
     if CONDUCTION:
         if deferred != 0.0:  # the call ends with the deferred kick (drift 0: the positions stay)
-            node_pass(cur, nxt, p, topology, nodes, scratch, (deferred * h, 0.0, 0.0, True), 3, False, heat.s_before)
+            _deferred_kick(cur, nxt, p, topology, nodes, scratch, heat, loads, deferred * h, deferred_time)
         if theta_valid:
             _copy_values(scratch.theta_keep, heat.theta)
         heat.theta_ok[0] = 1.0 if theta_valid else 0.0
@@ -505,8 +512,12 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run
                 copy_rows(x_buf, x)
             return n_steps - 1, True, False
         # drift 0: the positions stay in cur
+        if LOADS:
+            cpu_evaluate_loads(loads, stage_time(loads, h, n_steps, 0.0))
         node_sums = boundary_node_pass(cur, nxt, p, topology, nodes, scratch, (0.0, pending * h, 0.0, True), 1,
-                                       run.want_sums, heat.s_before)
+                                       run.want_sums, (heat.s_before, loads))
+        if LOADS:
+            cpu_load_work(cur, scratch.s, topology, nodes, loads, 0.0, pending * h)
         if run.want_sums:
             sums = scratch.sums
             sums[0] = energy

@@ -53,6 +53,9 @@ def build_scene(scene: Scene) -> BuiltScene:
     init = d["initial"]
     kind = "momentum" if init["momentum"] is not None else "velocity"
     motion = node_vectors(scene, net, mesh, kind)
+    from ..loads.scene import scene_loads  # loads
+
+    loads = scene_loads(scene, net)  # loads
     try:
         sim = Simulation(
             net,
@@ -77,6 +80,7 @@ def build_scene(scene: Scene) -> BuiltScene:
             thermal_waves=d["effects"]["thermal_waves"],
             baths={name: Bath(b["group"], b["temperature"]) for name, b in d["baths"].items()},
             sources={name: Source(b["group"], b["power"]) for name, b in d["sources"].items()},
+            loads=loads,
         )
     except InputError as exc:
         message = str(exc)

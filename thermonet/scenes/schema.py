@@ -294,6 +294,48 @@ _VELOCITY_KEYS = {
 }
 
 
+# --- loads and probes (thermonet.loads) ---
+def time_function_value(v):
+    """A number or a table of a time function's keys; its keys are checked when the load is
+    built (:func:`thermonet.timefunctions.time_function`), with the key's line."""
+    if _is_number(v) or isinstance(v, dict):
+        return v
+    raise Invalid(f"must be a number or a time function table ({{rate = ...}}, {{end = ..., duration = ...}}, "
+                  f"{{amplitude = ..., frequency = ...}}, {{table = [[t, v], ...]}}), got {_type_name(v)} {v!r}")
+
+
+def node_group_or_indices(v):
+    if isinstance(v, str) and v:
+        return v
+    return list_of(integer(0), "node indices")(v)
+
+
+LOAD_TYPES = ("drive", "force")
+PROBE_QUANTITIES = ("temperature", "strain", "tension", "displacement")
+
+LOADS_SCHEMA = Named(Table({
+    "type": Key(choice(LOAD_TYPES), "drive | force", "drive: the group's positions follow X + u(t) − u(0); "
+                "force: a force f(t) on each of its nodes", required=True),
+    "group": Key(node_group_or_indices, "string | array", "node group name or node indices", required=True),
+    "velocity": Key(vector(3), "[vx, vy, vz]", "drive: constant velocity (u = v t); an axis of velocity 0 is not set (see free)"),
+    "displacement": Key(time_function_value, "number | table", "drive: u as one function along direction, or a "
+                        "table {x = f, y = g, z = h} of per-axis time functions (axes not given: see free)"),
+    "force": Key(time_function_value, "number | table", "force: f as one function along direction, or per axis "
+                 "{x = f, y = g, z = h}"),
+    "direction": Key(vector(3), "[x, y, z]", "the direction of a displacement or force given as one function"),
+    "free": Key(boolean, "boolean", "drive: the axes u does not set are free (true) or held (false)", False),
+    "total": Key(boolean, "boolean", "force: f is the group's total, spread over its nodes by mass", False),
+}, "a load"), "driven node groups and forces (docs/loads.md)", "<name>")
+
+PROBES_SCHEMA = Named(Table({
+    "group": Key(string, "string", "a node group (displacement) or spring group (the rest); "
+                 "for springs also a node group: the springs between its nodes", required=True),
+    "quantity": Key(choice(PROBE_QUANTITIES), " | ".join(PROBE_QUANTITIES), "what is measured", required=True),
+    "every": Key(integer(1), "integer >= 1", "steps between rows (default: the diagnostics cadence)"),
+}, "a probe"), "per-group time series (mean, min, max) in probes.csv beside diagnostics.csv", "<name>")
+# --- end loads and probes ---
+
+
 def _temperature_shorthand(v):
     return {"uniform": v}
 
@@ -396,6 +438,8 @@ SCHEMA = Table({
                               "admissible stretches l/l0 (lo < 1 < hi); the kernel stops a run at the first step "
                               "in which a spring leaves them", [1e-4, 1e4]),
     }, "time integration"),
+    "loads": LOADS_SCHEMA,  # loads
+    "probes": PROBES_SCHEMA,  # probes
     "output": Table({
         "folder": Key(string, "path", "output folder, relative to the working directory "
                       "(default thermonet-out/<name>; the CLI's --out overrides it)"),

@@ -1,0 +1,56 @@
+"""The small passes of the explicit schedule (templates specialized per kernel variant by
+:func:`thermonet.kernels.splitting.splitting_kernels`, which binds ``flow_pass_*`` and ``update``):
+the thermal half of a kick, row and value copies, and the extra sub-flows' passes."""
+
+from __future__ import annotations
+
+from numba import njit, prange
+
+flow_pass_0 = flow_pass_1 = flow_pass_2 = flow_pass_3 = update = None
+
+
+def _thermal_kick(phi, theta, coefficient):
+    """Φ += coefficient θ, per spring (the thermal half of a kick whose θ is known)."""
+    for e in prange(phi.shape[0]):
+        phi[e] += coefficient * theta[e]
+
+
+def _copy_rows(source, target):
+    """target[:] = source for (n, 3) arrays, rows in parallel."""
+    for a in prange(source.shape[0]):
+        target[a, 0] = source[a, 0]
+        target[a, 1] = source[a, 1]
+        target[a, 2] = source[a, 2]
+
+
+@njit(inline="always", error_model="numpy", boundscheck=False)
+def _copy_values(source, target):
+    """target[:] = source for (m,) arrays."""
+    for e in range(source.shape[0]):
+        target[e] = source[e]
+
+
+def _flow_pass(data, tau, t, x, p, phi, eta):
+    """One extra sub-flow over tau at time t: ``update(i, data, tau, t, x, p, phi, eta)`` for
+    every element i of range(len(data[0])), in parallel."""
+    for i in prange(data[0].shape[0]):
+        update(i, data, tau, t, x, p, phi, eta)
+
+
+@njit(inline="always")
+def _no_flow(data, tau, t, x, p, phi, eta):
+    """An empty flow slot."""
+    return None
+
+
+def _apply_flow(slot, effects, tau, t, x, p, phi, eta):
+    """Run the sub-flow in ``slot`` with its data ``effects[slot]`` (effects: a 4-tuple of data
+    tuples, one per slot)."""
+    if slot == 0:
+        flow_pass_0(effects[0], tau, t, x, p, phi, eta)
+    elif slot == 1:
+        flow_pass_1(effects[1], tau, t, x, p, phi, eta)
+    elif slot == 2:
+        flow_pass_2(effects[2], tau, t, x, p, phi, eta)
+    else:
+        flow_pass_3(effects[3], tau, t, x, p, phi, eta)
