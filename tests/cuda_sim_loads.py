@@ -18,7 +18,7 @@ sys.path[:0] = [ROOT]
 import thermonet as tn  # noqa: E402
 from thermonet.loads import Drive, Force  # noqa: E402
 
-COLUMNS = ("energy", "work", "balance", "pull_Rx", "pull_work", "push_work", "px", "py")
+COLUMNS = ("energy", "work", "energy_balance", "pull_Rx", "pull_work", "push_work", "px", "py")
 
 
 def loaded(backend, integrator):
@@ -53,6 +53,17 @@ def main(path, steps):
     sim.run(steps=2, diagnostics_every=1)
     sim.run(steps=steps - 2, diagnostics_every=max(1, steps // 2))
     out["chunks/positions"], out["chunks/load_work"] = sim.state.positions, sim.state.extra["load_work"]
+    # with heat flow (conduction, a bath, a source): the CPU defers a kick past the sweeps, the
+    # device recomputes the temperatures instead
+    from test_loads_heat import loaded_hot_strip
+
+    for backend in ("cpu", "cuda"):
+        sim = loaded_hot_strip(0.004, backend=backend)
+        sim.run(steps=8 * steps, diagnostics_every=4 * steps)
+        s = sim.state
+        out[f"heat/{backend}/positions"], out[f"heat/{backend}/entropy"] = s.positions, s.entropy
+        out[f"heat/{backend}/load_work"] = s.extra["load_work"]
+        out[f"heat/{backend}/energy_balance"] = sim.diagnostics.column("energy_balance")
     np.savez(path, **out)
 
 
