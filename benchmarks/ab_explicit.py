@@ -7,7 +7,7 @@ against the code before it, measured in the same period on the same machine.
 The old checkout's ``thermonet`` package is copied to a temporary folder as ``thermonet_old``
 (its imports are relative) and imported beside this checkout's. For each net (a 6-neighbour
 lattice of cells³ cells: 32 about 1e5 springs, 70 about 1e6; jitter 0.1, hencky, random
-temperatures 250–350, a diagnostics row every 10 steps) both simulations are built and warmed
+temperatures 250–350, a diagnostics row every ``--diagnostics-every`` steps, default 10) both simulations are built and warmed
 up (kernels compiled or loaded), then timed alternately, ``--steps`` steps per call. Prints a
 markdown table of the median time per step and the ratio new/old of medians, with the range of
 the paired ratios: on a shared machine a range straddling 1 is noise. Set NUMBA_NUM_THREADS to
@@ -56,6 +56,8 @@ def main(argv=None) -> None:
     ap.add_argument("--integrators", default="co2")
     ap.add_argument("--repeats", type=int, default=8)
     ap.add_argument("--steps", type=int, default=100)
+    ap.add_argument("--diagnostics-every", type=int, default=10,
+                    help="diagnostics cadence of the timed runs (above --steps: one row per call)")
     args = ap.parse_args(argv)
     import thermonet as new
 
@@ -70,7 +72,7 @@ def main(argv=None) -> None:
             for r in range(args.repeats):
                 for which in (("old", "new") if r % 2 == 0 else ("new", "old")):
                     t = time.perf_counter()
-                    sims[which].run(steps=args.steps, diagnostics_every=10)
+                    sims[which].run(steps=args.steps, diagnostics_every=args.diagnostics_every)
                     times[which].append((time.perf_counter() - t) / args.steps)
             o, n = np.array(times["old"]), np.array(times["new"])
             paired = n / o
