@@ -43,6 +43,7 @@ def bind_heat_flow(ns: dict, tag: str, compile_) -> None:
 def bind_heat_passes(ns: dict, tag: str, parallel: bool) -> None:
     """Compile the passes below into ``ns`` (which must hold the model, subflows and heat_flow
     bindings)."""
+    ns["gather_two_forces"] = specialize(_gather_two_forces, tag, ns, inline="always", **_OPTIONS)
     ns["temperature_pass"] = specialize(_temperature_pass, tag, ns, parallel=parallel, **_OPTIONS)
     ns["refresh_pass"] = specialize(_refresh_pass, tag, ns, parallel=parallel, **_OPTIONS)
     ns["conduction_sweep"] = specialize(_conduction_sweep, tag, ns, parallel=parallel, **_OPTIONS)
@@ -68,6 +69,42 @@ def _temperature_pass(x, eta, topology, springs, theta, length):
             l = math.sqrt(length[e])
             length[e] = l
             theta[e] = spring_temperature(l, eta[e], rest[e], P, c)
+
+
+def _gather_two_forces(a, x, s1, s2, inc_ptr, inc_spring, inc_other, masses, gravity, with_gravity):
+    """Node a's forces for two sets of T/l (s1, s2: (m,)) in one walk over its incidences, each
+    summed in the order of :func:`thermonet.kernels.subflows.gather_force` (the same bits):
+    the deferred kick's and the next kick's, which act at the same positions."""
+    xa0 = x[a, 0]
+    xa1 = x[a, 1]
+    xa2 = x[a, 2]
+    f0 = 0.0
+    f1 = 0.0
+    f2 = 0.0
+    g0 = 0.0
+    g1 = 0.0
+    g2 = 0.0
+    for j in range(inc_ptr[a], inc_ptr[a + 1]):
+        ju = np.uint64(j)
+        e = inc_spring[ju]
+        b = inc_other[ju]
+        d0 = x[b, 0] - xa0
+        d1 = x[b, 1] - xa1
+        d2 = x[b, 2] - xa2
+        f0 += s1[e] * d0
+        f1 += s1[e] * d1
+        f2 += s1[e] * d2
+        g0 += s2[e] * d0
+        g1 += s2[e] * d1
+        g2 += s2[e] * d2
+    if with_gravity:
+        f0 += masses[a] * gravity[0]
+        f1 += masses[a] * gravity[1]
+        f2 += masses[a] * gravity[2]
+        g0 += masses[a] * gravity[0]
+        g1 += masses[a] * gravity[1]
+        g2 += masses[a] * gravity[2]
+    return f0, f1, f2, g0, g1, g2
 
 
 def _refresh_pass(theta, length, phi, springs, s, steps, run):

@@ -78,7 +78,7 @@ spring_pass = node_pass = boundary_spring_pass = boundary_node_pass = None
 thermal_kick = copy_rows = apply_flow = None
 spring_force = spring_energy = spring_temperature = outside_admissible = advance_thermal_displacement = None
 gather_force = kick_momentum = drift_position = load_row = store_row = None
-temperature_pass = refresh_pass = conduction_sweep = wave_sweep = None
+temperature_pass = refresh_pass = conduction_sweep = wave_sweep = gather_two_forces = None
 node_load = cpu_evaluate_loads = cpu_load_work = cpu_drive_positions = stage_time = None
 LOADS = False
 THERMAL = True
@@ -316,15 +316,20 @@ def _node_pass(x, x_new, p, topology, nodes, scratch, steps, force_source, want_
         if CONDUCTION:
             deferred = force_source == 3
         if deferred:  # not CLOSING: no sums, no keep
-            f0, f1, f2 = gather_force(a, x, s_before, inc_ptr, inc_spring, inc_other, masses, gravity, with_gravity)
+            if kick2 != 0.0:
+                f0, f1, f2, g0, g1, g2 = gather_two_forces(a, x, s_before, s, inc_ptr, inc_spring, inc_other, masses,
+                                                           gravity, with_gravity)
+            else:
+                f0, f1, f2 = gather_force(a, x, s_before, inc_ptr, inc_spring, inc_other, masses, gravity,
+                                          with_gravity)
+                g0 = g1 = g2 = 0.0
             if LOADS:
                 f0, f1, f2 = node_load(a, f0, f1, f2, node_force, node_weight, node_drive, load_value, load_free)
             p0, p1, p2 = kick_momentum(p0, p1, p2, f0, f1, f2, 0.0, kick1)
             if kick2 != 0.0:
-                f0, f1, f2 = gather_force(a, x, s, inc_ptr, inc_spring, inc_other, masses, gravity, with_gravity)
                 if LOADS:
-                    f0, f1, f2 = node_load(a, f0, f1, f2, node_force, node_weight, node_drive, load_value, load_free)
-                p0, p1, p2 = kick_momentum(p0, p1, p2, f0, f1, f2, 0.0, kick2)
+                    g0, g1, g2 = node_load(a, g0, g1, g2, node_force, node_weight, node_drive, load_value, load_free)
+                p0, p1, p2 = kick_momentum(p0, p1, p2, g0, g1, g2, 0.0, kick2)
             store_row(p, a, p0, p1, p2)
         elif with_force:
             if CLOSING and force_source == 2:
