@@ -61,12 +61,19 @@ from .specialize import specialize
 # Bound per model by specialize(); listed so the templates read as ordinary code.
 temperature = tension = internal_energy = adiabatic_stiffness = None
 em2_slope = em2_direct = em2_quadrature = tension_at = finish_nodes = None
+em2_predict = em2_residual = em2_jacobian = em2_finish = em2_linearize = em2_step_scale = em2_damp = None
 
 #: |l¹ − l⁰| ≤ SWITCH l̄: the discrete gradient by the Gauss–Lobatto rule, not by the quotient ΔU/δ
 SWITCH = 0.03
 #: the interior nodes and weights of the 5-point Gauss–Lobatto rule on [0, 1] (besides 1/2, 16/45)
 LOBATTO_NODE = 0.5 * (1.0 - math.sqrt(3.0 / 7.0))
 LOBATTO_WEIGHT = 49.0 / 180.0
+#: a Newton correction changes no spring's vector by more than this fraction of its length
+LENGTH_LIMIT = 0.5
+#: a correction is searched along (halved until the residual falls) while the scaled residual
+#: is above this; below it Newton converges quadratically from the whole correction
+LINE_SEARCH_ABOVE = 1e-3
+LINE_SEARCH_HALVINGS = 12
 
 
 class EM2Work(NamedTuple):
@@ -99,7 +106,7 @@ def build(ns: dict, tag: str, ptag: str, parallel: bool) -> dict:
     ns["em2_direct"] = specialize(_em2_direct, tag, ns, **INLINE)
     ns["em2_quadrature"] = specialize(_em2_quadrature, tag, ns, **INLINE)
     ns["em2_slope"] = specialize(_em2_slope, tag, ns, **INLINE)
-    return dict(
+    kernels = dict(
         predict=specialize(_em2_predict, ptag, ns, parallel=parallel, **OPTIONS),
         residual=specialize(_em2_residual, ptag, ns, parallel=parallel, **OPTIONS),
         linearize=specialize(_em2_linearize, ptag, {}, parallel=parallel, **OPTIONS),
@@ -107,6 +114,18 @@ def build(ns: dict, tag: str, ptag: str, parallel: bool) -> dict:
         finish=specialize(_em2_finish, ptag, ns, parallel=parallel, **OPTIONS),
         sweep=specialize(_em2_sweep, "par" if parallel else "ser", {}, parallel=parallel, **OPTIONS),
         step_scale=specialize(_em2_step_scale, "ser", {}, **OPTIONS),
+    )
+    calls = dict(ns, **{f"em2_{k}": v for k, v in kernels.items()})
+    kernels["damp"] = calls["em2_damp"] = specialize(_em2_damp, ptag, calls, **OPTIONS)
+    return dict(
+        kernels,
+        # the compiled Newton path's signatures (kernels/newton_compiled.py), extra = ()
+        compiled_predict=specialize(_em2_compiled_predict, ptag, calls, **INLINE),
+        compiled_residual=specialize(_em2_compiled_residual, ptag, calls, **INLINE),
+        compiled_jacobian=specialize(_em2_compiled_jacobian, ptag, calls, **INLINE),
+        compiled_finish=specialize(_em2_compiled_finish, ptag, calls, **INLINE),
+        compiled_linearize=specialize(_em2_compiled_linearize, ptag, calls, **INLINE),
+        compiled_damp=specialize(_em2_compiled_damp, ptag, calls, **INLINE),
         # the per-spring functions, callable alone (tests; other compiled loops)
         slope=specialize(_em2_slope, f"{tag}_alone", ns, **OPTIONS),
         direct=specialize(_em2_direct, f"{tag}_alone", ns, **OPTIONS),
@@ -456,6 +475,54 @@ def _em2_step_scale(topo, work, du, limit):
         if v2 > reach * reach:
             scale = min(scale, reach / math.sqrt(v2))
     return scale
+
+
+def _em2_damp(step, topo, spring, node, work, u, du, res, rmax, smax, trial):
+    """The damped Newton step (integrators/em2.py, LengthLimited): du (size,), a correction to
+    be applied as u −= du, scaled in place so that no spring's vector changes by more than
+    LENGTH_LIMIT times its length (``step_scale``); while the scaled residual rmax/smax (at u) is
+    above LINE_SEARCH_ABOVE, then halved until the residual's 2-norm falls (Armijo, at most
+    LINE_SEARCH_HALVINGS times; the trial points in ``trial`` (size,), the residual ``res`` and
+    ``work`` left at the last one)."""
+    scale = em2_step_scale(topo, work, du, LENGTH_LIMIT)
+    if rmax > LINE_SEARCH_ABOVE * smax:
+        R = res[0]
+        r0 = math.sqrt(np.dot(R, R))
+        for _ in range(LINE_SEARCH_HALVINGS):
+            for i in range(u.shape[0]):
+                trial[i] = u[i] - scale * du[i]
+            status, bad, tmax, tscale = em2_residual(step, topo, spring, node, work, trial, res)
+            if status == 0 and math.sqrt(np.dot(R, R)) <= (1.0 - 1e-4 * scale) * r0:
+                break
+            scale *= 0.5
+    elif not scale < 1.0:
+        return
+    for i in range(du.shape[0]):
+        du[i] *= scale
+
+
+def _em2_compiled_predict(step, topo, spring, node, work, extra, u):
+    em2_predict(step, topo, spring, node, work, u, u)  # in place: each entry is read, then written
+
+
+def _em2_compiled_residual(step, topo, spring, node, work, extra, u, warm, res):
+    return em2_residual(step, topo, spring, node, work, u, res)
+
+
+def _em2_compiled_jacobian(topo, spring, node, work, places, extra, h, data):
+    em2_jacobian(topo, spring, node, work, places, h, data)
+
+
+def _em2_compiled_finish(step, topo, spring, node, work, extra, u, phi, new):
+    return em2_finish(step, topo, spring, node, work, u, phi, new)
+
+
+def _em2_compiled_linearize(spring, work, extra, h):
+    em2_linearize(work, h)
+
+
+def _em2_compiled_damp(step, topo, spring, node, work, extra, u, du, res, rmax, smax, trial):
+    em2_damp(step, topo, spring, node, work, u, du, res, rmax, smax, trial)
 
 
 register_scheme("em2", build)
