@@ -241,3 +241,14 @@ def test_dense_lu_solves_like_numpy():
         lu_solve(LU, piv, x)
         np.testing.assert_allclose(x, np.linalg.solve(A, b), rtol=1e-10, atol=1e-12)
     assert not lu_factor(np.zeros((3, 3)), np.zeros(3, dtype=np.int64))
+
+
+@pytest.mark.parametrize("path,solver", [("sparse", "splu"), ("compiled-dense", "compiled, dense"),
+                                         ("Compiled", "compiled, sweeps")])
+def test_a_scene_chooses_the_newton_path(path, solver):
+    """[integrator] newton_path reaches the stepper (a bad value: tests/scenes_bad/)."""
+    from thermonet.scenes import scene_from_text
+
+    text = f'[net]\ngenerator = "chain"\n[integrator]\nname = "em2"\nh = 0.01\nsteps = 1\nnewton_path = "{path}"\n'
+    sim = scene_from_text(text, file="inline.toml").build().simulation
+    assert sim.stepper.summary()["linear_solver"] == solver
