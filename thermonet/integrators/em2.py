@@ -131,7 +131,7 @@ class EM2Stepper(ImplicitStepper):
         return status, spring
 
     def linearize(self) -> None:
-        self.kernels.linearize(self._work, self.h)
+        self.kernels.linearize(self._springs, self._work, self.h)
 
     def apply_inverse_inertia(self, v):
         """(h/m) v per free node."""

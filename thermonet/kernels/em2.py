@@ -60,7 +60,8 @@ from .specialize import specialize
 
 # Bound per model by specialize(); listed so the templates read as ordinary code.
 temperature = tension = internal_energy = adiabatic_stiffness = None
-em2_slope = em2_direct = em2_quadrature = tension_at = finish_nodes = None
+em2_slope = tension_at = finish_nodes = None
+em2_value = em2_derivative = em2_spring_dslope = lobatto_value = lobatto_derivative = None
 em2_predict = em2_residual = em2_jacobian = em2_finish = em2_linearize = em2_step_scale = em2_damp = None
 
 #: |l¹ − l⁰| ≤ SWITCH l̄: the discrete gradient by the Gauss–Lobatto rule, not by the quotient ΔU/δ
@@ -80,8 +81,10 @@ class EM2Work(NamedTuple):
     """EM2's per-spring arrays for m springs: len1 (m,), dir1 (3, m) the length and unit vector
     at x¹; mean (3, m) the mean spring vector d̄; slope, dslope (m,) s and ds/dl¹; energy0,
     tension0 (m,) U and T at l⁰ (fixed over the step); jc (2, m) the matrix-free coefficients
-    (h s/4, h ds/dl¹ / 2); and the start kernel's record ``start`` (its ``guess`` (m,) holds the
-    predictor's per-spring stiffness)."""
+    (h s/4, h ds/dl¹ / 2); eta_step (m,) the step's entropies (copied by ``predict``); quotient,
+    tension1 (m,) Q = ΔU/δ and T(l¹) of the last residual (ds/dl¹ from them, by ``linearize`` and
+    ``jacobian`` only: a residual does not need it); and the start kernel's record ``start`` (its
+    ``guess`` (m,) holds the predictor's per-spring stiffness)."""
 
     start: StartWork
     len1: np.ndarray
@@ -92,24 +95,30 @@ class EM2Work(NamedTuple):
     energy0: np.ndarray
     tension0: np.ndarray
     jc: np.ndarray
+    eta_step: np.ndarray
+    quotient: np.ndarray
+    tension1: np.ndarray
 
     @classmethod
     def allocate(cls, start: StartWork) -> "EM2Work":
         m = start.len0.shape[0]
         return cls(start, np.empty(m), np.empty((3, m)), np.empty((3, m)), np.empty(m), np.empty(m),
-                   np.empty(m), np.empty(m), np.empty((2, m)))
+                   np.empty(m), np.empty(m), np.empty((2, m)), np.empty(m), np.empty(m), np.empty(m))
 
 
 def build(ns: dict, tag: str, ptag: str, parallel: bool) -> dict:
     """EM2's kernels for the model namespace ``ns`` (see implicit_common.register_scheme)."""
     ns["tension_at"] = specialize(_tension_at, tag, ns, **INLINE)
-    ns["em2_direct"] = specialize(_em2_direct, tag, ns, **INLINE)
-    ns["em2_quadrature"] = specialize(_em2_quadrature, tag, ns, **INLINE)
+    ns["lobatto_value"] = specialize(_lobatto_value, tag, ns, **INLINE)
+    ns["lobatto_derivative"] = specialize(_lobatto_derivative, tag, ns, **INLINE)
+    ns["em2_value"] = specialize(_em2_value, tag, ns, **INLINE)
+    ns["em2_derivative"] = specialize(_em2_derivative, tag, ns, **INLINE)
     ns["em2_slope"] = specialize(_em2_slope, tag, ns, **INLINE)
+    ns["em2_spring_dslope"] = specialize(_em2_spring_dslope, tag, ns, **INLINE)
     kernels = dict(
         predict=specialize(_em2_predict, ptag, ns, parallel=parallel, **OPTIONS),
         residual=specialize(_em2_residual, ptag, ns, parallel=parallel, **OPTIONS),
-        linearize=specialize(_em2_linearize, ptag, {}, parallel=parallel, **OPTIONS),
+        linearize=specialize(_em2_linearize, ptag, ns, parallel=parallel, **OPTIONS),
         jacobian=specialize(_em2_jacobian, tag, ns, **OPTIONS),
         finish=specialize(_em2_finish, ptag, ns, parallel=parallel, **OPTIONS),
         sweep=specialize(_em2_sweep, "par" if parallel else "ser", {}, parallel=parallel, **OPTIONS),
@@ -140,9 +149,8 @@ def build(ns: dict, tag: str, ptag: str, parallel: bool) -> dict:
 def _em2_direct(l, l1, eta, l0, P, e, U0, T1):
     """Q = (U(l1, η) − U0)/(l1 − l) and dQ/dl1 = (T1 − Q)/(l1 − l), T1 = T(l1, θ(l1, η))
     (l1 ≠ l)."""
-    d = l1 - l
-    Q = (internal_energy(l1, eta, l0, P, e) - U0) / d
-    return Q, (T1 - Q) / d
+    Q = (internal_energy(l1, eta, l0, P, e) - U0) / (l1 - l)
+    return Q, (T1 - Q) / (l1 - l)
 
 
 def _tension_at(l, eta, l0, P, e):
@@ -150,20 +158,41 @@ def _tension_at(l, eta, l0, P, e):
     return tension(l, temperature(l, eta, l0, P, e), l0, P, e)
 
 
-def _em2_quadrature(l, l1, eta, l0, P, e, T0, T1):
-    """Q = ΔU/δ by the 5-point Gauss–Lobatto rule (module doc) and dQ/dl1 = Σ wᵢ ξᵢ k(l + ξᵢ δ),
-    without cancellation (T0 = T at l, T1 at l1, k the adiabatic stiffness)."""
+def _lobatto_value(l, l1, eta, l0, P, e, T0, T1):
+    """Q = ΔU/δ by the 5-point Gauss–Lobatto rule on T (module doc; T0 = T at l, T1 at l1)."""
     d = l1 - l
-    la = l + LOBATTO_NODE * d
-    lm = l + 0.5 * d
-    lb = l1 - LOBATTO_NODE * d
-    Q = 0.05 * (T0 + T1) + LOBATTO_WEIGHT * (tension_at(la, eta, l0, P, e) + tension_at(lb, eta, l0, P, e)) \
-        + (16.0 / 45.0) * tension_at(lm, eta, l0, P, e)
-    dQ = (0.05 * adiabatic_stiffness(l1, eta, l0, P, e)
-          + LOBATTO_WEIGHT * (LOBATTO_NODE * adiabatic_stiffness(la, eta, l0, P, e)
-                              + (1.0 - LOBATTO_NODE) * adiabatic_stiffness(lb, eta, l0, P, e))
-          + (8.0 / 45.0) * adiabatic_stiffness(lm, eta, l0, P, e))
-    return Q, dQ
+    return (0.05 * (T0 + T1) + LOBATTO_WEIGHT * (tension_at(l + LOBATTO_NODE * d, eta, l0, P, e)
+                                                 + tension_at(l1 - LOBATTO_NODE * d, eta, l0, P, e))
+            + (16.0 / 45.0) * tension_at(l + 0.5 * d, eta, l0, P, e))
+
+
+def _lobatto_derivative(l, l1, eta, l0, P, e):
+    """dQ/dl1 = Σ wᵢ ξᵢ k(l + ξᵢ δ) of the rule (k the adiabatic stiffness)."""
+    d = l1 - l
+    return (0.05 * adiabatic_stiffness(l1, eta, l0, P, e)
+            + LOBATTO_WEIGHT * (LOBATTO_NODE * adiabatic_stiffness(l + LOBATTO_NODE * d, eta, l0, P, e)
+                                + (1.0 - LOBATTO_NODE) * adiabatic_stiffness(l1 - LOBATTO_NODE * d, eta, l0, P, e))
+            + (8.0 / 45.0) * adiabatic_stiffness(l + 0.5 * d, eta, l0, P, e))
+
+
+def _em2_quadrature(l, l1, eta, l0, P, e, T0, T1):
+    """Q and dQ/dl1 by the rule, without cancellation."""
+    return lobatto_value(l, l1, eta, l0, P, e, T0, T1), lobatto_derivative(l, l1, eta, l0, P, e)
+
+
+def _em2_value(l, l1, eta, l0, P, e, U0, T0, T1):
+    """Q = ΔU/δ of one spring (U0, T0 at its start length l, T1 at its end length l1): the
+    quotient, or the rule within SWITCH; only the value (what a residual needs)."""
+    if abs(l1 - l) > SWITCH * (0.5 * (l + l1)):
+        return (internal_energy(l1, eta, l0, P, e) - U0) / (l1 - l)
+    return lobatto_value(l, l1, eta, l0, P, e, T0, T1)
+
+
+def _em2_derivative(l, l1, eta, l0, P, e, Q, T1):
+    """dQ/dl1 of one spring given its Q (:func:`_em2_value`) and T1 = T at l1."""
+    if abs(l1 - l) > SWITCH * (0.5 * (l + l1)):
+        return (T1 - Q) / (l1 - l)
+    return lobatto_derivative(l, l1, eta, l0, P, e)
 
 
 def _em2_slope(l, l1, eta, l0, P, e, U0, T0):
@@ -172,12 +201,19 @@ def _em2_slope(l, l1, eta, l0, P, e, U0, T0):
     th1 = temperature(l1, eta, l0, P, e)
     T1 = tension(l1, th1, l0, P, e)
     lm = 0.5 * (l + l1)
-    if abs(l1 - l) > SWITCH * lm:
-        Q, dQ = em2_direct(l, l1, eta, l0, P, e, U0, T1)
-    else:
-        Q, dQ = em2_quadrature(l, l1, eta, l0, P, e, T0, T1)
+    Q = em2_value(l, l1, eta, l0, P, e, U0, T0, T1)
     s = Q / lm
-    return s, (dQ - 0.5 * s) / lm, th1
+    return s, (em2_derivative(l, l1, eta, l0, P, e, Q, T1) - 0.5 * s) / lm, th1
+
+
+def _em2_spring_dslope(spring, work, e, pe):
+    """ds/dl¹ of spring e at the last residual's point (its Q, T(l¹), s in ``work``)."""
+    l0, P = spring
+    start, len1, dir1, mean, slope, dslope, energy0, tension0, jc, eta_step, quotient, tension1 = work
+    l = start[0][e]
+    l1 = len1[e]
+    dQ = em2_derivative(l, l1, eta_step[e], l0[e], P, pe, quotient[e], tension1[e])
+    return (dQ - 0.5 * slope[e]) / (0.5 * (l + l1))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -197,7 +233,7 @@ def _em2_predict(step, topo, spring, node, work, accel, pred):
     edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
     l0, P = spring
     masses, inv_mass, gravity, with_gravity = node
-    start, len1, dir1, mean, slope, dslope, energy0, tension0, jc = work
+    start, len1, dir1, mean, slope, dslope, energy0, tension0, jc, eta_step, quotient, tension1 = work
     len0, dir0, keep, fs, ws, sweep, nodal, stiff, code = start
     m = edges.shape[0]
     for blk in prange((m + BLOCK - 1) // BLOCK):
@@ -210,6 +246,7 @@ def _em2_predict(step, topo, spring, node, work, accel, pred):
             T = tension(l, th, l0[e], P, pe)
             energy0[e] = internal_energy(l, eta[e], l0[e], P, pe)
             tension0[e] = T
+            eta_step[e] = eta[e]
             stiff[e] = max(adiabatic_stiffness(l, eta[e], l0[e], P, pe), 0.0) + max(T / l, 0.0)
     q = 0.25 * h * h
     for a in prange(x0.shape[0]):
@@ -233,7 +270,7 @@ def _em2_residual(step, topo, spring, node, work, u, res):
     edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
     l0, P = spring
     masses, inv_mass, gravity, with_gravity = node
-    start, len1, dir1, mean, slope, dslope, energy0, tension0, jc = work
+    start, len1, dir1, mean, slope, dslope, energy0, tension0, jc, eta_step, quotient, tension1 = work
     len0, dir0, keep, fs, ws, sweep, nodal, guess, code = start
     R, Rabs, peak = res
     m = edges.shape[0]
@@ -269,15 +306,19 @@ def _em2_residual(step, topo, spring, node, work, u, res):
             dir1[0, e] = dx * i1
             dir1[1, e] = dy * i1
             dir1[2, e] = dz * i1
-            s, ds, th1 = em2_slope(len0[e], l1, eta[e], l0[e], P, pe, energy0[e], tension0[e])
+            th1 = temperature(l1, eta[e], l0[e], P, pe)
+            T1 = tension(l1, th1, l0[e], P, pe)
+            Q = em2_value(len0[e], l1, eta[e], l0[e], P, pe, energy0[e], tension0[e], T1)
+            quotient[e] = Q
+            tension1[e] = T1
+            s = Q / (0.5 * (len0[e] + l1))
             slope[e] = s
-            dslope[e] = ds
             g = half * s
             fs[0, e] = g * mean[0, e]
             fs[1, e] = g * mean[1, e]
             fs[2, e] = g * mean[2, e]
             lok = (l1 > 0.0) & (l1 < math.inf)
-            fine = _admissible(th1) & (abs(s) < math.inf) & (abs(ds) < math.inf)
+            fine = _admissible(th1) & (abs(s) < math.inf)
             code[e] = OK if (lok & fine) else (COLLAPSED if not lok else
                                                (NO_TEMPERATURE if not _admissible(th1) else NOT_FINITE))
         bad = min(bad, _first_flagged(code, lo, n, m))
@@ -330,14 +371,17 @@ def _em2_residual(step, topo, spring, node, work, u, res):
     return 0, -1, rmax, smax
 
 
-def _em2_linearize(work, h):
-    """The matrix-free coefficients at the last residual's point: jc (2, m) = (h s/4,
-    h (ds/dl¹)/2), spring e's block being jc[0] I + jc[1] d̄ n¹ᵀ."""
-    start, len1, dir1, mean, slope, dslope, energy0, tension0, jc = work
+def _em2_linearize(spring, work, h):
+    """ds/dl¹ (``work.dslope``) and the matrix-free coefficients at the last residual's point:
+    jc (2, m) = (h s/4, h (ds/dl¹)/2), spring e's block being jc[0] I + jc[1] d̄ n¹ᵀ."""
+    start, len1, dir1, mean, slope, dslope, energy0, tension0, jc, eta_step, quotient, tension1 = work
     m = len1.shape[0]
     for e in prange(m):
-        jc[0, e] = 0.25 * h * slope[e]
-        jc[1, e] = 0.5 * h * dslope[e]
+        eu = np.uint64(e)
+        ds = em2_spring_dslope(spring, work, eu, np.uint64(0) if UNIFORM else eu)
+        dslope[eu] = ds
+        jc[0, eu] = 0.25 * h * slope[eu]
+        jc[1, eu] = 0.5 * h * ds
 
 
 def _em2_jacobian(topo, spring, node, work, places, h, data):
@@ -346,7 +390,7 @@ def _em2_jacobian(topo, spring, node, work, places, h, data):
     B = (h/2) [(s/2) I + (ds/dl¹) d̄ n¹ᵀ] with sign s_c s_g."""
     edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
     masses, inv_mass, gravity, with_gravity = node
-    start, len1, dir1, mean, slope, dslope, energy0, tension0, jc = work
+    start, len1, dir1, mean, slope, dslope, energy0, tension0, jc, eta_step, quotient, tension1 = work
     node_base, node_stride, spring_base, spring_stride = places
     data[:] = 0.0
     for a in range(free_index.shape[0]):
@@ -358,6 +402,8 @@ def _em2_jacobian(topo, spring, node, work, places, h, data):
             data[node_base[k] + i * node_stride[k] + i] += w
     B = np.zeros((3, 3))
     for e in range(edges.shape[0]):
+        eu = np.uint64(e)
+        dslope[eu] = em2_spring_dslope(spring, work, eu, np.uint64(0) if UNIFORM else eu)
         c1 = 0.25 * h * slope[e]
         c2 = 0.5 * h * dslope[e]
         for i in range(3):
@@ -373,7 +419,7 @@ def _em2_finish(step, topo, spring, node, work, u, phi, new):
     x0, p, eta, h = step
     edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
     l0, P = spring
-    start, len1, dir1, mean, slope, dslope, energy0, tension0, jc = work
+    start, len1, dir1, mean, slope, dslope, energy0, tension0, jc, eta_step, quotient, tension1 = work
     len0, dir0, keep, fs, ws, sweep, nodal, guess, code = start
     x_new, p_new, phi_new, eta_new = new
     m = edges.shape[0]
@@ -403,7 +449,7 @@ def _em2_sweep(topo, node, work, h, du, R, r, update, first):
     v = du_a − du_b: jc[0] v + jc[1] (n¹·v) d̄."""
     edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
     masses, inv_mass, gravity, with_gravity = node
-    start, len1, dir1, mean, slope, dslope, energy0, tension0, jc = work
+    start, len1, dir1, mean, slope, dslope, energy0, tension0, jc, eta_step, quotient, tension1 = work
     len0, dir0, keep, fs, ws, w, nodal, guess, code = start
     m = ends.shape[0]
     for e in prange(0 if first else m):
@@ -518,7 +564,7 @@ def _em2_compiled_finish(step, topo, spring, node, work, extra, u, phi, new):
 
 
 def _em2_compiled_linearize(spring, work, extra, h):
-    em2_linearize(work, h)
+    em2_linearize(spring, work, h)
 
 
 def _em2_compiled_damp(step, topo, spring, node, work, extra, u, du, res, rmax, smax, trial):
