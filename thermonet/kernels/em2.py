@@ -56,6 +56,7 @@ from numba import prange
 from .implicit_common import (BLOCK, COLLAPSED, INLINE, NO_TEMPERATURE, NOT_FINITE, OK, OPTIONS, UNIFORM,
                               _admissible, _first_flagged, register_scheme, scatter_spring_block)
 from .implicit_records import StartWork
+from .implicit_rows import residual_rows3, spring_difference3, sweep_rows3
 from .specialize import specialize
 
 # Bound per model by specialize(); listed so the templates read as ordinary code.
@@ -327,47 +328,9 @@ def _em2_residual(step, topo, spring, node, work, u, res):
     rmax = 0.0
     smax = 0.0
     for a in prange(x0.shape[0]):
-        k = free_index[a]
-        if k < 0:
-            continue
-        w = masses[a] / h
-        r0 = 0.0
-        r1 = 0.0
-        r2 = 0.0
-        s0 = 0.0
-        s1 = 0.0
-        s2 = 0.0
-        for i in range(3):
-            inertia = w * u[3 * k + i]
-            g = half * masses[a] * gravity[i] if with_gravity else 0.0
-            r = inertia - p[a, i] - g
-            sa = abs(inertia) + abs(p[a, i]) + abs(g)
-            if i == 0:
-                r0, s0 = r, sa
-            elif i == 1:
-                r1, s1 = r, sa
-            else:
-                r2, s2 = r, sa
-        for j in range(inc_ptr[a], inc_ptr[a + 1]):
-            e = inc_spring[j]
-            sg = -inc_sign[j]
-            v0 = fs[0, e]
-            v1 = fs[1, e]
-            v2 = fs[2, e]
-            r0 += sg * v0
-            s0 += abs(v0)
-            r1 += sg * v1
-            s1 += abs(v1)
-            r2 += sg * v2
-            s2 += abs(v2)
-        R[3 * k] = r0
-        Rabs[3 * k] = s0
-        R[3 * k + 1] = r1
-        Rabs[3 * k + 1] = s1
-        R[3 * k + 2] = r2
-        Rabs[3 * k + 2] = s2
-        rmax = max(rmax, max(abs(r0), max(abs(r1), abs(r2))))
-        smax = max(smax, max(s0, max(s1, s2)))
+        big, scale = residual_rows3(step, topo, node, fs, u, half, res, a)
+        rmax = max(rmax, big)
+        smax = max(smax, scale)
     return 0, -1, rmax, smax
 
 
@@ -456,17 +419,7 @@ def _em2_sweep(topo, node, work, h, du, R, r, update, first):
         eu = np.uint64(e)
         ka = ends[eu, 0]
         kb = ends[eu, 1]
-        v0 = 0.0
-        v1 = 0.0
-        v2 = 0.0
-        if ka >= 0:
-            v0 += du[3 * ka]
-            v1 += du[3 * ka + 1]
-            v2 += du[3 * ka + 2]
-        if kb >= 0:
-            v0 -= du[3 * kb]
-            v1 -= du[3 * kb + 1]
-            v2 -= du[3 * kb + 2]
+        v0, v1, v2 = spring_difference3(du, ka, kb)
         c = jc[1, eu] * (dir1[0, eu] * v0 + dir1[1, eu] * v1 + dir1[2, eu] * v2)
         c1 = jc[0, eu]
         w[eu, 0] = c1 * v0 + c * mean[0, eu]
@@ -474,32 +427,7 @@ def _em2_sweep(topo, node, work, h, du, R, r, update, first):
         w[eu, 2] = c1 * v2 + c * mean[2, eu]
     rmax = 0.0
     for a in prange(free_index.shape[0]):
-        k = free_index[a]
-        if k < 0:
-            continue
-        wm = masses[a] / h
-        d0 = 0.0 if first else du[3 * k]
-        d1 = 0.0 if first else du[3 * k + 1]
-        d2 = 0.0 if first else du[3 * k + 2]
-        r0 = R[3 * k] - wm * d0
-        r1 = R[3 * k + 1] - wm * d1
-        r2 = R[3 * k + 2] - wm * d2
-        if not first:
-            for j in range(inc_ptr[a], inc_ptr[a + 1]):
-                e = inc_spring[j]
-                sg = -inc_sign[j]
-                r0 += sg * w[e, 0]
-                r1 += sg * w[e, 1]
-                r2 += sg * w[e, 2]
-        if not update:
-            r[3 * k] = r0
-            r[3 * k + 1] = r1
-            r[3 * k + 2] = r2
-        rmax = max(rmax, max(abs(r0), max(abs(r1), abs(r2))))
-        if update:
-            du[3 * k] = d0 + r0 / wm
-            du[3 * k + 1] = d1 + r1 / wm
-            du[3 * k + 2] = d2 + r2 / wm
+        rmax = max(rmax, sweep_rows3(topo, node, h, w, du, R, r, a, update, first))
     return rmax
 
 
