@@ -35,14 +35,20 @@ k = dT/dl at fixed η (the adiabatic stiffness). The work record is :class:`EM2W
 
 Callable from other compiled code (the records are plain tuples of arrays, see
 ``implicit_records.plain``): ``residual(step, topo, spring, node, work, u, res) -> (status,
-spring, max|R|, max Rabs)``, ``jacobian(topo, spring, node, work, places, h, data)``,
+spring, max|R|, max Rabs)`` (s from Q alone; it keeps Q and T(l¹) per spring),
+``linearize(spring, work, h)`` and ``jacobian(topo, spring, node, work, places, h, data)`` (both
+compute ds/dl¹ from what the residual kept: a residual that is not linearized, the last of a
+step or a Jacobi step's, does not pay for the rule's four stiffness evaluations),
 ``predict(step, topo, spring, node, work, accel, pred)``, ``finish(step, topo, spring, node,
-work, u, phi, new) -> (status, spring)``, ``linearize(work, h)``, ``sweep(topo, node, work, h,
-du, R, r, update, first) -> max|r|``, ``step_scale(topo, work, du, limit) -> factor`` (the damped
-Newton step's length limit), and the per-spring ``slope(l, l1, eta, l0, P, e, U0, T0) -> (s,
-ds/dl1, θ(l1, η))``. A step: the shared start kernel with predictor coefficients [[0, 1, 0, 0]]
-(it writes the acceleration a), ``predict`` (U, T at l⁰ into ``work``, the guess into u), then
-``residual``/``jacobian`` per Newton iteration, ``finish``.
+work, u, phi, new) -> (status, spring)``, ``sweep(topo, node, work, h, du, R, r, update, first)
+-> max|r|``, ``step_scale(topo, work, du, limit) -> factor`` and ``damp(step, topo, spring,
+node, work, u, du, res, rmax, smax, trial)`` (the damped Newton step, both Newton paths), and
+the per-spring ``slope(l, l1, eta, l0, P, e, U0, T0) -> (s, ds/dl1, θ(l1, η))``. A step: the
+shared start kernel with predictor coefficients [[0, 1, 0, 0]] (it writes the acceleration a),
+``predict`` (U, T at l⁰ and η into ``work``, the guess into u), then ``residual`` and
+``linearize`` or ``jacobian`` per Newton iteration, ``finish``. The compiled Newton path
+(:mod:`.newton_compiled`) takes the same kernels through the ``compiled_*`` adapters at the end
+of this module.
 """
 
 from __future__ import annotations
@@ -264,7 +270,7 @@ def _em2_predict(step, topo, spring, node, work, accel, pred):
 
 def _em2_residual(step, topo, spring, node, work, u, res):
     """R, Rabs (3 n_free,) of ``res`` at unknowns u (3 n_free,) (module doc); fills ``work``'s
-    len1, dir1, mean, slope, dslope for the Jacobian and the finish, and the start record's fs
+    len1, dir1, mean, slope, quotient, tension1 for the Jacobian and the finish, and the start record's fs
     (≥ 3, m) with each spring's (h/2) s d̄. Needs ``work.energy0``, ``tension0`` (predict).
     Returns (status, spring, max |R|, max Rabs)."""
     x0, p, eta, h = step
@@ -295,7 +301,7 @@ def _em2_residual(step, topo, spring, node, work, u, res):
                     d1 -= u[3 * ka + j]
                 fs[j, e] = d1
                 mean[j, e] = 0.5 * (d0 + d1)
-        for i in range(n):  # per spring
+        for i in range(n):  # per spring, Q by the rule (branch-free: vectorized)
             e = np.uint64(lo + i)
             pe = np.uint64(0) if UNIFORM else np.uint64(e)
             dx = fs[0, e]
@@ -309,7 +315,7 @@ def _em2_residual(step, topo, spring, node, work, u, res):
             dir1[2, e] = dz * i1
             th1 = temperature(l1, eta[e], l0[e], P, pe)
             T1 = tension(l1, th1, l0[e], P, pe)
-            Q = em2_value(len0[e], l1, eta[e], l0[e], P, pe, energy0[e], tension0[e], T1)
+            Q = lobatto_value(len0[e], l1, eta[e], l0[e], P, pe, tension0[e], T1)
             quotient[e] = Q
             tension1[e] = T1
             s = Q / (0.5 * (len0[e] + l1))
@@ -322,6 +328,23 @@ def _em2_residual(step, topo, spring, node, work, u, res):
             fine = _admissible(th1) & (abs(s) < math.inf)
             code[e] = OK if (lok & fine) else (COLLAPSED if not lok else
                                                (NO_TEMPERATURE if not _admissible(th1) else NOT_FINITE))
+        for i in range(n):  # the quotient ΔU/δ instead where |δ| > SWITCH l̄ (few springs: scalar)
+            e = np.uint64(lo + i)
+            l = len0[e]
+            l1 = len1[e]
+            if not abs(l1 - l) > SWITCH * (0.5 * (l + l1)):
+                continue
+            pe = np.uint64(0) if UNIFORM else np.uint64(e)
+            Q = (internal_energy(l1, eta[e], l0[e], P, pe) - energy0[e]) / (l1 - l)
+            quotient[e] = Q
+            s = Q / (0.5 * (l + l1))
+            slope[e] = s
+            g = half * s
+            fs[0, e] = g * mean[0, e]
+            fs[1, e] = g * mean[1, e]
+            fs[2, e] = g * mean[2, e]
+            if code[e] == OK or code[e] == NOT_FINITE:
+                code[e] = OK if abs(s) < math.inf else NOT_FINITE
         bad = min(bad, _first_flagged(code, lo, n, m))
     if bad < m:
         return code[bad], bad, math.inf, math.inf
@@ -336,15 +359,34 @@ def _em2_residual(step, topo, spring, node, work, u, res):
 
 def _em2_linearize(spring, work, h):
     """ds/dl¹ (``work.dslope``) and the matrix-free coefficients at the last residual's point:
-    jc (2, m) = (h s/4, h (ds/dl¹)/2), spring e's block being jc[0] I + jc[1] d̄ n¹ᵀ."""
+    jc (2, m) = (h s/4, h (ds/dl¹)/2), spring e's block being jc[0] I + jc[1] d̄ n¹ᵀ; ds/dl¹ as
+    :func:`_em2_spring_dslope`, in a vectorized loop by the rule and a scalar one where
+    |δ| > SWITCH l̄ (as the residual)."""
+    l0, P = spring
     start, len1, dir1, mean, slope, dslope, energy0, tension0, jc, eta_step, quotient, tension1 = work
+    len0 = start[0]
     m = len1.shape[0]
-    for e in prange(m):
-        eu = np.uint64(e)
-        ds = em2_spring_dslope(spring, work, eu, np.uint64(0) if UNIFORM else eu)
-        dslope[eu] = ds
-        jc[0, eu] = 0.25 * h * slope[eu]
-        jc[1, eu] = 0.5 * h * ds
+    for blk in prange((m + BLOCK - 1) // BLOCK):
+        lo = blk * BLOCK
+        n = min(BLOCK, m - lo)
+        for i in range(n):
+            e = np.uint64(lo + i)
+            pe = np.uint64(0) if UNIFORM else np.uint64(e)
+            l = len0[e]
+            l1 = len1[e]
+            dQ = lobatto_derivative(l, l1, eta_step[e], l0[e], P, pe)
+            ds = (dQ - 0.5 * slope[e]) / (0.5 * (l + l1))
+            dslope[e] = ds
+            jc[0, e] = 0.25 * h * slope[e]
+            jc[1, e] = 0.5 * h * ds
+        for i in range(n):
+            e = np.uint64(lo + i)
+            l = len0[e]
+            l1 = len1[e]
+            if abs(l1 - l) > SWITCH * (0.5 * (l + l1)):
+                ds = ((tension1[e] - quotient[e]) / (l1 - l) - 0.5 * slope[e]) / (0.5 * (l + l1))
+                dslope[e] = ds
+                jc[1, e] = 0.5 * h * ds
 
 
 def _em2_jacobian(topo, spring, node, work, places, h, data):
