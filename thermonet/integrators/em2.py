@@ -82,8 +82,8 @@ class LengthLimited:
         st = self.stepper
         rmax, smax = st.norms
         # the compiled path's damping kernel (kernels/em2.py), so both paths damp alike
-        st.kernels.damp(st._step_start, st._topology, st._springs, st._nodes, st._work, st.u, du, st._residuals,
-                        rmax, smax, st.trial)
+        st.kernels.damp(st._step_start, st._topology, st._springs, st._nodes, st._work, st._residuals,
+                        (rmax, smax), (st.u, du, st.trial))
         return du
 
 

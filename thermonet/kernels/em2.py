@@ -494,13 +494,15 @@ def _em2_step_scale(topo, work, du, limit):
     return scale
 
 
-def _em2_damp(step, topo, spring, node, work, u, du, res, rmax, smax, trial):
-    """The damped Newton step (integrators/em2.py, LengthLimited): du (size,), a correction to
-    be applied as u −= du, scaled in place so that no spring's vector changes by more than
-    LENGTH_LIMIT times its length (``step_scale``); while the scaled residual rmax/smax (at u) is
-    above LINE_SEARCH_ABOVE, then halved until the residual's 2-norm falls (Armijo, at most
-    LINE_SEARCH_HALVINGS times; the trial points in ``trial`` (size,), the residual ``res`` and
-    ``work`` left at the last one)."""
+def _em2_damp(step, topo, spring, node, work, res, norms, vectors):
+    """The damped Newton step (integrators/em2.py, LengthLimited). vectors: (u, du, trial)
+    (size,) each: du, a correction to be applied as u −= du, is scaled in place so that no
+    spring's vector changes by more than LENGTH_LIMIT times its length (``step_scale``); while
+    the scaled residual rmax/smax (norms, at u) is above LINE_SEARCH_ABOVE, then halved until the
+    residual's 2-norm falls (Armijo, at most LINE_SEARCH_HALVINGS times; the trial points in
+    ``trial``, the residual ``res`` and ``work`` left at the last one)."""
+    u, du, trial = vectors
+    rmax, smax = norms
     scale = em2_step_scale(topo, work, du, LENGTH_LIMIT)
     if rmax > LINE_SEARCH_ABOVE * smax:
         R = res[0]
@@ -538,8 +540,8 @@ def _em2_compiled_linearize(spring, work, extra, h):
     em2_linearize(spring, work, h)
 
 
-def _em2_compiled_damp(step, topo, spring, node, work, extra, u, du, res, rmax, smax, trial):
-    em2_damp(step, topo, spring, node, work, u, du, res, rmax, smax, trial)
+def _em2_compiled_damp(step, topo, spring, node, work, extra, res, norms, vectors):
+    em2_damp(step, topo, spring, node, work, res, norms, vectors)
 
 
 register_scheme("em2", build)

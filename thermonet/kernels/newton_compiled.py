@@ -14,9 +14,10 @@ and model by :func:`newton_steps_kernel`:
 
 and, where the scheme has them (else no-ops), ``scheme_predict(step, topo, spring, node, work,
 extra, u)``, the scheme's own predictor from the start kernel's output in u (in place), and
-``scheme_damp(step, topo, spring, node, work, extra, u, du, res, rmax, scale, trial)``, which
-shortens a full iteration's correction du in place (a damped Newton step; ``res`` and the
-work record may be overwritten: the residual is evaluated again at the corrected u).
+``scheme_damp(step, topo, spring, node, work, extra, res, (max |R|, max Rabs), (u, du,
+trial))``, which shortens a full iteration's correction du in place (a damped Newton step;
+``res``, the work record and ``trial`` may be overwritten: the residual is evaluated again at
+the corrected u).
 
 ``extra`` is a tuple of whatever else the scheme's kernels take (GTR-α: (α,); HO4: its two
 empty index lists), made once by the stepper (``ImplicitStepper.compiled_extra``). A scheme
@@ -102,7 +103,7 @@ def _no_predict(step, topo, spring, node, work, extra, u):
 
 
 @njit(cache=True, inline="always")
-def _no_damp(step, topo, spring, node, work, extra, u, du, res, rmax, scale, trial):
+def _no_damp(step, topo, spring, node, work, extra, res, norms, vectors):
     """Stands in for a scheme that takes every Newton correction whole."""
 
 
@@ -322,7 +323,7 @@ def _newton_steps(state, records, extra, linear, control, out):
                 else:
                     du[:] = math.nan
             if not use_jacobi:
-                scheme_damp(step, topo, spring, node, work, extra, u, du, res, rmax, scale, r)
+                scheme_damp(step, topo, spring, node, work, extra, res, (rmax, scale), (u, du, r))
             increment = 0.0
             finite = True
             for i in range(size):
