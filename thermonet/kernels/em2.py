@@ -352,7 +352,7 @@ def _em2_residual(step, topo, spring, node, work, u, res):
     rmax = 0.0
     smax = 0.0
     for a in prange(x0.shape[0]):
-        big, scale = residual_rows3(step, topo, node, fs, u, half, res, a)
+        big, scale = residual_rows3(step, topo, node, fs, u, half, R, Rabs, a)
         rmax = max(rmax, big)
         smax = max(smax, scale)
     return 0, -1, rmax, smax

@@ -239,7 +239,7 @@ def _gtr_residual(step, topo, spring, node, work, alpha, u, warm, res):
     smax = 0.0
     gc = alpha * h
     for a in prange(x0.shape[0]):
-        big, scale = residual_rows3(step, topo, node, fs, u, gc, res, a)
+        big, scale = residual_rows3(step, topo, node, fs, u, gc, R, Rabs, a)
         rmax = max(rmax, big)
         smax = max(smax, scale)
     return 0, -1, rmax, smax

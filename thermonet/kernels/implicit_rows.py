@@ -11,18 +11,19 @@ from numba import njit
 
 
 @njit(cache=True, inline="always", error_model="numpy", boundscheck=False)
-def residual_rows3(step, topo, node, fs, u, gc, res, a):
-    """Rows of free node a (block k = free_index[a]; none where anchored) into R, Rabs of ``res``:
+def residual_rows3(step, topo, node, fs, u, gc, R, Rabs, a):
+    """Rows of free node a (block k = free_index[a]; none where anchored) into R, Rabs:
 
         R_i = (m/h) u_i − p_i − gc m g_i + Σ_e ∓fs[i, e]   (− at a spring's first end)
 
     and Rabs_i the sum of the magnitudes of those terms; fs (≥ 3, m) the springs' impulses of
     the residual, gc the gravity's coefficient (GTR-α: α h; EM2: h/2). Returns (max |R_i|,
-    max Rabs_i) over the node's rows ((0, 0) for an anchored node)."""
+    max Rabs_i) over the node's rows ((0, 0) for an anchored node). (R, Rabs are taken apart
+    from the residual's record by the caller, outside its parallel loop: arrays unpacked from a
+    tuple within a prange body were written to a copy.)"""
     x0, p, eta, h = step
     edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
     masses, inv_mass, gravity, with_gravity = node
-    R, Rabs, peak = res
     k = free_index[a]
     if k < 0:
         return 0.0, 0.0
