@@ -12,7 +12,7 @@ from thermonet.integrators.base import StepFailure
 from thermonet.kernels.newton_compiled import lu_factor, lu_solve
 
 
-def lattice_simulation(cells, integrator, h=0.01, gravity=(0.0, 0.0, -9.81), **options):
+def lattice_simulation(cells, integrator, h=0.01, gravity=(0.0, 0.0, -9.81), threads=None, **options):
     """A jittered lattice of ``cells`` with node 0 anchored, gravity, random momenta and
     temperatures; uniform parameters (one compiled kernel variant for every case here)."""
     rng = np.random.default_rng(7)
@@ -24,7 +24,8 @@ def lattice_simulation(cells, integrator, h=0.01, gravity=(0.0, 0.0, -9.81), **o
     momenta[anchored] = 0.0
     return tn.Simulation(net, model="hencky", parameters=dict(c=100.0, beta=0.5, C0=2.0, theta0=300.0),
                          temperatures=rng.uniform(250.0, 700.0, net.n_springs), momenta=momenta, gravity=gravity,
-                         integrator=integrator, h=h, integrator_options=options)
+                         integrator=integrator, h=h, integrator_options=options,
+                         **({} if threads is None else dict(parallel=threads)))
 
 
 #: Newton to its round-off floor (as tests/test_em2.py)
@@ -145,6 +146,19 @@ def test_em2_energy_over_many_steps_with_sweeps():
     L = np.column_stack([d.Lx, d.Ly, d.Lz])
     assert np.linalg.norm(L - L[0], axis=1).max() <= 1e-12 * np.linalg.norm(L[0])
     assert np.array_equal(sim.state.entropy, eta0)
+
+
+def test_em2_threaded_compiled_path_gives_the_serial_numbers():
+    """EM2's threaded kernels inside the compiled driver (sweeps), with gravity and an anchor:
+    the serial run's states, bit for bit (fixed summation orders; the shared node rows write
+    the residual's arrays from within the threaded loop)."""
+    serial, threaded = (lattice_simulation((2, 2, 2), "em2", threads=t, newton_path="compiled") for t in (False, True))
+    assert threaded.stepper.kernels_parallel and not serial.stepper.kernels_parallel
+    for sim in (serial, threaded):
+        sim.run(steps=20, diagnostics_every=10**9)
+    assert threaded.stepper.summary()["linear_solver"] == "compiled, sweeps"
+    for name in ("positions", "momenta", "thermal_displacement", "entropy"):
+        assert np.array_equal(getattr(serial.state, name), getattr(threaded.state, name)), name
 
 
 def failure_of(sim, steps):
