@@ -14,6 +14,8 @@ stall).
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from ..errors import InputError
@@ -84,11 +86,13 @@ class CompiledNewton:
         self._buffers = (pattern.indptr, pattern.indices, np.zeros(pattern.nnz if dense else 0),
                          np.zeros((dense, dense)), np.zeros(dense, dtype=np.int64), np.zeros(size), np.zeros(size))
         opts = stepper.options
-        self._control = (float(opts.tolerance), float(opts.rtol), float(opts.atol), int(opts.max_iterations))
+        self._control = (float(opts.tolerance), float(opts.rtol))
+        self._tail = (int(opts.max_iterations),)
         self._solves = (float(LINEAR_FRACTION), (float(JACOBI_RANGE), float(JACOBI_MAX_STEPS)),
                         (int(MatrixFree.MAX_SWEEPS), float(MatrixFree.STALL)))
         self._history = np.zeros(int(opts.max_iterations) + 2)
         self._info = np.zeros(5, dtype=np.int64)
+        self._atol = np.zeros(1)
         self._out = None
         self._coef = (None, None)
 
@@ -101,12 +105,18 @@ class CompiledNewton:
         if self._coef[0] != h:
             self._coef = (h, s.predictor_coefficients(h))
         if self._out is None or self._out[0].shape[0] < n_steps:
-            self._out = (np.zeros(n_steps, dtype=np.int64), np.zeros(n_steps), self._history, self._info)
+            self._out = (np.zeros(n_steps, dtype=np.int64), np.zeros(n_steps), self._history, self._info, self._atol)
         if self._linear is None:
             self._linear = self._buffers + (s.u, plain(s.residuals), tuple(self._new))
         records = (s._topology, s._springs, s._nodes, s._work, s._places)
+        # Newton's atol: the stepper's, or (a scheme with atol_rounding, EM2) the driver's per step
+        atol = float(s.options.atol)
+        self._atol[0] = atol
+        rounding = float(s.atol_rounding())
         done = self.driver((x, p, phi, eta, float(h), self._coef[1]), records, s.compiled_extra(), self._linear,
-                           self._control + (int(n_steps),) + self._solves, self._out)
+                           self._control + (rounding,) + self._tail + (int(n_steps),) + self._solves, self._out)
+        if self._atol[0] != atol:
+            s.options = dataclasses.replace(s.options, atol=float(self._atol[0]))
         iterations, finals = self._out[0][:done], self._out[1][:done]
         s.warm = False
         if done == n_steps:

@@ -17,7 +17,7 @@ import math
 
 import numpy as np
 
-from ..kernels.em2 import EM2Work
+from ..kernels.em2 import LENGTH_LIMIT, LINE_SEARCH_ABOVE, LINE_SEARCH_HALVINGS, EM2Work  # noqa: F401
 from ..kernels.implicit_records import plain
 from .base import Integrator, register_integrator
 from .implicit import ImplicitStepper, newton_options
@@ -56,12 +56,6 @@ RETRY = 4
 #: forces' rounding, c ε per spring from ln(l/l0), can hold the scaled residual above 1e-12
 #: while the displacements are tiny; measured on a chain's slow mode at 1e-4 amplitude)
 ATOL_ULPS = 8
-#: a Newton correction changes no spring's vector by more than this fraction of its length
-LENGTH_LIMIT = 0.5
-#: a correction is searched along (halved until the residual falls) while the scaled residual
-#: is above this; below it Newton converges quadratically from the whole correction
-LINE_SEARCH_ABOVE = 1e-3
-LINE_SEARCH_HALVINGS = 12
 
 
 class LengthLimited:
@@ -86,22 +80,10 @@ class LengthLimited:
     def solve(self, rhs, target: float = 0.0, settled: float = 0.0):
         du = self.inner.solve(rhs, target, settled)
         st = self.stepper
-        scale = st.kernels.step_scale(st._topology, st._work, du, LENGTH_LIMIT)
         rmax, smax = st.norms
-        if not rmax > LINE_SEARCH_ABOVE * smax:
-            if scale < 1.0:
-                du *= scale
-            return du
-        u = st.u
-        r0 = float(np.linalg.norm(st.R))
-        trial = np.empty_like(u)
-        for _ in range(LINE_SEARCH_HALVINGS):
-            np.subtract(u, scale * du, out=trial)
-            status, _ = st.residual(trial)
-            if status == 0 and float(np.linalg.norm(st.R)) <= (1.0 - 1e-4 * scale) * r0:
-                break
-            scale *= 0.5
-        du *= scale
+        # the compiled path's damping kernel (kernels/em2.py), so both paths damp alike
+        st.kernels.damp(st._step_start, st._topology, st._springs, st._nodes, st._work, st._residuals,
+                        (rmax, smax), (st.u, du, st.trial))
         return du
 
 
@@ -120,12 +102,16 @@ class EM2Stepper(ImplicitStepper):
     def make_work(self, start) -> EM2Work:
         # the start kernel writes the acceleration at x⁰ here; predict() makes the guess from it
         self.accel = self.prediction = np.zeros(self.pattern.size)
+        self.trial = np.zeros(self.pattern.size)  # the damped step's trial points
         return EM2Work.allocate(start)
+
+    def atol_rounding(self) -> float:
+        return ATOL_ULPS * np.finfo(np.float64).eps if self.rounding_atol else 0.0
 
     def begin(self, x, p, eta, h: float) -> None:
         super().begin(x, p, eta, h)
         if self.rounding_atol:
-            floor = ATOL_ULPS * np.finfo(np.float64).eps * float(np.abs(x).max(initial=0.0))
+            floor = self.atol_rounding() * float(np.abs(x).max(initial=0.0))
             if not 0.5 * self.options.atol <= floor <= 2.0 * self.options.atol:
                 self.options = dataclasses.replace(self.options, atol=floor)
 
@@ -145,7 +131,7 @@ class EM2Stepper(ImplicitStepper):
         return status, spring
 
     def linearize(self) -> None:
-        self.kernels.linearize(self._work, self.h)
+        self.kernels.linearize(self._springs, self._work, self.h)
 
     def apply_inverse_inertia(self, v):
         """(h/m) v per free node."""

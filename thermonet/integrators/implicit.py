@@ -159,6 +159,11 @@ class ImplicitStepper(Stepper):
         """The ``extra`` tuple the scheme's compiled_* kernels take (kernels/newton_compiled.py)."""
         return ()
 
+    def atol_rounding(self) -> float:
+        """c > 0 where Newton's atol follows the positions' round-off, c max |x| at each step's
+        start (the compiled driver applies it as :meth:`begin` does); 0: atol as given."""
+        return 0.0
+
     @abstractmethod
     def predictor_coefficients(self, h: float) -> np.ndarray:
         """(B/3, 4): sub-block j of a free node's predicted unknowns is c[j, 0] v + c[j, 1] a

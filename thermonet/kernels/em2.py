@@ -35,14 +35,20 @@ k = dT/dl at fixed η (the adiabatic stiffness). The work record is :class:`EM2W
 
 Callable from other compiled code (the records are plain tuples of arrays, see
 ``implicit_records.plain``): ``residual(step, topo, spring, node, work, u, res) -> (status,
-spring, max|R|, max Rabs)``, ``jacobian(topo, spring, node, work, places, h, data)``,
+spring, max|R|, max Rabs)`` (s from Q alone; it keeps Q and T(l¹) per spring),
+``linearize(spring, work, h)`` and ``jacobian(topo, spring, node, work, places, h, data)`` (both
+compute ds/dl¹ from what the residual kept: a residual that is not linearized, the last of a
+step or a Jacobi step's, does not pay for the rule's four stiffness evaluations),
 ``predict(step, topo, spring, node, work, accel, pred)``, ``finish(step, topo, spring, node,
-work, u, phi, new) -> (status, spring)``, ``linearize(work, h)``, ``sweep(topo, node, work, h,
-du, R, r, update, first) -> max|r|``, ``step_scale(topo, work, du, limit) -> factor`` (the damped
-Newton step's length limit), and the per-spring ``slope(l, l1, eta, l0, P, e, U0, T0) -> (s,
-ds/dl1, θ(l1, η))``. A step: the shared start kernel with predictor coefficients [[0, 1, 0, 0]]
-(it writes the acceleration a), ``predict`` (U, T at l⁰ into ``work``, the guess into u), then
-``residual``/``jacobian`` per Newton iteration, ``finish``.
+work, u, phi, new) -> (status, spring)``, ``sweep(topo, node, work, h, du, R, r, update, first)
+-> max|r|``, ``step_scale(topo, work, du, limit) -> factor`` and ``damp(step, topo, spring,
+node, work, u, du, res, rmax, smax, trial)`` (the damped Newton step, both Newton paths), and
+the per-spring ``slope(l, l1, eta, l0, P, e, U0, T0) -> (s, ds/dl1, θ(l1, η))``. A step: the
+shared start kernel with predictor coefficients [[0, 1, 0, 0]] (it writes the acceleration a),
+``predict`` (U, T at l⁰ and η into ``work``, the guess into u), then ``residual`` and
+``linearize`` or ``jacobian`` per Newton iteration, ``finish``. The compiled Newton path
+(:mod:`.newton_compiled`) takes the same kernels through the ``compiled_*`` adapters at the end
+of this module.
 """
 
 from __future__ import annotations
@@ -56,25 +62,36 @@ from numba import prange
 from .implicit_common import (BLOCK, COLLAPSED, INLINE, NO_TEMPERATURE, NOT_FINITE, OK, OPTIONS, UNIFORM,
                               _admissible, _first_flagged, register_scheme, scatter_spring_block)
 from .implicit_records import StartWork
+from .implicit_rows import residual_rows3, spring_difference3, sweep_rows3
 from .specialize import specialize
 
 # Bound per model by specialize(); listed so the templates read as ordinary code.
 temperature = tension = internal_energy = adiabatic_stiffness = None
-em2_slope = em2_direct = em2_quadrature = tension_at = finish_nodes = None
+em2_slope = tension_at = finish_nodes = None
+em2_value = em2_derivative = em2_spring_dslope = lobatto_value = lobatto_derivative = None
+em2_predict = em2_residual = em2_jacobian = em2_finish = em2_linearize = em2_step_scale = em2_damp = None
 
 #: |l¹ − l⁰| ≤ SWITCH l̄: the discrete gradient by the Gauss–Lobatto rule, not by the quotient ΔU/δ
 SWITCH = 0.03
 #: the interior nodes and weights of the 5-point Gauss–Lobatto rule on [0, 1] (besides 1/2, 16/45)
 LOBATTO_NODE = 0.5 * (1.0 - math.sqrt(3.0 / 7.0))
 LOBATTO_WEIGHT = 49.0 / 180.0
+#: a Newton correction changes no spring's vector by more than this fraction of its length
+LENGTH_LIMIT = 0.5
+#: a correction is searched along (halved until the residual falls) while the scaled residual
+#: is above this; below it Newton converges quadratically from the whole correction
+LINE_SEARCH_ABOVE = 1e-3
+LINE_SEARCH_HALVINGS = 12
 
 
 class EM2Work(NamedTuple):
     """EM2's per-spring arrays for m springs: len1 (m,), dir1 (3, m) the length and unit vector
     at x¹; mean (3, m) the mean spring vector d̄; slope, dslope (m,) s and ds/dl¹; energy0,
     tension0 (m,) U and T at l⁰ (fixed over the step); jc (2, m) the matrix-free coefficients
-    (h s/4, h ds/dl¹ / 2); and the start kernel's record ``start`` (its ``guess`` (m,) holds the
-    predictor's per-spring stiffness)."""
+    (h s/4, h ds/dl¹ / 2); eta_step (m,) the step's entropies (copied by ``predict``); quotient,
+    tension1 (m,) Q = ΔU/δ and T(l¹) of the last residual (ds/dl¹ from them, by ``linearize`` and
+    ``jacobian`` only: a residual does not need it); and the start kernel's record ``start`` (its
+    ``guess`` (m,) holds the predictor's per-spring stiffness)."""
 
     start: StartWork
     len1: np.ndarray
@@ -85,28 +102,46 @@ class EM2Work(NamedTuple):
     energy0: np.ndarray
     tension0: np.ndarray
     jc: np.ndarray
+    eta_step: np.ndarray
+    quotient: np.ndarray
+    tension1: np.ndarray
 
     @classmethod
     def allocate(cls, start: StartWork) -> "EM2Work":
         m = start.len0.shape[0]
         return cls(start, np.empty(m), np.empty((3, m)), np.empty((3, m)), np.empty(m), np.empty(m),
-                   np.empty(m), np.empty(m), np.empty((2, m)))
+                   np.empty(m), np.empty(m), np.empty((2, m)), np.empty(m), np.empty(m), np.empty(m))
 
 
 def build(ns: dict, tag: str, ptag: str, parallel: bool) -> dict:
     """EM2's kernels for the model namespace ``ns`` (see implicit_common.register_scheme)."""
     ns["tension_at"] = specialize(_tension_at, tag, ns, **INLINE)
-    ns["em2_direct"] = specialize(_em2_direct, tag, ns, **INLINE)
-    ns["em2_quadrature"] = specialize(_em2_quadrature, tag, ns, **INLINE)
+    ns["lobatto_value"] = specialize(_lobatto_value, tag, ns, **INLINE)
+    ns["lobatto_derivative"] = specialize(_lobatto_derivative, tag, ns, **INLINE)
+    ns["em2_value"] = specialize(_em2_value, tag, ns, **INLINE)
+    ns["em2_derivative"] = specialize(_em2_derivative, tag, ns, **INLINE)
     ns["em2_slope"] = specialize(_em2_slope, tag, ns, **INLINE)
-    return dict(
+    ns["em2_spring_dslope"] = specialize(_em2_spring_dslope, tag, ns, **INLINE)
+    kernels = dict(
         predict=specialize(_em2_predict, ptag, ns, parallel=parallel, **OPTIONS),
         residual=specialize(_em2_residual, ptag, ns, parallel=parallel, **OPTIONS),
-        linearize=specialize(_em2_linearize, ptag, {}, parallel=parallel, **OPTIONS),
+        linearize=specialize(_em2_linearize, ptag, ns, parallel=parallel, **OPTIONS),
         jacobian=specialize(_em2_jacobian, tag, ns, **OPTIONS),
         finish=specialize(_em2_finish, ptag, ns, parallel=parallel, **OPTIONS),
         sweep=specialize(_em2_sweep, "par" if parallel else "ser", {}, parallel=parallel, **OPTIONS),
         step_scale=specialize(_em2_step_scale, "ser", {}, **OPTIONS),
+    )
+    calls = dict(ns, **{f"em2_{k}": v for k, v in kernels.items()})
+    kernels["damp"] = calls["em2_damp"] = specialize(_em2_damp, ptag, calls, **OPTIONS)
+    return dict(
+        kernels,
+        # the compiled Newton path's signatures (kernels/newton_compiled.py), extra = ()
+        compiled_predict=specialize(_em2_compiled_predict, ptag, calls, **INLINE),
+        compiled_residual=specialize(_em2_compiled_residual, ptag, calls, **INLINE),
+        compiled_jacobian=specialize(_em2_compiled_jacobian, ptag, calls, **INLINE),
+        compiled_finish=specialize(_em2_compiled_finish, ptag, calls, **INLINE),
+        compiled_linearize=specialize(_em2_compiled_linearize, ptag, calls, **INLINE),
+        compiled_damp=specialize(_em2_compiled_damp, ptag, calls, **INLINE),
         # the per-spring functions, callable alone (tests; other compiled loops)
         slope=specialize(_em2_slope, f"{tag}_alone", ns, **OPTIONS),
         direct=specialize(_em2_direct, f"{tag}_alone", ns, **OPTIONS),
@@ -121,9 +156,8 @@ def build(ns: dict, tag: str, ptag: str, parallel: bool) -> dict:
 def _em2_direct(l, l1, eta, l0, P, e, U0, T1):
     """Q = (U(l1, η) − U0)/(l1 − l) and dQ/dl1 = (T1 − Q)/(l1 − l), T1 = T(l1, θ(l1, η))
     (l1 ≠ l)."""
-    d = l1 - l
-    Q = (internal_energy(l1, eta, l0, P, e) - U0) / d
-    return Q, (T1 - Q) / d
+    Q = (internal_energy(l1, eta, l0, P, e) - U0) / (l1 - l)
+    return Q, (T1 - Q) / (l1 - l)
 
 
 def _tension_at(l, eta, l0, P, e):
@@ -131,20 +165,41 @@ def _tension_at(l, eta, l0, P, e):
     return tension(l, temperature(l, eta, l0, P, e), l0, P, e)
 
 
-def _em2_quadrature(l, l1, eta, l0, P, e, T0, T1):
-    """Q = ΔU/δ by the 5-point Gauss–Lobatto rule (module doc) and dQ/dl1 = Σ wᵢ ξᵢ k(l + ξᵢ δ),
-    without cancellation (T0 = T at l, T1 at l1, k the adiabatic stiffness)."""
+def _lobatto_value(l, l1, eta, l0, P, e, T0, T1):
+    """Q = ΔU/δ by the 5-point Gauss–Lobatto rule on T (module doc; T0 = T at l, T1 at l1)."""
     d = l1 - l
-    la = l + LOBATTO_NODE * d
-    lm = l + 0.5 * d
-    lb = l1 - LOBATTO_NODE * d
-    Q = 0.05 * (T0 + T1) + LOBATTO_WEIGHT * (tension_at(la, eta, l0, P, e) + tension_at(lb, eta, l0, P, e)) \
-        + (16.0 / 45.0) * tension_at(lm, eta, l0, P, e)
-    dQ = (0.05 * adiabatic_stiffness(l1, eta, l0, P, e)
-          + LOBATTO_WEIGHT * (LOBATTO_NODE * adiabatic_stiffness(la, eta, l0, P, e)
-                              + (1.0 - LOBATTO_NODE) * adiabatic_stiffness(lb, eta, l0, P, e))
-          + (8.0 / 45.0) * adiabatic_stiffness(lm, eta, l0, P, e))
-    return Q, dQ
+    return (0.05 * (T0 + T1) + LOBATTO_WEIGHT * (tension_at(l + LOBATTO_NODE * d, eta, l0, P, e)
+                                                 + tension_at(l1 - LOBATTO_NODE * d, eta, l0, P, e))
+            + (16.0 / 45.0) * tension_at(l + 0.5 * d, eta, l0, P, e))
+
+
+def _lobatto_derivative(l, l1, eta, l0, P, e):
+    """dQ/dl1 = Σ wᵢ ξᵢ k(l + ξᵢ δ) of the rule (k the adiabatic stiffness)."""
+    d = l1 - l
+    return (0.05 * adiabatic_stiffness(l1, eta, l0, P, e)
+            + LOBATTO_WEIGHT * (LOBATTO_NODE * adiabatic_stiffness(l + LOBATTO_NODE * d, eta, l0, P, e)
+                                + (1.0 - LOBATTO_NODE) * adiabatic_stiffness(l1 - LOBATTO_NODE * d, eta, l0, P, e))
+            + (8.0 / 45.0) * adiabatic_stiffness(l + 0.5 * d, eta, l0, P, e))
+
+
+def _em2_quadrature(l, l1, eta, l0, P, e, T0, T1):
+    """Q and dQ/dl1 by the rule, without cancellation."""
+    return lobatto_value(l, l1, eta, l0, P, e, T0, T1), lobatto_derivative(l, l1, eta, l0, P, e)
+
+
+def _em2_value(l, l1, eta, l0, P, e, U0, T0, T1):
+    """Q = ΔU/δ of one spring (U0, T0 at its start length l, T1 at its end length l1): the
+    quotient, or the rule within SWITCH; only the value (what a residual needs)."""
+    if abs(l1 - l) > SWITCH * (0.5 * (l + l1)):
+        return (internal_energy(l1, eta, l0, P, e) - U0) / (l1 - l)
+    return lobatto_value(l, l1, eta, l0, P, e, T0, T1)
+
+
+def _em2_derivative(l, l1, eta, l0, P, e, Q, T1):
+    """dQ/dl1 of one spring given its Q (:func:`_em2_value`) and T1 = T at l1."""
+    if abs(l1 - l) > SWITCH * (0.5 * (l + l1)):
+        return (T1 - Q) / (l1 - l)
+    return lobatto_derivative(l, l1, eta, l0, P, e)
 
 
 def _em2_slope(l, l1, eta, l0, P, e, U0, T0):
@@ -153,12 +208,19 @@ def _em2_slope(l, l1, eta, l0, P, e, U0, T0):
     th1 = temperature(l1, eta, l0, P, e)
     T1 = tension(l1, th1, l0, P, e)
     lm = 0.5 * (l + l1)
-    if abs(l1 - l) > SWITCH * lm:
-        Q, dQ = em2_direct(l, l1, eta, l0, P, e, U0, T1)
-    else:
-        Q, dQ = em2_quadrature(l, l1, eta, l0, P, e, T0, T1)
+    Q = em2_value(l, l1, eta, l0, P, e, U0, T0, T1)
     s = Q / lm
-    return s, (dQ - 0.5 * s) / lm, th1
+    return s, (em2_derivative(l, l1, eta, l0, P, e, Q, T1) - 0.5 * s) / lm, th1
+
+
+def _em2_spring_dslope(spring, work, e, pe):
+    """ds/dl¹ of spring e at the last residual's point (its Q, T(l¹), s in ``work``)."""
+    l0, P = spring
+    start, len1, dir1, mean, slope, dslope, energy0, tension0, jc, eta_step, quotient, tension1 = work
+    l = start[0][e]
+    l1 = len1[e]
+    dQ = em2_derivative(l, l1, eta_step[e], l0[e], P, pe, quotient[e], tension1[e])
+    return (dQ - 0.5 * slope[e]) / (0.5 * (l + l1))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -178,7 +240,7 @@ def _em2_predict(step, topo, spring, node, work, accel, pred):
     edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
     l0, P = spring
     masses, inv_mass, gravity, with_gravity = node
-    start, len1, dir1, mean, slope, dslope, energy0, tension0, jc = work
+    start, len1, dir1, mean, slope, dslope, energy0, tension0, jc, eta_step, quotient, tension1 = work
     len0, dir0, keep, fs, ws, sweep, nodal, stiff, code = start
     m = edges.shape[0]
     for blk in prange((m + BLOCK - 1) // BLOCK):
@@ -191,6 +253,7 @@ def _em2_predict(step, topo, spring, node, work, accel, pred):
             T = tension(l, th, l0[e], P, pe)
             energy0[e] = internal_energy(l, eta[e], l0[e], P, pe)
             tension0[e] = T
+            eta_step[e] = eta[e]
             stiff[e] = max(adiabatic_stiffness(l, eta[e], l0[e], P, pe), 0.0) + max(T / l, 0.0)
     q = 0.25 * h * h
     for a in prange(x0.shape[0]):
@@ -207,14 +270,14 @@ def _em2_predict(step, topo, spring, node, work, accel, pred):
 
 def _em2_residual(step, topo, spring, node, work, u, res):
     """R, Rabs (3 n_free,) of ``res`` at unknowns u (3 n_free,) (module doc); fills ``work``'s
-    len1, dir1, mean, slope, dslope for the Jacobian and the finish, and the start record's fs
+    len1, dir1, mean, slope, quotient, tension1 for the Jacobian and the finish, and the start record's fs
     (≥ 3, m) with each spring's (h/2) s d̄. Needs ``work.energy0``, ``tension0`` (predict).
     Returns (status, spring, max |R|, max Rabs)."""
     x0, p, eta, h = step
     edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
     l0, P = spring
     masses, inv_mass, gravity, with_gravity = node
-    start, len1, dir1, mean, slope, dslope, energy0, tension0, jc = work
+    start, len1, dir1, mean, slope, dslope, energy0, tension0, jc, eta_step, quotient, tension1 = work
     len0, dir0, keep, fs, ws, sweep, nodal, guess, code = start
     R, Rabs, peak = res
     m = edges.shape[0]
@@ -238,7 +301,7 @@ def _em2_residual(step, topo, spring, node, work, u, res):
                     d1 -= u[3 * ka + j]
                 fs[j, e] = d1
                 mean[j, e] = 0.5 * (d0 + d1)
-        for i in range(n):  # per spring
+        for i in range(n):  # per spring, Q by the rule (branch-free: vectorized)
             e = np.uint64(lo + i)
             pe = np.uint64(0) if UNIFORM else np.uint64(e)
             dx = fs[0, e]
@@ -250,75 +313,81 @@ def _em2_residual(step, topo, spring, node, work, u, res):
             dir1[0, e] = dx * i1
             dir1[1, e] = dy * i1
             dir1[2, e] = dz * i1
-            s, ds, th1 = em2_slope(len0[e], l1, eta[e], l0[e], P, pe, energy0[e], tension0[e])
+            th1 = temperature(l1, eta[e], l0[e], P, pe)
+            T1 = tension(l1, th1, l0[e], P, pe)
+            Q = lobatto_value(len0[e], l1, eta[e], l0[e], P, pe, tension0[e], T1)
+            quotient[e] = Q
+            tension1[e] = T1
+            lok = (l1 > 0.0) & (l1 < math.inf)
+            code[e] = OK if (lok & _admissible(th1)) else (COLLAPSED if not lok else NO_TEMPERATURE)
+        for i in range(n):  # s and the impulses (h/2) s d̄ (fewer arrays per loop: vectorized)
+            e = np.uint64(lo + i)
+            s = quotient[e] / (0.5 * (len0[e] + len1[e]))
             slope[e] = s
-            dslope[e] = ds
             g = half * s
             fs[0, e] = g * mean[0, e]
             fs[1, e] = g * mean[1, e]
             fs[2, e] = g * mean[2, e]
-            lok = (l1 > 0.0) & (l1 < math.inf)
-            fine = _admissible(th1) & (abs(s) < math.inf) & (abs(ds) < math.inf)
-            code[e] = OK if (lok & fine) else (COLLAPSED if not lok else
-                                               (NO_TEMPERATURE if not _admissible(th1) else NOT_FINITE))
+            code[e] = NOT_FINITE if ((code[e] == OK) & (not abs(s) < math.inf)) else code[e]
+        for i in range(n):  # the quotient ΔU/δ instead where |δ| > SWITCH l̄ (few springs: scalar)
+            e = np.uint64(lo + i)
+            l = len0[e]
+            l1 = len1[e]
+            if not abs(l1 - l) > SWITCH * (0.5 * (l + l1)):
+                continue
+            pe = np.uint64(0) if UNIFORM else np.uint64(e)
+            Q = (internal_energy(l1, eta[e], l0[e], P, pe) - energy0[e]) / (l1 - l)
+            quotient[e] = Q
+            s = Q / (0.5 * (l + l1))
+            slope[e] = s
+            g = half * s
+            fs[0, e] = g * mean[0, e]
+            fs[1, e] = g * mean[1, e]
+            fs[2, e] = g * mean[2, e]
+            if code[e] == OK or code[e] == NOT_FINITE:
+                code[e] = OK if abs(s) < math.inf else NOT_FINITE
         bad = min(bad, _first_flagged(code, lo, n, m))
     if bad < m:
         return code[bad], bad, math.inf, math.inf
     rmax = 0.0
     smax = 0.0
     for a in prange(x0.shape[0]):
-        k = free_index[a]
-        if k < 0:
-            continue
-        w = masses[a] / h
-        r0 = 0.0
-        r1 = 0.0
-        r2 = 0.0
-        s0 = 0.0
-        s1 = 0.0
-        s2 = 0.0
-        for i in range(3):
-            inertia = w * u[3 * k + i]
-            g = half * masses[a] * gravity[i] if with_gravity else 0.0
-            r = inertia - p[a, i] - g
-            sa = abs(inertia) + abs(p[a, i]) + abs(g)
-            if i == 0:
-                r0, s0 = r, sa
-            elif i == 1:
-                r1, s1 = r, sa
-            else:
-                r2, s2 = r, sa
-        for j in range(inc_ptr[a], inc_ptr[a + 1]):
-            e = inc_spring[j]
-            sg = -inc_sign[j]
-            v0 = fs[0, e]
-            v1 = fs[1, e]
-            v2 = fs[2, e]
-            r0 += sg * v0
-            s0 += abs(v0)
-            r1 += sg * v1
-            s1 += abs(v1)
-            r2 += sg * v2
-            s2 += abs(v2)
-        R[3 * k] = r0
-        Rabs[3 * k] = s0
-        R[3 * k + 1] = r1
-        Rabs[3 * k + 1] = s1
-        R[3 * k + 2] = r2
-        Rabs[3 * k + 2] = s2
-        rmax = max(rmax, max(abs(r0), max(abs(r1), abs(r2))))
-        smax = max(smax, max(s0, max(s1, s2)))
+        big, scale = residual_rows3(step, topo, node, fs, u, half, R, Rabs, a)
+        rmax = max(rmax, big)
+        smax = max(smax, scale)
     return 0, -1, rmax, smax
 
 
-def _em2_linearize(work, h):
-    """The matrix-free coefficients at the last residual's point: jc (2, m) = (h s/4,
-    h (ds/dl¹)/2), spring e's block being jc[0] I + jc[1] d̄ n¹ᵀ."""
-    start, len1, dir1, mean, slope, dslope, energy0, tension0, jc = work
+def _em2_linearize(spring, work, h):
+    """ds/dl¹ (``work.dslope``) and the matrix-free coefficients at the last residual's point:
+    jc (2, m) = (h s/4, h (ds/dl¹)/2), spring e's block being jc[0] I + jc[1] d̄ n¹ᵀ; ds/dl¹ as
+    :func:`_em2_spring_dslope`, in a vectorized loop by the rule and a scalar one where
+    |δ| > SWITCH l̄ (as the residual)."""
+    l0, P = spring
+    start, len1, dir1, mean, slope, dslope, energy0, tension0, jc, eta_step, quotient, tension1 = work
+    len0 = start[0]
     m = len1.shape[0]
-    for e in prange(m):
-        jc[0, e] = 0.25 * h * slope[e]
-        jc[1, e] = 0.5 * h * dslope[e]
+    for blk in prange((m + BLOCK - 1) // BLOCK):
+        lo = blk * BLOCK
+        n = min(BLOCK, m - lo)
+        for i in range(n):
+            e = np.uint64(lo + i)
+            pe = np.uint64(0) if UNIFORM else np.uint64(e)
+            l = len0[e]
+            l1 = len1[e]
+            dQ = lobatto_derivative(l, l1, eta_step[e], l0[e], P, pe)
+            ds = (dQ - 0.5 * slope[e]) / (0.5 * (l + l1))
+            dslope[e] = ds
+            jc[0, e] = 0.25 * h * slope[e]
+            jc[1, e] = 0.5 * h * ds
+        for i in range(n):
+            e = np.uint64(lo + i)
+            l = len0[e]
+            l1 = len1[e]
+            if abs(l1 - l) > SWITCH * (0.5 * (l + l1)):
+                ds = ((tension1[e] - quotient[e]) / (l1 - l) - 0.5 * slope[e]) / (0.5 * (l + l1))
+                dslope[e] = ds
+                jc[1, e] = 0.5 * h * ds
 
 
 def _em2_jacobian(topo, spring, node, work, places, h, data):
@@ -327,7 +396,7 @@ def _em2_jacobian(topo, spring, node, work, places, h, data):
     B = (h/2) [(s/2) I + (ds/dl¹) d̄ n¹ᵀ] with sign s_c s_g."""
     edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
     masses, inv_mass, gravity, with_gravity = node
-    start, len1, dir1, mean, slope, dslope, energy0, tension0, jc = work
+    start, len1, dir1, mean, slope, dslope, energy0, tension0, jc, eta_step, quotient, tension1 = work
     node_base, node_stride, spring_base, spring_stride = places
     data[:] = 0.0
     for a in range(free_index.shape[0]):
@@ -339,6 +408,8 @@ def _em2_jacobian(topo, spring, node, work, places, h, data):
             data[node_base[k] + i * node_stride[k] + i] += w
     B = np.zeros((3, 3))
     for e in range(edges.shape[0]):
+        eu = np.uint64(e)
+        dslope[eu] = em2_spring_dslope(spring, work, eu, np.uint64(0) if UNIFORM else eu)
         c1 = 0.25 * h * slope[e]
         c2 = 0.5 * h * dslope[e]
         for i in range(3):
@@ -354,7 +425,7 @@ def _em2_finish(step, topo, spring, node, work, u, phi, new):
     x0, p, eta, h = step
     edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
     l0, P = spring
-    start, len1, dir1, mean, slope, dslope, energy0, tension0, jc = work
+    start, len1, dir1, mean, slope, dslope, energy0, tension0, jc, eta_step, quotient, tension1 = work
     len0, dir0, keep, fs, ws, sweep, nodal, guess, code = start
     x_new, p_new, phi_new, eta_new = new
     m = edges.shape[0]
@@ -384,24 +455,14 @@ def _em2_sweep(topo, node, work, h, du, R, r, update, first):
     v = du_a − du_b: jc[0] v + jc[1] (n¹·v) d̄."""
     edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
     masses, inv_mass, gravity, with_gravity = node
-    start, len1, dir1, mean, slope, dslope, energy0, tension0, jc = work
+    start, len1, dir1, mean, slope, dslope, energy0, tension0, jc, eta_step, quotient, tension1 = work
     len0, dir0, keep, fs, ws, w, nodal, guess, code = start
     m = ends.shape[0]
     for e in prange(0 if first else m):
         eu = np.uint64(e)
         ka = ends[eu, 0]
         kb = ends[eu, 1]
-        v0 = 0.0
-        v1 = 0.0
-        v2 = 0.0
-        if ka >= 0:
-            v0 += du[3 * ka]
-            v1 += du[3 * ka + 1]
-            v2 += du[3 * ka + 2]
-        if kb >= 0:
-            v0 -= du[3 * kb]
-            v1 -= du[3 * kb + 1]
-            v2 -= du[3 * kb + 2]
+        v0, v1, v2 = spring_difference3(du, ka, kb)
         c = jc[1, eu] * (dir1[0, eu] * v0 + dir1[1, eu] * v1 + dir1[2, eu] * v2)
         c1 = jc[0, eu]
         w[eu, 0] = c1 * v0 + c * mean[0, eu]
@@ -409,32 +470,7 @@ def _em2_sweep(topo, node, work, h, du, R, r, update, first):
         w[eu, 2] = c1 * v2 + c * mean[2, eu]
     rmax = 0.0
     for a in prange(free_index.shape[0]):
-        k = free_index[a]
-        if k < 0:
-            continue
-        wm = masses[a] / h
-        d0 = 0.0 if first else du[3 * k]
-        d1 = 0.0 if first else du[3 * k + 1]
-        d2 = 0.0 if first else du[3 * k + 2]
-        r0 = R[3 * k] - wm * d0
-        r1 = R[3 * k + 1] - wm * d1
-        r2 = R[3 * k + 2] - wm * d2
-        if not first:
-            for j in range(inc_ptr[a], inc_ptr[a + 1]):
-                e = inc_spring[j]
-                sg = -inc_sign[j]
-                r0 += sg * w[e, 0]
-                r1 += sg * w[e, 1]
-                r2 += sg * w[e, 2]
-        if not update:
-            r[3 * k] = r0
-            r[3 * k + 1] = r1
-            r[3 * k + 2] = r2
-        rmax = max(rmax, max(abs(r0), max(abs(r1), abs(r2))))
-        if update:
-            du[3 * k] = d0 + r0 / wm
-            du[3 * k + 1] = d1 + r1 / wm
-            du[3 * k + 2] = d2 + r2 / wm
+        rmax = max(rmax, sweep_rows3(topo, node, h, w, du, R, r, a, update, first))
     return rmax
 
 
@@ -456,6 +492,56 @@ def _em2_step_scale(topo, work, du, limit):
         if v2 > reach * reach:
             scale = min(scale, reach / math.sqrt(v2))
     return scale
+
+
+def _em2_damp(step, topo, spring, node, work, res, norms, vectors):
+    """The damped Newton step (integrators/em2.py, LengthLimited). vectors: (u, du, trial)
+    (size,) each: du, a correction to be applied as u −= du, is scaled in place so that no
+    spring's vector changes by more than LENGTH_LIMIT times its length (``step_scale``); while
+    the scaled residual rmax/smax (norms, at u) is above LINE_SEARCH_ABOVE, then halved until the
+    residual's 2-norm falls (Armijo, at most LINE_SEARCH_HALVINGS times; the trial points in
+    ``trial``, the residual ``res`` and ``work`` left at the last one)."""
+    u, du, trial = vectors
+    rmax, smax = norms
+    scale = em2_step_scale(topo, work, du, LENGTH_LIMIT)
+    if rmax > LINE_SEARCH_ABOVE * smax:
+        R = res[0]
+        r0 = math.sqrt(np.dot(R, R))
+        for _ in range(LINE_SEARCH_HALVINGS):
+            for i in range(u.shape[0]):
+                trial[i] = u[i] - scale * du[i]
+            status, bad, tmax, tscale = em2_residual(step, topo, spring, node, work, trial, res)
+            if status == 0 and math.sqrt(np.dot(R, R)) <= (1.0 - 1e-4 * scale) * r0:
+                break
+            scale *= 0.5
+    elif not scale < 1.0:
+        return
+    for i in range(du.shape[0]):
+        du[i] *= scale
+
+
+def _em2_compiled_predict(step, topo, spring, node, work, extra, u):
+    em2_predict(step, topo, spring, node, work, u, u)  # in place: each entry is read, then written
+
+
+def _em2_compiled_residual(step, topo, spring, node, work, extra, u, warm, res):
+    return em2_residual(step, topo, spring, node, work, u, res)
+
+
+def _em2_compiled_jacobian(topo, spring, node, work, places, extra, h, data):
+    em2_jacobian(topo, spring, node, work, places, h, data)
+
+
+def _em2_compiled_finish(step, topo, spring, node, work, extra, u, phi, new):
+    return em2_finish(step, topo, spring, node, work, u, phi, new)
+
+
+def _em2_compiled_linearize(spring, work, extra, h):
+    em2_linearize(spring, work, h)
+
+
+def _em2_compiled_damp(step, topo, spring, node, work, extra, res, norms, vectors):
+    em2_damp(step, topo, spring, node, work, res, norms, vectors)
 
 
 register_scheme("em2", build)

@@ -32,6 +32,7 @@ from .implicit_common import (BLOCK, INLINE, KEEP_START, LOCAL_ITERATIONS, MAX_L
                               OPTIONS, THETA_STOP, UNIFORM, COLLAPSED, _admissible, _first_flagged, _log_step,
                               _usable, register_scheme, scatter_spring_block)
 from .implicit_records import StartWork
+from .implicit_rows import residual_rows3, spring_difference3, sweep_rows3
 from .specialize import specialize
 
 # Bound per model by specialize(); listed so the templates read as ordinary code.
@@ -236,49 +237,11 @@ def _gtr_residual(step, topo, spring, node, work, alpha, u, warm, res):
         return code[bad], bad, math.inf, math.inf
     rmax = 0.0
     smax = 0.0
+    gc = alpha * h
     for a in prange(x0.shape[0]):
-        k = free_index[a]
-        if k < 0:
-            continue
-        w = masses[a] / h
-        # the node's rows and their magnitudes in registers, written once (the same sums in the
-        # same order as accumulating in R, Rabs)
-        inertia = w * u[3 * k + 0]
-        g = alpha * h * masses[a] * gravity[0] if with_gravity else 0.0
-        r0 = inertia - p[a, 0] - g
-        s0 = abs(inertia) + abs(p[a, 0]) + abs(g)
-        inertia = w * u[3 * k + 1]
-        g = alpha * h * masses[a] * gravity[1] if with_gravity else 0.0
-        r1 = inertia - p[a, 1] - g
-        s1 = abs(inertia) + abs(p[a, 1]) + abs(g)
-        inertia = w * u[3 * k + 2]
-        g = alpha * h * masses[a] * gravity[2] if with_gravity else 0.0
-        r2 = inertia - p[a, 2] - g
-        s2 = abs(inertia) + abs(p[a, 2]) + abs(g)
-        for j in range(inc_ptr[a], inc_ptr[a + 1]):
-            e = inc_spring[j]
-            sg = -inc_sign[j]
-            v0 = fs[0, e]
-            v1 = fs[1, e]
-            v2 = fs[2, e]
-            r0 += sg * v0
-            s0 += abs(v0)
-            r1 += sg * v1
-            s1 += abs(v1)
-            r2 += sg * v2
-            s2 += abs(v2)
-        R[3 * k + 0] = r0
-        Rabs[3 * k + 0] = s0
-        R[3 * k + 1] = r1
-        Rabs[3 * k + 1] = s1
-        R[3 * k + 2] = r2
-        Rabs[3 * k + 2] = s2
-        rmax = max(rmax, abs(r0))
-        smax = max(smax, s0)
-        rmax = max(rmax, abs(r1))
-        smax = max(smax, s1)
-        rmax = max(rmax, abs(r2))
-        smax = max(smax, s2)
+        big, scale = residual_rows3(step, topo, node, fs, u, gc, R, Rabs, a)
+        rmax = max(rmax, big)
+        smax = max(smax, scale)
     return 0, -1, rmax, smax
 
 
@@ -381,49 +344,15 @@ def _gtr_sweep(topo, node, work, h, du, R, r, update, first):
         eu = np.uint64(e)
         ka = ends[eu, 0]
         kb = ends[eu, 1]
-        s = 0.0
-        for i in range(3):
-            d = 0.0
-            if ka >= 0:
-                d += du[3 * ka + i]
-            if kb >= 0:
-                d -= du[3 * kb + i]
-            s += dir1[i, eu] * d
+        v0, v1, v2 = spring_difference3(du, ka, kb)
+        s = dir1[0, eu] * v0 + dir1[1, eu] * v1 + dir1[2, eu] * v2
         c = jc[eu] * s
         w[eu, 0] = c * dir0[0, eu]
         w[eu, 1] = c * dir0[1, eu]
         w[eu, 2] = c * dir0[2, eu]
     rmax = 0.0
     for a in prange(free_index.shape[0]):
-        k = free_index[a]
-        if k < 0:
-            continue
-        wm = masses[a] / h
-        # the node's rows in registers (r written once; the same sums in the same order)
-        d0 = 0.0 if first else du[3 * k]
-        d1 = 0.0 if first else du[3 * k + 1]
-        d2 = 0.0 if first else du[3 * k + 2]
-        r0 = R[3 * k] - (0.0 if first else wm * d0)
-        r1 = R[3 * k + 1] - (0.0 if first else wm * d1)
-        r2 = R[3 * k + 2] - (0.0 if first else wm * d2)
-        if not first:
-            for j in range(inc_ptr[a], inc_ptr[a + 1]):
-                e = inc_spring[j]
-                sg = -inc_sign[j]
-                r0 += sg * w[e, 0]
-                r1 += sg * w[e, 1]
-                r2 += sg * w[e, 2]
-        if not update:  # a sweep that updates du keeps r in registers (no caller reads it then)
-            r[3 * k] = r0
-            r[3 * k + 1] = r1
-            r[3 * k + 2] = r2
-        rmax = max(rmax, abs(r0))
-        rmax = max(rmax, abs(r1))
-        rmax = max(rmax, abs(r2))
-        if update:
-            du[3 * k] = d0 + r0 / wm
-            du[3 * k + 1] = d1 + r1 / wm
-            du[3 * k + 2] = d2 + r2 / wm
+        rmax = max(rmax, sweep_rows3(topo, node, h, w, du, R, r, a, update, first))
     return rmax
 
 

@@ -12,6 +12,13 @@ and model by :func:`newton_steps_kernel`:
     scheme_jacobian(topo, spring, node, work, places, extra, h, data)       CSR values into data
     scheme_finish(step, topo, spring, node, work, extra, u, phi, new) -> (status, spring)
 
+and, where the scheme has them (else no-ops), ``scheme_predict(step, topo, spring, node, work,
+extra, u)``, the scheme's own predictor from the start kernel's output in u (in place), and
+``scheme_damp(step, topo, spring, node, work, extra, res, (max |R|, max Rabs), (u, du,
+trial))``, which shortens a full iteration's correction du in place (a damped Newton step;
+``res``, the work record and ``trial`` may be overwritten: the residual is evaluated again at
+the corrected u).
+
 ``extra`` is a tuple of whatever else the scheme's kernels take (GTR-α: (α,); HO4: its two
 empty index lists), made once by the stepper (``ImplicitStepper.compiled_extra``). A scheme
 offers the compiled path by returning ``compiled_residual``, ``compiled_jacobian`` and
@@ -37,6 +44,7 @@ from .specialize import function_fingerprint, model_fingerprint, specialize
 
 # Bound per scheme and model by newton_steps_kernel(); listed so the template reads as ordinary code.
 scheme_start = scheme_residual = scheme_jacobian = scheme_finish = scheme_linearize = scheme_sweep = None
+scheme_predict = scheme_damp = None
 #: the linear solves: inertia-preconditioned matrix-free sweeps (True) or dense LU (False)
 SWEEPS = False
 
@@ -63,11 +71,14 @@ def newton_steps_kernel(model, scheme: str, kernels, uniform: bool, rate: int, s
         ns = dict(scheme_start=kernels.start, scheme_residual=kernels.compiled_residual,
                   scheme_jacobian=kernels.compiled_jacobian, scheme_finish=kernels.compiled_finish,
                   scheme_linearize=getattr(kernels, "compiled_linearize", _no_linearize),
-                  scheme_sweep=getattr(kernels, "sweep", _no_sweep), SWEEPS=bool(sweeps))
+                  scheme_sweep=getattr(kernels, "sweep", _no_sweep),
+                  scheme_predict=getattr(kernels, "compiled_predict", _no_predict),
+                  scheme_damp=getattr(kernels, "compiled_damp", _no_damp), SWEEPS=bool(sweeps))
         # Numba's disk cache of the driver holds its callees' machine code but checks only this
         # file: the callees' code (the scheme's kernels, recursively) goes into the name
         code = function_fingerprint(*(ns[k] for k in ("scheme_start", "scheme_residual", "scheme_jacobian",
-                                                       "scheme_finish", "scheme_linearize", "scheme_sweep")))
+                                                       "scheme_finish", "scheme_linearize", "scheme_sweep",
+                                                       "scheme_predict", "scheme_damp")))
         tag = (f"{scheme}_{model.name}_{key[1]}_{code}{'_uniform' if uniform else ''}_rate{int(rate)}"
                f"_{'sweeps' if sweeps else 'dense'}_{'par' if parallel else 'ser'}")
         ns["_solve_sweeps"] = specialize(_solve_sweeps, tag, ns, **INLINE)
@@ -84,6 +95,16 @@ def _no_linearize(spring, work, extra, h):
 def _no_sweep(topo, node, work, h, du, R, r, update, first):
     """Stands in for a scheme without matrix-free kernels (dense driver only)."""
     return 0.0
+
+
+@njit(cache=True, inline="always")
+def _no_predict(step, topo, spring, node, work, extra, u):
+    """Stands in for a scheme whose predictor is the start kernel's."""
+
+
+@njit(cache=True, inline="always")
+def _no_damp(step, topo, spring, node, work, extra, res, norms, vectors):
+    """Stands in for a scheme that takes every Newton correction whole."""
 
 
 @njit(cache=True, error_model="numpy", boundscheck=False)
@@ -169,6 +190,16 @@ def _solve_sweeps(topo, node, work, h, du, R, r, target, settled, sweeps):
 
 
 @njit(cache=True, inline="always")
+def _max_abs(x):
+    """max |x| over the array x (n, 3) (0 for an empty one)."""
+    big = 0.0
+    for a in range(x.shape[0]):
+        for i in range(3):
+            big = max(big, abs(x[a, i]))
+    return big
+
+
+@njit(cache=True, inline="always")
 def _jacobi_pays(rho, contraction, tolerance, jacobi):
     """solvers.newton._jacobi_pays; jacobi: (JACOBI_RANGE, JACOBI_MAX_STEPS)."""
     return (rho <= jacobi[0] * tolerance and contraction < 1.0
@@ -183,13 +214,16 @@ def _newton_steps(state, records, extra, linear, control, out):
     records: (topo, spring, node, work, places) as plain tuples.
     linear: (indptr, indices, data (nnz,), A (size, size), piv (size,) int64, du (size,),
         r (size,), u (size,), res (R, Rabs, peak), new (NextState buffers)); with SWEEPS data,
-        A and piv are not read (may be empty).
-    control: (tolerance, rtol, atol, max_iterations, n_steps, linear_fraction, (JACOBI_RANGE,
-        JACOBI_MAX_STEPS), (MAX_SWEEPS, STALL)).
+        A and piv are not read (may be empty); r is scratch (the damping's trial point).
+    control: (tolerance, rtol, rounding, max_iterations, n_steps, linear_fraction, (JACOBI_RANGE,
+        JACOBI_MAX_STEPS), (MAX_SWEEPS, STALL)); rounding > 0: at each step's start atol
+        becomes rounding × max |x| unless it is within a factor 2 of that already (EM2's atol
+        at the positions' round-off, EM2Stepper.begin).
     out: (iterations (n_steps,) int64, finals (n_steps,), history (max_iterations + 1,),
-        info (5,) int64): per committed step its linear solves and last scaled residual; for a
-        failed step info = (step, reason, status, spring, length of its scaled residual
-        history), its linear solves in iterations[step].
+        info (5,) int64, atol (1,)): per committed step its linear solves and last scaled
+        residual; for a failed step info = (step, reason, status, spring, length of its scaled
+        residual history), its linear solves in iterations[step]; atol, Newton's absolute
+        increment tolerance, read and (rounding) updated.
     Returns the number of steps committed (< n_steps: step info[0] failed, the state is at it).
 
     With SWEEPS the linear solves are inertia-preconditioned sweeps and a full iteration may be
@@ -199,8 +233,8 @@ def _newton_steps(state, records, extra, linear, control, out):
     x, p, phi, eta, h, coef = state
     topo, spring, node, work, places = records
     indptr, indices, data, A, piv, du, r, u, res, new = linear
-    tolerance, rtol, atol, max_iterations, n_steps, fraction, jacobi, sweeps = control
-    iterations, finals, history, info = out
+    tolerance, rtol, rounding, max_iterations, n_steps, fraction, jacobi, sweeps = control
+    iterations, finals, history, info, tol = out
     R = res[0]
     x_new, p_new, phi_new, eta_new = new
     size = u.shape[0]
@@ -210,12 +244,18 @@ def _newton_steps(state, records, extra, linear, control, out):
         info[2] = 0
         info[3] = -1
         info[4] = 0
+        if rounding > 0.0:
+            floor = rounding * _max_abs(x)
+            if not (0.5 * tol[0] <= floor <= 2.0 * tol[0]):
+                tol[0] = floor
+        atol = tol[0]
         status, bad = scheme_start(step, topo, spring, node, work[0], coef, u)
         if status != 0:
             info[1] = START
             info[2] = status
             info[3] = bad
             return k
+        scheme_predict(step, topo, spring, node, work, extra, u)
         warm = False
         corrections = 0
         jacobi_steps = 0
@@ -282,6 +322,8 @@ def _newton_steps(state, records, extra, linear, control, out):
                     lu_solve(A, piv, du)
                 else:
                     du[:] = math.nan
+            if not use_jacobi:
+                scheme_damp(step, topo, spring, node, work, extra, res, (rmax, scale), (u, du, r))
             increment = 0.0
             finite = True
             for i in range(size):

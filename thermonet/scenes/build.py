@@ -18,7 +18,7 @@ from ..net import Net
 from .scene import Scene
 
 #: integrator keys of a scene that go to the integrator (and its stepper) as options
-INTEGRATOR_OPTIONS = ("alpha", "tolerance", "max_iterations", "retry", "linear_solver")
+INTEGRATOR_OPTIONS = ("alpha", "tolerance", "max_iterations", "retry", "linear_solver", "newton_path")
 
 
 @dataclass

@@ -258,6 +258,12 @@ def _integrators():
     return available_integrators()
 
 
+def _newton_paths():
+    from ..solvers.newton import NEWTON_PATHS
+
+    return NEWTON_PATHS
+
+
 def _backends():
     return BACKENDS
 
@@ -427,6 +433,8 @@ SCHEMA = Table({
         "max_iterations": Key(integer(1), "integer >= 1", "Newton iterations per step (implicit)"),
         "retry": Key(retry, "boolean | integer", "retry a failed Newton step with smaller sub-steps (implicit)"),
         "linear_solver": Key(string, "string", "sparse linear solver of the Newton steps (implicit)"),
+        "newton_path": Key(choice(_newton_paths), "string", "Newton's path (implicit): auto, compiled (whole steps "
+                           "in one compiled call), compiled-dense, or sparse"),
         "options": Key(any_table, "table", "any further options, passed to the integrator as they are"),
         "check_step": Key(boolean, "boolean", "refuse a step far above the stability limit (h > 1.5 h_max at the "
                           "initial state) and stop a run whose step goes above 1.5 h_max re-estimated while it "

@@ -1,0 +1,117 @@
+"""One free node's rows in the node passes of the schemes with a block of 3 unknowns per node
+(GTR-α, EM2; :mod:`.implicit_common` for the conventions): the residual's rows and the matrix-
+free sweep's. Each is inlined into a scheme's node loop (``for a in prange(n)``), which keeps
+its reduction of the returned maxima; the arithmetic is the schemes' own, in the same order.
+HO4's nodes carry 6 rows with their own inertia blocks (:mod:`.ho4`, :mod:`.ho4_linear`).
+"""
+
+from __future__ import annotations
+
+from numba import njit
+
+
+@njit(cache=True, inline="always", error_model="numpy", boundscheck=False)
+def residual_rows3(step, topo, node, fs, u, gc, R, Rabs, a):
+    """Rows of free node a (block k = free_index[a]; none where anchored) into R, Rabs:
+
+        R_i = (m/h) u_i − p_i − gc m g_i + Σ_e ∓fs[i, e]   (− at a spring's first end)
+
+    and Rabs_i the sum of the magnitudes of those terms; fs (≥ 3, m) the springs' impulses of
+    the residual, gc the gravity's coefficient (GTR-α: α h; EM2: h/2). Returns (max |R_i|,
+    max Rabs_i) over the node's rows ((0, 0) for an anchored node). (R, Rabs are taken apart
+    from the residual's record by the caller, outside its parallel loop: arrays unpacked from a
+    tuple within a prange body were written to a copy.)"""
+    x0, p, eta, h = step
+    edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
+    masses, inv_mass, gravity, with_gravity = node
+    k = free_index[a]
+    if k < 0:
+        return 0.0, 0.0
+    w = masses[a] / h
+    # the rows and their magnitudes in registers, written once (the same sums in the same order
+    # as accumulating in R, Rabs)
+    inertia = w * u[3 * k + 0]
+    g = gc * masses[a] * gravity[0] if with_gravity else 0.0
+    r0 = inertia - p[a, 0] - g
+    s0 = abs(inertia) + abs(p[a, 0]) + abs(g)
+    inertia = w * u[3 * k + 1]
+    g = gc * masses[a] * gravity[1] if with_gravity else 0.0
+    r1 = inertia - p[a, 1] - g
+    s1 = abs(inertia) + abs(p[a, 1]) + abs(g)
+    inertia = w * u[3 * k + 2]
+    g = gc * masses[a] * gravity[2] if with_gravity else 0.0
+    r2 = inertia - p[a, 2] - g
+    s2 = abs(inertia) + abs(p[a, 2]) + abs(g)
+    for j in range(inc_ptr[a], inc_ptr[a + 1]):
+        e = inc_spring[j]
+        sg = -inc_sign[j]
+        v0 = fs[0, e]
+        v1 = fs[1, e]
+        v2 = fs[2, e]
+        r0 += sg * v0
+        s0 += abs(v0)
+        r1 += sg * v1
+        s1 += abs(v1)
+        r2 += sg * v2
+        s2 += abs(v2)
+    R[3 * k + 0] = r0
+    Rabs[3 * k + 0] = s0
+    R[3 * k + 1] = r1
+    Rabs[3 * k + 1] = s1
+    R[3 * k + 2] = r2
+    Rabs[3 * k + 2] = s2
+    return max(max(abs(r0), abs(r1)), abs(r2)), max(max(s0, s1), s2)
+
+
+@njit(cache=True, inline="always", error_model="numpy", boundscheck=False)
+def sweep_rows3(topo, node, h, w, du, R, r, a, update, first):
+    """A matrix-free sweep's rows of free node a (none where anchored): r = R − (m/h) du_a −
+    Σ_e ∓w[e, :3] (w (m, ≥ 3): each spring's block applied to du_a − du_b, ± at its first end);
+    with ``update`` then du_a += (h/m) r (and r is not written); ``first``: du is taken as zero
+    (not read; w neither). Returns max |r| over the node's rows (0 for an anchored node)."""
+    edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
+    masses, inv_mass, gravity, with_gravity = node
+    k = free_index[a]
+    if k < 0:
+        return 0.0
+    wm = masses[a] / h
+    # the node's rows in registers (r written once; the same sums in the same order)
+    d0 = 0.0 if first else du[3 * k]
+    d1 = 0.0 if first else du[3 * k + 1]
+    d2 = 0.0 if first else du[3 * k + 2]
+    r0 = R[3 * k] - (0.0 if first else wm * d0)
+    r1 = R[3 * k + 1] - (0.0 if first else wm * d1)
+    r2 = R[3 * k + 2] - (0.0 if first else wm * d2)
+    if not first:
+        for j in range(inc_ptr[a], inc_ptr[a + 1]):
+            e = inc_spring[j]
+            sg = -inc_sign[j]
+            r0 += sg * w[e, 0]
+            r1 += sg * w[e, 1]
+            r2 += sg * w[e, 2]
+    if not update:  # a sweep that updates du keeps r in registers (no caller reads it then)
+        r[3 * k] = r0
+        r[3 * k + 1] = r1
+        r[3 * k + 2] = r2
+    if update:
+        du[3 * k] = d0 + r0 / wm
+        du[3 * k + 1] = d1 + r1 / wm
+        du[3 * k + 2] = d2 + r2 / wm
+    return max(max(abs(r0), abs(r1)), abs(r2))
+
+
+@njit(cache=True, inline="always")
+def spring_difference3(du, ka, kb):
+    """du_a − du_b of a spring's ends (blocks ka, kb of 3; −1: anchored, no unknowns)."""
+    v0 = 0.0
+    v1 = 0.0
+    v2 = 0.0
+    if ka >= 0:
+        v0 += du[3 * ka]
+        v1 += du[3 * ka + 1]
+        v2 += du[3 * ka + 2]
+    if kb >= 0:
+        v0 -= du[3 * kb]
+        v1 -= du[3 * kb + 1]
+        v2 -= du[3 * kb + 2]
+    return v0, v1, v2
