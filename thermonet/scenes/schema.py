@@ -224,19 +224,6 @@ def material(v):
     return out
 
 
-def time_function_value(v):
-    """A number or a table of one time function's keys (:mod:`thermonet.timefunctions`), kept as
-    given; checked here so that an error points at the key."""
-    from ..errors import InputError
-    from ..timefunctions import time_function
-
-    try:
-        time_function(v, "value")
-    except InputError as exc:
-        raise Invalid(str(exc).replace("value: ", "", 1).replace("value.", "", 1)) from None
-    return v
-
-
 def _fail(message, path=()):
     raise Invalid(message, path)
 
@@ -300,7 +287,7 @@ _VELOCITY_KEYS = {
 }
 
 
-# --- loads and probes (thermonet.loads) ---
+# --- loads and probes (thermonet.loads); time functions also for baths and sources ---
 def time_function_value(v):
     """A number or a table of a time function's keys; its keys are checked when the load is
     built (:func:`thermonet.timefunctions.time_function`), with the key's line."""
