@@ -151,14 +151,21 @@ def make_simulation(k: int, parallel: bool | None, threads: int | None, varied: 
 
 
 def kernel_bytes_per_step(sim) -> int:
-    """Compulsory bytes one CO2 step (one force evaluation: spring pass + node pass) moves."""
+    """Compulsory bytes one CO2 step (one force evaluation: spring pass + node pass) moves: each
+    array read once per pass, written arrays once more; with thermal coupling off, Φ and η are
+    not there and count 0."""
     st = sim.stepper
-    l0, P, edges, inc_ptr, inc_spring, inc_other, masses, inv_mass, anchored = st._static
+    topo, springs, nodes, s_buf = st._topology, st._springs, st._nodes, st._scratch.s
     s = sim._state
+
+    def nb(a):
+        return 0 if a is None else a.nbytes
+
     x, p, phi, eta = s.positions, s.momenta, s.thermal_displacement, s.entropy
-    spring_pass = edges.nbytes + x.nbytes + eta.nbytes + l0.nbytes + P.nbytes + st._s.nbytes + 2 * phi.nbytes
-    node_pass = (inc_ptr.nbytes + inc_spring.nbytes + inc_other.nbytes + st._s.nbytes + x.nbytes
-                 + 2 * p.nbytes + x.nbytes + inv_mass.nbytes + anchored.nbytes)
+    spring_pass = (topo.edges.nbytes + x.nbytes + nb(eta) + springs.rest.nbytes + springs.P.nbytes + s_buf.nbytes
+                   + 2 * nb(phi))
+    node_pass = (topo.inc_ptr.nbytes + topo.inc_spring.nbytes + topo.inc_other.nbytes + s_buf.nbytes + x.nbytes
+                 + 2 * p.nbytes + x.nbytes + nodes.inv_mass.nbytes + nodes.anchored.nbytes)
     return spring_pass + node_pass
 
 

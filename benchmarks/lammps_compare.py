@@ -136,24 +136,6 @@ def check_same_dynamics(lmp, workdir, cells=4, steps=200):
     return float(np.abs(xl - sim.state.positions).max()), float(np.abs(x).max())
 
 
-def kernel_bytes_per_step(sim) -> int:
-    """Compulsory bytes one CO2 step (spring pass + node pass) moves, counted as in
-    ``explicit_throughput.py`` (each array read once per pass, written arrays once more); with
-    thermal coupling off, Φ and η are not there and count 0."""
-    st = sim.stepper
-    l0, P, edges, inc_ptr, inc_spring, inc_other, masses, inv_mass, anchored = st._static
-    s = sim._state
-
-    def nb(a):
-        return 0 if a is None else a.nbytes
-
-    x, p, phi, eta = s.positions, s.momenta, s.thermal_displacement, s.entropy
-    spring_pass = edges.nbytes + x.nbytes + nb(eta) + l0.nbytes + P.nbytes + st._s.nbytes + 2 * nb(phi)
-    node_pass = (inc_ptr.nbytes + inc_spring.nbytes + inc_other.nbytes + st._s.nbytes + x.nbytes
-                 + 2 * p.nbytes + x.nbytes + inv_mass.nbytes + anchored.nbytes)
-    return spring_pass + node_pass
-
-
 def mpirun_works(mpirun) -> bool:
     """Whether ``mpirun -np 2`` starts two processes (within 30 s)."""
     try:
@@ -228,7 +210,7 @@ def main(argv=None):
                     e = sim.diagnostics.column("energy")
                     drift[label] = float(np.abs(e - e[0]).max() / abs(e[0]))
                 times[label].append(t)
-        from explicit_throughput import triad_bandwidth
+        from explicit_throughput import kernel_bytes_per_step, triad_bandwidth
 
         triad = triad_bandwidth()
         print(f"\nSTREAM triad (best, 24 B/element): {triad / 1e9:.1f} GB/s")
