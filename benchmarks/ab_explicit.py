@@ -1,24 +1,28 @@
-"""Explicit step cost of two versions of thermonet in one process, interleaved: a change's speed
-against the code before it, measured in the same period on the same machine.
+"""Explicit step cost of two versions of thermonet, interleaved: a change's speed against the
+code before it, measured in the same period on the same machine.
 
     python benchmarks/ab_explicit.py --old /path/to/old/checkout [--cells 32,70]
                                      [--integrators co2] [--repeats 8] [--steps 100]
+                                     [--diagnostics-every 10]
 
-The old checkout's ``thermonet`` package is copied to a temporary folder as ``thermonet_old``
-(its imports are relative) and imported beside this checkout's. For each net (a 6-neighbour
-lattice of cells³ cells: 32 about 1e5 springs, 70 about 1e6; jitter 0.1, hencky, random
-temperatures 250–350, a diagnostics row every ``--diagnostics-every`` steps, default 10) both simulations are built and warmed
-up (kernels compiled or loaded), then timed alternately, ``--steps`` steps per call. Prints a
+Each version runs in a worker process of its own (this checkout's ``thermonet``, and the old
+checkout's copied to a temporary folder as ``thermonet_old``), driven in turn over a pipe, so the
+runs alternate in time but never share a process: two versions in one process share Numba's
+dispatcher type cache, which keys record arguments (named tuples) without their class, so the
+version that calls second missed it at every call and paid a Python typing of every argument
+(it made an unchanged kernel look 7–10 % slower). For each net (a 6-neighbour lattice of cells³
+cells: 32 about 1e5 springs, 70 about 1e6; jitter 0.1, hencky, random temperatures 250–350, a
+diagnostics row every ``--diagnostics-every`` steps) both simulations are built and warmed up
+(kernels compiled or loaded), then timed alternately, ``--steps`` steps per call. Prints a
 markdown table of the median time per step and the ratio new/old of medians, with the range of
-the paired ratios: on a shared machine a range straddling 1 is noise. Each version runs as two
-simulations, one built before and one after the other version's (the order of allocation alone
-moved a version's time by 8 % at 1e5 springs). Set NUMBA_NUM_THREADS to
+the paired ratios: on a shared machine a range straddling 1 is noise. Set NUMBA_NUM_THREADS to
 compare at a thread count.
 """
 
 from __future__ import annotations
 
 import argparse
+import multiprocessing as mp
 import os
 import shutil
 import sys
@@ -51,6 +55,24 @@ def simulation(tn, cells: int, integrator: str):
     return sim
 
 
+def worker(old_checkout, conn) -> None:
+    """Serve ("build", cells, integrator) -> springs and ("run", steps, every) -> seconds until
+    "stop", with the old checkout's package if ``old_checkout`` else this one's."""
+    tn = load_old(old_checkout) if old_checkout else __import__("thermonet")
+    sim = None
+    while True:
+        msg = conn.recv()
+        if msg[0] == "build":
+            sim = simulation(tn, msg[1], msg[2])
+            conn.send(sim.net.n_springs)
+        elif msg[0] == "run":
+            t = time.perf_counter()
+            sim.run(steps=msg[1], diagnostics_every=msg[2])
+            conn.send(time.perf_counter() - t)
+        else:
+            return
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--old", required=True, help="checkout of the code before the change")
@@ -61,30 +83,38 @@ def main(argv=None) -> None:
     ap.add_argument("--diagnostics-every", type=int, default=10,
                     help="diagnostics cadence of the timed runs (above --steps: one row per call)")
     args = ap.parse_args(argv)
-    import thermonet as new
-
-    old = load_old(args.old)
+    ctx = mp.get_context("spawn")
+    pipes = {}
+    procs = []
+    for which, checkout in (("old", os.path.abspath(args.old)), ("new", None)):
+        parent, child = ctx.Pipe()
+        proc = ctx.Process(target=worker, args=(checkout, child), daemon=True)
+        proc.start()
+        pipes[which] = parent
+        procs.append(proc)
     print(f"threads: {os.environ.get('NUMBA_NUM_THREADS', 'all')}; load average at start: {os.getloadavg()[0]:.2f}")
     print("| integrator | springs | old (ms/step) | new (ms/step) | new/old (paired range) |")
     print("|---|---|---|---|---|")
-    for integrator in args.integrators.split(","):
-        for cells in (int(c) for c in args.cells.split(",")):
-            # two of each, built in the orders old-new and new-old: which of two simulations is
-            # built second measurably changes its speed (memory placement: 8 % at 1e5 springs)
-            sims = [("old", simulation(old, cells, integrator)), ("new", simulation(new, cells, integrator)),
-                    ("new", simulation(new, cells, integrator)), ("old", simulation(old, cells, integrator))]
-            times: dict[str, list] = {"old": [], "new": []}
-            for r in range(args.repeats):
-                for which, sim in (sims if r % 2 == 0 else sims[::-1]):
-                    t = time.perf_counter()
-                    sim.run(steps=args.steps, diagnostics_every=args.diagnostics_every)
-                    times[which].append((time.perf_counter() - t) / args.steps)
-            o, n = np.array(times["old"]), np.array(times["new"])
-            paired = n / o
-            springs = sims[0][1].net.n_springs
-            sims.clear()
-            print(f"| {integrator} | {springs} | {np.median(o) * 1e3:.2f} | {np.median(n) * 1e3:.2f} | "
-                  f"{np.median(n) / np.median(o):.3f} ({paired.min():.2f}–{paired.max():.2f}) |", flush=True)
+    try:
+        for integrator in args.integrators.split(","):
+            for cells in (int(c) for c in args.cells.split(",")):
+                for pipe in pipes.values():
+                    pipe.send(("build", cells, integrator))
+                springs = [pipe.recv() for pipe in pipes.values()][-1]
+                times: dict[str, list] = {"old": [], "new": []}
+                for r in range(args.repeats):
+                    for which in (("old", "new") if r % 2 == 0 else ("new", "old")):
+                        pipes[which].send(("run", args.steps, args.diagnostics_every))
+                        times[which].append(pipes[which].recv() / args.steps)
+                o, n = np.array(times["old"]), np.array(times["new"])
+                paired = n / o
+                print(f"| {integrator} | {springs} | {np.median(o) * 1e3:.2f} | {np.median(n) * 1e3:.2f} | "
+                      f"{np.median(n) / np.median(o):.3f} ({paired.min():.2f}–{paired.max():.2f}) |", flush=True)
+    finally:
+        for pipe in pipes.values():
+            pipe.send(("stop",))
+        for proc in procs:
+            proc.join(timeout=10)
     print(f"load average at end: {os.getloadavg()[0]:.2f}")
 
 

@@ -16,7 +16,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..errors import InputError
-from ..kernels.records import Run, StateArrays, no_heat
+from ..kernels.records import Run, StateArrays, no_heat_cpu
 from ..loads.elements import NO_LOADS
 from ..loads.stepping import StepperLoads
 from .base import Integrator, StepFailure, Stepper, register_integrator
@@ -242,7 +242,7 @@ BM6A = register_integrator(Splitting(
 ))
 
 
-_NO_HEAT = no_heat()
+_NO_HEAT = no_heat_cpu()
 
 
 class SplittingStepper(Stepper):

@@ -139,6 +139,23 @@ def no_heat() -> Heat:
                 i, np.empty((0, 4)), np.zeros(1, dtype=np.int64), f, f, f, f, f, f, np.zeros(1), f, f, f)
 
 
+class NoHeat(NamedTuple):
+    """What the CPU step reads of a :class:`Heat` record when heat does not flow (its heat-flow
+    code compiled out): four empty arrays instead of the whole record's 26, each of which the
+    dispatcher would otherwise unbox at every call."""
+
+    s_before: np.ndarray
+    length: np.ndarray
+    theta_ok: np.ndarray
+    theta: np.ndarray
+
+
+def no_heat_cpu() -> NoHeat:
+    """The CPU step's heat argument without heat flow."""
+    f = np.empty(0)
+    return NoHeat(f, f, np.zeros(1), f)
+
+
 def topology(layout) -> Topology:
     """The :class:`Topology` of a :class:`~thermonet.layout.Layout`, as unsigned views."""
     return Topology(np.ascontiguousarray(layout.edges).view(np.uint32),
