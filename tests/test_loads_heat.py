@@ -1,5 +1,5 @@
 """Loads and heat flow together: one energy balance H − H(0) − W − ΣQ, of order 2 and without
-drift; chunked, threaded and resumed runs bit-identical; around an implicit integrator too. (The
+drift; chunked and resumed runs bit-identical; around an implicit integrator too. (The
 CUDA simulator against the CPU: tests/test_loads_cuda.py.)"""
 
 import numpy as np
@@ -65,12 +65,14 @@ def test_the_balance_with_loads_and_heat_does_not_drift():
     assert np.all(np.diff(d.entropy_produced) >= 0)
 
 
-def test_chunked_threaded_and_resumed_runs_with_loads_and_heat_are_bit_identical(tmp_path):
+def test_chunked_and_resumed_runs_with_loads_and_heat_are_bit_identical(tmp_path):
+    # (thread counts: tests/test_loads.py and tests/test_heat_flow.py; a threaded kernel with both
+    # costs a minute of compilation on a cold cache)
     from thermonet.io.checkpoint import load_checkpoint, save_checkpoint
 
     one = loaded_hot_strip(0.004)
     one.run(steps=400, diagnostics_every=400)
-    chunked = loaded_hot_strip(0.004, parallel=True, threads=2)
+    chunked = loaded_hot_strip(0.004)
     for _ in range(4):
         chunked.run(steps=100, diagnostics_every=7)
     first = loaded_hot_strip(0.004)
