@@ -62,7 +62,7 @@ from numba import prange
 from .implicit_common import (BLOCK, COLLAPSED, INLINE, NO_TEMPERATURE, NOT_FINITE, OK, OPTIONS, UNIFORM,
                               _admissible, _first_flagged, register_scheme, scatter_spring_block)
 from .implicit_records import StartWork
-from .implicit_rows import residual_rows3, spring_difference3, sweep_rows3
+from .implicit_rows import inertia_blocks3, residual_rows3, spring_difference3, sweep_rows3
 from .specialize import specialize
 
 # Bound per model by specialize(); listed so the templates read as ordinary code.
@@ -398,14 +398,7 @@ def _em2_jacobian(topo, spring, node, work, places, h, data):
     masses, inv_mass, gravity, with_gravity = node
     start, len1, dir1, mean, slope, dslope, energy0, tension0, jc, eta_step, quotient, tension1 = work
     node_base, node_stride, spring_base, spring_stride = places
-    data[:] = 0.0
-    for a in range(free_index.shape[0]):
-        k = free_index[a]
-        if k < 0:
-            continue
-        w = masses[a] / h
-        for i in range(3):
-            data[node_base[k] + i * node_stride[k] + i] += w
+    inertia_blocks3(free_index, masses, h, node_base, node_stride, data)
     B = np.zeros((3, 3))
     for e in range(edges.shape[0]):
         eu = np.uint64(e)

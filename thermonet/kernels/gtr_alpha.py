@@ -32,7 +32,7 @@ from .implicit_common import (BLOCK, INLINE, KEEP_START, LOCAL_ITERATIONS, MAX_L
                               OPTIONS, THETA_STOP, UNIFORM, COLLAPSED, _admissible, _first_flagged, _log_step,
                               _usable, register_scheme, scatter_spring_block)
 from .implicit_records import StartWork
-from .implicit_rows import residual_rows3, spring_difference3, sweep_rows3
+from .implicit_rows import inertia_blocks3, residual_rows3, spring_difference3, sweep_rows3
 from .specialize import specialize
 
 # Bound per model by specialize(); listed so the templates read as ordinary code.
@@ -271,14 +271,7 @@ def _gtr_jacobian(topo, spring, node, work, places, alpha, h, data):
     start, len1, dir1, theta, dtheta, jc = work
     len0, dir0, keep, fs, ws, sweep, nodal, guess, code = start
     node_base, node_stride, spring_base, spring_stride = places
-    data[:] = 0.0
-    for a in range(free_index.shape[0]):
-        k = free_index[a]
-        if k < 0:
-            continue
-        w = masses[a] / h
-        for i in range(3):
-            data[node_base[k] + i * node_stride[k] + i] += w
+    inertia_blocks3(free_index, masses, h, node_base, node_stride, data)
     B = np.zeros((3, 3))
     for e in range(edges.shape[0]):
         pe = np.uint64(0) if UNIFORM else np.uint64(e)

@@ -1,6 +1,6 @@
 """One free node's rows in the node passes of the schemes with a block of 3 unknowns per node
 (GTR-α, EM2; :mod:`.implicit_common` for the conventions): the residual's rows and the matrix-
-free sweep's. Each is inlined into a scheme's node loop (``for a in prange(n)``), which keeps
+free sweep's, and the inertia blocks of the assembled Jacobian. Each is inlined into a scheme's node loop (``for a in prange(n)``), which keeps
 its reduction of the returned maxima; the arithmetic is the schemes' own, in the same order.
 HO4's nodes carry 6 rows with their own inertia blocks (:mod:`.ho4`, :mod:`.ho4_linear`).
 """
@@ -115,3 +115,18 @@ def spring_difference3(du, ka, kb):
         v1 -= du[3 * kb + 1]
         v2 -= du[3 * kb + 2]
     return v0, v1, v2
+
+
+@njit(cache=True, inline="always")
+def inertia_blocks3(free_index, masses, h, node_base, node_stride, data):
+    """data (nnz,) ← 0, then m_c/h on the diagonal of each free node's block (block k =
+    free_index[a], its CSR places node_base[k] + i node_stride[k] + i): the Jacobian's inertia
+    part, before the schemes scatter their spring blocks."""
+    data[:] = 0.0
+    for a in range(free_index.shape[0]):
+        k = free_index[a]
+        if k < 0:
+            continue
+        w = masses[a] / h
+        for i in range(3):
+            data[node_base[k] + i * node_stride[k] + i] += w
