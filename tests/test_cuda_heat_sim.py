@@ -28,6 +28,7 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)  # this checkout's thermonet, also when run as a script
 
 import thermonet as tn  # noqa: E402
+from thermonet.cuda import gpu_available  # noqa: E402
 from thermonet.heat import Bath, Source  # noqa: E402
 from thermonet.timefunctions import TimeFunction  # noqa: E402
 
@@ -313,21 +314,8 @@ def test_fused_kernel_with_heat_rows_compiles_for_h100_but_for_its_grid_barriers
     assert ".target sm_90" in ptx
 
 
-def _gpu_available() -> bool:
-    if not HAVE_NUMBA_CUDA:
-        return False
-    try:
-        from numba import cuda
-
-        from thermonet.cuda import simulator_enabled
-
-        return not simulator_enabled() and cuda.is_available()
-    except Exception:
-        return False
-
-
 @pytest.mark.gpu
-@pytest.mark.skipif(not _gpu_available(), reason="needs a CUDA GPU")
+@pytest.mark.skipif(not gpu_available(), reason="needs a CUDA GPU")
 @pytest.mark.parametrize("make", [conduction_sim, waves_sim], ids=["conduction", "waves"])
 def test_gpu_heat_flow_equals_cpu_and_launch_modes_agree(make):
     """On a GPU: CPU to 1e-10 after 40 steps (fused multiply-adds), the fused launch equal to two

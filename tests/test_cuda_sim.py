@@ -23,6 +23,7 @@ import numpy as np
 import pytest
 
 import thermonet as tn
+from thermonet.cuda import gpu_available
 from thermonet.errors import InputError
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -229,21 +230,8 @@ def test_kernels_compile_to_ptx_for_h100(model):
         assert all(".target sm_90" in text for text in ptx.values())
 
 
-def _gpu_available() -> bool:
-    if not HAVE_NUMBA_CUDA:
-        return False
-    try:
-        from numba import cuda
-
-        from thermonet.cuda import simulator_enabled
-
-        return not simulator_enabled() and cuda.is_available()
-    except Exception:
-        return False
-
-
 @pytest.mark.gpu
-@pytest.mark.skipif(not _gpu_available(), reason="needs a CUDA GPU")
+@pytest.mark.skipif(not gpu_available(), reason="needs a CUDA GPU")
 @pytest.mark.parametrize("integrator", EXPLICIT)
 @pytest.mark.parametrize("model", ["hencky", "quadratic", "user"])
 def test_gpu_equals_cpu(integrator, model):
@@ -271,7 +259,7 @@ def test_gpu_equals_cpu(integrator, model):
 
 
 @pytest.mark.gpu
-@pytest.mark.skipif(not _gpu_available(), reason="needs a CUDA GPU")
+@pytest.mark.skipif(not gpu_available(), reason="needs a CUDA GPU")
 @pytest.mark.parametrize("integrator", ["co2", "co6", "gtr-1"])
 def test_gpu_fused_launch_equals_two_launches(integrator):
     """One cooperative launch per chunk runs the same inlined per-spring and per-node updates as

@@ -12,6 +12,8 @@ import sys
 import numpy as np
 import pytest
 
+from thermonet.cuda import gpu_available
+
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 HAVE_NUMBA_CUDA = importlib.util.find_spec("numba_cuda") is not None
 sys.path.insert(0, os.path.join(ROOT, "tests"))
@@ -46,21 +48,8 @@ def test_a_chunked_device_run_with_loads_equals_one_call(runs):
     np.testing.assert_array_equal(runs["chunks/load_work"], runs["co2/cuda/load_work"])
 
 
-def _gpu_available() -> bool:
-    if not HAVE_NUMBA_CUDA:
-        return False
-    try:
-        from numba import cuda
-
-        from thermonet.cuda import simulator_enabled
-
-        return not simulator_enabled() and cuda.is_available()
-    except Exception:
-        return False
-
-
 @pytest.mark.gpu
-@pytest.mark.skipif(not _gpu_available(), reason="needs a CUDA GPU")
+@pytest.mark.skipif(not gpu_available(), reason="needs a CUDA GPU")
 @pytest.mark.parametrize("integrator", ["co2", "co4"])
 def test_gpu_loads_equal_cpu_to_round_off(tmp_path, integrator):
     from cuda_sim_loads import loaded

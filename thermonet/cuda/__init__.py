@@ -32,6 +32,18 @@ def simulator_enabled() -> bool:
     return bool(config.ENABLE_CUDASIM)
 
 
+def gpu_available() -> bool:
+    """True when numba-cuda sees a real GPU here (not the simulator): what the ``gpu`` tests need."""
+    if importlib.util.find_spec("numba_cuda") is None:
+        return False
+    try:
+        from numba import cuda
+
+        return not simulator_enabled() and cuda.is_available()
+    except Exception:
+        return False
+
+
 def cuda_problem() -> str | None:
     """Why the CUDA backend cannot run here, or None when it can."""
     if importlib.util.find_spec("numba_cuda") is None:
