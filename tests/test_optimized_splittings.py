@@ -1,13 +1,14 @@
-"""Blanes & Moan's optimized symmetric RKN splittings (``bm4``, ``bm6``, ``bm6a``): their tables, their
-measured orders on the paper's chain, exact entropy, and the CUDA backend under the simulator.
+"""The optimized symmetric splittings — Blanes & Moan's RKN tables (``bm4``, ``bm6``, ``bm6a``) and
+Omelyan, Mryglod & Folk's 4th-order velocity version (``omf4``): their tables, their measured orders
+on the paper's chain, exact entropy, and the CUDA backend under the simulator.
 
 Orders are log-log slopes of the error at t = 1 against DOP853 at rtol = atol = 1e-13 (the
 ``chain_reference`` fixture; good to ≈ 5e-14 in positions, ≈ 2e-13 in momenta). These methods'
 errors are small: BM4 at h = 0.1·2⁻⁷ is 7e-12, BM6 and BM6A at h = 0.1·2⁻⁵ are 1.2e-12 and
 4.9e-13, so the fitted ranges stop there (the next halving meets the reference's floor), and
 start where the local slopes have settled (BM4's are 6.7, 4.5 at i = 2, 3; BM6's 6.7 at i = 2;
-BM6A's 8.6, 4.4 at i = 1, 2). Positions and momenta
-give the order within ``TOLERANCE``. Temperatures converge *faster* than the order over every
+BM6A's 8.6, 4.4 at i = 1, 2; OMF4's 4.9, 3.9 at i = 2, 3, fitted over BM4's range, where its error
+falls from 2.4e-7 to 6e-11). Positions and momenta give the order within ``TOLERANCE``. Temperatures converge *faster* than the order over every
 range above the floor (BM4: local slopes 6.4, 6.0, 5.6, 4.8 from i = 2; the leading h⁴ term of
 θ's error is still smaller than the next one there), so for them the test asserts a slope of at
 least the order.
@@ -25,7 +26,7 @@ import numpy as np
 import pytest
 
 import thermonet as tn
-from thermonet.integrators.splitting import BM4, BM6, BM6A, CO4, CO6
+from thermonet.integrators.splitting import BM4, BM6, BM6A, CO4, CO6, OMF4
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 T_END = 1.0
@@ -35,18 +36,18 @@ TOLERANCE = 0.15
 # smallest error allowed in the fit: ≥ 5x the reference's error, except BM6A, whose smallest
 # (4.9e-13 at i = 5, in both) is 10x the reference's error in positions but 2.4x in momenta)
 CASES = {"bm4": (4, 6, range(4, 8), 1e-12), "bm6": (6, 11, range(3, 6), 1e-12),
-         "bm6a": (6, 14, range(3, 6), 4e-13)}
+         "bm6a": (6, 14, range(3, 6), 4e-13), "omf4": (4, 5, range(4, 8), 1e-12)}
 
 
-@pytest.mark.parametrize("integrator", [BM4, BM6, BM6A])
+@pytest.mark.parametrize("integrator", [BM4, BM6, BM6A, OMF4])
 def test_tables_are_symmetric_and_consistent(integrator):
     k, d = np.array(integrator.kicks), np.array(integrator.drifts)
     assert len(k) == len(d) + 1
     assert abs(k.sum() - 1.0) < 1e-15 and abs(d.sum() - 1.0) < 1e-15
     np.testing.assert_array_equal(k, k[::-1])
     np.testing.assert_array_equal(d, d[::-1])
-    # BM4, BM6 start with a kick (first and last share one force evaluation in a long run); BM6A
-    # with a drift
+    # BM4, BM6, OMF4 start with a kick (first and last share one force evaluation in a long run);
+    # BM6A with a drift
     assert (k[0] == 0.0) == (integrator.name == "bm6a")
     assert tn.get_integrator(integrator.name) is integrator
     assert integrator.force_evaluations == CASES[integrator.name][1]
@@ -64,6 +65,15 @@ def test_tables_are_the_papers():
     assert BM6A.drifts[7] == pytest.approx(0.2073050690568954, abs=1e-15)
     # same number of force evaluations as a classical method's stages: 6 and 11, versus CO4's 3, CO6's 7
     assert (CO4.force_evaluations, CO6.force_evaluations) == (3, 7)
+
+
+def test_omf4_table_is_the_papers():
+    """Omelyan, Mryglod & Folk (2003), eq. (63) with (71): B(ϑ) A(ρ) B(λ) A(θ) B(½ − λ − ϑ)
+    A(1 − 2θ − 2ρ) …, B the kick."""
+    rho, theta, vartheta, lam = 0.2539785108410595, -0.03230286765269967, 0.08398315262876693, 0.6822365335719091
+    assert OMF4.kicks[:2] == (vartheta, lam) and OMF4.drifts[:2] == (rho, theta)
+    assert OMF4.kicks[2] == pytest.approx(0.5 - lam - vartheta, abs=1e-16)
+    assert OMF4.drifts[2] == pytest.approx(1.0 - 2.0 * (theta + rho), abs=1e-16)
 
 
 def _errors(name, h, reference):
@@ -88,18 +98,19 @@ def test_order_on_the_chain(name, chain_reference):
     assert slopes[2] >= order - TOLERANCE, f"{name}: slope {slopes[2]:.3f} in temperatures, expected ≥ {order}"
 
 
-@pytest.mark.parametrize("name", ["bm4", "bm6"])
+@pytest.mark.parametrize("name", ["bm4", "bm6", "omf4"])
 def test_more_accurate_than_the_triple_jumps_at_equal_force_evaluations(name, chain_reference):
-    """At equal force evaluations per unit time (BM4 at h = 0.02 against CO4 at 0.01; BM6 at
-    h = 1/40 against CO6 at 1/63) the optimized method's error on the chain is smaller."""
-    other, h_new, h_old = {"bm4": ("co4", 0.02, 0.01), "bm6": ("co6", 1.0 / 40, 1.0 / 63)}[name]
+    """At equal force evaluations per unit time (BM4 at h = 0.02 and OMF4 at 1/60 against CO4 at
+    0.01; BM6 at h = 1/40 against CO6 at 1/63) the optimized method's error on the chain is smaller."""
+    other, h_new, h_old = {"bm4": ("co4", 0.02, 0.01), "bm6": ("co6", 1.0 / 40, 1.0 / 63),
+                           "omf4": ("co4", 1.0 / 60, 0.01)}[name]
     new = tn.get_integrator(name).force_evaluations / h_new
     old = tn.get_integrator(other).force_evaluations / h_old
     assert new == pytest.approx(old, rel=0.02)
     assert _errors(name, h_new, chain_reference)[0] < 0.2 * _errors(other, h_old, chain_reference)[0]
 
 
-@pytest.mark.parametrize("name", ["bm4", "bm6", "bm6a"])
+@pytest.mark.parametrize("name", ["bm4", "bm6", "bm6a", "omf4"])
 @pytest.mark.parametrize("parallel", [False, True])
 def test_entropy_exact_and_momenta_conserved(name, parallel):
     net = tn.lattice((2, 2, 2), neighbours=18, jitter=0.1, seed=3)
@@ -129,7 +140,7 @@ _CUDA_SIM_SCRIPT = textwrap.dedent("""
     out = {}
     for model in ("hencky", "quadratic"):
         params = quadratic_parameters() if model == "quadratic" else None
-        for name in ("bm4", "bm6", "bm6a"):
+        for name in ("bm4", "bm6", "bm6a", "omf4"):
             for backend in ("cpu", "cuda"):
                 sim = tn.Simulation(net, model=model, parameters=params, temperatures=temps, velocities=v,
                                     integrator=name, h=2e-3, backend=backend)
@@ -157,7 +168,7 @@ def cuda_sim_runs(tmp_path_factory):
         return dict(data)
 
 
-@pytest.mark.parametrize("case", [f"{m}-{n}" for m in ("hencky", "quadratic") for n in ("bm4", "bm6", "bm6a")])
+@pytest.mark.parametrize("case", [f"{m}-{n}" for m in ("hencky", "quadratic") for n in ("bm4", "bm6", "bm6a", "omf4")])
 def test_cuda_simulator_equals_cpu(cuda_sim_runs, case):
     runs = cuda_sim_runs
     cpu, gpu = f"{case}/cpu", f"{case}/cuda"
@@ -172,15 +183,17 @@ def test_cuda_simulator_equals_cpu(cuda_sim_runs, case):
 
 
 @pytest.mark.parametrize("name,expected,above,steps", [("bm4", 3.1635, 1.0008, 2000), ("bm6", 3.1414, 1.0001, 20000),
-                                                       ("bm6a", 3.1409, None, 20000)])
+                                                       ("bm6a", 3.1409, None, 20000), ("omf4", 3.1421, 1.005, 400)])
 def test_stability_interval_is_the_measured_limit(name, expected, above, steps):
     """h·ω_max from the coefficients (the step matrix of a linear spring), checked by running a
     linear spring just below (energy bounded) and just above it (grows or stops). For these
     methods the limit is a narrow resonance band at hω ≈ π, where the step's rotation angle
     reaches π and the trace touches −2: from c to 1.0016 c for BM4 (largest eigenvalue modulus
-    1.0024 at 1.0008 c) and to 1.0003 c for BM6 (1.0004 at 1.0001 c); beyond the band the linear
-    step is stable again. So "just above" is inside the band (for BM6A: where the modulus is
-    largest below 1.002 c), and BM6, BM6A run longer to show the growth."""
+    1.0024 at 1.0008 c), to 1.0003 c for BM6 (1.0004 at 1.0001 c) and to 1.0103 c for OMF4 (1.016
+    at 1.005 c); beyond the band the linear step is stable again. So "just above" is inside the
+    band (for BM6A: where the modulus is largest below 1.002 c); BM6, BM6A run longer to show the
+    growth, OMF4 shorter (its amplitude grows 1.6 % per step and would reach the spring's length,
+    where the motion stops being linear, after about 450 steps)."""
     from test_hard_cases import linear_spring_energy_growth
 
     from thermonet.stability import stability_interval
@@ -209,7 +222,7 @@ def _widest_growth(name, c):
     return float(fs[np.argmax([modulus(f * c) for f in fs])])
 
 
-@pytest.mark.parametrize("name", ["bm4", "bm6", "bm6a"])
+@pytest.mark.parametrize("name", ["bm4", "bm6", "bm6a", "omf4"])
 @pytest.mark.parametrize("case_name", ["chain", "lattice-quadratic"])
 def test_kernel_step_matches_the_numpy_reference(name, case_name):
     """The fused kernel reading the table against :func:`thermonet.reference.splitting_step`

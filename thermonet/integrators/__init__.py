@@ -2,7 +2,7 @@
 
 from .base import (Integrator, Stepper, StepFailure, available_integrators, explicit_integrators, get_integrator,
                    register_integrator)
-from .splitting import BM4, BM6, BM6A, CO2, CO4, CO6, F10, GTR0, GTR1, NM2, Splitting, compose
+from .splitting import BM4, BM6, BM6A, CO2, CO4, CO6, F10, GTR0, GTR1, NM2, OMF4, Splitting, compose
 from .gtr_alpha import GTR_HALF, GTRAlpha
 from .ho4 import HO4, HO4_INTEGRATOR
 from .em2 import EM2, EM2_INTEGRATOR
@@ -10,5 +10,5 @@ from .em2 import EM2, EM2_INTEGRATOR
 __all__ = [
     "Integrator", "Stepper", "StepFailure", "Splitting", "compose", "get_integrator", "register_integrator",
     "available_integrators", "explicit_integrators", "GTR0", "GTR1", "CO2", "F10", "NM2", "CO4", "CO6", "BM4", "BM6", "BM6A",
-    "GTRAlpha", "GTR_HALF", "HO4", "HO4_INTEGRATOR", "EM2", "EM2_INTEGRATOR",
+    "OMF4", "GTRAlpha", "GTR_HALF", "HO4", "HO4_INTEGRATOR", "EM2", "EM2_INTEGRATOR",
 ]

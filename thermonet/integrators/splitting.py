@@ -242,6 +242,23 @@ BM6A = register_integrator(Splitting(
 ))
 
 
+# Omelyan, Mryglod & Folk, "Symplectic analytically integrable decomposition algorithms:
+# classification, derivation, and application to molecular dynamics, quantum and celestial
+# mechanics simulations", Comput. Phys. Commun. 151 (2003) 272: the 4th-order,
+# 5-force, minimum-norm "velocity version", eq. (63) with the parameters (71):
+# B(ϑ) A(ρ) B(λ) A(θ) B(½ − (λ + ϑ)) A(1 − 2(θ + ρ)) B(½ − (λ + ϑ)) A(θ) B(λ) A(ρ) B(ϑ),
+# B the kick and A the drift; the two middle coefficients follow from the sums.
+_OMF4_RHO, _OMF4_THETA = 0.2539785108410595, -0.03230286765269967
+_OMF4_VARTHETA, _OMF4_LAMBDA = 0.08398315262876693, 0.6822365335719091
+OMF4 = register_integrator(Splitting(
+    "omf4", 4,
+    palindrome((_OMF4_VARTHETA, _OMF4_LAMBDA, 0.5 - (_OMF4_LAMBDA + _OMF4_VARTHETA))),
+    palindrome((_OMF4_RHO, _OMF4_THETA), 1.0 - 2.0 * (_OMF4_THETA + _OMF4_RHO)),
+    description="Omelyan, Mryglod & Folk's optimized symmetric splitting, order 4, 5 force evaluations, velocity "
+                "version (Comput. Phys. Commun. 151 (2003) 272, eqs. (63), (71))",
+))
+
+
 _NO_HEAT = no_heat_cpu()
 
 
