@@ -28,7 +28,7 @@ import numpy as np
 from numba import prange
 
 from .fastmath import exp as exp_
-from .implicit_common import (BLOCK, INLINE, KEEP_START, LOCAL_ITERATIONS, MAX_LOG_STEP, NO_TEMPERATURE, NOT_FINITE, OK,
+from .implicit_common import (ALLOCATING, BLOCK, INLINE, KEEP_START, LOCAL_ITERATIONS, MAX_LOG_STEP, NO_TEMPERATURE, NOT_FINITE, OK,
                               OPTIONS, THETA_STOP, UNIFORM, COLLAPSED, _admissible, _first_flagged, _log_step,
                               _usable, register_scheme, scatter_spring_block)
 from .implicit_records import StartWork
@@ -63,7 +63,7 @@ def build(ns: dict, tag: str, ptag: str, parallel: bool) -> dict:
     ns["gtr_thermal"] = specialize(_gtr_thermal, tag, ns, **OPTIONS)
     ns["gtr_thermal_vector"] = specialize(_gtr_thermal_vector, tag, ns, **INLINE)
     residual = specialize(_gtr_residual, ptag, ns, parallel=parallel, **OPTIONS)
-    jacobian = specialize(_gtr_jacobian, tag, ns, **OPTIONS)
+    jacobian = specialize(_gtr_jacobian, tag, ns, **ALLOCATING)
     finish = specialize(_gtr_finish, ptag, ns, parallel=parallel, **OPTIONS)
     linearize = specialize(_gtr_linearize, ptag, ns, parallel=parallel, **OPTIONS)
     calls = dict(ns, gtr_residual=residual, gtr_jacobian=jacobian, gtr_finish=finish, gtr_linearize=linearize)

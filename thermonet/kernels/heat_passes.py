@@ -25,7 +25,7 @@ UNIFORM = False
 #: springs per block of the temperature pass (see thermonet.kernels.splitting.BLOCK)
 BLOCK = 512
 
-_OPTIONS = dict(cache=True, error_model="numpy", boundscheck=False)
+_OPTIONS = dict(cache=True, error_model="numpy", boundscheck=False, _nrt=False)  # specialize(): no reference counting
 
 
 def bind_heat_flow(ns: dict, tag: str, compile_) -> None:

@@ -200,6 +200,21 @@ def _max_abs(x):
 
 
 @njit(cache=True, inline="always")
+def _copy1(src, dst):
+    """dst (k,) ← src (k,) (a slice assignment would need NRT for its overlap check's copy)."""
+    for i in range(src.shape[0]):
+        dst[i] = src[i]
+
+
+@njit(cache=True, inline="always")
+def _copy2(src, dst):
+    """dst (n, 3) ← src (n, 3), as :func:`_copy1`."""
+    for a in range(src.shape[0]):
+        for i in range(src.shape[1]):
+            dst[a, i] = src[a, i]
+
+
+@njit(cache=True, inline="always")
 def _jacobi_pays(rho, contraction, tolerance, jacobi):
     """solvers.newton._jacobi_pays; jacobi: (JACOBI_RANGE, JACOBI_MAX_STEPS)."""
     return (rho <= jacobi[0] * tolerance and contraction < 1.0
@@ -345,9 +360,9 @@ def _newton_steps(state, records, extra, linear, control, out):
             info[2] = status
             info[3] = bad
             return k
-        x[:] = x_new
-        p[:] = p_new
-        phi[:] = phi_new
-        eta[:] = eta_new
+        _copy2(x_new, x)
+        _copy2(p_new, p)
+        _copy1(phi_new, phi)
+        _copy1(eta_new, eta)
         finals[k] = history[nh - 1]
     return n_steps

@@ -112,8 +112,35 @@ def specialize(template, tag: str, namespace: dict, **jit_options):
 
     tag: made part of the qualified name (so of the cache file name); must identify everything
     in ``namespace`` and in the jit options that changes the compiled code.
+
+    ``_nrt=False`` (the kernels' options: no reference counting, so no allocation) is kept only
+    where nothing the kernel reaches needs Numba's runtime: it is dropped for a parallel kernel
+    (Numba's parallel loops allocate their schedules) and for one that calls, directly or through
+    other functions, a parallel or allocating kernel (Numba compiles a callee inside its
+    caller's runtime setting, where such a callee fails to compile).
     """
-    return njit(**jit_options)(rebind(template, tag, namespace))
+    fn = rebind(template, tag, namespace)
+    if jit_options.get("_nrt") is False and (jit_options.get("parallel") or _reaches_runtime(fn, set())):
+        jit_options = {k: v for k, v in jit_options.items() if k != "_nrt"}
+    dispatcher = njit(**jit_options)(fn)
+    dispatcher._thermonet_runtime = jit_options.get("_nrt", True) is not False
+    return dispatcher
+
+
+def _reaches_runtime(fn, seen: set) -> bool:
+    """Whether the Python function ``fn`` calls, directly or through Numba functions, a kernel
+    made by :func:`specialize` that runs with Numba's runtime, or any parallel Numba function."""
+    glb = getattr(fn, "__globals__", {})
+    for name in set(_all_names(fn.__code__)):
+        callee = glb.get(name)
+        if not hasattr(callee, "py_func") or id(callee) in seen:
+            continue
+        seen.add(id(callee))
+        if getattr(callee, "_thermonet_runtime", False) or getattr(callee, "targetoptions", {}).get("parallel"):
+            return True
+        if callee.py_func is not None and _reaches_runtime(callee.py_func, seen):
+            return True
+    return False
 
 
 def rebind(template, tag: str, namespace: dict):

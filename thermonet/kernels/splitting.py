@@ -93,7 +93,7 @@ BLOCK = 512
 
 _CACHE: dict = {}
 
-_OPTIONS = dict(cache=True, error_model="numpy", boundscheck=False)
+_OPTIONS = dict(cache=True, error_model="numpy", boundscheck=False, _nrt=False)  # specialize(): no reference counting
 
 _squared_length = njit(inline="always", error_model="numpy", boundscheck=False)(subflows.squared_length)
 
