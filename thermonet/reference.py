@@ -289,7 +289,7 @@ def splitting_step(kicks, drifts) -> Callable[[ReferenceNet, ReferenceState, flo
     """Any kick/drift table ``K(k_0) D(d_0) K(k_1) … D(d_{S−1}) K(k_S)`` (kicks: (S+1,), drifts:
     (S,), fractions of h), written from the paper's (64)–(66) two sub-steps: a kick of c·h sets
     p += c h f_η(x), Φ += c h θ(l(x), η); a drift of d·h sets x += d h M⁻¹p. Zero kicks are
-    skipped (they change nothing). For the optimized tables (BM4, BM6, BM6A), checked against
+    skipped (they change nothing). For the optimized tables (BM4, BM6, BM6A, OMF4), checked against
     the kernels, which read the same table."""
     kicks = tuple(float(k) for k in kicks)
     drifts = tuple(float(d) for d in drifts)
