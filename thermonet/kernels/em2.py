@@ -33,22 +33,18 @@ The Jacobian block of spring e (added with sign s_c s_g to block (c, g), s_a = +
 with dQ/dl¹ = (T(l¹) − Q)/δ (direct) or the rule's Σ wᵢ ξᵢ k(l⁰ + ξᵢ δ) (nodes ξᵢ ∈ [0, 1]),
 k = dT/dl at fixed η (the adiabatic stiffness). The work record is :class:`EM2Work`.
 
-Callable from other compiled code (the records are plain tuples of arrays, see
-``implicit_records.plain``): ``residual(step, topo, spring, node, work, u, res) -> (status,
-spring, max|R|, max Rabs)`` (s from Q alone; it keeps Q and T(l¹) per spring),
-``linearize(spring, work, h)`` and ``jacobian(topo, spring, node, work, places, h, data)`` (both
-compute ds/dl¹ from what the residual kept: a residual that is not linearized, the last of a
-step or a Jacobi step's, does not pay for the rule's four stiffness evaluations),
-``predict(step, topo, spring, node, work, accel, pred)``, ``finish(step, topo, spring, node,
-work, u, phi, new) -> (status, spring)``, ``sweep(topo, node, work, h, du, R, r, update, first)
--> max|r|``, ``step_scale(topo, work, du, limit) -> factor`` and ``damp(step, topo, spring,
-node, work, u, du, res, rmax, smax, trial)`` (the damped Newton step, both Newton paths), and
-the per-spring ``slope(l, l1, eta, l0, P, e, U0, T0) -> (s, ds/dl1, θ(l1, η))``. A step: the
-shared start kernel with predictor coefficients [[0, 1, 0, 0]] (it writes the acceleration a),
-``predict`` (U, T at l⁰ and η into ``work``, the guess into u), then ``residual`` and
-``linearize`` or ``jacobian`` per Newton iteration, ``finish``. The compiled Newton path
-(:mod:`.newton_compiled`) takes the same kernels through the ``compiled_*`` adapters at the end
-of this module.
+Kernels (records: plain tuples of arrays, ``implicit_records.plain``): ``residual(step, topo,
+spring, node, work, u, res) -> (status, spring, max|R|, max Rabs)`` (s from Q alone; it keeps Q
+and T(l¹)), ``linearize(spring, work, h)`` and ``jacobian(topo, spring, node, work, places, h,
+data)`` (ds/dl¹ from what the residual kept: a residual not linearized does not pay for the
+rule's four stiffness evaluations), ``predict(step, topo, spring, node, work, accel, pred)``,
+``finish(step, topo, spring, node, work, u, phi, new) -> (status, spring)``, ``sweep(topo, node,
+work, h, du, R, r, update, first) -> max|r|``, ``step_scale(topo, work, du, limit) -> factor``,
+``damp(step, topo, spring, node, work, res, norms, vectors) -> (evaluated, max|R|, max Rabs)``
+(the damped Newton step, both paths) and ``slope(l, l1, eta, l0, P, e, U0, T0) -> (s, ds/dl1,
+θ(l1, η))``. A step: the start kernel with predictor coefficients [[0, 1, 0, 0]] (it writes a),
+``predict``, then ``residual`` and ``linearize`` or ``jacobian`` per Newton iteration,
+``finish``; the compiled Newton path (:mod:`.newton_compiled`) through the ``compiled_*`` adapters.
 """
 
 from __future__ import annotations
@@ -57,12 +53,12 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit, prange
+from numba import prange
 
 from .implicit_common import (ALLOCATING, BLOCK, COLLAPSED, INLINE, NO_TEMPERATURE, NOT_FINITE, OK, OPTIONS, UNIFORM,
                               _admissible, _first_flagged, register_scheme, scatter_spring_block)
 from .implicit_records import StartWork
-from .implicit_rows import inertia_blocks3, residual_rows3, spring_difference3, sweep_rows3
+from .implicit_rows import inertia_blocks3, norm2, residual_rows3, spring_difference3, sweep_rows3
 from .specialize import specialize
 
 # Bound per model by specialize(); listed so the templates read as ordinary code.
@@ -429,7 +425,10 @@ def _em2_finish(step, topo, spring, node, work, u, phi, new):
         for i in range(n):
             e = np.uint64(lo + i)
             pe = np.uint64(0) if UNIFORM else np.uint64(e)
-            th = temperature(0.5 * (len0[e] + len1[e]), eta[e], l0[e], P, pe)
+            guess[e] = temperature(0.5 * (len0[e] + len1[e]), eta[e], l0[e], P, pe)
+        for i in range(n):  # the stores apart (with them, the loop above was scalar)
+            e = np.uint64(lo + i)
+            th = guess[e]
             phi_new[e] = phi[e] + h * th
             eta_new[e] = eta[e]
             fs[0, e] *= 2.0
@@ -493,34 +492,29 @@ def _em2_damp(step, topo, spring, node, work, res, norms, vectors):
     spring's vector changes by more than LENGTH_LIMIT times its length (``step_scale``); while
     the scaled residual rmax/smax (norms, at u) is above LINE_SEARCH_ABOVE, then halved until the
     residual's 2-norm falls (Armijo, at most LINE_SEARCH_HALVINGS times; the trial points in
-    ``trial``, the residual ``res`` and ``work`` left at the last one)."""
+    ``trial``, the residual ``res`` and ``work`` left at the last one). Returns (evaluated, max
+    |R|, max Rabs): evaluated when the search accepted its trial point (``res``, ``work``: its)."""
     u, du, trial = vectors
     rmax, smax = norms
     scale = em2_step_scale(topo, work, du, LENGTH_LIMIT)
+    evaluated = False
+    tmax = tscale = 0.0
     if rmax > LINE_SEARCH_ABOVE * smax:
         R = res[0]
-        r0 = _norm2(R)
+        r0 = norm2(R)
         for _ in range(LINE_SEARCH_HALVINGS):
             for i in range(u.shape[0]):
                 trial[i] = u[i] - scale * du[i]
             status, bad, tmax, tscale = em2_residual(step, topo, spring, node, work, trial, res)
-            if status == 0 and _norm2(R) <= (1.0 - 1e-4 * scale) * r0:
+            if status == 0 and norm2(R) <= (1.0 - 1e-4 * scale) * r0:
+                evaluated = True
                 break
             scale *= 0.5
     elif not scale < 1.0:
-        return
+        return False, 0.0, 0.0
     for i in range(du.shape[0]):
         du[i] *= scale
-
-
-@njit(cache=True, inline="always")
-def _norm2(v):
-    """The 2-norm of v (k,), in a plain loop: np.dot would call a threaded BLAS, whose threads
-    cost milliseconds per call on a busy machine (measured 7.7 ms for 5e4 entries, 2 cores)."""
-    s = 0.0
-    for i in range(v.shape[0]):
-        s += v[i] * v[i]
-    return math.sqrt(s)
+    return evaluated, tmax, tscale
 
 
 def _em2_compiled_predict(step, topo, spring, node, work, extra, u):
@@ -544,7 +538,7 @@ def _em2_compiled_linearize(spring, work, extra, h):
 
 
 def _em2_compiled_damp(step, topo, spring, node, work, extra, res, norms, vectors):
-    em2_damp(step, topo, spring, node, work, res, norms, vectors)
+    return em2_damp(step, topo, spring, node, work, res, norms, vectors)
 
 
 register_scheme("em2", build)

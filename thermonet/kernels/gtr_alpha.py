@@ -178,9 +178,8 @@ def _gtr_residual(step, topo, spring, node, work, alpha, u, warm, res):
             fs[0, e] = dx
             fs[1, e] = dy
             fs[2, e] = dz
-        for i in range(n):  # arithmetic and thermal solve (vectorized)
+        for i in range(n):  # geometry (vectorized)
             e = np.uint64(lo + i)
-            pe = np.uint64(0) if UNIFORM else np.uint64(e)
             dx = fs[0, e]
             dy = fs[1, e]
             dz = fs[2, e]
@@ -195,6 +194,12 @@ def _gtr_residual(step, topo, spring, node, work, alpha, u, warm, res):
             dir1[0, e] = dx * i1
             dir1[1, e] = dy * i1
             dir1[2, e] = dz * i1
+        for i in range(n):  # thermal solve and impulses (vectorized; apart from the geometry,
+            # whose stores in the same loop kept LLVM from vectorizing it)
+            e = np.uint64(lo + i)
+            pe = np.uint64(0) if UNIFORM else np.uint64(e)
+            l1 = len1[e]
+            g = guess[e]
             la = len0[e]
             if KEEP_START:  # closed form (see the module doc), T affine in θ
                 A = keep[0, e]

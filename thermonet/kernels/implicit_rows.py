@@ -3,9 +3,12 @@
 free sweep's, and the inertia blocks of the assembled Jacobian. Each is inlined into a scheme's node loop (``for a in prange(n)``), which keeps
 its reduction of the returned maxima; the arithmetic is the schemes' own, in the same order.
 HO4's nodes carry 6 rows with their own inertia blocks (:mod:`.ho4`, :mod:`.ho4_linear`).
+Also the 2-norm of a residual for EM2's line search (:func:`norm2`).
 """
 
 from __future__ import annotations
+
+import math
 
 from numba import njit
 
@@ -130,3 +133,12 @@ def inertia_blocks3(free_index, masses, h, node_base, node_stride, data):
         w = masses[a] / h
         for i in range(3):
             data[node_base[k] + i * node_stride[k] + i] += w
+
+
+@njit(cache=True, inline="always")
+def norm2(v):
+    """|v|₂ of v (k,) in a loop (np.dot's threaded BLAS took 7.7 ms at 5e4 entries on 2 busy cores)."""
+    s = 0.0
+    for x in v:
+        s += x * x
+    return math.sqrt(s)

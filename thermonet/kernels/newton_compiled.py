@@ -15,9 +15,10 @@ and model by :func:`newton_steps_kernel`:
 and, where the scheme has them (else no-ops), ``scheme_predict(step, topo, spring, node, work,
 extra, u)``, the scheme's own predictor from the start kernel's output in u (in place), and
 ``scheme_damp(step, topo, spring, node, work, extra, res, (max |R|, max Rabs), (u, du,
-trial))``, which shortens a full iteration's correction du in place (a damped Newton step;
-``res``, the work record and ``trial`` may be overwritten: the residual is evaluated again at
-the corrected u).
+trial)) -> (evaluated, max |R|, max Rabs)``, which shortens a full iteration's correction du in
+place (a damped Newton step; ``res``, the work record and ``trial`` may be overwritten). When it
+returns ``evaluated``, ``res`` and the work record hold the residual at the corrected u, whose
+norms it returns, and the driver does not evaluate it again.
 
 ``extra`` is a tuple of whatever else the scheme's kernels take (GTR-α: (α,); HO4: its two
 empty index lists), made once by the stepper (``ImplicitStepper.compiled_extra``). A scheme
@@ -105,6 +106,7 @@ def _no_predict(step, topo, spring, node, work, extra, u):
 @njit(cache=True, inline="always")
 def _no_damp(step, topo, spring, node, work, extra, res, norms, vectors):
     """Stands in for a scheme that takes every Newton correction whole."""
+    return False, 0.0, 0.0
 
 
 @njit(cache=True, error_model="numpy", boundscheck=False)
@@ -280,8 +282,14 @@ def _newton_steps(state, records, extra, linear, control, out):
         use_jacobi_ever = SWEEPS
         last_full = True
         contraction = math.inf
+        evaluated = False
+        rmax = scale = 0.0
         while True:
-            status, bad, rmax, scale = scheme_residual(step, topo, spring, node, work, extra, u, warm, res)
+            if evaluated:  # the damping's accepted trial point is u: its residual is in res
+                status, bad = 0, -1
+                evaluated = False
+            else:
+                status, bad, rmax, scale = scheme_residual(step, topo, spring, node, work, extra, u, warm, res)
             warm = status == 0
             if status != 0:
                 reason = NON_PHYSICAL
@@ -338,11 +346,15 @@ def _newton_steps(state, records, extra, linear, control, out):
                 else:
                     du[:] = math.nan
             if not use_jacobi:
-                scheme_damp(step, topo, spring, node, work, extra, res, (rmax, scale), (u, du, r))
+                evaluated, trial_max, trial_scale = scheme_damp(step, topo, spring, node, work, extra, res,
+                                                                (rmax, scale), (u, du, r))
+                if evaluated:
+                    rmax = trial_max
+                    scale = trial_scale
             increment = 0.0
             finite = True
             for i in range(size):
-                u[i] -= du[i]
+                u[i] = r[i] if evaluated else u[i] - du[i]  # r: the damping's trial point
                 d = abs(du[i])
                 finite &= d < math.inf
                 increment = max(increment, d)
