@@ -108,7 +108,8 @@ class ImplicitStepper(Stepper):
         self.springs = SpringParameters(system.rest_lengths, P)
         gravity = np.zeros(3) if system.gravity is None else np.asarray(system.gravity, dtype=np.float64)
         self.nodes = NodeData(system.masses, system.inv_mass, gravity, system.gravity is not None)
-        self.places = BlockPlaces(pattern.node_base, pattern.node_stride, pattern.spring_base, pattern.spring_stride)
+        self.places = BlockPlaces(pattern.node_base, pattern.node_stride, pattern.spring_base, pattern.spring_stride,
+                                  np.zeros((6, 6)))
         self.solver = make_linear_solver(options.linear_solver, pattern, self)
         n, m, size = system.n_nodes, system.n_springs, pattern.size
         free = np.flatnonzero(free_index >= 0)

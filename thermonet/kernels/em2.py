@@ -55,7 +55,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import prange
 
-from .implicit_common import (ALLOCATING, BLOCK, COLLAPSED, INLINE, NO_TEMPERATURE, NOT_FINITE, OK, OPTIONS, UNIFORM,
+from .implicit_common import (BLOCK, COLLAPSED, INLINE, NO_TEMPERATURE, NOT_FINITE, OK, OPTIONS, UNIFORM,
                               _admissible, _first_flagged, register_scheme, scatter_spring_block)
 from .implicit_records import StartWork
 from .implicit_rows import inertia_blocks3, norm2, residual_rows3, spring_difference3, sweep_rows3
@@ -122,7 +122,7 @@ def build(ns: dict, tag: str, ptag: str, parallel: bool) -> dict:
         predict=specialize(_em2_predict, ptag, ns, parallel=parallel, **OPTIONS),
         residual=specialize(_em2_residual, ptag, ns, parallel=parallel, **OPTIONS),
         linearize=specialize(_em2_linearize, ptag, ns, parallel=parallel, **OPTIONS),
-        jacobian=specialize(_em2_jacobian, tag, ns, **ALLOCATING),
+        jacobian=specialize(_em2_jacobian, tag, ns, **OPTIONS),
         finish=specialize(_em2_finish, ptag, ns, parallel=parallel, **OPTIONS),
         sweep=specialize(_em2_sweep, "par" if parallel else "ser", {}, parallel=parallel, **OPTIONS),
         step_scale=specialize(_em2_step_scale, "ser", {}, **OPTIONS),
@@ -393,9 +393,8 @@ def _em2_jacobian(topo, spring, node, work, places, h, data):
     edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
     masses, inv_mass, gravity, with_gravity = node
     start, len1, dir1, mean, slope, dslope, energy0, tension0, jc, eta_step, quotient, tension1 = work
-    node_base, node_stride, spring_base, spring_stride = places
+    node_base, node_stride, spring_base, spring_stride, B = places
     inertia_blocks3(free_index, masses, h, node_base, node_stride, data)
-    B = np.zeros((3, 3))
     for e in range(edges.shape[0]):
         eu = np.uint64(e)
         dslope[eu] = em2_spring_dslope(spring, work, eu, np.uint64(0) if UNIFORM else eu)
@@ -404,7 +403,7 @@ def _em2_jacobian(topo, spring, node, work, places, h, data):
         for i in range(3):
             for j in range(3):
                 B[i, j] = c2 * mean[i, e] * dir1[j, e] + (c1 if i == j else 0.0)
-        scatter_spring_block(data, places, e, B)
+        scatter_spring_block(data, places, e, B, 3)
 
 
 def _em2_finish(step, topo, spring, node, work, u, phi, new):

@@ -28,7 +28,7 @@ import numpy as np
 from numba import prange
 
 from .fastmath import exp as exp_
-from .implicit_common import (ALLOCATING, BLOCK, INLINE, KEEP_START, LOCAL_ITERATIONS, MAX_LOG_STEP, NO_TEMPERATURE, NOT_FINITE, OK,
+from .implicit_common import (BLOCK, INLINE, KEEP_START, LOCAL_ITERATIONS, MAX_LOG_STEP, NO_TEMPERATURE, NOT_FINITE, OK,
                               OPTIONS, THETA_STOP, UNIFORM, COLLAPSED, _admissible, _first_flagged, _log_step,
                               _usable, register_scheme, scatter_spring_block)
 from .implicit_records import StartWork
@@ -63,7 +63,7 @@ def build(ns: dict, tag: str, ptag: str, parallel: bool) -> dict:
     ns["gtr_thermal"] = specialize(_gtr_thermal, tag, ns, **OPTIONS)
     ns["gtr_thermal_vector"] = specialize(_gtr_thermal_vector, tag, ns, **INLINE)
     residual = specialize(_gtr_residual, ptag, ns, parallel=parallel, **OPTIONS)
-    jacobian = specialize(_gtr_jacobian, tag, ns, **ALLOCATING)
+    jacobian = specialize(_gtr_jacobian, tag, ns, **OPTIONS)
     finish = specialize(_gtr_finish, ptag, ns, parallel=parallel, **OPTIONS)
     linearize = specialize(_gtr_linearize, ptag, ns, parallel=parallel, **OPTIONS)
     calls = dict(ns, gtr_residual=residual, gtr_jacobian=jacobian, gtr_finish=finish, gtr_linearize=linearize)
@@ -275,9 +275,8 @@ def _gtr_jacobian(topo, spring, node, work, places, alpha, h, data):
     masses, inv_mass, gravity, with_gravity = node
     start, len1, dir1, theta, dtheta, jc = work
     len0, dir0, keep, fs, ws, sweep, nodal, guess, code = start
-    node_base, node_stride, spring_base, spring_stride = places
+    node_base, node_stride, spring_base, spring_stride, B = places
     inertia_blocks3(free_index, masses, h, node_base, node_stride, data)
-    B = np.zeros((3, 3))
     for e in range(edges.shape[0]):
         pe = np.uint64(0) if UNIFORM else np.uint64(e)
         c = alpha * h * d2F_dl_dtheta(len0[e], theta[e], l0[e], P, pe) * dtheta[e]
@@ -286,7 +285,7 @@ def _gtr_jacobian(topo, spring, node, work, places, alpha, h, data):
         for i in range(3):
             for j in range(3):
                 B[i, j] = c * dir0[i, e] * dir1[j, e]
-        scatter_spring_block(data, places, e, B)
+        scatter_spring_block(data, places, e, B, 3)
 
 
 def _gtr_finish(step, topo, spring, node, work, alpha, u, phi, new):

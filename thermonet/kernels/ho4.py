@@ -24,7 +24,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import prange
 
-from .implicit_common import (ALLOCATING, BLOCK, COLLAPSED, INLINE, LOG_AFFINE, NO_TEMPERATURE, NOT_FINITE, OK, OPTIONS,
+from .implicit_common import (BLOCK, COLLAPSED, INLINE, LOG_AFFINE, NO_TEMPERATURE, NOT_FINITE, OK, OPTIONS,
                               UNIFORM, _admissible, _all_count, _first_flagged, _first_flagged_entry,
                               _first_flagged_position, _listed_count, _listed_entry, _listed_position,
                               register_scheme)
@@ -78,7 +78,7 @@ def build(ns: dict, tag: str, ptag: str, parallel: bool) -> dict:
     subset = dict(ns, listed=_listed_entry, listed_count=_listed_count, first_flagged_listed=_first_flagged_entry)
     ns.update(listed=_listed_position, listed_count=_all_count, first_flagged_listed=_first_flagged_position)
     residual = specialize(_ho4_residual, ptag, ns, parallel=parallel, **OPTIONS)
-    jacobian = specialize(_linear._ho4_jacobian, tag, ns, **ALLOCATING)
+    jacobian = specialize(_linear._ho4_jacobian, tag, ns, **OPTIONS)
     finish = specialize(_ho4_finish, ptag, ns, parallel=parallel, **OPTIONS)
     linearize = specialize(_linear._ho4_linearize, ptag, ns, parallel=parallel, **OPTIONS)
     calls = dict(ns, ho4_residual=residual, ho4_jacobian=jacobian, ho4_finish=finish, ho4_linearize=linearize)

@@ -76,7 +76,7 @@ def _ho4_jacobian(topo, spring, node, work, places, h, data):
     masses, inv_mass, gravity, with_gravity = node
     start, lenh, dirh, len1, dir1, th0, th1, dth, gs, jc = work
     len0, dir0, keep, fs, ws, sweep, nodal, guess, code = start
-    node_base, node_stride, spring_base, spring_stride = places
+    node_base, node_stride, spring_base, spring_stride, B = places
     data[:] = 0.0
     for a in range(free_index.shape[0]):
         k = free_index[a]
@@ -90,7 +90,6 @@ def _ho4_jacobian(topo, spring, node, work, places, h, data):
             data[base + i * st + 3 + i] += -w / 3.0
             data[base + (3 + i) * st + i] += -2.0 * w
             data[base + (3 + i) * st + 3 + i] += w
-    B = np.zeros((6, 6))
     for e in range(edges.shape[0]):
         pe = np.uint64(0) if UNIFORM else np.uint64(e)
         t0 = th0[e]
@@ -111,7 +110,7 @@ def _ho4_jacobian(topo, spring, node, work, places, h, data):
                 nn = dirh[i, e] * dirh[j, e]
                 B[3 + i, j] = (axial - lateral) * nn + (lateral if i == j else 0.0)
                 B[3 + i, 3 + j] = c21 * dirh[i, e] * dir1[j, e]
-        scatter_spring_block(data, places, e, B)
+        scatter_spring_block(data, places, e, B, 6)
 
 
 def _ho4_sweep(topo, node, work, h, du, R, r, update, first):

@@ -88,11 +88,10 @@ _SCHEMES: dict = {}
 #: the kernels' jit options. Without Numba's runtime (NRT) no reference counts are kept: with it,
 #: each array that an inlined row or spring function takes is increfed and decrefed at every
 #: call, which Numba's pruning keeps wherever that function has a loop or branches of its own
-#: (the node rows of a sweep: 80 ns per node, 10× their arithmetic). Kernels that allocate take
-#: ALLOCATING; those without NRT may still call them.
+#: (the node rows of a sweep: 80 ns per node, 10× their arithmetic). So the kernels allocate
+#: nothing (scratch comes in their records); specialize() keeps NRT for the parallel ones.
 OPTIONS = dict(cache=True, error_model="numpy", boundscheck=False, _nrt=False)
 INLINE = dict(inline="always", error_model="numpy", boundscheck=False, _nrt=False)
-ALLOCATING = dict(cache=True, error_model="numpy", boundscheck=False)
 
 #: a per-spring Newton solve stops after a correction of ln θ this small: its error is then of
 #: the order of the correction squared (quadratic convergence), below round-off
@@ -241,11 +240,10 @@ def _first_flagged(flag, lo, n, none):
 
 
 @njit(cache=True, inline="always")
-def scatter_spring_block(data, places, e, B):
-    """Add spring e's Jacobian block B (b, b) into the CSR values ``data`` at its four places
+def scatter_spring_block(data, places, e, B, b):
+    """Add spring e's Jacobian block B[:b, :b] into the CSR values ``data`` at its four places
     (BlockPlaces), with sign s_c s_g (s_a = +1, s_b = −1); none where an end is anchored."""
-    node_base, node_stride, spring_base, spring_stride = places
-    b = B.shape[0]
+    node_base, node_stride, spring_base, spring_stride, block = places
     for q in range(4):
         base = spring_base[e, q]
         if base < 0:
@@ -341,6 +339,9 @@ def _start(step, topo, spring, node, work, coef, pred):
             fs[0, e] = T * nx
             fs[1, e] = T * ny
             fs[2, e] = T * nz
+            if KEEP_START:
+                keep[0, e] = th
+                keep[1, e] = T
             lok = (l > 0.0) & (l < math.inf)
             code[e] = OK if (lok & _admissible(th)) else (NO_TEMPERATURE if lok else COLLAPSED)
         # what KEEP_START and RATE add, each in a loop of its own: in one loop with the above
@@ -351,9 +352,7 @@ def _start(step, topo, spring, node, work, coef, pred):
                 pe = np.uint64(0) if UNIFORM else np.uint64(e)
                 l = len0[e]
                 rest = l0[e]
-                th = temperature(l, eta[e], rest, P, pe)
-                keep[0, e] = th
-                keep[1, e] = tension(l, th, rest, P, pe)
+                th = keep[0, e]
                 keep[2, e] = d2F_dl_dtheta(l, th, rest, P, pe)
                 keep[3, e] = -th * d2F_dtheta2(l, th, rest, P, pe)
         if RATE > 0:

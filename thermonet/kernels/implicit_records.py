@@ -93,12 +93,14 @@ class BlockPlaces(NamedTuple):
     """Where the Jacobian's blocks lie in the CSR value array (solvers.pattern.BlockPattern):
     node_base, node_stride (n_free,) int64 for the diagonal blocks; spring_base, spring_stride
     (m, 4) int64 for the blocks (a,a), (a,b), (b,a), (b,b) of spring e = (a, b), −1 where an
-    end is anchored."""
+    end is anchored; block (6, 6): scratch for one spring's block (the kernels allocate nothing).
+    """
 
     node_base: np.ndarray
     node_stride: np.ndarray
     spring_base: np.ndarray
     spring_stride: np.ndarray
+    block: np.ndarray
 
 
 class StartWork(NamedTuple):
