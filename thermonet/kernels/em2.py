@@ -58,7 +58,7 @@ from numba import prange
 from .implicit_common import (BLOCK, COLLAPSED, INLINE, NO_TEMPERATURE, NOT_FINITE, OK, OPTIONS, UNIFORM,
                               _admissible, _first_flagged, register_scheme, scatter_spring_block)
 from .implicit_records import StartWork
-from .implicit_rows import inertia_blocks3, norm2, residual_rows3, spring_difference3, sweep_rows3
+from .implicit_rows import inertia_blocks3, node_blocks, norm2, residual_rows3, spring_difference3, sweep_rows3
 from .specialize import specialize
 
 # Bound per model by specialize(); listed so the templates read as ordinary code.
@@ -347,8 +347,8 @@ def _em2_residual(step, topo, spring, node, work, u, res):
         return code[bad], bad, math.inf, math.inf
     rmax = 0.0
     smax = 0.0
-    for a in prange(x0.shape[0]):
-        big, scale = residual_rows3(step, topo, node, fs, u, half, R, Rabs, a)
+    for blk in prange(node_blocks(x0.shape[0])):
+        big, scale = residual_rows3(step, topo, node, fs, u, half, R, Rabs, blk)
         rmax = max(rmax, big)
         smax = max(smax, scale)
     return 0, -1, rmax, smax
@@ -460,8 +460,8 @@ def _em2_sweep(topo, node, work, h, du, R, r, update, first):
         w[eu, 1] = c1 * v1 + c * mean[1, eu]
         w[eu, 2] = c1 * v2 + c * mean[2, eu]
     rmax = 0.0
-    for a in prange(free_index.shape[0]):
-        rmax = max(rmax, sweep_rows3(topo, node, h, w, du, R, r, a, update, first))
+    for blk in prange(node_blocks(free_index.shape[0])):
+        rmax = max(rmax, sweep_rows3(topo, node, h, w, du, R, r, blk, update, first))
     return rmax
 
 

@@ -32,7 +32,7 @@ from .implicit_common import (BLOCK, INLINE, KEEP_START, LOCAL_ITERATIONS, MAX_L
                               OPTIONS, THETA_STOP, UNIFORM, COLLAPSED, _admissible, _first_flagged, _log_step,
                               _usable, register_scheme, scatter_spring_block)
 from .implicit_records import StartWork
-from .implicit_rows import inertia_blocks3, residual_rows3, spring_difference3, sweep_rows3
+from .implicit_rows import inertia_blocks3, node_blocks, residual_rows3, spring_difference3, sweep_rows3
 from .specialize import specialize
 
 # Bound per model by specialize(); listed so the templates read as ordinary code.
@@ -243,8 +243,8 @@ def _gtr_residual(step, topo, spring, node, work, alpha, u, warm, res):
     rmax = 0.0
     smax = 0.0
     gc = alpha * h
-    for a in prange(x0.shape[0]):
-        big, scale = residual_rows3(step, topo, node, fs, u, gc, R, Rabs, a)
+    for blk in prange(node_blocks(x0.shape[0])):
+        big, scale = residual_rows3(step, topo, node, fs, u, gc, R, Rabs, blk)
         rmax = max(rmax, big)
         smax = max(smax, scale)
     return 0, -1, rmax, smax
@@ -348,8 +348,8 @@ def _gtr_sweep(topo, node, work, h, du, R, r, update, first):
         w[eu, 1] = c * dir0[1, eu]
         w[eu, 2] = c * dir0[2, eu]
     rmax = 0.0
-    for a in prange(free_index.shape[0]):
-        rmax = max(rmax, sweep_rows3(topo, node, h, w, du, R, r, a, update, first))
+    for blk in prange(node_blocks(free_index.shape[0])):
+        rmax = max(rmax, sweep_rows3(topo, node, h, w, du, R, r, blk, update, first))
     return rmax
 
 
