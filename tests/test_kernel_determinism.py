@@ -129,3 +129,13 @@ def test_mechanical_rows_reduced_by_the_closing_kick_equal_the_stand_alone_reduc
     assert sim.stepper.closing_sums(sim.internal_state()) is not None
     row, alone = sim.diagnostics.rows[-1], measure(sim.system, sim.internal_state(), False)
     assert {k: row[k] for k in alone} == alone
+
+
+@pytest.mark.skipif(numba.config.NUMBA_NUM_THREADS < 2, reason="needs two threads")
+def test_a_run_with_threads_leaves_numbas_thread_count_as_it_found_it():
+    """threads=1 holds for that simulation's runs only: a later simulation without ``threads``
+    (or a study, or a benchmark's next case) runs on Numba's own setting again."""
+    before = numba.get_num_threads()
+    sim = make("hencky", "co2", True, parallel=True, threads=1)
+    sim.run(steps=3, diagnostics_every=3)
+    assert numba.get_num_threads() == before

@@ -78,9 +78,12 @@ class RunDriver:
         for k, cb in cadences[1:]:
             if self._state.step % k == 0:
                 cb(self)
+        threads_before = None
         if self.threads:
             import numba
 
+            # for this run only: a later simulation without ``threads`` gets Numba's setting back
+            threads_before = numba.get_num_threads()
             numba.set_num_threads(int(self.threads))
         start = self._state.step
         end = start + steps
@@ -111,6 +114,8 @@ class RunDriver:
         finally:
             watch.__exit__()
             self.compile_time += watch.seconds
+            if threads_before is not None:
+                numba.set_num_threads(threads_before)
         for flush in flushes:
             flush()
         self.wall_time += _time.perf_counter() - t0 - watch.seconds
