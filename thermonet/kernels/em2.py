@@ -87,7 +87,7 @@ class EM2Work(NamedTuple):
     (h s/4, h ds/dl¹ / 2); eta_step (m,) the step's entropies (copied by ``predict``); quotient,
     tension1 (m,) Q = ΔU/δ and T(l¹) of the last residual (ds/dl¹ from them, by ``linearize`` and
     ``jacobian`` only: a residual does not need it); and the start kernel's record ``start`` (its
-    ``guess`` (m,) holds the predictor's per-spring stiffness)."""
+    ``guess`` (m,) holds the predictor's per-spring stiffness, and the finish's θ(l̄, η))."""
 
     start: StartWork
     len1: np.ndarray

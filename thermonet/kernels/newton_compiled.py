@@ -41,6 +41,7 @@ import numpy as np
 from numba import njit
 
 from .implicit_common import INLINE, OPTIONS
+from .schedule_passes import _copy_rows as _copy_rows_template, _copy_values
 from .specialize import function_fingerprint, model_fingerprint, specialize
 
 # Bound per scheme and model by newton_steps_kernel(); listed so the template reads as ordinary code.
@@ -61,6 +62,8 @@ REASONS = {
 }
 
 _DRIVERS: dict = {}
+#: the commit's copy of x and p, the explicit kernels' row copy (its prange runs serially here)
+_copy_rows = njit(inline="always", error_model="numpy", boundscheck=False)(_copy_rows_template)
 
 
 def newton_steps_kernel(model, scheme: str, kernels, uniform: bool, rate: int, sweeps: bool, parallel: bool):
@@ -199,21 +202,6 @@ def _max_abs(x):
         for i in range(3):
             big = max(big, abs(x[a, i]))
     return big
-
-
-@njit(cache=True, inline="always")
-def _copy1(src, dst):
-    """dst (k,) ← src (k,) (a slice assignment would need NRT for its overlap check's copy)."""
-    for i in range(src.shape[0]):
-        dst[i] = src[i]
-
-
-@njit(cache=True, inline="always")
-def _copy2(src, dst):
-    """dst (n, 3) ← src (n, 3), as :func:`_copy1`."""
-    for a in range(src.shape[0]):
-        for i in range(src.shape[1]):
-            dst[a, i] = src[a, i]
 
 
 @njit(cache=True, inline="always")
@@ -372,9 +360,10 @@ def _newton_steps(state, records, extra, linear, control, out):
             info[2] = status
             info[3] = bad
             return k
-        _copy2(x_new, x)
-        _copy2(p_new, p)
-        _copy1(phi_new, phi)
-        _copy1(eta_new, eta)
+        # loops, not slice assignments (those need the runtime for their overlap check)
+        _copy_rows(x_new, x)
+        _copy_rows(p_new, p)
+        _copy_values(phi_new, phi)
+        _copy_values(eta_new, eta)
         finals[k] = history[nh - 1]
     return n_steps
