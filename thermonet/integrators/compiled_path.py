@@ -19,7 +19,7 @@ import dataclasses
 import numpy as np
 
 from ..errors import InputError
-from ..kernels.implicit_records import NextState, plain
+from ..kernels.implicit_records import NextState, Residuals, plain
 from ..kernels.newton_compiled import NO_CONVERGENCE, REASONS, STALLED, newton_steps_kernel
 from ..solvers import NewtonResult
 from ..solvers.matrix_free import MatrixFree
@@ -107,7 +107,11 @@ class CompiledNewton:
         if self._out is None or self._out[0].shape[0] < n_steps:
             self._out = (np.zeros(n_steps, dtype=np.int64), np.zeros(n_steps), self._history, self._info, self._atol)
         if self._linear is None:
-            self._linear = self._buffers + (s.u, plain(s.residuals), tuple(self._new))
+            # R shared with the stepper (its failure report reads it); no Rabs, no per-node
+            # peaks: the driver reads only their maxima, and their stores were 64 bytes per node
+            # of every residual's memory traffic
+            residuals = Residuals(s.residuals.R, np.empty(0), np.empty((2, 0)))
+            self._linear = self._buffers + (s.u, plain(residuals), tuple(self._new))
         records = (s._topology, s._springs, s._nodes, s._work, s._places)
         # Newton's atol: the stepper's, or (a scheme with atol_rounding, EM2) the driver's per step
         atol = float(s.options.atol)

@@ -169,7 +169,8 @@ class ImplicitStepper(Stepper):
     def predictor_coefficients(self, h: float) -> np.ndarray:
         """(B/3, 4): sub-block j of a free node's predicted unknowns is c[j, 0] v + c[j, 1] a
         + c[j, 2] ȧ + c[j, 3] ä (velocity, acceleration and its first two time derivatives at
-        the step's start; the derivatives beyond ``rate`` are zero)."""
+        the step's start; the derivatives beyond ``rate`` are zero); (B/3, 6) for a scheme whose
+        predictor extrapolates (columns 4, 5: kernels/implicit_start.py)."""
 
     def predict(self, u: np.ndarray) -> None:
         """Fill the unknowns u with the explicit guess the start kernel computed (begin), which
@@ -310,6 +311,7 @@ class ImplicitStepper(Stepper):
         # the new state's buffers become the state's; the old ones the next step's outputs
         state.positions, state.momenta, state.thermal_displacement, state.entropy = new
         self._new = NextState(x, p, phi, eta)
+        self.work.start.history[0] = h  # u: this committed step's solution (the next predictor's)
         iters.append(result.full_iterations)
         finals.append(result.history[-1])
 

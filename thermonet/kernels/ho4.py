@@ -104,7 +104,8 @@ def build(ns: dict, tag: str, ptag: str, parallel: bool) -> dict:
 
 def _ho4_residual(step, topo, spring, node, work, u, warm, res, springs, nodes):
     """``res``: R, Rabs (6 n_free,) at unknowns u (6 n_free,), and peak (2, n_free) each free
-    node's largest |R| and Rabs (for the local steps' node selection); fills ``work``'s lengths
+    node's largest |R| and Rabs (for the local steps' node selection; Rabs and peak may be
+    empty, then not written: the compiled Newton path reads only the maxima); fills ``work``'s lengths
     (m,) and unit vectors (3, m) at x^½ and x¹, θ⁰, θ¹ (m,), dth (4, m) = dθ⁰/dl^½, dθ⁰/dl¹,
     dθ¹/dl^½, dθ¹/dl¹ and gs (m,) = Γ⁰ = Γ¹. With ``warm``, the previous call's gs (at nearby u),
     moved along its length derivatives, seeds the thermal solves. With LOG_AFFINE (closed-form
@@ -125,7 +126,7 @@ def _ho4_residual(step, topo, spring, node, work, u, warm, res, springs, nodes):
     l0, P = spring
     masses, inv_mass, gravity, with_gravity = node
     start, lenh, dirh, len1, dir1, th0, th1, dth, gs, jc = work
-    len0, dir0, keep, fs, ws, sweep, nodal, guess, code = start
+    len0, dir0, keep, fs, ws, sweep, nodal, guess, code, history = start
     R, Rabs, peak = res
     none = edges.shape[0]
     m = listed_count(springs, none)
@@ -278,6 +279,8 @@ def _ho4_residual(step, topo, spring, node, work, u, warm, res, springs, nodes):
         return code[bad], bad, math.inf, math.inf
     rmax = 0.0
     smax = 0.0
+    magnitudes = Rabs.shape[0] > 0
+    peaks = peak.shape[1] > 0
     for j_node in prange(listed_count(nodes, x0.shape[0])):
         a = listed(nodes, j_node)
         k = free_index[a]
@@ -332,23 +335,25 @@ def _ho4_residual(step, topo, spring, node, work, u, warm, res, springs, nodes):
             r5 += sg * v5
             s5 += abs(v5)
         R[6 * k + 0] = r0
-        Rabs[6 * k + 0] = s0
         R[6 * k + 1] = r1
-        Rabs[6 * k + 1] = s1
         R[6 * k + 2] = r2
-        Rabs[6 * k + 2] = s2
         R[6 * k + 3] = r3
-        Rabs[6 * k + 3] = s3
         R[6 * k + 4] = r4
-        Rabs[6 * k + 4] = s4
         R[6 * k + 5] = r5
-        Rabs[6 * k + 5] = s5
+        if magnitudes:
+            Rabs[6 * k + 0] = s0
+            Rabs[6 * k + 1] = s1
+            Rabs[6 * k + 2] = s2
+            Rabs[6 * k + 3] = s3
+            Rabs[6 * k + 4] = s4
+            Rabs[6 * k + 5] = s5
         big = max(max(abs(r0), abs(r1)), max(max(abs(r2), abs(r3)), max(abs(r4), abs(r5))))
         if not (abs(r0) + abs(r1) + abs(r2) + abs(r3) + abs(r4) + abs(r5) < math.inf):
             big = math.inf  # a NaN row (max() passes over NaN) shows in the norm as not finite
         scale = max(max(s0, s1), max(max(s2, s3), max(s4, s5)))
-        peak[0, k] = big
-        peak[1, k] = scale
+        if peaks:
+            peak[0, k] = big
+            peak[1, k] = scale
         rmax = max(rmax, big)
         smax = max(smax, scale)
     return 0, -1, rmax, smax
@@ -364,7 +369,7 @@ def _ho4_finish(step, topo, spring, node, work, u, phi, new):
     edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
     l0, P = spring
     start, lenh, dirh, len1, dir1, th0, th1, dth, gs, jc = work
-    len0, dir0, keep, fs, ws, sweep, nodal, guess, code = start
+    len0, dir0, keep, fs, ws, sweep, nodal, guess, code, history = start
     x_new, p_new, phi_new, eta_new = new
     m = edges.shape[0]
     bad = m
@@ -414,4 +419,4 @@ def _ho4_compiled_linearize(spring, work, extra, h):
     ho4_linearize(spring, work, h)
 
 
-register_scheme("ho4", build, keeps_start=True)
+register_scheme("ho4", build, keeps_start=True, extrapolates=True)

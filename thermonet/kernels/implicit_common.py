@@ -1,7 +1,8 @@
-"""The implicit integrators' shared kernels and their registry: the start kernel (geometry at x⁰,
-explicit forces, the predictor), the nodes' part of the finish kernels, the small helpers of the
-per-spring thermal solves, and :func:`implicit_kernels`, which compiles a registered scheme's
-kernels for one model (:mod:`.gtr_alpha`, spec §2.1; :mod:`.ho4`, spec §2.2).
+"""The implicit integrators' shared kernels and their registry: the nodes' part of the finish
+kernels, the small helpers of the per-spring thermal solves, and :func:`implicit_kernels`, which
+compiles a registered scheme's kernels for one model (:mod:`.gtr_alpha`, spec §2.1; :mod:`.ho4`,
+spec §2.2) with the start kernel of :mod:`.implicit_start` (geometry at x⁰, explicit forces, the
+predictor).
 
 The unknowns are per free node: the displacement over the step ``d = x¹ − x⁰`` for GTR-α
 (block of 3), and ``d^½ = x^½ − x⁰, d¹ = x¹ − x⁰`` for HO4 (block of 6). Working with
@@ -69,7 +70,7 @@ from numba import njit, prange
 from .specialize import model_fingerprint, model_namespace, specialize
 
 # Bound per model by specialize(); listed so the templates read as ordinary code.
-temperature = tension = d2F_dl2 = d2F_dl_dtheta = d2F_dtheta2 = adiabatic_stiffness = None
+temperature = tension = d2F_dl2 = d2F_dl_dtheta = d2F_dtheta2 = None
 #: the model's entropy is affine in ln θ (Model.entropy_log_affine): HO4's thermal solve in closed form
 LOG_AFFINE = False
 #: the time derivatives of the acceleration the start kernel's predictor uses (ImplicitStepper.rate)
@@ -121,13 +122,15 @@ class ImplicitKernels:
         self.__dict__.update(kernels)
 
 
-def register_scheme(name: str, build, keeps_start: bool = False) -> None:
+def register_scheme(name: str, build, keeps_start: bool = False, extrapolates: bool = False) -> None:
     """Make scheme ``name`` known to :func:`implicit_kernels`. ``build(ns, tag, ptag, parallel)``
     returns a dict of its compiled kernels, specializing its templates with the model namespace
     ``ns`` (which it may extend) and the cache tags ``tag`` (model) and ``ptag`` (model and
     threading); ``keeps_start``: the start kernel keeps per spring what the scheme's residual
-    reads of the step's start (KEEP_START), for LOG_AFFINE models."""
-    _SCHEMES[name] = (build, bool(keeps_start))
+    reads of the step's start (KEEP_START), for LOG_AFFINE models; ``extrapolates``: its
+    predictor (rate 2) extrapolates from the previous step's stage acceleration (EXTRAPOLATE,
+    :mod:`.implicit_start`; StartWork.history)."""
+    _SCHEMES[name] = (build, bool(keeps_start), bool(extrapolates))
 
 
 def implicit_kernels(model, scheme: str, parallel: bool = False, uniform: bool = False, rate: int = 0) -> ImplicitKernels:
@@ -141,7 +144,9 @@ def implicit_kernels(model, scheme: str, parallel: bool = False, uniform: bool =
     if key not in _CACHE:
         if scheme not in _SCHEMES:
             raise ValueError(f"unknown implicit scheme {scheme!r}; known: {', '.join(sorted(_SCHEMES))}")
-        build, keeps_start = _SCHEMES[scheme]
+        from .implicit_start import _adiabatic_stiffness, _start
+
+        build, keeps_start, extrapolates = _SCHEMES[scheme]
         tag = f"{model.name}_{key[1]}{'_uniform' if uniform else ''}"
         ptag = f"{tag}_{'par' if parallel else 'ser'}"
         ns = model_namespace(model)
@@ -149,9 +154,10 @@ def implicit_kernels(model, scheme: str, parallel: bool = False, uniform: bool =
         ns["LOG_AFFINE"] = bool(getattr(model, "entropy_log_affine", False))
         ns["KEEP_START"] = keeps_start and ns["LOG_AFFINE"]
         ns["UNIFORM"] = bool(uniform)
+        ns["EXTRAPOLATE"] = extrapolates and rate == 2
         ns["adiabatic_stiffness"] = specialize(_adiabatic_stiffness, tag, ns, **INLINE)
-        start = specialize(_start, f"{ptag}_rate{int(rate)}{'_keep' if ns['KEEP_START'] else ''}", ns,
-                           parallel=parallel, **OPTIONS)
+        start = specialize(_start, f"{ptag}_rate{int(rate)}{'_keep' if ns['KEEP_START'] else ''}"
+                           f"{'_extrapolate' if ns['EXTRAPOLATE'] else ''}", ns, parallel=parallel, **OPTIONS)
         ns["finish_nodes"] = specialize(_finish_nodes, ptag, ns, parallel=parallel, **OPTIONS)
         _CACHE[key] = ImplicitKernels(start=start, keep_start=ns["KEEP_START"], **build(ns, tag, ptag, parallel))
     return _CACHE[key]
@@ -263,248 +269,6 @@ def scatter_spring_block(data, places, e, B, b):
 # results. A spring loop cannot return early: a failing spring stores its status in ``code``
 # and the smallest failing index is kept by a min-reduction. (The schemes' kernels are built the
 # same way.)
-
-
-def _adiabatic_stiffness(l, eta, l0, P, e):
-    """dT/dl at constant entropy η: F_ll − F_lθ²/F_θθ at (l, θ(l, η))."""
-    th = temperature(l, eta, l0, P, e)
-    flt = d2F_dl_dtheta(l, th, l0, P, e)
-    return d2F_dl2(l, th, l0, P, e) - flt * flt / d2F_dtheta2(l, th, l0, P, e)
-
-
-#: the predictor's ä term is used at a node only where h²/8 |ä| ≤ SNAP_TRUST (|a| + h/2 |ȧ|)
-SNAP_TRUST = 0.1
-#: relative length step of the forward difference for d²T/dl² along an adiabat (the model gives
-#: second derivatives of F only): its error ~ STIFFNESS_STEP, its round-off ~ 1e-16/STIFFNESS_STEP,
-#: both far below what a predictor term needs (a central difference costs one more evaluation)
-STIFFNESS_STEP = 1e-5
-
-
-def _start(step, topo, spring, node, work, coef, pred):
-    """Lengths ``work.len0`` (m,) and unit vectors ``work.dir0`` (3, m) at x0 (n, 3) (``work``: a
-    StartWork record), and the explicit predictor of the step's unknowns into pred (B n_free,):
-    per free node and sub-block j (B = 3 × rows
-    of coef), pred = coef[j, 0] v + coef[j, 1] a + coef[j, 2] ȧ + coef[j, 3] ä with v = p/m,
-    a = f/m (+ g) the acceleration at (x0, θ(l0, η)) and its first (``RATE`` ≥ 1) and second
-    (``RATE`` 2) time derivatives along the exact (adiabatic) flow at (x0, p0) (else 0), for a
-    Taylor-like predictor. Scratch: fs (6, m), ws (6, m) (``RATE`` 2), nodal (n, 6) (``RATE``
-    2), code (m,). h: step.h. With KEEP_START, keep (KEEP_ROWS, m) receives per spring θ(l⁰, η),
-    T(l⁰, θ(l⁰, η)), F_lθ(l⁰) and the log-affine coefficient C = −θ F_θθ (HO4's closed-form
-    thermal solve reads them at every residual of the step). Returns (status, spring).
-
-    Per spring f = T n, T = T(l, θ(l, η)) along the adiabat with T' = dT/dl (adiabatic
-    stiffness), l̇ = n·v, ṅ = (v − n l̇)/l (v, α: relative velocity and acceleration of the ends):
-    ḟ = T' l̇ n + T ṅ;  f̈ = T'' l̇² n + T' l̈ n + 2 T' l̇ ṅ + T n̈ with l̈ = n·α + (|v|² − l̇²)/l,
-    n̈ = (α − n l̈ − 2 ṅ l̇)/l; T'' by a forward difference of T'. ä needs the nodes' a: a second
-    spring pass and node pass."""
-    x0, p, eta, h = step
-    edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
-    l0, P = spring
-    masses, inv_mass, gravity, with_gravity = node
-    len0, dir0, keep, fs, ws, sweep, nodal, guess, code = work
-    m = edges.shape[0]
-    bad = m
-    for blk in prange((m + BLOCK - 1) // BLOCK):
-        lo = blk * BLOCK
-        n = min(BLOCK, m - lo)
-        for i in range(n):  # gather: spring vector and relative velocity
-            e = np.uint64(lo + i)
-            a = edges[e, 0]
-            b = edges[e, 1]
-            dir0[0, e] = x0[b, 0] - x0[a, 0]
-            dir0[1, e] = x0[b, 1] - x0[a, 1]
-            dir0[2, e] = x0[b, 2] - x0[a, 2]
-            if RATE > 0:
-                fs[3, e] = p[b, 0] * inv_mass[b] - p[a, 0] * inv_mass[a]
-                fs[4, e] = p[b, 1] * inv_mass[b] - p[a, 1] * inv_mass[a]
-                fs[5, e] = p[b, 2] * inv_mass[b] - p[a, 2] * inv_mass[a]
-        for i in range(n):  # arithmetic (vectorized)
-            e = np.uint64(lo + i)
-            pe = np.uint64(0) if UNIFORM else np.uint64(e)
-            dx = dir0[0, e]
-            dy = dir0[1, e]
-            dz = dir0[2, e]
-            l = math.sqrt(dx * dx + dy * dy + dz * dz)
-            il = 1.0 / l
-            nx = dx * il
-            ny = dy * il
-            nz = dz * il
-            len0[e] = l
-            dir0[0, e] = nx
-            dir0[1, e] = ny
-            dir0[2, e] = nz
-            rest = l0[e]
-            th = temperature(l, eta[e], rest, P, pe)
-            T = tension(l, th, rest, P, pe)
-            fs[0, e] = T * nx
-            fs[1, e] = T * ny
-            fs[2, e] = T * nz
-            if KEEP_START:
-                keep[0, e] = th
-                keep[1, e] = T
-            lok = (l > 0.0) & (l < math.inf)
-            code[e] = OK if (lok & _admissible(th)) else (NO_TEMPERATURE if lok else COLLAPSED)
-        # what KEEP_START and RATE add, each in a loop of its own: in one loop with the above
-        # LLVM vectorized none of it (HO4's start cost 17–21 CO2 steps instead of ≈ 3)
-        if KEEP_START:
-            for i in range(n):
-                e = np.uint64(lo + i)
-                pe = np.uint64(0) if UNIFORM else np.uint64(e)
-                l = len0[e]
-                rest = l0[e]
-                th = keep[0, e]
-                keep[2, e] = d2F_dl_dtheta(l, th, rest, P, pe)
-                keep[3, e] = -th * d2F_dtheta2(l, th, rest, P, pe)
-        if RATE > 0:
-            for i in range(n):
-                e = np.uint64(lo + i)
-                pe = np.uint64(0) if UNIFORM else np.uint64(e)
-                l = len0[e]
-                nx = dir0[0, e]
-                ny = dir0[1, e]
-                nz = dir0[2, e]
-                rest = l0[e]
-                if KEEP_START:  # what the loop above kept (the same values)
-                    th = keep[0, e]
-                    T = keep[1, e]
-                    flt = keep[2, e]
-                else:
-                    th = temperature(l, eta[e], rest, P, pe)
-                    T = tension(l, th, rest, P, pe)
-                    flt = d2F_dl_dtheta(l, th, rest, P, pe)
-                vx = fs[3, e]
-                vy = fs[4, e]
-                vz = fs[5, e]
-                ldot = nx * vx + ny * vy + nz * vz
-                Tl = d2F_dl2(l, th, rest, P, pe) - flt * flt / d2F_dtheta2(l, th, rest, P, pe)
-                Tdot = Tl * ldot
-                q = T / l
-                fs[3, e] = Tdot * nx + q * (vx - nx * ldot)
-                fs[4, e] = Tdot * ny + q * (vy - ny * ldot)
-                fs[5, e] = Tdot * nz + q * (vz - nz * ldot)
-                if RATE > 1:
-                    ws[0, e] = vx
-                    ws[1, e] = vy
-                    ws[2, e] = vz
-                    ws[3, e] = T
-                    ws[4, e] = Tl
-        if RATE > 1:
-            for i in range(n):
-                e = np.uint64(lo + i)
-                pe = np.uint64(0) if UNIFORM else np.uint64(e)
-                l = len0[e]
-                dl = STIFFNESS_STEP * l
-                ws[5, e] = (adiabatic_stiffness(l + dl, eta[e], l0[e], P, pe) - ws[4, e]) / dl
-        bad = min(bad, _first_flagged(code, lo, n, m))
-    if bad < m:
-        return code[bad], bad
-    J = coef.shape[0]
-    for a in prange(x0.shape[0]):
-        k = free_index[a]
-        if k < 0:
-            if RATE > 1:
-                for i in range(6):
-                    nodal[a, i] = 0.0
-            continue
-        f0 = 0.0
-        f1 = 0.0
-        f2 = 0.0
-        r0 = 0.0
-        r1 = 0.0
-        r2 = 0.0
-        for j in range(inc_ptr[a], inc_ptr[a + 1]):
-            e = inc_spring[j]
-            sg = inc_sign[j]
-            f0 += sg * fs[0, e]
-            f1 += sg * fs[1, e]
-            f2 += sg * fs[2, e]
-            if RATE > 0:
-                r0 += sg * fs[3, e]
-                r1 += sg * fs[4, e]
-                r2 += sg * fs[5, e]
-        w = inv_mass[a]
-        for i in range(3):
-            f = f0 if i == 0 else (f1 if i == 1 else f2)
-            r = r0 if i == 0 else (r1 if i == 1 else r2)
-            v = w * p[a, i]
-            acc = w * f + (gravity[i] if with_gravity else 0.0)
-            jerk = w * r
-            if RATE > 1:  # the prediction waits for ä
-                nodal[a, i] = acc
-                nodal[a, 3 + i] = jerk
-                continue
-            for s in range(J):
-                pred[3 * J * k + 3 * s + i] = coef[s, 0] * v + coef[s, 1] * acc + coef[s, 2] * jerk
-    if RATE < 2:
-        return 0, -1
-    for blk in prange((m + BLOCK - 1) // BLOCK):
-        lo = blk * BLOCK
-        n = min(BLOCK, m - lo)
-        for i in range(n):  # gather: relative acceleration
-            e = np.uint64(lo + i)
-            a = edges[e, 0]
-            b = edges[e, 1]
-            fs[0, e] = nodal[b, 0] - nodal[a, 0]
-            fs[1, e] = nodal[b, 1] - nodal[a, 1]
-            fs[2, e] = nodal[b, 2] - nodal[a, 2]
-        for i in range(n):  # f̈ (vectorized)
-            e = np.uint64(lo + i)
-            l = len0[e]
-            nx = dir0[0, e]
-            ny = dir0[1, e]
-            nz = dir0[2, e]
-            vx = ws[0, e]
-            vy = ws[1, e]
-            vz = ws[2, e]
-            ax = fs[0, e]
-            ay = fs[1, e]
-            az = fs[2, e]
-            T = ws[3, e]
-            Tl = ws[4, e]
-            Tll = ws[5, e]
-            ldot = nx * vx + ny * vy + nz * vz
-            mx = (vx - nx * ldot) / l  # ṅ
-            my = (vy - ny * ldot) / l
-            mz = (vz - nz * ldot) / l
-            lddot = nx * ax + ny * ay + nz * az + (vx * vx + vy * vy + vz * vz - ldot * ldot) / l
-            radial = Tll * ldot * ldot + Tl * lddot - T * lddot / l
-            side = 2.0 * (Tl - T / l) * ldot
-            q = T / l
-            fs[3, e] = radial * nx + side * mx + q * ax
-            fs[4, e] = radial * ny + side * my + q * ay
-            fs[5, e] = radial * nz + side * mz + q * az
-    for a in prange(x0.shape[0]):
-        k = free_index[a]
-        if k < 0:
-            continue
-        s0 = 0.0
-        s1 = 0.0
-        s2 = 0.0
-        for j in range(inc_ptr[a], inc_ptr[a + 1]):
-            e = inc_spring[j]
-            sg = inc_sign[j]
-            s0 += sg * fs[3, e]
-            s1 += sg * fs[4, e]
-            s2 += sg * fs[5, e]
-        w = inv_mass[a]
-        # the series a + τ ȧ + τ²/2 ä (τ ≤ h) is trusted with its ä term only where that term
-        # is small next to the others (ω h ≲ 1 locally); a step near the stability limit keeps
-        # the third-order guess
-        lower = 0.0
-        top = 0.0
-        for i in range(3):
-            lower = max(lower, abs(nodal[a, i]) + 0.5 * h * abs(nodal[a, 3 + i]))
-            top = max(top, 0.125 * h * h * w * abs(s0 if i == 0 else (s1 if i == 1 else s2)))
-        use = top <= SNAP_TRUST * lower
-        for i in range(3):
-            sn = w * (s0 if i == 0 else (s1 if i == 1 else s2)) if use else 0.0
-            v = w * p[a, i]
-            acc = nodal[a, i]
-            jerk = nodal[a, 3 + i]
-            for s in range(J):
-                pred[3 * J * k + 3 * s + i] = (coef[s, 0] * v + coef[s, 1] * acc + coef[s, 2] * jerk
-                                               + coef[s, 3] * sn)
-    return 0, -1
 
 
 def _finish_nodes(step, topo, node, fs, u, stride, offset, new):

@@ -111,7 +111,11 @@ class StartWork(NamedTuple):
     residuals; fs: (6, m) per-spring force terms; ws: (B, m) scratch of the predictor's second
     rate (RATE 2, B = 6), the same memory as ``sweep``, (m, B), the matrix-free sweeps' scratch
     (the start kernel's use ends first); nodal: (n, 6), or (0, 6) below RATE 2, each node's
-    acceleration and jerk; guess: (m,) thermal seeds; code: (m,) int8 per-spring status.
+    acceleration and jerk; guess: (m,) thermal seeds; code: (m,) int8 per-spring status;
+    history: (1,) the step h of the last committed step whose converged unknowns the unknown
+    vector still holds (the state the next step starts from is that step's result), 0 if none:
+    set where a step is committed (the compiled driver, ImplicitStepper), read and cleared by
+    the start kernel (whose predictor extrapolates from it for HO4).
     """
 
     len0: np.ndarray
@@ -123,10 +127,11 @@ class StartWork(NamedTuple):
     nodal: np.ndarray
     guess: np.ndarray
     code: np.ndarray
+    history: np.ndarray
 
     @classmethod
     def allocate(cls, n: int, m: int, block: int, keep_rows: int, keep: bool, rate: int) -> "StartWork":
         ws = np.empty((block, m))
         return cls(len0=np.empty(m), dir0=np.empty((3, m)), keep=np.empty((keep_rows, m if keep else 0)),
                    fs=np.empty((6, m)), ws=ws, sweep=ws.reshape(m, block), nodal=np.empty((n if rate > 1 else 0, 6)),
-                   guess=np.empty(m), code=np.zeros(m, dtype=np.int8))
+                   guess=np.empty(m), code=np.zeros(m, dtype=np.int8), history=np.zeros(1))

@@ -37,7 +37,8 @@ def residual_rows3(step, topo, node, fs, u, gc, R, Rabs, block):
 
     and Rabs_i the sum of the magnitudes of those terms; fs (≥ 3, m) the springs' impulses of
     the residual, gc the gravity's coefficient (GTR-α: α h; EM2: h/2). Returns (max |R_i|,
-    max Rabs_i) over the block's rows ((0, 0) without free nodes). (R, Rabs are taken apart
+    max Rabs_i) over the block's rows ((0, 0) without free nodes); Rabs may be empty (then
+    only its maximum is returned: the compiled Newton path). (R, Rabs are taken apart
     from the residual's record by the caller, outside its parallel loop: arrays unpacked from a
     tuple within a prange body were written to a copy.)"""
     x0, p, eta, h = step
@@ -45,6 +46,7 @@ def residual_rows3(step, topo, node, fs, u, gc, R, Rabs, block):
     masses, inv_mass, gravity, with_gravity = node
     rmax = 0.0
     smax = 0.0
+    magnitudes = Rabs.shape[0] > 0
     for a in range(block * NODE_BLOCK, min((block + 1) * NODE_BLOCK, free_index.shape[0])):
         k = free_index[a]
         if k < 0:
@@ -77,11 +79,12 @@ def residual_rows3(step, topo, node, fs, u, gc, R, Rabs, block):
             r2 += sg * v2
             s2 += abs(v2)
         R[3 * k + 0] = r0
-        Rabs[3 * k + 0] = s0
         R[3 * k + 1] = r1
-        Rabs[3 * k + 1] = s1
         R[3 * k + 2] = r2
-        Rabs[3 * k + 2] = s2
+        if magnitudes:
+            Rabs[3 * k + 0] = s0
+            Rabs[3 * k + 1] = s1
+            Rabs[3 * k + 2] = s2
         rmax = max(rmax, max(max(abs(r0), abs(r1)), abs(r2)))
         smax = max(smax, max(max(s0, s1), s2))
     return rmax, smax

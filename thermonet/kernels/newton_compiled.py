@@ -214,11 +214,12 @@ def _jacobi_pays(rho, contraction, tolerance, jacobi):
 def _newton_steps(state, records, extra, linear, control, out):
     """Up to ``n_steps`` steps of h, each committed into the state on success.
 
-    state: (x (n, 3), p (n, 3), phi (m,), eta (m,), h, coef (B/3, 4) the predictor's
+    state: (x (n, 3), p (n, 3), phi (m,), eta (m,), h, coef (B/3, 4 or 6) the predictor's
         coefficients), x, p, phi, eta overwritten step by step.
     records: (topo, spring, node, work, places) as plain tuples.
     linear: (indptr, indices, data (nnz,), A (size, size), piv (size,) int64, du (size,),
-        r (size,), u (size,), res (R, Rabs, peak), new (NextState buffers)); with SWEEPS data,
+        r (size,), u (size,), res (R, Rabs, peak: Rabs and peak may be empty, the residual
+        kernels then skip them), new (NextState buffers)); with SWEEPS data,
         A and piv are not read (may be empty); r is scratch (the damping's trial point).
     control: (tolerance, rtol, rounding, max_iterations, n_steps, linear_fraction, (JACOBI_RANGE,
         JACOBI_MAX_STEPS), (MAX_SWEEPS, STALL)); rounding > 0: at each step's start atol
@@ -365,5 +366,6 @@ def _newton_steps(state, records, extra, linear, control, out):
         _copy_rows(p_new, p)
         _copy_values(phi_new, phi)
         _copy_values(eta_new, eta)
+        work[0][9][0] = h  # StartWork.history: u holds the solution of this committed step
         finals[k] = history[nh - 1]
     return n_steps
