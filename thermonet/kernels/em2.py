@@ -125,7 +125,7 @@ def build(ns: dict, tag: str, ptag: str, parallel: bool) -> dict:
         jacobian=specialize(_em2_jacobian, tag, ns, **OPTIONS),
         finish=specialize(_em2_finish, ptag, ns, parallel=parallel, **OPTIONS),
         sweep=specialize(_em2_sweep, "par" if parallel else "ser", {}, parallel=parallel, **OPTIONS),
-        step_scale=specialize(_em2_step_scale, "ser", {}, **OPTIONS),
+        step_scale=specialize(_em2_step_scale, "par" if parallel else "ser", {}, parallel=parallel, **OPTIONS),
     )
     calls = dict(ns, **{f"em2_{k}": v for k, v in kernels.items()})
     kernels["damp"] = calls["em2_damp"] = specialize(_em2_damp, ptag, calls, **OPTIONS)
@@ -471,17 +471,19 @@ def _em2_step_scale(topo, work, du, limit):
     the last residual's point (``work.len1``)."""
     edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
     len1 = work[1]
+    m = ends.shape[0]
     scale = 1.0
-    for e in range(ends.shape[0]):
-        ka = ends[e, 0]
-        kb = ends[e, 1]
-        v2 = 0.0
-        for i in range(3):
-            v = (du[3 * kb + i] if kb >= 0 else 0.0) - (du[3 * ka + i] if ka >= 0 else 0.0)
-            v2 += v * v
-        reach = limit * len1[e]
-        if v2 > reach * reach:
-            scale = min(scale, reach / math.sqrt(v2))
+    for blk in prange((m + BLOCK - 1) // BLOCK):  # (a min: the same result on any threads)
+        for e in range(blk * BLOCK, min(m, blk * BLOCK + BLOCK)):
+            ka = ends[e, 0]
+            kb = ends[e, 1]
+            v2 = 0.0
+            for i in range(3):
+                v = (du[3 * kb + i] if kb >= 0 else 0.0) - (du[3 * ka + i] if ka >= 0 else 0.0)
+                v2 += v * v
+            reach = limit * len1[e]
+            if v2 > reach * reach:
+                scale = min(scale, reach / math.sqrt(v2))
     return scale
 
 
