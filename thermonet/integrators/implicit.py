@@ -311,7 +311,9 @@ class ImplicitStepper(Stepper):
         # the new state's buffers become the state's; the old ones the next step's outputs
         state.positions, state.momenta, state.thermal_displacement, state.entropy = new
         self._new = NextState(x, p, phi, eta)
-        self.work.start.history[0] = h  # u: this committed step's solution (the next predictor's)
+        history = self.work.start.history
+        if history.size:
+            history[0] = h  # u: this committed step's solution (the next predictor's)
         iters.append(result.full_iterations)
         finals.append(result.history[-1])
 

@@ -237,7 +237,7 @@ def _em2_predict(step, topo, spring, node, work, accel, pred):
     l0, P = spring
     masses, inv_mass, gravity, with_gravity = node
     start, len1, dir1, mean, slope, dslope, energy0, tension0, jc, eta_step, quotient, tension1 = work
-    len0, dir0, keep, fs, ws, sweep, nodal, stiff, code, history = start
+    len0, dir0, keep, fs, ws, sweep, nodal, stiff, code = start
     m = edges.shape[0]
     for blk in prange((m + BLOCK - 1) // BLOCK):
         lo = blk * BLOCK
@@ -274,7 +274,7 @@ def _em2_residual(step, topo, spring, node, work, u, res):
     l0, P = spring
     masses, inv_mass, gravity, with_gravity = node
     start, len1, dir1, mean, slope, dslope, energy0, tension0, jc, eta_step, quotient, tension1 = work
-    len0, dir0, keep, fs, ws, sweep, nodal, guess, code, history = start
+    len0, dir0, keep, fs, ws, sweep, nodal, guess, code = start
     R, Rabs, peak = res
     m = edges.shape[0]
     half = 0.5 * h
@@ -414,7 +414,7 @@ def _em2_finish(step, topo, spring, node, work, u, phi, new):
     edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
     l0, P = spring
     start, len1, dir1, mean, slope, dslope, energy0, tension0, jc, eta_step, quotient, tension1 = work
-    len0, dir0, keep, fs, ws, sweep, nodal, guess, code, history = start
+    len0, dir0, keep, fs, ws, sweep, nodal, guess, code = start
     x_new, p_new, phi_new, eta_new = new
     m = edges.shape[0]
     bad = m
@@ -447,7 +447,7 @@ def _em2_sweep(topo, node, work, h, du, R, r, update, first):
     edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
     masses, inv_mass, gravity, with_gravity = node
     start, len1, dir1, mean, slope, dslope, energy0, tension0, jc, eta_step, quotient, tension1 = work
-    len0, dir0, keep, fs, ws, w, nodal, guess, code, history = start
+    len0, dir0, keep, fs, ws, w, nodal, guess, code = start
     m = ends.shape[0]
     for e in prange(0 if first else m):
         eu = np.uint64(e)

@@ -151,7 +151,7 @@ def _gtr_residual(step, topo, spring, node, work, alpha, u, warm, res):
     l0, P = spring
     masses, inv_mass, gravity, with_gravity = node
     start, len1, dir1, theta, dtheta, jc = work
-    len0, dir0, keep, fs, ws, sweep, nodal, guess, code, history = start
+    len0, dir0, keep, fs, ws, sweep, nodal, guess, code = start
     R, Rabs, peak = res
     m = edges.shape[0]
     bad = m
@@ -255,7 +255,7 @@ def _gtr_linearize(spring, work, alpha, h):
     spring e's block is jc[e] n⁰ n¹ᵀ, jc[e] = α h F_lθ(l⁰, θ̄) dθ̄/dl¹ (m,) (``work.jc``)."""
     l0, P = spring
     start, len1, dir1, theta, dtheta, jc = work
-    len0, dir0, keep, fs, ws, sweep, nodal, guess, code, history = start
+    len0, dir0, keep, fs, ws, sweep, nodal, guess, code = start
     m = len0.shape[0]
     for blk in prange((m + BLOCK - 1) // BLOCK):
         lo = blk * BLOCK
@@ -274,7 +274,7 @@ def _gtr_jacobian(topo, spring, node, work, places, alpha, h, data):
     l0, P = spring
     masses, inv_mass, gravity, with_gravity = node
     start, len1, dir1, theta, dtheta, jc = work
-    len0, dir0, keep, fs, ws, sweep, nodal, guess, code, history = start
+    len0, dir0, keep, fs, ws, sweep, nodal, guess, code = start
     node_base, node_stride, spring_base, spring_stride, B = places
     inertia_blocks3(free_index, masses, h, node_base, node_stride, data)
     for e in range(edges.shape[0]):
@@ -299,7 +299,7 @@ def _gtr_finish(step, topo, spring, node, work, alpha, u, phi, new):
     edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
     l0, P = spring
     start, len1, dir1, theta, dtheta, jc = work
-    len0, dir0, keep, fs, ws, sweep, nodal, guess, code, history = start
+    len0, dir0, keep, fs, ws, sweep, nodal, guess, code = start
     x_new, p_new, phi_new, eta_new = new
     m = edges.shape[0]
     bad = m
@@ -335,7 +335,7 @@ def _gtr_sweep(topo, node, work, h, du, R, r, update, first):
     edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
     masses, inv_mass, gravity, with_gravity = node
     start, len1, dir1, theta, dtheta, jc = work
-    len0, dir0, keep, fs, ws, w, nodal, guess, code, history = start
+    len0, dir0, keep, fs, ws, w, nodal, guess, code = start
     m = ends.shape[0]
     for e in prange(0 if first else m):
         eu = np.uint64(e)

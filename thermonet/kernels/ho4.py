@@ -126,7 +126,7 @@ def _ho4_residual(step, topo, spring, node, work, u, warm, res, springs, nodes):
     l0, P = spring
     masses, inv_mass, gravity, with_gravity = node
     start, lenh, dirh, len1, dir1, th0, th1, dth, gs, jc = work
-    len0, dir0, keep, fs, ws, sweep, nodal, guess, code, history = start
+    len0, dir0, keep, fs, ws, sweep, nodal, guess, code = start
     R, Rabs, peak = res
     none = edges.shape[0]
     m = listed_count(springs, none)
@@ -369,7 +369,7 @@ def _ho4_finish(step, topo, spring, node, work, u, phi, new):
     edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
     l0, P = spring
     start, lenh, dirh, len1, dir1, th0, th1, dth, gs, jc = work
-    len0, dir0, keep, fs, ws, sweep, nodal, guess, code, history = start
+    len0, dir0, keep, fs, ws, sweep, nodal, guess, code = start
     x_new, p_new, phi_new, eta_new = new
     m = edges.shape[0]
     bad = m

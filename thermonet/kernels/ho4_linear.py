@@ -38,7 +38,7 @@ def _ho4_linearize(spring, work, h):
     with the terms of :func:`_ho4_jacobian`."""
     l0, P = spring
     start, lenh, dirh, len1, dir1, th0, th1, dth, gs, jc = work
-    len0, dir0, keep, fs, ws, sweep, nodal, guess, code, history = start
+    len0, dir0, keep, fs, ws, sweep, nodal, guess, code = start
     m = len0.shape[0]
     for blk in prange((m + BLOCK - 1) // BLOCK):
         lo = blk * BLOCK
@@ -75,7 +75,7 @@ def _ho4_jacobian(topo, spring, node, work, places, h, data):
     l0, P = spring
     masses, inv_mass, gravity, with_gravity = node
     start, lenh, dirh, len1, dir1, th0, th1, dth, gs, jc = work
-    len0, dir0, keep, fs, ws, sweep, nodal, guess, code, history = start
+    len0, dir0, keep, fs, ws, sweep, nodal, guess, code = start
     node_base, node_stride, spring_base, spring_stride, B = places
     data[:] = 0.0
     for a in range(free_index.shape[0]):
@@ -122,7 +122,7 @@ def _ho4_sweep(topo, node, work, h, du, R, r, update, first):
     edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
     masses, inv_mass, gravity, with_gravity = node
     start, lenh, dirh, len1, dir1, th0, th1, dth, gs, jc = work
-    len0, dir0, keep, fs, ws, w, nodal, guess, code, history = start
+    len0, dir0, keep, fs, ws, w, nodal, guess, code = start
     m = ends.shape[0]
     for e in prange(0 if first else m):
         eu = np.uint64(e)

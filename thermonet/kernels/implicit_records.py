@@ -110,12 +110,10 @@ class StartWork(NamedTuple):
     (KEEP_ROWS, 0) without KEEP_START, what the start kernel keeps of the step's start for the
     residuals; fs: (6, m) per-spring force terms; ws: (B, m) scratch of the predictor's second
     rate (RATE 2, B = 6), the same memory as ``sweep``, (m, B), the matrix-free sweeps' scratch
-    (the start kernel's use ends first); nodal: (n, 6), or (0, 6) below RATE 2, each node's
-    acceleration and jerk; guess: (m,) thermal seeds; code: (m,) int8 per-spring status;
-    history: (1,) the step h of the last committed step whose converged unknowns the unknown
-    vector still holds (the state the next step starts from is that step's result), 0 if none:
-    set where a step is committed (the compiled driver, ImplicitStepper), read and cleared by
-    the start kernel (whose predictor extrapolates from it for HO4).
+    (the start kernel's use ends first); nodal: (n + 1, 6), or (0, 6) below RATE 2, each node's
+    acceleration and jerk, and in its last row, column 0, the step h of the last committed step
+    whose converged unknowns the unknown vector still holds, 0 if none (:attr:`history`); guess:
+    (m,) thermal seeds; code: (m,) int8 per-spring status.
     """
 
     len0: np.ndarray
@@ -127,11 +125,19 @@ class StartWork(NamedTuple):
     nodal: np.ndarray
     guess: np.ndarray
     code: np.ndarray
-    history: np.ndarray
 
     @classmethod
     def allocate(cls, n: int, m: int, block: int, keep_rows: int, keep: bool, rate: int) -> "StartWork":
         ws = np.empty((block, m))
         return cls(len0=np.empty(m), dir0=np.empty((3, m)), keep=np.empty((keep_rows, m if keep else 0)),
-                   fs=np.empty((6, m)), ws=ws, sweep=ws.reshape(m, block), nodal=np.empty((n if rate > 1 else 0, 6)),
-                   guess=np.empty(m), code=np.zeros(m, dtype=np.int8), history=np.zeros(1))
+                   fs=np.empty((6, m)), ws=ws, sweep=ws.reshape(m, block), nodal=np.zeros((n + 1 if rate > 1 else 0, 6)),
+                   guess=np.empty(m), code=np.zeros(m, dtype=np.int8))
+
+    @property
+    def history(self) -> np.ndarray:
+        """A (1,) view of the committed step's h (``nodal``'s last row; set where a step is
+        committed, the compiled driver and ImplicitStepper; read and cleared by the start kernel,
+        whose predictor extrapolates from it for HO4), empty below RATE 2. (A field of its own
+        would have made every kernel's record a tuple longer, which cost the paper's chain 0.4 µs
+        per step.)"""
+        return self.nodal[self.nodal.shape[0] - 1:, 0] if self.nodal.shape[0] else self.nodal[:0, 0]

@@ -49,12 +49,12 @@ def _start(step, topo, spring, node, work, coef, pred):
     of coef), pred = coef[j, 0] v + coef[j, 1] a + coef[j, 2] ȧ + coef[j, 3] ä with v = p/m,
     a = f/m (+ g) the acceleration at (x0, θ(l0, η)) and its first (``RATE`` ≥ 1) and second
     (``RATE`` 2) time derivatives along the exact (adiabatic) flow at (x0, p0) (else 0), for a
-    Taylor-like predictor. Scratch: fs (6, m), ws rows 3–5 (``RATE`` 2), nodal (n, 6) (``RATE``
+    Taylor-like predictor. Scratch: fs (6, m), ws rows 3–5 (``RATE`` 2), nodal (n + 1, 6) (``RATE``
     2), code (m,). h: step.h. With KEEP_START, keep (KEEP_ROWS, m) receives per spring θ(l⁰, η),
     T(l⁰, θ(l⁰, η)), F_lθ(l⁰) and the log-affine coefficient C = −θ F_θθ (HO4's closed-form
     thermal solve reads them at every residual of the step). Returns (status, spring).
 
-    With EXTRAPOLATE (HO4), where ``work.history[0]`` is h (the previous step had this h, was
+    With EXTRAPOLATE (HO4), where ``work.history[0]`` (nodal[n, 0]) is h (the previous step had this h, was
     committed, and pred still holds its converged unknowns; this kernel clears it), the
     series a + (h/2) ȧ + (h²/8) ä for the stage acceleration a^½ gains its next term from the
     previous step's stage acceleration a⁻ = Σ_j coef[j, 5] pred_j (read before pred is written):
@@ -73,12 +73,13 @@ def _start(step, topo, spring, node, work, coef, pred):
     edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
     l0, P = spring
     masses, inv_mass, gravity, with_gravity = node
-    len0, dir0, keep, fs, ws, sweep, nodal, guess, code, history = work
+    len0, dir0, keep, fs, ws, sweep, nodal, guess, code = work
     m = edges.shape[0]
     bad = m
-    extrapolate = EXTRAPOLATE and history[0] == h
+    last = x0.shape[0]  # nodal's last row: the committed step's h (StartWork.history)
+    extrapolate = EXTRAPOLATE and nodal[last, 0] == h
     if EXTRAPOLATE:
-        history[0] = 0.0  # pred is overwritten below
+        nodal[last, 0] = 0.0  # pred is overwritten below
     for blk in prange((m + BLOCK - 1) // BLOCK):
         lo = blk * BLOCK
         n = min(BLOCK, m - lo)

@@ -366,6 +366,8 @@ def _newton_steps(state, records, extra, linear, control, out):
         _copy_rows(p_new, p)
         _copy_values(phi_new, phi)
         _copy_values(eta_new, eta)
-        work[0][9][0] = h  # StartWork.history: u holds the solution of this committed step
+        nodal = work[0][6]
+        if nodal.shape[0] > x.shape[0]:  # StartWork.history: u holds this committed step's solution
+            nodal[x.shape[0], 0] = h
         finals[k] = history[nh - 1]
     return n_steps
