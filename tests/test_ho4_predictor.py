@@ -7,19 +7,8 @@ import numpy as np
 import pytest
 
 import thermonet as tn
+from test_implicit_newton import hot_lattice_ho4 as hot_lattice
 from thermonet.integrators.ho4 import HO4Stepper
-
-
-def hot_lattice(steps=40):
-    """The benchmark's lattice, 6³ cells, after ``steps`` steps (heated and strained)."""
-    net = tn.lattice((6, 6, 6), jitter=0.1, seed=1)
-    rng = np.random.default_rng(0)
-    sim = tn.Simulation(net, model="hencky", parameters=dict(c=100.0, beta=0.2, C0=5.0, theta0=300.0),
-                        temperatures=rng.uniform(300.0, 600.0, net.n_springs),
-                        momenta=rng.normal(0.0, 1.0, (net.n_nodes, 3)), integrator="ho4", h=0.01,
-                        integrator_options=dict(linear_solver="matfree"))
-    sim.run(steps=steps, diagnostics_every=10**9)
-    return sim
 
 
 def predicted(sim, extrapolate: bool, h=None):

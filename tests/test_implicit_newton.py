@@ -368,7 +368,8 @@ def series_predictor(monkeypatch):
 
 def hot_lattice_ho4(model="hencky", steps=40, **options):
     """The benchmark's lattice, smaller (6³ cells), after ``steps`` steps: hot enough that one
-    Newton iteration leaves a residual above the tolerance at a few nodes."""
+    Newton iteration from the series predictor (``series_predictor``) leaves a residual above
+    the tolerance at a few nodes."""
     net = tn.lattice((6, 6, 6), jitter=0.1, seed=1)
     rng = np.random.default_rng(0)
     params = (dict(c=100.0, beta=0.2, C0=5.0, theta0=300.0) if model != "quadratic"

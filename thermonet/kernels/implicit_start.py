@@ -49,7 +49,7 @@ def _start(step, topo, spring, node, work, coef, pred):
     of coef), pred = coef[j, 0] v + coef[j, 1] a + coef[j, 2] ȧ + coef[j, 3] ä with v = p/m,
     a = f/m (+ g) the acceleration at (x0, θ(l0, η)) and its first (``RATE`` ≥ 1) and second
     (``RATE`` 2) time derivatives along the exact (adiabatic) flow at (x0, p0) (else 0), for a
-    Taylor-like predictor. Scratch: fs (6, m), ws rows 3–5 (``RATE`` 2), nodal (n + 1, 6) (``RATE``
+    Taylor-like predictor. Scratch: fs (6, m), ws (6, m) (``RATE`` 2), nodal (n + 1, 6) (``RATE``
     2), code (m,). h: step.h. With KEEP_START, keep (KEEP_ROWS, m) receives per spring θ(l⁰, η),
     T(l⁰, θ(l⁰, η)), F_lθ(l⁰) and the log-affine coefficient C = −θ F_θθ (HO4's closed-form
     thermal solve reads them at every residual of the step). Returns (status, spring).
@@ -158,10 +158,11 @@ def _start(step, topo, spring, node, work, coef, pred):
                 fs[3, e] = Tdot * nx + q * (vx - nx * ldot)
                 fs[4, e] = Tdot * ny + q * (vy - ny * ldot)
                 fs[5, e] = Tdot * nz + q * (vz - nz * ldot)
-                if RATE > 1:  # for f̈ (the relative velocity is gathered again there: fewer
-                    # per-spring streams; with KEEP_START, T is keep[1])
-                    if not KEEP_START:
-                        ws[3, e] = T
+                if RATE > 1:
+                    ws[0, e] = vx
+                    ws[1, e] = vy
+                    ws[2, e] = vz
+                    ws[3, e] = T
                     ws[4, e] = Tl
         if RATE > 1:
             for i in range(n):
@@ -215,29 +216,26 @@ def _start(step, topo, spring, node, work, coef, pred):
     for blk in prange((m + BLOCK - 1) // BLOCK):
         lo = blk * BLOCK
         n = min(BLOCK, m - lo)
-        for i in range(n):  # gather: relative acceleration and velocity
+        for i in range(n):  # gather: relative acceleration
             e = np.uint64(lo + i)
             a = edges[e, 0]
             b = edges[e, 1]
             fs[0, e] = nodal[b, 0] - nodal[a, 0]
             fs[1, e] = nodal[b, 1] - nodal[a, 1]
             fs[2, e] = nodal[b, 2] - nodal[a, 2]
-            fs[3, e] = p[b, 0] * inv_mass[b] - p[a, 0] * inv_mass[a]
-            fs[4, e] = p[b, 1] * inv_mass[b] - p[a, 1] * inv_mass[a]
-            fs[5, e] = p[b, 2] * inv_mass[b] - p[a, 2] * inv_mass[a]
         for i in range(n):  # f̈ (vectorized)
             e = np.uint64(lo + i)
             l = len0[e]
             nx = dir0[0, e]
             ny = dir0[1, e]
             nz = dir0[2, e]
-            vx = fs[3, e]
-            vy = fs[4, e]
-            vz = fs[5, e]
+            vx = ws[0, e]
+            vy = ws[1, e]
+            vz = ws[2, e]
             ax = fs[0, e]
             ay = fs[1, e]
             az = fs[2, e]
-            T = keep[1, e] if KEEP_START else ws[3, e]
+            T = ws[3, e]
             Tl = ws[4, e]
             Tll = ws[5, e]
             ldot = nx * vx + ny * vy + nz * vz
