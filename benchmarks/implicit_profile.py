@@ -39,6 +39,7 @@ TIMED = [
     ("start", "status, bad = scheme_start(step, topo, spring, node, work[0], coef, u)"),
     ("predictor", "scheme_predict(step, topo, spring, node, work, extra, u)"),
     ("residual", "status, bad, rmax, scale = scheme_residual(step, topo, spring, node, work, extra, u, warm, res)"),
+    ("local Jacobi step", "done, pending, pending_bad, lmax, lscale, change = scheme_local("),
     ("Jacobi step", "scheme_sweep(topo, node, work, h, du, R, r, True, True)"),
     ("linearization", "scheme_linearize(spring, work, extra, h)"),
     ("linear solve", "contraction = _solve_sweeps(topo, node, work, h, du, R, r,"),
@@ -67,7 +68,7 @@ def timed_template():
     lines[0] = "def _newton_steps(state, records, extra, linear, control, out, prof):"
     n = len(TIMED)
     for slot, (name, call) in enumerate(TIMED):
-        at = [i for i, ln in enumerate(lines) if ln.strip() == call or (ln.strip().startswith(call) and call.endswith(","))]
+        at = [i for i, ln in enumerate(lines) if ln.strip() == call or (ln.strip().startswith(call) and call[-1] in ",(")]
         if len(at) != 1:
             raise SystemExit(f"{name}: the driver template has {len(at)} lines {call!r} (expected 1)")
         i = at[0]

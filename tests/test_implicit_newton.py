@@ -451,6 +451,21 @@ def test_local_jacobi_steps_replace_global_ones_with_the_same_states(monkeypatch
     assert np.abs(local.state.positions - both.state.positions).max() <= 1e-11
 
 
+def test_the_compiled_path_takes_the_same_local_jacobi_steps(series_predictor):
+    """The compiled Newton driver finishes with HO4's local Jacobi steps as the sparse path does
+    (kernels/local_update._local_jacobi), test for test: the same states bit for bit."""
+    sparse = hot_lattice_ho4(steps=0)
+    compiled = hot_lattice_ho4(steps=0, newton_path="compiled")
+    assert compiled.stepper.compiled is not None and sparse.stepper.compiled is None
+    for sim in (sparse, compiled):
+        sim.stepper.timers.__init__()
+        sim.run(steps=60, diagnostics_every=10**9)
+    assert sparse.stepper.timers.local_steps >= 3
+    np.testing.assert_array_equal(sparse.state.positions, compiled.state.positions)
+    np.testing.assert_array_equal(sparse.state.momenta, compiled.state.momenta)
+    np.testing.assert_array_equal(sparse.state.thermal_displacement, compiled.state.thermal_displacement)
+
+
 def test_a_nan_residual_row_shows_in_the_norm():
     """max() passes over NaN; a residual row that is NaN must still make the scaled residual
     not finite (Newton then stops with 'residual not finite' instead of iterating on NaN)."""

@@ -23,7 +23,8 @@ from ..kernels.implicit_records import NextState, Residuals, plain
 from ..kernels.newton_compiled import NO_CONVERGENCE, REASONS, STALLED, newton_steps_kernel
 from ..solvers import NewtonResult
 from ..solvers.matrix_free import MatrixFree
-from ..solvers.newton import JACOBI_MAX_STEPS, JACOBI_RANGE, LINEAR_FRACTION
+from ..solvers.newton import (JACOBI_MAX_STEPS, JACOBI_RANGE, LINEAR_FRACTION, LOCAL_FRACTION, LOCAL_MAX_ROUNDS,
+                              LOCAL_STALL)
 
 #: a scheme without matrix-free sweeps takes the compiled path (dense LU) up to this many
 #: unknowns (B per free node); the LU's size³/3 multiply-adds cost more than SuperLU above
@@ -88,7 +89,8 @@ class CompiledNewton:
         opts = stepper.options
         self._control = (float(opts.tolerance), float(opts.rtol))
         self._tail = (int(opts.max_iterations),)
-        self._solves = (float(LINEAR_FRACTION), (float(JACOBI_RANGE), float(JACOBI_MAX_STEPS)),
+        self._solves = (float(LINEAR_FRACTION), (float(JACOBI_RANGE), float(JACOBI_MAX_STEPS), float(LOCAL_FRACTION),
+                                                 float(LOCAL_STALL), float(LOCAL_MAX_ROUNDS)),
                         (int(MatrixFree.MAX_SWEEPS), float(MatrixFree.STALL)))
         self._history = np.zeros(int(opts.max_iterations) + 2)
         self._info = np.zeros(5, dtype=np.int64)
@@ -107,10 +109,10 @@ class CompiledNewton:
         if self._out is None or self._out[0].shape[0] < n_steps:
             self._out = (np.zeros(n_steps, dtype=np.int64), np.zeros(n_steps), self._history, self._info, self._atol)
         if self._linear is None:
-            # R shared with the stepper (its failure report reads it); no Rabs, no per-node
-            # peaks: the driver reads only their maxima, and their stores were 64 bytes per node
-            # of every residual's memory traffic
-            residuals = Residuals(s.residuals.R, np.empty(0), np.empty((2, 0)))
+            # R and the per-node peaks (HO4's local Jacobi steps) shared with the stepper; no
+            # Rabs: the driver reads only its maximum, and its stores were 48 bytes per node of
+            # every residual's memory traffic
+            residuals = Residuals(s.residuals.R, np.empty(0), s.residuals.peak)
             self._linear = self._buffers + (s.u, plain(residuals), tuple(self._new))
         records = (s._topology, s._springs, s._nodes, s._work, s._places)
         # Newton's atol: the stepper's, or (a scheme with atol_rounding, EM2) the driver's per step

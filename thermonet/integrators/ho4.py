@@ -62,7 +62,9 @@ class HO4Stepper(ImplicitStepper):
                          [h, 0.5 * h * h, h**3 / 6.0, h**4 / 24.0, h * h / 3.0, 4.0 / (h * h)]])
 
     def compiled_extra(self) -> tuple:
-        return (self._no_index, self._no_index)
+        """The full residual's two empty index lists and the local Jacobi step's scratch
+        (kernels/local_update._local_jacobi)."""
+        return (self._no_index, self._no_index, self.local_scratch() + (self.node_of_block, self.block_mass))
 
     def residual(self, u: np.ndarray):
         status, spring, rmax, smax = self._residual(self.kernels.residual, u, self._no_index, self._no_index)

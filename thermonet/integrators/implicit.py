@@ -205,6 +205,17 @@ class ImplicitStepper(Stepper):
         """The next state into ``new`` from the converged unknowns and Φ⁰ ``phi0`` (m,);
         (status, spring)."""
 
+    def local_scratch(self) -> tuple:
+        """The local Jacobi steps' index scratch (made at the first use): (out (LOCAL_MAX_FRACTION
+        n_free + 1,) int64, spring_mark (m,), node_mark (n,) uint8 zeros, springs (m,), nodes (n,)
+        int64)."""
+        if self._local is None:
+            n, m = self.system.n_nodes, self.system.n_springs
+            self._local = (np.empty(int(self.LOCAL_MAX_FRACTION * self.pattern.n_free) + 1, dtype=np.int64),
+                           np.zeros(m, dtype=np.uint8), np.zeros(n, dtype=np.uint8),
+                           np.empty(m, dtype=np.int64), np.empty(n, dtype=np.int64))
+        return self._local
+
     def local_jacobi(self, u: np.ndarray, fraction: float):
         """One Jacobi step u −= D⁻¹ R restricted to the free nodes with a residual row above
         ``fraction`` × max Rabs, the residual then recomputed only where the step changes it
@@ -221,12 +232,8 @@ class ImplicitStepper(Stepper):
         if residual_subset is None:
             return None  # (a scheme that has one also has jacobi_rows(u, blocks) -> max |change|)
         peak = self.residuals.peak
-        if self._local is None:
-            n, m, lay = self.system.n_nodes, self.system.n_springs, self.system.layout
-            self._local = (np.empty(int(self.LOCAL_MAX_FRACTION * self.pattern.n_free) + 1, dtype=np.int64),
-                           np.zeros(m, dtype=np.uint8), np.zeros(n, dtype=np.uint8),
-                           np.empty(m, dtype=np.int64), np.empty(n, dtype=np.int64), lay.inc_ptr, lay.inc_spring)
-        out, spring_mark, node_mark, springs, nodes, inc_ptr, inc_spring = self._local
+        out, spring_mark, node_mark, springs, nodes = self.local_scratch()
+        inc_ptr, inc_spring = self.system.layout.inc_ptr, self.system.layout.inc_spring
         threshold = fraction * self.norms[1]
         count = self._active if self._active is not None else scan(peak, threshold, out)[2]
         if count > out.shape[0]:

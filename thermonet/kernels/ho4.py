@@ -30,12 +30,12 @@ from .implicit_common import (BLOCK, COLLAPSED, INLINE, LOG_AFFINE, NO_TEMPERATU
                               register_scheme)
 from .implicit_records import StartWork
 from .specialize import specialize
-from . import ho4_linear as _linear, ho4_thermal as _thermal
+from . import ho4_linear as _linear, ho4_thermal as _thermal, local_update as _local
 
 # Bound per model by specialize(); listed so the templates read as ordinary code.
 entropy = temperature = tension = d2F_dtheta2 = None
 ho4_thermal = ho4_thermal_vector = ho4_thermal_closed = finish_nodes = None
-ho4_residual = ho4_jacobian = ho4_finish = ho4_linearize = None
+ho4_residual = ho4_jacobian = ho4_finish = ho4_linearize = ho4_local_jacobi = None
 #: the residual's index helpers, bound per variant (a kernel compiled with a conditional index
 #: ran 25 % slower): in the full kernel ``listed(indices, j)`` is j, ``listed_count(indices, n)``
 #: is n and ``first_flagged_listed`` is :func:`_first_flagged`; in the SUBSET kernel, which
@@ -82,18 +82,23 @@ def build(ns: dict, tag: str, ptag: str, parallel: bool) -> dict:
     finish = specialize(_ho4_finish, ptag, ns, parallel=parallel, **OPTIONS)
     linearize = specialize(_linear._ho4_linearize, ptag, ns, parallel=parallel, **OPTIONS)
     calls = dict(ns, ho4_residual=residual, ho4_jacobian=jacobian, ho4_finish=finish, ho4_linearize=linearize)
+    residual_subset = specialize(_ho4_residual, f"{ptag}_subset", subset, parallel=parallel, **OPTIONS)
+    calls["ho4_local_jacobi"] = specialize(
+        _local._local_jacobi, ptag, dict(scheme_jacobi_rows=_linear.ho4_jacobi_rows, scheme_residual_subset=residual_subset),
+        **OPTIONS)
     return dict(
         residual=residual,
-        residual_subset=specialize(_ho4_residual, f"{ptag}_subset", subset, parallel=parallel, **OPTIONS),
+        residual_subset=residual_subset,
         linearize=linearize,
         jacobian=jacobian,
         finish=finish,
         # the compiled Newton path's signatures (kernels/newton_compiled.py), extra = (springs,
-        # nodes): the residual's two empty index lists
+        # nodes, local): the residual's two empty index lists, the local Jacobi step's scratch
         compiled_residual=specialize(_ho4_compiled_residual, ptag, calls, **INLINE),
         compiled_jacobian=specialize(_ho4_compiled_jacobian, ptag, calls, **INLINE),
         compiled_finish=specialize(_ho4_compiled_finish, ptag, calls, **INLINE),
         compiled_linearize=specialize(_ho4_compiled_linearize, ptag, calls, **INLINE),
+        compiled_local=specialize(_ho4_compiled_local, ptag, calls, **INLINE),
         sweep=_linear.sweep_kernel(parallel),
         jacobi_rows=_linear.ho4_jacobi_rows,
         thermal=ns["ho4_thermal"],
@@ -417,6 +422,10 @@ def _ho4_compiled_finish(step, topo, spring, node, work, extra, u, phi, new):
 
 def _ho4_compiled_linearize(spring, work, extra, h):
     ho4_linearize(spring, work, h)
+
+
+def _ho4_compiled_local(step, topo, spring, node, work, extra, u, res, warm, threshold):
+    return ho4_local_jacobi(step, topo, spring, node, work, u, res, warm, threshold, extra[2])
 
 
 register_scheme("ho4", build, keeps_start=True, extrapolates=True)

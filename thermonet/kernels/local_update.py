@@ -1,5 +1,5 @@
 """The scheme-independent pieces of a local Jacobi step of the implicit integrators
-(``ImplicitStepper.local_jacobi``): the springs at the free nodes whose residual rows are large
+(``ImplicitStepper.local_jacobi``, and :func:`_local_jacobi` on the compiled Newton path): the springs at the free nodes whose residual rows are large
 and the free nodes at those springs' ends (whose residual rows the step changes), and the one
 pass over the residual's per-node maxima that gives its norms and the next step's nodes (the
 step's update of the listed nodes is the scheme's: ``ho4_linear.ho4_jacobi_rows``). Serial: the
@@ -61,3 +61,34 @@ def scan(peak, threshold, out):
                 out[count] = k
             count += 1
     return rmax, smax, min(count, out.shape[0] + 1)
+
+
+# Bound per scheme by specialize() (ho4.build); listed so the template reads as ordinary code.
+scheme_jacobi_rows = scheme_residual_subset = None
+
+
+def _local_jacobi(step, topo, spring, node, work, u, res, warm, threshold, local):
+    """ImplicitStepper.local_jacobi inside the compiled Newton driver: u −= D⁻¹ R on the free
+    nodes whose row maximum (``res`` peak) exceeds ``threshold``, then the residual recomputed at
+    their springs and at those springs' ends (the scheme's SUBSET residual kernel; the lists in
+    the order found, which changes no result). local: (out (≥ 1,) int64, spring_mark (m,),
+    node_mark (n,) uint8 zeros, springs (m,), nodes (n,) int64 scratch, node_of_block (n_free,),
+    block_mass (n_free,)). Returns (done, status, spring, max |R|, max Rabs, max |change of
+    u|); not done (nothing changed) where more nodes than ``out`` holds are above the
+    threshold."""
+    x0, p, eta, h = step
+    edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
+    out, spring_mark, node_mark, springs, nodes, node_of_block, block_mass = local
+    R = res[0]
+    peak = res[2]
+    rmax, smax, count = scan(peak, threshold, out)
+    if count > out.shape[0]:
+        return False, 0, -1, rmax, smax, 0.0
+    blocks = out[:count]
+    change = scheme_jacobi_rows(u, R, blocks, block_mass, h)
+    ns, nn = neighbourhood(blocks, node_of_block, inc_ptr, inc_spring, edges, free_index, spring_mark, node_mark,
+                           springs, nodes)
+    status, bad, _, _ = scheme_residual_subset(step, topo, spring, node, work, u, warm, res, springs[:ns],
+                                               nodes[:nn])
+    rmax, smax, _ = scan(peak, threshold, out)
+    return True, status, bad, rmax, smax, change

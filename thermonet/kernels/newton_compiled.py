@@ -13,7 +13,10 @@ and model by :func:`newton_steps_kernel`:
     scheme_finish(step, topo, spring, node, work, extra, u, phi, new) -> (status, spring)
 
 and, where the scheme has them (else no-ops), ``scheme_predict(step, topo, spring, node, work,
-extra, u)``, the scheme's own predictor from the start kernel's output in u (in place), and
+extra, u)``, the scheme's own predictor from the start kernel's output in u (in place),
+``scheme_local(step, topo, spring, node, work, extra, u, res, warm, threshold) -> (done,
+status, spring, max |R|, max Rabs, max |change of u|)``, a local Jacobi step (HO4:
+:func:`.local_update._local_jacobi`; not done where too many nodes are above the threshold), and
 ``scheme_damp(step, topo, spring, node, work, extra, res, (max |R|, max Rabs), (u, du,
 trial)) -> (evaluated, max |R|, max Rabs)``, which shortens a full iteration's correction du in
 place (a damped Newton step; ``res``, the work record and ``trial`` may be overwritten). When it
@@ -46,7 +49,7 @@ from .specialize import function_fingerprint, model_fingerprint, specialize
 
 # Bound per scheme and model by newton_steps_kernel(); listed so the template reads as ordinary code.
 scheme_start = scheme_residual = scheme_jacobian = scheme_finish = scheme_linearize = scheme_sweep = None
-scheme_predict = scheme_damp = None
+scheme_predict = scheme_damp = scheme_local = None
 #: the linear solves: inertia-preconditioned matrix-free sweeps (True) or dense LU (False)
 SWEEPS = False
 
@@ -77,12 +80,13 @@ def newton_steps_kernel(model, scheme: str, kernels, uniform: bool, rate: int, s
                   scheme_linearize=getattr(kernels, "compiled_linearize", _no_linearize),
                   scheme_sweep=getattr(kernels, "sweep", _no_sweep),
                   scheme_predict=getattr(kernels, "compiled_predict", _no_predict),
-                  scheme_damp=getattr(kernels, "compiled_damp", _no_damp), SWEEPS=bool(sweeps))
+                  scheme_damp=getattr(kernels, "compiled_damp", _no_damp),
+                  scheme_local=getattr(kernels, "compiled_local", _no_local), SWEEPS=bool(sweeps))
         # Numba's disk cache of the driver holds its callees' machine code but checks only this
         # file: the callees' code (the scheme's kernels, recursively) goes into the name
         code = function_fingerprint(*(ns[k] for k in ("scheme_start", "scheme_residual", "scheme_jacobian",
                                                        "scheme_finish", "scheme_linearize", "scheme_sweep",
-                                                       "scheme_predict", "scheme_damp")))
+                                                       "scheme_predict", "scheme_damp", "scheme_local")))
         tag = (f"{scheme}_{model.name}_{key[1]}_{code}{'_uniform' if uniform else ''}_rate{int(rate)}"
                f"_{'sweeps' if sweeps else 'dense'}_{'par' if parallel else 'ser'}")
         ns["_solve_sweeps"] = specialize(_solve_sweeps, tag, ns, **INLINE)
@@ -110,6 +114,12 @@ def _no_predict(step, topo, spring, node, work, extra, u):
 def _no_damp(step, topo, spring, node, work, extra, res, norms, vectors):
     """Stands in for a scheme that takes every Newton correction whole."""
     return False, 0.0, 0.0
+
+
+@njit(cache=True, inline="always")
+def _no_local(step, topo, spring, node, work, extra, u, res, warm, threshold):
+    """Stands in for a scheme without local Jacobi steps (every Jacobi step is global)."""
+    return False, 0, -1, 0.0, 0.0, 0.0
 
 
 @njit(cache=True, error_model="numpy", boundscheck=False)
@@ -233,8 +243,10 @@ def _newton_steps(state, records, extra, linear, control, out):
     Returns the number of steps committed (< n_steps: step info[0] failed, the state is at it).
 
     With SWEEPS the linear solves are inertia-preconditioned sweeps and a full iteration may be
-    followed by Jacobi steps, as in solvers.newton with the matrix-free solver (its local
-    Jacobi steps are global ones here); sweeps that stall end the call with reason STALLED.
+    followed by Jacobi steps, as in solvers.newton with the matrix-free solver (local ones
+    where the scheme has them, test for test); sweeps that stall end the call with reason
+    STALLED. jacobi: (JACOBI_RANGE, JACOBI_MAX_STEPS, LOCAL_FRACTION, LOCAL_STALL,
+    LOCAL_MAX_ROUNDS).
     """
     x, p, phi, eta, h, coef = state
     topo, spring, node, work, places = records
@@ -270,12 +282,16 @@ def _newton_steps(state, records, extra, linear, control, out):
         reason = CONVERGED
         use_jacobi_ever = SWEEPS
         last_full = True
+        last_local = False
+        local_rounds = 0
+        pending, pending_bad = 0, -1  # the status of a residual brought up to date by a local step
         contraction = math.inf
         evaluated = False
         rmax = scale = 0.0
         while True:
-            if evaluated:  # the damping's accepted trial point is u: its residual is in res
-                status, bad = 0, -1
+            if evaluated:  # the damping's trial point or a local step: its residual is in res
+                status, bad = pending, pending_bad
+                pending, pending_bad = 0, -1
                 evaluated = False
             else:
                 status, bad, rmax, scale = scheme_residual(step, topo, spring, node, work, extra, u, warm, res)
@@ -299,7 +315,7 @@ def _newton_steps(state, records, extra, linear, control, out):
                     umax = max(umax, abs(u[i]))
                 if increment <= rtol * umax + atol:
                     break
-            if corrections == max_iterations:
+            if corrections - local_rounds == max_iterations:
                 reason = NO_CONVERGENCE
                 break
             use_jacobi = False
@@ -307,11 +323,28 @@ def _newton_steps(state, records, extra, linear, control, out):
                 if last_full:
                     use_jacobi = _jacobi_pays(rho, contraction, tolerance, jacobi)
                 else:
-                    use_jacobi = _jacobi_pays(rho, rho / history[nh - 2], tolerance, jacobi)
+                    if last_local:  # each costs a few per cent of a global step
+                        use_jacobi = rho / history[nh - 2] <= jacobi[3] and local_rounds < jacobi[4]
+                    else:
+                        use_jacobi = _jacobi_pays(rho, rho / history[nh - 2], tolerance, jacobi)
                     if not use_jacobi:
                         use_jacobi_ever = False
             corrections += 1
+            if SWEEPS and use_jacobi:
+                done, pending, pending_bad, lmax, lscale, change = scheme_local(
+                    step, topo, spring, node, work, extra, u, res, warm, jacobi[2] * tolerance * scale)
+                if done:
+                    evaluated = True
+                    rmax = lmax
+                    scale = lscale
+                    increment = change
+                    jacobi_steps += 1
+                    local_rounds += 1
+                    last_full = False
+                    last_local = True
+                    continue
             if SWEEPS:
+                last_local = False
                 if use_jacobi:
                     scheme_sweep(topo, node, work, h, du, R, r, True, True)
                     jacobi_steps += 1
