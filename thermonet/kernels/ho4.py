@@ -83,9 +83,8 @@ def build(ns: dict, tag: str, ptag: str, parallel: bool) -> dict:
     linearize = specialize(_linear._ho4_linearize, ptag, ns, parallel=parallel, **OPTIONS)
     calls = dict(ns, ho4_residual=residual, ho4_jacobian=jacobian, ho4_finish=finish, ho4_linearize=linearize)
     residual_subset = specialize(_ho4_residual, f"{ptag}_subset", subset, parallel=parallel, **OPTIONS)
-    calls["ho4_local_jacobi"] = specialize(
-        _local._local_jacobi, ptag, dict(scheme_jacobi_rows=_linear.ho4_jacobi_rows, scheme_residual_subset=residual_subset),
-        **OPTIONS)
+    local_calls = dict(scheme_jacobi_rows=_linear.ho4_jacobi_rows, scheme_residual_subset=residual_subset)
+    calls["ho4_local_jacobi"] = specialize(_local._local_jacobi, ptag, local_calls, **OPTIONS)
     return dict(
         residual=residual,
         residual_subset=residual_subset,
@@ -109,9 +108,9 @@ def build(ns: dict, tag: str, ptag: str, parallel: bool) -> dict:
 
 def _ho4_residual(step, topo, spring, node, work, u, warm, res, springs, nodes):
     """``res``: R, Rabs (6 n_free,) at unknowns u (6 n_free,), and peak (2, n_free) each free
-    node's largest |R| and Rabs (for the local steps' node selection; Rabs and peak may be
-    empty, then not written: the compiled Newton path reads only the maxima); fills ``work``'s lengths
-    (m,) and unit vectors (3, m) at x^½ and x¹, θ⁰, θ¹ (m,), dth (4, m) = dθ⁰/dl^½, dθ⁰/dl¹,
+    node's largest |R| and Rabs (for the local steps' node selection; Rabs or peak may be
+    empty, then not written: the compiled Newton path passes an empty Rabs, reading only its
+    maximum); fills ``work``'s lengths (m,) and unit vectors (3, m) at x^½ and x¹, θ⁰, θ¹ (m,), dth (4, m) = dθ⁰/dl^½, dθ⁰/dl¹,
     dθ¹/dl^½, dθ¹/dl¹ and gs (m,) = Γ⁰ = Γ¹. With ``warm``, the previous call's gs (at nearby u),
     moved along its length derivatives, seeds the thermal solves. With LOG_AFFINE (closed-form
     solves: no seeds) dth and gs are not written; the linearization and the Jacobian recompute

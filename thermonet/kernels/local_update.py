@@ -1,8 +1,9 @@
 """The scheme-independent pieces of a local Jacobi step of the implicit integrators
-(``ImplicitStepper.local_jacobi``, and :func:`_local_jacobi` on the compiled Newton path): the springs at the free nodes whose residual rows are large
-and the free nodes at those springs' ends (whose residual rows the step changes), and the one
-pass over the residual's per-node maxima that gives its norms and the next step's nodes (the
-step's update of the listed nodes is the scheme's: ``ho4_linear.ho4_jacobi_rows``). Serial: the
+(``ImplicitStepper.local_jacobi``; the whole step on the compiled Newton path:
+:func:`_local_jacobi`): the springs at the free nodes whose residual rows are large and the free
+nodes at those springs' ends (whose residual rows the step changes), and the one pass over the
+residual's per-node maxima that gives its norms and the next step's nodes (the step's update of
+the listed nodes is the scheme's: ``ho4_linear.ho4_jacobi_rows``). Serial: the
 sets are small (a few per cent of the net at most, else the caller takes a global step), and
 their order does not change any result (each spring and each node row is computed on its own;
 a node sums its springs in incidence order)."""
