@@ -104,3 +104,28 @@ def test_a_new_step_size_starts_from_the_series(path):
     assert sim.stepper.work.start.history[0] == 0.005
     assert sim.stepper.summary()["residual_max"] <= 1e-12
     assert isinstance(sim.stepper, HO4Stepper)
+
+
+@pytest.mark.parametrize("path", ["compiled", "sparse"])
+def test_a_run_continued_from_its_state_is_bit_for_bit_the_uninterrupted_one(path):
+    """The history travels with the state (``state.extra``, so in checkpoints): a new simulation
+    loading the state after 10 steps predicts its next step as the uninterrupted run does, and
+    ends where it ends, bit for bit."""
+    def make():
+        net = tn.lattice((4, 4, 4), jitter=0.1, seed=2)
+        rng = np.random.default_rng(1)
+        return tn.Simulation(net, model="hencky", parameters=dict(c=100.0, beta=0.2, C0=5.0, theta0=300.0),
+                             temperatures=rng.uniform(300.0, 600.0, net.n_springs),
+                             momenta=rng.normal(0.0, 1.0, (net.n_nodes, 3)), integrator="ho4", h=0.01,
+                             integrator_options=dict(newton_path=path))
+
+    whole = make()
+    whole.run(steps=20, diagnostics_every=10**9)
+    first = make()
+    first.run(steps=10, diagnostics_every=10**9)
+    assert first.state.extra["predictor_history"][-1] == 0.01
+    second = make()
+    second.load_state(first.state)
+    second.run(steps=10, diagnostics_every=10**9)
+    np.testing.assert_array_equal(whole.state.positions, second.state.positions)
+    np.testing.assert_array_equal(whole.state.momenta, second.state.momenta)

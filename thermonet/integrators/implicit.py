@@ -280,9 +280,38 @@ class ImplicitStepper(Stepper):
         return self._new, result
 
     # -- the Stepper interface --------------------------------------------------------------------
+    #: the key in ``state.extra`` of the predictor's history (rate 2, HO4): the unknowns of the
+    #: step that produced the state and its h (0: none), (size + 1,) in the internal numbering;
+    #: it travels with the state (checkpoints, load_state), so a resumed run predicts as the
+    #: uninterrupted one and continues bit for bit
+    HISTORY_KEY = "predictor_history"
+
+    def _history_from(self, state) -> None:
+        """The predictor's history from the state it belongs to (none there: none)."""
+        marker = self.work.start.history
+        if not marker.size:
+            return
+        saved = state.extra.get(self.HISTORY_KEY)
+        if isinstance(saved, np.ndarray) and saved.shape == (self.u.size + 1,):
+            self.u[:] = saved[:-1]
+            marker[0] = saved[-1]
+        else:
+            marker[0] = 0.0
+
+    def _history_to(self, state) -> None:
+        marker = self.work.start.history
+        if not marker.size:
+            return
+        saved = state.extra.get(self.HISTORY_KEY)
+        if not (isinstance(saved, np.ndarray) and saved.shape == (self.u.size + 1,)):
+            saved = state.extra[self.HISTORY_KEY] = np.empty(self.u.size + 1)
+        saved[:-1] = self.u
+        saved[-1] = marker[0]
+
     def advance(self, state, n_steps: int, h: float, measure: bool = False):
         if n_steps <= 0:
             return None
+        self._history_from(state)
         iters, finals = [], []
         counts = [0, 1]  # retried steps, most substeps
         i = 0
@@ -301,6 +330,7 @@ class ImplicitStepper(Stepper):
                     continue
             self._step(state, h, i, iters, finals, counts)  # sparse (or stalled sweeps)
             i += 1
+        self._history_to(state)
         return self._record(state, h, n_steps, iters, finals, *counts)
 
     def _step(self, state, h: float, i: int, iters: list, finals: list, counts: list) -> None:
