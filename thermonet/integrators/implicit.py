@@ -312,25 +312,28 @@ class ImplicitStepper(Stepper):
         if n_steps <= 0:
             return None
         self._history_from(state)
-        iters, finals = [], []
-        counts = [0, 1]  # retried steps, most substeps
-        i = 0
-        while i < n_steps:
-            if self.compiled is not None:  # a run of steps in one call, up to a failed step
-                done, its, fin, failure = self.compiled.run(state.positions, state.momenta,
-                                                            state.thermal_displacement, state.entropy, h, n_steps - i)
-                iters.extend(its.tolist())
-                finals.extend(fin.tolist())
-                i += done
-                if failure is None:
-                    break
-                if not failure[-1]:  # failed: the retry policy, as the sparse path's
-                    self._retry_step(state, h, _StepError(*failure[:4]), i, iters, finals, counts)
-                    i += 1
-                    continue
-            self._step(state, h, i, iters, finals, counts)  # sparse (or stalled sweeps)
-            i += 1
-        self._history_to(state)
+        try:
+            iters, finals = [], []
+            counts = [0, 1]  # retried steps, most substeps
+            i = 0
+            while i < n_steps:
+                if self.compiled is not None:  # a run of steps in one call, up to a failed step
+                    done, its, fin, failure = self.compiled.run(state.positions, state.momenta,
+                                                                state.thermal_displacement, state.entropy, h,
+                                                                n_steps - i)
+                    iters.extend(its.tolist())
+                    finals.extend(fin.tolist())
+                    i += done
+                    if failure is None:
+                        break
+                    if not failure[-1]:  # failed: the retry policy, as the sparse path's
+                        self._retry_step(state, h, _StepError(*failure[:4]), i, iters, finals, counts)
+                        i += 1
+                        continue
+                self._step(state, h, i, iters, finals, counts)  # sparse (or stalled sweeps)
+                i += 1
+        finally:  # (after a failed step: its marker was consumed, the saved history says none)
+            self._history_to(state)
         return self._record(state, h, n_steps, iters, finals, *counts)
 
     def _step(self, state, h: float, i: int, iters: list, finals: list, counts: list) -> None:
