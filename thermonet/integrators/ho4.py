@@ -15,6 +15,8 @@ of each spring condensed per spring (written as the end temperatures θ⁰, θ¹
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ..kernels.ho4 import HO4Work
@@ -64,31 +66,19 @@ class HO4Stepper(ImplicitStepper):
     def compiled_extra(self) -> tuple:
         """The full residual's two empty index lists and the local Jacobi step's scratch
         (kernels/local_update._local_jacobi)."""
-        return (self._no_index, self._no_index, self.local_scratch() + (self.node_of_block, self.block_mass))
+        return (self._no_index, self._no_index, self.local_scratch())
 
     def residual(self, u: np.ndarray):
         status, spring, rmax, smax = self._residual(self.kernels.residual, u, self._no_index, self._no_index)
         self.norms = (rmax, smax)
-        self._active = None
-        return status, spring
-
-    def residual_subset(self, u: np.ndarray, springs: np.ndarray, nodes: np.ndarray):
-        """The residual after u changed at a few nodes: ``springs`` (int64) those at the
-        changed nodes, ``nodes`` (int64) the nodes at those springs' ends; the rest keep their
-        values. Leaves ``norms`` to the caller (the maxima are over these rows only)."""
-        status, spring, _, _ = self._residual(self.kernels.residual_subset, u, springs, nodes)
         return status, spring
 
     def begin(self, x, p, eta, h: float) -> None:
         super().begin(x, p, eta, h)
         if not self._subset_compiled:  # compile (or load) it now, not at a run's first local step
-            self._residual(self.kernels.residual_subset, self.u, self._no_index, self._no_index)  # lists empty: no-op
+            self.kernels.local_jacobi(self._step_start, self._topology, self._springs, self._nodes, self._work,
+                                      self.u, self._residuals, False, math.inf, self.local_scratch())  # no node: no-op
             self._subset_compiled = True
-            self.warm = False
-
-    def jacobi_rows(self, u: np.ndarray, blocks: np.ndarray) -> float:
-        """u −= D⁻¹ R on the free nodes ``blocks`` (int64); max |change|."""
-        return self.kernels.jacobi_rows(u, self.R, blocks, self.block_mass, self.h)
 
     def _residual(self, kernel, u, springs, nodes):
         out = kernel(self._step_start, self._topology, self._springs, self._nodes, self._work,

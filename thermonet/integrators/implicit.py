@@ -22,7 +22,6 @@ from ..errors import InputError
 from ..kernels.implicit_common import KEEP_ROWS, STATUS_TEXT, implicit_kernels
 from ..kernels.implicit_records import (BlockPlaces, NextState, NodeData, Residuals, SpringParameters, StartWork,
                                         StepStart, Topology, plain)
-from ..kernels.local_update import neighbourhood, scan
 from ..solvers import BlockPattern, NewtonOptions, NewtonResult, NewtonTimers, make_linear_solver
 from ..solvers.newton import newton
 from .base import Stepper, StepFailure
@@ -116,7 +115,7 @@ class ImplicitStepper(Stepper):
         self.node_of_block = np.empty(pattern.n_free, dtype=np.int64)
         self.node_of_block[free_index[free]] = free
         self.block_mass = system.masses[self.node_of_block]  # (n_free,)
-        local = hasattr(self.kernels, "residual_subset")
+        local = hasattr(self.kernels, "local_jacobi")
         self.residuals = Residuals(np.zeros(size), np.zeros(size), np.zeros((2, pattern.n_free if local else 0)))
         self.norms = (math.inf, math.inf)
         self.u = np.zeros(size)
@@ -129,7 +128,6 @@ class ImplicitStepper(Stepper):
         self._new = NextState(np.empty((n, 3)), np.empty((n, 3)), np.empty(m), np.empty(m))
         self._no_index = np.empty(0, dtype=np.int64)
         self._local = None  # index scratch of local_jacobi, made at its first use
-        self._active = None  # the number of nodes local_jacobi's last scan found (None: no scan of this R)
         self.timers = NewtonTimers()
         #: the compiled path (integrators/compiled_path.py), or None: the sparse one
         self.compiled = CompiledNewton(self) if use_compiled(options, size, self.kernels, integrator.name) else None
@@ -206,14 +204,16 @@ class ImplicitStepper(Stepper):
         (status, spring)."""
 
     def local_scratch(self) -> tuple:
-        """The local Jacobi steps' index scratch (made at the first use): (out (LOCAL_MAX_FRACTION
-        n_free + 1,) int64, spring_mark (m,), node_mark (n,) uint8 zeros, springs (m,), nodes (n,)
-        int64)."""
+        """The local Jacobi steps' scratch (made at the first use), as
+        kernels/local_update._local_jacobi takes it: (out (LOCAL_MAX_FRACTION n_free + 1,) int64,
+        spring_mark (m,), node_mark (n,) uint8 zeros, springs (m,), nodes (n,) int64,
+        node_of_block, block_mass (n_free,))."""
         if self._local is None:
             n, m = self.system.n_nodes, self.system.n_springs
             self._local = (np.empty(int(self.LOCAL_MAX_FRACTION * self.pattern.n_free) + 1, dtype=np.int64),
                            np.zeros(m, dtype=np.uint8), np.zeros(n, dtype=np.uint8),
-                           np.empty(m, dtype=np.int64), np.empty(n, dtype=np.int64))
+                           np.empty(m, dtype=np.int64), np.empty(n, dtype=np.int64),
+                           self.node_of_block, self.block_mass)
         return self._local
 
     def local_jacobi(self, u: np.ndarray, fraction: float):
@@ -222,29 +222,21 @@ class ImplicitStepper(Stepper):
         (the springs at those nodes, the rows of the nodes at those springs' ends) with the
         kernel's own arithmetic: the residual a full evaluation at the new u gives, bit for bit
         for models whose thermal solve is closed-form (else within that solve's tolerance, from
-        the last seeds). Such a scheme's residuals also write ``residuals.peak`` (2, n_free),
+        the last seeds). The scheme's ``local_jacobi`` kernel (kernels/local_update._local_jacobi,
+        the compiled Newton path's too); its residuals also write ``residuals.peak`` (2, n_free),
         each free node's largest |R| and Rabs, which the node selection reads. None where the
-        scheme has no such residual or more than LOCAL_MAX_FRACTION of the free nodes are above
-        the threshold (a global step is then cheaper); else (status, spring, max |change of u|), with ``norms`` of the new residual.
-        The pass that takes the new norms also finds the next step's nodes (at this step's
-        threshold), so a step reads the per-node maxima once."""
-        residual_subset = getattr(self, "residual_subset", None)
-        if residual_subset is None:
-            return None  # (a scheme that has one also has jacobi_rows(u, blocks) -> max |change|)
-        peak = self.residuals.peak
-        out, spring_mark, node_mark, springs, nodes = self.local_scratch()
-        inc_ptr, inc_spring = self.system.layout.inc_ptr, self.system.layout.inc_spring
-        threshold = fraction * self.norms[1]
-        count = self._active if self._active is not None else scan(peak, threshold, out)[2]
-        if count > out.shape[0]:
+        scheme has no such kernel or more than LOCAL_MAX_FRACTION of the free nodes are above the
+        threshold (a global step is then cheaper); else (status, spring, max |change of u|), with
+        ``norms`` of the new residual."""
+        kernel = getattr(self.kernels, "local_jacobi", None)
+        if kernel is None:
             return None
-        blocks = out[:count]
-        increment = self.jacobi_rows(u, blocks)
-        ns, nn = neighbourhood(blocks, self.node_of_block, inc_ptr, inc_spring, self.system.edges, self.free_index,
-                               spring_mark, node_mark, springs, nodes)
-        # in index order: each thread of the kernel then works on nearby memory
-        status, spring = residual_subset(u, np.sort(springs[:ns]), np.sort(nodes[:nn]))
-        rmax, smax, self._active = scan(peak, threshold, out)
+        done, status, spring, rmax, smax, increment = kernel(
+            self._step_start, self._topology, self._springs, self._nodes, self._work, u, self._residuals,
+            self.warm, fraction * self.norms[1], self.local_scratch())
+        if not done:
+            return None
+        self.warm = status == 0
         self.norms = (rmax, smax)
         return status, spring, increment
 

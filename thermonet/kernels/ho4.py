@@ -88,6 +88,7 @@ def build(ns: dict, tag: str, ptag: str, parallel: bool) -> dict:
     return dict(
         residual=residual,
         residual_subset=residual_subset,
+        local_jacobi=calls["ho4_local_jacobi"],
         linearize=linearize,
         jacobian=jacobian,
         finish=finish,

@@ -1,9 +1,9 @@
-"""The scheme-independent pieces of a local Jacobi step of the implicit integrators
-(``ImplicitStepper.local_jacobi``; the whole step on the compiled Newton path:
-:func:`_local_jacobi`): the springs at the free nodes whose residual rows are large and the free
-nodes at those springs' ends (whose residual rows the step changes), and the one pass over the
-residual's per-node maxima that gives its norms and the next step's nodes (the step's update of
-the listed nodes is the scheme's: ``ho4_linear.ho4_jacobi_rows``). Serial: the
+"""A local Jacobi step of the implicit integrators, :func:`_local_jacobi` (both Newton paths:
+``ImplicitStepper.local_jacobi`` and the compiled driver), and its scheme-independent pieces: the
+springs at the free nodes whose residual rows are large and the free nodes at those springs'
+ends (whose residual rows the step changes), and the one pass over the residual's per-node
+maxima that gives its norms (the step's update of the listed nodes is the scheme's:
+``ho4_linear.ho4_jacobi_rows``). Serial: the
 sets are small (a few per cent of the net at most, else the caller takes a global step), and
 their order does not change any result (each spring and each node row is computed on its own;
 a node sums its springs in incidence order)."""
@@ -69,8 +69,8 @@ scheme_jacobi_rows = scheme_residual_subset = None
 
 
 def _local_jacobi(step, topo, spring, node, work, u, res, warm, threshold, local):
-    """ImplicitStepper.local_jacobi inside the compiled Newton driver: u −= D⁻¹ R on the free
-    nodes whose row maximum (``res`` peak) exceeds ``threshold``, then the residual recomputed at
+    """A local Jacobi step (ImplicitStepper.local_jacobi; the compiled driver's scheme_local):
+    u −= D⁻¹ R on the free nodes whose row maximum (``res`` peak) exceeds ``threshold``, then the residual recomputed at
     their springs and at those springs' ends (the scheme's SUBSET residual kernel; the lists in
     the order found, which changes no result). local: (out (≥ 1,) int64, spring_mark (m,),
     node_mark (n,) uint8 zeros, springs (m,), nodes (n,) int64 scratch, node_of_block (n_free,),
