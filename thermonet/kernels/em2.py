@@ -12,32 +12,22 @@ so that x¹ − x⁰ = h (p⁰ + p¹)/(2m) with p¹ = p⁰ + h (m g + Σ ±s d̄
 the kinetic energy gains exactly what U loses; the forces are central (along d̄) and opposite,
 so linear and angular momentum are kept exactly. η¹ = η; Φ¹ = Φ⁰ + h θ(l̄, η).
 
-The quotient Q = ΔU/δ cancels as δ → 0: its rounding is about ε |U| / |δ| (|U| includes the
-model's offsets, e.g. C0 θ), a noise in the residual as a function of the unknowns that would
-hold Newton above 1e-14 (measured on the paper's chain with the switch at 1e-3). So for
-|δ| ≤ SWITCH l̄ the 5-point Gauss–Lobatto rule on T = dU/dl (fixed η) replaces it,
-
-    Q ≈ [T(l⁰) + T(l¹)]/20 + 49/180 [T(l⁰ + ξ δ) + T(l¹ − ξ δ)] + 16/45 T(l̄),  ξ = (1 − √(3/7))/2
-
-which is the midpoint form T(l̄) with the Taylor corrections of ΔU about l̄ up to δ⁶ (exact for
-a polynomial T of degree 7; error 7.0e-10 δ⁸ T⁽⁸⁾) and has no cancellation. At SWITCH = 0.03
-its error, checked against 40-digit arithmetic for hencky springs (β = 0.2 and 2, l ∈ [0.3, 3]
-l0), is below 1e-15 relative to the force, and the quotient's rounding above the switch 30×
-smaller than at 1e-3; the energy error of the rule per spring and step, δ × that, is below
-U's own rounding.
+Q = ΔU/δ per spring is the model's closed form (``Model.energy_quotient``) or, for a model
+without one, the generic forms of :mod:`.em2_gradient` (the quotient of two U values, a
+Gauss–Lobatto rule on T where that would cancel).
 
 The Jacobian block of spring e (added with sign s_c s_g to block (c, g), s_a = +1, s_b = −1) is
 
     B_e = (h/2) [ (s/2) I + (ds/dl¹) d̄ n¹ᵀ ],   ds/dl¹ = (dQ/dl¹) / l̄ − s / (2 l̄)
 
-with dQ/dl¹ = (T(l¹) − Q)/δ (direct) or the rule's Σ wᵢ ξᵢ k(l⁰ + ξᵢ δ) (nodes ξᵢ ∈ [0, 1]),
-k = dT/dl at fixed η (the adiabatic stiffness). The work record is :class:`EM2Work`.
+with dQ/dl¹ from the model's closed form, or from the generic forms (:mod:`.em2_gradient`). The
+work record is :class:`EM2Work`.
 
 Kernels (records: plain tuples of arrays, ``implicit_records.plain``): ``residual(step, topo,
-spring, node, work, u, res) -> (status, spring, max|R|, max Rabs)`` (s from Q alone; it keeps Q
-and T(l¹)), ``linearize(spring, work, h)`` and ``jacobian(topo, spring, node, work, places, h,
-data)`` (ds/dl¹ from what the residual kept: a residual not linearized does not pay for the
-rule's four stiffness evaluations), ``predict(step, topo, spring, node, work, accel, pred)``,
+spring, node, work, u, res) -> (status, spring, max|R|, max Rabs)`` (s from Q alone; it keeps Q,
+and T(l¹) for the generic forms), ``linearize(spring, work, h)`` and ``jacobian(topo, spring,
+node, work, places, h, data)`` (ds/dl¹ from the lengths and what the residual kept: a residual
+not linearized does not pay for it), ``predict(step, topo, spring, node, work, accel, pred)``,
 ``finish(step, topo, spring, node, work, u, phi, new) -> (status, spring)``, ``sweep(topo, node,
 work, h, du, R, r, update, first) -> max|r|``, ``step_scale(topo, work, du, limit) -> factor``,
 ``damp(step, topo, spring, node, work, res, norms, vectors) -> (evaluated, max|R|, max Rabs)``
@@ -59,19 +49,16 @@ from .implicit_common import (BLOCK, COLLAPSED, INLINE, NO_TEMPERATURE, NOT_FINI
                               _admissible, _first_flagged, register_scheme, scatter_spring_block)
 from .implicit_records import StartWork
 from .implicit_rows import inertia_blocks3, node_blocks, norm2, residual_rows3, spring_difference3, sweep_rows3
+from .em2_gradient import SWITCH, bind_gradient
 from .specialize import specialize
 
 # Bound per model by specialize(); listed so the templates read as ordinary code.
-temperature = tension = internal_energy = adiabatic_stiffness = None
-em2_slope = tension_at = finish_nodes = None
-em2_value = em2_derivative = em2_spring_dslope = lobatto_value = lobatto_derivative = None
+temperature = tension = internal_energy = adiabatic_stiffness = energy_quotient = None
+EXACT_QUOTIENT = False
+CAN_VANISH = True
+finish_nodes = em2_derivative = em2_spring_dslope = lobatto_value = lobatto_derivative = None
 em2_predict = em2_residual = em2_jacobian = em2_finish = em2_linearize = em2_step_scale = em2_damp = None
 
-#: |l¹ − l⁰| ≤ SWITCH l̄: the discrete gradient by the Gauss–Lobatto rule, not by the quotient ΔU/δ
-SWITCH = 0.03
-#: the interior nodes and weights of the 5-point Gauss–Lobatto rule on [0, 1] (besides 1/2, 16/45)
-LOBATTO_NODE = 0.5 * (1.0 - math.sqrt(3.0 / 7.0))
-LOBATTO_WEIGHT = 49.0 / 180.0
 #: a Newton correction changes no spring's vector by more than this fraction of its length
 LENGTH_LIMIT = 0.5
 #: a correction is searched along (halved until the residual falls) while the scaled residual
@@ -83,11 +70,13 @@ LINE_SEARCH_HALVINGS = 12
 class EM2Work(NamedTuple):
     """EM2's per-spring arrays for m springs: len1 (m,), dir1 (3, m) the length and unit vector
     at x¹; mean (3, m) the mean spring vector d̄; slope, dslope (m,) s and ds/dl¹; energy0,
-    tension0 (m,) U and T at l⁰ (fixed over the step); jc (2, m) the matrix-free coefficients
+    temperature0, tension0 (m,) U, θ and T at l⁰ (fixed over the step; U for the generic forms
+    only, θ for a model's ``energy_quotient`` only); jc (2, m) the matrix-free coefficients
     (h s/4, h ds/dl¹ / 2); eta_step (m,) the step's entropies (copied by ``predict``); quotient,
     tension1 (m,) Q = ΔU/δ and T(l¹) of the last residual (ds/dl¹ from them, by ``linearize`` and
-    ``jacobian`` only: a residual does not need it); and the start kernel's record ``start`` (its
-    ``guess`` (m,) holds the predictor's per-spring stiffness, and the finish's θ(l̄, η))."""
+    ``jacobian`` only: a residual does not need it; T(l¹) for the generic forms only); and the
+    start kernel's record ``start`` (its ``guess`` (m,) holds the predictor's per-spring
+    stiffness, and the finish's θ(l̄, η))."""
 
     start: StartWork
     len1: np.ndarray
@@ -96,6 +85,7 @@ class EM2Work(NamedTuple):
     slope: np.ndarray
     dslope: np.ndarray
     energy0: np.ndarray
+    temperature0: np.ndarray
     tension0: np.ndarray
     jc: np.ndarray
     eta_step: np.ndarray
@@ -106,17 +96,12 @@ class EM2Work(NamedTuple):
     def allocate(cls, start: StartWork) -> "EM2Work":
         m = start.len0.shape[0]
         return cls(start, np.empty(m), np.empty((3, m)), np.empty((3, m)), np.empty(m), np.empty(m),
-                   np.empty(m), np.empty(m), np.empty((2, m)), np.empty(m), np.empty(m), np.empty(m))
+                   np.empty(m), np.empty(m), np.empty(m), np.empty((2, m)), np.empty(m), np.empty(m), np.empty(m))
 
 
 def build(ns: dict, tag: str, ptag: str, parallel: bool) -> dict:
     """EM2's kernels for the model namespace ``ns`` (see implicit_common.register_scheme)."""
-    ns["tension_at"] = specialize(_tension_at, tag, ns, **INLINE)
-    ns["lobatto_value"] = specialize(_lobatto_value, tag, ns, **INLINE)
-    ns["lobatto_derivative"] = specialize(_lobatto_derivative, tag, ns, **INLINE)
-    ns["em2_value"] = specialize(_em2_value, tag, ns, **INLINE)
-    ns["em2_derivative"] = specialize(_em2_derivative, tag, ns, **INLINE)
-    ns["em2_slope"] = specialize(_em2_slope, tag, ns, **INLINE)
+    alone = bind_gradient(ns, tag)
     ns["em2_spring_dslope"] = specialize(_em2_spring_dslope, tag, ns, **INLINE)
     kernels = dict(
         predict=specialize(_em2_predict, ptag, ns, parallel=parallel, **OPTIONS),
@@ -138,84 +123,24 @@ def build(ns: dict, tag: str, ptag: str, parallel: bool) -> dict:
         compiled_finish=specialize(_em2_compiled_finish, ptag, calls, **INLINE),
         compiled_linearize=specialize(_em2_compiled_linearize, ptag, calls, **INLINE),
         compiled_damp=specialize(_em2_compiled_damp, ptag, calls, **INLINE),
-        # the per-spring functions, callable alone (tests; other compiled loops)
-        slope=specialize(_em2_slope, f"{tag}_alone", ns, **OPTIONS),
-        direct=specialize(_em2_direct, f"{tag}_alone", ns, **OPTIONS),
-        quadrature=specialize(_em2_quadrature, f"{tag}_alone", ns, **OPTIONS),
+        **alone,
     )
 
 
 # ---------------------------------------------------------------------------------------------
-# one spring
-
-
-def _em2_direct(l, l1, eta, l0, P, e, U0, T1):
-    """Q = (U(l1, η) − U0)/(l1 − l) and dQ/dl1 = (T1 − Q)/(l1 − l), T1 = T(l1, θ(l1, η))
-    (l1 ≠ l)."""
-    Q = (internal_energy(l1, eta, l0, P, e) - U0) / (l1 - l)
-    return Q, (T1 - Q) / (l1 - l)
-
-
-def _tension_at(l, eta, l0, P, e):
-    """T(l, θ(l, η))."""
-    return tension(l, temperature(l, eta, l0, P, e), l0, P, e)
-
-
-def _lobatto_value(l, l1, eta, l0, P, e, T0, T1):
-    """Q = ΔU/δ by the 5-point Gauss–Lobatto rule on T (module doc; T0 = T at l, T1 at l1)."""
-    d = l1 - l
-    return (0.05 * (T0 + T1) + LOBATTO_WEIGHT * (tension_at(l + LOBATTO_NODE * d, eta, l0, P, e)
-                                                 + tension_at(l1 - LOBATTO_NODE * d, eta, l0, P, e))
-            + (16.0 / 45.0) * tension_at(l + 0.5 * d, eta, l0, P, e))
-
-
-def _lobatto_derivative(l, l1, eta, l0, P, e):
-    """dQ/dl1 = Σ wᵢ ξᵢ k(l + ξᵢ δ) of the rule (k the adiabatic stiffness)."""
-    d = l1 - l
-    return (0.05 * adiabatic_stiffness(l1, eta, l0, P, e)
-            + LOBATTO_WEIGHT * (LOBATTO_NODE * adiabatic_stiffness(l + LOBATTO_NODE * d, eta, l0, P, e)
-                                + (1.0 - LOBATTO_NODE) * adiabatic_stiffness(l1 - LOBATTO_NODE * d, eta, l0, P, e))
-            + (8.0 / 45.0) * adiabatic_stiffness(l + 0.5 * d, eta, l0, P, e))
-
-
-def _em2_quadrature(l, l1, eta, l0, P, e, T0, T1):
-    """Q and dQ/dl1 by the rule, without cancellation."""
-    return lobatto_value(l, l1, eta, l0, P, e, T0, T1), lobatto_derivative(l, l1, eta, l0, P, e)
-
-
-def _em2_value(l, l1, eta, l0, P, e, U0, T0, T1):
-    """Q = ΔU/δ of one spring (U0, T0 at its start length l, T1 at its end length l1): the
-    quotient, or the rule within SWITCH; only the value (what a residual needs)."""
-    if abs(l1 - l) > SWITCH * (0.5 * (l + l1)):
-        return (internal_energy(l1, eta, l0, P, e) - U0) / (l1 - l)
-    return lobatto_value(l, l1, eta, l0, P, e, T0, T1)
-
-
-def _em2_derivative(l, l1, eta, l0, P, e, Q, T1):
-    """dQ/dl1 of one spring given its Q (:func:`_em2_value`) and T1 = T at l1."""
-    if abs(l1 - l) > SWITCH * (0.5 * (l + l1)):
-        return (T1 - Q) / (l1 - l)
-    return lobatto_derivative(l, l1, eta, l0, P, e)
-
-
-def _em2_slope(l, l1, eta, l0, P, e, U0, T0):
-    """The discrete gradient's s = ΔU/(δ l̄), ds/dl1 and θ(l1, η) of one spring from its start
-    length l (with U0 = U(l, η), T0 = T(l, θ(l, η))) and its end length l1."""
-    th1 = temperature(l1, eta, l0, P, e)
-    T1 = tension(l1, th1, l0, P, e)
-    lm = 0.5 * (l + l1)
-    Q = em2_value(l, l1, eta, l0, P, e, U0, T0, T1)
-    s = Q / lm
-    return s, (em2_derivative(l, l1, eta, l0, P, e, Q, T1) - 0.5 * s) / lm, th1
+# one spring's ds/dl¹ from the work record (the discrete gradient itself: .em2_gradient)
 
 
 def _em2_spring_dslope(spring, work, e, pe):
     """ds/dl¹ of spring e at the last residual's point (its Q, T(l¹), s in ``work``)."""
     l0, P = spring
-    start, len1, dir1, mean, slope, dslope, energy0, tension0, jc, eta_step, quotient, tension1 = work
+    start, len1, dir1, mean, slope, dslope, energy0, temperature0, tension0, jc, eta_step, quotient, tension1 = work
     l = start[0][e]
     l1 = len1[e]
-    dQ = em2_derivative(l, l1, eta_step[e], l0[e], P, pe, quotient[e], tension1[e])
+    if EXACT_QUOTIENT:
+        dQ = energy_quotient(l, l1, eta_step[e], temperature0[e], tension0[e], l0[e], P, pe)[1]
+    else:
+        dQ = em2_derivative(l, l1, eta_step[e], l0[e], P, pe, quotient[e], tension1[e])
     return (dQ - 0.5 * slope[e]) / (0.5 * (l + l1))
 
 
@@ -236,7 +161,7 @@ def _em2_predict(step, topo, spring, node, work, accel, pred):
     edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
     l0, P = spring
     masses, inv_mass, gravity, with_gravity = node
-    start, len1, dir1, mean, slope, dslope, energy0, tension0, jc, eta_step, quotient, tension1 = work
+    start, len1, dir1, mean, slope, dslope, energy0, temperature0, tension0, jc, eta_step, quotient, tension1 = work
     len0, dir0, keep, fs, ws, sweep, nodal, stiff, code = start
     m = edges.shape[0]
     for blk in prange((m + BLOCK - 1) // BLOCK):
@@ -247,7 +172,10 @@ def _em2_predict(step, topo, spring, node, work, accel, pred):
             l = len0[e]
             th = temperature(l, eta[e], l0[e], P, pe)
             T = tension(l, th, l0[e], P, pe)
-            energy0[e] = internal_energy(l, eta[e], l0[e], P, pe)
+            if EXACT_QUOTIENT:
+                temperature0[e] = th
+            else:
+                energy0[e] = internal_energy(l, eta[e], l0[e], P, pe)
             tension0[e] = T
             eta_step[e] = eta[e]
             stiff[e] = max(adiabatic_stiffness(l, eta[e], l0[e], P, pe), 0.0) + max(T / l, 0.0)
@@ -273,7 +201,7 @@ def _em2_residual(step, topo, spring, node, work, u, res):
     edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
     l0, P = spring
     masses, inv_mass, gravity, with_gravity = node
-    start, len1, dir1, mean, slope, dslope, energy0, tension0, jc, eta_step, quotient, tension1 = work
+    start, len1, dir1, mean, slope, dslope, energy0, temperature0, tension0, jc, eta_step, quotient, tension1 = work
     len0, dir0, keep, fs, ws, sweep, nodal, guess, code = start
     R, Rabs, peak = res
     m = edges.shape[0]
@@ -297,7 +225,7 @@ def _em2_residual(step, topo, spring, node, work, u, res):
                     d1 -= u[3 * ka + j]
                 fs[j, e] = d1
                 mean[j, e] = 0.5 * (d0 + d1)
-        for i in range(n):  # per spring, Q by the rule (branch-free: vectorized)
+        for i in range(n):  # per spring, Q in closed form or by the rule (branch-free: vectorized)
             e = np.uint64(lo + i)
             pe = np.uint64(0) if UNIFORM else np.uint64(e)
             dx = fs[0, e]
@@ -309,13 +237,20 @@ def _em2_residual(step, topo, spring, node, work, u, res):
             dir1[0, e] = dx * i1
             dir1[1, e] = dy * i1
             dir1[2, e] = dz * i1
-            th1 = temperature(l1, eta[e], l0[e], P, pe)
-            T1 = tension(l1, th1, l0[e], P, pe)
-            Q = lobatto_value(len0[e], l1, eta[e], l0[e], P, pe, tension0[e], T1)
-            quotient[e] = Q
-            tension1[e] = T1
             lok = (l1 > 0.0) & (l1 < math.inf)
-            code[e] = OK if (lok & _admissible(th1)) else (COLLAPSED if not lok else NO_TEMPERATURE)
+            if EXACT_QUOTIENT:
+                quotient[e] = energy_quotient(len0[e], l1, eta[e], temperature0[e], tension0[e], l0[e], P, pe)[0]
+                if CAN_VANISH:
+                    th1 = temperature(l1, eta[e], l0[e], P, pe)
+                    code[e] = OK if (lok & _admissible(th1)) else (COLLAPSED if not lok else NO_TEMPERATURE)
+                else:
+                    code[e] = OK if lok else COLLAPSED
+            else:
+                th1 = temperature(l1, eta[e], l0[e], P, pe)
+                T1 = tension(l1, th1, l0[e], P, pe)
+                quotient[e] = lobatto_value(len0[e], l1, eta[e], l0[e], P, pe, tension0[e], T1)
+                tension1[e] = T1
+                code[e] = OK if (lok & _admissible(th1)) else (COLLAPSED if not lok else NO_TEMPERATURE)
         for i in range(n):  # s and the impulses (h/2) s d̄ (fewer arrays per loop: vectorized)
             e = np.uint64(lo + i)
             s = quotient[e] / (0.5 * (len0[e] + len1[e]))
@@ -325,7 +260,7 @@ def _em2_residual(step, topo, spring, node, work, u, res):
             fs[1, e] = g * mean[1, e]
             fs[2, e] = g * mean[2, e]
             code[e] = NOT_FINITE if ((code[e] == OK) & (not abs(s) < math.inf)) else code[e]
-        for i in range(n):  # the quotient ΔU/δ instead where |δ| > SWITCH l̄ (few springs: scalar)
+        for i in range(0 if EXACT_QUOTIENT else n):  # the quotient ΔU/δ instead where |δ| > SWITCH l̄ (scalar)
             e = np.uint64(lo + i)
             l = len0[e]
             l1 = len1[e]
@@ -360,7 +295,7 @@ def _em2_linearize(spring, work, h):
     :func:`_em2_spring_dslope`, in a vectorized loop by the rule and a scalar one where
     |δ| > SWITCH l̄ (as the residual)."""
     l0, P = spring
-    start, len1, dir1, mean, slope, dslope, energy0, tension0, jc, eta_step, quotient, tension1 = work
+    start, len1, dir1, mean, slope, dslope, energy0, temperature0, tension0, jc, eta_step, quotient, tension1 = work
     len0 = start[0]
     m = len1.shape[0]
     for blk in prange((m + BLOCK - 1) // BLOCK):
@@ -371,12 +306,15 @@ def _em2_linearize(spring, work, h):
             pe = np.uint64(0) if UNIFORM else np.uint64(e)
             l = len0[e]
             l1 = len1[e]
-            dQ = lobatto_derivative(l, l1, eta_step[e], l0[e], P, pe)
+            if EXACT_QUOTIENT:
+                dQ = energy_quotient(l, l1, eta_step[e], temperature0[e], tension0[e], l0[e], P, pe)[1]
+            else:
+                dQ = lobatto_derivative(l, l1, eta_step[e], l0[e], P, pe)
             ds = (dQ - 0.5 * slope[e]) / (0.5 * (l + l1))
             dslope[e] = ds
             jc[0, e] = 0.25 * h * slope[e]
             jc[1, e] = 0.5 * h * ds
-        for i in range(n):
+        for i in range(0 if EXACT_QUOTIENT else n):
             e = np.uint64(lo + i)
             l = len0[e]
             l1 = len1[e]
@@ -392,7 +330,7 @@ def _em2_jacobian(topo, spring, node, work, places, h, data):
     B = (h/2) [(s/2) I + (ds/dl¹) d̄ n¹ᵀ] with sign s_c s_g."""
     edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
     masses, inv_mass, gravity, with_gravity = node
-    start, len1, dir1, mean, slope, dslope, energy0, tension0, jc, eta_step, quotient, tension1 = work
+    start, len1, dir1, mean, slope, dslope, energy0, temperature0, tension0, jc, eta_step, quotient, tension1 = work
     node_base, node_stride, spring_base, spring_stride, B = places
     inertia_blocks3(free_index, masses, h, node_base, node_stride, data)
     for e in range(edges.shape[0]):
@@ -413,7 +351,7 @@ def _em2_finish(step, topo, spring, node, work, u, phi, new):
     x0, p, eta, h = step
     edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
     l0, P = spring
-    start, len1, dir1, mean, slope, dslope, energy0, tension0, jc, eta_step, quotient, tension1 = work
+    start, len1, dir1, mean, slope, dslope, energy0, temperature0, tension0, jc, eta_step, quotient, tension1 = work
     len0, dir0, keep, fs, ws, sweep, nodal, guess, code = start
     x_new, p_new, phi_new, eta_new = new
     m = edges.shape[0]
@@ -446,7 +384,7 @@ def _em2_sweep(topo, node, work, h, du, R, r, update, first):
     v = du_a − du_b: jc[0] v + jc[1] (n¹·v) d̄."""
     edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
     masses, inv_mass, gravity, with_gravity = node
-    start, len1, dir1, mean, slope, dslope, energy0, tension0, jc, eta_step, quotient, tension1 = work
+    start, len1, dir1, mean, slope, dslope, energy0, temperature0, tension0, jc, eta_step, quotient, tension1 = work
     len0, dir0, keep, fs, ws, w, nodal, guess, code = start
     m = ends.shape[0]
     for e in prange(0 if first else m):

@@ -1,4 +1,6 @@
-"""Vectorizable ``exp`` and ``log`` for Numba kernels, accurate to about one ulp.
+"""Vectorizable ``exp`` and ``log`` for Numba kernels, accurate to about one ulp, and the two
+divided differences built on them that closed-form discrete gradients need (:func:`log_ratio`,
+:func:`exprel`).
 
 Numba compiles ``math.exp``/``math.log`` to scalar libm calls unless its SVML vector library is
 present (it is not in every build), and a loop that calls libm does not vectorize. The functions
@@ -18,15 +20,21 @@ Method (textbook range reduction; coefficients are exact Taylor coefficients, no
 - ``log(x)``: x = 2^k y with y in [√2/2, √2) read from the bits; with f = y − 1 (exact) and
   s = f / (2 + f), log y = 2 atanh s = f − f²/2 + s (f²/2 + R(s²)), R the atanh series to s²⁰
   (truncation < 2⁻⁵⁸ for |s| ≤ 0.1716); the form keeps the leading f exact, as in fdlibm.
+- ``log_ratio(u)`` = ln u / (u − 1) and ``exprel(x)`` = (eˣ − 1)/x, each with its derivative: a
+  difference quotient written so that nothing cancels as u → 1 or x → 0 (Kahan's trick for the
+  first, ln u / (u − 1) with the rounded u being exact for that u; the Taylor series near 0 for
+  the second and for the derivatives). Branch-free selects, so loops over them vectorize too.
 """
 
 from __future__ import annotations
+
+import math
 
 from llvmlite import ir
 from numba import njit, types
 from numba.extending import intrinsic
 
-__all__ = ["exp", "log", "fma"]
+__all__ = ["exp", "log", "fma", "log_ratio", "exprel"]
 
 
 @intrinsic
@@ -150,3 +158,63 @@ def log(x):
     else:
         v = x if x != x else _INF - _INF
     return v
+
+
+# divided differences -----------------------------------------------------------------------------
+#: |s| = |u − 1|/(u + 1) below which log_ratio's derivative is the series in s (u in 0.54…1.86;
+#: s¹⁶ terms, truncation < 1e-17)
+_LOG_RATIO_SERIES = 0.3
+#: |x| below which exprel and its derivative are their Taylor series (degree 16: truncation < 1e-20)
+_EXPREL_SERIES = 0.5
+
+
+@njit(**_OPTS)
+def _poly16(t, c):
+    """c[0] + c[1] t + … + c[16] t¹⁶ (c a tuple of 17 coefficients; Estrin's scheme)."""
+    t2 = t * t
+    t4 = t2 * t2
+    t8 = t4 * t4
+    low = fma(fma(fma(c[7], t, c[6]), t2, fma(c[5], t, c[4])), t4, fma(fma(c[3], t, c[2]), t2, fma(c[1], t, c[0])))
+    high = fma(fma(fma(c[15], t, c[14]), t2, fma(c[13], t, c[12])), t4,
+               fma(fma(c[11], t, c[10]), t2, fma(c[9], t, c[8])))
+    return fma(c[16] * t8, t8, fma(high, t8, low))
+
+
+_A = tuple(1.0 / (2 * k + 1) for k in range(17))              # atanh(s)/s = Σ z^k/(2k+1), z = s²
+_DA = tuple(2.0 * (k + 1) / (2 * k + 3) for k in range(17))    # its derivative over s, in z
+
+
+@njit(**_OPTS)
+def log_ratio(u):
+    """(G, dG/du) for G(u) = ln u / (u − 1), u > 0 (G(1) = 1, G'(1) = −1/2): the divided
+    difference of ln between 1 and u, with no cancellation as u → 1. G is ln u over the exact
+    u − 1 of the rounded u (Kahan), within a few ulps. G' = (1/u − G)/(u − 1) loses digits as
+    u → 1; for |s| < 0.3, s = (u − 1)/(u + 1), it is the series form: with ln u = 2 s A(s),
+    A = atanh(s)/s = Σ s^2k/(2k+1), G = 2A/(u + 1) and G' = (4 A'(s) − 2 A (u + 1)) / (u + 1)³."""
+    t = u - 1.0
+    g = log(u) / t
+    g = g if t != 0.0 else 1.0
+    w = u + 1.0
+    s = t / w
+    z = s * s
+    A = _poly16(z, _A)
+    dA = s * _poly16(z, _DA)
+    series = (4.0 * dA - 2.0 * A * w) / (w * w * w)
+    return g, (series if abs(s) < _LOG_RATIO_SERIES else (1.0 / u - g) / t)
+
+
+_X = tuple(1.0 / math.factorial(k + 1) for k in range(17))          # (e^x − 1)/x = Σ x^k/(k+1)!
+_DX = tuple((k + 1) / math.factorial(k + 2) for k in range(17))     # its derivative = Σ (k+1) x^k/(k+2)!
+
+
+@njit(**_OPTS)
+def exprel(x):
+    """(φ, dφ/dx) for φ(x) = (eˣ − 1)/x (φ(0) = 1, φ'(0) = 1/2), with no cancellation as x → 0:
+    their Taylor series (degree 16) for |x| < 0.5, (eˣ − 1)/x and (eˣ (x − 1) + 1)/x² beyond."""
+    ex = exp(x)
+    f = (ex - 1.0) / x
+    df = fma(ex, x - 1.0, 1.0) / (x * x)
+    small = abs(x) < _EXPREL_SERIES
+    fs = _poly16(x, _X)
+    dfs = _poly16(x, _DX)
+    return (fs if small else f), (dfs if small else df)

@@ -83,6 +83,11 @@ KEEP_ROWS = 4
 #: every spring has the same parameters: P is the shared (k, 1) column of System.kernel_parameters,
 #: read at column 0 (``pe``) and not streamed per spring
 UNIFORM = False
+#: the model gives ``energy_quotient`` (Model doc): EM2's discrete gradient in closed form
+EXACT_QUOTIENT = False
+#: the model's temperature may reach 0 (Model.temperature_can_vanish): a kernel that does not
+#: otherwise need θ at a trial length computes it to check it
+CAN_VANISH = True
 
 _CACHE: dict = {}
 _SCHEMES: dict = {}
@@ -155,12 +160,21 @@ def implicit_kernels(model, scheme: str, parallel: bool = False, uniform: bool =
         ns["KEEP_START"] = keeps_start and ns["LOG_AFFINE"]
         ns["UNIFORM"] = bool(uniform)
         ns["EXTRAPOLATE"] = extrapolates and rate == 2
+        ns["EXACT_QUOTIENT"] = getattr(model, "energy_quotient", None) is not None
+        ns["CAN_VANISH"] = bool(getattr(model, "temperature_can_vanish", False))
+        ns["energy_quotient"] = model.energy_quotient if ns["EXACT_QUOTIENT"] else _no_energy_quotient
         ns["adiabatic_stiffness"] = specialize(_adiabatic_stiffness, tag, ns, **INLINE)
         start = specialize(_start, f"{ptag}_rate{int(rate)}{'_keep' if ns['KEEP_START'] else ''}"
                            f"{'_extrapolate' if ns['EXTRAPOLATE'] else ''}", ns, parallel=parallel, **OPTIONS)
         ns["finish_nodes"] = specialize(_finish_nodes, ptag, ns, parallel=parallel, **OPTIONS)
         _CACHE[key] = ImplicitKernels(start=start, keep_start=ns["KEEP_START"], **build(ns, tag, ptag, parallel))
     return _CACHE[key]
+
+
+@njit(cache=True, inline="always")
+def _no_energy_quotient(l, l1, eta, theta, T, l0, P, e):
+    """Stands in for a model without ``energy_quotient`` (its kernels never call it)."""
+    return math.nan, math.nan
 
 
 # ---------------------------------------------------------------------------------------------

@@ -22,6 +22,8 @@ from numba import njit
 
 MODEL_FUNCTIONS = ("free_energy", "tension", "entropy", "temperature", "internal_energy",
                    "d2F_dl2", "d2F_dl_dtheta", "d2F_dtheta2")
+#: a model's optional functions (None where it has none), fingerprinted with the others
+OPTIONAL_MODEL_FUNCTIONS = ("energy_quotient",)
 
 
 def _code_digest(code: types.CodeType, h) -> None:
@@ -69,8 +71,9 @@ def model_fingerprint(model) -> str:
     h = hashlib.sha256(model.name.encode())
     h.update(repr(model.parameters).encode())
     h.update(repr(getattr(model, "entropy_log_affine", False)).encode())  # selects kernel code
+    h.update(repr(getattr(model, "temperature_can_vanish", False)).encode())  # so does this (EM2)
     seen: set = set()
-    for name in MODEL_FUNCTIONS:
+    for name in MODEL_FUNCTIONS + OPTIONAL_MODEL_FUNCTIONS:
         _function_digest(getattr(model, name, None), h, seen)
     fingerprint = h.hexdigest()[:12]
     try:

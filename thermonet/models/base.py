@@ -45,6 +45,13 @@ class Model:
         use too). Leave False unless it holds exactly.
     reference_temperature: name of the parameter that is the reference temperature (used by a
         purely mechanical run, where every spring stays at it).
+    energy_quotient: optional, (l, l1, η, θ, T, l0, P, e) -> (Q, ∂Q/∂l1) with Q = [U(l1, η) −
+        U(l, η)] / (l1 − l), the divided difference EM2's discrete gradient is made of, given
+        also θ = θ(l, η) and T = T(l, θ) (the kernels have them: a closed form need not recompute
+        them); in closed form and accurate to a few ulps of T's terms for every l1, with nothing
+        cancelling as l1 → l (where Q → T and ∂Q/∂l1 → half the adiabatic stiffness). Without
+        it EM2 takes the quotient of two U values where l1 and l differ by more than 3 %, and a
+        5-point Gauss–Lobatto rule on T within (four tension evaluations per spring and residual).
     """
 
     name: str
@@ -63,6 +70,7 @@ class Model:
     entropy_log_affine: bool = False
     reference_temperature: str = "theta0"
     description: str = ""
+    energy_quotient: Callable | None = None
 
     def parameter_array(self, values: Mapping[str, object], n_springs: int) -> np.ndarray:
         """Per-spring parameters as a ``(k, m)`` float64 array (scalars are broadcast).

@@ -13,7 +13,7 @@ cost.
 
 from numba import njit
 
-from ..kernels.fastmath import exp, log
+from ..kernels.fastmath import exp, exprel, log, log_ratio
 from .base import Model, register_model
 
 C, BETA, C0, THETA0 = 0, 1, 2, 3
@@ -52,6 +52,29 @@ def internal_energy(l, eta, l0, P, e):
 
 
 @njit(inline="always", error_model="numpy")
+def energy_quotient(l, l1, eta, theta, T, l0, P, e):
+    """Q = [U(l1, η) − U(l, η)] / (l1 − l) and ∂Q/∂l1 (EM2's discrete gradient; θ = θ(l, η),
+    T = T(l, θ): Model doc), in closed form with nothing cancelling as l1 → l. With u = l1/l,
+    D = ln u = (u − 1) G(u) the change of L and x = −β D / C0 (θ(l1, η) = θ eˣ):
+
+        ΔU = D B,  B = l T + c D/2 − β θ (φ(x) − 1),   Q = G(u) B / l,
+        ∂Q/∂l1 = [G'(u) B + G(u) (c/2 + β²/C0 θ φ'(x)) / u] / l²
+
+    with G(u) = ln u/(u − 1) and φ(x) = (eˣ − 1)/x and their derivatives from
+    :mod:`thermonet.kernels.fastmath` (Q → T and ∂Q/∂l1 → half the adiabatic stiffness as
+    l1 → l)."""
+    c = P[C, e]
+    b = P[BETA, e]
+    cv = P[C0, e]
+    u = l1 / l
+    G, dG = log_ratio(u)
+    D = (u - 1.0) * G
+    phi, dphi = exprel(-b * D / cv)
+    B = l * T + 0.5 * c * D - b * theta * (phi - 1.0)
+    return G * B / l, (dG * B + G * (0.5 * c + b * b / cv * theta * dphi) / u) / (l * l)
+
+
+@njit(inline="always", error_model="numpy")
 def d2F_dl2(l, theta, l0, P, e):
     L = log(l / l0)
     c = P[C, e]
@@ -80,6 +103,7 @@ HENCKY = register_model(
         d2F_dl2=d2F_dl2,
         d2F_dl_dtheta=d2F_dl_dtheta,
         d2F_dtheta2=d2F_dtheta2,
+        energy_quotient=energy_quotient,
         defaults={"c": 100.0, "beta": 0.2, "C0": 5.0, "theta0": 300.0},
         positive=("c", "C0", "theta0"),
         temperature_can_vanish=False,

@@ -45,6 +45,18 @@ def internal_energy(l, eta, l0, P, e):
 
 
 @njit(inline="always", error_model="numpy")
+def energy_quotient(l, l1, eta, theta, T, l0, P, e):
+    """Q = [U(l1, η) − U(l, η)] / (l1 − l) and ∂Q/∂l1 (EM2's discrete gradient, Model doc): U is
+    quadratic in l at fixed η, so Q is U's slope at the mean length (E (l̄ − l0)/l0 − β θ0/C0 r̄,
+    r = η − η0 − β (l − l0)), and ∂Q/∂l1 half its constant curvature."""
+    th0 = P[THETA0, e]
+    b = P[BETA, e]
+    dm = 0.5 * (l + l1) - l0
+    return (P[E_, e] / l0 * dm - b * th0 / P[C0, e] * (eta - P[ETA0, e] - b * dm),
+            0.5 * (P[E_, e] / l0 + b * b * th0 / P[C0, e]))
+
+
+@njit(inline="always", error_model="numpy")
 def d2F_dl2(l, theta, l0, P, e):
     return P[E_, e] / l0
 
@@ -71,6 +83,7 @@ QUADRATIC = register_model(
         d2F_dl2=d2F_dl2,
         d2F_dl_dtheta=d2F_dl_dtheta,
         d2F_dtheta2=d2F_dtheta2,
+        energy_quotient=energy_quotient,
         defaults={"E": 100.0, "beta": 0.2, "C0": 5.0, "theta0": 300.0, "eta0": 0.0},
         positive=("E", "C0", "theta0"),
         temperature_can_vanish=True,
