@@ -52,11 +52,11 @@ import numpy as np
 import thermonet as tn
 
 
-def lattice_simulation(cells: int, integrator: str, h: float, parallel=None, **options) -> tn.Simulation:
+def lattice_simulation(cells: int, integrator: str, h: float, parallel=None, model="hencky", **options) -> tn.Simulation:
     net = tn.lattice((cells, cells, cells), jitter=0.1, seed=1)
     rng = np.random.default_rng(0)
     return tn.Simulation(
-        net, model="hencky", parameters=dict(c=100.0, beta=0.2, C0=5.0, theta0=300.0),
+        net, model=model, parameters=dict(c=100.0, beta=0.2, C0=5.0, theta0=300.0),
         temperatures=rng.uniform(300.0, 600.0, net.n_springs), momenta=rng.normal(0.0, 1.0, (net.n_nodes, 3)),
         integrator=integrator, h=h, integrator_options=options, parallel=parallel,
         # the stepping alone: the run-time guards re-check the stable step at every run() call,

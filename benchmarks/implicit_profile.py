@@ -12,11 +12,16 @@ naming the line (the template changed; update ``TIMED`` below).
 
     python benchmarks/implicit_profile.py --method ho4 --cells 32 --threads 1 --rounds 40
     python benchmarks/implicit_profile.py --method em2 --cells 32 --threads 2 --rounds 40
+    python benchmarks/implicit_profile.py --method em2 --generic-quotient   # hencky without its energy_quotient
+
+``--generic-quotient`` runs "hencky" without its closed-form ``energy_quotient``: EM2 then takes
+the generic discrete gradient (kernels/em2_gradient.py), as for a user's model without one.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import inspect
 import statistics
 import textwrap
@@ -28,6 +33,7 @@ from llvmlite import ir
 from numba.core import cgutils, types
 from numba.extending import intrinsic
 
+import thermonet as tn
 import thermonet.kernels.newton_compiled as nc
 from implicit_cost import lattice_simulation
 from thermonet.kernels.implicit_common import OPTIONS
@@ -92,10 +98,15 @@ def main(argv=None):
     ap.add_argument("--threads", type=int, default=1, help="1: serial kernels; more: threaded ones")
     ap.add_argument("--rounds", type=int, default=40, help="interleaved rounds (the lattice heats up as it runs)")
     ap.add_argument("--steps", type=int, default=4, help="implicit steps per round")
+    ap.add_argument("--generic-quotient", action="store_true",
+                    help="hencky without its energy_quotient (EM2's generic discrete gradient)")
     args = ap.parse_args(argv)
     numba.set_num_threads(args.threads)
     parallel = args.threads > 1
-    sim = lattice_simulation(args.cells, args.method, 0.01, parallel=parallel, newton_path="compiled")
+    model = tn.get_model("hencky")
+    if args.generic_quotient:
+        model = dataclasses.replace(model, name="hencky_generic", energy_quotient=None)
+    sim = lattice_simulation(args.cells, args.method, 0.01, parallel=parallel, model=model, newton_path="compiled")
     co2 = lattice_simulation(args.cells, "co2", 0.01, parallel=parallel)
     for s in (sim, co2):
         s.run(steps=2, diagnostics_every=10**9)
