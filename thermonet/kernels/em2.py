@@ -47,9 +47,9 @@ from numba import prange
 
 from .implicit_common import (BLOCK, COLLAPSED, INLINE, NO_TEMPERATURE, NOT_FINITE, OK, OPTIONS, UNIFORM,
                               _admissible, _first_flagged, register_scheme, scatter_spring_block)
+from .em2_gradient import SWITCH, bind_gradient
 from .implicit_records import StartWork
 from .implicit_rows import inertia_blocks3, node_blocks, norm2, residual_rows3, spring_difference3, sweep_rows3
-from .em2_gradient import SWITCH, bind_gradient
 from .specialize import specialize
 
 # Bound per model by specialize(); listed so the templates read as ordinary code.
@@ -149,7 +149,8 @@ def _em2_spring_dslope(spring, work, e, pe):
 
 
 def _em2_predict(step, topo, spring, node, work, accel, pred):
-    """Per spring, U and T at l⁰ (``work.energy0``, ``tension0``); then the predictor of the
+    """Per spring, T at l⁰ and U there (the generic forms, ``work.energy0``) or θ (a model's
+    closed form, ``temperature0``), and ``tension0``; then the predictor of the
     unknowns into pred (3 n_free,): per free node d = h v + h²/2 a / (1 + h² κ/(4 m)), v = p/m,
     a the acceleration at x⁰ (``accel`` (3 n_free,), from the start kernel), κ = Σ_e
     max(dT/dl|η, 0) + max(T/l, 0) over the node's springs: the acceleration's part damped as in
@@ -292,8 +293,8 @@ def _em2_residual(step, topo, spring, node, work, u, res):
 def _em2_linearize(spring, work, h):
     """ds/dl¹ (``work.dslope``) and the matrix-free coefficients at the last residual's point:
     jc (2, m) = (h s/4, h (ds/dl¹)/2), spring e's block being jc[0] I + jc[1] d̄ n¹ᵀ; ds/dl¹ as
-    :func:`_em2_spring_dslope`, in a vectorized loop by the rule and a scalar one where
-    |δ| > SWITCH l̄ (as the residual)."""
+    :func:`_em2_spring_dslope`, in a vectorized loop (the model's closed form, or the rule) and,
+    for the generic forms, a scalar one where |δ| > SWITCH l̄ (as the residual)."""
     l0, P = spring
     start, len1, dir1, mean, slope, dslope, energy0, temperature0, tension0, jc, eta_step, quotient, tension1 = work
     len0 = start[0]
