@@ -1,30 +1,29 @@
 """What Fourier conduction costs per step: CO2 with conduction against the same thermal run
 without it (adiabatic), on a jittered 6-neighbour lattice and on a gmsh tetrahedral bar, with
-one thread (serial kernels) and the default thread count.
+one thread (serial kernels) and the default thread count; and with multirate conduction
+(``conduction_every = "auto"``) on two parts run as users run them: a steel part in SI units at
+the explicit stable step and the thermal-shock scene.
 
     python benchmarks/heat_cost.py [--cells 32] [--mesh-size 0.06] [--steps 200] [--repeats 5]
-    python benchmarks/heat_cost.py --cells 69 --mesh-size 0.03 --steps 5 --repeats 3   # ~1e6
+    python benchmarks/heat_cost.py --cells 69 --mesh-size 0.03 --steps 20 --repeats 3   # ~1e6
+    python benchmarks/heat_cost.py --quick        # a smoke run (tests/test_benchmarks.py runs it)
 
 Per net and thread count the runs alternate once per repeat after a warm-up (adiabatic,
-conduction, conduction with g = 0, the sweeps alone, the star sketch), so that drifts of a
-shared machine hit all alike; times are medians over the repeats and the ratio is the median
-of the per-repeat ratios. Also reported: the pair count per spring
-(``thermonet.heat.graph.pairs_per_spring``) and the colours of the pair graph. Target
-(issue 17): the whole step with conduction ≤ 2× the adiabatic thermal step.
-
-"g = 0" runs the conduction step with g = 0: the same schedule (sweeps at both ends of the
-step, so CO2's closing kick is no longer shared with the next step's opening kick) without a
-pair to exchange. "sweeps" times ``conduction_sweep`` forward and reverse over h/2 (what one
-step runs) on a copy of the state. "star" times a sketch that is not the engine's model:
-node-star exchanges (the springs at a node relax together toward their weighted mean
-temperature; energy exact, entropy non-decreasing; nodes coloured so that a colour's nodes share
-no spring), two visits per spring instead of one per pair.
+conduction every step, conduction every step with g = 0, the sweeps alone, conduction "auto"),
+so that drifts of a shared machine hit all alike; times are medians over the repeats and the
+ratio is the median of the per-repeat ratios. "g = 0" runs conduction's step with nothing to
+exchange (the schedule's own cost: a refresh of the forces after the sweeps, the deferred kick's
+second force sum, the entropy update); "sweeps" times the two half sweeps of one step boundary
+alone (``conduction_sweep``, reverse then forward over h/2, on a copy of the state). Also
+reported: the grid-wide phases per step a GPU runs for conduction, with the earlier pairwise
+sweep (2 × (pair colours + 3)) and with node stars (2 × (node colours + 3), divided by k).
+Targets: the whole step ≤ 2× the adiabatic thermal step with conduction every step, ≤ 1.25× with
+"auto" on the parts.
 """
 
 from __future__ import annotations
 
 import argparse
-import math
 import os
 import statistics
 import tempfile
@@ -32,16 +31,16 @@ import time
 
 import numba
 import numpy as np
-from numba import njit, prange
 
 import thermonet as tn
-from thermonet.heat.graph import pairs_per_spring
+from thermonet.heat.graph import pair_graph, pairs_per_spring
+from thermonet.heat.passes import FORWARD, REVERSE, heat_kernels
 from thermonet.kernels import records
-from thermonet.kernels.heat_passes import heat_kernels
 from thermonet.stability import stable_step
 
 PARAMETERS = dict(c=100.0, beta=0.2, C0=5.0, theta0=300.0)
 G = 1.0
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
 def tetra_bar(mesh_size: float) -> tn.Net:
@@ -71,9 +70,9 @@ def tetra_bar(mesh_size: float) -> tn.Net:
 
 
 def simulations(net: tn.Net, threads: int | None):
-    """(adiabatic, conduction, conduction with g = 0) simulations of ``net``: same parameters,
-    temperatures (300 ± 50, seeded), velocities and step (0.4× the adiabatic CO2 stability
-    limit). With g = 0 the step runs conduction's schedule with no pair to exchange."""
+    """(adiabatic, conduction every step, the same with g = 0, conduction "auto") simulations of
+    ``net``: same parameters, temperatures (300 ± 50, seeded), velocities and step (0.4× the
+    adiabatic CO2 stability limit)."""
     rng = np.random.default_rng(1)
     theta = 300.0 + rng.uniform(-50.0, 50.0, net.n_springs)
     v = rng.uniform(-0.01, 0.01, (net.n_nodes, 3))
@@ -82,9 +81,12 @@ def simulations(net: tn.Net, threads: int | None):
     adiabatic = tn.Simulation(net, parameters=PARAMETERS, h=1.0, **common)
     h = 0.4 * stable_step(adiabatic)["h_max"]
     adiabatic.h = h
-    conduction = tn.Simulation(net, parameters={**PARAMETERS, "g": G}, conduction=True, h=h, **common)
-    empty = tn.Simulation(net, parameters={**PARAMETERS, "g": 0.0}, conduction=True, h=h, **common)
-    return adiabatic, conduction, empty
+    conduction = tn.Simulation(net, parameters={**PARAMETERS, "g": G}, conduction=True, h=h, conduction_every=1,
+                               **common)
+    empty = tn.Simulation(net, parameters={**PARAMETERS, "g": 0.0}, conduction=True, h=h, conduction_every=1,
+                          **common)
+    auto = tn.Simulation(net, parameters={**PARAMETERS, "g": G}, conduction=True, h=h, **common)
+    return adiabatic, conduction, empty, auto
 
 
 def step_seconds(sim, steps: int) -> float:
@@ -94,8 +96,8 @@ def step_seconds(sim, steps: int) -> float:
 
 
 class Sweeps:
-    """The two conduction sweeps of one step (over h/2, forward then reverse) on a copy of the
-    state of ``sim``, with the engine's sweep and with the node-star sketch."""
+    """The two half sweeps of one step boundary (reverse then forward, over h/2 each) on a copy
+    of the state of ``sim``."""
 
     def __init__(self, sim):
         system = sim.system
@@ -109,112 +111,86 @@ class Sweeps:
         self.theta0 = self.theta.copy()
         self.theta_start = np.empty_like(self.theta)
         self.eta = s.entropy.copy()
-        self.logs = self.heat.new_logs()
         self.tau = 0.5 * sim.h
-        self.record = self.heat.record(self.tau, self.logs)
-        self.parallel = sim.parallel
-        layout = system.layout
-        self.inc_ptr = layout.inc_ptr.astype(np.int64)
-        self.inc_spring = layout.inc_spring.astype(np.int64)
-        colour = _node_colours(self.inc_ptr, layout.inc_other.astype(np.int64))
-        self.node_order = np.argsort(colour, kind="stable")
-        self.node_colour_ptr = np.r_[0, np.cumsum(np.bincount(colour))].astype(np.int64)
-        C, g = self.heat.capacity, self.heat.conductance
-        self.weight = -C * np.expm1(-g * self.tau / C)
-        self.rate = self.weight / C
+        self.record = self.heat.record(self.tau, self.heat.new_logs())
 
-    def engine(self) -> float:
+    def seconds(self) -> float:
         np.copyto(self.theta, self.theta0)
         t0 = time.perf_counter()
-        self.sweep(self.record, self.theta, self.theta_start, self.eta, self.tau, 0.0, False)
-        self.sweep(self.record, self.theta, self.theta_start, self.eta, self.tau, 0.0, True)
-        return time.perf_counter() - t0
-
-    def star(self) -> float:
-        np.copyto(self.theta, self.theta0)
-        fn = _star_par if self.parallel else _star_ser
-        args = (self.node_order, self.node_colour_ptr, self.inc_ptr, self.inc_spring, self.weight, self.rate,
-                self.heat.capacity, self.theta, self.eta, self.record.produced)
-        t0 = time.perf_counter()
-        fn(*args, False)
-        fn(*args, True)
+        self.sweep(self.record, self.theta, self.theta_start, self.eta, self.tau, 0.0, FORWARD | REVERSE)
         return time.perf_counter() - t0
 
 
-@njit(cache=True)
-def _node_colours(inc_ptr, inc_other):
-    """Greedy colouring of the nodes: two nodes joined by a spring differ."""
-    n = inc_ptr.shape[0] - 1
-    colour = np.full(n, -1, dtype=np.int64)
-    used = np.full(256, -1, dtype=np.int64)
-    for i in range(n):
-        for s in range(inc_ptr[i], inc_ptr[i + 1]):
-            c = colour[inc_other[s]]
-            if c >= 0:
-                used[c] = i
-        c = 0
-        while used[c] == i:
-            c += 1
-        colour[i] = c
-    return colour
-
-
-def _star(order, colour_ptr, inc_ptr, inc_spring, weight, rate, capacity, theta, eta, produced, reverse):
-    """Node-star exchanges on θ alone, node colour by node colour: the springs at node i relax
-    toward their weighted mean θ_i = Σ a θ / Σ a, θ_e += (a_e/C_e)(θ_i − θ_e), with
-    a_e = C_e (1 − exp(−g_e τ / C_e)) (energy exact, entropy non-decreasing by Jensen); then
-    one logarithm per spring."""
-    m = theta.shape[0]
-    start = np.empty(m)
-    for e in prange(m):
-        start[e] = theta[e]
-    n_colours = colour_ptr.shape[0] - 1
-    for j in range(n_colours):
-        c = n_colours - 1 - j if reverse else j
-        for k in prange(colour_ptr[c], colour_ptr[c + 1]):
-            i = order[k]
-            num = 0.0
-            den = 0.0
-            for s in range(inc_ptr[i], inc_ptr[i + 1]):
-                e = inc_spring[s]
-                num += weight[e] * theta[e]
-                den += weight[e]
-            if den > 0.0:
-                mean = num / den
-                for s in range(inc_ptr[i], inc_ptr[i + 1]):
-                    e = inc_spring[s]
-                    theta[e] += rate[e] * (mean - theta[e])
-    for e in prange(m):
-        d = capacity[e] * math.log(theta[e] / start[e])
-        eta[e] += d
-        produced[e] += d
-
-
-_star_par = njit(parallel=True, cache=True, error_model="numpy", boundscheck=False)(_star)
-_star_ser = njit(cache=True, error_model="numpy", boundscheck=False)(_star)
+def gpu_phases(net: tn.Net, sim) -> tuple[int, int]:
+    """Grid-wide phases per step of conduction on the GPU: (pairwise sweeps, node-star sweeps at
+    the run's k)."""
+    heat = sim.system.heat
+    pairs = pair_graph(sim.system.layout, heat.conductance[None, :], junction=heat.bath_nodes < 0)
+    stars = heat.star_order("cuda")
+    k = sim.conduction_cycle[0] if sim.conduction_cycle else 1
+    return 2 * (pairs.n_colours + 3), 2 * (stars.n_colours + 3) / k
 
 
 def measure(name: str, net: tn.Net, threads: int | None, steps: int, repeats: int) -> dict:
-    adiabatic, conduction, empty = simulations(net, threads)
+    adiabatic, conduction, empty, auto = simulations(net, threads)
     sweeps = Sweeps(conduction)
-    for sim in (adiabatic, conduction, empty):  # warm-up: compile or load the kernels, touch the memory
-        sim.run(steps=2, diagnostics_every=2)
-    sweeps.engine(), sweeps.star()
-    samples = {"adiabatic": [], "conduction": [], "schedule": [], "sweeps": [], "star": []}
+    runs = {"adiabatic": adiabatic, "conduction": conduction, "schedule": empty, "auto": auto}
+    for sim in runs.values():  # warm-up: compile or load the kernels, touch the memory
+        sim.run(steps=steps, diagnostics_every=steps)
+    sweeps.seconds()
+    samples = {k: [] for k in (*runs, "sweeps")}
     for _ in range(repeats):
-        samples["adiabatic"].append(step_seconds(adiabatic, steps))
-        samples["conduction"].append(step_seconds(conduction, steps))
-        samples["schedule"].append(step_seconds(empty, steps))
-        samples["sweeps"].append(statistics.median(sweeps.engine() for _ in range(3)))
-        samples["star"].append(statistics.median(sweeps.star() for _ in range(3)))
-    graph = conduction.system.heat.graph
+        for key, sim in runs.items():
+            samples[key].append(step_seconds(sim, steps))
+        samples["sweeps"].append(statistics.median(sweeps.seconds() for _ in range(3)))
+    order = conduction.system.heat.star_order("cpu")
+    pair_phases, star_phases = gpu_phases(net, auto)
     return {
         "net": name, "springs": net.n_springs, "threads": threads or numba.config.NUMBA_NUM_THREADS,
         "kernels": "parallel" if conduction.parallel else "serial",
-        "pairs_per_spring": pairs_per_spring(graph, net.n_springs), "colours": graph.n_colours,
+        "blocks": order.n_blocks, "colours": order.n_colours, "k": auto.conduction_cycle[0],
+        "gpu_pair_phases": pair_phases, "gpu_star_phases": star_phases,
         **{k: statistics.median(v) for k, v in samples.items()},
         "ratio": statistics.median(c / a for a, c in zip(samples["adiabatic"], samples["conduction"])),
+        "auto_ratio": statistics.median(c / a for a, c in zip(samples["adiabatic"], samples["auto"])),
     }
+
+
+def part_simulations(scene_path: str, overrides, threads: int | None):
+    """(adiabatic, auto) simulations of a scene: its own step and outputs, conduction "auto";
+    the adiabatic one with conduction and baths switched off."""
+    from thermonet.scenes.build import build_scene
+    from thermonet.scenes.scene import load_scene
+
+    extra = [f"integrator.threads={threads}"] if threads else []
+    auto = build_scene(load_scene(scene_path, list(overrides) + extra)).simulation
+    off = list(overrides) + extra + ["effects.conduction=false", "baths={}", "sources={}"]
+    adiabatic = build_scene(load_scene(scene_path, off)).simulation
+    for sim in (auto, adiabatic):
+        sim.energy_tolerance = None
+        sim.stability_guard.active = False
+    return adiabatic, auto
+
+
+def measure_part(name: str, scene_path: str, overrides, threads, steps: int, repeats: int, cadence: int) -> dict:
+    adiabatic, auto = part_simulations(scene_path, overrides, threads)
+    for sim in (adiabatic, auto):
+        sim.run(steps=steps, diagnostics_every=cadence)
+    samples = {"adiabatic": [], "auto": []}
+    for _ in range(repeats):
+        for key, sim in (("adiabatic", adiabatic), ("auto", auto)):
+            t0 = time.perf_counter()
+            sim.run(steps=steps, diagnostics_every=cadence)
+            samples[key].append((time.perf_counter() - t0) / steps)
+    return {"net": name, "springs": auto.net.n_springs, "threads": threads or numba.config.NUMBA_NUM_THREADS,
+            "kernels": "parallel" if auto.parallel else "serial", "h": auto.h, "k": auto.conduction_cycle[0],
+            "why": auto.conduction_cycle[1], **{k: statistics.median(v) for k, v in samples.items()},
+            "auto_ratio": statistics.median(c / a for a, c in zip(samples["adiabatic"], samples["auto"]))}
+
+
+STEEL = ["materials.bracket.youngs_modulus=200e9", "materials.bracket.thermal_expansion=12e-6",
+         "materials.bracket.density=7850.0", "materials.bracket.heat_capacity=3.6e6",
+         "materials.bracket.conductivity=50.0"]
 
 
 def main() -> None:
@@ -225,34 +201,60 @@ def main() -> None:
     ap.add_argument("--steps", type=int, default=200, help="steps per timed run")
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--threads", default="1,default", help="comma-separated thread counts ('default': Numba's)")
-    ap.add_argument("--nets", default="lattice,tetra")
+    ap.add_argument("--nets", default="lattice,tetra,steel,shock")
+    ap.add_argument("--quick", action="store_true", help="small nets, few steps, one repeat (a smoke run)")
     args = ap.parse_args()
-    nets = {}
+    if args.quick:
+        args.cells, args.mesh_size, args.steps, args.repeats, args.threads = 6, 0.5, 20, 1, "1"
+    steel_h = None
+    rows, parts = [], []
     for which in args.nets.split(","):
         t0 = time.perf_counter()
-        if which == "lattice":
-            net = tn.lattice((args.cells,) * 3, neighbours=6, jitter=0.1, seed=1)
-            nets[f"lattice {args.cells}³ (6 neighbours)"] = net
+        if which in ("lattice", "tetra"):
+            if which == "lattice":
+                net, name = tn.lattice((args.cells,) * 3, neighbours=6, jitter=0.1, seed=1), \
+                    f"lattice {args.cells}³ (6 neighbours)"
+            else:
+                net, name = tetra_bar(args.mesh_size), f"gmsh tetra bar, size {args.mesh_size:g}"
+            print(f"built {which}: {net.n_springs} springs in {time.perf_counter() - t0:.1f} s", flush=True)
+            for t in args.threads.split(","):
+                rows.append(measure(name, net, None if t == "default" else int(t), args.steps, args.repeats))
+                print(rows[-1], flush=True)
+            continue
+        if which == "steel":  # the bracket in steel at 0.9× the explicit stable step
+            path = os.path.join(ROOT, "scenes", "bracket.toml")
+            if steel_h is None:
+                probe = part_simulations(path, STEEL, 1)[0]
+                steel_h = 0.9 * stable_step(probe)["h_max"]
+            overrides, name, cadence = STEEL + [f"integrator.h={steel_h!r}"], "steel bracket (SI, 5 mm tetrahedra)", 100
         else:
-            net = tetra_bar(args.mesh_size)
-            nets[f"gmsh tetra bar, size {args.mesh_size:g}"] = net
-        print(f"built {which}: {net.n_springs} springs in {time.perf_counter() - t0:.1f} s", flush=True)
-    rows = []
-    for name, net in nets.items():
+            path, overrides, name, cadence = os.path.join(ROOT, "scenes", "thermal_shock.toml"), [], \
+                "scenes/thermal_shock.toml", 10
         for t in args.threads.split(","):
-            rows.append(measure(name, net, None if t == "default" else int(t), args.steps, args.repeats))
-            print(rows[-1], flush=True)
+            steps = max(cadence, args.steps // cadence * cadence)
+            parts.append(measure_part(name, path, overrides, None if t == "default" else int(t), steps,
+                                      args.repeats, cadence))
+            print(parts[-1], flush=True)
     load = os.getloadavg()[0]
-    print(f"\nco2, hencky, g = {G}, {args.steps} steps per run, {args.repeats} interleaved repeats, "
-          f"{os.cpu_count()} cores, load average {load:.2f}\n")
-    print("| net | springs | pairs/spring | colours | threads | adiabatic ms/step | conduction ms/step | "
-          "ratio | g = 0 ms/step | sweeps ms/step | star ms/step |")
-    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
-    for r in rows:
-        print(f"| {r['net']} | {r['springs']:,} | {r['pairs_per_spring']:.1f} | {r['colours']} | {r['threads']} "
-              f"({r['kernels']}) | {1e3 * r['adiabatic']:.3g} | {1e3 * r['conduction']:.3g} | "
-              f"**{r['ratio']:.2f}×** | {1e3 * r['schedule']:.3g} | {1e3 * r['sweeps']:.3g} | "
-              f"{1e3 * r['star']:.3g} |")
+    print(f"\nco2, hencky, {args.steps} steps per run, {args.repeats} interleaved repeats, {os.cpu_count()} cores, "
+          f"load average {load:.2f}\n")
+    if rows:
+        print(f"g = {G}, h = 0.4× the adiabatic stable step:\n")
+        print("| net | springs | threads | CPU blocks / colours | adiabatic ms/step | conduction ms/step | ratio "
+              "| g = 0 ms/step | sweeps ms/step | auto: k | auto ratio | GPU phases/step: pairs → stars |")
+        print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+        for r in rows:
+            print(f"| {r['net']} | {r['springs']:,} | {r['threads']} ({r['kernels']}) | {r['blocks']} / {r['colours']} "
+                  f"| {1e3 * r['adiabatic']:.3g} | {1e3 * r['conduction']:.3g} | **{r['ratio']:.2f}×** | "
+                  f"{1e3 * r['schedule']:.3g} | {1e3 * r['sweeps']:.3g} | {r['k']} | {r['auto_ratio']:.2f}× | "
+                  f"{r['gpu_pair_phases']} → {r['gpu_star_phases']:.3g} |")
+    if parts:
+        print("\nconduction_every = \"auto\" on parts run as users run them:\n")
+        print("| part | springs | threads | h | k | adiabatic ms/step | auto ms/step | ratio |")
+        print("|---|---:|---:|---:|---:|---:|---:|---:|")
+        for r in parts:
+            print(f"| {r['net']} | {r['springs']:,} | {r['threads']} ({r['kernels']}) | {r['h']:.3g} | {r['k']} | "
+                  f"{1e3 * r['adiabatic']:.3g} | {1e3 * r['auto']:.3g} | **{r['auto_ratio']:.2f}×** |")
 
 
 if __name__ == "__main__":

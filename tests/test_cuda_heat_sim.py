@@ -4,8 +4,9 @@ CPU backend (spec-heat §1–2; docs/gpu.md).
 Under Numba's CUDA simulator: this file, run as a script in a process of its own with
 ``NUMBA_ENABLE_CUDASIM=1`` (the variable must be set before Numba is imported), runs tiny nets on
 both backends and both launch modes and saves the results; the tests compare them. The device
-runs the CPU's per-element functions (``thermonet/kernels/heat_flow.py``) in the CPU's order per
-element, but not bit for bit: the CPU's entropy update uses a vectorizing ``log``
+runs the CPU's per-element functions (``thermonet/heat/exchange.py``) in the same order per
+element (the CPU runs set to sweep conduction in the GPU's order: one junction node per block),
+but not bit for bit: the CPU's entropy update uses a vectorizing ``log``
 (``thermonet.kernels.fastmath``), the device ``math.log``, and the CPU's kick after the sweeps
 takes the swept θ where the device evaluates θ(l, η) (docs/gpu.md). The tests allow
 ``STATE_RTOL`` (1e-13) of each quantity's scale. On a real GPU (``gpu`` tests) fused
@@ -53,15 +54,16 @@ def small_net(shape=(1, 1, 1), neighbours=6, seed=5):
     return net, rng.normal(0.0, 1.0, (net.n_nodes, 3)), 300.0 + 400.0 * rng.random(net.n_springs)
 
 
-def conduction_sim(backend, fused=True, bath=None, integrator="co2", net=None):
+def conduction_sim(backend, fused=True, bath=None, integrator="co2", net=None, every=1):
     """Conduction with a bath on nodes 0, 1 (a sine in time unless ``bath`` is a number) and a
-    source on springs 3, 5."""
+    source on springs 3, 5, every ``every`` steps; on the CPU swept in the GPU's order."""
     net, v, temps = net or small_net()
     temperature = TimeFunction.sine(50.0, 3.0, 0.0, 500.0) if bath is None else bath
     sim = tn.Simulation(net, parameters=dict(c=100, beta=1.0, C0=1.0, theta0=300, g=0.5), temperatures=temps,
                         velocities=v, integrator=integrator, h=H, backend=backend,
                         baths={"hot": Bath([0, 1], temperature)},
-                        sources={"s": Source(SOURCE_SPRINGS, SOURCE_POWER)}, **QUIET)
+                        sources={"s": Source(SOURCE_SPRINGS, SOURCE_POWER)}, conduction_every=every, **QUIET)
+    sim.system.heat.use_order_of("cuda")
     return _mode(sim, fused)
 
 
@@ -83,7 +85,9 @@ def blowup_sim(backend, fused=True):
     h = 6.0 * stability_interval(tn.get_integrator("co2")) / omega
     sim = tn.Simulation(net, parameters=dict(c=100, beta=0.0, C0=1.0, theta0=300, g=2.0), temperatures=[400, 300],
                         momenta=[[0, 0, 0], [0, 0, 0], [0.01, 0, 0]], h=h, integrator="co2", backend=backend,
-                        baths={"cold": Bath([0], 250.0)}, sources={"s": Source([1], 50.0)}, **QUIET)
+                        baths={"cold": Bath([0], 250.0)}, sources={"s": Source([1], 50.0)}, conduction_every=1,
+                        **QUIET)
+    sim.system.heat.use_order_of("cuda")
     return _mode(sim, fused)
 
 
@@ -97,6 +101,8 @@ def _mode(sim, fused):
 CASES = {
     "conduction": (conduction_sim, True),
     "conduction-two-launch": (conduction_sim, False),
+    "conduction-multirate": (lambda backend, fused: conduction_sim(backend, fused, every=STEPS), True),
+    "conduction-multirate-two-launch": (lambda backend, fused: conduction_sim(backend, fused, every=STEPS), False),
     "waves": (waves_sim, True),
     "waves-two-launch": (waves_sim, False),
 }
@@ -142,6 +148,14 @@ def main(path):
     sim.run(steps=1, diagnostics_every=1)
     sim.run(steps=1, diagnostics_every=1)
     record(out, "calls-two-launch/cuda", sim)
+    # multirate: a cycle of 2 steps in one call, and cut inside the cycle
+    sim = conduction_sim("cuda", True, bath=500.0, every=2)
+    sim.run(steps=2, diagnostics_every=2)
+    record(out, "whole-multirate/cuda", sim)
+    sim = conduction_sim("cuda", True, bath=500.0, every=2)
+    sim._advance(1)
+    sim._advance(1)
+    record(out, "calls-multirate/cuda", sim)
     for name, fused in BLOWUPS.items():
         for backend in ("cpu", "cuda"):
             sim = blowup_sim(backend, fused)
@@ -199,7 +213,8 @@ def test_heat_flow_on_the_device_equals_the_cpu(runs, case):
             assert np.all(np.abs(a - b) <= DIAG_RTOL * max(float(np.max(np.abs(a))), 1.0)), c
 
 
-@pytest.mark.parametrize("case", ["conduction", "conduction-two-launch"])
+@pytest.mark.parametrize("case", ["conduction", "conduction-two-launch", "conduction-multirate",
+                                  "conduction-multirate-two-launch"])
 def test_baths_and_sources_give_their_heat_on_the_device(runs, case):
     gpu = f"{case}/cuda"
     # a source gives P τ per spring and half step, exactly
@@ -217,10 +232,11 @@ def test_thermal_waves_keep_the_total_entropy_on_the_device(runs, case):
     assert runs[f"{case}/cuda/col/wave_energy"][-1] > 0.0
 
 
-@pytest.mark.parametrize("chunked", ["calls", "launches"])
-def test_a_run_cut_into_calls_or_launches_equals_one_call(runs, chunked):
+@pytest.mark.parametrize("chunked, whole", [("calls", "whole"), ("launches", "whole"),
+                                           ("calls-multirate", "whole-multirate")])
+def test_a_run_cut_into_calls_or_launches_equals_one_call(runs, chunked, whole):
     for field in ("positions", "momenta", "thermal_displacement", "entropy") + LOGS:
-        np.testing.assert_array_equal(runs[f"{chunked}/cuda/{field}"], runs[f"whole/cuda/{field}"], err_msg=field)
+        np.testing.assert_array_equal(runs[f"{chunked}/cuda/{field}"], runs[f"{whole}/cuda/{field}"], err_msg=field)
 
 
 def test_the_two_launch_path_cut_into_calls_equals_the_fused_call(runs):

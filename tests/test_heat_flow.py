@@ -37,31 +37,47 @@ def test_junction_rule_on_a_star_and_the_colouring():
     assert graph.n_colours == 3  # K4's edges need exactly three colours
 
 
-def test_two_springs_relax_along_the_exact_exponential_with_energy_to_round_off():
-    net = chain_net(2)
-    C = np.array([5.0, 2.0])
-    sim = tn.Simulation(net, parameters=dict(c=100, beta=0.0, C0=C, theta0=300, g=0.7), temperatures=[800, 400],
-                        h=0.01, renumber=False, **QUIET)
-    d = sim.run(t_end=2.0, diagnostics_every=10)
-    kappa = 0.7 * 0.7 / 1.4  # two springs at the middle node
+def two_springs(C, g, h: float, every=1):
+    """(θ0 − θ1 at t = 2, its exact value, the final C-weighted mean, the exact one, diagnostics)."""
+    C, g = np.asarray(C, dtype=float), np.asarray(g, dtype=float)
+    sim = tn.Simulation(chain_net(2), parameters=dict(c=100, beta=0.0, C0=C, theta0=300, g=g), temperatures=[800, 400],
+                        h=h, renumber=False, conduction_every=every, **QUIET)
+    d = sim.run(t_end=2.0, diagnostics_every=10 * every)
+    kappa = g[0] * g[1] / g.sum()  # two springs at the middle node
     reduced = C[0] * C[1] / C.sum()
     theta = sim.temperatures()
-    assert theta[0] - theta[1] == pytest.approx(400.0 * np.exp(-kappa * 2.0 / reduced), rel=1e-12)
-    assert (C * theta).sum() / C.sum() == pytest.approx((C[0] * 800 + C[1] * 400) / C.sum(), rel=1e-14)
+    return (theta[0] - theta[1], 400.0 * np.exp(-kappa * 2.0 / reduced), (C * theta).sum() / C.sum(),
+            (C[0] * 800 + C[1] * 400) / C.sum(), d)
+
+
+@pytest.mark.parametrize("every", [1, 5])
+def test_two_springs_relax_along_the_exact_exponential_with_energy_to_round_off(every):
+    # equal rates g/C at the junction: the node-star exchange is the exact flow, whatever k h
+    gap, exact, mean, exact_mean, d = two_springs([5.0, 2.0], [1.75, 0.7], 0.01, every)
+    assert gap == pytest.approx(exact, rel=1e-12)
+    assert mean == pytest.approx(exact_mean, rel=1e-14)
     assert np.max(np.abs(d.energy - d.energy[0])) < 1e-12 * abs(d.energy[0])
     # the production log is the entropy gained (no baths)
     assert d.entropy_produced[-1] == pytest.approx(d.entropy[-1] - d.entropy[0], rel=1e-12)
+    # unequal rates: the common temperature exactly, the exponential to second order in k h
+    errors = []
+    for h in (0.02, 0.01):
+        gap, exact, mean, exact_mean, d = two_springs([5.0, 2.0], [0.7, 0.7], h, every)
+        assert mean == pytest.approx(exact_mean, rel=1e-14)
+        assert np.max(np.abs(d.energy - d.energy[0])) < 1e-12 * abs(d.energy[0])
+        errors.append(abs(gap - exact))
+    assert 3.6 < errors[0] / errors[1] < 4.4, errors
 
 
-def fourier_decay_rate(h: float, n_springs: int = 16, mode: int = 3, t_end: float = 2.0) -> float:
+def fourier_decay_rate(h: float, n_springs: int = 16, mode: int = 3, t_end: float = 2.0, every: int = 1) -> float:
     net = chain_net(n_springs)
     C, g, amp = 2.0, 1.0, 1e-3
     e = np.arange(n_springs)
     q = np.pi * mode / n_springs
     theta0 = 300.0 * (1 + amp * np.cos(q * (e + 0.5)))  # a Neumann eigenvector of the chain
     sim = tn.Simulation(net, parameters=dict(c=100, beta=0.0, C0=C, theta0=300, g=g), temperatures=theta0, h=h,
-                        renumber=False, **QUIET)
-    sim.run(t_end=t_end, diagnostics_every=10 ** 6)
+                        renumber=False, conduction_every=every, **QUIET)
+    sim.run(t_end=t_end, diagnostics_every=every)
     shape = np.cos(q * (e + 0.5))
     a0 = shape @ (theta0 - 300.0)
     a1 = shape @ (sim.temperatures() - 300.0)
@@ -78,17 +94,28 @@ def test_a_fourier_mode_decays_at_the_lattice_rate_with_order_2():
     assert 1.8 < slope < 2.2, (errors, slope)
 
 
+def test_multirate_conduction_is_second_order_in_k_h():
+    # h fixed, conduction every k steps: the decay converges at order 2 in k h
+    q = np.pi * 3 / 16
+    exact = (2 * 0.5 / 2.0) * (1 - np.cos(q))
+    ks = np.array([40, 20, 10])
+    errors = np.array([abs(fourier_decay_rate(0.005, every=int(k)) - exact) for k in ks])
+    slope = np.polyfit(np.log(ks), np.log(errors), 1)[0]
+    assert 1.8 < slope < 2.2, (errors, slope)
+
+
 def hot_jittered_net(seed: int = 3) -> tuple[tn.Net, np.ndarray]:
     net = tn.lattice((3, 3, 2), neighbours=18, jitter=0.2, seed=seed)
     rng = np.random.default_rng(seed)
     return net, rng.uniform(300.0, 1500.0, net.n_springs)
 
 
-def test_entropy_never_decreases_and_the_production_log_is_the_entropy_gained():
+@pytest.mark.parametrize("every", [1, 10])
+def test_entropy_never_decreases_and_the_production_log_is_the_entropy_gained(every):
     net, theta = hot_jittered_net()
     sim = tn.Simulation(net, parameters=dict(c=200, beta=2.0, C0=1.0, theta0=300, g=0.5), temperatures=theta,
-                        h=0.005, **QUIET)
-    d = sim.run(steps=10_000, diagnostics_every=1)
+                        h=0.005, conduction_every=every, **QUIET)
+    d = sim.run(steps=10_000, diagnostics_every=every)
     steps = np.diff(d.entropy)
     assert steps.min() > -1e-12 * np.abs(d.entropy).max(), steps.min()
     assert d.entropy[-1] - d.entropy[0] > 1.0  # it did mix
@@ -97,28 +124,31 @@ def test_entropy_never_decreases_and_the_production_log_is_the_entropy_gained():
     assert np.abs(d.linear_momentum).max() < 1e-11 and np.abs(d.angular_momentum).max() < 1e-10
 
 
-def energy_oscillation(h: float, steps: int) -> tuple[float, float]:
+def energy_oscillation(h: float, steps: int, every: int = 1) -> tuple[float, float]:
     net, theta = hot_jittered_net(5)
     sim = tn.Simulation(net, parameters=dict(c=100, beta=1.0, C0=1.0, theta0=300, g=0.3), temperatures=theta,
-                        velocities=np.random.default_rng(1).normal(0, 0.3, (net.n_nodes, 3)), h=h, **QUIET)
-    d = sim.run(steps=steps, diagnostics_every=max(1, steps // 2000))
+                        velocities=np.random.default_rng(1).normal(0, 0.3, (net.n_nodes, 3)), h=h,
+                        conduction_every=every, **QUIET)
+    d = sim.run(steps=steps, diagnostics_every=max(every, steps // 2000))
     e = d.energy
     tenth = len(e) // 10
     drift = abs(e[-tenth:].mean() - e[:tenth].mean())
     return float(np.max(np.abs(e - e[0]))), float(drift)
 
 
-def test_energy_bounded_without_drift_and_its_oscillation_is_order_2():
-    osc, drift = energy_oscillation(0.004, 100_000)
+@pytest.mark.parametrize("every", [1, 5])
+def test_energy_bounded_without_drift_and_its_oscillation_is_order_2(every):
+    osc, drift = energy_oscillation(0.004, 100_000, every)
     assert drift < 0.2 * osc
-    osc_half, _ = energy_oscillation(0.002, 20_000)
-    osc_full, _ = energy_oscillation(0.004, 10_000)
+    osc_half, _ = energy_oscillation(0.002, 20_000, every)
+    osc_full, _ = energy_oscillation(0.004, 10_000, every)
     assert 3.0 < osc_full / osc_half < 5.0, (osc_full, osc_half)
 
 
 def steady_chain(h: float, n: int = 8, g: float = 2.0, hot: float = 600.0, cold: float = 300.0):
     sim = tn.Simulation(chain_net(n), parameters=dict(c=100, beta=0.0, C0=1.0, theta0=300, g=g), temperatures=300.0,
-                        h=h, baths={"hot": Bath("left", hot), "cold": Bath("right", cold)}, renumber=False, **QUIET)
+                        h=h, baths={"hot": Bath("left", hot), "cold": Bath("right", cold)}, renumber=False,
+                        conduction_every=1, **QUIET)
     d = sim.run(t_end=200.0, diagnostics_every=round(1 / h))
     return sim, d
 
@@ -145,19 +175,20 @@ def test_a_chain_between_two_baths_reaches_the_linear_profile_and_the_series_hea
     assert 3.5 < errors[0] / errors[1] < 4.5 and 3.5 < flows[0] / flows[1] < 4.5, (errors, flows)
 
 
-def bath_balance(h: float) -> float:
+def bath_balance(h: float, every: int = 1) -> float:
     net, theta = hot_jittered_net(7)
     net.node_groups["hot"] = np.arange(4)
     sim = tn.Simulation(net, parameters=dict(c=100, beta=2.0, C0=1.0, theta0=300, g=0.4), temperatures=theta,
                         h=h, baths={"b": Bath("hot", {"start": 300.0, "end": 900.0, "duration": 1.0})},
                         sources={"s": Source(np.arange(5), {"amplitude": 20.0, "frequency": 1.0, "offset": 10.0})},
-                        **QUIET)
-    d = sim.run(t_end=2.0, diagnostics_every=max(1, round(0.01 / h)))
+                        conduction_every=every, **QUIET)
+    d = sim.run(t_end=2.0, diagnostics_every=max(every, round(0.01 / h)))
     return float(np.max(np.abs(d.energy_balance)))
 
 
-def test_with_baths_and_sources_the_energy_balance_is_order_2():
-    coarse, fine = bath_balance(0.004), bath_balance(0.002)
+@pytest.mark.parametrize("every", [1, 5])
+def test_with_baths_and_sources_the_energy_balance_is_order_2(every):
+    coarse, fine = bath_balance(0.004, every), bath_balance(0.002, every)
     assert 3.0 < coarse / fine < 5.0, (coarse, fine)
 
 
@@ -174,7 +205,8 @@ def test_no_conductance_is_bit_identical_to_no_conduction():
     assert np.array_equal(a.state.entropy, b.state.entropy)
 
 
-def test_chunked_threaded_and_resumed_runs_are_bit_identical(tmp_path):
+@pytest.mark.parametrize("every", [1, 4])
+def test_chunked_threaded_and_resumed_runs_are_bit_identical(tmp_path, every):
     from thermonet.io.checkpoint import load_checkpoint, save_checkpoint
 
     net, theta = hot_jittered_net(13)
@@ -183,21 +215,25 @@ def test_chunked_threaded_and_resumed_runs_are_bit_identical(tmp_path):
     def make(**kw):
         return tn.Simulation(net, parameters=dict(c=100, beta=1.0, C0=1.0, theta0=300, g=0.4), temperatures=theta,
                              h=0.004, baths={"b": Bath("hot", 700.0)}, sources={"s": Source([0, 1], 5.0)},
-                             **QUIET, **kw)
+                             conduction_every=every, **QUIET, **kw)
 
     one = make()
     one.run(steps=400, diagnostics_every=400)
     chunked = make(parallel=True, threads=2)
     for _ in range(4):
-        chunked.run(steps=100, diagnostics_every=7)
+        chunked.run(steps=100, diagnostics_every=4)
+    # calls that end inside a conduction cycle (as a run interrupted and checkpointed there)
+    inside = make()
+    for n in (3, 7, 1, 389):
+        inside._advance(n)
     first = make()
-    first.run(steps=150, diagnostics_every=50)
+    first._advance(150)
     save_checkpoint(tmp_path / "c.npz", first.state, {})
     state, _ = load_checkpoint(tmp_path / "c.npz")
     resumed = make()
     resumed.load_state(state)
-    resumed.run(steps=250, diagnostics_every=50)
-    for other in (chunked, resumed):
+    resumed._advance(250)
+    for other in (chunked, inside, resumed):
         assert np.array_equal(one.state.positions, other.state.positions)
         assert np.array_equal(one.state.entropy, other.state.entropy)
         for k in ("produced", "entry_heat", "entry_flux"):

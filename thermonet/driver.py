@@ -73,6 +73,7 @@ class RunDriver:
         for k, _ in cadences:
             if k < 1:
                 raise InputError(f"run: observer cadence must be >= 1, got {k}")
+        self._choose_conduction_cycle(steps, [k for k, _ in cadences])
         if not self.diagnostics.rows or self.diagnostics.rows[-1]["step"] != self._state.step:
             self._record(self)
         for k, cb in cadences[1:]:
@@ -121,6 +122,27 @@ class RunDriver:
         self.wall_time += _time.perf_counter() - t0 - watch.seconds
         self.steps_run += steps
         return self.diagnostics
+
+    def _choose_conduction_cycle(self, steps: int, cadences) -> None:
+        """The conduction cycle of this run (:mod:`thermonet.heat.multirate`), chosen at a cycle
+        boundary so that every output cadence and the run's end fall on one; a run that starts
+        inside a cycle (a state left there by ``advance``) finishes it first with the same k."""
+        heat = getattr(self.system, "heat", None)
+        if heat is None or not heat.conduction or steps <= 0:
+            return
+        from .heat.multirate import choose_cycle
+        from .integrators.splitting import cycle_position, heat_logs
+
+        every, at = cycle_position(self._state, heat)
+        if at != 0:
+            self.conduction_cycle = (every, f"continuing a cycle of {every} steps begun at step "
+                                            f"{self._state.step - at}")
+            return
+        step = self._state.step
+        k, why = choose_cycle(self.conduction_every, heat.fastest_rate(), self._h, list(cadences) + [steps, step])
+        if k != every:
+            heat_logs(self._state, heat)["cycle"][:] = (k, step)
+        self.conduction_cycle = (k, why)
 
     def _set_step(self, step: int) -> None:
         """Move the step counter; time is origin + (steps since origin)·h, so it does not depend
@@ -216,6 +238,7 @@ class RunDriver:
     def record_diagnostics(self) -> None:
         """Record a diagnostics row for the current state unless the last row is of this step
         (checkpoints call it so that a resumed run's rows equal an uninterrupted run's)."""
+        self._choose_conduction_cycle(steps, [k for k, _ in cadences])
         if not self.diagnostics.rows or self.diagnostics.rows[-1]["step"] != self._state.step:
             self._record(self)
 

@@ -171,13 +171,16 @@ class StabilityGuard:
 
         state = sim.internal_state()
         h = sim.h
-        bound = frequency_bound(sim.system, state.positions, state.entropy)
-        if math.isfinite(bound) and h * bound * self.scale <= SAFETY * self.interval:
-            return
-        from .stability import max_frequency
+        from .stability import max_frequency, wave_frequency
 
+        waves = getattr(sim.system, "heat", None) is not None and sim.system.heat.waves
+        bound = frequency_bound(sim.system, state.positions, state.entropy)
+        wave_bound = wave_frequency(sim, bound_only=True) if waves else 0.0
+        if math.isfinite(bound) and h * max(bound * self.scale, wave_bound) <= SAFETY * self.interval:
+            return
         est = max_frequency(sim.system, state.positions, state.entropy)
-        omega = est.omega_max
+        omega_w = wave_frequency(sim) if waves else 0.0
+        omega = max(est.omega_max, omega_w)
         if math.isfinite(bound) and bound > 0 and math.isfinite(omega):
             self.scale = min(1.0, omega / bound)
         h_max = self.interval / omega if omega > 0 else math.inf
@@ -186,7 +189,9 @@ class StabilityGuard:
         if ratio <= SAFETY:
             return
         where = (f"at step {sim.step} (t = {sim.time:.6g}) the stability limit of {sim.integrator.name} is "
-                 f"h_max ≈ {h_max:.4g} (ω_max ≈ {omega:.4g}, {est.method}, re-estimated from the current stiffnesses)")
+                 f"h_max ≈ {h_max:.4g} (ω_max ≈ {omega:.4g}, "
+                 + (f"the thermal waves' (mechanical {est.omega_max:.4g}), " if omega_w > est.omega_max else "")
+                 + f"{est.method}, re-estimated from the current stiffnesses)")
         if ratio > REFUSE and self.mode == "stop":
             raise StabilityLimitExceeded(
                 f"{where}, and h = {h:g} is {ratio:.3g}× it: the run is no longer stable")

@@ -36,7 +36,7 @@ from .integrators.splitting import heat_logs
 from .state import State
 
 #: heat-flow logs with one value per spring (stored in the user's numbering outside the engine)
-PER_SPRING_LOGS = ("produced", "theta", "length")
+PER_SPRING_LOGS = ("produced", "theta", "length", "pending_eta", "pending_produced", "pending_theta")
 
 #: nets with at least this many springs use the multi-threaded kernels
 PARALLEL_MIN_SPRINGS = 16384
@@ -84,9 +84,14 @@ class Simulation(RunDriver):
         numba-cuda, the state resident on the device (see :mod:`thermonet.cuda`).
     conduction: Fourier heat conduction between springs (spec-heat §1) through each spring's
         conductance ``g``, given in ``parameters`` like a model parameter (scalar or (m,), ≥ 0);
-        default: on when ``g`` is given. Each step becomes ``K(h/2) ∘ A(h) ∘ K(h/2)`` with exact
-        pairwise exchanges (:mod:`thermonet.heat`); the diagnostics gain the entropy produced,
-        the heat of each bath and source and the energy and entropy balances.
+        default: on when ``g`` is given. Each conduction cycle of k steps becomes
+        ``K(kh/2) ∘ A(h)^k ∘ K(kh/2)``, K a sweep of node-star exchanges (:mod:`thermonet.heat`);
+        the diagnostics gain the entropy produced, the heat of each bath and source and the
+        energy and entropy balances.
+    conduction_every: k, the steps of one conduction cycle: "auto" (default: the largest k of
+        1, 2, 5, 10, 20, … with λ k h ≤ 0.1, λ the conduction's fastest rate, that divides the
+        output cadences; :mod:`thermonet.heat.multirate`) or a whole number that divides every
+        run's output cadences and length. ``self.conduction_cycle`` says which k ran and why.
     thermal_waves: Green–Naghdi type II thermal waves (spec-heat §2) through ``g_star`` (in
         ``parameters``); explicit splittings only; default: on when ``g_star`` is given.
     baths: name -> :class:`thermonet.heat.Bath` (a node group held at θ_b(t)), needs conduction.
@@ -119,6 +124,7 @@ class Simulation(RunDriver):
         energy_tolerance: float | None = DEFAULT_ENERGY_TOLERANCE,
         stability_guard="stop",
         conduction: bool | None = None,
+        conduction_every="auto",
         thermal_waves: bool | None = None,
         baths: Mapping | None = None,
         sources: Mapping | None = None,
@@ -163,6 +169,13 @@ class Simulation(RunDriver):
             self.stepper = ConductionAround(self.stepper, self.system, self.parallel)
         if heat is not None:
             heat_logs(self._state, heat)
+        from .heat.multirate import check_conduction_every
+
+        self.conduction_every = check_conduction_every(conduction_every)
+        if heat is not None and heat.conduction and self.conduction_every != "auto":  # cycles counted from step 0
+            heat_logs(self._state, heat)["cycle"][:] = (self.conduction_every, 0)
+        #: (k, why) of the conduction cycle the last run used (None: no conduction, or no run yet)
+        self.conduction_cycle = None
         self.loads = attach_loads(self, load_set)
         self.diagnostics = Diagnostics()
         #: seconds spent stepping (Numba compilation excluded) and steps run, over all runs
@@ -249,6 +262,8 @@ class Simulation(RunDriver):
             given = (state.extra or {}).get("heat")
             if given is not None:
                 for k, v in logs.items():
+                    if k not in given:  # (a log this version added: its default)
+                        continue
                     a = np.asarray(given[k], dtype=np.float64)
                     if a.shape != v.shape:
                         raise InputError(f"the state's heat log {k!r} has shape {a.shape}, this run's has {v.shape}")

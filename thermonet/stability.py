@@ -255,19 +255,56 @@ def _matfree_frequency(system, axial, geometric, n_vec, steps: int = LANCZOS_STE
                              f"Lanczos ({k} matrix-free steps)")
 
 
+def wave_frequency(sim, bound_only: bool = False) -> float:
+    """ω_W, the fastest frequency of the Green–Naghdi thermal waves at the current temperatures
+    (0 without them): linearized at fixed positions, ``Φ̈_e = θ̇_e = −(θ_e / C_e) Σ_f k*_ef (Φ_e − Φ_f)``,
+    so ω_W² is the largest eigenvalue of ``D^½ L* D^½``, D = diag(θ/C), L* the k*-Laplacian of
+    the spring pairs. Their flow is a third sub-flow of the splitting with its own limit
+    h ω_W < c. ``bound_only``: the Gershgorin bound ``√(2 max_e (θ_e/C_e) Σ_f k*_ef)`` instead."""
+    heat = getattr(sim.system, "heat", None)
+    if heat is None or not heat.waves or heat.graph.n_pairs == 0:
+        return 0.0
+    g = heat.graph
+    k = g.kappa[:, 1]
+    m = len(heat.capacity)
+    theta = sim.internal_spring_fields().temperature
+    d = np.sqrt(np.maximum(theta, 0.0) / heat.capacity)
+    degree = np.bincount(g.first, weights=k, minlength=m) + np.bincount(g.second, weights=k, minlength=m)
+    if bound_only or m > 200:
+        bound = float(2.0 * np.max(d * d * degree))
+        if bound_only:
+            return float(np.sqrt(bound))
+    L = sp.coo_matrix((np.concatenate([-k, -k, degree]),
+                       (np.concatenate([g.first, g.second, np.arange(m)]),
+                        np.concatenate([g.second, g.first, np.arange(m)]))), shape=(m, m)).tocsr()
+    A = sp.diags(d) @ L @ sp.diags(d)
+    if m <= 200:
+        lam = float(np.linalg.eigvalsh(A.toarray()).max())
+    else:
+        try:
+            v0 = np.random.default_rng(0).standard_normal(m)
+            lam = float(eigsh(A, k=1, which="LA", tol=1e-4, maxiter=2000, v0=v0, return_eigenvectors=False)[0])
+        except ArpackNoConvergence:
+            lam = bound
+    return float(np.sqrt(max(lam, 0.0)))
+
+
 def stable_step(sim, integrator=None) -> dict:
     """The stable step limit of ``integrator`` (default: the simulation's) at the current state.
 
     Returns a dict with omega_max, gershgorin_bound (an upper bound on ω_max), interval (c),
-    h_max = c / ω_max and the estimate's method.
+    h_max = c / max(ω_max, ω_W) and the estimate's method; omega_waves: ω_W of the thermal waves
+    (:func:`wave_frequency`, 0 without them) and limit: which of the two sets h_max.
     """
     from .integrators import get_integrator
 
     integ = sim.integrator if integrator is None else get_integrator(integrator)
     s = sim.internal_state()
     est = max_frequency(sim.system, s.positions, s.entropy)
+    omega_w = wave_frequency(sim)
     c = stability_interval(integ)
-    h_max = float(c / est.omega_max) if est.omega_max > 0 else float("inf")
+    omega = max(est.omega_max, omega_w)
+    h_max = float(c / omega) if omega > 0 else float("inf")
     return {
         "integrator": integ.name,
         "omega_max": est.omega_max,
@@ -275,4 +312,6 @@ def stable_step(sim, integrator=None) -> dict:
         "interval": c,
         "h_max": h_max,
         "method": est.method,
+        "omega_waves": omega_w,
+        "limit": "thermal waves" if omega_w > est.omega_max else "mechanical",
     }

@@ -7,6 +7,8 @@ import os
 
 import numpy as np
 
+from ..errors import InputError
+
 HELP = "describe a mesh or a scene: nodes, springs, cell types, groups, materials, memory, stable step"
 
 
@@ -98,7 +100,8 @@ def describe_scene(path: str, overrides) -> list[str]:
     e = d["effects"]
     out.append(f"  effects: thermal {'on' if e['thermal'] else 'off'}, gravity {e['gravity'] or 'off'}, "
                f"{int(net.anchored.sum())} anchored nodes")
-    out += _heat_flow(sim, {**(d.get('baths') or {}), **(d.get('sources') or {})})
+    cadences = [scene.cadence(key, total) for key in ("frames_every", "diagnostics_every", "checkpoint_every")]
+    out += _heat_flow(sim, {**(d.get('baths') or {}), **(d.get('sources') or {})}, cadences + [total])
     if sim.loads is not None:  # loads
         out.append(f"  loads ({len(sim.loads.set)}):")
         out += [f"    {name}: {sim.loads.set.describe(i)}" for i, name in enumerate(sim.loads.set.names)]
@@ -109,24 +112,25 @@ def describe_scene(path: str, overrides) -> list[str]:
                f"{scene.cadence('checkpoint_every', total)} (checkpoints); fields {', '.join(scene.output_fields())}")
     memory = engine_bytes(net.n_nodes, net.n_springs, len(sim.model.parameters), e['thermal'])
     heat = sim.system.heat
-    extra = heat_bytes(net.n_springs, heat.graph.n_pairs) if heat is not None else 0
+    extra = heat_bytes(net.n_springs, heat.graph.n_pairs, net.n_nodes) if heat is not None else 0
     out.append(f"  memory of the run: about {_mb(memory + extra)}"
                + (f" ({_mb(extra)} of it for heat flow)" if extra else ""))
     out.append(_stable_step(sim, "initial state"))
     return out
 
 
-def heat_bytes(n_springs: int, n_pairs: int) -> int:
-    """Bytes heat flow adds to a run: per pair its two springs, κ and k*, the sweep's factor; per
-    spring g, g*, C, 1/C, the entropy production log and the sweeps' temperatures."""
-    return n_pairs * (8 + 8 + 16 + 8) + n_springs * 6 * 8
+def heat_bytes(n_springs: int, n_pairs: int, n_nodes: int = 0) -> int:
+    """Bytes heat flow adds to a run: per thermal-wave pair its two springs, κ and k*; per
+    spring g, g*, C, 1/C, the sweep's two factors, the entropy production log and the sweeps'
+    temperatures, lengths and forces; per node its place in the sweep order."""
+    return n_pairs * (8 + 8 + 16) + n_springs * 11 * 8 + n_nodes * 16
 
 
-def _heat_flow(sim, specs: dict) -> list[str]:
+def _heat_flow(sim, specs: dict, cadences=()) -> list[str]:
     """The heat-flow lines: conduction and thermal waves, the pair graph, baths, sources (specs:
     the scene's bath and source tables by name)."""
+    from ..heat.exchange import BATH
     from ..heat.graph import pairs_per_spring
-    from ..kernels.heat_flow import BATH
 
     heat = sim.system.heat
     if heat is None:
@@ -138,8 +142,14 @@ def _heat_flow(sim, specs: dict) -> list[str]:
         key = "g" if name == "conduction" else "g_star"
         parts.append(f"{name} {'on' if on else 'off'}" + (f" ({key} {_span(values)})" if on else ""))
     g = heat.graph
-    out = [f"  heat flow: {', '.join(parts)}",
-           f"    {g.n_pairs} spring pairs ({pairs_per_spring(g, m):.3g} per spring, {g.n_colours} colours)"]
+    out = [f"  heat flow: {', '.join(parts)}"]
+    if heat.conduction:
+        order = heat.star_order(sim.backend)
+        out.append(f"    conduction swept over {len(order.node)} junctions in {order.n_blocks} blocks, "
+                   f"{order.n_colours} colours ({sim.backend}); {conduction_line(sim, cadences)}")
+    if heat.waves:
+        out.append(f"    thermal waves: {g.n_pairs} spring pairs ({pairs_per_spring(g, m):.3g} per spring, "
+                   f"{g.n_colours} colours)")
     for i, name in enumerate(heat.names):
         mine = heat.entry_fn == i
         if i < heat.n_baths:
@@ -155,6 +165,17 @@ def _heat_flow(sim, specs: dict) -> list[str]:
     if not heat.names:
         out.append("    no baths or sources (an isolated net: heat only moves inside)")
     return out
+
+
+def conduction_line(sim, cadences=()) -> str:
+    """Which conduction cycle a run with output ``cadences`` (steps) takes, and why."""
+    from ..heat.multirate import choose_cycle
+
+    try:
+        k, why = choose_cycle(sim.conduction_every, sim.system.heat.fastest_rate(), sim.h, cadences)
+    except InputError as exc:  # (run refuses it the same way)
+        return f"conduction_every: {exc}"
+    return f"conduction every {k} step{'s' if k != 1 else ''} ({why})"
 
 
 def _span(values) -> str:

@@ -39,10 +39,12 @@ import math
 import numpy as np
 from numba import cuda, float64, njit
 
+from ..heat import exchange as heat_exchange
+from ..heat.rows import CONDUCTION_FORWARD, CONDUCTION_REVERSE, THERMAL_WAVES
 from ..integrators.schedule import MAX_FLOWS
-from ..kernels import heat_flow, subflows
+from ..kernels import subflows
 from ..kernels.specialize import MODEL_FUNCTIONS, function_fingerprint, kernel_namespace, model_fingerprint, rebind
-from ..kernels.splitting import bind_subflows
+from ..kernels.subflows import bind_subflows
 from . import FLAG_ROW, FLAG_SET, FLAG_STAGES, FLAG_STEP, simulator_enabled
 
 # Bound per model by cuda_kernels(); see thermonet.kernels.splitting for their meaning.
@@ -51,8 +53,8 @@ spring_force = spring_energy = spring_temperature = outside_admissible = advance
 squared_length = None
 gather_force = kick_momentum = drift_position = load_row = store_row = update = None
 flow_update_0 = flow_update_1 = flow_update_2 = flow_update_3 = None
-# --- heat flow (thermonet.cuda.heat): compiled in only with CONDUCTION / WAVES ---
-sweep_phase = temperature_update = phase_count = None
+# --- heat flow (thermonet.heat.cuda): compiled in only with CONDUCTION / WAVES ---
+sweep_phase = temperature_update = phase_count = conduction_due = None
 CONDUCTION = False
 WAVES = False
 # --- end heat flow ---
@@ -125,13 +127,13 @@ def cuda_kernels(model, thermal: bool = True, uniform: bool = False, flows=(), c
         # --- heat flow ---
         ns["CONDUCTION"], ns["WAVES"] = bool(conduction), bool(waves)
         if conduction or waves:
-            from . import heat
+            from ..heat import cuda as heat
 
-            tag += f"_{'k' * conduction}{'w' * waves}{heat_flow.source_digest()}{heat.source_digest()}"
+            tag += f"_{'k' * conduction}{'w' * waves}{heat_exchange.source_digest()}{heat.source_digest()}"
             heat.bind_device_heat(ns, tag, inline)
         else:
             ns["sweep_phase"], ns["temperature_update"] = inline(_no_sweep), inline(_no_temperature)
-            ns["phase_count"] = inline(_no_phases)
+            ns["phase_count"], ns["conduction_due"] = inline(_no_phases), inline(_no_due)
         # --- end heat flow ---
         ns["LOADS"] = bool(loads)
         if loads:
@@ -154,7 +156,7 @@ def cuda_kernels(model, thermal: bool = True, uniform: bool = False, flows=(), c
             compile_(_spring_sums_kernel), compile_(_node_sums_kernel), compile_(_finish_kernel),
             SIMULATOR_THREADS if sim else THREADS, reduce_threads, SIMULATOR_REDUCE_BLOCKS if sim else REDUCE_BLOCKS)
         if conduction or waves:  # heat flow
-            kernels.sweep, kernels.temperature = heat.heat_kernels(compile_)
+            kernels.sweep, kernels.temperature = heat.heat_kernels(compile_)  # (thermonet.heat.cuda)
         if loads:  # loads
             from ..loads.cuda import load_stage_kernel, load_start_kernel
 
@@ -194,9 +196,14 @@ def _no_temperature(e, x, eta, edges, springs, heat):
     return None
 
 
-def _no_phases(code, colour_ptr):
+def _no_phases(code, colour_ptr, star_colour_ptr):
     """No heat flow compiled in."""
     return 0
+
+
+def _no_due(code, every, step_in_cycle):
+    """No heat flow compiled in."""
+    return False
 
 
 # ----------------------------------------------------------------------------------------------
@@ -249,7 +256,7 @@ def _steps_kernel(state, x_buf, s, topology, springs, nodes, table, flows, run, 
     eta = state.eta
     effects = flows[0]
     heat = flows[1]
-    theta_valid = CONDUCTION and heat.theta_ok[0] == 1.0  # the previous call's sweeps continue
+    theta_valid = CONDUCTION and heat.theta_ok[0] >= 1.0  # the previous call's sweeps continue
     h = run.h
     n_rows = table.code.shape[0]
     edges = topology.edges
@@ -268,10 +275,13 @@ def _steps_kernel(state, x_buf, s, topology, springs, nodes, table, flows, run, 
                     grid.sync()
                     theta_valid = False
                     continue
-                if code <= -2:  # --- heat flow (as the CPU's _advance) ---
-                    if WAVES and code == -4:
+                if code <= CONDUCTION_FORWARD:  # --- heat flow (as the CPU's _advance) ---
+                    if WAVES and code == THERMAL_WAVES:
                         theta_valid = False
-                    elif CONDUCTION and code >= -3:
+                    elif CONDUCTION and code >= CONDUCTION_REVERSE:
+                        if not conduction_due(code, run.conduction_every,
+                                              (run.cycle_step + step) % run.conduction_every):
+                            continue
                         if not theta_valid:
                             for e in range(first, edges.shape[0], stride):
                                 temperature_update(e, xs, eta, edges, springs, heat)
@@ -280,8 +290,9 @@ def _steps_kernel(state, x_buf, s, topology, springs, nodes, table, flows, run, 
                     else:
                         continue
                     t = run.t0 + (step + table.drift[r]) * h
-                    for phase in range(phase_count(code, heat.colour_ptr)):
-                        sweep_phase(code, phase, heat, table.kick[r] * h, t, phi, eta, first, stride)
+                    tau = table.kick[r] * h * (run.conduction_every if code != THERMAL_WAVES else 1)
+                    for phase in range(phase_count(code, heat.colour_ptr, heat.star_colour_ptr)):
+                        sweep_phase(code, phase, heat, tau, t, phi, eta, first, stride)
                         grid.sync()
                     continue
                 k1 = pending if r == 0 else 0.0

@@ -15,11 +15,18 @@ import numpy as np
 
 from ..diagnostics import diagnostics_row
 from ..errors import InputError
+from ..heat.rows import CONDUCTION_FORWARD, THERMAL_WAVES
 from ..integrators.base import Stepper
 from ..kernels import records
 from ..kernels.splitting import kernel_parameters
 from ..loads.stepping import StepperLoads, work_of
 from . import FLAG_ROW, FLAG_SET, FLAG_STAGES, FLAG_STEP, require_cuda
+
+
+def _conduction_due(code: int, every: int, step_in_cycle: int) -> bool:
+    """Whether a conduction row runs on this step of its cycle (the host's copy of
+    :func:`thermonet.heat.cuda._conduction_due`, which imports numba.cuda)."""
+    return step_in_cycle == 0 if code == CONDUCTION_FORWARD else step_in_cycle == every - 1
 
 
 class CudaSplittingStepper(Stepper):
@@ -50,7 +57,7 @@ class CudaSplittingStepper(Stepper):
         from numba import cuda
 
         from ..integrators.splitting import flow_data
-        from .heat import DeviceHeat
+        from ..heat.cuda import DeviceHeat
         from .kernels import NODE_OPS, SPRING_OPS, cuda_kernels
 
         self.integrator = integrator
@@ -69,6 +76,7 @@ class CudaSplittingStepper(Stepper):
         if (conduction or waves) and getattr(system, "heat", None) is None:
             raise InputError(f"{integrator.name} has heat-flow rows but the system has no heat flow set up")
         self._heat = DeviceHeat(system.heat if (conduction or waves) else None, integrator, dev)
+        self._cycle = (1, 0)  # (k, steps of the cycle made) at the call's start
         self._k = cuda_kernels(system.model, system.thermal, uniform, flows, conduction, waves, self.loads is not None)
         self._table = records_to_device(table, dev)
         self._rows = [(int(c), float(k), float(d)) for c, k, d in zip(table.code, table.kick, table.drift)]
@@ -173,6 +181,10 @@ class CudaSplittingStepper(Stepper):
         self._bind(state)
         self._keep_backup(state, h)
         self._call_step = state.step  # loads: the clock's step
+        if self._heat.setup is not None and self._heat.setup.conduction:  # the conduction cycle
+            from ..integrators.splitting import cycle_position
+
+            self._cycle = cycle_position(state, self._heat.setup)
         stop = self._steps(float(state.time), int(n_steps), float(h))
         self._device_newer = True
         if stop is not None:
@@ -183,14 +195,15 @@ class CudaSplittingStepper(Stepper):
         """n_steps steps from time t0 on the device state; None, or where a launch stopped:
         (flag, steps completed before its launch sequence, positions buffer at that start)."""
         lo, hi = self.system.stretch_bounds
-        run = records.Run(h, t0, n_steps, bool(self.integrator.track_phi), float(lo), float(hi), False, False)
+        every, at = self._cycle
+        run = records.Run(h, t0, n_steps, bool(self.integrator.track_phi), float(lo), float(hi), False, False, every, at)
         fused = self.fused if self.fused is not None else self.system.n_springs < self.FUSED_MAX_SPRINGS
         if fused:
             done = 0
             while done < n_steps:
                 chunk = min(n_steps - done, self.FUSED_MAX_STEPS)
                 chunk_start = self._x
-                self._fused_steps(run._replace(n_steps=chunk, t0=t0 + done * h))
+                self._fused_steps(run._replace(n_steps=chunk, t0=t0 + done * h, cycle_step=(at + done) % every))
                 flag = self._flag.copy_to_host()
                 if flag[FLAG_SET]:
                     return flag, done, chunk_start
@@ -199,7 +212,7 @@ class CudaSplittingStepper(Stepper):
         x_start = self._x
         pending = 0.0
         stages = 0
-        heat = self._heat.record(h) if self._heat.setup is not None else None
+        heat = self._heat.record(h, every) if self._heat.setup is not None else None
         theta_valid = heat is not None and self._heat.theta_ok()
         clock = self._load_clock(h)  # loads
         for step in range(n_steps):
@@ -209,9 +222,13 @@ class CudaSplittingStepper(Stepper):
                     self._flow(code, kick * h, t_step + drift * h)
                     theta_valid = False
                     continue
-                if code <= -2:
-                    self._heat_row(heat, code, kick * h, t_step + drift * h, theta_valid)
-                    theta_valid = code != -4
+                if code <= CONDUCTION_FORWARD:
+                    if code == THERMAL_WAVES:
+                        self._heat_row(heat, code, kick * h, t_step + drift * h, theta_valid)
+                        theta_valid = False
+                    elif _conduction_due(code, every, (at + step) % every):
+                        self._heat_row(heat, code, kick * every * h, t_step + drift * h, theta_valid)
+                        theta_valid = True
                     continue
                 if clock is not None:  # loads: the time at the end of this stage's drift
                     self._t_after = clock[0] + ((clock[1] + step) + self._drift_time[r]) * h
@@ -233,7 +250,7 @@ class CudaSplittingStepper(Stepper):
         after a temperature pass when a conduction sweep has no valid θ."""
         k = self._k
         m = self.system.n_springs
-        if code != -4 and not theta_valid and m > 0:
+        if code != THERMAL_WAVES and not theta_valid and m > 0:
             k.temperature[k.blocks(m), k.threads](self._x, self._eta, self._topology.edges, self._springs, heat,
                                                   self._flag)
         for phase, count in self._heat.phases(code):
@@ -259,7 +276,7 @@ class CudaSplittingStepper(Stepper):
         two-launch loop (including the closing half kick), so a chunk ends in the same state."""
         k = self._k
         args = (self._state_arrays(), self._x_buf, self._s, self._topology, self._springs, self._nodes, self._table,
-                (self._effects, self._heat.record(run.h)), run, self._flag)
+                (self._effects, self._heat.record(run.h, run.conduction_every)), run, self._flag)
         if self._fused_blocks is None:
             self._fused_blocks = self._cooperative_blocks(args)
         k.steps[self._fused_blocks, k.threads](*args)

@@ -3,15 +3,16 @@
 - :func:`junction_temperature`: each node's temperature as a heat junction,
   ``Σ_e g_e θ_e / Σ_e g_e`` over its springs (the temperature that makes the junction's net heat
   zero; a bath node's is the bath's): a smooth point field for ParaView;
-- :func:`heat_rate`: the net heat flowing into each spring per time from its pairs, its bath ends
-  and its sources.
+- :func:`heat_rate`: the net heat flowing into each spring per time from the junctions at its
+  ends (``g_e (J_i − θ_e)`` at each junction end i, the same as ``Σ_f κ_ef (θ_f − θ_e)``), its
+  bath ends and its sources.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from ..kernels.heat_flow import BATH
+from .exchange import BATH
 
 
 def _bath_values(heat, t: float) -> np.ndarray:
@@ -42,9 +43,15 @@ def junction_temperature(heat, layout, theta: np.ndarray, t: float, out: np.ndar
 def heat_rate(heat, theta: np.ndarray, t: float) -> np.ndarray:
     """(m,) net heat per time flowing into each spring at time t (θ: (m,))."""
     m = len(theta)
-    g = heat.graph
-    flow = g.kappa[:, 0] * (theta[g.second] - theta[g.first])
-    rate = np.bincount(g.first, weights=flow, minlength=m) - np.bincount(g.second, weights=flow, minlength=m)
+    layout = heat.layout
+    edges = np.asarray(layout.edges, dtype=np.int64)
+    junction = junction_temperature(heat, layout, theta, t)
+    rate = np.zeros(m)
+    g = heat.conductance if heat.conduction else np.zeros(m)
+    for end in (0, 1):
+        node = edges[:, end]
+        inner = heat.bath_nodes[node] < 0  # bath ends are entries (below)
+        rate += np.where(inner, g * (junction[node] - theta), 0.0)
     if len(heat.entry_spring):
         values = _bath_values(heat, t)[heat.entry_fn]
         e = heat.entry_spring

@@ -14,10 +14,10 @@ from typing import Mapping
 import numpy as np
 
 from ..errors import InputError
-from ..kernels.heat_flow import BATH, SOURCE
 from ..kernels.records import Heat
 from ..timefunctions import TimeFunction, pack, time_function
-from .graph import PairGraph, bath_ends, pair_graph
+from .exchange import BATH, SOURCE
+from .graph import PairGraph, StarOrder, bath_ends, fastest_rate, pair_graph, star_order
 
 
 @dataclass(frozen=True)
@@ -44,8 +44,9 @@ class Source:
 class HeatSetup:
     """What the kernels need for heat flow, internal numbering.
 
-    conduction, waves: which flows run. graph: the coloured pairs, kappa (P, 2): κ from g and
-    k* from g*. capacity: (m,) C per spring. names: the baths' then the sources' names;
+    conduction, waves: which flows run. graph: the thermal waves' coloured pairs, kappa (P, 2): κ
+    from g and k* from g* (empty without waves). layout: the run's layout (the conduction sweep's
+    order is built from it, per backend: :meth:`star_order`). capacity: (m,) C per spring. names: the baths' then the sources' names;
     functions: their time functions (same order). Entries (E,) sorted by spring:
     entry_spring, entry_kind (BATH/SOURCE), entry_fn (index into functions and names),
     entry_rate (g/C of a bath end). bath_nodes: (n,) int64 bath of each node (−1 none).
@@ -66,30 +67,66 @@ class HeatSetup:
     conductance: np.ndarray
     wave_conductance: np.ndarray
     n_baths: int
+    layout: object = None
 
     def new_logs(self) -> dict:
-        """Zeroed logs: produced (m,), entry_heat (E,), entry_flux (E,), and the sweeps' working
-        temperatures and lengths theta, length (m,) with theta_ok (1,) = 0 (not valid yet)."""
+        """Zeroed logs: produced (m,), entry_heat (E,), entry_flux (E,), the sweeps' working
+        temperatures and lengths theta, length (m,) with theta_ok (1,) = 0 (not valid yet), and
+        cycle (2,): the conduction cycle's length k and the step it is counted from (multirate
+        conduction: a cycle starts at every step s with (s − cycle[1]) % cycle[0] == 0);
+        pending_eta, pending_produced, pending_theta (m,): see :class:`~thermonet.kernels.records.Heat`."""
         return {"produced": np.zeros(len(self.capacity)), "entry_heat": np.zeros(len(self.entry_spring)),
                 "entry_flux": np.zeros(len(self.entry_spring)), "theta": np.zeros(len(self.capacity)),
-                "theta_ok": np.zeros(1), "length": np.zeros(len(self.capacity))}
+                "theta_ok": np.zeros(1), "length": np.zeros(len(self.capacity)), "cycle": np.array([1.0, 0.0]),
+                "pending_eta": np.zeros(len(self.capacity)), "pending_produced": np.zeros(len(self.capacity)),
+                "pending_theta": np.zeros(len(self.capacity))}
 
-    def factor(self, tau: float) -> np.ndarray:
-        """(2, P): each pair's exchange factor c_r (1 − exp(−κ τ / c_r)) for a sweep over τ,
-        divided by the first spring's C (row 0) and by the second's (row 1)."""
+    def star_order(self, backend: str = "cpu") -> StarOrder:
+        """The conduction sweep's order on ``backend`` (:func:`thermonet.heat.graph.star_order`):
+        blocks of the net's bandwidth on the CPU, single nodes on the GPU. Another discretization
+        of the same flow each (both second order, energy exact, entropy non-decreasing); a CPU
+        run reproduces a GPU run to round-off with ``backend="cuda"``."""
+        cached = self.__dict__.setdefault("_orders", {})
+        if backend not in cached:
+            g = self.conductance if self.conduction else np.zeros_like(self.conductance)
+            cached[backend] = star_order(self.layout, g, self.bath_nodes < 0, self.block_nodes(backend))
+        return cached[backend]
+
+    def block_nodes(self, backend: str) -> int | None:
+        """Nodes per block of ``backend``'s sweep order (None: the net's bandwidth)."""
+        return self.__dict__.get("_block_nodes", {}).get(backend, None if backend == "cpu" else 1)
+
+    def use_order_of(self, backend: str, on: str = "cpu") -> None:
+        """Sweep in ``backend``'s order on ``on`` (before the first step): a CPU run then
+        reproduces a GPU run to round-off (tests, and to check a device's results)."""
+        self.__dict__.setdefault("_block_nodes", {})[on] = self.block_nodes(backend)
+        self.__dict__.get("_orders", {}).pop(on, None)
+
+    def fastest_rate(self) -> float:
+        """The conduction's fastest rate, ``max_e (Σ_f κ_ef + g_e at bath ends) / C_e`` (1/time),
+        0 without conduction."""
+        if not self.conduction or len(self.capacity) == 0:
+            return 0.0
+        cached = self.__dict__.get("_fastest")
+        if cached is None:
+            cached = self.__dict__["_fastest"] = float(
+                fastest_rate(self.layout, self.conductance, self.capacity, self.bath_nodes < 0).max())
+        return cached
+
+    def factors(self, tau: float) -> tuple[np.ndarray, np.ndarray]:
+        """(weight, decay), (m,) each: ``a = C (1 − exp(−g τ/C))`` and ``exp(−g τ/C)`` of every
+        spring for a sweep over τ."""
         cached = self.__dict__.setdefault("_factors", {})
         if tau not in cached:
-            g = self.graph
-            ce, cf = self.capacity[g.first], self.capacity[g.second]
-            reduced = ce * cf / (ce + cf)
-            factor = -reduced * np.expm1(-g.kappa[:, 0] * tau / reduced)
+            g = self.conductance if self.conduction else np.zeros_like(self.conductance)
+            x = -g * tau / self.capacity
             cached.clear()
-            cached[tau] = np.ascontiguousarray(np.vstack([factor / ce, factor / cf]))
+            cached[tau] = (np.ascontiguousarray(-self.capacity * np.expm1(x)), np.ascontiguousarray(np.exp(x)))
         return cached[tau]
 
-    def record(self, tau: float, logs: dict) -> Heat:
-        """The kernels' :class:`~thermonet.kernels.records.Heat` for conduction sweeps over τ,
-        logging into ``logs`` (:meth:`new_logs`, kept in the state)."""
+    def record(self, tau: float, logs: dict, backend: str = "cpu") -> Heat:
+        """The kernels' :class:`~thermonet.kernels.records.Heat` for conduction sweeps over τ in
+        ``backend``'s order, logging into ``logs`` (:meth:`new_logs`, kept in the state)."""
         cached = self.__dict__.get("_static")
         if cached is None:
             spring = self.entry_spring
@@ -100,11 +137,18 @@ class HeatSetup:
             self.__dict__["_static"] = cached
         bound, ptr, packed, inv_capacity = cached
         g = self.graph
-        return Heat(g.first, g.second, self.factor(tau) if self.conduction else np.zeros((2, g.n_pairs)),
-                    np.ascontiguousarray(g.kappa[:, 1]), g.colour_ptr, self.capacity, inv_capacity,
+        order = self.star_order(backend)
+        inc = self.__dict__.get("_incidence")
+        if inc is None:
+            inc = self.__dict__["_incidence"] = (np.ascontiguousarray(self.layout.inc_ptr, dtype=np.int64),
+                                                 np.ascontiguousarray(self.layout.inc_spring).view(np.uint32))
+        weight, decay = self.factors(tau)
+        return Heat(order.colour_ptr, order.block_ptr, order.node, *inc, weight, decay,
+                    g.first, g.second, np.ascontiguousarray(g.kappa[:, 1]), g.colour_ptr, self.capacity, inv_capacity,
                     bound, ptr, self.entry_kind, self.entry_fn, self.entry_rate, *packed,
                     logs["produced"], logs["entry_heat"], logs["entry_flux"], logs["theta"], logs["theta_ok"],
-                    logs["length"], *self._work())
+                    logs["length"], logs["pending_eta"], logs["pending_produced"], logs["pending_theta"],
+                    *self._work())
 
     def _work(self) -> tuple:
         """The working arrays s_before, theta_start (m,) of the kernels (allocated once)."""
@@ -228,7 +272,10 @@ def build_heat(net, layout, model, P_user, transport: dict, *, thermal: bool, co
     g_star = np.ascontiguousarray(layout.springs_to_internal(gs_user))
     capacity = np.ascontiguousarray(layout.springs_to_internal(capacity_user))
     bath_nodes = np.ascontiguousarray(layout.nodes_to_internal(bath_of_node_user))
-    graph = pair_graph(layout, np.vstack([g, g_star]), junction=bath_nodes < 0)
+    if waves:
+        graph = pair_graph(layout, np.vstack([np.zeros_like(g), g_star]), junction=bath_nodes < 0)
+    else:
+        graph = PairGraph(np.empty(0, np.int32), np.empty(0, np.int32), np.empty((0, 2)), np.zeros(1, np.int64))
 
     spring_b, bath_b = bath_ends(layout, bath_nodes)
     keep = g[spring_b] > 0.0
@@ -244,4 +291,4 @@ def build_heat(net, layout, model, P_user, transport: dict, *, thermal: bool, co
     return HeatSetup(conduction, waves, graph, capacity, names, functions,
                      np.ascontiguousarray(spring[order]), np.ascontiguousarray(kind[order]),
                      np.ascontiguousarray(fn[order]), np.ascontiguousarray(rate[order]), bath_nodes, g, g_star,
-                     len(baths))
+                     len(baths), layout)

@@ -1,10 +1,10 @@
 """Heat flow around any adiabatic integrator.
 
-Explicit splittings run conduction and thermal waves as rows of their own schedule
+Explicit splittings run conduction and thermal waves in their own kernels
 (:meth:`~thermonet.integrators.splitting.Splitting.with_heat`, compiled into the fused kernel).
 Every other stepper (the implicit ones) is wrapped by :class:`ConductionAround`:
-``K_f(h/2) ∘ A(h) ∘ K_r(h/2)`` per step, the sweeps compiled
-(:func:`thermonet.kernels.heat_passes.heat_kernels`), the step A the stepper's own.
+``K_f(kh/2) ∘ A(h)^k ∘ K_r(kh/2)`` per conduction cycle of k steps (k = 1: every step), the
+sweeps compiled (:func:`thermonet.heat.passes.heat_kernels`), the steps A the stepper's own.
 """
 
 from __future__ import annotations
@@ -35,7 +35,7 @@ class ConductionAround(Stepper):
     """``K_f(h/2) ∘ inner(h) ∘ K_r(h/2)`` per step, for a stepper without heat rows of its own."""
 
     def __init__(self, inner: Stepper, system, parallel: bool = False):
-        from ..kernels.heat_passes import heat_kernels
+        from .passes import heat_kernels
 
         self.inner = inner
         self.system = system
@@ -48,27 +48,33 @@ class ConductionAround(Stepper):
         self._theta_start = np.empty(system.n_springs)
         self._length = np.empty(system.n_springs)
 
-    def _conduct(self, state, tau: float, t: float, reverse: bool) -> None:
+    def _conduct(self, state, tau: float, t: float, directions: int) -> None:
         from ..integrators.splitting import heat_logs
 
         record = self.heat.record(tau, heat_logs(state, self.heat))
         self._temperature_pass(state.positions, state.entropy, self._topology, self._springs, self._theta,
                                self._length)
-        self._sweep(record, self._theta, self._theta_start, state.entropy, tau, t, reverse)
+        self._sweep(record, self._theta, self._theta_start, state.entropy, tau, t, directions)
 
     def advance(self, state, n_steps: int, h: float, measure: bool = False):
         """``n_steps`` steps; on a failed step the state is restored to the step's start (η and
-        the logs included) and the StepFailure says how many steps were done."""
-        from ..integrators.splitting import heat_logs
+        the logs included) and the StepFailure says how many steps were done. The forward half
+        sweep runs before the first step of each conduction cycle, the reverse one after its
+        last (:func:`~thermonet.integrators.splitting.cycle_position`)."""
+        from ..integrators.splitting import cycle_position, heat_logs
+        from .passes import FORWARD, REVERSE
 
         stats = None
         step0, t0 = state.step, state.time
+        every, at = cycle_position(state, self.heat)
+        tau = 0.5 * every * h
         for i in range(int(n_steps)):
             t = t0 + i * h
             eta = state.entropy.copy()
             logs = {k: v.copy() for k, v in heat_logs(state, self.heat).items()}
             state.step, state.time = step0 + i, t
-            self._conduct(state, 0.5 * h, t, False)
+            if (at + i) % every == 0:
+                self._conduct(state, tau, t, FORWARD)
             try:
                 stats = self.inner.advance(state, 1, h)
             except StepFailure as exc:
@@ -77,7 +83,8 @@ class ConductionAround(Stepper):
                     np.copyto(state.extra["heat"][k], v)
                 state.step, state.time = step0, t0
                 raise StepFailure(str(exc), steps_done=i, details=exc.details) from None
-            self._conduct(state, 0.5 * h, t0 + (i + 1) * h, True)
+            if (at + i + 1) % every == 0:
+                self._conduct(state, tau, t0 + (i + 1) * h, REVERSE)
         state.step, state.time = step0, t0
         return stats
 

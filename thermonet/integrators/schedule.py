@@ -25,17 +25,15 @@ from typing import Callable, NamedTuple
 import numpy as np
 
 from ..errors import InputError
+from ..heat.rows import CONDUCTION_FORWARD, CONDUCTION_REVERSE, THERMAL_WAVES
 
 #: most distinct sub-flows one integrator may add to its kicks and drifts (the kernels dispatch
 #: over a fixed number of slots, so that each stays a compile-time call)
 MAX_FLOWS = 4
 
 STAGE = -1
-#: built-in heat-flow rows (spec-heat §1–2): conduction swept forward, conduction swept in
-#: reverse (the second half of a symmetric step), the Green–Naghdi Φ-gradient flow
-CONDUCTION_FORWARD = -2
-CONDUCTION_REVERSE = -3
-THERMAL_WAVES = -4
+# built-in heat-flow rows (spec-heat §1–2): CONDUCTION_FORWARD, CONDUCTION_REVERSE (the second
+# half of a symmetric cycle) and THERMAL_WAVES, codes named in thermonet.heat.rows
 
 
 @dataclass(frozen=True)

@@ -55,6 +55,13 @@ class Splitting(Integrator):
         return stage_table(self.kicks, self.drifts, self.flows)
 
     @property
+    def table_between_sweeps(self) -> StageTable:
+        """The schedule without its conduction rows: what the CPU kernel runs between the
+        conduction sweeps, which it places at the cycles' boundaries itself (and so keeps CO2's
+        shared closing kick within a cycle)."""
+        return stage_table(self.kicks, self.drifts, [f for f in self.flows if f[1] not in CONDUCTION])
+
+    @property
     def subflows(self) -> tuple:
         """The distinct extra sub-flows, in the kernels' slot order."""
         return flow_slots(self.flows)
@@ -278,11 +285,8 @@ class SplittingStepper(Stepper):
         if (conduction or waves) and heat is None:
             raise InputError(f"{integrator.name} has heat-flow rows but the system has no heat flow set up")
         self._heat = heat
-        self._heat_tau = sorted({c for _, f, c in integrator.flows if isinstance(f, BuiltinFlow)
-                                 and f.code != WAVES.code})
-        if len(self._heat_tau) > 1:
-            raise InputError(f"{integrator.name}: conduction rows with different coefficients {self._heat_tau}")
-        self._table = integrator.table
+        self._conduction = conduction
+        self._table = integrator.table_between_sweeps
         self.loads = StepperLoads.of(system, self._table)
         self._advance = splitting_kernels(system.model, parallel, system.thermal, uniform, flows, conduction, waves,
                                           self.loads is not None)
@@ -315,8 +319,9 @@ class SplittingStepper(Stepper):
         lo, hi = self.system.stretch_bounds
         reuse = self._boundary is not None and self._boundary[0] is state and self._boundary[1] == state.step
         self._boundary = None
+        every, cycle_step = cycle_position(state, self._heat) if self._conduction else (1, 0)
         run = Run(float(h), float(state.time), int(n_steps), bool(self.integrator.track_phi), float(lo), float(hi),
-                  bool(reuse), bool(measure))
+                  bool(reuse), bool(measure), every, cycle_step)
         loads = self.loads.arrays_for(state, h) if self.loads is not None else NO_LOADS  # loads
         done, detected, summed = self._advance(arrays, self._scratch, self._topology, self._springs, self._nodes,
                                                self._table, self._effects, self._heat_record(state, h), run, loads)
@@ -329,11 +334,12 @@ class SplittingStepper(Stepper):
         return None
 
     def _heat_record(self, state, h: float):
-        """The kernels' Heat record: conduction factors for this h, logs in the state."""
+        """The kernels' Heat record: conduction factors for the half sweeps of this h and the
+        state's cycle length (τ = k h / 2), logs in the state."""
         if self._heat is None:
             return _NO_HEAT
-        tau = self._heat_tau[0] * h if self._heat_tau else 0.0
-        return self._heat.record(tau, heat_logs(state, self._heat))
+        every = cycle_position(state, self._heat)[0] if self._conduction else 1
+        return self._heat.record(0.5 * every * h, heat_logs(state, self._heat))
 
     def closing_sums(self, state) -> dict | None:
         """See :meth:`Stepper.closing_sums`."""
@@ -352,7 +358,21 @@ def heat_logs(state, heat) -> dict:
     logs = state.extra.get("heat")
     if logs is None:
         logs = state.extra["heat"] = heat.new_logs()
+    if len(logs) < 10:  # (a state saved before multirate conduction: its logs completed)
+        for key, value in heat.new_logs().items():
+            logs.setdefault(key, value)
+        if logs["cycle"][1] == 0.0:
+            logs["cycle"][1] = float(state.step)
     return logs
+
+
+def cycle_position(state, heat) -> tuple[int, int]:
+    """(k, steps of its conduction cycle ``state`` has made): the cycle's length k and
+    ``(step − origin) % k`` from the state's heat logs (see
+    :meth:`~thermonet.heat.setup.HeatSetup.new_logs`)."""
+    cycle = heat_logs(state, heat)["cycle"]
+    every = int(cycle[0])
+    return every, int((state.step - int(cycle[1])) % every)
 
 
 def flow_data(flows, system) -> tuple:

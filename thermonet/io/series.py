@@ -302,6 +302,8 @@ class RunOutput:
             "frames": len(self.pvd.frames),
             "conserved": summary,
             **({"newton": run["newton"]} if "newton" in run else {}),
+            **({"conduction_every": {"k": sim.conduction_cycle[0], "why": sim.conduction_cycle[1]}}
+               if getattr(sim, "conduction_cycle", None) else {}),
             **(extra or {}),
         }
         with atomic_write(self.summary_path, "w") as f:

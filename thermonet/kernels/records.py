@@ -73,7 +73,9 @@ class Scratch(NamedTuple):
 class Run(NamedTuple):
     """What one call does: n_steps of h from time t0; track_phi (False for NM2); admissible
     stretches (stretch_min, stretch_max); reuse_boundary (the previous call's closing forces
-    are valid here); want_sums (reduce the end state's diagnostics sums)."""
+    are valid here); want_sums (reduce the end state's diagnostics sums); conduction_every:
+    the steps k of one conduction cycle ``K(k h/2) ∘ A(h)^k ∘ K(k h/2)`` (1: every step);
+    cycle_step: how many steps of its cycle the state has made at the call's start (0..k−1)."""
 
     h: float
     t0: float
@@ -83,29 +85,46 @@ class Run(NamedTuple):
     stretch_max: float
     reuse_boundary: bool
     want_sums: bool
+    conduction_every: int = 1
+    cycle_step: int = 0
 
 
 class Heat(NamedTuple):
-    """Heat flow (spec-heat §1–2): the coloured spring pairs, the bath and source entries, and
-    the logs (all arrays empty when heat flow is off; the kernels then compile its rows out).
+    """Heat flow (spec-heat §1–2): the conduction sweep's order and factors, the thermal waves'
+    coloured spring pairs, the bath and source entries, and the logs (all arrays empty when heat
+    flow is off; the kernels then compile its code out).
 
-    first, second: (P,) int32 springs of each pair; factor: (2, P) the conduction factor
-    c_r (1 − exp(−κ τ/c_r)) for the run's τ over the first and over the second spring's C; wave: (P,) k* of each pair; colour_ptr: (C+1,)
-    int64, colour c is pairs colour_ptr[c]:colour_ptr[c+1] (no two share a spring);
+    Conduction (:mod:`thermonet.heat.exchange`): star_colour_ptr (C+1,) int64, colour c is blocks
+    star_colour_ptr[c]:star_colour_ptr[c+1] (no two blocks of a colour share a spring); block_ptr
+    (B+1,) int64, block b is the junction nodes block_node[block_ptr[b]:block_ptr[b+1]] (int64),
+    swept in that order; inc_ptr (n+1,) int64 and inc_spring (2m,) uint32 each node's springs;
+    weight, decay: (m,) a = C (1 − exp(−g τ/C)) and exp(−g τ/C) for the sweep's τ.
+    Thermal waves: first, second: (P,) int32 springs of each pair; wave: (P,) k* of each pair;
+    colour_ptr: (K+1,) int64, colour c is pairs colour_ptr[c]:colour_ptr[c+1] (no two share a spring).
     capacity, inv_capacity: (m,) C and 1/C per spring; bound_spring: (S,) int64 springs with
     bath ends or sources; bound_ptr: (S+1,) int64 their entries; entry_kind (E,) int64 (0 bath,
     1 source), entry_fn (E,) int64 the entry's time function, entry_rate (E,) g/C of a bath end;
     fn_*: the time functions (:func:`thermonet.timefunctions.pack`); produced: (m,) cumulative
     entropy produced, per spring; entry_heat, entry_flux: (E,) cumulative heat given and entropy
     brought by each entry; theta, length: (m,) the springs' temperatures and lengths where a call
-    ended, valid for the next call when theta_ok[0] == 1 (a call continues its predecessor's
-    sweeps bit for bit); s_before, theta_start: (m,) working arrays (the forces of a kick
-    deferred past the sweeps; the temperatures a sweep started from).
+    ended, valid for the next call when theta_ok[0] ≥ 1 (a call continues its predecessor's
+    sweeps bit for bit); pending_eta, pending_produced, pending_theta: (m,) when theta_ok[0] == 2,
+    the entropies, production log and temperatures before the reverse half sweep that ended the
+    last call (the CPU's explicit kernel: the next call's forward half sweep continues from them,
+    so that the entropy update covers both half sweeps as in one call); s_before, theta_start:
+    (m,) working arrays (the forces of a kick deferred past the sweeps; the temperatures the
+    sweeps started from).
     """
 
+    star_colour_ptr: np.ndarray
+    block_ptr: np.ndarray
+    block_node: np.ndarray
+    inc_ptr: np.ndarray
+    inc_spring: np.ndarray
+    weight: np.ndarray
+    decay: np.ndarray
     first: np.ndarray
     second: np.ndarray
-    factor: np.ndarray
     wave: np.ndarray
     colour_ptr: np.ndarray
     capacity: np.ndarray
@@ -126,6 +145,9 @@ class Heat(NamedTuple):
     theta: np.ndarray
     theta_ok: np.ndarray
     length: np.ndarray
+    pending_eta: np.ndarray
+    pending_produced: np.ndarray
+    pending_theta: np.ndarray
     s_before: np.ndarray
     theta_start: np.ndarray
 
@@ -135,13 +157,15 @@ def no_heat() -> Heat:
     i = np.empty(0, dtype=np.int64)
     f = np.empty(0)
     i32 = np.empty(0, dtype=np.int32)
-    return Heat(i32, i32, np.empty((2, 0)), f, np.zeros(1, dtype=np.int64), f, f, i, np.zeros(1, dtype=np.int64), i, i, f,
-                i, np.empty((0, 4)), np.zeros(1, dtype=np.int64), f, f, f, f, f, f, np.zeros(1), f, f, f)
+    ptr = np.zeros(1, dtype=np.int64)
+    return Heat(ptr, ptr, i, ptr, np.empty(0, dtype=np.uint32), f, f,
+                i32, i32, f, ptr, f, f, i, ptr, i, i, f,
+                i, np.empty((0, 4)), ptr, f, f, f, f, f, f, np.zeros(1), f, f, f, f, f, f)
 
 
 class NoHeat(NamedTuple):
     """What the CPU step reads of a :class:`Heat` record when heat does not flow (its heat-flow
-    code compiled out): four empty arrays instead of the whole record's 26, each of which the
+    code compiled out): four empty arrays instead of the whole record's 31, each of which the
     dispatcher would otherwise unbox at every call."""
 
     s_before: np.ndarray

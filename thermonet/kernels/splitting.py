@@ -61,9 +61,12 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from . import heat_flow, subflows
-from .heat_passes import bind_heat_flow, bind_heat_passes
+from ..heat import exchange as heat_exchange
+from ..heat.passes import CONTINUE, FORWARD, REVERSE, SAVE, bind_heat_flow, bind_heat_passes
 from ..loads.elements import bind_loads
+from . import subflows
+from .subflows import bind_subflows
+from ..heat.rows import THERMAL_WAVES
 from .schedule_passes import _apply_flow, _copy_rows, _copy_values, _flow_pass, _no_flow, _thermal_kick
 from .specialize import function_fingerprint, kernel_namespace, model_fingerprint, rebind, specialize
 
@@ -78,7 +81,7 @@ spring_pass = node_pass = boundary_spring_pass = boundary_node_pass = None
 thermal_kick = copy_rows = apply_flow = None
 spring_force = spring_energy = spring_temperature = outside_admissible = advance_thermal_displacement = None
 gather_force = kick_momentum = drift_position = load_row = store_row = None
-temperature_pass = refresh_pass = conduction_sweep = wave_sweep = gather_two_forces = None
+temperature_pass = refresh_pass = conduction_sweep = wave_sweep = gather_two_forces = _conduction_boundary = None
 node_load = cpu_evaluate_loads = cpu_load_work = cpu_drive_positions = stage_time = None
 LOADS = False
 THERMAL = True
@@ -110,13 +113,6 @@ def kernel_parameters(P: np.ndarray) -> tuple[np.ndarray, bool]:
     return P, False
 
 
-def bind_subflows(ns: dict, tag: str, compile_) -> None:
-    """Bind :mod:`thermonet.kernels.subflows`' functions into ``ns`` (a kernel namespace holding
-    the model and the compile-time constants), each compiled by ``compile_`` for its target."""
-    for name in subflows.SHARED:
-        ns[name] = compile_(rebind(getattr(subflows, name), tag, ns))
-
-
 def splitting_kernels(model, parallel: bool, thermal: bool = True, uniform: bool = False, flows=(),
                       conduction: bool = False, waves: bool = False, loads: bool = False):
     """``advance(state, scratch, topology, springs, nodes, table, effects, heat, run, loads)`` compiled for
@@ -134,7 +130,7 @@ def splitting_kernels(model, parallel: bool, thermal: bool = True, uniform: bool
         tag = (f"{model.name}_{key[0]}_{'par' if parallel else 'ser'}_{'thermal' if thermal else 'mech'}"
                f"{'_uniform' if uniform else ''}_s{subflows.source_digest()}{flows_tag}")
         if conduction or waves:
-            tag += f"_{'k' if conduction else ''}{'w' if waves else ''}{heat_flow.source_digest()}"
+            tag += f"_{'k' if conduction else ''}{'w' if waves else ''}{heat_exchange.source_digest()}"
         ns = kernel_namespace(model, thermal, uniform)
         ns["CLOSING"] = False
         ns["CONDUCTION"] = bool(conduction)
@@ -168,6 +164,7 @@ def splitting_kernels(model, parallel: bool, thermal: bool = True, uniform: bool
         ns["apply_flow"] = specialize(_apply_flow, tag, ns, inline="always", **_OPTIONS)
         ns["_stopped"] = specialize(_stopped, tag, ns, inline="always", **_OPTIONS)
         ns["_deferred_kick"] = specialize(_deferred_kick, tag, ns, inline="always", **_OPTIONS)
+        ns["_conduction_boundary"] = specialize(_conduction_boundary, tag, ns, inline="always", **_OPTIONS)
         _CACHE[key] = specialize(_advance, tag, ns, **_OPTIONS)
     return _CACHE[key]
 
@@ -377,6 +374,26 @@ def _deferred_kick(x, x_new, p, topology, nodes, scratch, heat, loads, tau, t):
         cpu_load_work(x, heat.s_before, topology, nodes, loads, 0.0, tau)
 
 
+def _conduction_boundary(cur, eta, phi, topology, springs, scratch, heat, run, pending, theta_valid, directions, t):
+    """The conduction sweeps at a step boundary (``directions``: :data:`~thermonet.heat.passes.REVERSE`
+    ends a cycle, FORWARD starts one). A closing kick still pending there (``pending``, its
+    coefficient) acts at these positions with the temperatures before the sweeps: its spring
+    pass runs now, its forces kept in heat.s_before, and its node pass is deferred (the sweeps do
+    not touch p). Returns the number of inadmissible springs its spring pass found."""
+    bad = 0
+    if pending != 0.0:
+        bad = spring_pass(cur, eta, phi, topology, springs, scratch, (0.0, pending * run.h), run, False,
+                          heat.length)[0]
+        if bad > 0:
+            return bad
+        _copy_values(scratch.s, heat.s_before)
+    elif not theta_valid:
+        temperature_pass(cur, eta, topology, springs, scratch.theta_keep, heat.length)
+    conduction_sweep(heat, scratch.theta_keep, heat.theta_start, eta, 0.5 * run.conduction_every * run.h, t,
+                     directions)
+    return bad
+
+
 def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run, loads):
     """Advance ``state`` (x, p, Φ in place; η too where a sub-flow changes it) by ``run.n_steps``
     steps of the schedule ``table`` (a :class:`~thermonet.integrators.schedule.StageTable`).
@@ -393,9 +410,13 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run
     the first ``steps completed`` steps are known good (x, p, Φ are mid-step: rewind and replay).
     ``summed``: the sums were written (a schedule without a closing kick writes none).
 
-    Heat-flow rows (CONDUCTION, WAVES: :class:`~thermonet.kernels.records.Heat`) sweep from the
-    springs' temperatures in theta_keep, valid after a spring pass not followed by a drift or
-    after a conduction sweep; otherwise a temperature pass computes them first.
+    CONDUCTION (:class:`~thermonet.kernels.records.Heat`): the table has no conduction rows; the
+    sweeps run at the boundaries of the conduction cycles, ``K_f(kh/2) ∘ A(h)^k ∘ K_r(kh/2)``
+    with k = ``run.conduction_every``: before the first step of a cycle the forward half sweep,
+    after its last step the reverse one (back to back with the next cycle's forward one when the
+    call goes on). Sweeps start from the springs' temperatures in theta_keep, valid after a
+    spring pass not followed by a drift or after a sweep; otherwise a temperature pass computes
+    them first. Thermal-wave rows (WAVES) are rows of the table.
 
     With LOADS, ``loads`` (:class:`~thermonet.loads.arrays.LoadArrays`): before each kick the
     loads are evaluated at its time, after it their reactions and work are accumulated, and after
@@ -416,15 +437,35 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run
     swaps = 0
     pending = 0.0
     # CONDUCTION: the springs' θ and l at cur are in theta_keep and heat.length when theta_valid;
-    # a kick just before the sweeps is deferred past them (they do not touch p) and applied with
-    # the next one in one node pass: ``deferred`` its coefficient, its forces in heat.s_before
+    # a closing kick pending at a cycle boundary is deferred past the sweeps and applied with the
+    # next kick in one node pass: ``deferred`` its coefficient, its forces in heat.s_before
     theta_valid = False
     deferred = 0.0
     deferred_time = 0.0
-    if CONDUCTION and heat.theta_ok[0] == 1.0:  # continue the previous call's sweeps
+    swept_first = False  # a sweep ran before the call's first kick (the kept forces are stale)
+    every = run.conduction_every
+    ended_cycle = False
+    resume_sweep = False  # the previous call ended with a reverse half sweep: continue its update
+    if CONDUCTION and heat.theta_ok[0] >= 1.0:  # continue the previous call's sweeps
         _copy_values(heat.theta, scratch.theta_keep)
         theta_valid = True
+        resume_sweep = heat.theta_ok[0] == 2.0
     for step in range(n_steps):
+        if CONDUCTION and (run.cycle_step + step) % every == 0:
+            # a cycle starts: the last one's reverse half sweep (when it ended in this call) and
+            # this one's forward half sweep, back to back
+            directions = FORWARD | REVERSE if step > 0 else (FORWARD | CONTINUE if resume_sweep else FORWARD)
+            bad = _conduction_boundary(cur, eta, phi, topology, springs, scratch, heat, run, pending, theta_valid,
+                                       directions, run.t0 + step * h)
+            if bad > 0:  # the pending kick's positions end the previous step: that step was the bad one
+                return _stopped(x, x_buf, swaps, heat, step - 1)
+            if pending != 0.0:
+                deferred = pending
+                if LOADS:
+                    deferred_time = stage_time(loads, h, step, 0.0)
+                pending = 0.0
+            theta_valid = True
+            swept_first = swept_first or step == 0
         for r in range(n_rows):
             if codes[r] >= 0:
                 if CONDUCTION and deferred != 0.0:  # a sub-flow may read p: apply the kick first
@@ -434,35 +475,16 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run
                            cur, p, phi, eta)
                 theta_valid = False
                 continue
-            if codes[r] <= -2:
-                if WAVES and codes[r] == -4:
+            if codes[r] <= THERMAL_WAVES:
+                if WAVES:
                     wave_sweep(heat, phi, eta, table.kick[r] * h)
                     theta_valid = False
-                elif CONDUCTION and codes[r] >= -3:
-                    if not theta_valid:
-                        temperature_pass(cur, eta, topology, springs, scratch.theta_keep, heat.length)
-                    conduction_sweep(heat, scratch.theta_keep, heat.theta_start, eta, table.kick[r] * h,
-                                     run.t0 + (step + table.drift[r]) * h, codes[r] == -3)
-                    theta_valid = True
                 continue
             k1 = pending if r == 0 else 0.0
             k2 = table.kick[r]
             with_force = k1 != 0.0 or k2 != 0.0
-            if (CONDUCTION and deferred == 0.0 and k1 == 0.0 and k2 != 0.0 and table.drift[r] == 0.0
-                    and r + 1 < n_rows and codes[r + 1] == -3):
-                # the kick before the reverse sweep: its spring pass now, its node pass deferred
-                bad = spring_pass(cur, eta, phi, topology, springs, scratch, (0.0, k2 * h), run, False,
-                                  heat.length)[0]
-                if bad > 0:
-                    return _stopped(x, x_buf, swaps, heat, step)
-                _copy_values(scratch.s, heat.s_before)
-                deferred = k2
-                if LOADS:
-                    deferred_time = stage_time(loads, h, step, loads.kick_time[r])
-                theta_valid = True
-                continue
             steps = (k1 * h, k2 * h, table.drift[r] * h, with_force)
-            reuse = run.reuse_boundary and step == 0 and r == 0 and with_force
+            reuse = run.reuse_boundary and step == 0 and r == 0 and with_force and not swept_first
             if reuse:  # the previous call's closing kick evaluated these at these positions
                 if THERMAL and run.track_phi:
                     thermal_kick(phi, scratch.theta_keep, k2 * h)
@@ -472,12 +494,13 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run
                 else:
                     bad = spring_pass(cur, eta, phi, topology, springs, scratch, (k1 * h, k2 * h), run, False,
                                       heat.length)[0]
-                    theta_valid = table.drift[r] == 0.0
                 if bad > 0:
                     if CONDUCTION and deferred != 0.0:  # p still misses it: the step is replayed anyway
                         deferred = 0.0
                     # positions at row 0 are the end of the previous step: that step was the bad one
                     return _stopped(x, x_buf, swaps, heat, step - 1 if r == 0 and step > 0 else step)
+                if CONDUCTION:  # (a spring pass keeps θ and l: valid until a drift)
+                    theta_valid = True
             if table.drift[r] != 0.0:
                 theta_valid = False
             if LOADS and with_force:
@@ -502,12 +525,25 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run
                 cpu_evaluate_loads(loads, stage_time(loads, h, step, loads.drift_time[r]))
                 cpu_drive_positions(cur, loads)
         pending = carry
-    if CONDUCTION:
-        if deferred != 0.0:  # the call ends with the deferred kick (drift 0: the positions stay)
-            _deferred_kick(cur, nxt, p, topology, nodes, scratch, heat, loads, deferred * h, deferred_time)
-        if theta_valid:
-            _copy_values(scratch.theta_keep, heat.theta)
-        heat.theta_ok[0] = 1.0 if theta_valid else 0.0
+    if CONDUCTION and (run.cycle_step + n_steps) % every == 0:
+        # the call ends a cycle: its reverse half sweep, after the pending closing kick's spring
+        # pass; the kick itself after the sweep (no diagnostics sums: η changed after them)
+        bad = _conduction_boundary(cur, eta, phi, topology, springs, scratch, heat, run, pending, theta_valid,
+                                   REVERSE | SAVE, run.t0 + n_steps * h)
+        if bad > 0:
+            if swaps % 2 == 1:
+                copy_rows(x_buf, x)
+            heat.theta_ok[0] = 0.0
+            return n_steps - 1, True, False
+        if pending != 0.0:
+            deferred = pending
+            if LOADS:
+                deferred_time = stage_time(loads, h, n_steps, 0.0)
+            pending = 0.0
+        theta_valid = True
+        ended_cycle = True
+    if CONDUCTION and deferred != 0.0:  # drift 0: the positions stay
+        _deferred_kick(cur, nxt, p, topology, nodes, scratch, heat, loads, deferred * h, deferred_time)
     summed = False
     if pending != 0.0:
         bad, energy, theta_min, theta_max = boundary_spring_pass(cur, eta, phi, topology, springs, scratch,
@@ -515,7 +551,10 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run
         if bad > 0:
             if swaps % 2 == 1:
                 copy_rows(x_buf, x)
+            if CONDUCTION:
+                heat.theta_ok[0] = 0.0
             return n_steps - 1, True, False
+        theta_valid = True  # (the closing spring pass keeps θ and l)
         # drift 0: the positions stay in cur
         if LOADS:
             cpu_evaluate_loads(loads, stage_time(loads, h, n_steps, 0.0))
@@ -531,6 +570,10 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run
             for q in range(8):
                 sums[3 + q] = node_sums[q]
             summed = True
+    if CONDUCTION:
+        if theta_valid:
+            _copy_values(scratch.theta_keep, heat.theta)
+        heat.theta_ok[0] = (2.0 if ended_cycle else 1.0) if theta_valid else 0.0
     if swaps % 2 == 1:
         copy_rows(x_buf, x)
     return n_steps, False, summed

@@ -150,3 +150,13 @@ def source_digest() -> str:
     """A short hash of this module's source: part of every compiled kernel's cache name, so an
     edited sub-flow is recompiled rather than loaded from a cache built from the old one."""
     return hashlib.sha256(inspect.getsource(sys.modules[__name__]).encode()).hexdigest()[:8]
+
+
+def bind_subflows(ns: dict, tag: str, compile_) -> None:
+    """Bind this module's functions (:data:`SHARED`) into ``ns`` (a kernel namespace holding the
+    model and the compile-time constants), each compiled by ``compile_`` for its target."""
+    from .specialize import rebind
+
+    module = sys.modules[__name__]
+    for name in SHARED:
+        ns[name] = compile_(rebind(getattr(module, name), tag, ns))

@@ -77,6 +77,7 @@ def build_scene(scene: Scene) -> BuiltScene:
             energy_tolerance=integ["energy_tolerance"] or None,
             stability_guard="stop" if integ["check_step"] else "warn",
             conduction=d["effects"]["conduction"],
+            conduction_every=d["effects"]["conduction_every"],
             thermal_waves=d["effects"]["thermal_waves"],
             baths={name: Bath(b["group"], b["temperature"]) for name, b in d["baths"].items()},
             sources={name: Source(b["group"], b["power"]) for name, b in d["sources"].items()},

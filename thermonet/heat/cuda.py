@@ -1,13 +1,18 @@
 """Heat flow on the GPU: the conduction and thermal-wave rows of the explicit schedule
-(spec-heat §1–2), built from the CPU's per-element functions (:mod:`thermonet.kernels.heat_flow`).
+(spec-heat §1–2), built from the CPU's per-element functions (:mod:`thermonet.heat.exchange`).
 
 A heat row is a sequence of *phases*, each a parallel pass whose elements share no spring:
 
-- conduction forward (code −2): the springs' θ kept as the sweep's start (``theta_start``), the
-  boundary entries (baths, sources: one thread per boundary spring), the pair colours in order,
-  then each spring's entropy update ``η += C ln(θ'/θ)`` (``finish_spring``); in reverse (−3) the
-  colours run backwards and the boundary entries after them (each spring's entries in reverse);
-- thermal waves (−4): the pair colours in order.
+- conduction forward (CONDUCTION_FORWARD, on the first step of a conduction cycle): the
+  springs' θ kept as the sweep's start (``theta_start``), the boundary entries (baths, sources:
+  one thread per boundary spring), the star colours in order (one thread per block, in the GPU's
+  order one junction node each), then each spring's entropy update ``η += C ln(θ'/θ)``
+  (``finish_spring``); in reverse (CONDUCTION_REVERSE, on a cycle's last step) the colours run
+  backwards and the boundary entries after them (each spring's entries in reverse);
+- thermal waves (THERMAL_WAVES): the pair colours in order.
+
+A conduction row of a step that does not start (forward) or end (reverse) a cycle is skipped
+(:func:`conduction_due`); its sweep is over τ = k·c·h for a cycle of k steps.
 
 :func:`_sweep_phase` runs one phase over a grid-stride loop: the two-launch path launches
 :func:`_sweep_kernel` once per phase (one thread per element), the fused kernel calls it between
@@ -33,15 +38,15 @@ import sys
 import numpy as np
 from numba import cuda
 
+from ..cuda import FLAG_SET
 from ..errors import InputError
-from ..integrators.schedule import CONDUCTION_REVERSE, THERMAL_WAVES, BuiltinFlow
-from ..kernels import heat_flow
 from ..kernels.records import Heat, no_heat
 from ..kernels.specialize import rebind
-from . import FLAG_SET
+from . import exchange
+from .rows import CONDUCTION_FORWARD, CONDUCTION_REVERSE, THERMAL_WAVES
 
-# Bound per kernel variant by bind_device_heat() (see thermonet.kernels.heat_flow).
-pair_exchange = boundary_exchange = finish_spring = wave_exchange = spring_temperature = squared_length = None
+# Bound per kernel variant by bind_device_heat() (see thermonet.heat.exchange).
+star_node = star_block = boundary_exchange = finish_spring = wave_exchange = spring_temperature = squared_length = None
 phase_span = phase_count = sweep_phase = temperature_update = None
 CONDUCTION = False
 WAVES = False
@@ -49,45 +54,59 @@ UNIFORM = False
 
 #: the record's logs (kept in the state) and working arrays, after its static fields
 LOGS = ("produced", "entry_heat", "entry_flux", "theta", "theta_ok", "length")
+#: logs only the CPU's explicit kernel uses (empty on the device)
+CPU_LOGS = ("pending_eta", "pending_produced", "pending_theta")
 WORK = ("s_before", "theta_start")
 #: what a phase runs over (see _phase_span)
-PAIRS, BOUNDARY, START, FINISH = range(4)
+PAIRS, BLOCKS, BOUNDARY, START, FINISH = range(5)
 
 
-def _phase_span(code, phase, colour_ptr, n_bound, m):
+def _conduction_due(code, every, step_in_cycle):
+    """Whether conduction row ``code`` runs on a step that is step ``step_in_cycle`` (0..k−1)
+    of its conduction cycle of ``every`` = k steps: the forward row on the first, the reverse row
+    on the last."""
+    if code == CONDUCTION_FORWARD:
+        return step_in_cycle == 0
+    return step_in_cycle == every - 1
+
+
+def _phase_span(code, phase, colour_ptr, star_colour_ptr, n_bound, m):
     """(kind, lo, hi): phase ``phase`` of heat row ``code`` runs elements lo:hi of kind PAIRS
-    (one colour's pairs), BOUNDARY (boundary springs), START or FINISH (all m springs)."""
-    n_colours = colour_ptr.shape[0] - 1
+    (one colour's wave pairs), BLOCKS (one star colour's blocks), BOUNDARY (boundary springs),
+    START or FINISH (all m springs)."""
     if code == THERMAL_WAVES:
-        colour = phase
-    else:
-        if phase == 0:
-            return START, 0, m
-        if phase == n_colours + 2:
-            return FINISH, 0, m
-        reverse = code == CONDUCTION_REVERSE
-        if phase == (n_colours + 1 if reverse else 1):
-            return BOUNDARY, 0, n_bound
-        colour = n_colours - phase if reverse else phase - 2
-    return PAIRS, colour_ptr[colour], colour_ptr[colour + 1]
+        return PAIRS, colour_ptr[phase], colour_ptr[phase + 1]
+    n_colours = star_colour_ptr.shape[0] - 1
+    if phase == 0:
+        return START, 0, m
+    if phase == n_colours + 2:
+        return FINISH, 0, m
+    reverse = code == CONDUCTION_REVERSE
+    if phase == (n_colours + 1 if reverse else 1):
+        return BOUNDARY, 0, n_bound
+    colour = n_colours - phase if reverse else phase - 2
+    return BLOCKS, star_colour_ptr[colour], star_colour_ptr[colour + 1]
 
 
-def _phase_count(code, colour_ptr):
-    """Phases of heat row ``code``: the colours, and for conduction the start, boundary and
-    finish phases."""
-    return colour_ptr.shape[0] - 1 + (0 if code == THERMAL_WAVES else 3)
+def _phase_count(code, colour_ptr, star_colour_ptr):
+    """Phases of heat row ``code``: the wave pairs' colours, or for conduction the star colours
+    and the start, boundary and finish phases."""
+    if code == THERMAL_WAVES:
+        return colour_ptr.shape[0] - 1
+    return star_colour_ptr.shape[0] - 1 + 3
 
 
 def _sweep_phase(code, phase, heat, tau, t, phi, eta, first, stride):
     """The elements first, first + stride, ... of phase ``phase`` of heat row ``code`` over τ at
     time t (conduction on heat.theta; see the module docstring). phi, eta: (m,)."""
-    kind, lo, hi = phase_span(code, phase, heat.colour_ptr, heat.bound_spring.shape[0], heat.capacity.shape[0])
+    kind, lo, hi = phase_span(code, phase, heat.colour_ptr, heat.star_colour_ptr, heat.bound_spring.shape[0],
+                              heat.capacity.shape[0])
     if WAVES and code == THERMAL_WAVES:
         for k in range(lo + first, hi, stride):
             wave_exchange(k, heat.first, heat.second, heat.wave, tau, phi, eta)
-    elif CONDUCTION and kind == PAIRS:
-        for k in range(lo + first, hi, stride):
-            pair_exchange(k, heat.first, heat.second, heat.factor, heat.theta)
+    elif CONDUCTION and kind == BLOCKS:
+        for b in range(lo + first, hi, stride):
+            star_block(b, heat, code == CONDUCTION_REVERSE, heat.theta)
     elif CONDUCTION and kind == BOUNDARY:
         logs = (heat.produced, heat.entry_heat, heat.entry_flux)
         for j in range(lo + first, hi, stride):
@@ -134,10 +153,10 @@ def bind_device_heat(ns: dict, tag: str, inline) -> None:
 
     ns["evaluate"] = inline(evaluate_py)
     ns["log"] = math.log  # (the CPU binds a vectorizing log; one call per spring here)
-    for name in heat_flow.SHARED:
-        ns[name] = inline(rebind(getattr(heat_flow, name), tag, ns))
+    for name in exchange.SHARED:
+        ns[name] = inline(rebind(getattr(exchange, name), tag, ns))
     for name, template in (("phase_span", _phase_span), ("phase_count", _phase_count), ("sweep_phase", _sweep_phase),
-                           ("temperature_update", _temperature_update)):
+                           ("temperature_update", _temperature_update), ("conduction_due", _conduction_due)):
         ns[name] = inline(rebind(template, tag, ns))
 
 
@@ -147,8 +166,10 @@ def heat_kernels(compile_):
 
 
 def conduction_coefficient(integrator) -> float:
-    """The coefficient c of the integrator's conduction rows (τ = c h; 0 when none), as the CPU
-    stepper requires: one for all of them."""
+    """The coefficient c of the integrator's conduction rows (τ = c h; 0 when none): one for all
+    of them, as the CPU stepper's half sweeps."""
+    from ..integrators.schedule import BuiltinFlow
+
     taus = sorted({c for _, f, c in integrator.flows if isinstance(f, BuiltinFlow) and f.code != THERMAL_WAVES})
     if len(taus) > 1:
         raise InputError(f"{integrator.name}: conduction rows with different coefficients {taus}")
@@ -164,26 +185,28 @@ class DeviceHeat:
         self.setup = setup
         self._to_device = to_device
         self.coefficient = conduction_coefficient(integrator) if setup is not None else 0.0
-        host = setup.record(0.0, setup.new_logs()) if setup is not None else no_heat()
+        host = setup.record(0.0, setup.new_logs(), "cuda") if setup is not None else no_heat()
         self.colour_ptr = np.asarray(host.colour_ptr)
+        self.star_colour_ptr = np.asarray(host.star_colour_ptr)
         self.n_bound = int(host.bound_spring.shape[0])
         self.m = int(host.capacity.shape[0])
-        n_static = len(Heat._fields) - len(LOGS) - len(WORK)
-        assert Heat._fields[n_static:] == LOGS + WORK
+        n_static = len(Heat._fields) - len(LOGS) - len(CPU_LOGS) - len(WORK)
+        assert Heat._fields[n_static:] == LOGS + CPU_LOGS + WORK
         self._static = [to_device(np.ascontiguousarray(a)) for a in host[:n_static]]
         self.logs = tuple(to_device(np.ascontiguousarray(getattr(host, k))) for k in LOGS)
+        self._cpu_logs = tuple(to_device(np.empty(0)) for _ in CPU_LOGS)
         self._work = tuple(to_device(np.zeros_like(getattr(host, k))) for k in WORK)
-        self._factor = (None, None)  # (τ, device factors)
+        self._factor = (None, None)  # (τ, device weight and decay)
 
-    def record(self, h: float) -> Heat:
-        """The device :class:`Heat` for sweeps over τ = coefficient · h."""
+    def record(self, h: float, every: int = 1) -> Heat:
+        """The device :class:`Heat` for sweeps over τ = coefficient · k · h (a cycle of k steps)."""
         static = list(self._static)
         if self.setup is not None and self.setup.conduction:
-            tau = self.coefficient * h
+            tau = self.coefficient * every * h
             if self._factor[0] != tau:
-                self._factor = (tau, self._to_device(self.setup.factor(tau)))
-            static[Heat._fields.index("factor")] = self._factor[1]
-        return Heat(*static, *self.logs, *self._work)
+                self._factor = (tau, tuple(self._to_device(a) for a in self.setup.factors(tau)))
+            static[Heat._fields.index("weight")], static[Heat._fields.index("decay")] = self._factor[1]
+        return Heat(*static, *self.logs, *self._cpu_logs, *self._work)
 
     def upload(self, state) -> None:
         """The logs of ``state`` onto the device."""
@@ -209,7 +232,7 @@ class DeviceHeat:
 
     def theta_ok(self) -> bool:
         """Whether heat.theta holds the springs' temperatures where the last call ended."""
-        return self.setup is not None and bool(self.logs[LOGS.index("theta_ok")].copy_to_host()[0] == 1.0)
+        return self.setup is not None and bool(self.logs[LOGS.index("theta_ok")].copy_to_host()[0] >= 1.0)
 
     def set_theta_ok(self, valid: bool) -> None:
         self.logs[LOGS.index("theta_ok")].copy_to_device(np.array([1.0 if valid else 0.0]))
@@ -217,8 +240,8 @@ class DeviceHeat:
     def phases(self, code: int):
         """(phase, number of elements) of heat row ``code``, in order (see :func:`_phase_span`)."""
         out = []
-        for phase in range(_phase_count(code, self.colour_ptr)):
-            _, lo, hi = _phase_span(code, phase, self.colour_ptr, self.n_bound, self.m)
+        for phase in range(_phase_count(code, self.colour_ptr, self.star_colour_ptr)):
+            _, lo, hi = _phase_span(code, phase, self.colour_ptr, self.star_colour_ptr, self.n_bound, self.m)
             out.append((phase, int(hi - lo)))
         return out
 
@@ -231,7 +254,7 @@ def compile_heat_ptx(model, uniform: bool = True, cc=(9, 0)) -> dict[str, str]:
 
     from ..kernels import records
     from ..kernels.specialize import kernel_namespace
-    from ..kernels.splitting import bind_subflows
+    from ..kernels.subflows import bind_subflows
 
     ns = kernel_namespace(model, True, uniform)
     ns["CONDUCTION"] = ns["WAVES"] = True
@@ -254,5 +277,5 @@ def compile_heat_ptx(model, uniform: bool = True, cc=(9, 0)) -> dict[str, str]:
 def sample_heat():
     """A :class:`Heat` record of one-element arrays of the kernels' types (for compiling)."""
     v, i, i32 = np.empty(1), np.empty(1, np.int64), np.empty(1, np.int32)
-    return Heat(i32, i32, np.empty((2, 1)), v, i, v, v, i, i, i, i, v, i, np.empty((1, 4)), i, v, v, v, v, v, v, v, v,
-                v, v)
+    return Heat(i, i, i, i, np.empty(1, np.uint32), v, v, i32, i32, v, i, v, v, i, i, i, i, v, i, np.empty((1, 4)), i,
+                v, v, v, v, v, v, v, v, v, v, v, v, v)

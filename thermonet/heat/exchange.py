@@ -1,22 +1,27 @@
-"""The heat-flow sub-flows, one definition each, for every target (spec-heat §1–2).
+"""The heat-flow sub-flows, one definition each, for every target (the CPU passes of
+:mod:`thermonet.heat.passes`, the CUDA phases of :mod:`thermonet.heat.cuda`).
 
 Like :mod:`thermonet.kernels.subflows`, plain Python that each target compiles (``njit`` inline
 on the CPU, device functions for CUDA). A conduction sweep works on the springs' temperatures
 θ (m,) at the current positions; its exchanges are linear in θ and need no logarithm:
 
-- :func:`pair_exchange`: springs e and f alone exchange heat for the sweep's time τ, exactly:
-  ``Q = c_r (1 − exp(−κ τ / c_r)) (θ_f − θ_e)``, ``c_r = C_e C_f / (C_e + C_f)`` (the factor is
-  precomputed per pair for the run's τ, divided by each spring's C). ``U_e + U_f`` is unchanged; the pair's entropy rises
-  (``C_e ln(θ_e'/θ_e) + C_f ln(θ_f'/θ_f) ≥ 0``: Q never passes the common temperature).
+- :func:`star_block`: the node-star exchanges of one block of junction nodes, node after node
+  (in reverse order for the second half of a symmetric step). At junction i every spring e
+  relaxes exactly toward the junction's temperature J, at its own rate g_e/C_e:
+  ``θ_e ← J + (θ_e − J) exp(−g_e τ / C_e)``, with ``J = Σ a θ / Σ a``,
+  ``a_e = C_e (1 − exp(−g_e τ / C_e))`` — the J that keeps ``Σ C θ`` at the node. The new θ are
+  a mix of the old with non-negative weights, rows summing to one and ``Σ_e C_e A_ef = C_f``: the
+  node's internal energy is unchanged and its entropy ``Σ C ln θ`` cannot fall (Jensen), at any
+  τ. It is the exact flow of the node's junction system ``C_e θ̇_e = g_e (J − θ_e)`` when the
+  rates g/C at the node are equal, and second order (local error O(τ³)) otherwise.
 - :func:`boundary_exchange`: the baths and sources of one spring, in order (reversed in the
-  second half step): a bath end ``θ ← θ_b + (θ − θ_b) exp(−g τ / C)``, a source
-  ``θ ← θ + P τ / C``; each entry logs the heat it gave and the entropy it brought (Q/θ_b for a
-  bath; C ln(θ'/θ) for a source).
-- :func:`finish_spring`: after a half step's sweep, ``η += C ln(θ'/θ)`` per spring (one
+  second half step): a bath end ``θ ← θ_b + (θ − θ_b) exp(−g τ / C)`` (the same exchange with J
+  imposed), a source ``θ ← θ + P τ / C``; each entry logs the heat it gave and the entropy it
+  brought (Q/θ_b for a bath; C ln(θ'/θ) for a source).
+- :func:`finish_spring`: after the sweeps at a step boundary, ``η += C ln(θ'/θ)`` per spring (one
   logarithm per spring, exact for the constant heat capacities of both shipped models); the
-  entropy produced is that change less what the entries brought, and sums over the net to the
-  pairs' and bath ends' productions.
-- :func:`wave_exchange`: the Green–Naghdi type II flow of one pair at fixed Φ:
+  entropy produced is that change less what the entries brought.
+- :func:`wave_exchange`: the Green–Naghdi type II flow of one spring pair at fixed Φ:
   ``J = τ k* (Φ_e − Φ_f)``, ``η_e −= J``, ``η_f += J`` (total entropy exact).
 """
 
@@ -34,20 +39,38 @@ import numpy as np
 evaluate = None
 log = math.log
 
+#: kinds of boundary entries
 BATH = 0
 SOURCE = 1
 
 
-def pair_exchange(k, first, second, gain, theta):
-    """Exact heat exchange of pair k (springs first[k], second[k]) over the sweep's τ, in θ;
-    gain: (2, P), the pair's factor over C_first and over C_second."""
-    # unsigned indices: no negative-index wraparound in the loop (the sweep runs 2× faster)
-    i = np.uint64(k)
-    e = np.uint32(first[i])
-    f = np.uint32(second[i])
-    difference = theta[f] - theta[e]
-    theta[e] += gain[0, i] * difference
-    theta[f] -= gain[1, i] * difference
+def star_node(i, inc_ptr, inc_spring, weight, decay, theta):
+    """The exchange of junction node i over the sweep's τ: its springs relax toward the junction
+    temperature that keeps their energy (see the module docstring). weight, decay: (m,) a and
+    exp(−g τ/C) of each spring for this τ."""
+    lo = inc_ptr[i]
+    hi = inc_ptr[i + 1]
+    num = 0.0
+    den = 0.0
+    for j in range(lo, hi):
+        e = inc_spring[np.uint64(j)]
+        num += weight[e] * theta[e]
+        den += weight[e]
+    if den > 0.0:
+        junction = num / den
+        for j in range(lo, hi):
+            e = inc_spring[np.uint64(j)]
+            theta[e] = junction + (theta[e] - junction) * decay[e]
+
+
+def star_block(b, heat, reverse, theta):
+    """The nodes of block b (heat.block_node[heat.block_ptr[b]:heat.block_ptr[b + 1]]) one after
+    the other, last to first when ``reverse``."""
+    lo = heat.block_ptr[b]
+    hi = heat.block_ptr[b + 1]
+    for k in range(hi - lo):
+        q = hi - 1 - k if reverse else lo + k
+        star_node(heat.block_node[q], heat.inc_ptr, heat.inc_spring, heat.weight, heat.decay, theta)
 
 
 def boundary_exchange(j, heat, tau, t, reverse, theta, logs):
@@ -81,7 +104,7 @@ def boundary_exchange(j, heat, tau, t, reverse, theta, logs):
 
 
 def finish_spring(e, theta, theta_start, eta, capacity, produced):
-    """After the sweeps of a half step: spring e's entropy follows its temperature at fixed
+    """After the sweeps at a step boundary: spring e's entropy follows its temperature at fixed
     length, ``Δη = C ln(θ'/θ)`` (exact for a constant heat capacity), and the change is logged
     as produced (the bath and source entries took off what they brought)."""
     change = capacity[e] * log(theta[e] / theta_start[e])
@@ -99,8 +122,8 @@ def wave_exchange(k, first, second, wave, tau, phi, eta):
     eta[f] += flow
 
 
-#: the functions above, in the order a kernel factory binds them
-SHARED = ("pair_exchange", "boundary_exchange", "finish_spring", "wave_exchange")
+#: the functions above, in the order a kernel factory binds them (callees first)
+SHARED = ("star_node", "star_block", "boundary_exchange", "finish_spring", "wave_exchange")
 
 
 def source_digest() -> str:

@@ -1,11 +1,14 @@
-"""The CPU passes of the heat-flow rows (templates compiled per model by
+"""The CPU passes of heat flow (templates compiled per model by
 :func:`thermonet.kernels.splitting.splitting_kernels` and :func:`heat_kernels`).
 
-A conduction row is a sweep: the boundary entries (baths, sources: parallel over their
-springs), then the pair colours in order, each colour's pairs in parallel (they share no
-spring); the reverse sweep runs the colours backwards and the boundary entries last, so that
-``K_f(h/2) ∘ A(h) ∘ K_r(h/2)`` is symmetric. Each element is computed by one thread with a fixed
-order, so results do not depend on the thread count.
+A conduction sweep (:func:`_conduction_sweep`) runs at a step boundary: the reverse half sweep
+that ends a conduction cycle (the star colours backwards, each block's nodes last to first, then
+the boundary entries: baths, sources), the forward half sweep that starts the next one (the
+boundary entries, then the colours in order), or both back to back; then one entropy update per
+spring. A colour's blocks run in parallel (they share no spring); each block and each boundary
+spring is computed by one thread in a fixed order, so results do not depend on the thread count.
+The forward sweeps of ``K_f(kh/2) ∘ A(h)^k ∘ K_r(kh/2)`` are the exact reverse of the reverse
+ones, which makes the cycle symmetric.
 """
 
 from __future__ import annotations
@@ -15,11 +18,20 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from . import heat_flow
-from .specialize import kernel_namespace, model_fingerprint, rebind, specialize
+from ..kernels.specialize import kernel_namespace, model_fingerprint, rebind, specialize
+from . import exchange
+
+#: what a conduction sweep does (a bit set): the forward half sweep, the reverse one; SAVE: keep
+#: the entropies, production log and temperatures before the sweep (a call ends with it);
+#: CONTINUE: start the entropy update from the kept ones (the next call's first sweep), so that
+#: it covers both half sweeps, as the one update of a call that runs them back to back
+FORWARD = 1
+REVERSE = 2
+SAVE = 4
+CONTINUE = 8
 
 # Bound per kernel variant (see thermonet.kernels.splitting).
-pair_exchange = boundary_exchange = finish_spring = wave_exchange = spring_temperature = squared_length = None
+star_node = star_block = boundary_exchange = finish_spring = wave_exchange = spring_temperature = squared_length = None
 tension = outside_admissible = advance_thermal_displacement = None
 UNIFORM = False
 #: springs per block of the temperature pass (see thermonet.kernels.splitting.BLOCK)
@@ -29,15 +41,15 @@ _OPTIONS = dict(cache=True, error_model="numpy", boundscheck=False, _nrt=False) 
 
 
 def bind_heat_flow(ns: dict, tag: str, compile_) -> None:
-    """Bind :mod:`thermonet.kernels.heat_flow`'s functions into the kernel namespace ``ns``,
+    """Bind :mod:`thermonet.heat.exchange`'s functions into the kernel namespace ``ns``,
     each compiled by ``compile_`` (the time functions' ``evaluate`` with it)."""
+    from ..kernels.fastmath import log
     from ..timefunctions import evaluate_py
-    from .fastmath import log
 
     ns["evaluate"] = compile_(evaluate_py)
     ns["log"] = log
-    for name in heat_flow.SHARED:
-        ns[name] = compile_(rebind(getattr(heat_flow, name), tag, ns))
+    for name in exchange.SHARED:
+        ns[name] = compile_(rebind(getattr(exchange, name), tag, ns))
 
 
 def bind_heat_passes(ns: dict, tag: str, parallel: bool) -> None:
@@ -132,32 +144,49 @@ def _refresh_pass(theta, length, phi, springs, s, steps, run):
     return bad
 
 
-def _conduction_sweep(heat, theta, theta_start, eta, tau, t, reverse):
-    """One conduction half step over τ at time t (see the module docstring): theta must hold the
+def _conduction_sweep(heat, theta, theta_start, eta, tau, t, directions):
+    """Conduction half sweeps over τ each at time t (see the module docstring): ``directions``
+    REVERSE, FORWARD or both (the reverse one first), with SAVE or CONTINUE. theta must hold the
     springs' temperatures at the current positions, and is kept so; theta_start (m,) is
     scratch. Ends with each spring's entropy update (:func:`finish_spring`)."""
-    ptr = heat.colour_ptr
+    ptr = heat.star_colour_ptr
     n_colours = ptr.shape[0] - 1
     # the arrays written in parallel loops are taken out of the record first: Numba's parallel
     # loops lose writes made through a record's attribute
     produced = heat.produced
     logs = (produced, heat.entry_heat, heat.entry_flux)
-    first, second, gain = heat.first, heat.second, heat.factor
     capacity = heat.capacity
     n_bound = heat.bound_spring.shape[0]
     m = theta.shape[0]
-    for e in prange(m):
-        theta_start[e] = theta[e]
-    if not reverse:
-        for j in prange(n_bound):
-            boundary_exchange(j, heat, tau, t, False, theta, logs)
-    for i in range(n_colours):
-        colour = n_colours - 1 - i if reverse else i
-        for k in prange(ptr[colour], ptr[colour + 1]):
-            pair_exchange(k, first, second, gain, theta)
-    if reverse:
+    pending_eta = heat.pending_eta
+    pending_produced = heat.pending_produced
+    pending_theta = heat.pending_theta
+    if directions & CONTINUE:
+        for e in prange(m):
+            theta_start[e] = pending_theta[e]
+            eta[e] = pending_eta[e]
+            produced[e] = pending_produced[e]
+    else:
+        for e in prange(m):
+            theta_start[e] = theta[e]
+    if directions & REVERSE:
+        for i in range(n_colours):
+            colour = n_colours - 1 - i
+            for b in prange(ptr[colour], ptr[colour + 1]):
+                star_block(b, heat, True, theta)
         for j in prange(n_bound):
             boundary_exchange(j, heat, tau, t, True, theta, logs)
+    if directions & FORWARD:
+        for j in prange(n_bound):
+            boundary_exchange(j, heat, tau, t, False, theta, logs)
+        for colour in range(n_colours):
+            for b in prange(ptr[colour], ptr[colour + 1]):
+                star_block(b, heat, False, theta)
+    if directions & SAVE:
+        for e in prange(m):
+            pending_theta[e] = theta_start[e]
+            pending_eta[e] = eta[e]
+            pending_produced[e] = produced[e]
     for e in prange(m):
         finish_spring(e, theta, theta_start, eta, capacity, produced)
 
@@ -177,13 +206,13 @@ _CACHE: dict = {}
 def heat_kernels(model, parallel: bool, uniform: bool):
     """(temperature_pass, conduction_sweep) for steppers that run conduction around their own
     steps (the implicit ones): ``temperature_pass(x, eta, topology, springs, theta, length)``,
-    ``conduction_sweep(heat, theta, theta_start, eta, tau, t, reverse)``."""
-    from .splitting import bind_subflows
+    ``conduction_sweep(heat, theta, theta_start, eta, tau, t, directions)``."""
+    from ..kernels.subflows import bind_subflows
 
     key = (model_fingerprint(model), bool(parallel), bool(uniform))
     if key not in _CACHE:
         tag = (f"{model.name}_{key[0]}_{'par' if parallel else 'ser'}{'_uniform' if uniform else ''}"
-               f"_h{heat_flow.source_digest()}")
+               f"_h{exchange.source_digest()}")
         ns = kernel_namespace(model, True, uniform)
         inline = njit(inline="always", error_model="numpy", boundscheck=False)
         bind_subflows(ns, tag, inline)
