@@ -24,6 +24,7 @@ Targets: the whole step ≤ 2× the adiabatic thermal step with conduction every
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import statistics
 import tempfile
@@ -36,6 +37,7 @@ import thermonet as tn
 from thermonet.heat.graph import pair_graph, pairs_per_spring
 from thermonet.heat.passes import FORWARD, REVERSE, heat_kernels
 from thermonet.kernels import records
+from thermonet.scenes.scene import load_scene
 from thermonet.stability import stable_step
 
 PARAMETERS = dict(c=100.0, beta=0.2, C0=5.0, theta0=300.0)
@@ -160,7 +162,6 @@ def part_simulations(scene_path: str, overrides, threads: int | None):
     """(adiabatic, auto) simulations of a scene: its own step and outputs, conduction "auto";
     the adiabatic one with conduction and baths switched off."""
     from thermonet.scenes.build import build_scene
-    from thermonet.scenes.scene import load_scene
 
     extra = [f"integrator.threads={threads}"] if threads else []
     auto = build_scene(load_scene(scene_path, list(overrides) + extra)).simulation
@@ -193,7 +194,9 @@ STEEL = ["materials.bracket.youngs_modulus=200e9", "materials.bracket.thermal_ex
          "materials.bracket.conductivity=50.0"]
 
 
-def main() -> None:
+def main(argv=None) -> tuple[list, list]:
+    """Run the benchmark (``argv``: its command line); returns its rows (lattice and tetrahedra)
+    and parts (steel, thermal shock) as dicts."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cells", type=int, default=32, help="lattice cells per axis (32: about 1e5 springs)")
     ap.add_argument("--mesh-size", type=float, default=0.06, help="gmsh size of the tetrahedral bar "
@@ -203,7 +206,7 @@ def main() -> None:
     ap.add_argument("--threads", default="1,default", help="comma-separated thread counts ('default': Numba's)")
     ap.add_argument("--nets", default="lattice,tetra,steel,shock")
     ap.add_argument("--quick", action="store_true", help="small nets, few steps, one repeat (a smoke run)")
-    args = ap.parse_args()
+    args = ap.parse_args(argv)
     if args.quick:
         args.cells, args.mesh_size, args.steps, args.repeats, args.threads = 6, 0.5, 20, 1, "1"
     steel_h = None
@@ -223,9 +226,10 @@ def main() -> None:
             continue
         if which == "steel":  # the bracket in steel at 0.9× the explicit stable step
             path = os.path.join(ROOT, "scenes", "bracket.toml")
-            if steel_h is None:
+            if steel_h is None:  # at most 0.9× the stable step, a whole number of steps to the scene's t_end
                 probe = part_simulations(path, STEEL, 1)[0]
-                steel_h = 0.9 * stable_step(probe)["h_max"]
+                t_end = load_scene(path).data["integrator"]["t_end"]
+                steel_h = t_end / math.ceil(t_end / (0.9 * stable_step(probe)["h_max"]))
             overrides, name, cadence = STEEL + [f"integrator.h={steel_h!r}"], "steel bracket (SI, 5 mm tetrahedra)", 100
         else:
             path, overrides, name, cadence = os.path.join(ROOT, "scenes", "thermal_shock.toml"), [], \
@@ -255,6 +259,7 @@ def main() -> None:
         for r in parts:
             print(f"| {r['net']} | {r['springs']:,} | {r['threads']} ({r['kernels']}) | {r['h']:.3g} | {r['k']} | "
                   f"{1e3 * r['adiabatic']:.3g} | {1e3 * r['auto']:.3g} | **{r['auto_ratio']:.2f}×** |")
+    return rows, parts
 
 
 if __name__ == "__main__":

@@ -53,12 +53,13 @@ def main(path, steps):
     sim.run(steps=2, diagnostics_every=1)
     sim.run(steps=steps - 2, diagnostics_every=max(1, steps // 2))
     out["chunks/positions"], out["chunks/load_work"] = sim.state.positions, sim.state.extra["load_work"]
-    # with heat flow (conduction, a bath, a source): the CPU defers a kick past the sweeps, the
-    # device recomputes the temperatures instead
+    # with heat flow (conduction, a bath, a source; the CPU sweeping in the GPU's order, every
+    # 2 steps): the CPU defers a kick past the sweeps, the device recomputes the temperatures instead
     from test_loads_heat import loaded_hot_strip
 
     for backend in ("cpu", "cuda"):
-        sim = loaded_hot_strip(0.004, backend=backend)
+        sim = loaded_hot_strip(0.004, backend=backend, conduction_every=2)
+        sim.system.heat.use_order_of("cuda")
         sim.run(steps=8 * steps, diagnostics_every=4 * steps)
         s = sim.state
         out[f"heat/{backend}/positions"], out[f"heat/{backend}/entropy"] = s.positions, s.entropy

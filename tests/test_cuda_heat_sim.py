@@ -155,6 +155,7 @@ def main(path):
     sim = conduction_sim("cuda", True, bath=500.0, every=2)
     sim._advance(1)
     sim._advance(1)
+    sim.record_diagnostics()
     record(out, "calls-multirate/cuda", sim)
     for name, fused in BLOWUPS.items():
         for backend in ("cpu", "cuda"):
@@ -199,7 +200,15 @@ def _close(a, b, rtol):
 
 def assert_states_agree(runs, a, b, rtol=STATE_RTOL):
     for field in ("positions", "momenta", "thermal_displacement", "entropy") + LOGS:
-        assert _close(runs[f"{a}/{field}"], runs[f"{b}/{field}"], rtol), field
+        x, y = runs[f"{a}/{field}"], runs[f"{b}/{field}"]
+        if field == "theta_ok":  # valid on both (2 on the CPU: a call ended with a reverse sweep)
+            assert (x[0] >= 1.0) == (y[0] >= 1.0), field
+        elif field == "produced":  # per spring a change of η: rounded at η's scale (the CPU takes
+            # one logarithm for a step boundary's two half sweeps, the device one for each)
+            scale = max(float(np.abs(runs[f"{a}/entropy"]).max()), 1e-300)
+            assert float(np.max(np.abs(x - y), initial=0.0)) <= rtol * scale, field
+        else:
+            assert _close(x, y, rtol), field
 
 
 @pytest.mark.parametrize("case", list(CASES))

@@ -59,6 +59,8 @@ def test_thermal_shock_matches_the_lattice_solution_at_second_order(tmp_path):
     assert (err_h2 > 1e-7).all()                       # an error to measure, not round-off
     slopes = np.log2(err_h / err_h2)
     assert np.all(np.abs(slopes - 2.0) < 0.05), slopes
+    # conduction "auto" at the scene's step: within 1e-3 of the shock
+    assert numbers["k_auto"] >= 1 and (np.array(numbers["error_auto"]) <= 1e-3).all(), numbers["error_auto"]
     # the heat has entered: the hottest springs are well above the initial 300 K
     assert numbers["exact"][-1].max() > 800.0
     # beta = 0.002 changes temperatures by the thermo-elastic work, by far less than a kelvin
@@ -66,19 +68,19 @@ def test_thermal_shock_matches_the_lattice_solution_at_second_order(tmp_path):
     assert (tmp_path / "thermal_shock_profiles.png").stat().st_size > 10_000
 
 
-def test_info_lists_conduction_baths_and_pairs(capsys):
+def test_info_lists_conduction_baths_and_the_conduction_cycle(capsys):
     assert thermonet(["info", str(ROOT / "scenes" / "thermal_shock.toml"),
                       "--set", "sources.s.group=bar", "--set", "sources.s.power=0.5"]) == 0
     text = capsys.readouterr().out
     assert "heat flow: conduction on (g 4), thermal waves off" in text
-    pairs = int(text.split(" spring pairs")[0].split()[-1])
     net = tn.read_mesh(ROOT / "meshes" / "thermal_bar.msh", cell_types=["tetra"])
-    # every pair of springs meeting at a node that is not a bath node (no two springs share two nodes)
+    # every junction with two or more springs is swept: every node but the bath's
     bath = np.zeros(net.n_nodes, dtype=bool)
     bath[net.node_groups["hot_end"]] = True
     degree = np.bincount(net.edges.ravel(), minlength=net.n_nodes)
-    assert pairs == int(sum(d * (d - 1) // 2 for d in degree[~bath]))
-    assert f"({2 * pairs / net.n_springs:.3g} per spring" in text
+    assert f"conduction swept over {int(np.sum(~bath & (degree >= 2)))} junctions in " in text
+    # the scene's outputs every 10 and 50 steps; λ = 8 (g = 4, C0 = 1: 2 g (1 − g/G) + g at a bath end)
+    assert "conduction every " in text and "λ k h" in text
     ends = int(np.isin(net.edges, net.node_groups["hot_end"]).sum())
     assert f"bath hot: node group 'hot_end' (12 nodes, {ends} spring ends), θ_b(t) = 900" in text
     assert "source s: spring group 'bar' (673 springs), P(t) = 0.5 per spring" in text

@@ -70,16 +70,17 @@ def test_chunked_and_resumed_runs_with_loads_and_heat_are_bit_identical(tmp_path
     # costs a minute of compilation on a cold cache)
     from thermonet.io.checkpoint import load_checkpoint, save_checkpoint
 
-    one = loaded_hot_strip(0.004)
+    # (conduction every step: calls of 7 steps; cycles cut by calls: tests/test_heat_flow.py)
+    one = loaded_hot_strip(0.004, conduction_every=1)
     one.run(steps=400, diagnostics_every=400)
-    chunked = loaded_hot_strip(0.004)
+    chunked = loaded_hot_strip(0.004, conduction_every=1)
     for _ in range(4):
         chunked.run(steps=100, diagnostics_every=7)
-    first = loaded_hot_strip(0.004)
+    first = loaded_hot_strip(0.004, conduction_every=1)
     first.run(steps=150, diagnostics_every=50)
     save_checkpoint(tmp_path / "c.npz", first.state, {})
     state, _ = load_checkpoint(tmp_path / "c.npz")
-    resumed = loaded_hot_strip(0.004)
+    resumed = loaded_hot_strip(0.004, conduction_every=1)
     resumed.load_state(state)
     resumed.run(steps=250, diagnostics_every=50)
     for other in (chunked, resumed):

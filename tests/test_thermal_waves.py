@@ -87,7 +87,7 @@ def test_the_stable_step_includes_the_thermal_waves_limit_and_the_guard_stops_ab
     from thermonet.stability import stable_step, wave_frequency
 
     net, theta = warm_net(5)
-    common = dict(parameters=dict(c=100, beta=1.0, C0=1.0, theta0=300, g_star=2.0), temperatures=theta)
+    common = dict(parameters=dict(c=100, beta=1.0, C0=1.0, theta0=300, g_star=20.0), temperatures=theta)
     mechanical = tn.Simulation(net, **{**common, "parameters": dict(c=100, beta=1.0, C0=1.0, theta0=300)})
     waves = tn.Simulation(net, **common)
     without, with_waves = stable_step(mechanical), stable_step(waves)
@@ -95,9 +95,13 @@ def test_the_stable_step_includes_the_thermal_waves_limit_and_the_guard_stops_ab
     assert with_waves["h_max"] < 0.5 * without["h_max"]
     omega_w = with_waves["omega_waves"]
     assert omega_w <= wave_frequency(waves, bound_only=True) * (1 + 1e-12)
-    # the eigenvalue: a Φ mode of the linearized wave flow grows past h ω_W = 2 with CO2
+    # above the waves' limit (and well below the mechanical one) the guard warns, then stops
+    from thermonet.step_policy import REFUSE, StepWarning
+
     h = 1.2 * with_waves["h_max"]
+    with pytest.warns(StepWarning, match="thermal waves"):
+        tn.Simulation(net, h=h, energy_tolerance=None, **common).run(steps=2, diagnostics_every=1)
+    h = 1.1 * REFUSE * with_waves["h_max"]
     assert h < 0.9 * without["h_max"]  # mechanically fine: only the waves' limit is crossed
-    sim = tn.Simulation(net, h=h, **common)
     with pytest.raises(SimulationError, match="thermal waves"):
-        sim.run(steps=200, diagnostics_every=10)
+        tn.Simulation(net, h=h, energy_tolerance=None, **common).run(steps=200, diagnostics_every=1)

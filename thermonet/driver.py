@@ -238,7 +238,6 @@ class RunDriver:
     def record_diagnostics(self) -> None:
         """Record a diagnostics row for the current state unless the last row is of this step
         (checkpoints call it so that a resumed run's rows equal an uninterrupted run's)."""
-        self._choose_conduction_cycle(steps, [k for k, _ in cadences])
         if not self.diagnostics.rows or self.diagnostics.rows[-1]["step"] != self._state.step:
             self._record(self)
 

@@ -89,7 +89,7 @@ class Simulation(RunDriver):
         the diagnostics gain the entropy produced, the heat of each bath and source and the
         energy and entropy balances.
     conduction_every: k, the steps of one conduction cycle: "auto" (default: the largest k of
-        1, 2, 5, 10, 20, … with λ k h ≤ 0.1, λ the conduction's fastest rate, that divides the
+        1, 2, 5, 10, 20, … with λ k h ≤ 0.3, λ the conduction's fastest rate, that divides the
         output cadences; :mod:`thermonet.heat.multirate`) or a whole number that divides every
         run's output cadences and length. ``self.conduction_cycle`` says which k ran and why.
     thermal_waves: Green–Naghdi type II thermal waves (spec-heat §2) through ``g_star`` (in

@@ -260,7 +260,8 @@ def wave_frequency(sim, bound_only: bool = False) -> float:
     (0 without them): linearized at fixed positions, ``Φ̈_e = θ̇_e = −(θ_e / C_e) Σ_f k*_ef (Φ_e − Φ_f)``,
     so ω_W² is the largest eigenvalue of ``D^½ L* D^½``, D = diag(θ/C), L* the k*-Laplacian of
     the spring pairs. Their flow is a third sub-flow of the splitting with its own limit
-    h ω_W < c. ``bound_only``: the Gershgorin bound ``√(2 max_e (θ_e/C_e) Σ_f k*_ef)`` instead."""
+    h ω_W < c. ``bound_only``: the Gershgorin bound ``√(max_e d_e Σ_f k*_ef (d_e + max d))``,
+    d = √(θ/C), instead."""
     heat = getattr(sim.system, "heat", None)
     if heat is None or not heat.waves or heat.graph.n_pairs == 0:
         return 0.0
@@ -271,7 +272,7 @@ def wave_frequency(sim, bound_only: bool = False) -> float:
     d = np.sqrt(np.maximum(theta, 0.0) / heat.capacity)
     degree = np.bincount(g.first, weights=k, minlength=m) + np.bincount(g.second, weights=k, minlength=m)
     if bound_only or m > 200:
-        bound = float(2.0 * np.max(d * d * degree))
+        bound = float(np.max(d * degree * (d + d.max())))
         if bound_only:
             return float(np.sqrt(bound))
     L = sp.coo_matrix((np.concatenate([-k, -k, degree]),

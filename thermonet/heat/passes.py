@@ -30,7 +30,11 @@ REVERSE = 2
 SAVE = 4
 CONTINUE = 8
 
-# Bound per kernel variant (see thermonet.kernels.splitting).
+# Bound per kernel variant (see thermonet.kernels.splitting; spring_pass and _copy_values for
+# conduction_boundary, which only the explicit step uses).
+spring_pass = _copy_values = temperature_pass = conduction_sweep = node_pass = None
+cpu_evaluate_loads = cpu_load_work = None
+LOADS = False
 star_node = star_block = boundary_exchange = finish_spring = wave_exchange = spring_temperature = squared_length = None
 tension = outside_admissible = advance_thermal_displacement = None
 UNIFORM = False
@@ -189,6 +193,35 @@ def _conduction_sweep(heat, theta, theta_start, eta, tau, t, directions):
             pending_produced[e] = produced[e]
     for e in prange(m):
         finish_spring(e, theta, theta_start, eta, capacity, produced)
+
+
+def conduction_boundary(state, cur, topology, springs, scratch, heat, run, pending, directions, step):
+    """The conduction sweeps at the start of step ``step`` of a call of the explicit kernel (``directions``:
+    REVERSE ends a cycle, FORWARD starts one; SAVE, CONTINUE as :func:`_conduction_sweep`), the
+    springs' θ at the positions ``cur`` in scratch.theta_keep. A closing kick still pending
+    there (``pending``, its coefficient) acts with the temperatures before the sweeps: its
+    spring pass runs now (it leaves θ and l at cur), its forces kept in heat.s_before, and its
+    node pass is deferred by the caller (the sweeps do not touch p). Returns the number of
+    inadmissible springs that spring pass found (0: swept)."""
+    if pending != 0.0:
+        bad = spring_pass(cur, state.eta, state.phi, topology, springs, scratch, (0.0, pending * run.h), run, False,
+                          heat.length)[0]
+        if bad > 0:
+            return bad
+        _copy_values(scratch.s, heat.s_before)
+    conduction_sweep(heat, scratch.theta_keep, heat.theta_start, state.eta, 0.5 * run.conduction_every * run.h,
+                     run.t0 + step * run.h, directions)
+    return 0
+
+
+def deferred_kick(x, x_new, p, topology, nodes, scratch, heat, loads, tau, t):
+    """The kick deferred past the sweeps (tau, already times h) by itself, with the forces in
+    heat.s_before at x and, with LOADS, the loads at time t (and their work)."""
+    if LOADS:
+        cpu_evaluate_loads(loads, t)
+    node_pass(x, x_new, p, topology, nodes, scratch, (tau, 0.0, 0.0, True), 3, False, (heat.s_before, loads))
+    if LOADS:
+        cpu_load_work(x, heat.s_before, topology, nodes, loads, 0.0, tau)
 
 
 def _wave_sweep(heat, phi, eta, tau):

@@ -62,7 +62,8 @@ import numpy as np
 from numba import njit, prange
 
 from ..heat import exchange as heat_exchange
-from ..heat.passes import CONTINUE, FORWARD, REVERSE, SAVE, bind_heat_flow, bind_heat_passes
+from ..heat.passes import (CONTINUE, FORWARD, REVERSE, SAVE, bind_heat_flow, bind_heat_passes, conduction_boundary,
+                           deferred_kick)
 from ..loads.elements import bind_loads
 from . import subflows
 from .subflows import bind_subflows
@@ -81,7 +82,7 @@ spring_pass = node_pass = boundary_spring_pass = boundary_node_pass = None
 thermal_kick = copy_rows = apply_flow = None
 spring_force = spring_energy = spring_temperature = outside_admissible = advance_thermal_displacement = None
 gather_force = kick_momentum = drift_position = load_row = store_row = None
-temperature_pass = refresh_pass = conduction_sweep = wave_sweep = gather_two_forces = _conduction_boundary = None
+temperature_pass = refresh_pass = conduction_sweep = wave_sweep = gather_two_forces = _deferred_kick = None
 node_load = cpu_evaluate_loads = cpu_load_work = cpu_drive_positions = stage_time = None
 LOADS = False
 THERMAL = True
@@ -163,8 +164,10 @@ def splitting_kernels(model, parallel: bool, thermal: bool = True, uniform: bool
             ns[f"flow_pass_{slot}"] = fn
         ns["apply_flow"] = specialize(_apply_flow, tag, ns, inline="always", **_OPTIONS)
         ns["_stopped"] = specialize(_stopped, tag, ns, inline="always", **_OPTIONS)
-        ns["_deferred_kick"] = specialize(_deferred_kick, tag, ns, inline="always", **_OPTIONS)
-        ns["_conduction_boundary"] = specialize(_conduction_boundary, tag, ns, inline="always", **_OPTIONS)
+        if conduction:  # the conduction boundary and the kick it defers (thermonet.heat.passes)
+            ns["_copy_values"] = _copy_values
+            ns["_deferred_kick"] = specialize(deferred_kick, tag, ns, inline="always", **_OPTIONS)
+            ns["conduction_boundary"] = specialize(conduction_boundary, tag, ns, inline="always", **_OPTIONS)
         _CACHE[key] = specialize(_advance, tag, ns, **_OPTIONS)
     return _CACHE[key]
 
@@ -364,36 +367,6 @@ def _stopped(x, x_buf, swaps, heat, steps_done):
     return steps_done, True, False
 
 
-def _deferred_kick(x, x_new, p, topology, nodes, scratch, heat, loads, tau, t):
-    """The deferred kick of tau (already times h) by itself, with the forces in heat.s_before at
-    x and, with LOADS, the loads at time t (and their work)."""
-    if LOADS:
-        cpu_evaluate_loads(loads, t)
-    node_pass(x, x_new, p, topology, nodes, scratch, (tau, 0.0, 0.0, True), 3, False, (heat.s_before, loads))
-    if LOADS:
-        cpu_load_work(x, heat.s_before, topology, nodes, loads, 0.0, tau)
-
-
-def _conduction_boundary(cur, eta, phi, topology, springs, scratch, heat, run, pending, theta_valid, directions, t):
-    """The conduction sweeps at a step boundary (``directions``: :data:`~thermonet.heat.passes.REVERSE`
-    ends a cycle, FORWARD starts one). A closing kick still pending there (``pending``, its
-    coefficient) acts at these positions with the temperatures before the sweeps: its spring
-    pass runs now, its forces kept in heat.s_before, and its node pass is deferred (the sweeps do
-    not touch p). Returns the number of inadmissible springs its spring pass found."""
-    bad = 0
-    if pending != 0.0:
-        bad = spring_pass(cur, eta, phi, topology, springs, scratch, (0.0, pending * run.h), run, False,
-                          heat.length)[0]
-        if bad > 0:
-            return bad
-        _copy_values(scratch.s, heat.s_before)
-    elif not theta_valid:
-        temperature_pass(cur, eta, topology, springs, scratch.theta_keep, heat.length)
-    conduction_sweep(heat, scratch.theta_keep, heat.theta_start, eta, 0.5 * run.conduction_every * run.h, t,
-                     directions)
-    return bad
-
-
 def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run, loads):
     """Advance ``state`` (x, p, Φ in place; η too where a sub-flow changes it) by ``run.n_steps``
     steps of the schedule ``table`` (a :class:`~thermonet.integrators.schedule.StageTable`).
@@ -410,13 +383,10 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run
     the first ``steps completed`` steps are known good (x, p, Φ are mid-step: rewind and replay).
     ``summed``: the sums were written (a schedule without a closing kick writes none).
 
-    CONDUCTION (:class:`~thermonet.kernels.records.Heat`): the table has no conduction rows; the
-    sweeps run at the boundaries of the conduction cycles, ``K_f(kh/2) ∘ A(h)^k ∘ K_r(kh/2)``
-    with k = ``run.conduction_every``: before the first step of a cycle the forward half sweep,
-    after its last step the reverse one (back to back with the next cycle's forward one when the
-    call goes on). Sweeps start from the springs' temperatures in theta_keep, valid after a
-    spring pass not followed by a drift or after a sweep; otherwise a temperature pass computes
-    them first. Thermal-wave rows (WAVES) are rows of the table.
+    CONDUCTION (:class:`~thermonet.kernels.records.Heat`): the sweeps of the cycles
+    ``K_f(kh/2) ∘ A(h)^k ∘ K_r(kh/2)`` (k = ``run.conduction_every``) run at their boundaries
+    (:func:`thermonet.heat.passes.conduction_boundary`), from the springs' θ in theta_keep (valid
+    after a spring pass not followed by a drift, or a sweep; else a temperature pass first).
 
     With LOADS, ``loads`` (:class:`~thermonet.loads.arrays.LoadArrays`): before each kick the
     loads are evaluated at its time, after it their reactions and work are accumulated, and after
@@ -442,9 +412,8 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run
     theta_valid = False
     deferred = 0.0
     deferred_time = 0.0
-    swept_first = False  # a sweep ran before the call's first kick (the kept forces are stale)
+    swept_first = ended_cycle = False  # a sweep ran before the first kick / after the last step
     every = run.conduction_every
-    ended_cycle = False
     resume_sweep = False  # the previous call ended with a reverse half sweep: continue its update
     if CONDUCTION and heat.theta_ok[0] >= 1.0:  # continue the previous call's sweeps
         _copy_values(heat.theta, scratch.theta_keep)
@@ -455,8 +424,9 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run
             # a cycle starts: the last one's reverse half sweep (when it ended in this call) and
             # this one's forward half sweep, back to back
             directions = FORWARD | REVERSE if step > 0 else (FORWARD | CONTINUE if resume_sweep else FORWARD)
-            bad = _conduction_boundary(cur, eta, phi, topology, springs, scratch, heat, run, pending, theta_valid,
-                                       directions, run.t0 + step * h)
+            if pending == 0.0 and not theta_valid:
+                temperature_pass(cur, eta, topology, springs, scratch.theta_keep, heat.length)
+            bad = conduction_boundary(state, cur, topology, springs, scratch, heat, run, pending, directions, step)
             if bad > 0:  # the pending kick's positions end the previous step: that step was the bad one
                 return _stopped(x, x_buf, swaps, heat, step - 1)
             if pending != 0.0:
@@ -528,8 +498,9 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run
     if CONDUCTION and (run.cycle_step + n_steps) % every == 0:
         # the call ends a cycle: its reverse half sweep, after the pending closing kick's spring
         # pass; the kick itself after the sweep (no diagnostics sums: η changed after them)
-        bad = _conduction_boundary(cur, eta, phi, topology, springs, scratch, heat, run, pending, theta_valid,
-                                   REVERSE | SAVE, run.t0 + n_steps * h)
+        if pending == 0.0 and not theta_valid:
+            temperature_pass(cur, eta, topology, springs, scratch.theta_keep, heat.length)
+        bad = conduction_boundary(state, cur, topology, springs, scratch, heat, run, pending, REVERSE | SAVE, n_steps)
         if bad > 0:
             if swaps % 2 == 1:
                 copy_rows(x_buf, x)

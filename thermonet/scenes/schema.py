@@ -115,13 +115,6 @@ def choice(choices):
     return check
 
 
-def cycle_length(v):
-    """"auto" or a whole number of steps ≥ 1 (effects.conduction_every)."""
-    if v == "auto" or (isinstance(v, int) and not isinstance(v, bool) and v >= 1):
-        return v
-    raise Invalid(f"must be \"auto\" or a whole number of steps ≥ 1, got {_type_name(v)} {v!r}")
-
-
 def string(v):
     if not isinstance(v, str) or not v:
         raise Invalid(f"must be a non-empty string, got {_type_name(v)} {v!r}")
@@ -193,6 +186,10 @@ def auto_or_bool(v):
     if v == "auto" or isinstance(v, bool):
         return v
     raise Invalid(f'must be true, false or "auto", got {v!r}')
+
+
+def auto_or_steps(v):
+    return v if v == "auto" else integer(1)(v)
 
 
 def retry(v):
@@ -396,10 +393,8 @@ SCHEMA = Table({
                        "uniform acceleration, an added potential −Σ m g·x (energy stays conserved); false: off", None),
         "conduction": Key(boolean, "boolean", "Fourier heat conduction between springs through their conductance "
                           "g (a material parameter); needs thermal", False),
-        "conduction_every": Key(cycle_length, '"auto" | integer ≥ 1',
-                                "conduction every k steps, each sweep over k h: \"auto\" picks the largest k of 1, 2, 5, "
-                                "10, 20, … with λ k h ≤ 0.1 (λ: the conduction's fastest rate) that divides the output "
-                                "cadences; an integer must divide them (docs/heat.md)", "auto"),
+        "conduction_every": Key(auto_or_steps, '"auto" | integer ≥ 1', "conduction every k steps, sweeps over k h: "
+                                "\"auto\" picks k from the conduction's fastest rate (docs/heat.md)", "auto"),
         "thermal_waves": Key(boolean, "boolean", "Green–Naghdi type II thermal waves through g_star (a material "
                              "parameter); explicit splittings only; needs thermal", False),
     }, "the physics the scene switches on; what is off is not computed"),
