@@ -46,21 +46,23 @@ SOURCE = 1
 
 def star_node(i, inc_ptr, inc_spring, weight, decay, theta):
     """The exchange of junction node i over the sweep's τ: its springs relax toward the junction
-    temperature that keeps their energy (see the module docstring). weight, decay: (m,) a and
-    exp(−g τ/C) of each spring for this τ."""
+    temperature that keeps their energy (see the module docstring). weight, decay: (2m,) a and
+    exp(−g τ/C) of the spring of each incidence (in inc_spring's order: read in sequence) for
+    this τ."""
     lo = inc_ptr[i]
     hi = inc_ptr[i + 1]
     num = 0.0
     den = 0.0
     for j in range(lo, hi):
-        e = inc_spring[np.uint64(j)]
-        num += weight[e] * theta[e]
-        den += weight[e]
+        ju = np.uint64(j)
+        num += weight[ju] * theta[inc_spring[ju]]
+        den += weight[ju]
     if den > 0.0:
         junction = num / den
         for j in range(lo, hi):
-            e = inc_spring[np.uint64(j)]
-            theta[e] = junction + (theta[e] - junction) * decay[e]
+            ju = np.uint64(j)
+            e = inc_spring[ju]
+            theta[e] = junction + (theta[e] - junction) * decay[ju]
 
 
 def star_block(b, heat, reverse, theta):

@@ -114,14 +114,17 @@ class HeatSetup:
         return cached
 
     def factors(self, tau: float) -> tuple[np.ndarray, np.ndarray]:
-        """(weight, decay), (m,) each: ``a = C (1 − exp(−g τ/C))`` and ``exp(−g τ/C)`` of every
-        spring for a sweep over τ."""
+        """(weight, decay), (2m,) each: ``a = C (1 − exp(−g τ/C))`` and ``exp(−g τ/C)`` for a
+        sweep over τ, of the spring of each incidence of the layout (``inc_spring``'s order, so
+        that a sweep reads them in sequence)."""
         cached = self.__dict__.setdefault("_factors", {})
         if tau not in cached:
             g = self.conductance if self.conduction else np.zeros_like(self.conductance)
             x = -g * tau / self.capacity
+            spring = np.asarray(self.layout.inc_spring, dtype=np.int64)
             cached.clear()
-            cached[tau] = (np.ascontiguousarray(-self.capacity * np.expm1(x)), np.ascontiguousarray(np.exp(x)))
+            cached[tau] = (np.ascontiguousarray((-self.capacity * np.expm1(x))[spring]),
+                           np.ascontiguousarray(np.exp(x)[spring]))
         return cached[tau]
 
     def record(self, tau: float, logs: dict, backend: str = "cpu") -> Heat:

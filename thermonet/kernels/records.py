@@ -98,7 +98,8 @@ class Heat(NamedTuple):
     star_colour_ptr[c]:star_colour_ptr[c+1] (no two blocks of a colour share a spring); block_ptr
     (B+1,) int64, block b is the junction nodes block_node[block_ptr[b]:block_ptr[b+1]] (int64),
     swept in that order; inc_ptr (n+1,) int64 and inc_spring (2m,) uint32 each node's springs;
-    weight, decay: (m,) a = C (1 − exp(−g τ/C)) and exp(−g τ/C) for the sweep's τ.
+    weight, decay: (2m,) a = C (1 − exp(−g τ/C)) and exp(−g τ/C) for the sweep's τ, of the
+    spring of each incidence (inc_spring's order).
     Thermal waves: first, second: (P,) int32 springs of each pair; wave: (P,) k* of each pair;
     colour_ptr: (K+1,) int64, colour c is pairs colour_ptr[c]:colour_ptr[c+1] (no two share a spring).
     capacity, inv_capacity: (m,) C and 1/C per spring; bound_spring: (S,) int64 springs with
