@@ -90,3 +90,34 @@ def test_info_lists_conduction_baths_and_the_conduction_cycle(capsys):
 def test_info_says_heat_flow_is_off(capsys):
     assert thermonet(["info", str(ROOT / "scenes" / "chain.toml")]) == 0
     assert "heat flow: off" in capsys.readouterr().out
+
+
+def test_a_run_says_which_conduction_cycle_it_took_and_why(tmp_path, capsys):
+    import json
+
+    out = tmp_path / "run"
+    # 100 steps, outputs every 10 (diagnostics, checkpoints) and 50 (frames) steps; λ h = 0.08:
+    # "auto" conducts every 2 steps
+    assert thermonet(["run", str(ROOT / "scenes" / "thermal_shock.toml"), "--out", str(out),
+                      "--set", "integrator.t_end=1.0"]) == 0
+    printed = capsys.readouterr().out
+    assert "conduction every 2 steps (auto: fastest conduction rate λ = 8/time, λ k h = 0.16 ≤ 0.3)" in printed
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["conduction_every"]["k"] == 2 and "λ k h = 0.16" in summary["conduction_every"]["why"]
+    d = np.genfromtxt(out / "diagnostics.csv", delimiter=",", names=True)
+    assert np.all(np.diff(d["entropy_produced"]) >= 0.0) and d["heat_hot"][-1] > 0.0
+
+
+@pytest.mark.parametrize("value, message", [
+    ("3", "effects.conduction_every: 3 does not divide the output cadences"),
+    ("0", 'effects.conduction_every: must be "auto" or a whole number of steps >= 1, got'),
+    ('"fast"', 'effects.conduction_every: must be "auto" or a whole number of steps >= 1, got a string \'fast\''),
+])
+def test_a_conduction_cycle_the_outputs_cannot_follow_is_refused_naming_the_key(tmp_path, capsys, value, message):
+    scene = tmp_path / "shock.toml"
+    text = (ROOT / "scenes" / "thermal_shock.toml").read_text().replace('mesh = "../meshes/', f'mesh = "{ROOT}/meshes/')
+    scene.write_text(text.replace("conduction = true", f"conduction = true\nconduction_every = {value}"))
+    assert thermonet(["run", str(scene), "--out", str(tmp_path / "run")]) == 2
+    err = capsys.readouterr().err
+    assert message in err and "shock.toml:" in err  # file:line: key
+    assert not (tmp_path / "run").exists()

@@ -207,6 +207,16 @@ def check(scene: Scene) -> None:
             raise scene.error(f"{table}.{name}", f"{table} need effects.conduction = true")
     if out["diagnostics_every"] == 0:
         raise scene.error("output.diagnostics_every", 'must be >= 1 or "auto" (diagnostics cannot be switched off)')
+    every = effects["conduction_every"]
+    if effects["conduction"] and every != "auto":
+        total = scene.total_steps()
+        cadences = [scene.cadence(k, total) for k in ("frames_every", "diagnostics_every", "checkpoint_every")]
+        bad = [c for c in cadences + [total] if c > 0 and c % every]
+        if bad:
+            raise scene.error("effects.conduction_every", f"{every} does not divide the output cadences (frames, "
+                              f"diagnostics, checkpoints every {', '.join(map(str, cadences))} steps) and the run's "
+                              f"{total} steps ({bad[0]} is not a multiple of {every}): an output inside a conduction "
+                              'cycle is only first order; give a divisor or "auto"')
     models = {r.get("model", "hencky"): region for region, r in d["materials"].items()}
     if len(models) > 1:
         listing = ", ".join(f"{m} in materials.{r}" for m, r in models.items())

@@ -189,7 +189,9 @@ def auto_or_bool(v):
 
 
 def auto_or_steps(v):
-    return v if v == "auto" else integer(1)(v)
+    if v == "auto" or (isinstance(v, int) and not isinstance(v, bool) and v >= 1):
+        return v
+    raise Invalid(f'must be "auto" or a whole number of steps >= 1, got {_type_name(v)} {v!r}')
 
 
 def retry(v):
