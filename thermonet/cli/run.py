@@ -58,7 +58,8 @@ def handle(args) -> int:
 def _run(args, progress) -> int:
     from ..errors import InputError, OutputError, SimulationError
     from ..io import RunOutput, load_checkpoint
-    from ..io.folder import check_writable, describe_os_error, prepare_output_folder, remove_stale_temporaries
+    from ..io.folder import (check_output_folder, check_writable, describe_os_error, prepare_output_folder,
+                             remove_stale_temporaries)
     from ..run_guards import broken_conservation
     from ..scenes import load_scene, scene_from_text
     from .report import format_summary
@@ -98,7 +99,7 @@ def _run(args, progress) -> int:
     else:
         scene = load_scene(args.scene, overrides)
         folder = args.out or scene["output"].get("folder") or os.path.join("thermonet-out", scene.name)
-        prepare_output_folder(folder, overwrite=args.overwrite)
+        check_output_folder(folder, overwrite=args.overwrite)  # refused before anything is built
 
     built = scene.build()
     sim = built.simulation
@@ -107,6 +108,11 @@ def _run(args, progress) -> int:
     if state is None:
         _check_step(sim, scene, args)
     total = scene.total_steps()
+    from ..probes import scene_probes
+
+    probes = scene_probes(scene, sim)
+    if state is None:  # the new run is built and checked: only now may a previous run's files go
+        prepare_output_folder(folder, overwrite=args.overwrite)
     try:
         output = RunOutput(
             sim, folder, scene.name,
@@ -123,9 +129,6 @@ def _run(args, progress) -> int:
         sim.load_state(state)
         output.restore(meta)
     # --- probes ---
-    from ..probes import scene_probes
-
-    probes = scene_probes(scene, sim)
     observers = list(output.observers())
     if probes is not None:
         if state is not None:
@@ -220,11 +223,14 @@ def _check_step(sim, scene, args) -> None:
     or warn on stderr."""
     import warnings
 
-    from ..step_policy import StepWarning, check_step
+    from ..step_policy import StepWarning, UnstableStepError, check_step
 
     allow = args.allow_unstable_step or not scene["integrator"]["check_step"]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", StepWarning)
-        verdict = check_step(sim, allow_unstable=allow, warn=False)
+        try:
+            verdict = check_step(sim, allow_unstable=allow, warn=False)
+        except UnstableStepError as exc:  # at the key that sets the step: file:line or --set
+            raise scene.error("integrator.h", str(exc)) from None
     if verdict.message and not args.quiet:
         print(f"thermonet: warning: {verdict.message}", file=sys.stderr)

@@ -32,10 +32,10 @@ def stale_temporaries(folder) -> list[str]:
     return [n for n in run_files(folder) if _TEMPORARY.match(n)]
 
 
-def prepare_output_folder(folder, *, overwrite: bool = False) -> list[str]:
-    """Make ``folder`` ready for a new run. Refuses (an :class:`InputError`, naming the folder)
-    a path that is not a folder, or a folder holding a previous run's files unless ``overwrite``,
-    which removes those files (and only those). Returns the names removed."""
+def check_output_folder(folder, *, overwrite: bool = False) -> list[str]:
+    """Whether ``folder`` may take a new run, changing nothing: refuses (an :class:`InputError`,
+    naming the folder) a path that is not a folder, or a folder holding a previous run's files
+    unless ``overwrite``. Returns the names of those files."""
     folder = os.fspath(folder)
     if os.path.exists(folder) and not os.path.isdir(folder):
         raise InputError(f"--out {folder}: exists and is not a folder")
@@ -44,6 +44,16 @@ def prepare_output_folder(folder, *, overwrite: bool = False) -> list[str]:
         shown = ", ".join(previous[:4]) + (f", … ({len(previous)} files)" if len(previous) > 4 else "")
         raise InputError(f"--out {folder}: holds the output of a previous run ({shown}); pass --overwrite to "
                          f"replace it (its files are deleted), or continue it with: thermonet run --resume {folder}")
+    return previous
+
+
+def prepare_output_folder(folder, *, overwrite: bool = False) -> list[str]:
+    """Make ``folder`` ready for a new run. Refuses what :func:`check_output_folder` refuses;
+    with ``overwrite``, removes a previous run's files (and only those). Returns the names removed.
+    ``thermonet run`` calls it only once the new run is built and its step checked, so that a
+    scene that fails its checks leaves the previous run untouched."""
+    folder = os.fspath(folder)
+    previous = check_output_folder(folder, overwrite=overwrite)
     try:
         os.makedirs(folder, exist_ok=True)
         check_writable(folder)
