@@ -15,8 +15,9 @@ from ..errors import InputError
 from .schema import FIELD_NAMES, Invalid, validate
 from .source import SceneError, apply_overrides, key_lines, parse_toml
 
-#: the scene ``thermonet run`` runs when given none (a 3D truss block from meshes/)
-DEFAULT_SCENE = Path(__file__).resolve().parents[2] / "scenes" / "default.toml"
+#: the scene ``thermonet run`` runs when given none (a 3D truss block): package data beside its
+#: mesh, so an installed wheel has it; scenes/default.toml is the same scene in the source tree
+DEFAULT_SCENE = Path(__file__).resolve().parents[1] / "data" / "default.toml"
 
 THERMAL_OUTPUTS = ("temperature", "node_temperature", "entropy", "thermal_displacement", "heat_rate")
 

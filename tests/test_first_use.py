@@ -1,0 +1,133 @@
+"""What a new user hits on first use: a previous run deleted before its replacement was checked,
+a wheel without its default scene, the quick start run twice, runs that are not reproducible.
+
+Each test reproduces the failure as it was met and asserts the wanted behaviour: exit codes,
+one-line messages naming the file, key or step, and the files left on disk.
+"""
+
+import os
+import re
+
+import pytest
+
+from thermonet.cli.main import main
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+MESHES = os.path.join(ROOT, "meshes")
+#: the thermal shock scene, small: conduction, a bath, a few steps
+SHOCK = f"""name = "shock"
+[net]
+mesh = "{MESHES}/thermal_bar.msh"
+cells = ["tetra"]
+[materials.bar]
+c = 100.0
+beta = 0.002
+C0 = 1.0
+theta0 = 300.0
+g = 4.0
+[effects]
+conduction = true
+anchors = []
+[baths.hot]
+group = "hot_end"
+temperature = 900.0
+[integrator]
+name = "co2"
+h = 0.01
+steps = 12
+[output]
+frames_every = 4
+diagnostics_every = 2
+checkpoint_every = 6
+"""
+
+
+def snapshot(folder) -> dict:
+    """name -> bytes of every file in ``folder``."""
+    return {n: open(os.path.join(folder, n), "rb").read() for n in sorted(os.listdir(folder))}
+
+
+def one_error_line(err: str) -> str:
+    lines = [line for line in err.splitlines() if line.startswith("thermonet: error:")]
+    assert len(lines) == 1 and "Traceback" not in err, err
+    return lines[0]
+
+
+# ----------------------------------------------------------------------------------------------
+# --overwrite deletes nothing until the new run is built and checked
+
+BROKEN = {
+    "missing mesh": (SHOCK.replace("thermal_bar.msh", "no_such_mesh.msh"), "does not exist"),
+    "bath group typo": (SHOCK.replace('group = "hot_end"', 'group = "hot_edn"'), "hot_edn"),
+    "infinite bath temperature": (SHOCK.replace("temperature = 900.0", "temperature = inf"), "baths.hot.temperature"),
+    "integrator option typo": (SHOCK.replace('name = "co2"', 'name = "co2"\noptions = { tolerence = 1e-10 }'),
+                               "tolerence"),
+    "step above the stability limit": (SHOCK.replace("h = 0.01", "h = 5.0"), "integrator.h"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BROKEN))
+def test_overwrite_keeps_the_previous_run_when_the_new_scene_fails_its_checks(tmp_path, capsys, case):
+    good = tmp_path / "good.toml"
+    good.write_text(SHOCK)
+    out = tmp_path / "keep"
+    assert main(["run", str(good), "--out", str(out), "--quiet"]) == 0
+    before = snapshot(out)
+    assert len(before) >= 6
+    capsys.readouterr()
+    text, named = BROKEN[case]
+    bad = tmp_path / "bad.toml"
+    bad.write_text(text)
+    assert main(["run", str(bad), "--out", str(out), "--overwrite", "--quiet"]) == 2
+    assert named in one_error_line(capsys.readouterr().err)
+    assert snapshot(out) == before
+
+
+# ----------------------------------------------------------------------------------------------
+# a wheel carries the default scene and its mesh
+
+
+def test_the_packaged_default_scene_is_the_source_tree_s_default_scene():
+    from thermonet.scenes import DEFAULT_SCENE
+
+    packaged = open(DEFAULT_SCENE).read().splitlines()
+    source = open(os.path.join(ROOT, "scenes", "default.toml")).read().splitlines()
+    keys = lambda lines: [re.sub(r"\s*#.*", "", l) for l in lines if l.strip() and not l.startswith("#")]  # noqa: E731
+    assert [l for l in keys(packaged) if not l.startswith("mesh")] == [l for l in keys(source) if not l.startswith("mesh")]
+    assert 'mesh = "truss_block.msh"' in keys(packaged)
+    with open(os.path.join(os.path.dirname(DEFAULT_SCENE), "truss_block.msh"), "rb") as a, \
+            open(os.path.join(MESHES, "truss_block.msh"), "rb") as b:
+        assert a.read() == b.read()
+
+
+def test_a_built_wheel_installed_in_a_fresh_venv_runs_the_default_scene_from_another_folder(tmp_path):
+    import shutil
+    import subprocess
+    import sys
+    import venv
+
+    src = tmp_path / "src"
+    shutil.copytree(os.path.join(ROOT, "thermonet"), src / "thermonet",
+                    ignore=shutil.ignore_patterns("__pycache__", "*.pyc", "*.nbi", "*.nbc"))
+    for name in ("pyproject.toml", "README.md"):
+        shutil.copy(os.path.join(ROOT, name), src / name)
+    dist = tmp_path / "dist"
+    subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", str(dist), str(src)],
+                   check=True, capture_output=True, cwd=tmp_path)
+    (wheel,) = dist.glob("thermonet-*.whl")
+    # numpy, numba, ... from this interpreter's site packages; thermonet only from the wheel
+    venv.create(tmp_path / "venv", system_site_packages=True, with_pip=False)
+    python = str(tmp_path / "venv" / "bin" / "python")
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    subprocess.run([sys.executable, "-m", "pip", "--python", python, "install", "-q", "--no-index", "--no-deps",
+                    "--ignore-installed", str(wheel)], check=True, capture_output=True, env=env)
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    where = subprocess.run([python, "-c", "import thermonet; print(thermonet.__file__)"], cwd=elsewhere, env=env,
+                           check=True, capture_output=True, text=True).stdout
+    assert where.startswith(str(tmp_path / "venv")), where
+    done = subprocess.run([python, "-m", "thermonet.cli.main", "run", "--set", "integrator.steps=10"],
+                          cwd=elsewhere, env=env, capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    out = elsewhere / "thermonet-out" / "truss_block"
+    assert {"truss_block.pvd", "diagnostics.csv", "summary.json"} <= set(os.listdir(out))
