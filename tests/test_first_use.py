@@ -131,3 +131,32 @@ def test_a_built_wheel_installed_in_a_fresh_venv_runs_the_default_scene_from_ano
     assert done.returncode == 0, done.stderr
     out = elsewhere / "thermonet-out" / "truss_block"
     assert {"truss_block.pvd", "diagnostics.csv", "summary.json"} <= set(os.listdir(out))
+
+
+# ----------------------------------------------------------------------------------------------
+# the quick start run twice: the second run goes to a fresh folder and says where
+
+
+def test_a_run_without_out_goes_to_a_fresh_numbered_folder_and_says_where(tmp_path, monkeypatch, capsys):
+    scene = tmp_path / "shock.toml"
+    scene.write_text(SHOCK)
+    work = tmp_path / "work"
+    work.mkdir()
+    monkeypatch.chdir(work)
+    assert main(["run", str(scene)]) == 0
+    first = snapshot(work / "thermonet-out" / "shock")
+    assert "shock.pvd" in first and "diagnostics written to thermonet-out/shock\n" in capsys.readouterr().out
+    assert main(["run", str(scene)]) == 0
+    captured = capsys.readouterr()
+    assert ("thermonet: thermonet-out/shock holds a previous run: writing to thermonet-out/shock-2"
+            in captured.err)
+    assert "diagnostics written to thermonet-out/shock-2\n" in captured.out
+    assert snapshot(work / "thermonet-out" / "shock") == first
+    assert "summary.json" in os.listdir(work / "thermonet-out" / "shock-2")
+    (work / "thermonet-out" / "shock-3").write_text("a file, not a folder")
+    assert main(["run", str(scene), "--quiet"]) == 0
+    assert capsys.readouterr().err == ""
+    assert "summary.json" in os.listdir(work / "thermonet-out" / "shock-4")
+    # --out is the user's choice: a previous run there is refused, not sidestepped
+    assert main(["run", str(scene), "--out", "thermonet-out/shock"]) == 2
+    assert "holds the output of a previous run" in one_error_line(capsys.readouterr().err)

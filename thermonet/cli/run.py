@@ -15,7 +15,8 @@ def add_args(p) -> None:
     p.add_argument("scene", nargs="?", default=None,
                    help="scene file (.toml); default: the built-in 3D truss block (scenes/default.toml)")
     p.add_argument("--out", default=None, metavar="DIR",
-                   help="output folder (default: the scene's output.folder, or thermonet-out/<name>)")
+                   help="output folder (default: the scene's output.folder, or thermonet-out/<name>; when that "
+                        "holds a previous run, the first of <folder>-2, <folder>-3, ... that does not)")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", dest="overrides",
                    help="override a scene key, e.g. --set integrator.h=1e-4 --set effects.gravity=false "
                         "(the value is read as TOML; repeatable)")
@@ -58,8 +59,8 @@ def handle(args) -> int:
 def _run(args, progress) -> int:
     from ..errors import InputError, OutputError, SimulationError
     from ..io import RunOutput, load_checkpoint
-    from ..io.folder import (check_output_folder, check_writable, describe_os_error, prepare_output_folder,
-                             remove_stale_temporaries)
+    from ..io.folder import (check_output_folder, check_writable, describe_os_error, fresh_folder,
+                             prepare_output_folder, remove_stale_temporaries)
     from ..run_guards import broken_conservation
     from ..scenes import load_scene, scene_from_text
     from .report import format_summary
@@ -98,7 +99,13 @@ def _run(args, progress) -> int:
         remove_stale_temporaries(folder)
     else:
         scene = load_scene(args.scene, overrides)
-        folder = args.out or scene["output"].get("folder") or os.path.join("thermonet-out", scene.name)
+        folder = args.out
+        if folder is None:  # never refused: a previous run there keeps its files, this one goes beside it
+            base = scene["output"].get("folder") or os.path.join("thermonet-out", scene.name)
+            folder = base if args.overwrite else fresh_folder(base)
+            if folder != base and not args.quiet:
+                print(f"thermonet: {base} holds a previous run: writing to {folder} (--out DIR chooses the "
+                      f"folder, --overwrite replaces that run)", file=sys.stderr)
         check_output_folder(folder, overwrite=args.overwrite)  # refused before anything is built
 
     built = scene.build()

@@ -64,6 +64,17 @@ def prepare_output_folder(folder, *, overwrite: bool = False) -> list[str]:
     return previous
 
 
+def fresh_folder(base) -> str:
+    """``base`` if it holds no previous run's files, else the first of ``base-2``, ``base-3``, …
+    that holds none (a missing folder or one with other files only; not a file)."""
+    base = os.fspath(base).rstrip(os.sep) or os.sep
+    candidate, number = base, 1
+    while (os.path.exists(candidate) and not os.path.isdir(candidate)) or run_files(candidate):
+        number += 1
+        candidate = f"{base}-{number}"
+    return candidate
+
+
 def check_writable(folder) -> None:
     """Create and remove a probe file in ``folder``; raises the OSError of a folder that cannot
     be written (read-only file system, no permission; as root, permission bits do not stop it)."""

@@ -437,7 +437,8 @@ SCHEMA = Table({
     "probes": PROBES_SCHEMA,  # probes
     "output": Table({
         "folder": Key(string, "path", "output folder, relative to the working directory "
-                      "(default thermonet-out/<name>; the CLI's --out overrides it)"),
+                      "(default thermonet-out/<name>; <folder>-2, -3, ... when it holds a previous run; "
+                      "the CLI's --out overrides it)"),
         "frames_every": Key(cadence, 'integer >= 0 | "auto"', "a VTU frame every k steps (0: none; auto: about 100)", "auto"),
         "diagnostics_every": Key(cadence, 'integer >= 1 | "auto"', "a diagnostics row every k steps (auto: about 1000)", "auto"),
         "checkpoint_every": Key(cadence, 'integer >= 0 | "auto"', "a checkpoint every k steps (0: none; auto: about 10)", "auto"),
