@@ -192,3 +192,45 @@ def test_a_scene_run_twice_gives_byte_identical_frames_and_diagnostics(tmp_path)
     assert len(compared) >= 5
     for name in compared:
         assert a[name] == b[name], name
+
+
+# ----------------------------------------------------------------------------------------------
+# Ctrl-C and SIGTERM checkpoint the step they stopped at
+
+
+@pytest.mark.parametrize("signame", ["SIGINT", "SIGTERM"])
+def test_a_signal_checkpoints_the_step_the_run_stopped_at_and_resume_is_bit_for_bit(tmp_path, monkeypatch, capsys,
+                                                                                  signame):
+    import signal
+
+    from thermonet.io import load_checkpoint, series
+
+    scene = os.path.join(ROOT, "scenes", "spinning_lattice.toml")
+    args = ["--quiet", "--set", "integrator.steps=120", "--set", "output.frames_every=20",
+            "--set", "output.diagnostics_every=10", "--set", "output.checkpoint_every=80"]
+    assert main(["run", scene, "--out", str(tmp_path / "whole"), *args]) == 0
+    real = series.RunOutput.write_frame
+
+    def signalled_at_step_60(self, sim):
+        real(self, sim)
+        if sim.step == 60:
+            os.kill(os.getpid(), getattr(signal, signame))
+
+    monkeypatch.setattr(series.RunOutput, "write_frame", signalled_at_step_60)
+    previous = signal.getsignal(signal.SIGTERM)
+    out = tmp_path / "cut"
+    assert main(["run", scene, "--out", str(out), *args[1:]]) == 130
+    assert signal.getsignal(signal.SIGTERM) is previous  # the run's handlers are gone
+    err = capsys.readouterr().err
+    assert (f"thermonet: interrupted at step 60; the last checkpoint is of step 60: continue from there with: "
+            f"thermonet run --resume {out}/spinning_lattice.checkpoint.npz") in err
+    assert load_checkpoint(out / "spinning_lattice.checkpoint.npz")[0].step == 60
+    monkeypatch.setattr(series.RunOutput, "write_frame", real)
+    assert main(["run", "--resume", str(out), "--quiet"]) == 0
+    a, b = snapshot(tmp_path / "whole"), snapshot(out)
+    for name in ("diagnostics.csv", "spinning_lattice_000006.vtu", "spinning_lattice.pvd"):
+        assert a[name] == b[name], name
+    end_whole = load_checkpoint(tmp_path / "whole" / "spinning_lattice.checkpoint.npz")[0]
+    end_cut = load_checkpoint(out / "spinning_lattice.checkpoint.npz")[0]
+    assert end_cut.step == end_whole.step == 120
+    assert (end_cut.positions == end_whole.positions).all() and (end_cut.momenta == end_whole.momenta).all()

@@ -56,6 +56,52 @@ def handle(args) -> int:
         return _run(args, progress)
 
 
+class StopRequest:
+    """Ctrl-C (SIGINT) or SIGTERM while a run steps: the run stops at the end of the current chunk
+    of steps (at most a diagnostics interval), a consistent state that is then checkpointed; a
+    second signal stops it at once. Called as the run's progress callback (forwarding to the
+    progress bar, if any)."""
+
+    def __init__(self, progress):
+        self.progress = progress
+        self.compiling = getattr(progress, "compiling", None)
+        #: the signal received (None: none), and whether a second one cut a step short
+        self.signal = None
+        self.forced = False
+
+    def __call__(self, done, total, elapsed) -> None:
+        if self.progress is not None:
+            self.progress(done, total, elapsed)
+        if self.signal is not None:
+            raise KeyboardInterrupt
+
+    def _handler(self, signum, frame) -> None:
+        if self.signal is not None:
+            self.forced = True
+            raise KeyboardInterrupt
+        self.signal = signum
+
+    @contextlib.contextmanager
+    def installed(self):
+        import signal
+        import threading
+
+        if threading.current_thread() is not threading.main_thread():
+            yield self
+            return
+        previous = {sig: signal.signal(sig, self._handler) for sig in (signal.SIGINT, signal.SIGTERM)}
+        try:
+            yield self
+        finally:
+            for sig, handler in previous.items():
+                signal.signal(sig, handler)
+
+    @property
+    def clean(self) -> bool:
+        """Whether the run stopped on a signal at a chunk's end (its state is a whole step)."""
+        return self.signal is not None and not self.forced
+
+
 def _run(args, progress) -> int:
     from ..errors import InputError, OutputError, SimulationError
     from ..io import RunOutput, load_checkpoint
@@ -142,16 +188,20 @@ def _run(args, progress) -> int:
             probes.restore(folder, sim.step)
         observers += probes.observers(output.diagnostics_every)
     # --- end probes ---
+    stop = StopRequest(progress)
     try:
-        sim.run(steps=max(0, total - sim.step), diagnostics_every=output.diagnostics_every,
-                observers=observers, progress=progress)
+        with stop.installed():
+            sim.run(steps=max(0, total - sim.step), diagnostics_every=output.diagnostics_every,
+                    observers=observers, progress=stop)
     except BaseException as exc:
         if progress:
             progress.close()
         failure = OutputError(f"writing the output failed at step {sim.step}: {describe_os_error(exc)}"
                               ) if isinstance(exc, OSError) else None
-        if isinstance(exc, SimulationError) and output.checkpoint_every:
-            _try(output.write_checkpoint, sim)  # the last good state (the run was rewound to it)
+        if (isinstance(exc, SimulationError) or (isinstance(exc, KeyboardInterrupt) and stop.clean)) \
+                and output.checkpoint_every:
+            # the last good state (a failed run was rewound to it), or the step a signal stopped at
+            _try(output.write_checkpoint, sim)
         _try(output.write_csv)
         if probes is not None:  # probes
             _try(probes.to_csv, folder)
