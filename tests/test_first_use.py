@@ -234,3 +234,26 @@ def test_a_signal_checkpoints_the_step_the_run_stopped_at_and_resume_is_bit_for_
     end_cut = load_checkpoint(out / "spinning_lattice.checkpoint.npz")[0]
     assert end_cut.step == end_whole.step == 120
     assert (end_cut.positions == end_whole.positions).all() and (end_cut.momenta == end_whole.momenta).all()
+
+
+# ----------------------------------------------------------------------------------------------
+# resume: free keys may change, a refused change is named
+
+
+def test_resume_allows_what_keeps_the_trajectory_and_names_what_changes_it(tmp_path, capsys):
+    from thermonet.io import load_checkpoint
+
+    scene = os.path.join(ROOT, "scenes", "spinning_lattice.toml")
+    out = tmp_path / "out"
+    assert main(["run", scene, "--out", str(out), "--quiet", "--set", "integrator.steps=40",
+                 "--set", "output.checkpoint_every=20", "--set", "output.frames_every=20"]) == 0
+    assert main(["run", "--resume", str(out), "--quiet", "--set", "materials.all.c=21.0",
+                 "--set", 'initial.velocity.random.seed=12']) == 2
+    err = one_error_line(capsys.readouterr().err)
+    assert "written by a different scene: initial.velocity.random.seed: 11 → 12 (and 1 more: materials.all.c: " \
+           "20.0 → 21.0)" in err and "free to change on resume: the outputs, integrator.t_end" in err
+    # the end, the thread count, the guards and the outputs are not the trajectory
+    assert main(["run", "--resume", str(out), "--quiet", "--set", "integrator.steps=60", "--set", "integrator.threads=1",
+                 "--set", "integrator.check_step=false", "--set", "output.frames_every=10"]) == 0, \
+        capsys.readouterr().err
+    assert load_checkpoint(out / "spinning_lattice.checkpoint.npz")[0].step == 60

@@ -133,8 +133,7 @@ def _run(args, progress) -> int:
             scene = scene_from_text(saved["text"], file=saved["file"], base_dir=saved["base_dir"],
                                     overrides=list(saved["overrides"]) + overrides)
         if scene.hash != saved["hash"]:
-            raise InputError(f"{checkpoint}: written by a different scene (hash {saved['hash'][:12]}, this scene "
-                             f"{scene.hash[:12]}): net, materials, initial state, effects or integrator differ")
+            _refuse_other_scene(checkpoint, saved, scene)
         folder = args.out or os.path.dirname(os.path.abspath(checkpoint))
         if os.path.exists(folder) and not os.path.isdir(folder):
             raise InputError(f"--out {folder}: exists and is not a folder")
@@ -230,6 +229,36 @@ def _run(args, progress) -> int:
                               f"solution to trust (the files in {folder} are kept). "
                               f"{_remedy(sim.integrator, sim.h)}")
     return 0
+
+
+def _refuse_other_scene(checkpoint, saved, scene) -> None:
+    """A checkpoint whose scene hash differs: allowed where only keys free on resume changed
+    (a checkpoint of another version's hash), refused naming the keys that changed the trajectory,
+    or the mesh file."""
+    from ..errors import InputError
+    from ..scenes import scene_from_text
+    from ..scenes.scene import FREE_ON_RESUME, trajectory_changes
+
+    free = ", ".join(f"integrator.{k}" for k in FREE_ON_RESUME)
+    try:
+        before = scene_from_text(saved["text"], file=saved["file"], base_dir=saved["base_dir"],
+                                 overrides=list(saved["overrides"]))
+    except Exception:
+        before = None
+    if before is not None:
+        changes = trajectory_changes(before, scene)
+        if changes:
+            more = f" (and {len(changes) - 1} more: {'; '.join(changes[1:4])})" if len(changes) > 1 else ""
+            raise InputError(f"{checkpoint}: written by a different scene: {changes[0]}{more}; that changes the "
+                             f"trajectory, so the run cannot continue from it (free to change on resume: the "
+                             f"outputs, {free})")
+        if before.hash == scene.hash and scene.mesh_path() is None:
+            return  # the same trajectory: a checkpoint of another version's hash
+    mesh = scene.mesh_path()
+    what = (f"the mesh file {mesh} differs from the one it was written with (or the checkpoint is of another "
+            f"thermonet version)") if mesh else "its scene differs"
+    raise InputError(f"{checkpoint}: written by a different scene (hash {saved['hash'][:12]}, this scene "
+                     f"{scene.hash[:12]}): {what}")
 
 
 def _remedy(integrator, h) -> str:

@@ -19,6 +19,12 @@ from .source import SceneError, apply_overrides, key_lines, parse_toml
 #: mesh, so an installed wheel has it; scenes/default.toml is the same scene in the source tree
 DEFAULT_SCENE = Path(__file__).resolve().parents[1] / "data" / "default.toml"
 
+#: integrator keys a resumed run may change: where the run ends, its guards, and how each step's
+#: equations are solved (threads, the Newton path and linear solver, iteration caps), which
+#: change at most the last bits of a step, never which trajectory it follows
+FREE_ON_RESUME = ("t_end", "steps", "check_step", "energy_tolerance", "threads", "parallel", "linear_solver",
+                  "newton_path", "max_iterations", "retry")
+
 THERMAL_OUTPUTS = ("temperature", "node_temperature", "entropy", "thermal_displacement", "heat_rate")
 
 
@@ -70,14 +76,18 @@ class Scene:
         mesh = self.data["net"].get("mesh")
         return None if mesh is None else os.path.normpath(os.path.join(self.base_dir, mesh))
 
+    def trajectory(self) -> dict:
+        """The keys that define the trajectory: net, materials, initial state, effects, loads,
+        heat flow and integrator, without :data:`FREE_ON_RESUME` (the end, the guards, how the
+        steps are computed) and the outputs."""
+        physics = {k: v for k, v in self.data.items() if k not in ("output", "name", "description", "probes")}
+        physics["integrator"] = {k: v for k, v in physics["integrator"].items() if k not in FREE_ON_RESUME}
+        return physics
+
     @property
     def hash(self) -> str:
-        """SHA-256 of what determines the trajectory: net (and the mesh file's bytes), materials,
-        initial state, effects and integrator (not t_end/steps, not the guards check_step and
-        energy_tolerance, not the outputs)."""
-        physics = {k: v for k, v in self.data.items() if k not in ("output", "name", "description")}
-        physics["integrator"] = {k: v for k, v in physics["integrator"].items() if k not in ("t_end", "steps", "check_step", "energy_tolerance")}
-        h = hashlib.sha256(json.dumps(physics, sort_keys=True, default=str).encode())
+        """SHA-256 of what determines the trajectory (:meth:`trajectory`) and the mesh file's bytes."""
+        h = hashlib.sha256(json.dumps(self.trajectory(), sort_keys=True, default=str).encode())
         mesh = self.mesh_path()
         if mesh is not None and os.path.isfile(mesh):
             with open(mesh, "rb") as f:
@@ -120,6 +130,24 @@ class Scene:
         from .build import build_scene
 
         return build_scene(self)
+
+
+def trajectory_changes(before: Scene, after: Scene) -> list[str]:
+    """``key: old → new`` for each key of :meth:`Scene.trajectory` that differs, dotted, sorted."""
+    def flat(d, prefix=()):
+        out = {}
+        for k, v in d.items():
+            if isinstance(v, dict) and v:
+                out.update(flat(v, prefix + (k,)))
+            else:
+                out[".".join(prefix + (k,))] = v
+        return out
+
+    a, b = flat(before.trajectory()), flat(after.trajectory())
+    missing = object()
+    shown = lambda v: "(absent)" if v is missing else json.dumps(v, default=str)  # noqa: E731
+    return [f"{k}: {shown(a.get(k, missing))} → {shown(b.get(k, missing))}" for k in sorted(set(a) | set(b))
+            if a.get(k, missing) != b.get(k, missing)]
 
 
 # ----------------------------------------------------------------------------------------------

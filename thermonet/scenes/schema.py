@@ -325,7 +325,7 @@ PROBES_SCHEMA = Named(Table({
                  "for springs also a node group: the springs between its nodes", required=True),
     "quantity": Key(choice(PROBE_QUANTITIES), " | ".join(PROBE_QUANTITIES), "what is measured", required=True),
     "every": Key(integer(1), "integer >= 1", "steps between rows (default: the diagnostics cadence)"),
-}, "a probe"), "per-group time series (mean, min, max) in probes.csv beside diagnostics.csv", "<name>")
+}, "a probe"), "per-group time series (mean, min, max) in probe_<name>.csv beside diagnostics.csv", "<name>")
 # --- end loads and probes ---
 
 
