@@ -123,3 +123,14 @@ def test_a_dask_study_from_a_partly_cold_numba_cache_runs(tmp_path):
     assert done.returncode == 0 and "Traceback" not in done.stderr, done.stderr[-3000:]
     with open(tmp_path / "study" / "convergence.csv") as f:
         assert [r["status"] for r in csv.DictReader(f)] == ["ok", "ok"]
+
+
+def test_the_default_study_integrators_include_the_methods_the_readme_recommends():
+    import re
+
+    from thermonet.cli.study import DEFAULT_INTEGRATORS
+
+    readme = open(os.path.join(ROOT, "README.md")).read()
+    (fourth, sixth), = re.findall(r"\*\*`(\w+)` is the 4th-order and `(\w+)` the 6th-order method to use\*\*", readme)
+    assert fourth in DEFAULT_INTEGRATORS["convergence"].split(",")
+    assert {fourth, sixth} <= set(DEFAULT_INTEGRATORS["cost"].split(","))

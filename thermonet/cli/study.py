@@ -13,8 +13,8 @@ import sys
 
 HELP = "convergence, cost (work-precision) and long-run energy studies of the integrators"
 
-DEFAULT_INTEGRATORS = {"convergence": "gtr-0,gtr-1,gtr-1/2,co2,ho4,co4",
-                       "cost": "gtr-0,gtr-1,gtr-1/2,co2,ho4,co4,co6,bm4,bm6", "energy": "co2,ho4"}
+DEFAULT_INTEGRATORS = {"convergence": "gtr-0,gtr-1,gtr-1/2,co2,ho4,co4,omf4",
+                       "cost": "gtr-0,gtr-1,gtr-1/2,co2,ho4,co4,omf4,co6,bm4,bm6", "energy": "co2,ho4"}
 
 
 def add_args(p) -> None:
