@@ -257,3 +257,37 @@ def test_resume_allows_what_keeps_the_trajectory_and_names_what_changes_it(tmp_p
                  "--set", "integrator.check_step=false", "--set", "output.frames_every=10"]) == 0, \
         capsys.readouterr().err
     assert load_checkpoint(out / "spinning_lattice.checkpoint.npz")[0].step == 60
+
+
+# ----------------------------------------------------------------------------------------------
+# the API: anchors=, the frames' fields in to_meshio, a quoted step
+
+
+def test_simulation_takes_anchors_and_refuses_a_quoted_step_and_to_meshio_has_the_frame_fields():
+    import numpy as np
+
+    import thermonet as tn
+    from thermonet.errors import InputError
+
+    net = tn.read_mesh(os.path.join(MESHES, "thermal_bar.msh"), cell_types=["tetra"])
+    params = dict(c=100.0, beta=0.002, C0=1.0, theta0=300.0, g=4.0)
+    sim = tn.Simulation(net, parameters=params, temperatures=300.0, h=0.01, anchors=["far_end", 0],
+                        baths={"hot": tn.heat.Bath("hot_end", 900.0)})
+    held = np.zeros(net.n_nodes, dtype=bool)
+    held[net.node_groups["far_end"]] = True
+    held[0] = True
+    assert (sim.net.anchored == held).all() and not net.anchored.any()
+    start = sim.state.positions[held].copy()
+    sim.run(steps=5)
+    assert (sim.state.positions[held] == start).all()
+    mesh = sim.to_meshio()
+    assert mesh.point_data["node_temperature"].shape == (net.n_nodes,)
+    assert mesh.cell_data["heat_rate"][0].shape == (net.n_springs,)
+    assert mesh.point_data["node_temperature"][net.node_groups["hot_end"]] == pytest.approx(900.0)
+    assert np.abs(mesh.cell_data["heat_rate"][0]).max() > 0
+    with pytest.raises(InputError, match="anchors: no node group 'far_edn' in the net; node groups: .*far_end"):
+        tn.Simulation(net, parameters=params, h=0.01, anchors=["far_edn"])
+    with pytest.raises(InputError, match="anchors: node index 99999 out of range"):
+        tn.Simulation(net, parameters=params, h=0.01, anchors=[99999])
+    with pytest.raises(InputError, match="time step h must be a number, got str '0.01'"):
+        tn.Simulation(net, parameters=params, h="0.01")
