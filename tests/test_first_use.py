@@ -291,3 +291,23 @@ def test_simulation_takes_anchors_and_refuses_a_quoted_step_and_to_meshio_has_th
         tn.Simulation(net, parameters=params, h=0.01, anchors=[99999])
     with pytest.raises(InputError, match="time step h must be a number, got str '0.01'"):
         tn.Simulation(net, parameters=params, h="0.01")
+
+
+# ----------------------------------------------------------------------------------------------
+# messages
+
+
+def test_a_misspelt_integrator_option_is_named_at_its_line_with_what_was_meant(tmp_path, capsys):
+    import thermonet as tn
+    from thermonet.errors import InputError
+
+    scene = tmp_path / "em2.toml"
+    scene.write_text('[net]\ngenerator = "chain"\n[integrator]\nname = "em2"\nh = 0.01\nsteps = 2\n'
+                     'options = { tolerence = 1e-10 }\n')
+    assert main(["run", str(scene), "--out", str(tmp_path / "out"), "--quiet"]) == 2
+    assert one_error_line(capsys.readouterr().err) == (
+        f"thermonet: error: {scene}:7: integrator.options.tolerence: unknown option 'tolerence' (did you mean "
+        "'tolerance'?); options: tolerance, max_iterations, retry, linear_solver, rtol, atol, newton_path "
+        "(implicit integrators), alpha (gtr-alpha)")
+    with pytest.raises(InputError, match=r"integrator 'co2': unknown option 'aplha' \(did you mean 'alpha'\?\)"):
+        tn.Simulation(tn.chain(), integrator="co2", h=0.01, integrator_options={"aplha": 0.5})

@@ -140,7 +140,13 @@ class Simulation(RunDriver):
         stepper_keys = {"tolerance", "max_iterations", "retry", "linear_solver", "rtol", "atol",
                         "newton_path"}
         stepper_options = {k: integrator_options.pop(k) for k in list(integrator_options) if k in stepper_keys}
-        self.integrator = get_integrator(integrator, **integrator_options)
+        try:
+            self.integrator = get_integrator(integrator, **integrator_options)
+        except (InputError, TypeError):
+            unknown = integrator_option_problem(integrator_options)
+            if unknown is None:
+                raise
+            raise InputError(f"integrator {integrator!r}: {unknown}") from None
         self.backend = check_backend(backend, self.integrator)
         if self.backend != "cpu":
             stepper_options["backend"] = self.backend
@@ -376,3 +382,23 @@ def _with_anchors(net: Net, anchors) -> Net:
         else:
             raise InputError(f"anchors: node group names or node indices, got {item!r}")
     return dataclasses.replace(net, anchored=anchored)
+
+
+#: options an integrator may take (integrator_options=, scene integrator.options): the implicit
+#: steppers' solver settings, and GTR-α's α
+INTEGRATOR_OPTION_NAMES = ("tolerance", "max_iterations", "retry", "linear_solver", "rtol", "atol", "newton_path",
+                           "alpha")
+
+
+def integrator_option_problem(options) -> str | None:
+    """``unknown option 'tolerence' (did you mean 'tolerance'?); options: ...`` for the first
+    option no integrator takes, or None."""
+    import difflib
+
+    for key in options:
+        if key not in INTEGRATOR_OPTION_NAMES:
+            close = difflib.get_close_matches(str(key), INTEGRATOR_OPTION_NAMES, n=1)
+            hint = f" (did you mean {close[0]!r}?)" if close else ""
+            return (f"unknown option {key!r}{hint}; options: {', '.join(INTEGRATOR_OPTION_NAMES[:-1])} (implicit "
+                    f"integrators), alpha (gtr-alpha)")
+    return None

@@ -49,6 +49,12 @@ def build_scene(scene: Scene) -> BuiltScene:
     # --- end continuum materials ---
     integ = d["integrator"]
     options = {k: integ[k] for k in INTEGRATOR_OPTIONS if integ.get(k) is not None}
+    from ..simulation import integrator_option_problem
+
+    for key in integ.get("options") or {}:  # a typo at its line, with what it may have meant
+        problem = integrator_option_problem([key])
+        if problem is not None:
+            raise scene.error(f"integrator.options.{key}", problem)
     options.update(integ.get("options") or {})
     init = d["initial"]
     kind = "momentum" if init["momentum"] is not None else "velocity"
