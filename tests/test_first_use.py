@@ -311,3 +311,11 @@ def test_a_misspelt_integrator_option_is_named_at_its_line_with_what_was_meant(t
         "(implicit integrators), alpha (gtr-alpha)")
     with pytest.raises(InputError, match=r"integrator 'co2': unknown option 'aplha' \(did you mean 'alpha'\?\)"):
         tn.Simulation(tn.chain(), integrator="co2", h=0.01, integrator_options={"aplha": 0.5})
+
+
+def test_info_labels_the_mass_it_shows(capsys):
+    assert main(["info", os.path.join(ROOT, "scenes", "bracket.toml")]) == 0
+    out = capsys.readouterr().out
+    net_line = next(line for line in out.splitlines() if line.startswith("  net: "))
+    assert "mass 0.0674102 on the 554 free nodes (0.068688 with the anchored ones)" in net_line
+    assert "    mass 0.068688 (ρ V = 0.068688)" in out

@@ -76,7 +76,7 @@ def describe_scene(path: str, overrides) -> list[str]:
     total = scene.total_steps()
     out = [f"{path}: scene {scene.name!r} (hash {scene.hash[:12]})",
            f"  net: {net.n_nodes} nodes ({int(net.anchored.sum())} anchored), {net.n_springs} springs, "
-           f"total mass {net.masses[~net.anchored].sum():.6g}, from {source}"]
+           f"{_mass(net)}, from {source}"]
     if scene.mesh_path():
         from ..builders import read_meshio
 
@@ -114,6 +114,16 @@ def describe_scene(path: str, overrides) -> list[str]:
                + (f" ({_mb(extra)} of it for heat flow)" if extra else ""))
     out.append(_stable_step(sim, "initial state"))
     return out
+
+
+def _mass(net) -> str:
+    """The net's mass, saying which nodes it counts: the free nodes' mass (what moves), and the
+    whole mass where anchored nodes carry some."""
+    free = float(net.masses[~net.anchored].sum())
+    if not net.anchored.any():
+        return f"total mass {free:.6g}"
+    return (f"mass {free:.6g} on the {int((~net.anchored).sum())} free nodes "
+            f"({float(net.masses.sum()):.6g} with the anchored ones)")
 
 
 def heat_bytes(n_springs: int, n_pairs: int) -> int:
