@@ -319,3 +319,40 @@ def test_info_labels_the_mass_it_shows(capsys):
     net_line = next(line for line in out.splitlines() if line.startswith("  net: "))
     assert "mass 0.0674102 on the 554 free nodes (0.068688 with the anchored ones)" in net_line
     assert "    mass 0.068688 (ρ V = 0.068688)" in out
+
+
+# ----------------------------------------------------------------------------------------------
+# each output folder: the scene as run and a log of what was printed
+
+
+def test_the_output_folder_holds_the_scene_as_run_and_a_log_and_summary_says_where(tmp_path, capsys):
+    import json
+
+    from thermonet.scenes import load_scene
+
+    scene = tmp_path / "shock.toml"
+    scene.write_text(SHOCK.replace(f"{MESHES}/thermal_bar.msh", os.path.relpath(MESHES, tmp_path) + "/thermal_bar.msh"))
+    out = tmp_path / "first"
+    assert main(["run", str(scene), "--out", str(out), "--set", "baths.hot.temperature=700.0",
+                 "--set", "integrator.steps=8"]) == 0
+    printed = capsys.readouterr()
+    files = json.loads((out / "summary.json").read_text())["files"]
+    assert files == {"scene_as_run": "scene-as-run.toml", "log": "run.log"}
+    log = (out / "run.log").read_text()
+    assert log.startswith("# ") and printed.out in log
+    # the copy is the scene with its overrides, and runs the same from another folder
+    copy = load_scene(out / "scene-as-run.toml")
+    assert copy["baths"]["hot"]["temperature"] == 700.0 and copy["integrator"]["steps"] == 8
+    assert copy.mesh_path() == os.path.join(MESHES, "thermal_bar.msh")
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    os.replace(out / "scene-as-run.toml", elsewhere / "again.toml")
+    assert main(["run", str(elsewhere / "again.toml"), "--out", str(tmp_path / "again"), "--quiet"]) == 0
+    for name in ("diagnostics.csv", "shock_000002.vtu"):
+        assert (out / name).read_bytes() == (tmp_path / "again" / name).read_bytes()
+    # resume appends to the log and writes the scene it continues with
+    assert main(["run", "--resume", str(out), "--set", "integrator.steps=12"]) == 0
+    resumed = capsys.readouterr()
+    log = (out / "run.log").read_text()
+    assert log.count("# ") == 2 and log.endswith(resumed.out)
+    assert load_scene(out / "scene-as-run.toml")["integrator"]["steps"] == 12

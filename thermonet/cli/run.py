@@ -10,6 +10,9 @@ import warnings
 
 HELP = "run a scene and write VTU/PVD frames, diagnostics.csv, summary.json and checkpoints"
 
+#: the copy of the scene as run, in the output folder
+SCENE_AS_RUN = "scene-as-run.toml"
+
 
 def add_args(p) -> None:
     p.add_argument("scene", nargs="?", default=None,
@@ -51,9 +54,72 @@ def handle(args) -> int:
     from ..compile_watch import CompileWatch
     from .progress import ProgressBar
 
+    from ..errors import ThermonetError
+
     progress = None if args.quiet else ProgressBar()
-    with _run_warnings(args.quiet, progress), CompileWatch(progress.compiling if progress else None):
-        return _run(args, progress)
+    record = RunLog()
+    with record.capturing():
+        try:
+            with _run_warnings(args.quiet, progress), CompileWatch(progress.compiling if progress else None):
+                return _run(args, progress, record)
+        except ThermonetError as exc:
+            record.note(f"thermonet: error: {exc}")
+            raise
+        except KeyboardInterrupt:
+            record.note("thermonet: interrupted")
+            raise
+        finally:
+            record.write()
+
+
+class RunLog:
+    """What ``thermonet run`` prints (stdout and stderr, not the progress bar), kept and written
+    to ``run.log`` in the output folder once that is known (appended to on resume)."""
+
+    NAME = "run.log"
+
+    def __init__(self):
+        self.parts: list[str] = []
+        self.folder = None
+
+    def note(self, line: str) -> None:
+        self.parts.append(line + "\n")
+
+    @contextlib.contextmanager
+    def capturing(self):
+        saved = sys.stdout, sys.stderr
+        sys.stdout, sys.stderr = _Tee(saved[0], self.parts), _Tee(saved[1], self.parts)
+        try:
+            yield self
+        finally:
+            sys.stdout, sys.stderr = saved
+
+    def write(self) -> None:
+        if self.folder is None:
+            return
+        import datetime
+
+        stamp = datetime.datetime.now().astimezone().isoformat(timespec="seconds")
+        head = f"# {stamp}: thermonet {' '.join(sys.argv[1:]) if sys.argv[1:] else 'run'}\n"
+        try:
+            with open(os.path.join(self.folder, self.NAME), "a", encoding="utf-8") as f:
+                f.write(head + "".join(self.parts))
+        except OSError:
+            pass  # the run's own files were the ones to report on
+
+
+class _Tee:
+    """A text stream that also keeps what is written to it."""
+
+    def __init__(self, stream, parts: list):
+        self._stream, self._parts = stream, parts
+
+    def write(self, text):
+        self._parts.append(text)
+        return self._stream.write(text)
+
+    def __getattr__(self, name):
+        return getattr(self._stream, name)
 
 
 class StopRequest:
@@ -102,7 +168,7 @@ class StopRequest:
         return self.signal is not None and not self.forced
 
 
-def _run(args, progress) -> int:
+def _run(args, progress, record=None) -> int:
     from ..errors import InputError, OutputError, SimulationError
     from ..io import RunOutput, load_checkpoint
     from ..io.folder import (check_output_folder, check_writable, describe_os_error, fresh_folder,
@@ -165,6 +231,15 @@ def _run(args, progress) -> int:
     probes = scene_probes(scene, sim)
     if state is None:  # the new run is built and checked: only now may a previous run's files go
         prepare_output_folder(folder, overwrite=args.overwrite)
+    if record is not None:
+        record.folder = folder
+    try:  # the scene as run (overrides applied), beside its output
+        from ..io import atomic_write
+
+        with atomic_write(os.path.join(folder, SCENE_AS_RUN), "w") as f:
+            f.write(scene.as_run())
+    except OSError as exc:
+        raise OutputError(f"cannot write to the output folder: {describe_os_error(exc)}") from None
     try:
         output = RunOutput(
             sim, folder, scene.name,
@@ -214,13 +289,14 @@ def _run(args, progress) -> int:
     try:
         output.write_csv()
         probe_files = probes.to_csv(folder) if probes is not None else []  # probes
-        output.write_summary(sim, {"broken_conservation": broken_conservation(sim, sim.energy_tolerance)})
+        output.write_summary(sim, {"broken_conservation": broken_conservation(sim, sim.energy_tolerance),
+                                   "files": {"scene_as_run": SCENE_AS_RUN, "log": RunLog.NAME}})
     except OSError as exc:
         raise OutputError(f"writing the output failed at the end of the run: {describe_os_error(exc)}") from None
     if not args.quiet:
         print(format_summary(sim, scene.name, folder))
         files = [f"{scene.name}.pvd ({len(output.pvd.frames)} frames)" if output.frames_every else None,
-                 "diagnostics.csv", *probe_files, "summary.json",
+                 "diagnostics.csv", *probe_files, "summary.json", SCENE_AS_RUN, RunLog.NAME,
                  os.path.basename(output.checkpoint_path) if output.checkpoint_every else None]
         print(f"  wrote {', '.join(f for f in files if f)}")
     broken = broken_conservation(sim, sim.energy_tolerance)

@@ -2,7 +2,8 @@
 removing them on request, and cleaning up after a killed run.
 
 A run's files are ``<name>.pvd``, its ``<name>_NNNNNN.vtu`` frames, ``diagnostics.csv``,
-``summary.json``, ``<name>.checkpoint.npz`` and, after a process was killed while writing, the
+``probe_<name>.csv``, ``summary.json``, ``<name>.checkpoint.npz``, ``scene-as-run.toml``,
+``run.log`` and, after a process was killed while writing, the
 temporary files of atomic writes (``*.tmp-<pid>``, ``diagnostics.csv.tmp``).
 """
 
@@ -13,7 +14,8 @@ import re
 
 from ..errors import InputError, OutputError
 
-_RUN_FILE = re.compile(r"(.+\.pvd|.+_\d{6}\.vtu|.+\.checkpoint\.npz|diagnostics\.csv|summary\.json)$")
+_RUN_FILE = re.compile(r"(.+\.pvd|.+_\d{6}\.vtu|.+\.checkpoint\.npz|diagnostics\.csv|summary\.json|probe_.+\.csv"
+                       r"|scene-as-run\.toml|run\.log)$")
 _TEMPORARY = re.compile(r".+\.tmp(-\d+)?$")
 
 

@@ -125,6 +125,20 @@ class Scene:
         return {"name": self.name, "hash": self.hash, "file": os.path.abspath(self.file) if os.path.exists(self.file) else self.file,
                 "base_dir": os.path.abspath(self.base_dir), "text": self.text, "overrides": list(self.overrides)}
 
+    def as_run(self) -> str:
+        """The scene as it runs, as TOML: its file with the ``--set`` overrides applied and the
+        mesh path made absolute (so the copy runs from anywhere); what ``thermonet run`` writes
+        beside its output as ``scene-as-run.toml``."""
+        raw = parse_toml(self.text, self.file)
+        _override(raw, self.overrides)
+        net = raw.get("net")
+        if isinstance(net, dict) and isinstance(net.get("mesh"), str):
+            net["mesh"] = os.path.normpath(os.path.join(self.base_dir, net["mesh"]))
+        head = [f"# the scene as run: {self.file}"
+                + (f", with {' '.join('--set ' + o for o in self.overrides)}" if self.overrides else ""),
+                "# (overrides applied, the mesh path made absolute; comments of the original are not kept)"]
+        return "\n".join(head + [""] + to_toml(raw)) + "\n"
+
     def build(self):
         """The :class:`~thermonet.scenes.build.BuiltScene` (net, simulation, material ids)."""
         from .build import build_scene
@@ -172,10 +186,7 @@ def load_scene(path=None, overrides=()) -> Scene:
 def scene_from_text(text: str, overrides=(), *, file: str = "<scene>", base_dir: str = ".") -> Scene:
     """Parse, override and validate a scene given as TOML text."""
     raw = parse_toml(text, file)
-    overridden = apply_overrides(raw, overrides)
-    for given, other in ((("integrator", "t_end"), "steps"), (("integrator", "steps"), "t_end")):
-        if given in overridden and ("integrator", other) not in overridden:
-            raw.get("integrator", {}).pop(other, None)  # setting one end condition replaces the other
+    overridden = _override(raw, overrides)
     scene = Scene({}, file, base_dir, text, tuple(overrides), key_lines(text), overridden)
     try:
         scene.data = validate(copy.deepcopy(raw))
@@ -183,6 +194,53 @@ def scene_from_text(text: str, overrides=(), *, file: str = "<scene>", base_dir:
         raise scene.error(exc.path, exc.message) from None
     check(scene)
     return scene
+
+
+def _override(raw: dict, overrides) -> set:
+    """Apply ``KEY=VALUE`` overrides to a parsed scene in place; returns the paths set."""
+    overridden = apply_overrides(raw, overrides)
+    for given, other in ((("integrator", "t_end"), "steps"), (("integrator", "steps"), "t_end")):
+        if given in overridden and ("integrator", other) not in overridden:
+            raw.get("integrator", {}).pop(other, None)  # setting one end condition replaces the other
+    return overridden
+
+
+def to_toml(data: dict) -> list[str]:
+    """Lines of a TOML document holding ``data`` (tables, arrays, inline tables in arrays,
+    strings, numbers, booleans, dates), as :func:`tomllib.loads` reads it back."""
+    bare = re.compile(r"[A-Za-z0-9_-]+")
+
+    def key(k) -> str:
+        return k if bare.fullmatch(k) else json.dumps(k, ensure_ascii=False)
+
+    def value(v) -> str:
+        if isinstance(v, bool):
+            return "true" if v else "false"
+        if isinstance(v, int):
+            return str(v)
+        if isinstance(v, float):
+            return "nan" if v != v else "inf" if v == math.inf else "-inf" if v == -math.inf else repr(v)
+        if isinstance(v, str):
+            return json.dumps(v, ensure_ascii=False)
+        if isinstance(v, (list, tuple)):
+            return "[" + ", ".join(value(x) for x in v) + "]"
+        if isinstance(v, dict):
+            return "{ " + ", ".join(f"{key(k)} = {value(x)}" for k, x in v.items()) + " }"
+        return v.isoformat()  # dates and times
+
+    lines: list[str] = []
+
+    def table(path, d: dict) -> None:
+        plain = [(k, v) for k, v in d.items() if not isinstance(v, dict)]
+        tables = [(k, v) for k, v in d.items() if isinstance(v, dict)]
+        if path and (plain or not tables):
+            lines.extend(["", f"[{'.'.join(key(p) for p in path)}]"] if lines else [f"[{'.'.join(key(p) for p in path)}]"])
+        lines.extend(f"{key(k)} = {value(v)}" for k, v in plain)
+        for k, v in tables:
+            table(path + (k,), v)
+
+    table((), data)
+    return lines
 
 
 def check(scene: Scene) -> None:
