@@ -356,3 +356,35 @@ def test_the_output_folder_holds_the_scene_as_run_and_a_log_and_summary_says_whe
     log = (out / "run.log").read_text()
     assert log.count("# ") == 2 and log.endswith(resumed.out)
     assert load_scene(out / "scene-as-run.toml")["integrator"]["steps"] == 12
+
+
+def test_scene_messages_name_the_typo_the_value_and_the_line(tmp_path, capsys):
+    bracket = f'[net]\nmesh = "{MESHES}/bracket.msh"\n[materials.bracket]\nyoungs_modulis = 70e9\n' \
+              'density = 2700.0\nheat_capacity = 900.0\n[integrator]\nh = 1e-7\nsteps = 2\n'
+    chain = '[net]\ngenerator = "chain"\n[materials.all]\nc = 3.0\n[integrator]\nh = 0.01\nsteps = 2\n'
+    for text, expected in [
+        (bracket, ":4: materials.bracket.youngs_modulis: model 'hencky' has no parameter 'youngs_modulis' "
+                  "(did you mean 'youngs_modulus'?)"),
+        (chain.replace("c = 3.0", "c = nan"), ":4: materials.all.c: must be a finite number, got nan"),
+        (chain.replace("[materials.all]", "[material.all]"), ":3: material: unknown key (did you mean 'materials'?)"),
+        (SHOCK.replace("temperature = 900.0", "temperature = inf"), ":16: baths.hot.temperature: must be finite, got inf"),
+    ]:
+        scene = tmp_path / "s.toml"
+        scene.write_text(text)
+        assert main(["run", str(scene), "--out", str(tmp_path / "out")]) == 2
+        line = one_error_line(capsys.readouterr().err)
+        assert line.startswith(f"thermonet: error: {scene}{expected}"), line
+        assert "<" not in line
+
+
+def test_nothing_is_said_about_compiling_before_a_scene_fails_its_checks(tmp_path):
+    import subprocess
+    import sys
+
+    scene = tmp_path / "stiff.toml"
+    scene.write_text('[net]\ngenerator = "chain"\n[materials.all]\nc = 1e6\n[integrator]\nh = 0.5\nsteps = 2\n')
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cold-cache"), PYTHONPATH=ROOT)
+    done = subprocess.run([sys.executable, "-m", "thermonet.cli.main", "run", str(scene), "--out", str(tmp_path / "o")],
+                          env=env, capture_output=True, text=True, cwd=tmp_path)
+    assert done.returncode == 2
+    assert done.stderr.splitlines() == [one_error_line(done.stderr)] and "integrator.h: h = 0.5" in done.stderr

@@ -75,10 +75,25 @@ class TimeFunction:
         f = pack([self])
         return float(evaluate_rate(f.kind, f.params, f.ptr, f.times, f.values, 0, float(t)))
 
+    def describe(self) -> str:
+        """The function in words and numbers, for messages and ``thermonet info``: ``900``,
+        ``300 + 2·t``, ``300 → 900 over t ∈ [0, 5]``, ``1 + 2·sin(2π·0.5·t + 0)``, ``table of 3
+        points, t ∈ [0, 2]``."""
+        p = self.params
+        if self.kind == "constant":
+            return f"{p[0]:g}"
+        if self.kind == "linear":
+            return f"{p[0]:g} + {p[1]:g}·t"
+        if self.kind == "ramp":
+            return f"{p[0]:g} → {p[1]:g} over t ∈ [0, {p[2]:g}]"
+        if self.kind == "sine":
+            return f"{p[3]:g} + {p[0]:g}·sin(2π·{p[1]:g}·t + {p[2]:g})"
+        if self.kind == "table" and len(self.times):
+            return f"table of {len(self.times)} points, t ∈ [{self.times[0]:g}, {self.times[-1]:g}]"
+        return f"{self.kind} {p}"
+
     def __repr__(self) -> str:
-        if self.kind == "table":
-            return f"<time function table of {len(self.times)} points>"
-        return f"<time function {self.kind}{self.params}>"
+        return f"<TimeFunction {self.describe()}>"
 
 
 class PackedFunctions(tuple):
@@ -235,7 +250,9 @@ def _table(points, where: str) -> TimeFunction:
 def _check(f: TimeFunction, where: str) -> None:
     values = np.concatenate([np.asarray(f.params, dtype=np.float64), f.times, f.values])
     if not np.all(np.isfinite(values)):
-        raise InputError(f"{where}: time function has a non-finite number ({f!r})")
+        if f.kind == "constant":
+            raise InputError(f"{where}: must be finite, got {f.params[0]:g}")
+        raise InputError(f"{where}: a non-finite number in the time function {f.describe()}")
     if f.kind == "ramp" and not f.params[2] > 0.0:
         raise InputError(f"{where}.duration: must be > 0, got {f.params[2]}")
     if f.kind == "sine" and not f.params[1] >= 0.0:

@@ -51,16 +51,16 @@ def overrides_of(args) -> list[str]:
 
 
 def handle(args) -> int:
-    from ..compile_watch import CompileWatch
-    from .progress import ProgressBar
-
     from ..errors import ThermonetError
+    from .progress import ProgressBar
 
     progress = None if args.quiet else ProgressBar()
     record = RunLog()
     with record.capturing():
         try:
-            with _run_warnings(args.quiet, progress), CompileWatch(progress.compiling if progress else None):
+            # nothing said while the scene is built and checked (a bad input is then the only
+            # line); the run's own watch says when its kernels compile
+            with _run_warnings(args.quiet, progress):
                 return _run(args, progress, record)
         except ThermonetError as exc:
             record.note(f"thermonet: error: {exc}")

@@ -90,7 +90,7 @@ class LoadSet:
     def describe(self, i: int) -> str:
         """Load i in words (``thermonet info``)."""
         load = self.loads[i]
-        comps = ", ".join(f"{a}: {c!r}" for a, c in zip(AXES, self.components[i]) if c is not None)
+        comps = ", ".join(f"{a}: {c.describe()}" for a, c in zip(AXES, self.components[i]) if c is not None)
         if load.kind == "drive":
             rest = "" if all(c is not None for c in self.components[i]) else \
                 f"; other axes {'free' if load.free else 'held'}"

@@ -308,6 +308,20 @@ def check(scene: Scene) -> None:
     # --- continuum materials (docs/continuum.md) ---
     from ..materials.continuum import CONTINUUM_KEYS, region_problem
 
+    known = ["model", *model.parameters, *TRANSPORT_PARAMETERS, *CONTINUUM_KEYS]
+    for region, params in d["materials"].items():  # a typo, before what it leaves missing
+        for k in params:
+            if k not in known:
+                import difflib
+
+                close = difflib.get_close_matches(k, known, n=1)
+                raise scene.error(f"materials.{region}.{k}",
+                                  f"model {model.name!r} has no parameter {k!r}"
+                                  + (f" (did you mean {close[0]!r}?)" if close else "")
+                                  + f"; its parameters: {', '.join(model.parameters)} (and the heat-flow ones: "
+                                  f"{', '.join(TRANSPORT_PARAMETERS)}; or continuum properties: "
+                                  f"{', '.join(CONTINUUM_KEYS)})")
+
     for region, params in d["materials"].items():
         problem = region_problem(model, params)
         if problem is not None:

@@ -219,6 +219,8 @@ def material(v):
             out[k] = choice(_models)(x) if isinstance(x, str) else _fail(f"must be a model name, got {x!r}", (k,))
         elif _is_number(x) and math.isfinite(float(x)):
             out[k] = float(x)
+        elif _is_number(x):
+            raise Invalid(f"must be a finite number, got {x!r}", (k,))
         else:
             raise Invalid(f"must be a number, got {_type_name(x)} {x!r}", (k,))
     return out
