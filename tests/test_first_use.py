@@ -388,3 +388,12 @@ def test_nothing_is_said_about_compiling_before_a_scene_fails_its_checks(tmp_pat
                           env=env, capture_output=True, text=True, cwd=tmp_path)
     assert done.returncode == 2
     assert done.stderr.splitlines() == [one_error_line(done.stderr)] and "integrator.h: h = 0.5" in done.stderr
+
+
+def test_the_progress_line_shows_steps_per_second_with_three_significant_digits():
+    from thermonet.cli.progress import ProgressBar
+
+    bar = ProgressBar()
+    assert "1,230,000 steps/s" in bar.line(1234567, 10**7, 1.0)
+    assert "45.7 steps/s" in bar.line(457, 1000, 10.0)
+    assert "? steps/s" in bar.line(0, 1000, 0.0)
