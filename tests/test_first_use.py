@@ -397,3 +397,41 @@ def test_the_progress_line_shows_steps_per_second_with_three_significant_digits(
     assert "1,230,000 steps/s" in bar.line(1234567, 10**7, 1.0)
     assert "45.7 steps/s" in bar.line(457, 1000, 10.0)
     assert "? steps/s" in bar.line(0, 1000, 0.0)
+
+
+# ----------------------------------------------------------------------------------------------
+# two volumes not fused: pieces no spring joins
+
+
+def _two_unfused_tetrahedra(path) -> None:
+    """Two tetrahedra meeting at a face whose nodes are duplicated (volumes not fused), the face
+    of the first one a node group "clamp"."""
+    import meshio
+    import numpy as np
+
+    pts = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 1]], float)
+    cells = [("triangle", np.array([[0, 1, 2]])), ("tetra", np.array([[0, 1, 2, 3], [4, 5, 6, 7]]))]
+    meshio.Mesh(pts, cells, cell_data={"gmsh:physical": [np.array([2]), np.array([1, 1])],
+                                       "gmsh:geometrical": [np.array([1]), np.array([1, 2])]},
+                field_data={"clamp": np.array([2, 2]), "part": np.array([1, 3])}).write(
+        str(path), file_format="gmsh22", binary=False)
+
+
+def test_pieces_no_spring_joins_are_said_in_info_warned_in_run_and_named_for_continuum(tmp_path, capsys):
+    _two_unfused_tetrahedra(tmp_path / "two.msh")
+    scene = tmp_path / "two.toml"
+    base = '[net]\nmesh = "two.msh"\ncells = ["tetra"]\n[effects]\nanchors = ["clamp"]\n[integrator]\nh = 0.01\nsteps = 3\n'
+    scene.write_text(base + "[materials.part]\nc = 10.0\n[initial.mass]\nuniform = 1.0\n")
+    note = "the net is 2 pieces that no spring joins (4, 4 nodes; a mesh of volumes that were not fused"
+    assert main(["info", str(tmp_path / "two.msh")]) == 0
+    assert note in capsys.readouterr().out
+    assert main(["info", str(scene)]) == 0
+    assert f"{note}" in capsys.readouterr().out
+    assert main(["run", str(scene), "--out", str(tmp_path / "out")]) == 0
+    err = capsys.readouterr().err
+    assert f"thermonet: warning: {note}" in err and "1 of them holds no anchored node and moves freely" in err
+    scene.write_text(base + "[materials.part]\nyoungs_modulus = 1e3\ndensity = 1.0\nheat_capacity = 1.0\n")
+    assert main(["run", str(scene), "--out", str(tmp_path / "out2")]) == 2
+    line = one_error_line(capsys.readouterr().err)
+    assert "is 2 pieces that no spring joins" in line and "continuum materials need one rigid net" in line
+    assert "tetrahedra (triangles in 2D)" not in line

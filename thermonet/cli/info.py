@@ -55,6 +55,8 @@ def describe_mesh(path: str) -> list[str]:
            "  cells: " + ", ".join(f"{n} {t}" for t, n in cells.items()),
            f"  spring net: {net.n_nodes} nodes, {net.n_springs} springs "
            f"(lengths {net.lengths().min():.4g} .. {net.lengths().max():.4g})"]
+    if net.pieces_note():
+        out.append(f"  pieces: {net.pieces_note()}")
     out += _groups(net)
     if mesh.point_data:
         out.append("  point data: " + ", ".join(f"{k} {np.shape(v)}" for k, v in mesh.point_data.items()))
@@ -77,6 +79,8 @@ def describe_scene(path: str, overrides) -> list[str]:
     out = [f"{path}: scene {scene.name!r} (hash {scene.hash[:12]})",
            f"  net: {net.n_nodes} nodes ({int(net.anchored.sum())} anchored), {net.n_springs} springs, "
            f"{_mass(net)}, from {source}"]
+    if net.pieces_note():
+        out.append(f"  pieces: {net.pieces_note()}")
     if scene.mesh_path():
         from ..builders import read_meshio
 

@@ -225,6 +225,9 @@ def _run(args, progress, record=None) -> int:
         sim.stability_guard.mode = "warn"
     if state is None:
         _check_step(sim, scene, args)
+        note = sim.net.pieces_note()
+        if note and not args.quiet:
+            print(f"thermonet: warning: {note}", file=sys.stderr)
     total = scene.total_steps()
     from ..probes import scene_probes
 
