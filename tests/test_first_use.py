@@ -435,3 +435,52 @@ def test_pieces_no_spring_joins_are_said_in_info_warned_in_run_and_named_for_con
     line = one_error_line(capsys.readouterr().err)
     assert "is 2 pieces that no spring joins" in line and "continuum materials need one rigid net" in line
     assert "tetrahedra (triangles in 2D)" not in line
+
+
+# ----------------------------------------------------------------------------------------------
+# plots and pictures
+
+
+def test_plots_carry_units_and_the_energy_plot_shows_the_heat_that_came_in(tmp_path, monkeypatch):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from matplotlib.figure import Figure
+
+    from thermonet.cli.plot import plot_run
+
+    scene = tmp_path / "shock.toml"
+    scene.write_text(SHOCK)
+    assert main(["run", str(scene), "--out", str(tmp_path / "out"), "--quiet"]) == 0
+    seen = {}
+    real = Figure.savefig
+
+    def remember(self, path, *a, **k):
+        seen[os.path.basename(path)] = [(ax.get_xlabel(), ax.get_ylabel(), [l.get_label() for l in ax.get_lines()])
+                                        for ax in self.axes]
+        return real(self, path, *a, **k)
+
+    monkeypatch.setattr(Figure, "savefig", remember)
+    plot_run(str(tmp_path / "out"))
+    top, balance = seen["energy.png"]
+    assert top[1] == "energy (model units)" and "heat in (baths, sources)" in top[2] and "energy" in top[2]
+    assert balance == ("time (model units)", "H − H(0) − ΣQ (model units)", balance[2])
+    assert all(x.endswith("(model units)") for axes in seen.values() for x, _, _ in axes if x)
+
+
+def test_render_keeps_vtk_noise_out_and_labels_its_colour_bar_readably(tmp_path, capfd):
+    pytest.importorskip("pyvista")
+    from thermonet.cli.render import bar_labels
+
+    scene = tmp_path / "shock.toml"
+    scene.write_text(SHOCK)
+    assert main(["run", str(scene), "--out", str(tmp_path / "out"), "--quiet"]) == 0
+    capfd.readouterr()
+    assert main(["render", str(tmp_path / "out"), "--png", str(tmp_path / "frame.png"), "--size", "300x200"]) == 0
+    out, err = capfd.readouterr()
+    assert "X server" not in err and "WARN" not in err and err == "", err
+    assert os.path.getsize(tmp_path / "frame.png") > 1000
+    assert bar_labels([300.0, 900.0]) == {"n_labels": 5, "fmt": "%.0f"}
+    assert bar_labels([299.99, 300.01]) == {"n_labels": 5, "fmt": "%.4f"}
+    assert bar_labels([300.0, 300.0]) == {"n_labels": 2, "fmt": "%.6g"}
+    assert bar_labels([0.0, 2e7])["fmt"].endswith("e")

@@ -293,7 +293,10 @@ def _run(args, progress, record=None) -> int:
         output.write_csv()
         probe_files = probes.to_csv(folder) if probes is not None else []  # probes
         output.write_summary(sim, {"broken_conservation": broken_conservation(sim, sim.energy_tolerance),
-                                   "files": {"scene_as_run": SCENE_AS_RUN, "log": RunLog.NAME}})
+                                   "files": {"scene_as_run": SCENE_AS_RUN, "log": RunLog.NAME},
+                                   # continuum materials are given in SI units; spring parameters in the
+                                   # model's own (thermonet plot labels its axes with it)
+                                   "units": "SI" if built.continuum is not None else "model units"})
     except OSError as exc:
         raise OutputError(f"writing the output failed at the end of the run: {describe_os_error(exc)}") from None
     if not args.quiet:
