@@ -8,6 +8,7 @@ one-line messages naming the file, key or step, and the files left on disk.
 import os
 import re
 
+import numpy as np
 import pytest
 
 from thermonet.cli.main import main
@@ -484,3 +485,48 @@ def test_render_keeps_vtk_noise_out_and_labels_its_colour_bar_readably(tmp_path,
     assert bar_labels([299.99, 300.01]) == {"n_labels": 5, "fmt": "%.4f"}
     assert bar_labels([300.0, 300.0]) == {"n_labels": 2, "fmt": "%.6g"}
     assert bar_labels([0.0, 2e7])["fmt"].endswith("e")
+
+
+def test_a_bath_names_when_its_temperature_reaches_zero_and_a_group_of_points_no_spring_joins(tmp_path, capsys):
+    import meshio
+    import numpy as np
+
+    for temperature, expected in [
+        ("{ start = 300.0, rate = -1e308 }", "a bath temperature must stay > 0, but 300 − 1e+308·t reaches 0 at t = 3e-306"),
+        ("{ start = 300.0, end = -300.0, duration = 2.0 }",
+         "a bath temperature must stay > 0, but 300 → -300 over t ∈ [0, 2] reaches 0 at t = 1"),
+        ("-5.0", "a bath temperature must be > 0, got -5 at t = 0"),
+    ]:
+        scene = tmp_path / "s.toml"
+        scene.write_text(SHOCK.replace("temperature = 900.0", f"temperature = {temperature}"))
+        assert main(["run", str(scene), "--out", str(tmp_path / "out"), "--quiet"]) == 2
+        assert one_error_line(capsys.readouterr().err).endswith(f":16: baths.hot.temperature: {expected}")
+    # a node group whose only point touches no spring
+    _two_unfused_tetrahedra(tmp_path / "two.msh")
+    mesh = meshio.read(tmp_path / "two.msh")
+    points = np.vstack([mesh.points, [[5.0, 5.0, 5.0]]])
+    cells = [("vertex", np.array([[8]]))] + [(b.type, b.data) for b in mesh.cells]
+    meshio.Mesh(points, cells, cell_data={"gmsh:physical": [np.array([4])] + list(mesh.cell_data["gmsh:physical"]),
+                                          "gmsh:geometrical": [np.array([9])] + list(mesh.cell_data["gmsh:geometrical"])},
+                field_data={**mesh.field_data, "lonely": np.array([4, 0])}).write(
+        str(tmp_path / "lonely.msh"), file_format="gmsh22", binary=False)
+    scene = tmp_path / "lonely.toml"
+    scene.write_text('[net]\nmesh = "lonely.msh"\ncells = ["tetra"]\n[materials.part]\nc = 10.0\nbeta = 0.1\nC0 = 1.0\n'
+                     'theta0 = 300.0\ng = 1.0\n[initial.mass]\nuniform = 1.0\n[effects]\nconduction = true\n'
+                     '[baths.warm]\ngroup = "lonely"\ntemperature = 400.0\n[integrator]\nh = 0.01\nsteps = 2\n')
+    assert main(["run", str(scene), "--out", str(tmp_path / "out2"), "--quiet"]) == 2
+    assert one_error_line(capsys.readouterr().err).endswith(
+        ":15: baths.warm.group: node group 'lonely' holds no node of the net: its mesh points touch no spring "
+        "(only points that springs join become nodes)")
+
+
+def test_the_first_time_a_time_function_reaches_a_level():
+    from thermonet.timefunctions import TimeFunction
+
+    assert TimeFunction.constant(5.0).first_at_or_below(0.0) is None
+    assert TimeFunction.linear(-2.0, start=10.0).first_at_or_below(0.0) == pytest.approx(5.0)
+    assert TimeFunction.ramp(-100.0, 4.0, start=300.0).first_at_or_below(0.0) == pytest.approx(3.0)
+    assert TimeFunction.sine(400.0, 0.25, 0.0, 300.0).first_at_or_below(0.0) == pytest.approx(
+        (np.pi + np.arcsin(0.75)) / (2 * np.pi * 0.25), abs=1e-4)
+    assert TimeFunction.sine(100.0, 0.25, 0.0, 300.0).first_at_or_below(0.0) is None
+    assert TimeFunction.table([[0.0, 300.0], [1.0, 100.0], [2.0, -100.0]]).first_at_or_below(0.0) == pytest.approx(1.5)

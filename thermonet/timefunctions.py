@@ -83,7 +83,7 @@ class TimeFunction:
         if self.kind == "constant":
             return f"{p[0]:g}"
         if self.kind == "linear":
-            return f"{p[0]:g} + {p[1]:g}·t"
+            return f"{p[0]:g} {'−' if p[1] < 0 else '+'} {abs(p[1]):g}·t"
         if self.kind == "ramp":
             return f"{p[0]:g} → {p[1]:g} over t ∈ [0, {p[2]:g}]"
         if self.kind == "sine":
@@ -94,6 +94,37 @@ class TimeFunction:
 
     def __repr__(self) -> str:
         return f"<TimeFunction {self.describe()}>"
+
+    def first_at_or_below(self, level: float = 0.0) -> float | None:
+        """The first time t ≥ 0 at which v(t) ≤ level (None if never)."""
+        p = self.params
+        if self.kind == "constant":
+            return 0.0 if p[0] <= level else None
+        if self.kind == "linear":
+            if p[0] <= level:
+                return 0.0
+            return (level - p[0]) / p[1] if p[1] < 0 else None
+        if self.kind == "ramp":
+            if p[0] <= level:
+                return 0.0
+            return p[2] * (p[0] - level) / (p[0] - p[1]) if p[1] <= level else None
+        if self.kind == "sine":
+            amplitude, frequency, phase, offset = p
+            if offset - abs(amplitude) > level:
+                return None
+            if frequency == 0.0:
+                return 0.0 if offset + amplitude * math.sin(phase) <= level else None
+            t = np.linspace(0.0, 1.0 / frequency, 100_001)
+            below = np.flatnonzero(offset + amplitude * np.sin(2 * math.pi * frequency * t + phase) <= level)
+            return float(t[below[0]]) if below.size else None
+        times, values = np.asarray(self.times), np.asarray(self.values)
+        if values[0] <= level:
+            return 0.0  # held before the first point
+        for i in range(1, len(values)):
+            if values[i] <= level:
+                a, b = values[i - 1], values[i]
+                return float(times[i - 1] + (times[i] - times[i - 1]) * (a - level) / (a - b))
+        return None
 
 
 class PackedFunctions(tuple):

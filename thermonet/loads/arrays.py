@@ -164,6 +164,9 @@ def _group_nodes(group, net, where: str) -> np.ndarray:
         if bad.size:
             raise InputError(f"{where}: node {int(bad[0])} outside 0..{net.n_nodes - 1}")
     if idx.size == 0:
+        if isinstance(group, str):
+            raise InputError(f"{where}: node group {group!r} holds no node of the net: its mesh points touch no "
+                             "spring (only points that springs join become nodes)")
         raise InputError(f"{where}: the group has no nodes")
     return np.unique(idx)
 
