@@ -134,3 +134,14 @@ def test_the_default_study_integrators_include_the_methods_the_readme_recommends
     (fourth, sixth), = re.findall(r"\*\*`(\w+)` is the 4th-order and `(\w+)` the 6th-order method to use\*\*", readme)
     assert fourth in DEFAULT_INTEGRATORS["convergence"].split(",")
     assert {fourth, sixth} <= set(DEFAULT_INTEGRATORS["cost"].split(","))
+
+
+def test_a_cost_study_of_a_scene_with_a_bath_has_no_scipy_baseline_and_says_why(tmp_path, capsys):
+    out = tmp_path / "cost"
+    assert main(["study", "cost", os.path.join(SCENES, "thermal_shock.toml"), "--serial", "--integrators", "co2",
+                 "--halvings", "2", "--repeats", "1", "--t-end", "0.2", "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "no SciPy baseline: it solves Hamilton's equations, which leave out the scene's conduction, baths (hot)" in text
+    assert "the cheapest is CO2" in text and "SciPy's cheapest" not in text
+    with open(out / "cost.csv") as f:
+        assert {r["solver"] for r in csv.DictReader(f)} == {"co2"}
