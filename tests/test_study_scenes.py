@@ -55,6 +55,7 @@ def test_a_convergence_study_of_a_scene_with_heat_flow_or_loads_includes_them_an
     text = capsys.readouterr().out
     assert f"reference co4 h=" in text and f"(the scene's {named} are not in Hamilton's equations" in text
     assert "DOP853 rtol" not in text and " no position slope" not in text
+    assert ("every integrator is second order with it" in text) == ("conduction" in named)
     fitted = slopes(out)
     for quantity in ("position", "momentum", "temperature"):
         assert abs(fitted[("co2", quantity)] - 2.0) < 0.1, (quantity, fitted)

@@ -42,6 +42,8 @@ class ConvergenceStudy:
     reference: ReferenceSolution
     rows: list[dict] = field(default_factory=list)
     slopes: dict = field(default_factory=dict)
+    #: what the scene does beyond Hamilton's equations (its reference is then a fine-step run)
+    effects: list = field(default_factory=list)
 
     def errors(self, integrator: str, quantity: str) -> tuple[np.ndarray, np.ndarray]:
         """(h, error) arrays of one integrator, coarse to fine."""
@@ -75,6 +77,9 @@ class ConvergenceStudy:
             fits = [self.slopes[(name, q)] for q in QUANTITIES]
             lines.append(f"  {name:<10} {get_integrator(name).order:>5}  " + "  ".join(
                 f"{f.slope:>6.2f} ({f.n_points})" if math.isfinite(f.slope) else f"{'—':>11}" for f in fits))
+        if "conduction" in self.effects:
+            lines.append("  (conduction is never composed: every integrator is second order with it, whatever its "
+                         "own order; docs/heat.md)")
         for (name, q), reason in self.unfitted().items():
             lines.append(f"  no {q} slope for {name}: {reason}")
         failed = [r for r in self.rows if r["status"] != "ok"]
@@ -215,7 +220,7 @@ def convergence_study(scene: str, integrators, dt: float = 0.1, halvings: int = 
     results = (runner or Runner(serial=True)).run(calls, progress=progress)
     n_ref = 2 if chk else 1
     reference = assemble_reference(results[0], results[1] if chk else None, t_end, rtol, check, effects)
-    study = ConvergenceStudy(scene, t_end, integrators, hs, reference)
+    study = ConvergenceStudy(scene, t_end, integrators, hs, reference, effects=list(effects))
     runs = iter(results[n_ref:])
     for name in integrators:
         for h in hs:
