@@ -341,6 +341,8 @@ def test_the_output_folder_holds_the_scene_as_run_and_a_log_and_summary_says_whe
     assert files == {"scene_as_run": "scene-as-run.toml", "log": "run.log"}
     log = (out / "run.log").read_text()
     assert log.startswith("# ") and printed.out in log
+    assert log.splitlines()[0].endswith(f": thermonet run {scene} --out {out} --set baths.hot.temperature=700.0 "
+                                        "--set integrator.steps=8")
     # the copy is the scene with its overrides, and runs the same from another folder
     copy = load_scene(out / "scene-as-run.toml")
     assert copy["baths"]["hot"]["temperature"] == 700.0 and copy["integrator"]["steps"] == 8

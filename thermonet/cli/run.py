@@ -55,7 +55,7 @@ def handle(args) -> int:
     from .progress import ProgressBar
 
     progress = None if args.quiet else ProgressBar()
-    record = RunLog()
+    record = RunLog(getattr(args, "argv", None))
     with record.capturing():
         try:
             # nothing said while the scene is built and checked (a bad input is then the only
@@ -78,9 +78,10 @@ class RunLog:
 
     NAME = "run.log"
 
-    def __init__(self):
+    def __init__(self, argv=None):
         self.parts: list[str] = []
         self.folder = None
+        self.argv = list(argv) if argv is not None else ["run"]
 
     def note(self, line: str) -> None:
         self.parts.append(line + "\n")
@@ -100,7 +101,7 @@ class RunLog:
         import datetime
 
         stamp = datetime.datetime.now().astimezone().isoformat(timespec="seconds")
-        head = f"# {stamp}: thermonet {' '.join(sys.argv[1:]) if sys.argv[1:] else 'run'}\n"
+        head = f"# {stamp}: thermonet {' '.join(self.argv)}\n"
         try:
             with open(os.path.join(self.folder, self.NAME), "a", encoding="utf-8") as f:
                 f.write(head + "".join(self.parts))
