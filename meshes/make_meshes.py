@@ -5,7 +5,8 @@
 - lattice2d.msh: a 2D triangulated 8×4 lattice, clamped on its left edge, two materials.
 - truss_block.msh: a 3D tetrahedral truss block 4×1×1 made of four unit slabs: materials
   "soft" (x < 2) and "stiff" (x > 2), a "hot" tip slab (x > 3), a clamped face "clamp" (x = 0)
-  and the free end face "tip" (x = 4).
+  and the free end face "tip" (x = 4). It is also written to thermonet/data/, the built-in
+  default scene's copy that a wheel ships.
 - thermal_bar.msh: a 3D tetrahedral bar 8×1×1 (mesh size 0.5), spring group "bar", node groups
   "hot_end" (the face x = 0, held by a heat bath in scenes/thermal_shock.toml) and "far_end"
   (the face x = 8, insulated).
@@ -121,6 +122,7 @@ def truss_block(size: float = 0.25) -> None:
     gmsh.option.setNumber("Mesh.Algorithm3D", 1)
     gmsh.option.setNumber("Mesh.RandomSeed", 1)
     gmsh.model.mesh.generate(3)
+    gmsh.write(os.path.join(HERE, "..", "thermonet", "data", "truss_block.msh"))  # the default scene's copy
     _finish("truss_block.msh")
 
 

@@ -159,9 +159,10 @@ def test_a_previous_run_is_never_overwritten_silently(tmp_path, capsys):
     # --overwrite removes the old run's files (its extra frames too), and only those
     assert main(["run", SPINNING, "--out", str(out), *SMALL, "--set", "output.frames_every=60", "--overwrite"]) == 0
     names = sorted(os.listdir(out))
-    assert names == ["diagnostics.csv", "notes.txt", "spinning_lattice.checkpoint.npz", "spinning_lattice.pvd",
-                     "spinning_lattice_000000.vtu", "spinning_lattice_000001.vtu", "spinning_lattice_000002.vtu",
-                     "summary.json"]
+    assert names == ["diagnostics.csv", "notes.txt", "run.log", "scene-as-run.toml", "spinning_lattice.checkpoint.npz",
+                     "spinning_lattice.pvd", "spinning_lattice_000000.vtu", "spinning_lattice_000001.vtu",
+                     "spinning_lattice_000002.vtu", "summary.json"]
+    assert (out / "run.log").read_text().count("\n# ") == 0  # the old run's log went with its files
     assert (out / "notes.txt").read_text() == "mine"
 
 

@@ -324,7 +324,7 @@ steps = 5
 
 
 @pytest.mark.parametrize("extra, rc, words", [
-    ([], 2, ["error: h = 0.01 is 9.2", "× the stability limit", "--allow-unstable-step"]),
+    ([], 2, ["stiff.toml:9: integrator.h: h = 0.01 is 9.2", "× the stability limit", "--allow-unstable-step"]),
     (["--allow-unstable-step"], 0, ["warning: h = 0.01"]),
     (["--set", "integrator.check_step=false"], 0, ["warning: h = 0.01"]),
     (["--h", "0.0014"], 0, ["warning: h = 0.0014 is 1.29×", "safety fraction 0.9"]),

@@ -186,7 +186,7 @@ def test_held_axes_stay_put_and_free_axes_move():
 @pytest.mark.parametrize("loads, message", [
     ({"pull": Drive("base", velocity=[1, 0, 0])}, r"loads\.pull\.group: node 0 is anchored"),
     ({"pull": Drive("grip", {"x": {"table": [[0, 0], [1, 1], [0.5, 2]]}})}, r"loads\.pull\.displacement\.x\.table: times must increase"),
-    ({"pull": Drive("grip", {"x": {"table": [[0, 0], [1, float("nan")]]}})}, r"loads\.pull\.displacement\.x: time function has a non-finite"),
+    ({"pull": Drive("grip", {"x": {"table": [[0, 0], [1, float("nan")]]}})}, r"loads\.pull\.displacement\.x: a non-finite number in the time function table of 2 points"),
     ({"push": Force("nowhere", [1, 0, 0])}, r"loads\.push\.group: no node group 'nowhere'"),
     ({"pull": Drive([], velocity=[1, 0, 0])}, r"loads\.pull\.group: the group has no nodes"),
     ({"a": Drive("grip", velocity=[1, 0, 0]), "b": Drive([4], velocity=[0, 1, 0])}, r"loads\.b\.group: node 4 is also in loads\.a"),

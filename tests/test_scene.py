@@ -46,7 +46,7 @@ def test_default_scene_is_a_3d_thermal_mesh_with_a_hot_region():
     assert os.path.samefile(scene.file, DEFAULT_SCENE)
     built = scene.build()
     sim = built.simulation
-    assert scene.mesh_path().endswith(os.path.join("meshes", "truss_block.msh"))
+    assert scene.mesh_path().endswith(os.path.join("thermonet", "data", "truss_block.msh"))
     assert np.ptp(built.net.positions, axis=0).min() > 0  # really 3D
     theta = sim.temperatures()
     hot = built.net.spring_groups["hot"]

@@ -41,6 +41,8 @@ def check_stretch_bounds(bounds) -> tuple[float, float]:
 
 
 def check_step(h) -> float:
+    if isinstance(h, (str, bytes, bool)):  # float("0.01") would take it: a quoted number is a mistake
+        raise InputError(f"time step h must be a number, got {type(h).__name__} {h!r}")
     try:
         h = float(h)
     except (TypeError, ValueError):

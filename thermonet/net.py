@@ -180,6 +180,37 @@ class Net:
             return pts[0].copy()
         return None
 
+    def pieces(self) -> list[np.ndarray]:
+        """The node indices of each piece of the net that no spring joins to another (connected
+        components of the spring graph; a node touching no spring is a piece), largest first."""
+        import scipy.sparse as sp
+        from scipy.sparse.csgraph import connected_components
+
+        n = self.n_nodes
+        e = np.asarray(self.edges, dtype=np.int64)
+        graph = sp.coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(n, n)) if len(e) else sp.coo_matrix((n, n))
+        count, labels = connected_components(graph, directed=False)
+        if count == 1:
+            return [np.arange(n)]
+        groups = [np.flatnonzero(labels == c) for c in range(count)]
+        return sorted(groups, key=lambda g: (-len(g), int(g[0])))
+
+    def pieces_note(self) -> str | None:
+        """One sentence when the net falls apart into pieces no spring joins (None when it is in
+        one piece): how many, their sizes, and how many hold no anchored node (they move freely
+        where other pieces are held)."""
+        pieces = self.pieces()
+        if len(pieces) == 1:
+            return None
+        sizes = ", ".join(str(len(p)) for p in pieces[:6]) + (", …" if len(pieces) > 6 else "")
+        text = (f"the net is {len(pieces)} pieces that no spring joins ({sizes} nodes; a mesh of volumes that were not "
+                f"fused has duplicate nodes where they meet: fuse them, e.g. gmsh's BooleanFragments or Coherence)")
+        if self.anchored.any():
+            loose = sum(1 for p in pieces if not self.anchored[p].any())
+            if loose:
+                text += f"; {loose} of them hold{'s' if loose == 1 else ''} no anchored node and move{'s' if loose == 1 else ''} freely"
+        return text
+
     def to_meshio(self):
         """The net as a ``meshio.Mesh`` (springs as "line" cells; point data ``mass``,
         ``anchored``; cell data ``rest_length``), e.g. ``net.to_meshio().write("net.vtu")``."""

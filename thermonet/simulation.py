@@ -101,6 +101,9 @@ class Simulation(RunDriver):
         a sequence or a mapping name -> load; diagnostics rows then carry each load's
         displacement, reaction and work and the energy balance H − H(0) − W
         (− ΣQ with heat flow; docs/loads.md).
+    anchors: node group names of the net (a mesh's physical groups) or node indices to hold
+        fixed, on top of the net's own anchored nodes (``read_mesh(anchors=...)`` does the same
+        when reading a mesh).
     """
 
     def __init__(
@@ -129,9 +132,12 @@ class Simulation(RunDriver):
         baths: Mapping | None = None,
         sources: Mapping | None = None,
         loads=None,
+        anchors=None,
     ):
         if not isinstance(net, Net):
             raise InputError(f"net must be a thermonet.Net, got {type(net).__name__}")
+        if anchors is not None:
+            net = _with_anchors(net, anchors)
         self.model = get_model(model)
         net, parameters, self.continuum = apply_continuum(net, self.model, parameters)
         self.net = net
@@ -140,7 +146,13 @@ class Simulation(RunDriver):
         stepper_keys = {"tolerance", "max_iterations", "retry", "linear_solver", "rtol", "atol",
                         "newton_path"}
         stepper_options = {k: integrator_options.pop(k) for k in list(integrator_options) if k in stepper_keys}
-        self.integrator = get_integrator(integrator, **integrator_options)
+        try:
+            self.integrator = get_integrator(integrator, **integrator_options)
+        except (InputError, TypeError):
+            unknown = integrator_option_problem(integrator_options)
+            if unknown is None:
+                raise
+            raise InputError(f"integrator {integrator!r}: {unknown}") from None
         self.backend = check_backend(backend, self.integrator)
         if self.backend != "cpu":
             stepper_options["backend"] = self.backend
@@ -362,3 +374,46 @@ class Simulation(RunDriver):
 
 __all__ = ["Simulation", "SimulationError"]
 
+
+def _with_anchors(net: Net, anchors) -> Net:
+    """A copy of ``net`` with the nodes of ``anchors`` (node group names of the net, or node
+    indices) anchored too (the ``anchors=`` of :class:`Simulation`)."""
+    import dataclasses
+
+    if isinstance(anchors, (str, int, np.integer)):
+        anchors = [anchors]
+    anchored = np.array(net.anchored, dtype=bool)
+    n = net.n_nodes
+    for item in anchors:
+        if isinstance(item, str):
+            if item not in net.node_groups:
+                raise InputError(f"anchors: no node group {item!r} in the net; node groups: "
+                                 f"{', '.join(sorted(net.node_groups)) or 'none'}")
+            anchored[np.asarray(net.node_groups[item], dtype=np.int64)] = True
+        elif isinstance(item, (int, np.integer)) and not isinstance(item, bool):
+            if not 0 <= int(item) < n:
+                raise InputError(f"anchors: node index {int(item)} out of range 0..{n - 1}")
+            anchored[int(item)] = True
+        else:
+            raise InputError(f"anchors: node group names or node indices, got {item!r}")
+    return dataclasses.replace(net, anchored=anchored)
+
+
+#: options an integrator may take (integrator_options=, scene integrator.options): the implicit
+#: steppers' solver settings, and GTR-α's α
+INTEGRATOR_OPTION_NAMES = ("tolerance", "max_iterations", "retry", "linear_solver", "rtol", "atol", "newton_path",
+                           "alpha")
+
+
+def integrator_option_problem(options) -> str | None:
+    """``unknown option 'tolerence' (did you mean 'tolerance'?); options: ...`` for the first
+    option no integrator takes, or None."""
+    import difflib
+
+    for key in options:
+        if key not in INTEGRATOR_OPTION_NAMES:
+            close = difflib.get_close_matches(str(key), INTEGRATOR_OPTION_NAMES, n=1)
+            hint = f" (did you mean {close[0]!r}?)" if close else ""
+            return (f"unknown option {key!r}{hint}; options: {', '.join(INTEGRATOR_OPTION_NAMES[:-1])} (implicit "
+                    f"integrators), alpha (gtr-alpha)")
+    return None

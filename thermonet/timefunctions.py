@@ -75,10 +75,56 @@ class TimeFunction:
         f = pack([self])
         return float(evaluate_rate(f.kind, f.params, f.ptr, f.times, f.values, 0, float(t)))
 
+    def describe(self) -> str:
+        """The function in words and numbers, for messages and ``thermonet info``: ``900``,
+        ``300 + 2·t``, ``300 → 900 over t ∈ [0, 5]``, ``1 + 2·sin(2π·0.5·t + 0)``, ``table of 3
+        points, t ∈ [0, 2]``."""
+        p = self.params
+        if self.kind == "constant":
+            return f"{p[0]:g}"
+        if self.kind == "linear":
+            return f"{p[0]:g} {'−' if p[1] < 0 else '+'} {abs(p[1]):g}·t"
+        if self.kind == "ramp":
+            return f"{p[0]:g} → {p[1]:g} over t ∈ [0, {p[2]:g}]"
+        if self.kind == "sine":
+            return f"{p[3]:g} + {p[0]:g}·sin(2π·{p[1]:g}·t + {p[2]:g})"
+        if self.kind == "table" and len(self.times):
+            return f"table of {len(self.times)} points, t ∈ [{self.times[0]:g}, {self.times[-1]:g}]"
+        return f"{self.kind} {p}"
+
     def __repr__(self) -> str:
-        if self.kind == "table":
-            return f"<time function table of {len(self.times)} points>"
-        return f"<time function {self.kind}{self.params}>"
+        return f"<TimeFunction {self.describe()}>"
+
+    def first_at_or_below(self, level: float = 0.0) -> float | None:
+        """The first time t ≥ 0 at which v(t) ≤ level (None if never)."""
+        p = self.params
+        if self.kind == "constant":
+            return 0.0 if p[0] <= level else None
+        if self.kind == "linear":
+            if p[0] <= level:
+                return 0.0
+            return (level - p[0]) / p[1] if p[1] < 0 else None
+        if self.kind == "ramp":
+            if p[0] <= level:
+                return 0.0
+            return p[2] * (p[0] - level) / (p[0] - p[1]) if p[1] <= level else None
+        if self.kind == "sine":
+            amplitude, frequency, phase, offset = p
+            if offset - abs(amplitude) > level:
+                return None
+            if frequency == 0.0:
+                return 0.0 if offset + amplitude * math.sin(phase) <= level else None
+            t = np.linspace(0.0, 1.0 / frequency, 100_001)
+            below = np.flatnonzero(offset + amplitude * np.sin(2 * math.pi * frequency * t + phase) <= level)
+            return float(t[below[0]]) if below.size else None
+        times, values = np.asarray(self.times), np.asarray(self.values)
+        if values[0] <= level:
+            return 0.0  # held before the first point
+        for i in range(1, len(values)):
+            if values[i] <= level:
+                a, b = values[i - 1], values[i]
+                return float(times[i - 1] + (times[i] - times[i - 1]) * (a - level) / (a - b))
+        return None
 
 
 class PackedFunctions(tuple):
@@ -235,7 +281,9 @@ def _table(points, where: str) -> TimeFunction:
 def _check(f: TimeFunction, where: str) -> None:
     values = np.concatenate([np.asarray(f.params, dtype=np.float64), f.times, f.values])
     if not np.all(np.isfinite(values)):
-        raise InputError(f"{where}: time function has a non-finite number ({f!r})")
+        if f.kind == "constant":
+            raise InputError(f"{where}: must be finite, got {f.params[0]:g}")
+        raise InputError(f"{where}: a non-finite number in the time function {f.describe()}")
     if f.kind == "ramp" and not f.params[2] > 0.0:
         raise InputError(f"{where}.duration: must be > 0, got {f.params[2]}")
     if f.kind == "sine" and not f.params[1] >= 0.0:

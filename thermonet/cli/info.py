@@ -57,6 +57,8 @@ def describe_mesh(path: str) -> list[str]:
            "  cells: " + ", ".join(f"{n} {t}" for t, n in cells.items()),
            f"  spring net: {net.n_nodes} nodes, {net.n_springs} springs "
            f"(lengths {net.lengths().min():.4g} .. {net.lengths().max():.4g})"]
+    if net.pieces_note():
+        out.append(f"  pieces: {net.pieces_note()}")
     out += _groups(net)
     if mesh.point_data:
         out.append("  point data: " + ", ".join(f"{k} {np.shape(v)}" for k, v in mesh.point_data.items()))
@@ -78,7 +80,9 @@ def describe_scene(path: str, overrides) -> list[str]:
     total = scene.total_steps()
     out = [f"{path}: scene {scene.name!r} (hash {scene.hash[:12]})",
            f"  net: {net.n_nodes} nodes ({int(net.anchored.sum())} anchored), {net.n_springs} springs, "
-           f"total mass {net.masses[~net.anchored].sum():.6g}, from {source}"]
+           f"{_mass(net)}, from {source}"]
+    if net.pieces_note():
+        out.append(f"  pieces: {net.pieces_note()}")
     if scene.mesh_path():
         from ..builders import read_meshio
 
@@ -117,6 +121,16 @@ def describe_scene(path: str, overrides) -> list[str]:
                + (f" ({_mb(extra)} of it for heat flow)" if extra else ""))
     out.append(_stable_step(sim, "initial state"))
     return out
+
+
+def _mass(net) -> str:
+    """The net's mass, saying which nodes it counts: the free nodes' mass (what moves), and the
+    whole mass where anchored nodes carry some."""
+    free = float(net.masses[~net.anchored].sum())
+    if not net.anchored.any():
+        return f"total mass {free:.6g}"
+    return (f"mass {free:.6g} on the {int((~net.anchored).sum())} free nodes "
+            f"({float(net.masses.sum()):.6g} with the anchored ones)")
 
 
 def heat_bytes(n_springs: int, n_pairs: int, n_nodes: int = 0) -> int:

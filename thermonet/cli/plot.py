@@ -33,6 +33,17 @@ def read_columns(path: str) -> dict[str, np.ndarray]:
     return {c: np.array([float(r[i]) if i < len(r) and r[i] != "" else np.nan for r in body]) for i, c in enumerate(header)}
 
 
+def _units(outdir: str) -> str:
+    """The run's units from its summary.json (``SI`` with continuum materials), else model units."""
+    import json
+
+    try:
+        with open(os.path.join(outdir, "summary.json")) as f:
+            return json.load(f).get("units", "model units")
+    except (OSError, ValueError):
+        return "model units"
+
+
 def plot_run(outdir: str, to: str | None = None) -> list[str]:
     """The PNGs of the run in ``outdir`` (written to ``to``, default OUTDIR/plots); their paths."""
     from ..errors import InputError
@@ -48,6 +59,9 @@ def plot_run(outdir: str, to: str | None = None) -> list[str]:
     except ImportError:
         raise InputError("thermonet plot needs matplotlib (pip install matplotlib)") from None
     d = read_columns(diagnostics)
+    si = _units(outdir) == "SI"
+    time_label = "time (s)" if si else "time (model units)"
+    energy_unit = " (J)" if si else " (model units)"
     to = to or os.path.join(outdir, "plots")
     os.makedirs(to, exist_ok=True)
     t = d["time"]
@@ -61,34 +75,38 @@ def plot_run(outdir: str, to: str | None = None) -> list[str]:
         written.append(path)
 
     fig, axes = plt.subplots(2, 1, figsize=(7, 6), sharex=True)
-    for c in ("energy", "kinetic", "internal", "potential", "work"):
+    for c in ("energy", "kinetic", "internal", "potential"):
         if c in d:
             axes[0].plot(t, d[c], label=c)
-    axes[0].set_ylabel("energy")
+    # what flowed in from outside, beside the energy it changed: heat from baths and sources, the loads' work
+    for c, label in (("heat_in", "heat in (baths, sources)"), ("work", "work of the loads")):
+        if c in d:
+            axes[0].plot(t, d[c], label=label, linestyle="--")
+    axes[0].set_ylabel("energy" + energy_unit)
     axes[0].legend()
     if "energy_balance" in d:
         axes[1].plot(t, d["energy_balance"], color="k")
-        axes[1].set_ylabel("H − H(0) − W − ΣQ" if "heat_in" in d else
-                           "H − H(0) − W" if "work" in d else "H − H(0) − ΣQ")
+        axes[1].set_ylabel(("H − H(0) − W − ΣQ" if "heat_in" in d and "work" in d else
+                            "H − H(0) − W" if "work" in d else "H − H(0) − ΣQ") + energy_unit)
     else:
         axes[1].plot(t, d["energy"] - d["energy"][0], color="k")
-        axes[1].set_ylabel("H − H(0)")
-    axes[1].set_xlabel("time")
+        axes[1].set_ylabel("H − H(0)" + energy_unit)
+    axes[1].set_xlabel(time_label)
     save(fig, "energy.png")
     if "entropy" in d:
         fig, ax = plt.subplots(figsize=(7, 3.5))
         ax.plot(t, d["entropy"] - d["entropy"][0])
-        ax.set_xlabel("time")
-        ax.set_ylabel("S − S(0)")
+        ax.set_xlabel(time_label)
+        ax.set_ylabel("S − S(0)" + (" (J/K)" if si else " (model units)"))
         save(fig, "entropy.png")
     fig, axes = plt.subplots(2, 1, figsize=(7, 6), sharex=True)
     for c in ("px", "py", "pz"):
         axes[0].plot(t, d[c], label=c)
     for c in ("Lx", "Ly", "Lz"):
         axes[1].plot(t, d[c], label=c)
-    axes[0].set_ylabel("linear momentum")
-    axes[1].set_ylabel("angular momentum")
-    axes[1].set_xlabel("time")
+    axes[0].set_ylabel("linear momentum" + (" (kg m/s)" if si else " (model units)"))
+    axes[1].set_ylabel("angular momentum" + (" (kg m²/s)" if si else " (model units)"))
+    axes[1].set_xlabel(time_label)
     axes[0].legend()
     axes[1].legend()
     save(fig, "momenta.png")
@@ -100,8 +118,9 @@ def plot_run(outdir: str, to: str | None = None) -> list[str]:
             if np.any(u != 0) or np.any(f != 0):
                 sign = -1.0 if force == "R" else 1.0  # a grip pulls the net with −R
                 ax.plot(u, sign * f, label=f"{a}")
-        ax.set_xlabel(f"{load}: mean displacement of the group")
-        ax.set_ylabel("force on the net (−reaction)" if force == "R" else "applied force")
+        ax.set_xlabel(f"{load}: mean displacement of the group" + (" (m)" if si else " (model units)"))
+        ax.set_ylabel(("force on the net (−reaction)" if force == "R" else "applied force")
+                      + (" (N)" if si else " (model units)"))
         ax.set_title(f"load–displacement: {load}")
         ax.legend()
         save(fig, f"load_{load}.png")
@@ -110,7 +129,7 @@ def plot_run(outdir: str, to: str | None = None) -> list[str]:
         fig, ax = plt.subplots(figsize=(7, 3.5))
         ax.fill_between(p["time"], p["min"], p["max"], alpha=0.3, label="min–max")
         ax.plot(p["time"], p["mean"], label="mean")
-        ax.set_xlabel("time")
+        ax.set_xlabel(time_label)
         ax.set_title(name[len("probe_"):-4])
         ax.legend()
         save(fig, name[:-4] + ".png")

@@ -38,7 +38,7 @@ class ProgressBar:
         eta = (total - done) / rate if rate > 0 else float("nan")
         eta_text = _clock(eta) if eta == eta else "?"
         return (f"[{'#' * filled}{'.' * (self.width - filled)}] {100 * frac:5.1f}%  "
-                f"step {done}/{total}  {rate:,.0f} steps/s  ETA {eta_text}")
+                f"step {done}/{total}  {_three_digits(rate)} steps/s  ETA {eta_text}")
 
     def compiling(self) -> None:
         """Say, once, that kernels are being compiled (a first run; Numba caches them on disk)."""
@@ -66,3 +66,12 @@ class ProgressBar:
         if self.shown and self.tty:
             self.stream.write("\n")
             self.stream.flush()
+
+
+def _three_digits(rate: float) -> str:
+    """A rate with 3 significant digits: ``1,230,000``, ``45.6``, ``0.0123``; ``?`` if unknown."""
+    if not rate == rate or rate in (float("inf"), float("-inf")):
+        return "?"
+    if abs(rate) >= 100:
+        return f"{float(f'{rate:.3g}'):,.0f}"
+    return f"{rate:.3g}"

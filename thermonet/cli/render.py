@@ -58,6 +58,7 @@ def render_frame(pv, vtu_path: str, time: float, png: str, field: str | None, si
         field = next((f for f in ("temperature", "tension", "strain") if f in grid.cell_data), None)
     elif field not in grid.cell_data:
         raise InputError(f"--field {field!r}: not in the frame; cell fields: {', '.join(grid.cell_data.keys())}")
+    quiet_vtk_warnings()
     poly = pv.PolyData(np.asarray(grid.points), lines=np.column_stack([np.full(len(lines), 2), lines]).ravel())
     if field is not None:
         poly.cell_data[field] = np.asarray(grid.cell_data[field])
@@ -66,8 +67,42 @@ def render_frame(pv, vtu_path: str, time: float, png: str, field: str | None, si
     plotter = pv.Plotter(off_screen=True, window_size=list(size))
     plotter.set_background("white")
     plotter.add_mesh(tubes, scalars=field, cmap="inferno", smooth_shading=True,
-                     scalar_bar_args={"title": field or "", "color": "black"})
+                     scalar_bar_args={"title": field or "", "color": "black", **bar_labels(poly.cell_data.get(field)),
+                                      "title_font_size": 18, "label_font_size": 16, "vertical": True,
+                                      "position_x": 0.85, "position_y": 0.1, "height": 0.8, "width": 0.06})
     plotter.add_text(f"t = {time:.6g}", color="black", font_size=12)
+    plotter.add_axes(color="black")  # the orientation marker: x, y, z
     plotter.view_isometric()
     plotter.screenshot(png)
     plotter.close()
+
+
+def quiet_vtk_warnings() -> None:
+    """Keep VTK's warnings (``bad X server connection`` where there is no display, before it
+    falls back to off-screen rendering) out of the terminal; its errors still show."""
+    try:
+        from vtkmodules.vtkCommonCore import vtkLogger
+    except ImportError:  # pragma: no cover - a VTK without its logger
+        return
+    vtkLogger.SetStderrVerbosity(vtkLogger.VERBOSITY_ERROR)
+
+
+def bar_labels(values) -> dict:
+    """The colour bar's label count and printf format: five labels with as many digits as tell
+    them apart (``%.0f`` for 300..900, ``%.4f`` for 299.99..300.01), two equal labels for a
+    field that does not vary; exponents only for very large or small values."""
+    if values is None or len(values) == 0:
+        return {"n_labels": 5, "fmt": "%.4g"}
+    v = np.asarray(values, dtype=np.float64)
+    lo, hi = float(np.nanmin(v)), float(np.nanmax(v))
+    if not (np.isfinite(lo) and np.isfinite(hi)):
+        return {"n_labels": 5, "fmt": "%.4g"}
+    if hi == lo:
+        return {"n_labels": 2, "fmt": "%.6g"}
+    step = (hi - lo) / 4
+    size = max(abs(lo), abs(hi))
+    if size >= 1e6 or size < 1e-3:
+        digits = max(1, int(np.ceil(np.log10(size / step))) + 1)
+        return {"n_labels": 5, "fmt": f"%.{min(digits, 10)}e"}
+    decimals = max(0, int(np.ceil(-np.log10(step))) + 1)
+    return {"n_labels": 5, "fmt": f"%.{min(decimals, 10)}f"}

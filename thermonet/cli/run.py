@@ -10,12 +10,16 @@ import warnings
 
 HELP = "run a scene and write VTU/PVD frames, diagnostics.csv, summary.json and checkpoints"
 
+#: the copy of the scene as run, in the output folder
+SCENE_AS_RUN = "scene-as-run.toml"
+
 
 def add_args(p) -> None:
     p.add_argument("scene", nargs="?", default=None,
                    help="scene file (.toml); default: the built-in 3D truss block (scenes/default.toml)")
     p.add_argument("--out", default=None, metavar="DIR",
-                   help="output folder (default: the scene's output.folder, or thermonet-out/<name>)")
+                   help="output folder (default: the scene's output.folder, or thermonet-out/<name>; when that "
+                        "holds a previous run, the first of <folder>-2, <folder>-3, ... that does not)")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", dest="overrides",
                    help="override a scene key, e.g. --set integrator.h=1e-4 --set effects.gravity=false "
                         "(the value is read as TOML; repeatable)")
@@ -47,18 +51,129 @@ def overrides_of(args) -> list[str]:
 
 
 def handle(args) -> int:
-    from ..compile_watch import CompileWatch
+    from ..errors import ThermonetError
     from .progress import ProgressBar
 
     progress = None if args.quiet else ProgressBar()
-    with _run_warnings(args.quiet, progress), CompileWatch(progress.compiling if progress else None):
-        return _run(args, progress)
+    record = RunLog(getattr(args, "argv", None))
+    with record.capturing():
+        try:
+            # nothing said while the scene is built and checked (a bad input is then the only
+            # line); the run's own watch says when its kernels compile
+            with _run_warnings(args.quiet, progress):
+                return _run(args, progress, record)
+        except ThermonetError as exc:
+            record.note(f"thermonet: error: {exc}")
+            raise
+        except KeyboardInterrupt:
+            record.note("thermonet: interrupted")
+            raise
+        finally:
+            record.write()
 
 
-def _run(args, progress) -> int:
+class RunLog:
+    """What ``thermonet run`` prints (stdout and stderr, not the progress bar), kept and written
+    to ``run.log`` in the output folder once that is known (appended to on resume)."""
+
+    NAME = "run.log"
+
+    def __init__(self, argv=None):
+        self.parts: list[str] = []
+        self.folder = None
+        self.argv = list(argv) if argv is not None else ["run"]
+
+    def note(self, line: str) -> None:
+        self.parts.append(line + "\n")
+
+    @contextlib.contextmanager
+    def capturing(self):
+        saved = sys.stdout, sys.stderr
+        sys.stdout, sys.stderr = _Tee(saved[0], self.parts), _Tee(saved[1], self.parts)
+        try:
+            yield self
+        finally:
+            sys.stdout, sys.stderr = saved
+
+    def write(self) -> None:
+        if self.folder is None:
+            return
+        import datetime
+
+        stamp = datetime.datetime.now().astimezone().isoformat(timespec="seconds")
+        head = f"# {stamp}: thermonet {' '.join(self.argv)}\n"
+        try:
+            with open(os.path.join(self.folder, self.NAME), "a", encoding="utf-8") as f:
+                f.write(head + "".join(self.parts))
+        except OSError:
+            pass  # the run's own files were the ones to report on
+
+
+class _Tee:
+    """A text stream that also keeps what is written to it."""
+
+    def __init__(self, stream, parts: list):
+        self._stream, self._parts = stream, parts
+
+    def write(self, text):
+        self._parts.append(text)
+        return self._stream.write(text)
+
+    def __getattr__(self, name):
+        return getattr(self._stream, name)
+
+
+class StopRequest:
+    """Ctrl-C (SIGINT) or SIGTERM while a run steps: the run stops at the end of the current chunk
+    of steps (at most a diagnostics interval), a consistent state that is then checkpointed; a
+    second signal stops it at once. Called as the run's progress callback (forwarding to the
+    progress bar, if any)."""
+
+    def __init__(self, progress):
+        self.progress = progress
+        self.compiling = getattr(progress, "compiling", None)
+        #: the signal received (None: none), and whether a second one cut a step short
+        self.signal = None
+        self.forced = False
+
+    def __call__(self, done, total, elapsed) -> None:
+        if self.progress is not None:
+            self.progress(done, total, elapsed)
+        if self.signal is not None:
+            raise KeyboardInterrupt
+
+    def _handler(self, signum, frame) -> None:
+        if self.signal is not None:
+            self.forced = True
+            raise KeyboardInterrupt
+        self.signal = signum
+
+    @contextlib.contextmanager
+    def installed(self):
+        import signal
+        import threading
+
+        if threading.current_thread() is not threading.main_thread():
+            yield self
+            return
+        previous = {sig: signal.signal(sig, self._handler) for sig in (signal.SIGINT, signal.SIGTERM)}
+        try:
+            yield self
+        finally:
+            for sig, handler in previous.items():
+                signal.signal(sig, handler)
+
+    @property
+    def clean(self) -> bool:
+        """Whether the run stopped on a signal at a chunk's end (its state is a whole step)."""
+        return self.signal is not None and not self.forced
+
+
+def _run(args, progress, record=None) -> int:
     from ..errors import InputError, OutputError, SimulationError
     from ..io import RunOutput, load_checkpoint
-    from ..io.folder import check_writable, describe_os_error, prepare_output_folder, remove_stale_temporaries
+    from ..io.folder import (check_output_folder, check_writable, describe_os_error, fresh_folder,
+                             prepare_output_folder, remove_stale_temporaries)
     from ..run_guards import broken_conservation
     from ..scenes import load_scene, scene_from_text
     from .report import format_summary
@@ -85,8 +200,7 @@ def _run(args, progress) -> int:
             scene = scene_from_text(saved["text"], file=saved["file"], base_dir=saved["base_dir"],
                                     overrides=list(saved["overrides"]) + overrides)
         if scene.hash != saved["hash"]:
-            raise InputError(f"{checkpoint}: written by a different scene (hash {saved['hash'][:12]}, this scene "
-                             f"{scene.hash[:12]}): net, materials, initial state, effects or integrator differ")
+            _refuse_other_scene(checkpoint, saved, scene)
         folder = args.out or os.path.dirname(os.path.abspath(checkpoint))
         if os.path.exists(folder) and not os.path.isdir(folder):
             raise InputError(f"--out {folder}: exists and is not a folder")
@@ -97,8 +211,14 @@ def _run(args, progress) -> int:
         remove_stale_temporaries(folder)
     else:
         scene = load_scene(args.scene, overrides)
-        folder = args.out or scene["output"].get("folder") or os.path.join("thermonet-out", scene.name)
-        prepare_output_folder(folder, overwrite=args.overwrite)
+        folder = args.out
+        if folder is None:  # never refused: a previous run there keeps its files, this one goes beside it
+            base = scene["output"].get("folder") or os.path.join("thermonet-out", scene.name)
+            folder = base if args.overwrite else fresh_folder(base)
+            if folder != base and not args.quiet:
+                print(f"thermonet: {base} holds a previous run: writing to {folder} (--out DIR chooses the "
+                      f"folder, --overwrite replaces that run)", file=sys.stderr)
+        check_output_folder(folder, overwrite=args.overwrite)  # refused before anything is built
 
     built = scene.build()
     sim = built.simulation
@@ -106,7 +226,24 @@ def _run(args, progress) -> int:
         sim.stability_guard.mode = "warn"
     if state is None:
         _check_step(sim, scene, args)
+        note = sim.net.pieces_note()
+        if note and not args.quiet:
+            print(f"thermonet: warning: {note}", file=sys.stderr)
     total = scene.total_steps()
+    from ..probes import scene_probes
+
+    probes = scene_probes(scene, sim)
+    if state is None:  # the new run is built and checked: only now may a previous run's files go
+        prepare_output_folder(folder, overwrite=args.overwrite)
+    if record is not None:
+        record.folder = folder
+    try:  # the scene as run (overrides applied), beside its output
+        from ..io import atomic_write
+
+        with atomic_write(os.path.join(folder, SCENE_AS_RUN), "w") as f:
+            f.write(scene.as_run())
+    except OSError as exc:
+        raise OutputError(f"cannot write to the output folder: {describe_os_error(exc)}") from None
     try:
         output = RunOutput(
             sim, folder, scene.name,
@@ -123,25 +260,26 @@ def _run(args, progress) -> int:
         sim.load_state(state)
         output.restore(meta)
     # --- probes ---
-    from ..probes import scene_probes
-
-    probes = scene_probes(scene, sim)
     observers = list(output.observers())
     if probes is not None:
         if state is not None:
             probes.restore(folder, sim.step)
         observers += probes.observers(output.diagnostics_every)
     # --- end probes ---
+    stop = StopRequest(progress)
     try:
-        sim.run(steps=max(0, total - sim.step), diagnostics_every=output.diagnostics_every,
-                observers=observers, progress=progress)
+        with stop.installed():
+            sim.run(steps=max(0, total - sim.step), diagnostics_every=output.diagnostics_every,
+                    observers=observers, progress=stop)
     except BaseException as exc:
         if progress:
             progress.close()
         failure = OutputError(f"writing the output failed at step {sim.step}: {describe_os_error(exc)}"
                               ) if isinstance(exc, OSError) else None
-        if isinstance(exc, SimulationError) and output.checkpoint_every:
-            _try(output.write_checkpoint, sim)  # the last good state (the run was rewound to it)
+        if (isinstance(exc, SimulationError) or (isinstance(exc, KeyboardInterrupt) and stop.clean)) \
+                and output.checkpoint_every:
+            # the last good state (a failed run was rewound to it), or the step a signal stopped at
+            _try(output.write_checkpoint, sim)
         _try(output.write_csv)
         if probes is not None:  # probes
             _try(probes.to_csv, folder)
@@ -155,13 +293,17 @@ def _run(args, progress) -> int:
     try:
         output.write_csv()
         probe_files = probes.to_csv(folder) if probes is not None else []  # probes
-        output.write_summary(sim, {"broken_conservation": broken_conservation(sim, sim.energy_tolerance)})
+        output.write_summary(sim, {"broken_conservation": broken_conservation(sim, sim.energy_tolerance),
+                                   "files": {"scene_as_run": SCENE_AS_RUN, "log": RunLog.NAME},
+                                   # continuum materials are given in SI units; spring parameters in the
+                                   # model's own (thermonet plot labels its axes with it)
+                                   "units": "SI" if built.continuum is not None else "model units"})
     except OSError as exc:
         raise OutputError(f"writing the output failed at the end of the run: {describe_os_error(exc)}") from None
     if not args.quiet:
         print(format_summary(sim, scene.name, folder))
         files = [f"{scene.name}.pvd ({len(output.pvd.frames)} frames)" if output.frames_every else None,
-                 "diagnostics.csv", *probe_files, "summary.json",
+                 "diagnostics.csv", *probe_files, "summary.json", SCENE_AS_RUN, RunLog.NAME,
                  os.path.basename(output.checkpoint_path) if output.checkpoint_every else None]
         print(f"  wrote {', '.join(f for f in files if f)}")
     broken = broken_conservation(sim, sim.energy_tolerance)
@@ -170,6 +312,36 @@ def _run(args, progress) -> int:
                               f"solution to trust (the files in {folder} are kept). "
                               f"{_remedy(sim.integrator, sim.h)}")
     return 0
+
+
+def _refuse_other_scene(checkpoint, saved, scene) -> None:
+    """A checkpoint whose scene hash differs: allowed where only keys free on resume changed
+    (a checkpoint of another version's hash), refused naming the keys that changed the trajectory,
+    or the mesh file."""
+    from ..errors import InputError
+    from ..scenes import scene_from_text
+    from ..scenes.scene import FREE_ON_RESUME, trajectory_changes
+
+    free = ", ".join(f"integrator.{k}" for k in FREE_ON_RESUME)
+    try:
+        before = scene_from_text(saved["text"], file=saved["file"], base_dir=saved["base_dir"],
+                                 overrides=list(saved["overrides"]))
+    except Exception:
+        before = None
+    if before is not None:
+        changes = trajectory_changes(before, scene)
+        if changes:
+            more = f" (and {len(changes) - 1} more: {'; '.join(changes[1:4])})" if len(changes) > 1 else ""
+            raise InputError(f"{checkpoint}: written by a different scene: {changes[0]}{more}; that changes the "
+                             f"trajectory, so the run cannot continue from it (free to change on resume: the "
+                             f"outputs, {free})")
+        if before.hash == scene.hash and scene.mesh_path() is None:
+            return  # the same trajectory: a checkpoint of another version's hash
+    mesh = scene.mesh_path()
+    what = (f"the mesh file {mesh} differs from the one it was written with (or the checkpoint is of another "
+            f"thermonet version)") if mesh else "its scene differs"
+    raise InputError(f"{checkpoint}: written by a different scene (hash {saved['hash'][:12]}, this scene "
+                     f"{scene.hash[:12]}): {what}")
 
 
 def _remedy(integrator, h) -> str:
@@ -220,11 +392,14 @@ def _check_step(sim, scene, args) -> None:
     or warn on stderr."""
     import warnings
 
-    from ..step_policy import StepWarning, check_step
+    from ..step_policy import StepWarning, UnstableStepError, check_step
 
     allow = args.allow_unstable_step or not scene["integrator"]["check_step"]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", StepWarning)
-        verdict = check_step(sim, allow_unstable=allow, warn=False)
+        try:
+            verdict = check_step(sim, allow_unstable=allow, warn=False)
+        except UnstableStepError as exc:  # at the key that sets the step: file:line or --set
+            raise scene.error("integrator.h", str(exc)) from None
     if verdict.message and not args.quiet:
         print(f"thermonet: warning: {verdict.message}", file=sys.stderr)

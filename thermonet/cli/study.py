@@ -13,8 +13,8 @@ import sys
 
 HELP = "convergence, cost (work-precision) and long-run energy studies of the integrators"
 
-DEFAULT_INTEGRATORS = {"convergence": "gtr-0,gtr-1,gtr-1/2,co2,ho4,co4",
-                       "cost": "gtr-0,gtr-1,gtr-1/2,co2,ho4,co4,co6,bm4,bm6", "energy": "co2,ho4"}
+DEFAULT_INTEGRATORS = {"convergence": "gtr-0,gtr-1,gtr-1/2,co2,ho4,co4,omf4",
+                       "cost": "gtr-0,gtr-1,gtr-1/2,co2,ho4,co4,omf4,co6,bm4,bm6", "energy": "co2,ho4"}
 
 
 def add_args(p) -> None:
@@ -37,11 +37,16 @@ def add_args(p) -> None:
                            help="largest time step (default: 0.1 for the built-in scenes, else the scene's h; at "
                                 "most 0.9 × the smallest stability limit of the integrators, a whole fraction of t_end)")
             s.add_argument("--halvings", type=int, default=8, help="time steps dt·2^-i, i = 0..halvings (default 8)")
-            s.add_argument("--t-end", type=float, default=None, help="time at which errors are measured (default 1)")
+            s.add_argument("--t-end", type=float, default=None,
+                           help="time at which errors are measured (default: the scene's end, integrator.t_end "
+                                "or steps × h; 1 for the built-in scenes)")
             s.add_argument("--reference-rtol", type=float, default=1e-13, help="DOP853 tolerance of the reference")
             s.add_argument("--check", default=None, metavar="INTEGRATOR:H",
                            help="solution the reference is checked against (default co6 at h = 5e-4, or at half its "
-                                "stability limit where that is smaller; 'none' to skip)")
+                                "stability limit where that is smaller; 'none' to skip). For a scene with heat flow "
+                                "(conduction, thermal waves, baths, sources) or loads, which SciPy's DOP853 reference "
+                                "leaves out, the reference itself, checked against the same integrator at 2H "
+                                "(default co4 at the finest step / 16)")
         if name == "cost":
             s.add_argument("--repeats", type=int, default=5, help="timed repeats per run, median reported (default 5)")
             s.add_argument("--scipy", default="DOP853:1e-3..1e-12,RK45:1e-3..1e-9",
@@ -53,8 +58,10 @@ def add_args(p) -> None:
             s.add_argument("--accuracy", default=None,
                            help="comma-separated accuracies for the summary (default: every decade reached)")
         if name == "energy":
-            s.add_argument("--h", type=float, default=0.01, help="time step (default 0.01)")
-            s.add_argument("--t-end", type=float, default=100.0, help="final time (default 100)")
+            s.add_argument("--h", type=float, default=None,
+                           help="time step (default: the scene's integrator.h; 0.01 for the built-in scenes)")
+            s.add_argument("--t-end", type=float, default=None,
+                           help="final time (default: the scene's end; 100 for the built-in scenes)")
             s.add_argument("--every", type=int, default=1, help="diagnostics every k steps (default 1)")
             s.add_argument("--window", default=None, metavar="T0,T1", help="zoom window (default 0.42..0.45 t_end)")
 
@@ -125,8 +132,14 @@ def handle(args) -> int:
         say(f"{args.study} study of {args.scene}: {', '.join(integrators)}; runs on {runner.description}")
         if args.study in ("convergence", "cost"):
             check = f"{plan['check'][0]} h={plan['check'][1]:g}" if plan["check"] else "none"
-            say(f"time steps {plan['dt']:g}·2^-i, i = 0..{args.halvings}, to t = {plan['t_end']:g}; "
-                f"reference checked against {check}")
+            if plan["effects"]:
+                name, h = plan["check"]
+                reference = (f"reference {name} h={h:g}, checked against {name} h={2 * h:g} (the scene's "
+                             f"{', '.join(plan['effects'])} are not in Hamilton's equations, so no DOP853"
+                             f"{' and no SciPy baseline' if args.study == 'cost' else ''})")
+            else:
+                reference = f"reference checked against {check}"
+            say(f"time steps {plan['dt']:g}·2^-i, i = 0..{args.halvings}, to t = {plan['t_end']:g}; {reference}")
         if args.study == "convergence":
             study = convergence_study(args.scene, integrators, plan["dt"], args.halvings, plan["t_end"], runner=runner,
                                       rtol=args.reference_rtol, check=plan["check"])
@@ -138,7 +151,8 @@ def handle(args) -> int:
             files = study.write(out, accuracies=plan["accuracies"])
             say(study.summary(accuracies=plan["accuracies"]))
         else:
-            study = energy_study(args.scene, integrators, args.h, args.t_end, args.every, plan["window"], runner=runner)
+            study = energy_study(args.scene, integrators, plan["h"], plan["t_end"], args.every, plan["window"],
+                                 runner=runner)
             files = study.write(out)
     if args.study != "cost":
         say(study.summary())
@@ -152,17 +166,19 @@ def _plan(args) -> dict:
     made: any problem is an InputError naming the argument."""
     from ..errors import InputError
     from ..studies.convergence import default_check, default_time_step, time_steps
-    from ..studies.scenes import check_scene
+    from ..studies.scenes import check_scene, scene_effects, scene_time
     from ..studies.tasks import check_steps
 
     check_scene(args.scene)
+    scene_h, scene_t_end = scene_time(args.scene)
+    effects = scene_effects(args.scene)
     plan = {"integrators": _integrators(args.integrators, args.study)}
     if not plan["integrators"]:
         raise InputError("--integrators: none of the given integrators exists in this installation")
     if args.workers is not None and args.workers < 1:
         raise InputError(f"--workers must be >= 1, got {args.workers}")
     if args.study in ("convergence", "cost"):
-        t_end = 1.0 if args.t_end is None else args.t_end
+        t_end = (1.0 if scene_t_end is None else scene_t_end) if args.t_end is None else args.t_end
         if not (math.isfinite(t_end) and t_end > 0):
             raise InputError(f"--t-end must be finite and > 0, got {t_end}")
         if args.dt is not None and not (math.isfinite(args.dt) and args.dt > 0):
@@ -172,12 +188,18 @@ def _plan(args) -> dict:
         if not math.isfinite(args.reference_rtol) or not 0 < args.reference_rtol < 1:
             raise InputError(f"--reference-rtol must be in (0, 1), got {args.reference_rtol}")
         dt = default_time_step(args.scene, plan["integrators"], t_end) if args.dt is None else args.dt
-        check = default_check(args.scene, t_end) if args.check is None else _check(args.check)
+        finest = time_steps(dt, args.halvings)[-1]
+        check = default_check(args.scene, t_end, finest, effects) if args.check is None else _check(args.check)
+        if effects and check is None:
+            raise InputError(f"--check none: the scene has {', '.join(effects)}, which SciPy's DOP853 reference "
+                             "leaves out; the reference is an integrator at a fine step, --check INTEGRATOR:H")
         for h in time_steps(dt, args.halvings):
             _whole(check_steps, t_end, h, "--dt and --t-end")
         if check is not None:
             _whole(check_steps, t_end, check[1], "--check")
-        plan.update(t_end=t_end, dt=dt, check=check)
+            if effects:  # the reference's own check runs at twice its step
+                _whole(check_steps, t_end, 2 * check[1], "--check (the reference's check at twice its step)")
+        plan.update(t_end=t_end, dt=dt, check=check, effects=effects)
     if args.study == "cost":
         if args.repeats < 1:
             raise InputError(f"--repeats must be >= 1, got {args.repeats}")
@@ -187,11 +209,21 @@ def _plan(args) -> dict:
         except ValueError:
             raise InputError(f"--accuracy must be comma-separated numbers, got {args.accuracy!r}") from None
     if args.study == "energy":
-        if not (math.isfinite(args.h) and args.h > 0):
-            raise InputError(f"--h must be finite and > 0, got {args.h}")
+        exchanging = [e for e in effects if e.startswith(("baths", "sources", "loads"))]
+        if exchanging:
+            raise InputError(f"{args.scene}: its {', '.join(exchanging)} exchange energy with the outside, so the "
+                             "energy is not conserved and an energy study measures nothing; `thermonet run` writes "
+                             "the energy balance (energy_balance in diagnostics.csv)")
+        h = (0.01 if scene_t_end is None else scene_h) if args.h is None else args.h
+        t_end = (100.0 if scene_t_end is None else scene_t_end) if args.t_end is None else args.t_end
+        if not (math.isfinite(h) and h > 0):
+            raise InputError(f"--h must be finite and > 0, got {h}")
+        if not (math.isfinite(t_end) and t_end > 0):
+            raise InputError(f"--t-end must be finite and > 0, got {t_end}")
         if args.every < 1:
             raise InputError(f"--every must be >= 1, got {args.every}")
-        _whole(check_steps, args.t_end, args.h, "--t-end and --h")
+        _whole(check_steps, t_end, h, "--t-end and --h")
+        plan.update(h=h, t_end=t_end)
         try:
             plan["window"] = [float(v) for v in args.window.split(",")] if args.window else None
         except ValueError:

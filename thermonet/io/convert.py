@@ -24,7 +24,9 @@ def simulation_mesh(sim):
     """``meshio.Mesh`` of a simulation's current state (user numbering): points (n, 3) = current
     positions, "line" cells (m, 2); point data ``displacement``, ``velocity``, ``momentum`` (n, 3)
     and ``anchored`` (n,); cell data ``strain``, ``tension`` (m,) and, with thermal coupling,
-    ``temperature`` and ``entropy`` (m,)."""
+    ``temperature`` and ``entropy`` (m,) and point data ``node_temperature`` (n,), the frames'
+    (with conduction the junction temperatures), and with conduction cell data ``heat_rate``
+    (m,), each spring's net heat inflow."""
     net, state = sim.net, sim.state
     points = {"displacement": state.positions - net.positions, "velocity": state.momenta / net.masses[:, None],
               "momentum": state.momenta, "anchored": net.anchored.astype(np.uint8)}
@@ -33,6 +35,13 @@ def simulation_mesh(sim):
     cells = {"strain": sim.strains(), "tension": fields.tension}
     if sim.system.thermal:
         cells.update(temperature=fields.temperature, entropy=state.entropy)
+        # the frames' node temperature (junction temperatures with conduction) and heat inflow
+        heat = sim.system.heat
+        extra_points = {"node_temperature": np.empty(net.n_nodes)}
+        extra_cells = {"heat_rate": np.empty(net.n_springs)} if heat is not None and heat.conduction else {}
+        sim.output_fields(np.empty((net.n_nodes, 3)), extra_points, extra_cells).write()
+        points.update(extra_points)
+        cells.update(extra_cells)
     return _mesh(state.positions, net.edges, points, cells)
 
 

@@ -2,7 +2,8 @@
 removing them on request, and cleaning up after a killed run.
 
 A run's files are ``<name>.pvd``, its ``<name>_NNNNNN.vtu`` frames, ``diagnostics.csv``,
-``summary.json``, ``<name>.checkpoint.npz`` and, after a process was killed while writing, the
+``probe_<name>.csv``, ``summary.json``, ``<name>.checkpoint.npz``, ``scene-as-run.toml``,
+``run.log`` and, after a process was killed while writing, the
 temporary files of atomic writes (``*.tmp-<pid>``, ``diagnostics.csv.tmp``).
 """
 
@@ -13,7 +14,8 @@ import re
 
 from ..errors import InputError, OutputError
 
-_RUN_FILE = re.compile(r"(.+\.pvd|.+_\d{6}\.vtu|.+\.checkpoint\.npz|diagnostics\.csv|summary\.json)$")
+_RUN_FILE = re.compile(r"(.+\.pvd|.+_\d{6}\.vtu|.+\.checkpoint\.npz|diagnostics\.csv|summary\.json|probe_.+\.csv"
+                       r"|scene-as-run\.toml|run\.log)$")
 _TEMPORARY = re.compile(r".+\.tmp(-\d+)?$")
 
 
@@ -32,10 +34,10 @@ def stale_temporaries(folder) -> list[str]:
     return [n for n in run_files(folder) if _TEMPORARY.match(n)]
 
 
-def prepare_output_folder(folder, *, overwrite: bool = False) -> list[str]:
-    """Make ``folder`` ready for a new run. Refuses (an :class:`InputError`, naming the folder)
-    a path that is not a folder, or a folder holding a previous run's files unless ``overwrite``,
-    which removes those files (and only those). Returns the names removed."""
+def check_output_folder(folder, *, overwrite: bool = False) -> list[str]:
+    """Whether ``folder`` may take a new run, changing nothing: refuses (an :class:`InputError`,
+    naming the folder) a path that is not a folder, or a folder holding a previous run's files
+    unless ``overwrite``. Returns the names of those files."""
     folder = os.fspath(folder)
     if os.path.exists(folder) and not os.path.isdir(folder):
         raise InputError(f"--out {folder}: exists and is not a folder")
@@ -44,6 +46,16 @@ def prepare_output_folder(folder, *, overwrite: bool = False) -> list[str]:
         shown = ", ".join(previous[:4]) + (f", … ({len(previous)} files)" if len(previous) > 4 else "")
         raise InputError(f"--out {folder}: holds the output of a previous run ({shown}); pass --overwrite to "
                          f"replace it (its files are deleted), or continue it with: thermonet run --resume {folder}")
+    return previous
+
+
+def prepare_output_folder(folder, *, overwrite: bool = False) -> list[str]:
+    """Make ``folder`` ready for a new run. Refuses what :func:`check_output_folder` refuses;
+    with ``overwrite``, removes a previous run's files (and only those). Returns the names removed.
+    ``thermonet run`` calls it only once the new run is built and its step checked, so that a
+    scene that fails its checks leaves the previous run untouched."""
+    folder = os.fspath(folder)
+    previous = check_output_folder(folder, overwrite=overwrite)
     try:
         os.makedirs(folder, exist_ok=True)
         check_writable(folder)
@@ -52,6 +64,17 @@ def prepare_output_folder(folder, *, overwrite: bool = False) -> list[str]:
     except OSError as exc:
         raise OutputError(f"--out {folder}: cannot write the output folder: {describe_os_error(exc)}") from None
     return previous
+
+
+def fresh_folder(base) -> str:
+    """``base`` if it holds no previous run's files, else the first of ``base-2``, ``base-3``, …
+    that holds none (a missing folder or one with other files only; not a file)."""
+    base = os.fspath(base).rstrip(os.sep) or os.sep
+    candidate, number = base, 1
+    while (os.path.exists(candidate) and not os.path.isdir(candidate)) or run_files(candidate):
+        number += 1
+        candidate = f"{base}-{number}"
+    return candidate
 
 
 def check_writable(folder) -> None:

@@ -90,7 +90,7 @@ class LoadSet:
     def describe(self, i: int) -> str:
         """Load i in words (``thermonet info``)."""
         load = self.loads[i]
-        comps = ", ".join(f"{a}: {c!r}" for a, c in zip(AXES, self.components[i]) if c is not None)
+        comps = ", ".join(f"{a}: {c.describe()}" for a, c in zip(AXES, self.components[i]) if c is not None)
         if load.kind == "drive":
             rest = "" if all(c is not None for c in self.components[i]) else \
                 f"; other axes {'free' if load.free else 'held'}"
@@ -164,6 +164,9 @@ def _group_nodes(group, net, where: str) -> np.ndarray:
         if bad.size:
             raise InputError(f"{where}: node {int(bad[0])} outside 0..{net.n_nodes - 1}")
     if idx.size == 0:
+        if isinstance(group, str):
+            raise InputError(f"{where}: node group {group!r} holds no node of the net: its mesh points touch no "
+                             "spring (only points that springs join become nodes)")
         raise InputError(f"{where}: the group has no nodes")
     return np.unique(idx)
 

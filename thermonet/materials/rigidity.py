@@ -116,6 +116,10 @@ def floppy_modes(net) -> FloppyModes:
 def require_rigid(net, where: str) -> FloppyModes:
     """:func:`floppy_modes`, and an InputError naming ``where`` when the net is a mechanism."""
     found = floppy_modes(net)
+    note = net.pieces_note() if found.count > 0 else None
+    if note is not None:  # the zero modes are the pieces' rigid motions: no other mesh would help
+        raise InputError(f"{where}: {note.replace('the net is', f'the net of {net.source} is', 1)}; continuum "
+                         f"materials need one rigid net")
     if found.count > 0:
         many = "" if found.exact else "at least "
         raise InputError(

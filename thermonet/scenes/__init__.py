@@ -7,7 +7,8 @@ outputs), validated against one schema and built into the objects the Python API
 
 from .build import BuiltScene, build_scene
 from .scene import DEFAULT_SCENE, Scene, load_scene, scene_from_text
-from .schema import SCHEMA, all_key_paths, reference
+from .reference import all_key_paths, reference
+from .schema import SCHEMA
 from .source import SceneError, parse_override
 
 __all__ = ["Scene", "BuiltScene", "SceneError", "load_scene", "scene_from_text", "build_scene",

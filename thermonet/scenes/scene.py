@@ -15,8 +15,15 @@ from ..errors import InputError
 from .schema import FIELD_NAMES, Invalid, validate
 from .source import SceneError, apply_overrides, key_lines, parse_toml
 
-#: the scene ``thermonet run`` runs when given none (a 3D truss block from meshes/)
-DEFAULT_SCENE = Path(__file__).resolve().parents[2] / "scenes" / "default.toml"
+#: the scene ``thermonet run`` runs when given none (a 3D truss block): package data beside its
+#: mesh, so an installed wheel has it; scenes/default.toml is the same scene in the source tree
+DEFAULT_SCENE = Path(__file__).resolve().parents[1] / "data" / "default.toml"
+
+#: integrator keys a resumed run may change: where the run ends, its guards, and how each step's
+#: equations are solved (threads, the Newton path and linear solver, iteration caps), which
+#: change at most the last bits of a step, never which trajectory it follows
+FREE_ON_RESUME = ("t_end", "steps", "check_step", "energy_tolerance", "threads", "parallel", "linear_solver",
+                  "newton_path", "max_iterations", "retry")
 
 THERMAL_OUTPUTS = ("temperature", "node_temperature", "entropy", "thermal_displacement", "heat_rate")
 
@@ -69,14 +76,18 @@ class Scene:
         mesh = self.data["net"].get("mesh")
         return None if mesh is None else os.path.normpath(os.path.join(self.base_dir, mesh))
 
+    def trajectory(self) -> dict:
+        """The keys that define the trajectory: net, materials, initial state, effects, loads,
+        heat flow and integrator, without :data:`FREE_ON_RESUME` (the end, the guards, how the
+        steps are computed) and the outputs."""
+        physics = {k: v for k, v in self.data.items() if k not in ("output", "name", "description", "probes")}
+        physics["integrator"] = {k: v for k, v in physics["integrator"].items() if k not in FREE_ON_RESUME}
+        return physics
+
     @property
     def hash(self) -> str:
-        """SHA-256 of what determines the trajectory: net (and the mesh file's bytes), materials,
-        initial state, effects and integrator (not t_end/steps, not the guards check_step and
-        energy_tolerance, not the outputs)."""
-        physics = {k: v for k, v in self.data.items() if k not in ("output", "name", "description")}
-        physics["integrator"] = {k: v for k, v in physics["integrator"].items() if k not in ("t_end", "steps", "check_step", "energy_tolerance")}
-        h = hashlib.sha256(json.dumps(physics, sort_keys=True, default=str).encode())
+        """SHA-256 of what determines the trajectory (:meth:`trajectory`) and the mesh file's bytes."""
+        h = hashlib.sha256(json.dumps(self.trajectory(), sort_keys=True, default=str).encode())
         mesh = self.mesh_path()
         if mesh is not None and os.path.isfile(mesh):
             with open(mesh, "rb") as f:
@@ -114,11 +125,43 @@ class Scene:
         return {"name": self.name, "hash": self.hash, "file": os.path.abspath(self.file) if os.path.exists(self.file) else self.file,
                 "base_dir": os.path.abspath(self.base_dir), "text": self.text, "overrides": list(self.overrides)}
 
+    def as_run(self) -> str:
+        """The scene as it runs, as TOML: its file with the ``--set`` overrides applied and the
+        mesh path made absolute (so the copy runs from anywhere); what ``thermonet run`` writes
+        beside its output as ``scene-as-run.toml``."""
+        raw = parse_toml(self.text, self.file)
+        _override(raw, self.overrides)
+        net = raw.get("net")
+        if isinstance(net, dict) and isinstance(net.get("mesh"), str):
+            net["mesh"] = os.path.normpath(os.path.join(self.base_dir, net["mesh"]))
+        head = [f"# the scene as run: {self.file}"
+                + (f", with {' '.join('--set ' + o for o in self.overrides)}" if self.overrides else ""),
+                "# (overrides applied, the mesh path made absolute; comments of the original are not kept)"]
+        return "\n".join(head + [""] + to_toml(raw)) + "\n"
+
     def build(self):
         """The :class:`~thermonet.scenes.build.BuiltScene` (net, simulation, material ids)."""
         from .build import build_scene
 
         return build_scene(self)
+
+
+def trajectory_changes(before: Scene, after: Scene) -> list[str]:
+    """``key: old → new`` for each key of :meth:`Scene.trajectory` that differs, dotted, sorted."""
+    def flat(d, prefix=()):
+        out = {}
+        for k, v in d.items():
+            if isinstance(v, dict) and v:
+                out.update(flat(v, prefix + (k,)))
+            else:
+                out[".".join(prefix + (k,))] = v
+        return out
+
+    a, b = flat(before.trajectory()), flat(after.trajectory())
+    missing = object()
+    shown = lambda v: "(absent)" if v is missing else json.dumps(v, default=str)  # noqa: E731
+    return [f"{k}: {shown(a.get(k, missing))} → {shown(b.get(k, missing))}" for k in sorted(set(a) | set(b))
+            if a.get(k, missing) != b.get(k, missing)]
 
 
 # ----------------------------------------------------------------------------------------------
@@ -143,10 +186,7 @@ def load_scene(path=None, overrides=()) -> Scene:
 def scene_from_text(text: str, overrides=(), *, file: str = "<scene>", base_dir: str = ".") -> Scene:
     """Parse, override and validate a scene given as TOML text."""
     raw = parse_toml(text, file)
-    overridden = apply_overrides(raw, overrides)
-    for given, other in ((("integrator", "t_end"), "steps"), (("integrator", "steps"), "t_end")):
-        if given in overridden and ("integrator", other) not in overridden:
-            raw.get("integrator", {}).pop(other, None)  # setting one end condition replaces the other
+    overridden = _override(raw, overrides)
     scene = Scene({}, file, base_dir, text, tuple(overrides), key_lines(text), overridden)
     try:
         scene.data = validate(copy.deepcopy(raw))
@@ -154,6 +194,53 @@ def scene_from_text(text: str, overrides=(), *, file: str = "<scene>", base_dir:
         raise scene.error(exc.path, exc.message) from None
     check(scene)
     return scene
+
+
+def _override(raw: dict, overrides) -> set:
+    """Apply ``KEY=VALUE`` overrides to a parsed scene in place; returns the paths set."""
+    overridden = apply_overrides(raw, overrides)
+    for given, other in ((("integrator", "t_end"), "steps"), (("integrator", "steps"), "t_end")):
+        if given in overridden and ("integrator", other) not in overridden:
+            raw.get("integrator", {}).pop(other, None)  # setting one end condition replaces the other
+    return overridden
+
+
+def to_toml(data: dict) -> list[str]:
+    """Lines of a TOML document holding ``data`` (tables, arrays, inline tables in arrays,
+    strings, numbers, booleans, dates), as :func:`tomllib.loads` reads it back."""
+    bare = re.compile(r"[A-Za-z0-9_-]+")
+
+    def key(k) -> str:
+        return k if bare.fullmatch(k) else json.dumps(k, ensure_ascii=False)
+
+    def value(v) -> str:
+        if isinstance(v, bool):
+            return "true" if v else "false"
+        if isinstance(v, int):
+            return str(v)
+        if isinstance(v, float):
+            return "nan" if v != v else "inf" if v == math.inf else "-inf" if v == -math.inf else repr(v)
+        if isinstance(v, str):
+            return json.dumps(v, ensure_ascii=False)
+        if isinstance(v, (list, tuple)):
+            return "[" + ", ".join(value(x) for x in v) + "]"
+        if isinstance(v, dict):
+            return "{ " + ", ".join(f"{key(k)} = {value(x)}" for k, x in v.items()) + " }"
+        return v.isoformat()  # dates and times
+
+    lines: list[str] = []
+
+    def table(path, d: dict) -> None:
+        plain = [(k, v) for k, v in d.items() if not isinstance(v, dict)]
+        tables = [(k, v) for k, v in d.items() if isinstance(v, dict)]
+        if path and (plain or not tables):
+            lines.extend(["", f"[{'.'.join(key(p) for p in path)}]"] if lines else [f"[{'.'.join(key(p) for p in path)}]"])
+        lines.extend(f"{key(k)} = {value(v)}" for k, v in plain)
+        for k, v in tables:
+            table(path + (k,), v)
+
+    table((), data)
+    return lines
 
 
 def check(scene: Scene) -> None:
@@ -230,6 +317,20 @@ def check(scene: Scene) -> None:
     model = get_model(next(iter(models), "hencky"))
     # --- continuum materials (docs/continuum.md) ---
     from ..materials.continuum import CONTINUUM_KEYS, region_problem
+
+    known = ["model", *model.parameters, *TRANSPORT_PARAMETERS, *CONTINUUM_KEYS]
+    for region, params in d["materials"].items():  # a typo, before what it leaves missing
+        for k in params:
+            if k not in known:
+                import difflib
+
+                close = difflib.get_close_matches(k, known, n=1)
+                raise scene.error(f"materials.{region}.{k}",
+                                  f"model {model.name!r} has no parameter {k!r}"
+                                  + (f" (did you mean {close[0]!r}?)" if close else "")
+                                  + f"; its parameters: {', '.join(model.parameters)} (and the heat-flow ones: "
+                                  f"{', '.join(TRANSPORT_PARAMETERS)}; or continuum properties: "
+                                  f"{', '.join(CONTINUUM_KEYS)})")
 
     for region, params in d["materials"].items():
         problem = region_problem(model, params)

@@ -2,8 +2,8 @@
 
 The schema is data (:class:`Table`, :class:`Named`, :class:`Key`); :func:`validate` walks a
 parsed TOML document along it and returns a normalized copy (defaults filled in), raising
-:class:`Invalid` with the key path of the first problem. ``python -m thermonet.scenes.schema``
-prints the key reference that ``docs/scenes.md`` contains.
+:class:`Invalid` with the key path of the first problem. :mod:`thermonet.scenes.reference`
+writes the key reference that ``docs/scenes.md`` contains.
 """
 
 from __future__ import annotations
@@ -225,6 +225,8 @@ def material(v):
             out[k] = choice(_models)(x) if isinstance(x, str) else _fail(f"must be a model name, got {x!r}", (k,))
         elif _is_number(x) and math.isfinite(float(x)):
             out[k] = float(x)
+        elif _is_number(x):
+            raise Invalid(f"must be a finite number, got {x!r}", (k,))
         else:
             raise Invalid(f"must be a number, got {_type_name(x)} {x!r}", (k,))
     return out
@@ -331,7 +333,7 @@ PROBES_SCHEMA = Named(Table({
                  "for springs also a node group: the springs between its nodes", required=True),
     "quantity": Key(choice(PROBE_QUANTITIES), " | ".join(PROBE_QUANTITIES), "what is measured", required=True),
     "every": Key(integer(1), "integer >= 1", "steps between rows (default: the diagnostics cadence)"),
-}, "a probe"), "per-group time series (mean, min, max) in probes.csv beside diagnostics.csv", "<name>")
+}, "a probe"), "per-group time series (mean, min, max) in probe_<name>.csv beside diagnostics.csv", "<name>")
 # --- end loads and probes ---
 
 
@@ -445,7 +447,8 @@ SCHEMA = Table({
     "probes": PROBES_SCHEMA,  # probes
     "output": Table({
         "folder": Key(string, "path", "output folder, relative to the working directory "
-                      "(default thermonet-out/<name>; the CLI's --out overrides it)"),
+                      "(default thermonet-out/<name>; <folder>-2, -3, ... when it holds a previous run; "
+                      "the CLI's --out overrides it)"),
         "frames_every": Key(cadence, 'integer >= 0 | "auto"', "a VTU frame every k steps (0: none; auto: about 100)", "auto"),
         "diagnostics_every": Key(cadence, 'integer >= 1 | "auto"', "a diagnostics row every k steps (auto: about 1000)", "auto"),
         "checkpoint_every": Key(cadence, 'integer >= 0 | "auto"', "a checkpoint every k steps (0: none; auto: about 10)", "auto"),
@@ -496,57 +499,3 @@ def validate(value, spec=SCHEMA, path: tuple[str, ...] = ()):
     if missing:
         raise Invalid("required key is missing", path + (missing[0],))
     return out
-
-
-def reference(spec=SCHEMA, path: str = "") -> list[str]:
-    """Markdown rows ``| key | type | default | meaning |`` of every key, depth first."""
-    rows = []
-    if isinstance(spec, Table):
-        if path:
-            extra = f" (or {spec.shorthand_doc})" if spec.shorthand_doc else ""
-            rows.append(_row(f"[{path}]", f"table{extra}", "optional" if spec.optional else "", spec.doc))
-        for name, sub in spec.keys.items():
-            rows += reference(sub, f"{path}.{name}" if path else name)
-    elif isinstance(spec, Named):
-        rows.append(_row(f"[{path}]", f"table of {spec.placeholder}", "", spec.doc))
-        rows += reference(spec.entry, f"{path}.{spec.placeholder}")
-    else:
-        if spec.default is NO_DEFAULT:
-            default = "required" if spec.required else ""
-        else:
-            default = "" if spec.default is None else f"`{_toml(spec.default)}`"
-        rows.append(_row(path, spec.type, default, spec.doc))
-    return rows
-
-
-def _row(key: str, type_: str, default: str, doc: str) -> str:
-    cells = [f"`{key}`", type_, default, doc]
-    return "| " + " | ".join(c.replace("|", "\\|") for c in cells) + " |"
-
-
-def all_key_paths(spec=SCHEMA, path: str = "") -> list[str]:
-    """Every documented key path (``integrator.h``, ``materials.<region>``, ...)."""
-    out = []
-    if isinstance(spec, Table):
-        for name, sub in spec.keys.items():
-            p = f"{path}.{name}" if path else name
-            out.append(p)
-            out += all_key_paths(sub, p)
-    elif isinstance(spec, Named):
-        out += all_key_paths(spec.entry, f"{path}.{spec.placeholder}")
-    return out
-
-
-def _toml(v) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, str):
-        return f'"{v}"'
-    if isinstance(v, list):
-        return "[" + ", ".join(_toml(x) for x in v) + "]"
-    return repr(v)
-
-
-if __name__ == "__main__":  # pragma: no cover
-    print("| key | type | default | meaning |\n|---|---|---|---|")
-    print("\n".join(reference()))

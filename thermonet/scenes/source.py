@@ -57,7 +57,8 @@ def key_lines(text: str) -> dict[tuple[str, ...], int]:
         header = _HEADER.match(line)
         if header:
             table = _split_key(header.group(1))
-            lines.setdefault(table, number)
+            for i in range(1, len(table) + 1):  # [material.plate] is also where "material" is
+                lines.setdefault(table[:i], number)
             continue
         assign = _ASSIGN.match(line)
         if assign:

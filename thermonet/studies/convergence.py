@@ -17,7 +17,7 @@ import numpy as np
 from ..integrators import get_integrator
 from .reference import DEFAULT_CHECK, DEFAULT_RTOL, ReferenceSolution, assemble_reference, reference_tasks
 from .runner import Runner
-from .scenes import check_scene
+from .scenes import check_scene, scene_effects
 from .slopes import asymptotic_slope
 from .snapshot import QUANTITIES
 from .tasks import check_steps, integrator_endpoint
@@ -42,6 +42,8 @@ class ConvergenceStudy:
     reference: ReferenceSolution
     rows: list[dict] = field(default_factory=list)
     slopes: dict = field(default_factory=dict)
+    #: what the scene does beyond Hamilton's equations (its reference is then a fine-step run)
+    effects: list = field(default_factory=list)
 
     def errors(self, integrator: str, quantity: str) -> tuple[np.ndarray, np.ndarray]:
         """(h, error) arrays of one integrator, coarse to fine."""
@@ -75,6 +77,9 @@ class ConvergenceStudy:
             fits = [self.slopes[(name, q)] for q in QUANTITIES]
             lines.append(f"  {name:<10} {get_integrator(name).order:>5}  " + "  ".join(
                 f"{f.slope:>6.2f} ({f.n_points})" if math.isfinite(f.slope) else f"{'—':>11}" for f in fits))
+        if "conduction" in self.effects:
+            lines.append("  (conduction is never composed: every integrator is second order with it, whatever its "
+                         "own order; docs/heat.md)")
         for (name, q), reason in self.unfitted().items():
             lines.append(f"  no {q} slope for {name}: {reason}")
         failed = [r for r in self.rows if r["status"] != "ok"]
@@ -120,10 +125,11 @@ def unfitted_reason(h, error, floor: float, scale: float, max_relative: float = 
     """Why the errors (n,) at steps h (n,) give no slope: what each point was dropped for (the
     criteria of :func:`thermonet.studies.slopes.asymptotic_slope`)."""
     error = np.asarray(error, dtype=np.float64)
-    failed = int((~np.isfinite(error)).sum())
-    finite = error[np.isfinite(error)]
-    below = int(((finite <= floor) | (finite <= 0)).sum())
-    large = int((finite >= max_relative * scale).sum())
+    finite = np.isfinite(error)
+    failed = int((~finite).sum())
+    low = finite & ((error <= floor) | (error <= 0))
+    below = int(low.sum())
+    large = int((finite & ~low & (error >= max_relative * scale) & (scale > 0)).sum())  # each point once
     usable = len(error) - failed - below - large
     parts = [f"{usable} usable point{'s' if usable != 1 else ''} of {len(error)} (2 needed)"]
     if failed:
@@ -143,9 +149,9 @@ def default_time_step(scene: str, integrators, t_end: float) -> float:
     integrators at the initial state, and a whole fraction of ``t_end``."""
     from ..stability import stability_interval, stable_step
     from ..step_policy import SAFETY
-    from .scenes import BUILTIN, make_simulation
+    from .scenes import BUILTIN, make_simulation, scene_time
 
-    h = PAPER_DT if scene in BUILTIN else _scene_step(scene)
+    h = PAPER_DT if scene in BUILTIN else scene_time(scene)[0]
     for name in integrators:
         sim = make_simulation(scene, name, h)
         if math.isfinite(stability_interval(sim.integrator)):
@@ -153,12 +159,31 @@ def default_time_step(scene: str, integrators, t_end: float) -> float:
     return fraction_of(t_end, h)
 
 
-def default_check(scene: str, t_end: float) -> tuple[str, float]:
-    """The check of the reference when none is given: CO6 at h = 5e-4, or at half its stability
-    limit at the initial state where that is smaller, a whole fraction of ``t_end``."""
-    from ..stability import stable_step
-    from .scenes import make_simulation
+#: the reference of a scene with effects beyond Hamilton's equations: this integrator at the
+#: study's finest step divided by FINE_REFERENCE_DIVISOR (checked against twice that step)
+FINE_REFERENCE = "co4"
+FINE_REFERENCE_DIVISOR = 16
 
+
+def default_check(scene: str, t_end: float, finest: float | None = None, effects=None) -> tuple[str, float]:
+    """The check of the reference when none is given: CO6 at h = 5e-4, or at half its stability
+    limit at the initial state where that is smaller, a whole fraction of ``t_end``.
+
+    For a scene with effects beyond Hamilton's equations (``effects``; found when None) the
+    reference itself: CO4 at ``finest`` (the study's finest step) / 16, or half its stability
+    limit where that is smaller, a whole fraction of ``t_end`` by an even number of steps (its
+    check runs at twice the step)."""
+    from ..stability import stable_step
+    from .scenes import make_simulation, scene_effects
+
+    if effects is None:
+        effects = scene_effects(scene)
+    if effects:
+        name = FINE_REFERENCE
+        h = (finest if finest is not None else DEFAULT_CHECK[1]) / FINE_REFERENCE_DIVISOR
+        h_max = stable_step(make_simulation(scene, name, h))["h_max"]
+        k = math.ceil(t_end / min(h, 0.5 * h_max) * (1 - 1e-12))
+        return name, t_end / (k + k % 2)
     name, h = DEFAULT_CHECK
     h_max = stable_step(make_simulation(scene, name, h))["h_max"]
     return name, fraction_of(t_end, min(h, 0.5 * h_max))
@@ -169,12 +194,6 @@ def fraction_of(t_end: float, h: float) -> float:
     return t_end / math.ceil(t_end / h * (1 - 1e-12))
 
 
-def _scene_step(path: str) -> float:
-    from .scenes import _scene_loader
-
-    return float(_scene_loader().load_scene(path)["integrator"]["h"])
-
-
 def time_steps(dt: float, halvings: int) -> list[float]:
     """dt · 2⁻ⁱ, i = 0 … halvings."""
     return [dt / 2**i for i in range(int(halvings) + 1)]
@@ -183,20 +202,25 @@ def time_steps(dt: float, halvings: int) -> list[float]:
 def convergence_study(scene: str, integrators, dt: float = 0.1, halvings: int = 8, t_end: float = 1.0,
                       runner: Runner | None = None, rtol: float = DEFAULT_RTOL, check=DEFAULT_CHECK,
                       progress=None) -> ConvergenceStudy:
-    """Run every (integrator, h) and the reference (with its check) on ``runner``; fit slopes."""
+    """Run every (integrator, h) and the reference (with its check) on ``runner``; fit slopes.
+    For a scene with effects beyond Hamilton's equations the reference is an integrator at a fine
+    step (:func:`~thermonet.studies.reference.reference_tasks`; default :func:`default_check`)."""
     check_scene(scene)
     integrators = [get_integrator(name).name for name in integrators]
     hs = time_steps(dt, halvings)
     for h in hs:
         check_steps(t_end, h)
-    ref, chk = reference_tasks(scene, t_end, rtol, check)
+    effects = scene_effects(scene)
+    if effects and check is DEFAULT_CHECK:
+        check = default_check(scene, t_end, hs[-1], effects)
+    ref, chk = reference_tasks(scene, t_end, rtol, check, effects)
     calls = [ref] + ([chk] if chk else [])
     calls += [(integrator_endpoint, dict(scene=scene, integrator=name, h=h, t_end=t_end))
               for name in integrators for h in hs]
     results = (runner or Runner(serial=True)).run(calls, progress=progress)
     n_ref = 2 if chk else 1
-    reference = assemble_reference(results[0], results[1] if chk else None, t_end, rtol, check)
-    study = ConvergenceStudy(scene, t_end, integrators, hs, reference)
+    reference = assemble_reference(results[0], results[1] if chk else None, t_end, rtol, check, effects)
+    study = ConvergenceStudy(scene, t_end, integrators, hs, reference, effects=list(effects))
     runs = iter(results[n_ref:])
     for name in integrators:
         for h in hs:

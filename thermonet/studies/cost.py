@@ -32,7 +32,7 @@ from ..integrators import get_integrator
 from .convergence import time_steps
 from .reference import DEFAULT_CHECK, DEFAULT_RTOL, ReferenceSolution, assemble_reference, reference_tasks
 from .runner import Runner
-from .scenes import check_scene
+from .scenes import check_scene, scene_effects
 from .snapshot import QUANTITIES
 from .tasks import check_steps, timed_integrator_run, timed_ode_run
 
@@ -52,6 +52,8 @@ class CostStudy:
     repeats: int = 5
     runner: str = ""
     scipy_rhs: str = "compiled"
+    #: what the scene does beyond Hamilton's equations (then no SciPy baseline)
+    effects: list = field(default_factory=list)
 
     def curves(self) -> list[tuple[str, list[dict]]]:
         """(label, rows) per integrator or SciPy method, from the coarsest step or loosest
@@ -95,6 +97,8 @@ class CostStudy:
         lines = [f"cost study: {self.scene}, error in {quantity} at t = {self.t_end:g} against wall-clock time",
                  f"reference: {self.reference.description}",
                  f"timings: median of {self.repeats} repeats after a warm-up run, {self.runner}",
+                 ("no SciPy baseline: it solves Hamilton's equations, which leave out the scene's "
+                  + ", ".join(self.effects)) if self.effects else
                  "SciPy's right-hand side: " + {"compiled": "Numba-compiled", "numpy": "NumPy (labels -numpy)",
                                                 "both": "Numba-compiled, and NumPy (labels -numpy)"}[self.scipy_rhs]]
         for acc in accuracies or self.accuracies(quantity):
@@ -106,8 +110,8 @@ class CostStudy:
             tn = self.cheapest(acc, quantity, scipy=False)
             line = f"for accuracy {acc:.0e} the cheapest is {_describe(best)}"
             if best is tn:
-                line += (f"; SciPy's cheapest, {_describe(sp)}, is {sp['time'] / best['time']:.0f}x slower"
-                         if sp is not None else "; no SciPy run reached it")
+                line += (f"; SciPy's cheapest, {_describe(sp)}, {_slower(sp['time'] / best['time'])}"
+                         if sp is not None else "; no SciPy run reached it" if not self.effects else "")
             else:
                 line += f"; thermonet's cheapest is {_describe(tn)}" if tn is not None else "; no thermonet run reached it"
             lines.append(line)
@@ -128,6 +132,13 @@ class CostStudy:
         return files
 
 
+def _slower(ratio: float) -> str:
+    """``is 3.2 times slower``, or ``takes about as long`` within 5 %."""
+    if ratio < 1.05:
+        return "takes about as long"
+    return f"is {ratio:.2g} times slower"
+
+
 def _describe(r: dict) -> str:
     t = r["time"]
     when = f"{t * 1e3:.3g} ms" if t < 1 else f"{t:.3g} s"
@@ -142,7 +153,9 @@ def cost_study(scene: str, integrators, dt: float = 0.1, halvings: int = 8, t_en
                scipy_rhs: str = "compiled") -> CostStudy:
     """Time every (integrator, h = dt·2⁻ⁱ) and every SciPy (method, tolerance) run to t_end.
 
-    scipy: method -> list of tolerances (rtol = atol); default :data:`DEFAULT_SCIPY`; {} for none.
+    scipy: method -> list of tolerances (rtol = atol); default :data:`DEFAULT_SCIPY`; {} for none
+    (and none for a scene with effects beyond Hamilton's equations, whose reference is then an
+    integrator at a fine step: :func:`~thermonet.studies.reference.reference_tasks`).
     scipy_rhs: "compiled" (Numba right-hand side, labels ``scipy-<method>``), "numpy" (labels
     ``scipy-<method>-numpy``) or "both".
     """
@@ -159,9 +172,16 @@ def cost_study(scene: str, integrators, dt: float = 0.1, halvings: int = 8, t_en
     hs = time_steps(dt, halvings)
     for h in hs:
         check_steps(t_end, h)
-    ref, chk = reference_tasks(scene, t_end, rtol, check)
+    effects = scene_effects(scene)
+    if effects:  # SciPy's baselines solve Hamilton's equations, which leave these out: no baseline
+        from .convergence import default_check
+
+        scipy = {}
+        if check is DEFAULT_CHECK:
+            check = default_check(scene, t_end, hs[-1], effects)
+    ref, chk = reference_tasks(scene, t_end, rtol, check, effects)
     ref_results = runner.run([ref] + ([chk] if chk else []))
-    reference = assemble_reference(ref_results[0], ref_results[1] if chk else None, t_end, rtol, check)
+    reference = assemble_reference(ref_results[0], ref_results[1] if chk else None, t_end, rtol, check, effects)
     timed = [(timed_integrator_run, dict(scene=scene, integrator=n, h=h, t_end=t_end, repeats=repeats))
              for n in integrators for h in hs]
     labels = [(n, h, float("nan")) for n in integrators for h in hs]
@@ -173,7 +193,7 @@ def cost_study(scene: str, integrators, dt: float = 0.1, halvings: int = 8, t_en
     results = runner.run(timed, one_at_a_time=one_at_a_time, progress=progress)
     study = CostStudy(scene, t_end, reference, repeats=repeats,
                       runner=runner.description + (", one run at a time" if one_at_a_time else ""),
-                      scipy_rhs=scipy_rhs)
+                      scipy_rhs=scipy_rhs, effects=list(effects))
     for (solver, h, tol), res in zip(labels, results):
         times = np.asarray(res["times"], dtype=float)
         study.rows.append({

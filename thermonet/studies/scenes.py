@@ -53,6 +53,44 @@ def lattice_simulation(integrator: str, h: float, cells: int = 8, **options) -> 
                       integrator=integrator, h=h, **options)
 
 
+def effects_beyond_hamilton(sim) -> list[str]:
+    """What a simulation does that Hamilton's equations of its net (SciPy's reference,
+    :mod:`thermonet.studies.ode`) leave out: heat flow (conduction, thermal waves, baths,
+    sources) and loads, each named (e.g. ``"baths (hot)"``); empty for an adiabatic net under
+    gravity and anchors only."""
+    out = []
+    heat = getattr(sim.system, "heat", None)
+    if heat is not None:
+        if heat.conduction:
+            out.append("conduction")
+        if heat.waves:
+            out.append("thermal waves")
+        names = list(heat.names)
+        if heat.n_baths:
+            out.append(f"baths ({', '.join(names[:heat.n_baths])})")
+        if len(names) > heat.n_baths:
+            out.append(f"sources ({', '.join(names[heat.n_baths:])})")
+    loads = getattr(sim, "loads", None)
+    if loads is not None:
+        out.append(f"loads ({', '.join(loads.set.names)})")
+    return out
+
+
+def scene_effects(scene: str) -> list[str]:
+    """:func:`effects_beyond_hamilton` of ``scene``'s simulation."""
+    return effects_beyond_hamilton(make_simulation(scene, "co2", 1.0))
+
+
+def scene_time(scene: str) -> tuple[float, float | None]:
+    """(h, t_end) of a scene file (t_end = steps · h when the scene gives steps); (PAPER_DT,
+    None) for a built-in scene, which has no end of its own."""
+    if scene in BUILTIN:
+        return 0.1, None
+    integ = _scene_loader().load_scene(scene)["integrator"]
+    h = float(integ["h"])
+    return h, float(integ["t_end"]) if integ.get("t_end") is not None else int(integ["steps"]) * h
+
+
 def check_scene(scene: str) -> None:
     """Raise :class:`InputError` now (in the client) if ``scene`` cannot be resolved."""
     if scene in BUILTIN:
@@ -74,7 +112,8 @@ def _scene_loader():
 
 def _scene_file_simulation(path: str, integrator: str, h: float, threads: int | None = None) -> Simulation:
     check_scene(path)
-    overrides = [f'integrator.name="{integrator}"', f"integrator.h={float(h)!r}"]
+    # the study sets the step and the end: the scene's own t_end need not be a whole number of h
+    overrides = [f'integrator.name="{integrator}"', f"integrator.h={float(h)!r}", "integrator.steps=1"]
     if threads is not None:
         overrides.append(f"integrator.threads={int(threads)}")
     return _scene_loader().load_scene(path, overrides=overrides).build().simulation

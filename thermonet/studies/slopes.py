@@ -5,7 +5,8 @@ How the range is chosen (no knowledge of the expected order is used):
 1. Points are dropped that are not finite, that lie below the *floor* (errors there measure the
    reference solution or round-off, not the integrator: the caller passes e.g. 100× the
    reference's estimated error), or whose error is at least ``max_relative`` (10 %) of the
-   quantity's size (no longer a small perturbation of the solution).
+   quantity's size (no longer a small perturbation of the solution; not applied to a quantity
+   of size 0).
 2. Of what remains, the contiguous run of time steps that contains the smallest kept step is
    taken.
 3. Starting from each point of that run in turn (smallest step first), points towards larger
@@ -49,7 +50,9 @@ def asymptotic_slope(h, error, floor: float = 0.0, scale: float = np.inf, max_re
     error = np.asarray(error, dtype=np.float64)
     order = np.argsort(h)
     h, error = h[order], error[order]
-    usable = np.isfinite(error) & (error > floor) & (error < max_relative * scale) & (error > 0)
+    # a quantity of size 0 (e.g. momenta at rest) has no relative criterion: only the floor applies
+    usable = (np.isfinite(error) & (error > floor) & (error > 0)
+              & ((error < max_relative * scale) | (not scale > 0)))
     if usable.sum() < 2:
         return SlopeFit(float("nan"), float("nan"), float("nan"), float("nan"), int(usable.sum()))
     first = int(np.flatnonzero(usable)[0])

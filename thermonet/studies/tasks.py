@@ -17,6 +17,19 @@ from .scenes import make_simulation
 from .snapshot import Snapshot
 
 
+def settle_numba_threads() -> None:
+    """Make Numba read ``NUMBA_NUM_THREADS`` now, before a run launches its threads.
+
+    A Dask worker gets the variable (1: one core per run) only after its process started, and
+    Numba was imported before that (by the main module the worker re-imports): without this, the
+    first run launches Numba's threads at the import-time count, and the first kernel compiled
+    after that (a cold cache) re-reads the variable and Numba refuses the change with a
+    RuntimeError. Harmless where nothing changed (serial runs)."""
+    from numba.core import config
+
+    config.reload_config()
+
+
 def _nan_snapshot(scene: str) -> Snapshot:
     sim = make_simulation(scene, "co2", 1.0)
     k = int((~np.asarray(sim.net.anchored, dtype=bool)).sum())
@@ -36,6 +49,7 @@ def check_steps(t_end: float, h: float) -> int:
 
 def integrator_endpoint(scene: str, integrator: str, h: float, t_end: float) -> dict:
     """Run ``scene`` with ``integrator`` at step h to t_end: {snapshot, steps, status}."""
+    settle_numba_threads()
     steps = check_steps(t_end, h)
     sim = make_simulation(scene, integrator, h, threads=1)
     try:
@@ -50,6 +64,7 @@ def integrator_endpoint(scene: str, integrator: str, h: float, t_end: float) -> 
 
 def ode_endpoint(scene: str, t_end: float, method: str = "DOP853", rtol: float = 1e-13, atol: float = 1e-13) -> dict:
     """Hamilton's equations of ``scene`` by ``solve_ivp``: {snapshot, nfev, wall_time, status}."""
+    settle_numba_threads()
     from .ode import solve_hamilton
 
     res = solve_hamilton(make_simulation(scene, "co2", 1.0), t_end, method, rtol, atol)
@@ -63,6 +78,7 @@ def timed_integrator_run(scene: str, integrator: str, h: float, t_end: float, re
     Returns {snapshot, steps, status, times: (repeats,) seconds, time: their median}.
     Only ``run`` is timed (not building the simulation), with diagnostics at the ends only.
     """
+    settle_numba_threads()
     steps = check_steps(t_end, h)
     times = []
     out = None
@@ -89,6 +105,7 @@ def timed_ode_run(scene: str, t_end: float, method: str, rtol: float, atol: floa
     """Wall-clock time of ``solve_ivp`` on Hamilton's equations: a short warm-up solve, then
     ``repeats`` timed solves; {snapshot, nfev, status, times, time (median)}. ``compiled``: with
     the Numba-compiled right-hand side (built-in models), else the NumPy one."""
+    settle_numba_threads()
     from .ode import solve_hamilton
 
     atol = rtol if atol is None else atol
@@ -108,6 +125,7 @@ def timed_ode_run(scene: str, t_end: float, method: str, rtol: float, atol: floa
 def history_run(scene: str, integrator: str, h: float, t_end: float, every: int = 1) -> dict:
     """A long run recording diagnostics every ``every`` steps: {columns: name -> (k,) array,
     status, wall_time}."""
+    settle_numba_threads()
     steps = check_steps(t_end, h)
     sim = make_simulation(scene, integrator, h)
     status = "ok"
