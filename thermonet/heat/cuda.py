@@ -196,7 +196,7 @@ class DeviceHeat:
         self.logs = tuple(to_device(np.ascontiguousarray(getattr(host, k))) for k in LOGS)
         self._cpu_logs = tuple(to_device(np.empty(0)) for _ in CPU_LOGS)
         self._work = tuple(to_device(np.zeros_like(getattr(host, k))) for k in WORK)
-        self._factor = (None, None)  # (τ, device weight and decay)
+        self._factor = (None, None)  # (τ, device weight, decay and node scale)
 
     def record(self, h: float, every: int = 1) -> Heat:
         """The device :class:`Heat` for sweeps over τ = coefficient · k · h (a cycle of k steps)."""
@@ -205,7 +205,8 @@ class DeviceHeat:
             tau = self.coefficient * every * h
             if self._factor[0] != tau:
                 self._factor = (tau, tuple(self._to_device(a) for a in self.setup.factors(tau)))
-            static[Heat._fields.index("weight")], static[Heat._fields.index("decay")] = self._factor[1]
+            for name, value in zip(("weight", "decay", "node_scale"), self._factor[1]):
+                static[Heat._fields.index(name)] = value
         return Heat(*static, *self.logs, *self._cpu_logs, *self._work)
 
     def upload(self, state) -> None:
@@ -277,5 +278,5 @@ def compile_heat_ptx(model, uniform: bool = True, cc=(9, 0)) -> dict[str, str]:
 def sample_heat():
     """A :class:`Heat` record of one-element arrays of the kernels' types (for compiling)."""
     v, i, i32 = np.empty(1), np.empty(1, np.int64), np.empty(1, np.int32)
-    return Heat(i, i, i, i, np.empty(1, np.uint32), v, v, i32, i32, v, i, v, v, i, i, i, i, v, i, np.empty((1, 4)), i,
+    return Heat(i, i, i, i, np.empty(1, np.uint32), v, v, v, i32, i32, v, i, v, v, i, i, i, i, v, i, np.empty((1, 4)), i,
                 v, v, v, v, v, v, v, v, v, v, v, v, v)

@@ -44,25 +44,25 @@ BATH = 0
 SOURCE = 1
 
 
-def star_node(i, inc_ptr, inc_spring, weight, decay, theta):
+def star_node(i, heat, theta):
     """The exchange of junction node i over the sweep's τ: its springs relax toward the junction
-    temperature that keeps their energy (see the module docstring). weight, decay: (2m,) a and
-    exp(−g τ/C) of the spring of each incidence (in inc_spring's order: read in sequence) for
-    this τ."""
-    lo = inc_ptr[i]
-    hi = inc_ptr[i + 1]
-    num = 0.0
-    den = 0.0
+    temperature that keeps their energy (see the module docstring). heat.weight, heat.decay:
+    (2m,) a and exp(−g τ/C) of the spring of each incidence (in inc_spring's order: read in
+    sequence) for this τ; heat.node_scale: (n,) 1 / Σ a over each node's incidences."""
+    lo = heat.inc_ptr[i]
+    hi = heat.inc_ptr[i + 1]
+    inc_spring = heat.inc_spring
+    weight = heat.weight
+    total = 0.0
     for j in range(lo, hi):
         ju = np.uint64(j)
-        num += weight[ju] * theta[inc_spring[ju]]
-        den += weight[ju]
-    if den > 0.0:
-        junction = num / den
-        for j in range(lo, hi):
-            ju = np.uint64(j)
-            e = inc_spring[ju]
-            theta[e] = junction + (theta[e] - junction) * decay[ju]
+        total += weight[ju] * theta[inc_spring[ju]]
+    junction = total * heat.node_scale[i]
+    decay = heat.decay
+    for j in range(lo, hi):
+        ju = np.uint64(j)
+        e = inc_spring[ju]
+        theta[e] = junction + (theta[e] - junction) * decay[ju]
 
 
 def star_block(b, heat, reverse, theta):
@@ -72,7 +72,7 @@ def star_block(b, heat, reverse, theta):
     hi = heat.block_ptr[b + 1]
     for k in range(hi - lo):
         q = hi - 1 - k if reverse else lo + k
-        star_node(heat.block_node[q], heat.inc_ptr, heat.inc_spring, heat.weight, heat.decay, theta)
+        star_node(heat.block_node[q], heat, theta)
 
 
 def boundary_exchange(j, heat, tau, t, reverse, theta, logs):

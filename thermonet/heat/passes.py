@@ -18,6 +18,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from ..kernels.records import Scratch
 from ..kernels.specialize import kernel_namespace, model_fingerprint, rebind, specialize
 from . import exchange
 
@@ -30,9 +31,9 @@ REVERSE = 2
 SAVE = 4
 CONTINUE = 8
 
-# Bound per kernel variant (see thermonet.kernels.splitting; spring_pass and _copy_values for
+# Bound per kernel variant (see thermonet.kernels.splitting; spring_pass and node_pass for
 # conduction_boundary, which only the explicit step uses).
-spring_pass = _copy_values = temperature_pass = conduction_sweep = node_pass = None
+spring_pass = temperature_pass = conduction_sweep = node_pass = None
 cpu_evaluate_loads = cpu_load_work = None
 LOADS = False
 star_node = star_block = boundary_exchange = finish_spring = wave_exchange = spring_temperature = squared_length = None
@@ -203,12 +204,13 @@ def conduction_boundary(state, cur, topology, springs, scratch, heat, run, pendi
     spring pass runs now (it leaves θ and l at cur), its forces kept in heat.s_before, and its
     node pass is deferred by the caller (the sweeps do not touch p). Returns the number of
     inadmissible springs that spring pass found (0: swept)."""
-    if pending != 0.0:
-        bad = spring_pass(cur, state.eta, state.phi, topology, springs, scratch, (0.0, pending * run.h), run, False,
+    if pending != 0.0:  # (its T/l straight into heat.s_before)
+        before = Scratch(scratch.x_buf, heat.s_before, scratch.f_keep, scratch.theta_keep, scratch.energy_buf,
+                         scratch.sums)
+        bad = spring_pass(cur, state.eta, state.phi, topology, springs, before, (0.0, pending * run.h), run, False,
                           heat.length)[0]
         if bad > 0:
             return bad
-        _copy_values(scratch.s, heat.s_before)
     conduction_sweep(heat, scratch.theta_keep, heat.theta_start, state.eta, 0.5 * run.conduction_every * run.h,
                      run.t0 + step * run.h, directions)
     return 0

@@ -113,18 +113,23 @@ class HeatSetup:
                 fastest_rate(self.layout, self.conductance, self.capacity, self.bath_nodes < 0).max())
         return cached
 
-    def factors(self, tau: float) -> tuple[np.ndarray, np.ndarray]:
-        """(weight, decay), (2m,) each: ``a = C (1 − exp(−g τ/C))`` and ``exp(−g τ/C)`` for a
-        sweep over τ, of the spring of each incidence of the layout (``inc_spring``'s order, so
-        that a sweep reads them in sequence)."""
+    def factors(self, tau: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(weight, decay, node_scale): ``a = C (1 − exp(−g τ/C))`` and ``exp(−g τ/C)`` for a
+        sweep over τ, (2m,) each, of the spring of each incidence of the layout (``inc_spring``'s
+        order, so that a sweep reads them in sequence), and (n,) 1 / Σ a at each node (0 where
+        the sum is 0)."""
         cached = self.__dict__.setdefault("_factors", {})
         if tau not in cached:
             g = self.conductance if self.conduction else np.zeros_like(self.conductance)
             x = -g * tau / self.capacity
             spring = np.asarray(self.layout.inc_spring, dtype=np.int64)
+            weight = np.ascontiguousarray((-self.capacity * np.expm1(x))[spring])
+            ptr = np.asarray(self.layout.inc_ptr, dtype=np.int64)
+            total = np.bincount(np.repeat(np.arange(len(ptr) - 1), np.diff(ptr)), weights=weight,
+                                minlength=len(ptr) - 1)
+            scale = np.divide(1.0, total, out=np.zeros_like(total), where=total > 0.0)
             cached.clear()
-            cached[tau] = (np.ascontiguousarray((-self.capacity * np.expm1(x))[spring]),
-                           np.ascontiguousarray(np.exp(x)[spring]))
+            cached[tau] = (weight, np.ascontiguousarray(np.exp(x)[spring]), np.ascontiguousarray(scale))
         return cached[tau]
 
     def record(self, tau: float, logs: dict, backend: str = "cpu") -> Heat:
@@ -145,8 +150,7 @@ class HeatSetup:
         if inc is None:
             inc = self.__dict__["_incidence"] = (np.ascontiguousarray(self.layout.inc_ptr, dtype=np.int64),
                                                  np.ascontiguousarray(self.layout.inc_spring).view(np.uint32))
-        weight, decay = self.factors(tau)
-        return Heat(order.colour_ptr, order.block_ptr, order.node, *inc, weight, decay,
+        return Heat(order.colour_ptr, order.block_ptr, order.node, *inc, *self.factors(tau),
                     g.first, g.second, np.ascontiguousarray(g.kappa[:, 1]), g.colour_ptr, self.capacity, inv_capacity,
                     bound, ptr, self.entry_kind, self.entry_fn, self.entry_rate, *packed,
                     logs["produced"], logs["entry_heat"], logs["entry_flux"], logs["theta"], logs["theta_ok"],

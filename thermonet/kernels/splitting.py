@@ -165,7 +165,6 @@ def splitting_kernels(model, parallel: bool, thermal: bool = True, uniform: bool
         ns["apply_flow"] = specialize(_apply_flow, tag, ns, inline="always", **_OPTIONS)
         ns["_stopped"] = specialize(_stopped, tag, ns, inline="always", **_OPTIONS)
         if conduction:  # the conduction boundary and the kick it defers (thermonet.heat.passes)
-            ns["_copy_values"] = _copy_values
             ns["_deferred_kick"] = specialize(deferred_kick, tag, ns, inline="always", **_OPTIONS)
             ns["conduction_boundary"] = specialize(conduction_boundary, tag, ns, inline="always", **_OPTIONS)
         _CACHE[key] = specialize(_advance, tag, ns, **_OPTIONS)

@@ -112,8 +112,11 @@ def _scene_loader():
 
 def _scene_file_simulation(path: str, integrator: str, h: float, threads: int | None = None) -> Simulation:
     check_scene(path)
-    # the study sets the step and the end: the scene's own t_end need not be a whole number of h
-    overrides = [f'integrator.name="{integrator}"', f"integrator.h={float(h)!r}", "integrator.steps=1"]
+    # the study sets the step and the end: the scene's own t_end need not be a whole number of h;
+    # conduction every step: a study measures convergence in h, and "auto" would pick its own
+    # conduction step for each h
+    overrides = [f'integrator.name="{integrator}"', f"integrator.h={float(h)!r}", "integrator.steps=1",
+                 "effects.conduction_every=1"]
     if threads is not None:
         overrides.append(f"integrator.threads={int(threads)}")
     return _scene_loader().load_scene(path, overrides=overrides).build().simulation
