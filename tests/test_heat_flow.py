@@ -145,22 +145,23 @@ def test_energy_bounded_without_drift_and_its_oscillation_is_order_2(every):
     assert 3.0 < osc_full / osc_half < 5.0, (osc_full, osc_half)
 
 
-def steady_chain(h: float, n: int = 8, g: float = 2.0, hot: float = 600.0, cold: float = 300.0):
+def steady_chain(h: float, n: int = 8, g: float = 2.0, hot: float = 600.0, cold: float = 300.0, every: int = 1):
     sim = tn.Simulation(chain_net(n), parameters=dict(c=100, beta=0.0, C0=1.0, theta0=300, g=g), temperatures=300.0,
                         h=h, baths={"hot": Bath("left", hot), "cold": Bath("right", cold)}, renumber=False,
-                        conduction_every=1, **QUIET)
+                        conduction_every=every, **QUIET)
     d = sim.run(t_end=200.0, diagnostics_every=round(1 / h))
     return sim, d
 
 
-def test_a_chain_between_two_baths_reaches_the_linear_profile_and_the_series_heat_flow():
+@pytest.mark.parametrize("every", [1, 4])
+def test_a_chain_between_two_baths_reaches_the_linear_profile_and_the_series_heat_flow(every):
     n, g, hot, cold = 8, 2.0, 600.0, 300.0
     e = np.arange(n)
     profile = hot - (hot - cold) * (2 * e + 1) / (2 * n)  # 2n half-springs of conductance g in series
     series = g / (2 * n) * (hot - cold)
     errors, flows = [], []
-    for h in (0.05, 0.025):
-        sim, d = steady_chain(h)
+    for h in (0.05 / every, 0.025 / every):  # the conduction step k h: 0.05, then 0.025
+        sim, d = steady_chain(h, every=every)
         errors.append(np.abs(sim.temperatures() - profile).max())
         rate = (d.heat_hot[-1] - d.heat_hot[-2]) / (d.time[-1] - d.time[-2])
         flows.append(abs(rate / series - 1))

@@ -131,7 +131,7 @@ class RunDriver:
         if heat is None or not heat.conduction or steps <= 0:
             return
         from .heat.multirate import choose_cycle
-        from .integrators.splitting import cycle_position, heat_logs
+        from .heat.logs import cycle_position, heat_logs
 
         every, at = cycle_position(self._state, heat)
         if at != 0:

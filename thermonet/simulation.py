@@ -32,7 +32,7 @@ from .run_guards import DEFAULT_ENERGY_TOLERANCE, StabilityGuard
 from .heat.parameters import split_parameters
 from .heat.setup import build_heat
 from .heat.stepper import ConductionAround, integrator_with_heat
-from .integrators.splitting import heat_logs
+from .heat.logs import heat_logs
 from .state import State
 
 #: heat-flow logs with one value per spring (stored in the user's numbering outside the engine)

@@ -182,7 +182,7 @@ class CudaSplittingStepper(Stepper):
         self._keep_backup(state, h)
         self._call_step = state.step  # loads: the clock's step
         if self._heat.setup is not None and self._heat.setup.conduction:  # the conduction cycle
-            from ..integrators.splitting import cycle_position
+            from ..heat.logs import cycle_position
 
             self._cycle = cycle_position(state, self._heat.setup)
         stop = self._steps(float(state.time), int(n_steps), float(h))

@@ -213,7 +213,7 @@ class DeviceHeat:
         """The logs of ``state`` onto the device."""
         if self.setup is None:
             return
-        from ..integrators.splitting import heat_logs
+        from .logs import heat_logs
 
         logs = heat_logs(state, self.setup)
         for name, target in zip(LOGS, self.logs):
@@ -224,7 +224,7 @@ class DeviceHeat:
         """The device logs into ``state.extra["heat"]``."""
         if self.setup is None:
             return
-        from ..integrators.splitting import heat_logs
+        from .logs import heat_logs
 
         logs = heat_logs(state, self.setup)
         for name, source in zip(LOGS, self.logs):

@@ -1,6 +1,7 @@
-"""The heat-flow columns of a diagnostics row, from the logs the kernels keep in the state.
+"""The heat-flow logs the kernels keep in the state (:func:`heat_logs`, :func:`cycle_position`)
+and the heat-flow columns of a diagnostics row computed from them.
 
-- ``entropy_produced``: Σ of every exchange's entropy production (pairs and bath ends), since
+- ``entropy_produced``: Σ of every exchange's entropy production (junctions and bath ends), since
   the run's logs started;
 - ``heat_<name>``: heat given to the net by each bath and source; ``heat_in``: their sum;
 - ``entropy_in``: entropy brought in (Q/θ_b by baths, C ln(θ'/θ) by sources);
@@ -47,3 +48,24 @@ def balances(row: dict, first: dict) -> dict:
         "entropy_balance": ((row["entropy"] - first["entropy"]) - (row["entropy_in"] - first["entropy_in"])
                             - (row["entropy_produced"] - first["entropy_produced"])),
     }
+
+
+def heat_logs(state, heat) -> dict:
+    """The heat-flow logs kept in ``state.extra["heat"]`` (created zeroed the first time)."""
+    logs = state.extra.get("heat")
+    if logs is None:
+        logs = state.extra["heat"] = heat.new_logs()
+    if "cycle" not in logs:  # a state saved before multirate conduction: every step, from its step
+        for key, value in heat.new_logs().items():
+            logs.setdefault(key, value)
+        logs["cycle"][1] = float(state.step)
+    return logs
+
+
+def cycle_position(state, heat) -> tuple[int, int]:
+    """(k, steps of its conduction cycle ``state`` has made): the cycle's length k and
+    ``(step − origin) % k`` from the state's heat logs (see
+    :meth:`~thermonet.heat.setup.HeatSetup.new_logs`)."""
+    cycle = heat_logs(state, heat)["cycle"]
+    every = int(cycle[0])
+    return every, int((state.step - int(cycle[1])) % every)

@@ -49,7 +49,7 @@ class ConductionAround(Stepper):
         self._length = np.empty(system.n_springs)
 
     def _conduct(self, state, tau: float, t: float, directions: int) -> None:
-        from ..integrators.splitting import heat_logs
+        from .logs import heat_logs
 
         record = self.heat.record(tau, heat_logs(state, self.heat))
         self._temperature_pass(state.positions, state.entropy, self._topology, self._springs, self._theta,
@@ -60,8 +60,8 @@ class ConductionAround(Stepper):
         """``n_steps`` steps; on a failed step the state is restored to the step's start (η and
         the logs included) and the StepFailure says how many steps were done. The forward half
         sweep runs before the first step of each conduction cycle, the reverse one after its
-        last (:func:`~thermonet.integrators.splitting.cycle_position`)."""
-        from ..integrators.splitting import cycle_position, heat_logs
+        last (:func:`~thermonet.heat.logs.cycle_position`)."""
+        from .logs import cycle_position, heat_logs
         from .passes import FORWARD, REVERSE
 
         stats = None

@@ -16,6 +16,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..errors import InputError
+from ..heat.logs import cycle_position, heat_logs
 from ..kernels.records import Run, StateArrays, no_heat_cpu
 from ..loads.elements import NO_LOADS
 from ..loads.stepping import StepperLoads
@@ -351,28 +352,6 @@ class SplittingStepper(Stepper):
         U, tmin, tmax, K, V, px, py, pz, lx, ly, lz = (float(v) for v in sums)
         return dict(kinetic=K, internal=U, potential=V, momentum=(px, py, pz), angular_momentum=(lx, ly, lz),
                     theta_min=tmin, theta_max=tmax)
-
-
-def heat_logs(state, heat) -> dict:
-    """The heat-flow logs kept in ``state.extra["heat"]`` (created zeroed the first time)."""
-    logs = state.extra.get("heat")
-    if logs is None:
-        logs = state.extra["heat"] = heat.new_logs()
-    if len(logs) < 10:  # (a state saved before multirate conduction: its logs completed)
-        for key, value in heat.new_logs().items():
-            logs.setdefault(key, value)
-        if logs["cycle"][1] == 0.0:
-            logs["cycle"][1] = float(state.step)
-    return logs
-
-
-def cycle_position(state, heat) -> tuple[int, int]:
-    """(k, steps of its conduction cycle ``state`` has made): the cycle's length k and
-    ``(step − origin) % k`` from the state's heat logs (see
-    :meth:`~thermonet.heat.setup.HeatSetup.new_logs`)."""
-    cycle = heat_logs(state, heat)["cycle"]
-    every = int(cycle[0])
-    return every, int((state.step - int(cycle[1])) % every)
 
 
 def flow_data(flows, system) -> tuple:
