@@ -46,7 +46,7 @@ class RunDriver:
         """Advance by ``steps`` steps, or to ``t_end``.
 
         diagnostics_every: a diagnostics row every k steps (and at the start and end);
-            default: about 1000 rows over the run.
+            default: about 1000 rows over the run (a multiple of the conduction cycle).
         observers: (k, callback) pairs; ``callback(sim)`` is called every k steps (at multiples of
             k in the global step count) and at the end of the run. Where a callback is a bound
             method of an object with a ``flush()`` method (``RunOutput``: frames written on a
@@ -65,8 +65,9 @@ class RunDriver:
         steps = int(steps)
         if steps < 0:
             raise InputError(f"run: steps must be >= 0, got {steps}")
-        if diagnostics_every is None:
-            diagnostics_every = max(1, steps // 1000)
+        if diagnostics_every is None:  # about 1000 rows, on conduction cycles' boundaries
+            k = self._conduction_cycle_wanted()
+            diagnostics_every = max(k, max(1, steps // 1000) // k * k)
         if diagnostics_every < 1:
             raise InputError(f"run: diagnostics_every must be >= 1, got {diagnostics_every}")
         cadences = [(int(diagnostics_every), self._diagnostics_stop)] + [(int(k), cb) for k, cb in observers]
@@ -122,6 +123,18 @@ class RunDriver:
         self.wall_time += _time.perf_counter() - t0 - watch.seconds
         self.steps_run += steps
         return self.diagnostics
+
+    def _conduction_cycle_wanted(self) -> int:
+        """The conduction cycle this run would take with no output cadence to follow (1 without
+        conduction)."""
+        heat = getattr(self.system, "heat", None)
+        if heat is None or not heat.conduction:
+            return 1
+        if self.conduction_every != "auto":
+            return int(self.conduction_every)
+        from .heat.multirate import choose_cycle
+
+        return choose_cycle("auto", heat.fastest_rate(), self._h, [])[0]
 
     def _choose_conduction_cycle(self, steps: int, cadences) -> None:
         """The conduction cycle of this run (:mod:`thermonet.heat.multirate`), chosen at a cycle
