@@ -17,7 +17,8 @@ def chain_net(n_springs: int, spacing: float = 1.0) -> tn.Net:
     x[:, 0] = spacing * np.arange(n_springs + 1)
     edges = np.column_stack([np.arange(n_springs), np.arange(1, n_springs + 1)])
     return tn.Net(x, edges, masses=np.ones(n_springs + 1),
-                  node_groups={"left": np.array([0]), "right": np.array([n_springs])},
+                  node_groups={"left": np.array([0]), "right": np.array([n_springs]),
+                               "empty": np.array([], dtype=np.int64)},
                   spring_groups={"middle": np.array([n_springs // 2])})
 
 
@@ -256,7 +257,10 @@ def test_conduction_around_an_implicit_integrator_keeps_its_balances():
     (dict(parameters=dict(g=-1.0)), "parameter 'g' of spring 0 must be finite and ≥ 0"),
     (dict(parameters=dict(g=np.nan)), "must be finite and ≥ 0"),
     (dict(parameters=dict(g=1.0), baths={"hot": Bath("nowhere", 500.0)}), "baths.hot.group: the net has no node group"),
-    (dict(parameters=dict(g=1.0), baths={"hot": Bath("left", -5.0)}), "baths.hot.temperature: a bath temperature must stay > 0"),
+    (dict(parameters=dict(g=1.0), baths={"hot": Bath("left", -5.0)}), "baths.hot.temperature: a bath temperature must be > 0, got -5 at t = 0"),
+    (dict(parameters=dict(g=1.0), baths={"hot": Bath("left", {"start": 300.0, "end": -300.0, "duration": 2.0})}),
+     "baths.hot.temperature: a bath temperature must stay > 0, but 300 → -300 over t ∈ \\[0, 2\\] reaches 0 at t = 1"),
+    (dict(parameters=dict(g=1.0), baths={"hot": Bath("empty", 500.0)}), "baths.hot.group: node group 'empty' holds no node"),
     (dict(parameters=dict(g=1.0), baths={"hot": Bath("left", {"table": [[0, 300], [0, 400]]})}),
      "baths.hot.temperature.table: times must increase strictly"),
     (dict(parameters=dict(g=1.0), thermal=False), "conduction needs thermal coupling on"),

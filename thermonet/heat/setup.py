@@ -197,21 +197,21 @@ def _members(group, groups: dict, count: int, where: str, what: str) -> np.ndarr
         if bad.any():
             raise InputError(f"{where}.group: {what} index {int(idx[bad][0])} out of range (0..{count - 1})")
     if len(idx) == 0:
+        if isinstance(group, str) and what == "node":
+            raise InputError(f"{where}.group: node group {group!r} holds no node of the net: its mesh points touch "
+                             "no spring (only points that springs join become nodes)")
         raise InputError(f"{where}.group: the group has no {what}s")
     return idx
 
 
-def _lowest(f: TimeFunction) -> float:
-    """The smallest value f takes for t ≥ 0."""
-    if f.kind == "constant":
-        return f.params[0]
-    if f.kind == "linear":
-        return f.params[0] if f.params[1] >= 0.0 else -np.inf
-    if f.kind == "ramp":
-        return min(f.params[0], f.params[1])
-    if f.kind == "sine":
-        return f.params[3] - abs(f.params[0])
-    return float(np.min(f.values))
+def _check_bath_temperature(f: TimeFunction, where: str) -> None:
+    """A bath temperature stays > 0 for t ≥ 0; else an InputError saying when it reaches 0."""
+    when = f.first_at_or_below(0.0)
+    if when == 0.0:
+        raise InputError(f"{where}: a bath temperature must be > 0, got {f(0.0):g} at t = 0"
+                         + ("" if f.kind == "constant" else f" ({f.describe()})"))
+    if when is not None:
+        raise InputError(f"{where}: a bath temperature must stay > 0, but {f.describe()} reaches 0 at t = {when:.6g}")
 
 
 def build_heat(net, layout, model, P_user, transport: dict, *, thermal: bool, conduction, waves, baths,
@@ -258,8 +258,7 @@ def build_heat(net, layout, model, P_user, transport: dict, *, thermal: bool, co
         bath = _named(spec, where, Bath)
         nodes = _members(bath.group, net.node_groups, n, where, "node")
         f = time_function(bath.temperature, f"{where}.temperature")
-        if not _lowest(f) > 0.0:
-            raise InputError(f"{where}.temperature: a bath temperature must stay > 0, but it reaches {_lowest(f):g}")
+        _check_bath_temperature(f, f"{where}.temperature")
         taken = bath_of_node_user[nodes] >= 0
         if taken.any():
             a = int(nodes[taken][0])

@@ -62,7 +62,6 @@ def build_scene(scene: Scene) -> BuiltScene:
     from ..loads.scene import scene_loads  # loads
 
     loads = scene_loads(scene, net)  # loads
-    _check_baths(scene, net)
     try:
         sim = Simulation(
             net,
@@ -337,26 +336,3 @@ def node_vectors(scene: Scene, net: Net, mesh, kind: str) -> np.ndarray | None:
     v[net.anchored] = 0.0
     return v
 
-
-def _check_baths(scene, net) -> None:
-    """Each bath's group holds nodes of the net, and its temperature stays > 0 (the time it would
-    reach 0 named); at the key's line."""
-    from ..errors import InputError
-    from ..timefunctions import time_function
-
-    for name, bath in scene["baths"].items():
-        group = bath["group"]
-        if isinstance(group, str) and group in net.node_groups and len(net.node_groups[group]) == 0:
-            raise scene.error(f"baths.{name}.group", f"node group {group!r} holds no node of the net: its mesh points "
-                              "touch no spring (only points that springs join become nodes)")
-        try:
-            f = time_function(bath["temperature"], f"baths.{name}.temperature")
-        except InputError:
-            continue  # said, with its key, where the bath is built
-        when = f.first_at_or_below(0.0)
-        if when == 0.0:
-            raise scene.error(f"baths.{name}.temperature", f"a bath temperature must be > 0, got {f(0.0):g} at t = 0"
-                              + ("" if f.kind == "constant" else f" ({f.describe()})"))
-        if when is not None:
-            raise scene.error(f"baths.{name}.temperature", f"a bath temperature must stay > 0, but {f.describe()} "
-                              f"reaches 0 at t = {when:.6g}")
