@@ -205,7 +205,7 @@ class DeviceHeat:
             tau = self.coefficient * every * h
             if self._factor[0] != tau:
                 self._factor = (tau, tuple(self._to_device(a) for a in self.setup.factors(tau)))
-            for name, value in zip(("weight", "decay", "node_scale"), self._factor[1]):
+            for name, value in zip(("weight", "decay", "factor_mask", "node_scale"), self._factor[1]):
                 static[Heat._fields.index(name)] = value
         return Heat(*static, *self.logs, *self._cpu_logs, *self._work)
 
@@ -278,5 +278,5 @@ def compile_heat_ptx(model, uniform: bool = True, cc=(9, 0)) -> dict[str, str]:
 def sample_heat():
     """A :class:`Heat` record of one-element arrays of the kernels' types (for compiling)."""
     v, i, i32 = np.empty(1), np.empty(1, np.int64), np.empty(1, np.int32)
-    return Heat(i, i, i, i, np.empty(1, np.uint32), v, v, v, i32, i32, v, i, v, v, i, i, i, i, v, i, np.empty((1, 4)), i,
+    return Heat(i, i, i, i, np.empty(1, np.uint32), v, v, np.zeros(1, np.uint64), v, i32, i32, v, i, v, v, i, i, i, i, v, i, np.empty((1, 4)), i,
                 v, v, v, v, v, v, v, v, v, v, v, v, v)

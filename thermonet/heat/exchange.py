@@ -48,21 +48,24 @@ def star_node(i, heat, theta):
     """The exchange of junction node i over the sweep's τ: its springs relax toward the junction
     temperature that keeps their energy (see the module docstring). heat.weight, heat.decay:
     (2m,) a and exp(−g τ/C) of the spring of each incidence (in inc_spring's order: read in
-    sequence) for this τ; heat.node_scale: (n,) 1 / Σ a over each node's incidences."""
+    sequence) for this τ, or (1,) when every spring has the same (heat.factor_mask[0] then 0:
+    every incidence reads element 0, and a sweep reads no factor from memory);
+    heat.node_scale: (n,) 1 / Σ a over each node's incidences."""
     lo = heat.inc_ptr[i]
     hi = heat.inc_ptr[i + 1]
     inc_spring = heat.inc_spring
     weight = heat.weight
+    mask = heat.factor_mask[0]
     total = 0.0
     for j in range(lo, hi):
         ju = np.uint64(j)
-        total += weight[ju] * theta[inc_spring[ju]]
+        total += weight[ju & mask] * theta[inc_spring[ju]]
     junction = total * heat.node_scale[i]
     decay = heat.decay
     for j in range(lo, hi):
         ju = np.uint64(j)
         e = inc_spring[ju]
-        theta[e] = junction + (theta[e] - junction) * decay[ju]
+        theta[e] = junction + (theta[e] - junction) * decay[ju & mask]
 
 
 def star_block(b, heat, reverse, theta):

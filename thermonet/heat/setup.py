@@ -113,11 +113,12 @@ class HeatSetup:
                 fastest_rate(self.layout, self.conductance, self.capacity, self.bath_nodes < 0).max())
         return cached
 
-    def factors(self, tau: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(weight, decay, node_scale): ``a = C (1 − exp(−g τ/C))`` and ``exp(−g τ/C)`` for a
-        sweep over τ, (2m,) each, of the spring of each incidence of the layout (``inc_spring``'s
-        order, so that a sweep reads them in sequence), and (n,) 1 / Σ a at each node (0 where
-        the sum is 0)."""
+    def factors(self, tau: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(weight, decay, factor_mask, node_scale): ``a = C (1 − exp(−g τ/C))`` and
+        ``exp(−g τ/C)`` for a sweep over τ, (2m,) each, of the spring of each incidence of the
+        layout (``inc_spring``'s order, so that a sweep reads them in sequence) — or (1,) each
+        when every spring has the same g and C, with factor_mask (1,) uint64 0 (else all ones);
+        and (n,) 1 / Σ a at each node (0 where the sum is 0)."""
         cached = self.__dict__.setdefault("_factors", {})
         if tau not in cached:
             g = self.conductance if self.conduction else np.zeros_like(self.conductance)
@@ -128,8 +129,13 @@ class HeatSetup:
             total = np.bincount(np.repeat(np.arange(len(ptr) - 1), np.diff(ptr)), weights=weight,
                                 minlength=len(ptr) - 1)
             scale = np.divide(1.0, total, out=np.zeros_like(total), where=total > 0.0)
+            decay = np.ascontiguousarray(np.exp(x)[spring])
+            shared = len(weight) > 0 and bool(np.all(g == g[0]) and np.all(self.capacity == self.capacity[0]))
+            mask = np.array([0 if shared else np.iinfo(np.uint64).max], dtype=np.uint64)
+            if shared:
+                weight, decay = weight[:1].copy(), decay[:1].copy()
             cached.clear()
-            cached[tau] = (weight, np.ascontiguousarray(np.exp(x)[spring]), np.ascontiguousarray(scale))
+            cached[tau] = (weight, decay, mask, np.ascontiguousarray(scale))
         return cached[tau]
 
     def record(self, tau: float, logs: dict, backend: str = "cpu") -> Heat:

@@ -99,8 +99,9 @@ class Heat(NamedTuple):
     (B+1,) int64, block b is the junction nodes block_node[block_ptr[b]:block_ptr[b+1]] (int64),
     swept in that order; inc_ptr (n+1,) int64 and inc_spring (2m,) uint32 each node's springs;
     weight, decay: (2m,) a = C (1 − exp(−g τ/C)) and exp(−g τ/C) for the sweep's τ, of the
-    spring of each incidence (inc_spring's order); node_scale: (n,) 1 / Σ a over each node's
-    incidences (0 where that is 0).
+    spring of each incidence (inc_spring's order), or (1,) when all springs share them, with
+    factor_mask (1,) uint64: all ones, or 0 for the shared ones (an incidence j reads element
+    j & mask); node_scale: (n,) 1 / Σ a over each node's incidences (0 where that is 0).
     Thermal waves: first, second: (P,) int32 springs of each pair; wave: (P,) k* of each pair;
     colour_ptr: (K+1,) int64, colour c is pairs colour_ptr[c]:colour_ptr[c+1] (no two share a spring).
     capacity, inv_capacity: (m,) C and 1/C per spring; bound_spring: (S,) int64 springs with
@@ -125,6 +126,7 @@ class Heat(NamedTuple):
     inc_spring: np.ndarray
     weight: np.ndarray
     decay: np.ndarray
+    factor_mask: np.ndarray
     node_scale: np.ndarray
     first: np.ndarray
     second: np.ndarray
@@ -161,7 +163,7 @@ def no_heat() -> Heat:
     f = np.empty(0)
     i32 = np.empty(0, dtype=np.int32)
     ptr = np.zeros(1, dtype=np.int64)
-    return Heat(ptr, ptr, i, ptr, np.empty(0, dtype=np.uint32), f, f, f,
+    return Heat(ptr, ptr, i, ptr, np.empty(0, dtype=np.uint32), f, f, np.zeros(1, dtype=np.uint64), f,
                 i32, i32, f, ptr, f, f, i, ptr, i, i, f,
                 i, np.empty((0, 4)), ptr, f, f, f, f, f, f, np.zeros(1), f, f, f, f, f, f)
 
