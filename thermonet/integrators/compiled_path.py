@@ -10,11 +10,20 @@ a dense LU at every size measured, the paper's chain included: benchmarks/README
 integrators"); a dense LU where the scheme has no sweeps (up to DENSE_MAX_UNKNOWNS unknowns), with
 "auto" up to AUTO_DENSE_MAX_UNKNOWNS, or with "compiled-dense" (exact Newton steps; no sweeps to
 stall).
+
+A scheme meant for steps far above the explicit limit (EM2: ``chooses_by_step``) makes the
+"auto" choice from the step instead (:func:`choose_by_step`): the sweeps are preconditioned by
+the inertia (m/h) alone, so the sweeps a linear solve needs grow with h·ω_max (measured
+≈ (h·ω_max)¹ per solve on a tetrahedral part, and the Newton iterations with it); a factorized
+solve costs the same at any step. Above SWEEPS_MAX_HW the sparse path with SuperLU and kept
+factorizations (``linear_solver="splu-reuse"``, modified Newton) runs instead.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -33,6 +42,42 @@ DENSE_MAX_UNKNOWNS = 200
 #: steps, which converge where inexact ones need more iterations (steps near the stability
 #: limit), at ≈ 1.2–1.6× the sweeps' cost on nets this small (the paper's chain: 9 and 18)
 AUTO_DENSE_MAX_UNKNOWNS = 24
+
+
+#: "auto" for a scheme that chooses by the step (EM2): the compiled path's matrix-free sweeps up
+#: to this h·ω_max (ω_max: the largest angular frequency of the net linearized at the run's
+#: start, thermonet.stability.max_frequency; CO2's stable step is 2/ω_max), the sparse path with
+#: "splu-reuse" above. Measured crossover: benchmarks/em2_paths.py (benchmarks/README.md, "EM2's
+#: solver path").
+SWEEPS_MAX_HW = 4.0
+
+
+@dataclass(frozen=True)
+class PathChoice:
+    """What "auto" chose for one step h: ``path`` ("compiled" or "sparse"), ``linear_solver``
+    ("sweeps" or "splu-reuse"), h·ω_max and the reason, one line for the run summary."""
+
+    h: float
+    h_omega: float
+    path: str
+    linear_solver: str
+    reason: str
+
+
+def choose_by_step(h: float, omega_max: float, size: int, sweeps_max_hw: float = None) -> PathChoice:
+    """The "auto" path of a scheme that chooses by the step (EM2), for step h on a net of
+    ``size`` unknowns whose largest angular frequency is ``omega_max``."""
+    limit = SWEEPS_MAX_HW if sweeps_max_hw is None else sweeps_max_hw
+    hw = float(h) * float(omega_max)
+    if not math.isfinite(hw):
+        return PathChoice(h, hw, "sparse", "splu-reuse", f"h·ω_max not finite ({omega_max:g}): a factorized solve")
+    if hw <= limit:
+        return PathChoice(h, hw, "compiled", "sweeps",
+                          f"h·ω_max = {hw:.3g} ≤ {limit:g} ({hw / 2:.3g}× CO2's stable step): "
+                          f"inertia-preconditioned sweeps converge in a few sweeps")
+    return PathChoice(h, hw, "sparse", "splu-reuse",
+                      f"h·ω_max = {hw:.3g} > {limit:g} ({hw / 2:.3g}× CO2's stable step): sweeps would need "
+                      f"≈ h·ω_max each; SuperLU with kept factorizations ({size} unknowns)")
 
 
 def offers_compiled(kernels) -> bool:

@@ -95,9 +95,17 @@ class EM2Stepper(ImplicitStepper):
     #: Newton's atol follows the positions' rounding (ATOL_ULPS; set by EM2.make_stepper)
     rounding_atol = False
 
+    #: "auto" follows h·ω_max (integrators/compiled_path.choose_by_step)
+    chooses_by_step = True
+    #: a failed step's equations are solved by continuation in h before substeps (retry)
+    continuation = True
+
     def __init__(self, integrator, system, options, parallel: bool = False):
         super().__init__(integrator, system, options, parallel)
-        self.solver = LengthLimited(self.solver, self)
+        self.solver = self.wrap_solver(self.solver)
+
+    def wrap_solver(self, solver):
+        return LengthLimited(solver, self)
 
     def make_work(self, start) -> EM2Work:
         # the start kernel writes the acceleration at x⁰ here; predict() makes the guess from it

@@ -12,6 +12,7 @@ the state exactly at the last good step.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import warnings
 from abc import abstractmethod
@@ -25,7 +26,7 @@ from ..kernels.implicit_records import (BlockPlaces, NextState, NodeData, Residu
 from ..solvers import BlockPattern, NewtonOptions, NewtonResult, NewtonTimers, make_linear_solver
 from ..solvers.newton import newton
 from .base import Stepper, StepFailure
-from .compiled_path import CompiledNewton, use_compiled
+from .compiled_path import CompiledNewton, choose_by_step, use_compiled
 
 
 class _StepError(Exception):
@@ -75,6 +76,17 @@ class ImplicitStepper(Stepper):
     #: a local Jacobi step (:meth:`local_jacobi`) updates at most this fraction of the free
     #: nodes; with more, a global one (one sweep, one full residual) costs less
     LOCAL_MAX_FRACTION = 0.05
+    #: "auto" (newton_path and linear_solver both) chooses the path by h·ω_max at each new h
+    #: (compiled_path.choose_by_step): schemes meant for steps far above the explicit limit
+    chooses_by_step = False
+    #: a step whose Newton solve fails from the predictor is solved by continuation in the step
+    #: (:meth:`continued`) before the retry policy splits it into substeps
+    continuation = False
+    #: the continuation's smallest stage (a fraction of h) and most stages per step
+    CONTINUATION_MIN_FRACTION = 1.0 / 64.0
+    CONTINUATION_MAX_SOLVES = 24
+    #: the intermediate stages' scaled-residual tolerance (only their extrapolation is used)
+    CONTINUATION_TOLERANCE = 1e-8
     topology = _KernelRecord()
     springs = _KernelRecord()
     nodes = _KernelRecord()
@@ -131,8 +143,12 @@ class ImplicitStepper(Stepper):
         self.timers = NewtonTimers()
         #: the compiled path (integrators/compiled_path.py), or None: the sparse one
         self.compiled = CompiledNewton(self) if use_compiled(options, size, self.kernels, integrator.name) else None
+        #: the choice "auto" made by the step (chooses_by_step), or None (not chosen by the step)
+        self.path_choice = None
+        self._by_step = self.chooses_by_step and options.newton_path == "auto" and options.linear_solver == "auto"
+        self._paths = {}  # the (compiled, solver) pairs of the paths chosen so far, by linear solver
         self.totals = dict(steps=0, iterations=0, iterations_max=0, residual_max=0.0, retried_steps=0,
-                           substeps_max=1)
+                           substeps_max=1, continued_steps=0)
 
     @property
     def R(self) -> np.ndarray:
@@ -148,6 +164,37 @@ class ImplicitStepper(Stepper):
     def h(self) -> float:
         """The step of the current step (set by :meth:`begin`)."""
         return self._step_start[3]
+
+    def wrap_solver(self, solver):
+        """The linear solver as the Newton iteration uses it (a scheme may wrap it: EM2 damps)."""
+        return solver
+
+    def choose_path(self, state, h: float) -> None:
+        """"auto" by the step: at a new h, estimate ω_max at ``state`` and take the path
+        :func:`choose_by_step` names (the compiled sweeps, or the sparse path with SuperLU and
+        kept factorizations), each made once and kept for a later return to its h."""
+        if self.path_choice is not None and self.path_choice.h == h:
+            return
+        from ..stability import max_frequency
+
+        # the path the stepper was made with ("auto" by the size: the sweeps, or on a small net
+        # the dense LU) serves the steps near the limit
+        compiled, solver = self._paths.setdefault("made", (self.compiled, self.solver))
+        omega = max_frequency(self.system, state.positions, state.entropy).omega_max
+        choice = choose_by_step(h, omega, self.pattern.size)
+        if choice.linear_solver == "sweeps":
+            made = compiled.linear_solver if compiled is not None else solver.name
+            if made != "sweeps":
+                choice = dataclasses.replace(choice, path="compiled" if compiled is not None else "sparse",
+                                             linear_solver=made, reason=choice.reason + f" (here: {made})")
+            self._paths.setdefault(choice.linear_solver, (compiled, solver))
+        elif choice.linear_solver not in self._paths:
+            if self.data.size != self.pattern.nnz:
+                self.data = np.zeros(self.pattern.nnz)
+            self._paths[choice.linear_solver] = (None, self.wrap_solver(make_linear_solver(choice.linear_solver,
+                                                                                         self.pattern, self)))
+        self.compiled, self.solver = self._paths[choice.linear_solver]
+        self.path_choice = choice
 
     # -- scheme hooks ---------------------------------------------------------------------------
     @abstractmethod
@@ -254,22 +301,64 @@ class ImplicitStepper(Stepper):
     def attempt(self, x, p, phi, eta, h: float):
         """One step from (x, p, Φ, η); returns the new (x, p, Φ, η) buffers and the Newton
         record, or raises _StepError. Never modifies its inputs. On the compiled path, a step
-        whose matrix-free sweeps stall is made by the sparse path (its GMRES fallback)."""
+        whose matrix-free sweeps stall is made by the sparse path (its GMRES fallback), and so is
+        any failed step of a scheme with ``continuation``."""
         if self.compiled is not None:
             done, failure = self.compiled.attempt(x, p, phi, eta, h)
             if failure is None:
                 return done
-            if not failure[-1]:
+            if not failure[-1] and not self.continuation:
                 raise _StepError(*failure[:4])
         self.begin(x, p, eta, h)
         self.predict(self.u)
-        result = newton(self, self.u, self.options, self.solver, self.timers)
+        result = newton(self, self.u, self.options, self.solver, self.timers, stall=self.continuation)
+        if not result.converged and self.continuation:
+            result = self.continued(x, p, eta, h, result)
         if not result.converged:
             raise _StepError(result.reason, result, result.status, result.spring)
         status, spring = self.finish(phi, self._new)
         if status != 0:
             raise _StepError("non-physical state after the step", result, status, spring)
         return self._new, result
+
+    def continued(self, x, p, eta, h: float, failed: NewtonResult) -> NewtonResult:
+        """The step's own equations (step h from x⁰, p⁰) solved by continuation in the step: the
+        equations of steps τ from the same start, τ rising from 0 to h, each solved from the
+        extrapolation of the solutions u(τ) before it (u(0) = 0; the first from the scheme's
+        predictor at τ, the next linear, then quadratic through the last three), the
+        intermediate ones to CONTINUATION_TOLERANCE. τ starts at h/2 and doubles its increment
+        after each solved stage; a failed stage halves it, down to h·CONTINUATION_MIN_FRACTION,
+        and at most CONTINUATION_MAX_SOLVES stages are tried. Where u(τ) has no fold on the way,
+        this reaches a root that the predictor at h missed. The result is one step of h (not
+        substeps), converged to the step's own tolerance, in ``u``; the Newton record is that of
+        the last stage with the iterations of all (the failed first try's included)."""
+        iterations, jacobi = failed.iterations, failed.jacobi_steps
+        loose = dataclasses.replace(self.options, tolerance=max(self.options.tolerance, self.CONTINUATION_TOLERANCE))
+        result = failed
+        solved = [(0.0, np.zeros_like(self.u))]
+        tau, dtau = 0.0, 0.5 * h
+        for _ in range(self.CONTINUATION_MAX_SOLVES):
+            if dtau < self.CONTINUATION_MIN_FRACTION * h:
+                break
+            last = tau + dtau >= h * (1.0 - 1e-9)
+            t = h if last else tau + dtau
+            self.begin(x, p, eta, t)  # (the last stage: the step itself, h exactly)
+            self.predict(self.u)
+            if len(solved) > 1:
+                self.u[:] = _extrapolate(solved[-3:], t)
+            result = newton(self, self.u, self.options if last else loose, self.solver, self.timers, stall=True)
+            iterations += result.iterations
+            jacobi += result.jacobi_steps
+            if result.converged:
+                if last:
+                    self.totals["continued_steps"] += 1
+                    return dataclasses.replace(result, iterations=iterations, jacobi_steps=jacobi)
+                solved.append((t, self.u.copy()))
+                tau, dtau = t, 2.0 * dtau
+            else:
+                dtau *= 0.5
+        self.begin(x, p, eta, h)  # (the failure's report reads the step's start)
+        return dataclasses.replace(result, iterations=iterations, jacobi_steps=jacobi)
 
     # -- the Stepper interface --------------------------------------------------------------------
     #: the key in ``state.extra`` of the predictor's history (rate 2, HO4): the unknowns of the
@@ -303,6 +392,8 @@ class ImplicitStepper(Stepper):
     def advance(self, state, n_steps: int, h: float, measure: bool = False):
         if n_steps <= 0:
             return None
+        if self._by_step:
+            self.choose_path(state, h)
         self._history_from(state)
         try:
             iters, finals = [], []
@@ -318,7 +409,7 @@ class ImplicitStepper(Stepper):
                     i += done
                     if failure is None:
                         break
-                    if not failure[-1]:  # failed: the retry policy, as the sparse path's
+                    if not (failure[-1] or self.continuation):  # failed: the retry policy, as the sparse path's
                         self._retry_step(state, h, _StepError(*failure[:4]), i, iters, finals, counts)
                         i += 1
                         continue
@@ -446,12 +537,33 @@ class ImplicitStepper(Stepper):
         t = dict(self.totals)
         t["iterations_mean"] = t["iterations"] / t["steps"] if t["steps"] else math.nan
         t["linear_solver"] = self.solver.name if self.compiled is None else f"compiled, {self.compiled.linear_solver}"
+        t["newton_path"] = "sparse" if self.compiled is None else "compiled"
+        choice = self.path_choice
+        t["path_reason"] = (choice.reason if choice is not None else
+                            f"newton_path = {self.options.newton_path!r}, linear_solver = {self.options.linear_solver!r}")
+        t["h_omega_max"] = choice.h_omega if choice is not None else math.nan
+        # steps redone as substeps (the retry policy), as a fraction of the steps
+        t["substep_fraction"] = t["retried_steps"] / t["steps"] if t["steps"] else 0.0
+        t["factorizations"] = self.timers.factorizations  # (splu-reuse) made, and iterations that kept one
+        t["reused_factorizations"] = self.timers.reused_factorizations
         t["unknowns"] = self.pattern.size
         t["jacobian_nnz"] = self.pattern.nnz
         t["jacobi_steps"] = self.timers.jacobi_steps  # finishing steps u −= D⁻¹ R, not counted as iterations
         t["local_steps"] = self.timers.local_steps  # of those, the ones on a few nodes only
         t.update({f"time_{k}": v for k, v in self.timers.as_dict().items() if isinstance(v, float)})
         return t
+
+
+def _extrapolate(points, t: float) -> np.ndarray:
+    """The Lagrange polynomial through ``points`` [(τ, u(τ)), …] (2 or 3 of them) at t."""
+    out = np.zeros_like(points[0][1])
+    for i, (ti, ui) in enumerate(points):
+        w = 1.0
+        for j, (tj, _) in enumerate(points):
+            if j != i:
+                w *= (t - tj) / (ti - tj)
+        out += w * ui
+    return out
 
 
 def newton_options(options: dict) -> NewtonOptions:

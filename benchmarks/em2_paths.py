@@ -1,0 +1,158 @@
+"""EM2's Newton paths against the step: where "auto" should switch from the compiled path's
+matrix-free sweeps to the sparse path's SuperLU.
+
+For each net and each step h = factor × CO2's stable step (h·ω_max = 2 factor), runs EM2 on
+each path and prints milliseconds per step, Newton iterations per step, the steps redone as
+substeps and the steps solved by continuation, and the path "auto" chose (and its reason):
+
+- ``sweeps``: ``newton_path = "compiled"`` (inertia-preconditioned matrix-free sweeps);
+- ``splu``: ``newton_path = "sparse"``, ``linear_solver = "splu"`` (a factorization per iteration);
+- ``splu-reuse``: ``newton_path = "sparse"``, ``linear_solver = "splu-reuse"`` (kept factorizations);
+- ``auto``: the default.
+
+Nets: ``lattice``, a jittered 6-neighbour 3D lattice of ``--cells`` cells per side (hencky,
+c = 100, θ0 = 300), its bottom face clamped, at rest and 50 K above θ0 (thermal stress, a slow
+expansion); ``bracket``, scenes/bracket.toml (a gmsh tetrahedral aluminium part, SI units, hot
+flange, conduction). Each run takes one untimed step (compilation, first factorization) and
+then ``--steps`` timed steps; a path that fails a step is reported as failed.
+
+    python benchmarks/em2_paths.py                        # both nets, factors 1 3 10 100 1e4
+    python benchmarks/em2_paths.py --nets bracket --factors 1 2 3 5 10
+    python benchmarks/em2_paths.py --quick                # a small lattice, 2 steps (the test's)
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import time
+import warnings
+
+import numpy as np
+
+import thermonet as tn
+from thermonet.stability import stable_step
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+PATHS = {
+    "sweeps": dict(newton_path="compiled"),
+    "splu": dict(newton_path="sparse", linear_solver="splu"),
+    "splu-reuse": dict(newton_path="sparse", linear_solver="splu-reuse"),
+    "auto": {},
+}
+
+
+def lattice_simulation(cells: int, integrator: str, h: float, **options) -> tn.Simulation:
+    """The benchmark's lattice: bottom face clamped, at rest, 50 K above θ0."""
+    net = tn.lattice((cells, cells, cells), jitter=0.1, seed=1)
+    anchored = net.positions[:, 2] < 0.5
+    net = tn.Net(net.positions, net.edges, net.masses, anchored)
+    return tn.Simulation(net, model="hencky", parameters=dict(c=100.0, beta=0.2, C0=5.0, theta0=300.0),
+                         temperatures=350.0, integrator=integrator, h=h, integrator_options=options,
+                         stability_guard="off", energy_tolerance=None)
+
+
+def bracket_simulation(integrator: str, h: float, **options) -> tn.Simulation:
+    """scenes/bracket.toml with the given integrator, step and Newton options."""
+    from thermonet.scenes.build import build_scene
+    from thermonet.scenes.scene import load_scene
+
+    sets = [f"integrator.name={integrator}", f"integrator.h={h!r}", "integrator.check_step=false",
+            f"integrator.t_end={h * 1000!r}"] + [f"integrator.{k}={v}" for k, v in options.items()]
+    return build_scene(load_scene(os.path.join(HERE, "..", "scenes", "bracket.toml"), sets)).simulation
+
+
+def make(net: str, cells: int, integrator: str, h: float, **options) -> tn.Simulation:
+    if net == "lattice":
+        return lattice_simulation(cells, integrator, h, **options)
+    return bracket_simulation(integrator, h, **options)
+
+
+def run_path(net: str, cells: int, h: float, path: str, steps: int) -> dict:
+    """One path at one step: ms/step and the stepper's summary (or the failure)."""
+    sim = make(net, cells, "em2", h, **PATHS[path])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # substeps are reported in the table
+        try:
+            sim.run(steps=1, diagnostics_every=10**9)  # compilation, first factorization
+            t0 = time.perf_counter()
+            sim.run(steps=steps, diagnostics_every=10**9)
+            seconds = (time.perf_counter() - t0) / steps
+        except tn.SimulationError as exc:
+            return dict(path=path, failed=str(exc).split(";")[0], ms=math.inf, summary=sim.stepper.summary(),
+                        springs=sim.net.n_springs)
+    return dict(path=path, failed=None, ms=1e3 * seconds, summary=sim.stepper.summary(), springs=sim.net.n_springs)
+
+
+def measure(nets, cells: int, factors, steps: int, paths=tuple(PATHS), out=print) -> list[dict]:
+    """The table's rows: per net and factor, each path's row (``run_path``) with net, factor,
+    springs, h and h·ω_max added; prints them as a markdown table."""
+    rows = []
+    out("| net | springs | factor | h·ω_max | path | ms/step | Newton it./step | substepped | continued "
+        "| factorizations (kept) | auto chose |")
+    out("|---|---:|---:|---:|---|---:|---:|---:|---:|---:|---|")
+    for net in nets:
+        est = stable_step(make(net, cells, "co2", 1.0 if net == "lattice" else 1e-7))
+        for factor in factors:
+            h = factor * est["h_max"]
+            for path in paths:
+                row = run_path(net, cells, h, path, steps)
+                s = row["summary"]
+                row.update(net=net, factor=factor, h=h, h_omega=h * est["omega_max"])
+                rows.append(row)
+                chose = f"{s['linear_solver']}: {s['path_reason']}" if path == "auto" else ""
+                if row["failed"]:
+                    out(f"| {net} | {row['springs']} | {factor:g} | {row['h_omega']:.3g} | {path} | failed: {row['failed'][:60]} "
+                        f"| | | | | {chose} |")
+                    continue
+                out(f"| {net} | {row['springs']} | {factor:g} | {row['h_omega']:.3g} | {path} | {row['ms']:.2f} | "
+                    f"{s['iterations_mean']:.2f} | {s['retried_steps']}/{s['steps']} | {s['continued_steps']} | "
+                    f"{s['factorizations']} ({s['reused_factorizations']}) | {chose} |")
+    return rows
+
+
+def fastest(rows: list[dict]) -> dict:
+    """{(net, factor): the fastest measured path other than auto}, and auto's ratio to it as
+    {(net, factor, "auto"): ratio}."""
+    best, out = {}, {}
+    for r in rows:
+        if r["path"] == "auto":
+            continue
+        key = (r["net"], r["factor"])
+        if key not in best or r["ms"] < best[key]["ms"]:
+            best[key] = r
+    for r in rows:
+        if r["path"] == "auto":
+            key = (r["net"], r["factor"])
+            out[key] = best[key]["path"]
+            out[key + ("auto",)] = r["ms"] / best[key]["ms"]
+    return out
+
+
+def main(argv=None) -> list[dict]:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--nets", nargs="+", default=["lattice", "bracket"], choices=["lattice", "bracket"])
+    ap.add_argument("--cells", type=int, default=8, help="lattice cells per side (8: 1 728 springs)")
+    ap.add_argument("--factors", nargs="+", type=float, default=[1, 3, 10, 100, 1e4],
+                    help="steps as multiples of CO2's stable step")
+    ap.add_argument("--steps", type=int, default=10)
+    ap.add_argument("--paths", nargs="+", default=list(PATHS), choices=list(PATHS))
+    ap.add_argument("--quick", action="store_true", help="a 3-cell lattice, factors 1 and 100, 2 steps")
+    args = ap.parse_args(argv)
+    if args.quick:
+        args.nets, args.cells, args.factors, args.steps = ["lattice"], 3, [1, 100], 2
+        args.paths = ["sweeps", "splu-reuse", "auto"]
+    print(f"EM2 per path; load: {os.getloadavg()[0]:.2f} (1-min average), {os.cpu_count()} CPUs\n")
+    rows = measure(args.nets, args.cells, args.factors, args.steps, args.paths)
+    best = fastest(rows) if "auto" in args.paths else {}
+    if best:
+        print("\n| net | factor | fastest | auto / fastest |\n|---|---:|---|---:|")
+        for key, path in best.items():
+            if len(key) == 2:
+                print(f"| {key[0]} | {key[1]:g} | {path} | {best[key + ('auto',)]:.2f} |")
+    return rows
+
+
+if __name__ == "__main__":
+    main()
