@@ -48,16 +48,19 @@ def scene_simulation(name: str, factor: float, steps: int, **options):
 
 
 def test_the_choice_rule():
-    """Sweeps up to SWEEPS_MAX_HW, SuperLU with kept factorizations above, at any size; the
-    reason names h·ω_max."""
-    for size in (30, 2000, 200_000):
-        assert choose_by_step(1.0, 0.9 * SWEEPS_MAX_HW, size).linear_solver == "sweeps"
+    """Sweeps up to SWEEPS_MAX_HW, SuperLU with kept factorizations above; on nets of 25–200
+    unknowns SuperLU at every step; the reason names h·ω_max."""
+    for size in (24, 201, 2000, 200_000):
+        assert choose_by_step(1.0, 0.99 * SWEEPS_MAX_HW, size).linear_solver == "sweeps"
         for hw in (1.01 * SWEEPS_MAX_HW, 20.0, 2e4, np.inf):
             c = choose_by_step(1.0, hw, size)
             assert (c.path, c.linear_solver) == ("sparse", "splu-reuse")
             assert "h·ω_max" in c.reason
-    c = choose_by_step(0.5, 8.0, 100)
-    assert c.h_omega == 4.0 and c.h == 0.5
+    for size in (25, 144, 200):
+        for hw in (0.1, 2.0, 0.99 * SWEEPS_MAX_HW, 1e4):
+            assert choose_by_step(1.0, hw, size).linear_solver == "splu-reuse"
+    c = choose_by_step(0.5, 8.0, 1000)
+    assert c.h_omega == 4.0 and c.h == 0.5 and c.path == "compiled"
 
 
 #: the fastest path benchmarks/em2_paths.py measured, per net and step (× CO2's stable step);
@@ -234,5 +237,5 @@ def test_the_benchmark_runs_quick(capsys):
     for r in rows:
         assert r["failed"] is None and np.isfinite(r["ms"]) and r["ms"] > 0
         if r["path"] == "auto":
-            expect = choose_by_step(r["h"], r["h_omega"] / r["h"], 0).linear_solver
+            expect = choose_by_step(r["h"], r["h_omega"] / r["h"], r["summary"]["unknowns"]).linear_solver
             assert r["summary"]["linear_solver"] == ("compiled, sweeps" if expect == "sweeps" else expect)

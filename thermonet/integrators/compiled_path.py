@@ -13,10 +13,11 @@ stall).
 
 A scheme meant for steps far above the explicit limit (EM2: ``chooses_by_step``) makes the
 "auto" choice from the step instead (:func:`choose_by_step`): the sweeps are preconditioned by
-the inertia (m/h) alone, so the sweeps a linear solve needs grow with h·ω_max (measured
-≈ (h·ω_max)¹ per solve on a tetrahedral part, and the Newton iterations with it); a factorized
-solve costs the same at any step. Above SWEEPS_MAX_HW the sparse path with SuperLU and kept
-factorizations (``linear_solver="splu-reuse"``, modified Newton) runs instead.
+the inertia (m/h) alone, so the sweeps a linear solve needs grow with h·ω_max (a step's cost
+grows about ∝ h·ω_max on a tetrahedral part, and faster where Newton then needs more
+iterations); a factorized solve costs the same at any step. Above SWEEPS_MAX_HW, and at every
+step on small nets, the sparse path with SuperLU and kept factorizations
+(``linear_solver="splu-reuse"``, modified Newton) runs instead.
 """
 
 from __future__ import annotations
@@ -46,10 +47,16 @@ AUTO_DENSE_MAX_UNKNOWNS = 24
 
 #: "auto" for a scheme that chooses by the step (EM2): the compiled path's matrix-free sweeps up
 #: to this h·ω_max (ω_max: the largest angular frequency of the net linearized at the run's
-#: start, thermonet.stability.max_frequency; CO2's stable step is 2/ω_max), the sparse path with
-#: "splu-reuse" above. Measured crossover: benchmarks/em2_paths.py (benchmarks/README.md, "EM2's
-#: solver path").
-SWEEPS_MAX_HW = 4.0
+#: state, thermonet.stability.max_frequency; CO2's stable step is 2/ω_max), the sparse path with
+#: "splu-reuse" above. Measured crossovers (benchmarks/em2_paths.py; benchmarks/README.md, "EM2's
+#: solver path"): between h·ω_max = 8 and 16 on 18-neighbour lattices of 540 and 1 944 unknowns,
+#: between 8 and 20 on a tetrahedral part of 2 738 springs
+SWEEPS_MAX_HW = 10.0
+#: … except on nets of more than AUTO_DENSE_MAX_UNKNOWNS and at most SPLU_ALWAYS_MAX_UNKNOWNS unknowns, where
+#: SuperLU's factorization is so cheap that "splu-reuse" is faster at every step (measured 1.8×
+#: at h·ω_max = 2 on 144 unknowns); below, the compiled path's dense LU (AUTO_DENSE_MAX_UNKNOWNS:
+#: no Python call per iteration)
+SPLU_ALWAYS_MAX_UNKNOWNS = 200
 
 
 @dataclass(frozen=True)
@@ -66,18 +73,24 @@ class PathChoice:
 
 def choose_by_step(h: float, omega_max: float, size: int, sweeps_max_hw: float = None) -> PathChoice:
     """The "auto" path of a scheme that chooses by the step (EM2), for step h on a net of
-    ``size`` unknowns whose largest angular frequency is ``omega_max``."""
+    ``size`` unknowns whose largest angular frequency is ``omega_max``: "sweeps" (the compiled
+    path the stepper was made with: matrix-free sweeps, or the dense LU on the smallest nets)
+    or "splu-reuse" (the sparse path, SuperLU with kept factorizations)."""
     limit = SWEEPS_MAX_HW if sweeps_max_hw is None else sweeps_max_hw
     hw = float(h) * float(omega_max)
+    where = f"h·ω_max = {hw:.3g}" + (f" ({hw / 2:.3g}× CO2's stable step)" if math.isfinite(hw) else "")
     if not math.isfinite(hw):
-        return PathChoice(h, hw, "sparse", "splu-reuse", f"h·ω_max not finite ({omega_max:g}): a factorized solve")
+        return PathChoice(h, hw, "sparse", "splu-reuse", f"{where}: SuperLU with kept factorizations")
+    if AUTO_DENSE_MAX_UNKNOWNS < size <= SPLU_ALWAYS_MAX_UNKNOWNS:
+        return PathChoice(h, hw, "sparse", "splu-reuse",
+                          f"{where}, {size} unknowns (≤ {SPLU_ALWAYS_MAX_UNKNOWNS}): SuperLU with kept "
+                          f"factorizations is the cheapest at any step on a net this small")
     if hw <= limit:
         return PathChoice(h, hw, "compiled", "sweeps",
-                          f"h·ω_max = {hw:.3g} ≤ {limit:g} ({hw / 2:.3g}× CO2's stable step): "
-                          f"inertia-preconditioned sweeps converge in a few sweeps")
+                          f"{where} ≤ {limit:g}: inertia-preconditioned sweeps converge in a few sweeps")
     return PathChoice(h, hw, "sparse", "splu-reuse",
-                      f"h·ω_max = {hw:.3g} > {limit:g} ({hw / 2:.3g}× CO2's stable step): sweeps would need "
-                      f"≈ h·ω_max each; SuperLU with kept factorizations ({size} unknowns)")
+                      f"{where} > {limit:g}: sweeps would need ≈ h·ω_max each; SuperLU with kept "
+                      f"factorizations ({size} unknowns)")
 
 
 def offers_compiled(kernels) -> bool:
