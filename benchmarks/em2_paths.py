@@ -3,7 +3,9 @@ matrix-free sweeps to the sparse path's SuperLU.
 
 For each net and each step h = factor × CO2's stable step (h·ω_max = 2 factor), runs EM2 on
 each path and prints milliseconds per step, Newton iterations per step, the steps redone as
-substeps and the steps solved by continuation, and the path "auto" chose (and its reason):
+substeps and the steps solved by continuation, the path "auto" chose (and its reason), and the
+simulated time per wall time against CO2's at 0.9× its stable step on the same net (> 1: EM2
+gets through simulated time faster):
 
 - ``sweeps``: ``newton_path = "compiled"`` (inertia-preconditioned matrix-free sweeps);
 - ``splu``: ``newton_path = "sparse"``, ``linear_solver = "splu"`` (a factorization per iteration);
@@ -36,6 +38,8 @@ import thermonet as tn
 from thermonet.stability import stable_step
 
 HERE = os.path.dirname(os.path.abspath(__file__))
+#: CO2's step in the speed-up column: this fraction of its stable step (the step policy's SAFETY)
+CO2_FRACTION = 0.9
 PATHS = {
     "sweeps": dict(newton_path="compiled"),
     "splu": dict(newton_path="sparse", linear_solver="splu"),
@@ -91,25 +95,35 @@ def measure(nets, cells: int, factors, steps: int, paths=tuple(PATHS), out=print
     springs, h and h·ω_max added; prints them as a markdown table."""
     rows = []
     out("| net | springs | factor | h·ω_max | path | ms/step | Newton it./step | substepped | continued "
-        "| factorizations (kept) | auto chose |")
-    out("|---|---:|---:|---:|---|---:|---:|---:|---:|---:|---|")
+        "| factorizations (kept) | auto chose | simulated time per wall time ÷ CO2's |")
+    out("|---|---:|---:|---:|---|---:|---:|---:|---:|---:|---|---:|")
     for net in nets:
         est = stable_step(make(net, cells, "co2", 1.0 if net == "lattice" else 1e-7))
+        co2 = make(net, cells, "co2", CO2_FRACTION * est["h_max"])
+        co2.run(steps=1, diagnostics_every=10**9)
+        n_co2 = max(20, 20 * steps)
+        t0 = time.perf_counter()
+        co2.run(steps=n_co2, diagnostics_every=10**9)
+        co2_ms = 1e3 * (time.perf_counter() - t0) / n_co2
+        co2_rate = co2_ms / (CO2_FRACTION * est["h_max"])  # ms per unit of simulated time
+        out(f"| {net} | {co2.net.n_springs} | {CO2_FRACTION:g} | {2 * CO2_FRACTION:.3g} | co2 | {co2_ms:.3f} | | | "
+            f"| | (CO2 at {CO2_FRACTION:g}× its stable step: the speed-up column's reference) | 1 |")
         for factor in factors:
             h = factor * est["h_max"]
             for path in paths:
                 row = run_path(net, cells, h, path, steps)
                 s = row["summary"]
-                row.update(net=net, factor=factor, h=h, h_omega=h * est["omega_max"])
+                row.update(net=net, factor=factor, h=h, h_omega=h * est["omega_max"],
+                           speedup=co2_rate / (row["ms"] / h))
                 rows.append(row)
                 chose = f"{s['linear_solver']}: {s['path_reason']}" if path == "auto" else ""
                 if row["failed"]:
                     out(f"| {net} | {row['springs']} | {factor:g} | {row['h_omega']:.3g} | {path} | failed: {row['failed'][:60]} "
-                        f"| | | | | {chose} |")
+                        f"| | | | | {chose} | |")
                     continue
                 out(f"| {net} | {row['springs']} | {factor:g} | {row['h_omega']:.3g} | {path} | {row['ms']:.2f} | "
                     f"{s['iterations_mean']:.2f} | {s['retried_steps']}/{s['steps']} | {s['continued_steps']} | "
-                    f"{s['factorizations']} ({s['reused_factorizations']}) | {chose} |")
+                    f"{s['factorizations']} ({s['reused_factorizations']}) | {chose} | {row['speedup']:.3g} |")
     return rows
 
 

@@ -143,6 +143,8 @@ class ImplicitStepper(Stepper):
         self.timers = NewtonTimers()
         #: the compiled path (integrators/compiled_path.py), or None: the sparse one
         self.compiled = CompiledNewton(self) if use_compiled(options, size, self.kernels, integrator.name) else None
+        #: (h, the first solved stage's τ/h) of the last step that continuation found hard, or None
+        self._hard = None
         #: the choice "auto" made by the step (chooses_by_step), or None (not chosen by the step)
         self.path_choice = None
         self._by_step = self.chooses_by_step and options.newton_path == "auto" and options.linear_solver == "auto"
@@ -309,11 +311,17 @@ class ImplicitStepper(Stepper):
                 return done
             if not failure[-1] and not self.continuation:
                 raise _StepError(*failure[:4])
-        self.begin(x, p, eta, h)
-        self.predict(self.u)
-        result = newton(self, self.u, self.options, self.solver, self.timers, stall=self.continuation)
-        if not result.converged and self.continuation:
-            result = self.continued(x, p, eta, h, result)
+        if self.continuation and self._hard is not None and self._hard[0] == h:
+            # the last step of this h needed several stages: no first try at h from the predictor
+            result = self.continued(x, p, eta, h, NewtonResult(False, 0, [], reason="continued at once"))
+        else:
+            self.begin(x, p, eta, h)
+            self.predict(self.u)
+            result = newton(self, self.u, self.options, self.solver, self.timers, stall=self.continuation)
+            if not result.converged and self.continuation:
+                result = self.continued(x, p, eta, h, result)
+            elif result.converged:
+                self._hard = None
         if not result.converged:
             raise _StepError(result.reason, result, result.status, result.spring)
         status, spring = self.finish(phi, self._new)
@@ -336,11 +344,17 @@ class ImplicitStepper(Stepper):
         loose = dataclasses.replace(self.options, tolerance=max(self.options.tolerance, self.CONTINUATION_TOLERANCE))
         result = failed
         solved = [(0.0, np.zeros_like(self.u))]
-        tau, dtau = 0.0, 0.5 * h
+        # the first stage: h/2, or twice the first stage that the last continued step of this h
+        # could solve
+        first = min(0.5, 2.0 * self._hard[1]) if self._hard is not None and self._hard[0] == h else 0.5
+        tau, dtau = 0.0, first * h
+        stages = failures = 0
         for _ in range(self.CONTINUATION_MAX_SOLVES):
             if dtau < self.CONTINUATION_MIN_FRACTION * h:
                 break
             last = tau + dtau >= h * (1.0 - 1e-9)
+            if last:
+                dtau = h - tau  # (so that a failure halves the stage actually tried)
             t = h if last else tau + dtau
             self.begin(x, p, eta, t)  # (the last stage: the step itself, h exactly)
             self.predict(self.u)
@@ -350,13 +364,19 @@ class ImplicitStepper(Stepper):
             iterations += result.iterations
             jacobi += result.jacobi_steps
             if result.converged:
+                stages += 1
                 if last:
                     self.totals["continued_steps"] += 1
+                    # a hard step (more than two stages, or a failed one): the next step of this h
+                    # goes straight to continuation, from this one's first solved stage
+                    self._hard = (h, solved[1][0] / h if len(solved) > 1 else 1.0) if stages > 2 or failures else None
                     return dataclasses.replace(result, iterations=iterations, jacobi_steps=jacobi)
                 solved.append((t, self.u.copy()))
                 tau, dtau = t, 2.0 * dtau
             else:
+                failures += 1
                 dtau *= 0.5
+        self._hard = None
         self.begin(x, p, eta, h)  # (the failure's report reads the step's start)
         return dataclasses.replace(result, iterations=iterations, jacobi_steps=jacobi)
 
