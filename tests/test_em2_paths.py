@@ -239,3 +239,19 @@ def test_the_benchmark_runs_quick(capsys):
         if r["path"] == "auto":
             expect = choose_by_step(r["h"], r["h_omega"] / r["h"], r["summary"]["unknowns"]).linear_solver
             assert r["summary"]["linear_solver"] == ("compiled, sweeps" if expect == "sweeps" else expect)
+
+
+def test_the_run_summary_says_which_path_ran_why_and_the_substep_fraction():
+    from thermonet.cli.report import format_summary
+
+    sim = small_net(30)  # 105 unknowns
+    sim.run(steps=3, diagnostics_every=3)
+    line = next(l for l in format_summary(sim, "small").splitlines() if l.strip().startswith("Newton path:"))
+    assert "sparse, splu-reuse" in line and "h·ω_max = 60" in line and "105 unknowns (≤ 200)" in line
+    assert "substepped steps 0 %" in line
+    bench = _benchmark()
+    est = stable_step(bench.lattice_simulation(5, "co2", 1.0))
+    sim = bench.lattice_simulation(5, "em2", est["h_max"])  # 540 unknowns, 1×
+    sim.run(steps=2, diagnostics_every=2)
+    line = next(l for l in format_summary(sim, "lattice").splitlines() if l.strip().startswith("Newton path:"))
+    assert "Newton path: compiled, sweeps (" in line and "h·ω_max = 2 " in line and "≤ 10" in line

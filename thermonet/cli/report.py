@@ -22,7 +22,8 @@ def format_summary(sim, scene: str, out: str | None = None) -> str:
                         + (f" + {nw['jacobi_steps'] / max(1, nw['steps']):.3g} Jacobi steps/step" if nw.get("jacobi_steps") else "")
                         + f", final scaled residual <= {nw['residual_max']:.2e}, {nw['retried_steps']} retried steps")
         if "newton_path" in nw:  # which path ran and why; the steps redone as substeps
-            lines.insert(3, f"  Newton path: {nw['newton_path']}, {nw['linear_solver']} ({nw['path_reason']}); "
+            path = nw["linear_solver"] if nw["newton_path"] == "compiled" else f"sparse, {nw['linear_solver']}"
+            lines.insert(3, f"  Newton path: {path} ({nw['path_reason']}); "
                             f"substepped steps {100 * nw['substep_fraction']:.3g} %"
                             + (f", {nw['continued_steps']} steps solved by continuation in h"
                                if nw.get("continued_steps") else ""))
