@@ -168,7 +168,8 @@ def measure(nets, cells: int, factors, steps: int, paths=tuple(PATHS), out=print
                 rows.append(row)
                 chose = f"{s['linear_solver']}: {s['path_reason']}" if path == "auto" else ""
                 if row["failed"]:
-                    out(f"| {net} | {row['springs']} | {factor:g} | {row['h_omega']:.3g} | {path} | failed: {row['failed'][:60]} "
+                    out(f"| {net} | {row['springs']} | {factor:g} | {row['h_omega']:.3g} | {path} "
+                        f"| failed: {row['failed'][:60]} "
                         f"| | | | | {chose} | |")
                     continue
                 out(f"| {net} | {row['springs']} | {factor:g} | {row['h_omega']:.3g} | {path} | {row['ms']:.2f} | "

@@ -12,7 +12,6 @@ the state exactly at the last good step.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import warnings
 from abc import abstractmethod
@@ -26,7 +25,8 @@ from ..kernels.implicit_records import (BlockPlaces, NextState, NodeData, Residu
 from ..solvers import BlockPattern, NewtonOptions, NewtonResult, NewtonTimers, make_linear_solver
 from ..solvers.newton import newton
 from .base import Stepper, StepFailure
-from .compiled_path import CompiledNewton, choose_by_step, use_compiled
+from .compiled_path import CompiledNewton, use_compiled
+from .large_steps import choose_path, continued
 
 
 class _StepError(Exception):
@@ -172,31 +172,8 @@ class ImplicitStepper(Stepper):
         return solver
 
     def choose_path(self, state, h: float) -> None:
-        """"auto" by the step: at a new h, estimate ω_max at ``state`` and take the path
-        :func:`choose_by_step` names (the compiled sweeps, or the sparse path with SuperLU and
-        kept factorizations), each made once and kept for a later return to its h."""
-        if self.path_choice is not None and self.path_choice.h == h:
-            return
-        from ..stability import max_frequency
-
-        # the path the stepper was made with ("auto" by the size: the sweeps, or on a small net
-        # the dense LU) serves the steps near the limit
-        compiled, solver = self._paths.setdefault("made", (self.compiled, self.solver))
-        omega = max_frequency(self.system, state.positions, state.entropy).omega_max
-        choice = choose_by_step(h, omega, self.pattern.size)
-        if choice.linear_solver == "sweeps":
-            made = compiled.linear_solver if compiled is not None else solver.name
-            if made != "sweeps":
-                choice = dataclasses.replace(choice, path="compiled" if compiled is not None else "sparse",
-                                             linear_solver=made, reason=choice.reason + f" (here: {made})")
-            self._paths.setdefault(choice.linear_solver, (compiled, solver))
-        elif choice.linear_solver not in self._paths:
-            if self.data.size != self.pattern.nnz:
-                self.data = np.zeros(self.pattern.nnz)
-            self._paths[choice.linear_solver] = (None, self.wrap_solver(make_linear_solver(choice.linear_solver,
-                                                                                         self.pattern, self)))
-        self.compiled, self.solver = self._paths[choice.linear_solver]
-        self.path_choice = choice
+        """"auto" by the step: at a new h, the path :func:`.large_steps.choose_path` names."""
+        choose_path(self, state, h)
 
     # -- scheme hooks ---------------------------------------------------------------------------
     @abstractmethod
@@ -330,55 +307,9 @@ class ImplicitStepper(Stepper):
         return self._new, result
 
     def continued(self, x, p, eta, h: float, failed: NewtonResult) -> NewtonResult:
-        """The step's own equations (step h from x⁰, p⁰) solved by continuation in the step: the
-        equations of steps τ from the same start, τ rising from 0 to h, each solved from the
-        extrapolation of the solutions u(τ) before it (u(0) = 0; the first from the scheme's
-        predictor at τ, the next linear, then quadratic through the last three), the
-        intermediate ones to CONTINUATION_TOLERANCE. τ starts at h/2 and doubles its increment
-        after each solved stage; a failed stage halves it, down to h·CONTINUATION_MIN_FRACTION,
-        and at most CONTINUATION_MAX_SOLVES stages are tried. Where u(τ) has no fold on the way,
-        this reaches a root that the predictor at h missed. The result is one step of h (not
-        substeps), converged to the step's own tolerance, in ``u``; the Newton record is that of
-        the last stage with the iterations of all (the failed first try's included)."""
-        iterations, jacobi = failed.iterations, failed.jacobi_steps
-        loose = dataclasses.replace(self.options, tolerance=max(self.options.tolerance, self.CONTINUATION_TOLERANCE))
-        result = failed
-        solved = [(0.0, np.zeros_like(self.u))]
-        # the first stage: h/2, or twice the first stage that the last continued step of this h
-        # could solve
-        first = min(0.5, 2.0 * self._hard[1]) if self._hard is not None and self._hard[0] == h else 0.5
-        tau, dtau = 0.0, first * h
-        stages = failures = 0
-        for _ in range(self.CONTINUATION_MAX_SOLVES):
-            if dtau < self.CONTINUATION_MIN_FRACTION * h:
-                break
-            last = tau + dtau >= h * (1.0 - 1e-9)
-            if last:
-                dtau = h - tau  # (so that a failure halves the stage actually tried)
-            t = h if last else tau + dtau
-            self.begin(x, p, eta, t)  # (the last stage: the step itself, h exactly)
-            self.predict(self.u)
-            if len(solved) > 1:
-                self.u[:] = _extrapolate(solved[-3:], t)
-            result = newton(self, self.u, self.options if last else loose, self.solver, self.timers, stall=True)
-            iterations += result.iterations
-            jacobi += result.jacobi_steps
-            if result.converged:
-                stages += 1
-                if last:
-                    self.totals["continued_steps"] += 1
-                    # a hard step (more than two stages, or a failed one): the next step of this h
-                    # goes straight to continuation, from this one's first solved stage
-                    self._hard = (h, solved[1][0] / h if len(solved) > 1 else 1.0) if stages > 2 or failures else None
-                    return dataclasses.replace(result, iterations=iterations, jacobi_steps=jacobi)
-                solved.append((t, self.u.copy()))
-                tau, dtau = t, 2.0 * dtau
-            else:
-                failures += 1
-                dtau *= 0.5
-        self._hard = None
-        self.begin(x, p, eta, h)  # (the failure's report reads the step's start)
-        return dataclasses.replace(result, iterations=iterations, jacobi_steps=jacobi)
+        """The step's own equations solved by continuation in the step
+        (:func:`.large_steps.continued`); ``failed``: the Newton solve from the predictor."""
+        return continued(self, x, p, eta, h, failed)
 
     # -- the Stepper interface --------------------------------------------------------------------
     #: the key in ``state.extra`` of the predictor's history (rate 2, HO4): the unknowns of the
@@ -559,8 +490,9 @@ class ImplicitStepper(Stepper):
         t["linear_solver"] = self.solver.name if self.compiled is None else f"compiled, {self.compiled.linear_solver}"
         t["newton_path"] = "sparse" if self.compiled is None else "compiled"
         choice = self.path_choice
+        opts = self.options
         t["path_reason"] = (choice.reason if choice is not None else
-                            f"newton_path = {self.options.newton_path!r}, linear_solver = {self.options.linear_solver!r}")
+                            f"newton_path = {opts.newton_path!r}, linear_solver = {opts.linear_solver!r}")
         t["h_omega_max"] = choice.h_omega if choice is not None else math.nan
         # steps redone as substeps (the retry policy), as a fraction of the steps
         t["substep_fraction"] = t["retried_steps"] / t["steps"] if t["steps"] else 0.0
@@ -572,18 +504,6 @@ class ImplicitStepper(Stepper):
         t["local_steps"] = self.timers.local_steps  # of those, the ones on a few nodes only
         t.update({f"time_{k}": v for k, v in self.timers.as_dict().items() if isinstance(v, float)})
         return t
-
-
-def _extrapolate(points, t: float) -> np.ndarray:
-    """The Lagrange polynomial through ``points`` [(τ, u(τ)), …] (2 or 3 of them) at t."""
-    out = np.zeros_like(points[0][1])
-    for i, (ti, ui) in enumerate(points):
-        w = 1.0
-        for j, (tj, _) in enumerate(points):
-            if j != i:
-                w *= (t - tj) / (ti - tj)
-        out += w * ui
-    return out
 
 
 def newton_options(options: dict) -> NewtonOptions:
