@@ -16,8 +16,9 @@ Nets: ``lattice``, a jittered 18-neighbour 3D lattice of ``--cells`` cells per s
 c = 100, θ0 = 300), its bottom face clamped, at rest and 50 K above θ0 (thermal stress, a slow
 expansion; with 6 neighbours the cubic cells would be mechanisms, held only by the springs'
 tension); ``bracket``, scenes/bracket.toml (a gmsh tetrahedral aluminium part, SI units, hot
-flange, conduction). Each run takes one untimed step (compilation, first factorization) and
-then ``--steps`` timed steps; a path that fails a step is reported as failed.
+flange, conduction). The paths of one net and step run interleaved: one untimed step each
+(compilation, first factorization), then ``--rounds`` rounds of ``--steps`` steps of each path
+in turn, ms/step the median over the rounds; a path that fails a step is reported as failed.
 
     python benchmarks/em2_paths.py                        # both nets, factors 1 3 10 100 1e4
     python benchmarks/em2_paths.py --nets bracket --factors 1 2 3 5 10
@@ -30,6 +31,7 @@ from __future__ import annotations
 import argparse
 import math
 import os
+import statistics
 import sys
 import time
 import warnings
@@ -119,25 +121,35 @@ def make(net: str, cells: int, integrator: str, h: float, **options) -> tn.Simul
     return bracket_simulation(integrator, h, **options)
 
 
-def run_path(net: str, cells: int, h: float, path: str, steps: int) -> dict:
-    """One path at one step: ms/step and the stepper's summary (or the failure)."""
-    sim = make(net, cells, "em2", h, **PATHS[path])
+def run_paths(net: str, cells: int, h: float, paths, steps: int, rounds: int) -> list[dict]:
+    """The paths at one step, interleaved (a drift of a shared machine hits all alike): each
+    simulation takes one untimed step (compilation, first factorization), then ``rounds``
+    rounds each time ``steps`` steps of every path in turn; ms/step is the median over the
+    rounds. Returns a row per path: ms/step and the stepper's summary (or the failure)."""
+    sims = {path: make(net, cells, "em2", h, **PATHS[path]) for path in paths}
+    times = {path: [] for path in paths}
+    failed = {}
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # substeps are reported in the table
-        try:
-            sim.run(steps=1, diagnostics_every=10**9)  # compilation, first factorization
-            t0 = time.perf_counter()
-            sim.run(steps=steps, diagnostics_every=10**9)
-            seconds = (time.perf_counter() - t0) / steps
-        except tn.SimulationError as exc:
-            return dict(path=path, failed=str(exc).split(";")[0], ms=math.inf, summary=sim.stepper.summary(),
-                        springs=sim.net.n_springs)
-    return dict(path=path, failed=None, ms=1e3 * seconds, summary=sim.stepper.summary(), springs=sim.net.n_springs)
+        for r in range(rounds + 1):
+            for path, sim in sims.items():
+                if path in failed:
+                    continue
+                try:
+                    t0 = time.perf_counter()
+                    sim.run(steps=1 if r == 0 else steps, diagnostics_every=10**9)
+                    if r:
+                        times[path].append((time.perf_counter() - t0) / steps)
+                except tn.SimulationError as exc:
+                    failed[path] = str(exc).split(";")[0]
+    return [dict(path=path, failed=failed.get(path),
+                 ms=math.inf if path in failed else 1e3 * statistics.median(times[path]),
+                 summary=sim.stepper.summary(), springs=sim.net.n_springs) for path, sim in sims.items()]
 
 
 def measure(nets, cells: int, factors, steps: int, paths=tuple(PATHS), out=print,
-            sweeps_max_factor: float = math.inf) -> list[dict]:
-    """The table's rows: per net and factor, each path's row (``run_path``) with net, factor,
+            sweeps_max_factor: float = math.inf, rounds: int = 3) -> list[dict]:
+    """The table's rows: per net and factor, each path's row (``run_paths``) with net, factor,
     springs, h and h·ω_max added; prints them as a markdown table."""
     rows = []
     out("| net | springs | factor | h·ω_max | path | ms/step | Newton it./step | substepped | continued "
@@ -148,20 +160,23 @@ def measure(nets, cells: int, factors, steps: int, paths=tuple(PATHS), out=print
         co2 = make(net, cells, "co2", CO2_FRACTION * est["h_max"])
         co2.run(steps=1, diagnostics_every=10**9)
         n_co2 = max(20, 20 * steps)
-        t0 = time.perf_counter()
-        co2.run(steps=n_co2, diagnostics_every=10**9)
-        co2_ms = 1e3 * (time.perf_counter() - t0) / n_co2
+        samples = []
+        for _ in range(3):
+            t0 = time.perf_counter()
+            co2.run(steps=n_co2, diagnostics_every=10**9)
+            samples.append(1e3 * (time.perf_counter() - t0) / n_co2)
+        co2_ms = statistics.median(samples)
         co2_rate = co2_ms / (CO2_FRACTION * est["h_max"])  # ms per unit of simulated time
         out(f"| {net} | {co2.net.n_springs} | {CO2_FRACTION:g} | {2 * CO2_FRACTION:.3g} | co2 | {co2_ms:.3f} | | | "
             f"| | (CO2 at {CO2_FRACTION:g}× its stable step: the speed-up column's reference) | 1 |")
         for factor in factors:
             h = factor * est["h_max"]
-            for path in paths:
-                if path == "sweeps" and factor > sweeps_max_factor:
-                    out(f"| {net} | | {factor:g} | {h * est['omega_max']:.3g} | sweeps | not run (above "
-                        f"--sweeps-max-factor {sweeps_max_factor:g}) | | | | | | |")
-                    continue
-                row = run_path(net, cells, h, path, steps)
+            if "sweeps" in paths and factor > sweeps_max_factor:
+                out(f"| {net} | | {factor:g} | {h * est['omega_max']:.3g} | sweeps | not run (above "
+                    f"--sweeps-max-factor {sweeps_max_factor:g}) | | | | | | |")
+            for row in run_paths(net, cells, h, [p for p in paths if p != "sweeps" or factor <= sweeps_max_factor],
+                                 steps, rounds):
+                path = row["path"]
                 s = row["summary"]
                 row.update(net=net, factor=factor, h=h, h_omega=h * est["omega_max"],
                            speedup=co2_rate / (row["ms"] / h))
@@ -204,7 +219,8 @@ def main(argv=None) -> list[dict]:
     ap.add_argument("--cells", type=int, default=8, help="lattice cells per side (8: 6 048 springs)")
     ap.add_argument("--factors", nargs="+", type=float, default=[1, 3, 10, 100, 1e4],
                     help="steps as multiples of CO2's stable step")
-    ap.add_argument("--steps", type=int, default=10)
+    ap.add_argument("--steps", type=int, default=4, help="steps per round")
+    ap.add_argument("--rounds", type=int, default=3, help="interleaved rounds (ms/step: their median)")
     ap.add_argument("--paths", nargs="+", default=list(PATHS), choices=list(PATHS))
     ap.add_argument("--sweeps-max-factor", type=float, default=1000.0,
                     help="skip the sweeps above this factor (at 1e4× on the bracket a step did not converge "
@@ -221,11 +237,11 @@ def main(argv=None) -> list[dict]:
         print(f"EM2 on the shipped scenes; load: {os.getloadavg()[0]:.2f} (1-min average), {os.cpu_count()} CPUs\n")
         return scene_fractions(args.scenes or SCENES, factors, steps)
     if args.quick:
-        args.nets, args.cells, args.factors, args.steps = ["lattice"], 3, [1, 100], 2
+        args.nets, args.cells, args.factors, args.steps, args.rounds = ["lattice"], 3, [1, 100], 2, 1
         args.paths = ["sweeps", "splu-reuse", "auto"]
     print(f"EM2 per path; load: {os.getloadavg()[0]:.2f} (1-min average), {os.cpu_count()} CPUs\n")
     rows = measure(args.nets, args.cells, args.factors, args.steps, args.paths,
-                   sweeps_max_factor=args.sweeps_max_factor)
+                   sweeps_max_factor=args.sweeps_max_factor, rounds=args.rounds)
     best = fastest(rows) if "auto" in args.paths else {}
     if best:
         print("\n| net | factor | fastest | auto / fastest |\n|---|---:|---|---:|")
