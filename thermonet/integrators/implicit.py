@@ -493,7 +493,7 @@ class ImplicitStepper(Stepper):
         opts = self.options
         t["path_reason"] = (choice.reason if choice is not None else
                             f"newton_path = {opts.newton_path!r}, linear_solver = {opts.linear_solver!r}")
-        t["h_omega_max"] = choice.h_omega if choice is not None else math.nan
+        t["h_omega_max"] = choice.h_omega if choice is not None else None  # (not chosen by the step)
         # steps redone as substeps (the retry policy), as a fraction of the steps
         t["substep_fraction"] = t["retried_steps"] / t["steps"] if t["steps"] else 0.0
         t["factorizations"] = self.timers.factorizations  # (splu-reuse) made, and iterations that kept one
