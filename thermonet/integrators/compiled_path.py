@@ -50,7 +50,7 @@ AUTO_DENSE_MAX_UNKNOWNS = 24
 #: state, thermonet.stability.max_frequency; CO2's stable step is 2/ω_max), the sparse path with
 #: "splu-reuse" above. Measured crossovers (benchmarks/em2_paths.py; benchmarks/README.md, "EM2's
 #: solver path"): between h·ω_max = 8 and 16 on 18-neighbour lattices of 540 and 1 944 unknowns,
-#: between 8 and 20 on a tetrahedral part of 2 738 springs
+#: between 10 and 20 on a tetrahedral part of 2 738 springs
 SWEEPS_MAX_HW = 10.0
 #: … except on nets of more than AUTO_DENSE_MAX_UNKNOWNS and at most SPLU_ALWAYS_MAX_UNKNOWNS unknowns, where
 #: SuperLU's factorization is so cheap that "splu-reuse" is faster at every step (measured 1.8×
