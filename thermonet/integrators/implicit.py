@@ -85,6 +85,8 @@ class ImplicitStepper(Stepper):
     #: the continuation's smallest stage (a fraction of h) and most stages per step
     CONTINUATION_MIN_FRACTION = 1.0 / 64.0
     CONTINUATION_MAX_SOLVES = 24
+    #: a step that continuation found hard sends the next one of the same h straight to it
+    CONTINUATION_REMEMBERS = True
     #: the intermediate stages' scaled-residual tolerance (only their extrapolation is used)
     CONTINUATION_TOLERANCE = 1e-8
     topology = _KernelRecord()

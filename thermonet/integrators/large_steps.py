@@ -86,7 +86,8 @@ def continued(stepper, x, p, eta, h: float, failed: NewtonResult) -> NewtonResul
                 stepper.totals["continued_steps"] += 1
                 # a hard step (more than two stages, or a failed one): the next step of this h
                 # goes straight to continuation, from this one's first solved stage
-                stepper._hard = (h, solved[1][0] / h if len(solved) > 1 else 1.0) if stages > 2 or failures else None
+                hard = stepper.CONTINUATION_REMEMBERS and (stages > 2 or failures)
+                stepper._hard = (h, solved[1][0] / h if len(solved) > 1 else 1.0) if hard else None
                 return dataclasses.replace(result, iterations=iterations, jacobi_steps=jacobi)
             solved.append((t, stepper.u.copy()))
             tau, dtau = t, 2.0 * dtau
