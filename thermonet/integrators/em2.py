@@ -94,6 +94,8 @@ class EM2Stepper(ImplicitStepper):
     scheme = "em2"
     #: Newton's atol follows the positions' rounding (ATOL_ULPS; set by EM2.make_stepper)
     rounding_atol = False
+    #: a max |R| at or below this is converged (set by predict)
+    residual_floor = 0.0
 
     #: "auto" follows h·ω_max (integrators/compiled_path.choose_by_step)
     chooses_by_step = True
@@ -128,9 +130,18 @@ class EM2Stepper(ImplicitStepper):
         return np.array([[0.0, 1.0, 0.0, 0.0]])
 
     def predict(self, u: np.ndarray) -> None:
-        """The midpoint step of each node on its own springs' stiffness (kernels.em2)."""
+        """The midpoint step of each node on its own springs' stiffness (kernels.em2); and the
+        residual's rounding floor (``residual_floor``, read by the Newton iteration): ATOL_ULPS
+        ulps of the largest spring force that one ulp of length would make, (h/2) κ_e l⁰_e with κ_e
+        the predictor's spring stiffness. A residual below it is the rounding of the force terms
+        themselves: a net at rest in exact equilibrium (no forces, no momenta) has a max |R| of a
+        few 1e-16 over a max Rabs of the same size, a scaled residual of order 1 that no Newton
+        correction can reduce."""
         self.kernels.predict(self._step_start, self._topology, self._springs, self._nodes, self._work,
                              self.accel, u)
+        start = self.work.start  # (guess: the predictor's per-spring stiffness κ_e, until the finish)
+        self.residual_floor = (ATOL_ULPS * np.finfo(np.float64).eps * 0.5 * self.h
+                               * float(np.max(start.guess * start.len0, initial=0.0)))
 
     def residual(self, u: np.ndarray):
         status, spring, rmax, smax = self.kernels.residual(self._step_start, self._topology, self._springs,
