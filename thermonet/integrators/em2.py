@@ -94,7 +94,7 @@ class EM2Stepper(ImplicitStepper):
     scheme = "em2"
     #: Newton's atol follows the positions' rounding (ATOL_ULPS; set by EM2.make_stepper)
     rounding_atol = False
-    #: a max |R| at or below this is converged (set by predict)
+    #: a max |R| at or below this that Newton no longer reduces is converged (set by predict)
     residual_floor = 0.0
 
     #: "auto" follows h·ω_max (integrators/compiled_path.choose_by_step)
@@ -133,10 +133,10 @@ class EM2Stepper(ImplicitStepper):
         """The midpoint step of each node on its own springs' stiffness (kernels.em2); and the
         residual's rounding floor (``residual_floor``, read by the Newton iteration): ATOL_ULPS
         ulps of the largest spring force that one ulp of length would make, (h/2) κ_e l⁰_e with κ_e
-        the predictor's spring stiffness. A residual below it is the rounding of the force terms
-        themselves: a net at rest in exact equilibrium (no forces, no momenta) has a max |R| of a
-        few 1e-16 over a max Rabs of the same size, a scaled residual of order 1 that no Newton
-        correction can reduce."""
+        the predictor's spring stiffness. A max |R| below it that a Newton correction no longer
+        reduces (less than 2×) is the rounding of the force terms: a net at rest in exact
+        equilibrium has a max |R| of a few 1e-16 over a max Rabs of the same size, a scaled
+        residual of order 1 that no Newton correction can reduce."""
         self.kernels.predict(self._step_start, self._topology, self._springs, self._nodes, self._work,
                              self.accel, u)
         start = self.work.start  # (guess: the predictor's per-spring stiffness κ_e, until the finish)

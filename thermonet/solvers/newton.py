@@ -170,9 +170,10 @@ def newton(problem, u: np.ndarray, options: NewtonOptions, solver, timers: Newto
 
     problem: ``residual(u) -> (status, spring)`` fills ``problem.R`` and ``problem.Rabs`` (and,
     optionally, ``problem.norms`` = (max |R|, max Rabs)) and whatever the Jacobian needs; an
-    optional ``problem.residual_floor``: a max |R| at or below it is converged whatever its
-    scaled value (the rounding of the residual's own terms, EM2's: a net at rest in exact
-    equilibrium has a residual of round-off over a scale of round-off);
+    optional ``problem.residual_floor``: a max |R| at or below it that the last correction
+    reduced less than 2× is converged whatever its scaled value (the rounding of the residual's
+    own terms; EM2's: a net at rest in exact equilibrium has a residual of round-off over a
+    scale of round-off);
     ``jacobian(data)`` fills the CSR values at the last residual's point, ``data`` its value
     array (assembled solvers); ``linearize()`` the per-spring coefficients of a matrix-free
     product (:class:`MatrixFree`); optionally ``local_jacobi(u, fraction)``, a Jacobi step on
@@ -221,7 +222,10 @@ def newton(problem, u: np.ndarray, options: NewtonOptions, solver, timers: Newto
             solver.stale = True  # the kept factorization no longer pays: factorize at the next iteration
         if not math.isfinite(rho):
             return NewtonResult(False, it, history, 0, -1, "residual not finite", jacobi_steps, reused)
-        if rho <= options.tolerance or rmax <= getattr(problem, "residual_floor", 0.0):
+        if rho <= options.tolerance:
+            return NewtonResult(True, it, history, jacobi_steps=jacobi_steps, reused=reused)
+        if it > 0 and rmax <= getattr(problem, "residual_floor", 0.0) and rho > 0.5 * history[-2]:
+            # at the rounding floor of the residual's terms, and no longer falling
             return NewtonResult(True, it, history, jacobi_steps=jacobi_steps, reused=reused)
         if it > 0 and rho <= 1e3 * options.tolerance and increment <= options.rtol * np.abs(u).max() + options.atol:
             if last != "kept":
