@@ -126,7 +126,7 @@ def test_every_path_reaches_the_same_root_with_the_energy_exact(factor):
     """At 1× and 30× CO2's stable step: one step from the same state on each path gives the
     same positions to the Newton tolerance; 40 steps keep the energy to the round-off of the
     tightened Newton tolerance on each path, the kept factorizations' (modified Newton, reused
-    across iterations and steps) included, and "auto" needs no substeps."""
+    across a step's iterations) included, and "auto" needs no substeps."""
     first, drift = {}, {}
     for name, options in PATHS.items():
         sim = small_net(factor, **options, **TIGHT)
@@ -300,3 +300,24 @@ def test_a_part_at_rest_in_equilibrium_takes_steps():
         assert s["steps"] == 3 and s["retried_steps"] == 0 and s["continued_steps"] == 0
         assert s["residual_max"] > 1e-3  # the scaled residual at rest, round-off over round-off (measured 0.085)
         assert np.abs(sim.state.positions - x0).max() <= 1e-15
+
+
+def test_a_resumed_run_continues_bit_for_bit(tmp_path):
+    """scenes/lattice2d.toml at 10× (kept factorizations, continuation in the step, its memory
+    of hard steps): 12 steps in one run, and 6 + a checkpoint + 6 resumed in a new simulation,
+    give the same bits."""
+    from thermonet.io.checkpoint import load_checkpoint, save_checkpoint
+
+    one, _ = scene_simulation("lattice2d", 10, 12)
+    one.run(steps=12, diagnostics_every=6)
+    first, _ = scene_simulation("lattice2d", 10, 12)
+    first.run(steps=6, diagnostics_every=6)
+    assert first.stepper.summary()["continued_steps"] > 0
+    save_checkpoint(tmp_path / "c.npz", first.state, {})
+    state, _ = load_checkpoint(tmp_path / "c.npz")
+    resumed, _ = scene_simulation("lattice2d", 10, 12)
+    resumed.load_state(state)
+    resumed.run(steps=6, diagnostics_every=6)
+    assert one.step == resumed.step == 12
+    for name in ("positions", "momenta", "entropy", "thermal_displacement"):
+        assert np.array_equal(getattr(one.state, name), getattr(resumed.state, name)), name

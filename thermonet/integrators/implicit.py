@@ -320,8 +320,17 @@ class ImplicitStepper(Stepper):
     #: uninterrupted one and continues bit for bit
     HISTORY_KEY = "predictor_history"
 
+    #: the key in ``state.extra`` of the continuation's memory (``_hard``: h and the first solved
+    #: stage's τ/h, or none): it travels with the state, so a resumed run continues bit for bit
+    CONTINUATION_KEY = "continuation_memory"
+
     def _history_from(self, state) -> None:
-        """The predictor's history from the state it belongs to (none there: none)."""
+        """The predictor's history, and the continuation's memory, from the state they belong to
+        (none there: none)."""
+        if self.continuation:
+            saved = state.extra.get(self.CONTINUATION_KEY)
+            ok = isinstance(saved, np.ndarray) and saved.shape == (2,) and saved[0] > 0
+            self._hard = (float(saved[0]), float(saved[1])) if ok else None
         marker = self.work.start.history
         if not marker.size:
             return
@@ -333,6 +342,8 @@ class ImplicitStepper(Stepper):
             marker[0] = 0.0
 
     def _history_to(self, state) -> None:
+        if self.continuation:
+            state.extra[self.CONTINUATION_KEY] = np.array(self._hard if self._hard is not None else (0.0, 0.0))
         marker = self.work.start.history
         if not marker.size:
             return

@@ -42,7 +42,8 @@ class ReusedLU(SparseLU):
     """SuperLU whose factorization is kept across Newton iterations and steps (modified Newton,
     ``linear_solver="splu-reuse"``): :func:`thermonet.solvers.newton.newton` asks
     :meth:`usable` before each full iteration and, where it may, solves with the factorization
-    of an earlier iterate (of this step or of an earlier step of the same h) instead of
+    of an earlier iterate (of this step, or of an earlier step of the same h unless the problem
+    marks it stale at each step's start, as EM2 does: checkpoints hold no factorization) instead of
     assembling and factorizing the Jacobian at the current one. The convergence test is on the
     true residual either way, so the converged root is the same one (for EM2: the energy stays
     exact to the Newton tolerance); only the path to it changes. A reused factorization is
