@@ -53,3 +53,14 @@ def test_large_net_smoke(tmp_path):
     assert summary["energy"]["relative"] < 1e-4
     assert np.isfinite(numbers["theta_range"]).all()
     assert len(pngs(tmp_path)) == 2
+
+
+def test_steel_bracket_smoke(tmp_path):
+    """The steel part with EM2 at ~2 500× CO2's stable step: its run, ParaView series and plot;
+    whole steps on the factorized path, the energy balance at round-off."""
+    numbers = load("steel_bracket").main(["--smoke", "--out", str(tmp_path)])
+    assert numbers["steps"] == 20 and numbers["springs"] == 2738
+    assert numbers["newton"]["linear_solver"] == "splu-reuse" and numbers["newton"]["substep_fraction"] == 0.0
+    assert 293.15 < numbers["theta_max"] < 294.0 and numbers["heat"] > 0.0   # the bath ramps up 2 K in 20 ms
+    assert numbers["energy_balance"] < 1e-9 * numbers["heat"]                # measured 1.8e-12 J of 0.27 J
+    assert (tmp_path / "run" / "steel_bracket.pvd").exists() and pngs(tmp_path) == ["steel_bracket.png"]

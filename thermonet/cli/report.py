@@ -27,9 +27,22 @@ def format_summary(sim, scene: str, out: str | None = None) -> str:
     for name, v in s.items():
         flag = "" if name in conserved else "   (not conserved here)"
         lines.append(f"  {name:<15} {v['initial']:>17.15g} {v['max_deviation']:>16.3e} {v['relative']:>10.2e}{flag}")
+    path = newton_path_line(run.get("newton"))
+    if path:  # after the Newton line
+        lines.insert(1 + next(i for i, line in enumerate(lines) if line.startswith("  Newton (")), path)
     if out:
         lines.append(f"  diagnostics written to {out}")
     return "\n".join(lines)
+
+
+def newton_path_line(nw: dict | None) -> str:
+    """Which Newton path ran and why, and the fraction of steps redone as substeps ("" where the
+    summary does not say)."""
+    if not nw or "newton_path" not in nw:
+        return ""
+    path = nw["linear_solver"] if nw["newton_path"] == "compiled" else f"sparse, {nw['linear_solver']}"
+    return (f"  Newton path: {path} ({nw['path_reason']}); substepped steps {100 * nw['substep_fraction']:.3g} %"
+            + (f", {nw['continued_steps']} steps solved by continuation in h" if nw.get("continued_steps") else ""))
 
 
 def conserved_quantities(sim) -> set[str]:

@@ -10,11 +10,21 @@ a dense LU at every size measured, the paper's chain included: benchmarks/README
 integrators"); a dense LU where the scheme has no sweeps (up to DENSE_MAX_UNKNOWNS unknowns), with
 "auto" up to AUTO_DENSE_MAX_UNKNOWNS, or with "compiled-dense" (exact Newton steps; no sweeps to
 stall).
+
+A scheme meant for steps far above the explicit limit (EM2: ``chooses_by_step``) makes the
+"auto" choice from the step instead (:func:`choose_by_step`): the sweeps are preconditioned by
+the inertia (m/h) alone, so the sweeps a linear solve needs grow with h·ω_max (a step's cost
+grows about ∝ h·ω_max on a tetrahedral part, and faster where Newton then needs more
+iterations); a factorized solve costs the same at any step. Above SWEEPS_MAX_HW, and at every
+step on small nets, the sparse path with SuperLU and kept factorizations
+(``linear_solver="splu-reuse"``, modified Newton) runs instead.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -33,6 +43,54 @@ DENSE_MAX_UNKNOWNS = 200
 #: steps, which converge where inexact ones need more iterations (steps near the stability
 #: limit), at ≈ 1.2–1.6× the sweeps' cost on nets this small (the paper's chain: 9 and 18)
 AUTO_DENSE_MAX_UNKNOWNS = 24
+
+
+#: "auto" for a scheme that chooses by the step (EM2): the compiled path's matrix-free sweeps up
+#: to this h·ω_max (ω_max: the largest angular frequency of the net linearized at the run's
+#: state, thermonet.stability.max_frequency; CO2's stable step is 2/ω_max), the sparse path with
+#: "splu-reuse" above. Measured crossovers (benchmarks/em2_paths.py; benchmarks/README.md, "EM2's
+#: solver path"): between h·ω_max = 8 and 16 on 18-neighbour lattices of 540 and 1 944 unknowns,
+#: between 10 and 20 on a tetrahedral part of 2 738 springs
+SWEEPS_MAX_HW = 10.0
+#: … except on nets of more than AUTO_DENSE_MAX_UNKNOWNS and at most SPLU_ALWAYS_MAX_UNKNOWNS unknowns, where
+#: SuperLU's factorization is so cheap that "splu-reuse" is faster at every step (measured 1.8×
+#: at h·ω_max = 2 on 144 unknowns); below, the compiled path's dense LU (AUTO_DENSE_MAX_UNKNOWNS:
+#: no Python call per iteration)
+SPLU_ALWAYS_MAX_UNKNOWNS = 200
+
+
+@dataclass(frozen=True)
+class PathChoice:
+    """What "auto" chose for one step h: ``path`` ("compiled" or "sparse"), ``linear_solver``
+    ("sweeps" or "splu-reuse"), h·ω_max and the reason, one line for the run summary."""
+
+    h: float
+    h_omega: float
+    path: str
+    linear_solver: str
+    reason: str
+
+
+def choose_by_step(h: float, omega_max: float, size: int, sweeps_max_hw: float = None) -> PathChoice:
+    """The "auto" path of a scheme that chooses by the step (EM2), for step h on a net of
+    ``size`` unknowns whose largest angular frequency is ``omega_max``: "sweeps" (the compiled
+    path the stepper was made with: matrix-free sweeps, or the dense LU on the smallest nets)
+    or "splu-reuse" (the sparse path, SuperLU with kept factorizations)."""
+    limit = SWEEPS_MAX_HW if sweeps_max_hw is None else sweeps_max_hw
+    hw = float(h) * float(omega_max)
+    where = f"h·ω_max = {hw:.3g}" + (f" ({hw / 2:.3g}× CO2's stable step)" if math.isfinite(hw) else "")
+    if not math.isfinite(hw):
+        return PathChoice(h, hw, "sparse", "splu-reuse", f"{where}: SuperLU with kept factorizations")
+    if AUTO_DENSE_MAX_UNKNOWNS < size <= SPLU_ALWAYS_MAX_UNKNOWNS:
+        return PathChoice(h, hw, "sparse", "splu-reuse",
+                          f"{where}, {size} unknowns (≤ {SPLU_ALWAYS_MAX_UNKNOWNS}): SuperLU with kept "
+                          f"factorizations is the cheapest at any step on a net this small")
+    if hw <= limit:
+        return PathChoice(h, hw, "compiled", "sweeps",
+                          f"{where} ≤ {limit:g}: inertia-preconditioned sweeps converge in a few sweeps")
+    return PathChoice(h, hw, "sparse", "splu-reuse",
+                      f"{where} > {limit:g}: sweeps would need ≈ h·ω_max each; SuperLU with kept "
+                      f"factorizations ({size} unknowns)")
 
 
 def offers_compiled(kernels) -> bool:

@@ -94,10 +94,20 @@ class EM2Stepper(ImplicitStepper):
     scheme = "em2"
     #: Newton's atol follows the positions' rounding (ATOL_ULPS; set by EM2.make_stepper)
     rounding_atol = False
+    #: a max |R| at or below this that Newton no longer reduces is converged (set by predict)
+    residual_floor = 0.0
+
+    #: "auto" follows h·ω_max (integrators/compiled_path.choose_by_step)
+    chooses_by_step = True
+    #: a failed step's equations are solved by continuation in h before substeps (retry)
+    continuation = True
 
     def __init__(self, integrator, system, options, parallel: bool = False):
         super().__init__(integrator, system, options, parallel)
-        self.solver = LengthLimited(self.solver, self)
+        self.solver = self.wrap_solver(self.solver)
+
+    def wrap_solver(self, solver):
+        return LengthLimited(solver, self)
 
     def make_work(self, start) -> EM2Work:
         # the start kernel writes the acceleration at x⁰ here; predict() makes the guess from it
@@ -110,6 +120,12 @@ class EM2Stepper(ImplicitStepper):
 
     def begin(self, x, p, eta, h: float) -> None:
         super().begin(x, p, eta, h)
+        if getattr(self.solver, "reuses_factorization", False):
+            # kept factorizations serve the iterations of one step only: a run resumed from a
+            # checkpoint (which holds no factorization) then continues bit for bit; measured on
+            # the bracket at 10×, 100× and 1e4× CO2's stable step, a factorization kept across
+            # steps was never used (a step's predictor is farther from its root than REUSE_BELOW)
+            self.solver.stale = True
         if self.rounding_atol:
             floor = self.atol_rounding() * float(np.abs(x).max(initial=0.0))
             if not 0.5 * self.options.atol <= floor <= 2.0 * self.options.atol:
@@ -120,9 +136,18 @@ class EM2Stepper(ImplicitStepper):
         return np.array([[0.0, 1.0, 0.0, 0.0]])
 
     def predict(self, u: np.ndarray) -> None:
-        """The midpoint step of each node on its own springs' stiffness (kernels.em2)."""
+        """The midpoint step of each node on its own springs' stiffness (kernels.em2); and the
+        residual's rounding floor (``residual_floor``, read by the Newton iteration): ATOL_ULPS
+        ulps of the largest spring force that one ulp of length would make, (h/2) κ_e l⁰_e with κ_e
+        the predictor's spring stiffness. A max |R| below it that a Newton correction no longer
+        reduces (less than 2×) is the rounding of the force terms: a net at rest in exact
+        equilibrium has a max |R| of a few 1e-16 over a max Rabs of the same size, a scaled
+        residual of order 1 that no Newton correction can reduce."""
         self.kernels.predict(self._step_start, self._topology, self._springs, self._nodes, self._work,
                              self.accel, u)
+        start = self.work.start  # (guess: the predictor's per-spring stiffness κ_e, until the finish)
+        self.residual_floor = (ATOL_ULPS * np.finfo(np.float64).eps * 0.5 * self.h
+                               * float(np.max(start.guess * start.len0, initial=0.0)))
 
     def residual(self, u: np.ndarray):
         status, spring, rmax, smax = self.kernels.residual(self._step_start, self._topology, self._springs,

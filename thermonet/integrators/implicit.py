@@ -26,6 +26,7 @@ from ..solvers import BlockPattern, NewtonOptions, NewtonResult, NewtonTimers, m
 from ..solvers.newton import newton
 from .base import Stepper, StepFailure
 from .compiled_path import CompiledNewton, use_compiled
+from .large_steps import choose_path, continued
 
 
 class _StepError(Exception):
@@ -75,6 +76,19 @@ class ImplicitStepper(Stepper):
     #: a local Jacobi step (:meth:`local_jacobi`) updates at most this fraction of the free
     #: nodes; with more, a global one (one sweep, one full residual) costs less
     LOCAL_MAX_FRACTION = 0.05
+    #: "auto" (newton_path and linear_solver both) chooses the path by h·ω_max at each new h
+    #: (compiled_path.choose_by_step): schemes meant for steps far above the explicit limit
+    chooses_by_step = False
+    #: a step whose Newton solve fails from the predictor is solved by continuation in the step
+    #: (:meth:`continued`) before the retry policy splits it into substeps
+    continuation = False
+    #: the continuation's smallest stage (a fraction of h) and most stages per step
+    CONTINUATION_MIN_FRACTION = 1.0 / 64.0
+    CONTINUATION_MAX_SOLVES = 24
+    #: a step that continuation found hard sends the next one of the same h straight to it
+    CONTINUATION_REMEMBERS = True
+    #: the intermediate stages' scaled-residual tolerance (only their extrapolation is used)
+    CONTINUATION_TOLERANCE = 1e-8
     topology = _KernelRecord()
     springs = _KernelRecord()
     nodes = _KernelRecord()
@@ -131,8 +145,14 @@ class ImplicitStepper(Stepper):
         self.timers = NewtonTimers()
         #: the compiled path (integrators/compiled_path.py), or None: the sparse one
         self.compiled = CompiledNewton(self) if use_compiled(options, size, self.kernels, integrator.name) else None
+        #: (h, the first solved stage's τ/h) of the last step that continuation found hard, or None
+        self._hard = None
+        #: the choice "auto" made by the step (chooses_by_step), or None (not chosen by the step)
+        self.path_choice = None
+        self._by_step = self.chooses_by_step and options.newton_path == "auto" and options.linear_solver == "auto"
+        self._paths = {}  # the (compiled, solver) pairs of the paths chosen so far, by linear solver
         self.totals = dict(steps=0, iterations=0, iterations_max=0, residual_max=0.0, retried_steps=0,
-                           substeps_max=1)
+                           substeps_max=1, continued_steps=0)
 
     @property
     def R(self) -> np.ndarray:
@@ -148,6 +168,14 @@ class ImplicitStepper(Stepper):
     def h(self) -> float:
         """The step of the current step (set by :meth:`begin`)."""
         return self._step_start[3]
+
+    def wrap_solver(self, solver):
+        """The linear solver as the Newton iteration uses it (a scheme may wrap it: EM2 damps)."""
+        return solver
+
+    def choose_path(self, state, h: float) -> None:
+        """"auto" by the step: at a new h, the path :func:`.large_steps.choose_path` names."""
+        choose_path(self, state, h)
 
     # -- scheme hooks ---------------------------------------------------------------------------
     @abstractmethod
@@ -254,22 +282,36 @@ class ImplicitStepper(Stepper):
     def attempt(self, x, p, phi, eta, h: float):
         """One step from (x, p, Φ, η); returns the new (x, p, Φ, η) buffers and the Newton
         record, or raises _StepError. Never modifies its inputs. On the compiled path, a step
-        whose matrix-free sweeps stall is made by the sparse path (its GMRES fallback)."""
+        whose matrix-free sweeps stall is made by the sparse path (its GMRES fallback), and so is
+        any failed step of a scheme with ``continuation``."""
         if self.compiled is not None:
             done, failure = self.compiled.attempt(x, p, phi, eta, h)
             if failure is None:
                 return done
-            if not failure[-1]:
+            if not failure[-1] and not self.continuation:
                 raise _StepError(*failure[:4])
-        self.begin(x, p, eta, h)
-        self.predict(self.u)
-        result = newton(self, self.u, self.options, self.solver, self.timers)
+        if self.continuation and self._hard is not None and self._hard[0] == h:
+            # the last step of this h needed several stages: no first try at h from the predictor
+            result = self.continued(x, p, eta, h, NewtonResult(False, 0, [], reason="continued at once"))
+        else:
+            self.begin(x, p, eta, h)
+            self.predict(self.u)
+            result = newton(self, self.u, self.options, self.solver, self.timers, stall=self.continuation)
+            if not result.converged and self.continuation:
+                result = self.continued(x, p, eta, h, result)
+            elif result.converged:
+                self._hard = None
         if not result.converged:
             raise _StepError(result.reason, result, result.status, result.spring)
         status, spring = self.finish(phi, self._new)
         if status != 0:
             raise _StepError("non-physical state after the step", result, status, spring)
         return self._new, result
+
+    def continued(self, x, p, eta, h: float, failed: NewtonResult) -> NewtonResult:
+        """The step's own equations solved by continuation in the step
+        (:func:`.large_steps.continued`); ``failed``: the Newton solve from the predictor."""
+        return continued(self, x, p, eta, h, failed)
 
     # -- the Stepper interface --------------------------------------------------------------------
     #: the key in ``state.extra`` of the predictor's history (rate 2, HO4): the unknowns of the
@@ -278,8 +320,17 @@ class ImplicitStepper(Stepper):
     #: uninterrupted one and continues bit for bit
     HISTORY_KEY = "predictor_history"
 
+    #: the key in ``state.extra`` of the continuation's memory (``_hard``: h and the first solved
+    #: stage's τ/h, or none): it travels with the state, so a resumed run continues bit for bit
+    CONTINUATION_KEY = "continuation_memory"
+
     def _history_from(self, state) -> None:
-        """The predictor's history from the state it belongs to (none there: none)."""
+        """The predictor's history, and the continuation's memory, from the state they belong to
+        (none there: none)."""
+        if self.continuation:
+            saved = state.extra.get(self.CONTINUATION_KEY)
+            ok = isinstance(saved, np.ndarray) and saved.shape == (2,) and saved[0] > 0
+            self._hard = (float(saved[0]), float(saved[1])) if ok else None
         marker = self.work.start.history
         if not marker.size:
             return
@@ -291,6 +342,8 @@ class ImplicitStepper(Stepper):
             marker[0] = 0.0
 
     def _history_to(self, state) -> None:
+        if self.continuation:
+            state.extra[self.CONTINUATION_KEY] = np.array(self._hard if self._hard is not None else (0.0, 0.0))
         marker = self.work.start.history
         if not marker.size:
             return
@@ -303,6 +356,8 @@ class ImplicitStepper(Stepper):
     def advance(self, state, n_steps: int, h: float, measure: bool = False):
         if n_steps <= 0:
             return None
+        if self._by_step:
+            self.choose_path(state, h)
         self._history_from(state)
         try:
             iters, finals = [], []
@@ -318,7 +373,7 @@ class ImplicitStepper(Stepper):
                     i += done
                     if failure is None:
                         break
-                    if not failure[-1]:  # failed: the retry policy, as the sparse path's
+                    if not (failure[-1] or self.continuation):  # failed: the retry policy, as the sparse path's
                         self._retry_step(state, h, _StepError(*failure[:4]), i, iters, finals, counts)
                         i += 1
                         continue
@@ -446,6 +501,16 @@ class ImplicitStepper(Stepper):
         t = dict(self.totals)
         t["iterations_mean"] = t["iterations"] / t["steps"] if t["steps"] else math.nan
         t["linear_solver"] = self.solver.name if self.compiled is None else f"compiled, {self.compiled.linear_solver}"
+        t["newton_path"] = "sparse" if self.compiled is None else "compiled"
+        choice = self.path_choice
+        opts = self.options
+        t["path_reason"] = (choice.reason if choice is not None else
+                            f"newton_path = {opts.newton_path!r}, linear_solver = {opts.linear_solver!r}")
+        t["h_omega_max"] = choice.h_omega if choice is not None else None  # (not chosen by the step)
+        # steps redone as substeps (the retry policy), as a fraction of the steps
+        t["substep_fraction"] = t["retried_steps"] / t["steps"] if t["steps"] else 0.0
+        t["factorizations"] = self.timers.factorizations  # (splu-reuse) made, and iterations that kept one
+        t["reused_factorizations"] = self.timers.reused_factorizations
         t["unknowns"] = self.pattern.size
         t["jacobian_nnz"] = self.pattern.nnz
         t["jacobi_steps"] = self.timers.jacobi_steps  # finishing steps u −= D⁻¹ R, not counted as iterations

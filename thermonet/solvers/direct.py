@@ -36,3 +36,38 @@ class SparseLU:
 
     def solve(self, rhs: np.ndarray, target: float = 0.0, settled: float = 0.0) -> np.ndarray:
         return self._lu.solve(rhs, trans="T")
+
+
+class ReusedLU(SparseLU):
+    """SuperLU whose factorization is kept across Newton iterations and steps (modified Newton,
+    ``linear_solver="splu-reuse"``): :func:`thermonet.solvers.newton.newton` asks
+    :meth:`usable` before each full iteration and, where it may, solves with the factorization
+    of an earlier iterate (of this step, or of an earlier step of the same h unless the problem
+    marks it stale at each step's start, as EM2 does: checkpoints hold no factorization) instead of
+    assembling and factorizing the Jacobian at the current one. The convergence test is on the
+    true residual either way, so the converged root is the same one (for EM2: the energy stays
+    exact to the Newton tolerance); only the path to it changes. A reused factorization is
+    dropped (the next iteration refactorizes) when the iteration it made reduced the scaled
+    residual by less than REUSE_CONTRACTION, and never used while the scaled residual is above
+    REUSE_BELOW (far from the root, where a damped step with a stale matrix would only stall)."""
+
+    name = "splu-reuse"
+    reuses_factorization = True
+
+    def __init__(self, pattern: BlockPattern, problem=None):
+        super().__init__(pattern, problem)
+        self.h = None  # the step of the factorized matrix (its inertia blocks are m/h)
+        self.stale = True
+        self.factorizations = 0
+        self.reuses = 0
+
+    def factorize(self, data: np.ndarray, h: float | None = None) -> None:
+        super().factorize(data)
+        self.h = h
+        self.stale = False
+        self.factorizations += 1
+
+    def usable(self, h: float, rho: float, below: float) -> bool:
+        """Whether the kept factorization may make the next correction at step h, scaled
+        residual rho (≤ ``below``)."""
+        return self._lu is not None and not self.stale and self.h == h and rho <= below

@@ -95,6 +95,16 @@ JACOBI_MAX_STEPS = 2
 LOCAL_FRACTION = 0.1
 LOCAL_STALL = 0.5
 LOCAL_MAX_ROUNDS = 8
+#: Modified Newton (a solver with ``reuses_factorization``, ``linear_solver="splu-reuse"``): a kept
+#: factorization makes the correction only while the scaled residual is at most REUSE_BELOW (near
+#: the root: no line search there, whose halvings a stale matrix's direction would waste), and is
+#: dropped once a correction it made reduced the scaled residual by less than REUSE_CONTRACTION
+#: (the next iteration assembles and factorizes afresh). A correction with a kept factorization
+#: costs a residual and two triangular solves, a small fraction of an assembly and a
+#: factorization (benchmarks/em2_paths.py), so a linear contraction of 0.2 per such correction
+#: still reaches the tolerance sooner than a quadratic Newton iteration that factorizes.
+REUSE_BELOW = 1e-3
+REUSE_CONTRACTION = 0.2
 
 
 def _jacobi_pays(rho: float, contraction: float, tolerance: float) -> bool:
@@ -116,6 +126,9 @@ class NewtonTimers:
     residuals: int = 0
     jacobi_steps: int = 0
     local_steps: int = 0
+    #: factorizations made and full iterations that solved with a kept one (modified Newton)
+    factorizations: int = 0
+    reused_factorizations: int = 0
 
     def as_dict(self) -> dict:
         return dict(self.__dict__)
@@ -135,6 +148,8 @@ class NewtonResult:
     reason: str = ""
     #: of the iterations, those that were Jacobi steps (u −= D⁻¹ R, no linearization)
     jacobi_steps: int = 0
+    #: of the full iterations, those that solved with a kept factorization (modified Newton)
+    reused: int = 0
 
     @property
     def full_iterations(self) -> int:
@@ -142,11 +157,23 @@ class NewtonResult:
         return self.iterations - self.jacobi_steps
 
 
-def newton(problem, u: np.ndarray, options: NewtonOptions, solver, timers: NewtonTimers) -> NewtonResult:
+#: ``newton(..., stall=True)``: give up once the scaled residual, still above REUSE_BELOW, has
+#: fallen less than STALL_FACTOR× over the last STALL_WINDOW iterations (the caller has a
+#: better way on: EM2's continuation in the step)
+STALL_WINDOW = 6
+STALL_FACTOR = 2.0
+
+
+def newton(problem, u: np.ndarray, options: NewtonOptions, solver, timers: NewtonTimers,
+           stall: bool = False) -> NewtonResult:
     """Solve ``problem.residual(u) = 0`` for ``u`` in place, from the predictor in ``u``.
 
     problem: ``residual(u) -> (status, spring)`` fills ``problem.R`` and ``problem.Rabs`` (and,
-    optionally, ``problem.norms`` = (max |R|, max Rabs)) and whatever the Jacobian needs;
+    optionally, ``problem.norms`` = (max |R|, max Rabs)) and whatever the Jacobian needs; an
+    optional ``problem.residual_floor``: a max |R| at or below it that the last correction
+    reduced less than 2× is converged whatever its scaled value (the rounding of the residual's
+    own terms; EM2's: a net at rest in exact equilibrium has a residual of round-off over a
+    scale of round-off);
     ``jacobian(data)`` fills the CSR values at the last residual's point, ``data`` its value
     array (assembled solvers); ``linearize()`` the per-spring coefficients of a matrix-free
     product (:class:`MatrixFree`); optionally ``local_jacobi(u, fraction)``, a Jacobi step on
@@ -166,6 +193,9 @@ def newton(problem, u: np.ndarray, options: NewtonOptions, solver, timers: Newto
     local_rounds = 0
     jacobi_steps = 0
     evaluated = None  # (status, spring) of the residual a local step brought up to date
+    reuse = getattr(solver, "reuses_factorization", False)
+    h = getattr(problem, "h", None)
+    reused = 0
     while True:
         it = corrections
         if evaluated is None:
@@ -177,7 +207,9 @@ def newton(problem, u: np.ndarray, options: NewtonOptions, solver, timers: Newto
             status, spring = evaluated
             evaluated = None
         if status != 0:
-            return NewtonResult(False, it, history, status, spring, "non-physical iterate", jacobi_steps)
+            if reuse:
+                solver.stale = True
+            return NewtonResult(False, it, history, status, spring, "non-physical iterate", jacobi_steps, reused)
         norms = getattr(problem, "norms", None)  # (max |R|, max Rabs), where the kernel had them
         if norms is not None:
             rmax, scale = norms
@@ -186,14 +218,30 @@ def newton(problem, u: np.ndarray, options: NewtonOptions, solver, timers: Newto
             rmax = np.abs(problem.R).max() if problem.R.size else 0.0
         rho = float(rmax / scale) if scale > 0 else 0.0
         history.append(rho)
+        if last == "kept" and not rho <= REUSE_CONTRACTION * history[-2]:
+            solver.stale = True  # the kept factorization no longer pays: factorize at the next iteration
         if not math.isfinite(rho):
-            return NewtonResult(False, it, history, 0, -1, "residual not finite", jacobi_steps)
+            return NewtonResult(False, it, history, 0, -1, "residual not finite", jacobi_steps, reused)
         if rho <= options.tolerance:
-            return NewtonResult(True, it, history, jacobi_steps=jacobi_steps)
+            return NewtonResult(True, it, history, jacobi_steps=jacobi_steps, reused=reused)
+        if it > 0 and rmax <= getattr(problem, "residual_floor", 0.0) and rho > 0.5 * history[-2]:
+            # at the rounding floor of the residual's terms, and no longer falling
+            return NewtonResult(True, it, history, jacobi_steps=jacobi_steps, reused=reused)
         if it > 0 and rho <= 1e3 * options.tolerance and increment <= options.rtol * np.abs(u).max() + options.atol:
-            return NewtonResult(True, it, history, jacobi_steps=jacobi_steps)
+            if last != "kept":
+                return NewtonResult(True, it, history, jacobi_steps=jacobi_steps, reused=reused)
+            # a kept factorization's correction converges linearly: a small one does not say the
+            # root is reached; a fresh Newton iteration (quadratic) decides, as on the other paths
+            solver.stale = True
         if corrections - local_rounds == options.max_iterations:
             break
+        if (stall and len(history) > STALL_WINDOW and rho > REUSE_BELOW
+                and rho * STALL_FACTOR > history[-1 - STALL_WINDOW]):
+            if reuse:
+                solver.stale = True
+            return NewtonResult(False, corrections, history, 0, -1,
+                                f"stalled (scaled residual {rho:.3g}, {history[-1 - STALL_WINDOW]:.3g} "
+                                f"{STALL_WINDOW} iterations before)", jacobi_steps, reused)
         use_jacobi = False
         if jacobi is not None and it > 0:
             if last == "full":  # what the sweeps of that iteration's solve promise
@@ -226,7 +274,16 @@ def newton(problem, u: np.ndarray, options: NewtonOptions, solver, timers: Newto
             timers.jacobi_steps += 1
             jacobi_steps += 1
         else:
-            if solver.assembled:
+            if reuse and solver.usable(h, rho, REUSE_BELOW):
+                last = "kept"  # modified Newton: the factorization of an earlier iterate
+                reused += 1
+                timers.reused_factorizations += 1
+            elif reuse:
+                problem.jacobian(problem.data)
+                t1 = time.perf_counter()
+                solver.factorize(problem.data, h)
+                timers.factorizations += 1
+            elif solver.assembled:
                 problem.jacobian(problem.data)
                 t1 = time.perf_counter()
                 solver.factorize(problem.data)
@@ -248,6 +305,9 @@ def newton(problem, u: np.ndarray, options: NewtonOptions, solver, timers: Newto
         u -= du
         increment = float(np.abs(du).max())
         if not math.isfinite(increment):
-            return NewtonResult(False, corrections, history, 0, -1, "Newton correction not finite", jacobi_steps)
+            return NewtonResult(False, corrections, history, 0, -1, "Newton correction not finite", jacobi_steps,
+                                reused)
+    if reuse:
+        solver.stale = True  # (a failed solve: the next attempt starts from a fresh Jacobian)
     return NewtonResult(False, corrections, history, 0, -1,
-                        f"no convergence in {options.max_iterations} iterations", jacobi_steps)
+                        f"no convergence in {options.max_iterations} iterations", jacobi_steps, reused)

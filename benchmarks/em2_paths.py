@@ -1,0 +1,255 @@
+"""EM2's Newton paths against the step: where "auto" should switch from the compiled path's
+matrix-free sweeps to the sparse path's SuperLU.
+
+For each net and each step h = factor × CO2's stable step (h·ω_max = 2 factor), runs EM2 on
+each path and prints milliseconds per step, Newton iterations per step, the steps redone as
+substeps and the steps solved by continuation, the path "auto" chose (and its reason), and the
+simulated time per wall time against CO2's at 0.9× its stable step on the same net (> 1: EM2
+gets through simulated time faster):
+
+- ``sweeps``: ``newton_path = "compiled"`` (inertia-preconditioned matrix-free sweeps);
+- ``splu``: ``newton_path = "sparse"``, ``linear_solver = "splu"`` (a factorization per iteration);
+- ``splu-reuse``: ``newton_path = "sparse"``, ``linear_solver = "splu-reuse"`` (kept factorizations);
+- ``auto``: the default.
+
+Nets: ``lattice``, a jittered 18-neighbour 3D lattice of ``--cells`` cells per side (hencky,
+c = 100, θ0 = 300), its bottom face clamped, at rest and 50 K above θ0 (thermal stress, a slow
+expansion; with 6 neighbours the cubic cells would be mechanisms, held only by the springs'
+tension); ``bracket``, scenes/bracket.toml (a gmsh tetrahedral aluminium part, SI units, hot
+flange, conduction). The paths of one net and step run interleaved: one untimed step each
+(compilation, first factorization), then ``--rounds`` rounds of ``--steps`` steps of each path
+in turn, ms/step the median over the rounds; a path that fails a step is reported as failed.
+
+    python benchmarks/em2_paths.py                        # both nets, factors 1 3 10 100 1e4
+    python benchmarks/em2_paths.py --nets bracket --factors 1 2 3 5 10
+    python benchmarks/em2_paths.py --quick                # a small lattice, 2 steps (the test's)
+    python benchmarks/em2_paths.py --scenes               # substepped steps on the shipped scenes, 10× and 100×
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import statistics
+import sys
+import time
+import warnings
+
+import numpy as np
+
+import thermonet as tn
+from thermonet.stability import stable_step
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+#: CO2's step in the speed-up column: this fraction of its stable step (the step policy's SAFETY)
+CO2_FRACTION = 0.9
+PATHS = {
+    "sweeps": dict(newton_path="compiled"),
+    "splu": dict(newton_path="sparse", linear_solver="splu"),
+    "splu-reuse": dict(newton_path="sparse", linear_solver="splu-reuse"),
+    "auto": {},
+}
+
+
+def lattice_simulation(cells: int, integrator: str, h: float, **options) -> tn.Simulation:
+    """The benchmark's lattice: bottom face clamped, at rest, 50 K above θ0."""
+    net = tn.lattice((cells, cells, cells), neighbours=18, jitter=0.1, seed=1)
+    anchored = net.positions[:, 2] < 0.5
+    net = tn.Net(net.positions, net.edges, net.masses, anchored)
+    return tn.Simulation(net, model="hencky", parameters=dict(c=100.0, beta=0.2, C0=5.0, theta0=300.0),
+                         temperatures=350.0, integrator=integrator, h=h, integrator_options=options,
+                         stability_guard="off", energy_tolerance=None)
+
+
+def bracket_simulation(integrator: str, h: float, **options) -> tn.Simulation:
+    """scenes/bracket.toml with the given integrator, step and Newton options."""
+    from thermonet.scenes.build import build_scene
+    from thermonet.scenes.scene import load_scene
+
+    sets = [f"integrator.name={integrator}", f"integrator.h={h!r}", "integrator.check_step=false",
+            f"integrator.t_end={h * 1000!r}"] + [f"integrator.{k}={v}" for k, v in options.items()]
+    return build_scene(load_scene(os.path.join(HERE, "..", "scenes", "bracket.toml"), sets)).simulation
+
+
+def scene_simulation(name: str, integrator: str, h: float, steps: int) -> tn.Simulation:
+    """A shipped scene (scenes/<name>.toml) with the given integrator and step, t_end ``steps`` steps."""
+    from thermonet.scenes.build import build_scene
+    from thermonet.scenes.scene import load_scene
+
+    sets = [f"integrator.name={integrator}", f"integrator.h={h!r}", "integrator.check_step=false",
+            f"integrator.t_end={h * steps!r}"]
+    return build_scene(load_scene(os.path.join(HERE, "..", "scenes", f"{name}.toml"), sets)).simulation
+
+
+SCENES = ("lattice2d", "chain", "triangle", "default", "spinning_lattice", "thermal_shock", "tensile", "bracket")
+
+
+def scene_fractions(names, factors, steps: int, out=print) -> list[dict]:
+    """EM2 ("auto") on shipped scenes at each factor × CO2's stable step there (estimated at the
+    scene's initial state): ``steps`` steps each, the steps redone as substeps, the steps solved
+    by continuation, Newton iterations per step, wall seconds, or the failure."""
+    out("| scene | springs | factor | h | steps run | substepped | most substeps | continued | Newton it./step "
+        "| path | wall s | failure |")
+    out("|---|---:|---:|---:|---:|---:|---:|---:|---:|---|---:|---|")
+    rows = []
+    for name in names:
+        probe = scene_simulation(name, "co2", 1e-7 if name == "bracket" else 1e-3, 1)
+        h_max = stable_step(probe)["h_max"]
+        for factor in factors:
+            sim = scene_simulation(name, "em2", factor * h_max, steps)
+            failure = ""
+            t0 = time.perf_counter()
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", RuntimeWarning)
+                try:
+                    sim.run(steps=steps, diagnostics_every=max(1, steps // 10))
+                except tn.SimulationError as exc:
+                    failure = str(exc).split(";")[0]
+            wall = time.perf_counter() - t0
+            s = sim.stepper.summary()
+            rows.append(dict(scene=name, factor=factor, summary=s, failure=failure))
+            out(f"| {name} | {sim.net.n_springs} | {factor:g} | {sim.h:.3g} | {s['steps']} | {s['retried_steps']} "
+                f"({100 * s['substep_fraction']:.0f} %) | {s['substeps_max']} | {s['continued_steps']} | "
+                f"{s['iterations_mean']:.1f} | {s['linear_solver']} | {wall:.1f} | {failure[:90]} |")
+    return rows
+
+
+def make(net: str, cells: int, integrator: str, h: float, **options) -> tn.Simulation:
+    if net == "lattice":
+        return lattice_simulation(cells, integrator, h, **options)
+    return bracket_simulation(integrator, h, **options)
+
+
+def run_paths(net: str, cells: int, h: float, paths, steps: int, rounds: int) -> list[dict]:
+    """The paths at one step, interleaved (a drift of a shared machine hits all alike): each
+    simulation takes one untimed step (compilation, first factorization), then ``rounds``
+    rounds each time ``steps`` steps of every path in turn; ms/step is the median over the
+    rounds. Returns a row per path: ms/step and the stepper's summary (or the failure)."""
+    sims = {path: make(net, cells, "em2", h, **PATHS[path]) for path in paths}
+    times = {path: [] for path in paths}
+    failed = {}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # substeps are reported in the table
+        for r in range(rounds + 1):
+            for path, sim in sims.items():
+                if path in failed:
+                    continue
+                try:
+                    t0 = time.perf_counter()
+                    sim.run(steps=1 if r == 0 else steps, diagnostics_every=10**9)
+                    if r:
+                        times[path].append((time.perf_counter() - t0) / steps)
+                except tn.SimulationError as exc:
+                    failed[path] = str(exc).split(";")[0]
+    return [dict(path=path, failed=failed.get(path),
+                 ms=math.inf if path in failed else 1e3 * statistics.median(times[path]),
+                 summary=sim.stepper.summary(), springs=sim.net.n_springs) for path, sim in sims.items()]
+
+
+def measure(nets, cells: int, factors, steps: int, paths=tuple(PATHS), out=print,
+            sweeps_max_factor: float = math.inf, rounds: int = 3) -> list[dict]:
+    """The table's rows: per net and factor, each path's row (``run_paths``) with net, factor,
+    springs, h and h·ω_max added; prints them as a markdown table."""
+    rows = []
+    out("| net | springs | factor | h·ω_max | path | ms/step | Newton it./step | substepped | continued "
+        "| factorizations (kept) | auto chose | simulated time per wall time ÷ CO2's |")
+    out("|---|---:|---:|---:|---|---:|---:|---:|---:|---:|---|---:|")
+    for net in nets:
+        est = stable_step(make(net, cells, "co2", 1.0 if net == "lattice" else 1e-7))
+        co2 = make(net, cells, "co2", CO2_FRACTION * est["h_max"])
+        co2.run(steps=1, diagnostics_every=10**9)
+        n_co2 = max(20, 20 * steps)
+        samples = []
+        for _ in range(3):
+            t0 = time.perf_counter()
+            co2.run(steps=n_co2, diagnostics_every=10**9)
+            samples.append(1e3 * (time.perf_counter() - t0) / n_co2)
+        co2_ms = statistics.median(samples)
+        co2_rate = co2_ms / (CO2_FRACTION * est["h_max"])  # ms per unit of simulated time
+        out(f"| {net} | {co2.net.n_springs} | {CO2_FRACTION:g} | {2 * CO2_FRACTION:.3g} | co2 | {co2_ms:.3f} | | | "
+            f"| | (CO2 at {CO2_FRACTION:g}× its stable step: the speed-up column's reference) | 1 |")
+        for factor in factors:
+            h = factor * est["h_max"]
+            if "sweeps" in paths and factor > sweeps_max_factor:
+                out(f"| {net} | | {factor:g} | {h * est['omega_max']:.3g} | sweeps | not run (above "
+                    f"--sweeps-max-factor {sweeps_max_factor:g}) | | | | | | |")
+            for row in run_paths(net, cells, h, [p for p in paths if p != "sweeps" or factor <= sweeps_max_factor],
+                                 steps, rounds):
+                path = row["path"]
+                s = row["summary"]
+                row.update(net=net, factor=factor, h=h, h_omega=h * est["omega_max"],
+                           speedup=co2_rate / (row["ms"] / h))
+                rows.append(row)
+                chose = f"{s['linear_solver']}: {s['path_reason']}" if path == "auto" else ""
+                if row["failed"]:
+                    out(f"| {net} | {row['springs']} | {factor:g} | {row['h_omega']:.3g} | {path} "
+                        f"| failed: {row['failed'][:60]} "
+                        f"| | | | | {chose} | |")
+                    continue
+                out(f"| {net} | {row['springs']} | {factor:g} | {row['h_omega']:.3g} | {path} | {row['ms']:.2f} | "
+                    f"{s['iterations_mean']:.2f} | {s['retried_steps']}/{s['steps']} | {s['continued_steps']} | "
+                    f"{s['factorizations']} ({s['reused_factorizations']}) | {chose} | {row['speedup']:.3g} |")
+    return rows
+
+
+def fastest(rows: list[dict]) -> dict:
+    """{(net, factor): the fastest measured path other than auto}, and auto's ratio to it as
+    {(net, factor, "auto"): ratio}."""
+    best, out = {}, {}
+    for r in rows:
+        if r["path"] == "auto":
+            continue
+        key = (r["net"], r["factor"])
+        if not math.isfinite(r["ms"]):
+            continue
+        if key not in best or r["ms"] < best[key]["ms"]:
+            best[key] = r
+    for r in rows:
+        if r["path"] == "auto":
+            key = (r["net"], r["factor"])
+            out[key] = best[key]["path"]
+            out[key + ("auto",)] = r["ms"] / best[key]["ms"]
+    return out
+
+
+def main(argv=None) -> list[dict]:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--nets", nargs="+", default=["lattice", "bracket"], choices=["lattice", "bracket"])
+    ap.add_argument("--cells", type=int, default=8, help="lattice cells per side (8: 6 048 springs)")
+    ap.add_argument("--factors", nargs="+", type=float, default=[1, 3, 10, 100, 1e4],
+                    help="steps as multiples of CO2's stable step")
+    ap.add_argument("--steps", type=int, default=4, help="steps per round")
+    ap.add_argument("--rounds", type=int, default=3, help="interleaved rounds (ms/step: their median)")
+    ap.add_argument("--paths", nargs="+", default=list(PATHS), choices=list(PATHS))
+    ap.add_argument("--sweeps-max-factor", type=float, default=1000.0,
+                    help="skip the sweeps above this factor (at 1e4× on the bracket a step did not converge "
+                         "in 30 iterations of up to 40 sweeps and GMRES each, minutes per step)")
+    ap.add_argument("--quick", action="store_true", help="a 3-cell lattice, factors 1 and 100, 2 steps")
+    ap.add_argument("--scenes", nargs="*", default=None,
+                    help="instead: the substepped steps of EM2 on these shipped scenes (none named: all) at "
+                         "--factors (default here 10 100), --steps (default here 50) steps each")
+    args = ap.parse_args(argv)
+    if args.scenes is not None:
+        given = sys.argv[1:] if argv is None else argv
+        factors = args.factors if "--factors" in given else [10, 100]
+        steps = args.steps if "--steps" in given else 50
+        print(f"EM2 on the shipped scenes; load: {os.getloadavg()[0]:.2f} (1-min average), {os.cpu_count()} CPUs\n")
+        return scene_fractions(args.scenes or SCENES, factors, steps)
+    if args.quick:
+        args.nets, args.cells, args.factors, args.steps, args.rounds = ["lattice"], 3, [1, 100], 2, 1
+        args.paths = ["sweeps", "splu-reuse", "auto"]
+    print(f"EM2 per path; load: {os.getloadavg()[0]:.2f} (1-min average), {os.cpu_count()} CPUs\n")
+    rows = measure(args.nets, args.cells, args.factors, args.steps, args.paths,
+                   sweeps_max_factor=args.sweeps_max_factor, rounds=args.rounds)
+    best = fastest(rows) if "auto" in args.paths else {}
+    if best:
+        print("\n| net | factor | fastest | auto / fastest |\n|---|---:|---|---:|")
+        for key, path in best.items():
+            if len(key) == 2:
+                print(f"| {key[0]} | {key[1]:g} | {path} | {best[key + ('auto',)]:.2f} |")
+    return rows
+
+
+if __name__ == "__main__":
+    main()
