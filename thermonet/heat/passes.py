@@ -58,7 +58,7 @@ def bind_heat_flow(ns: dict, tag: str, compile_) -> None:
 
 
 def bind_heat_passes(ns: dict, tag: str, parallel: bool) -> None:
-    """Compile the passes below into ``ns`` (which must hold the model, subflows and heat_flow
+    """Compile the passes below into ``ns`` (which must hold the model, subflows and exchange
     bindings)."""
     ns["gather_two_forces"] = specialize(_gather_two_forces, tag, ns, inline="always", **_OPTIONS)
     ns["temperature_pass"] = specialize(_temperature_pass, tag, ns, parallel=parallel, **_OPTIONS)

@@ -44,10 +44,10 @@ class Source:
 class HeatSetup:
     """What the kernels need for heat flow, internal numbering.
 
-    conduction, waves: which flows run. graph: the thermal waves' coloured pairs, kappa (P, 2): κ
-    from g and k* from g* (empty without waves). layout: the run's layout (the conduction sweep's
-    order is built from it, per backend: :meth:`star_order`). capacity: (m,) C per spring. names: the baths' then the sources' names;
-    functions: their time functions (same order). Entries (E,) sorted by spring:
+    conduction, waves: which flows run. graph: the thermal waves' coloured pairs (empty without
+    waves), kappa (P, 2) with k* from g* in column 1. layout: the run's layout (the conduction
+    sweep's order is built from it, per backend: :meth:`star_order`). capacity: (m,) C per
+    spring. names: the baths' then the sources' names; functions: their time functions (same order). Entries (E,) sorted by spring:
     entry_spring, entry_kind (BATH/SOURCE), entry_fn (index into functions and names),
     entry_rate (g/C of a bath end). bath_nodes: (n,) int64 bath of each node (−1 none).
     conductance, wave_conductance: (m,) g and g*; n_baths: the first n_baths names are baths.
