@@ -114,3 +114,13 @@ def test_progress_bar_shows_rate_and_eta():
     bar(250, 1000, 2.0)
     line = stream.getvalue()
     assert "25.0%" in line and "step 250/1000" in line and "125 steps/s" in line and "ETA 0:06" in line
+
+
+def test_python_dash_m_thermonet_is_the_command():
+    import subprocess
+    import sys
+
+    done = subprocess.run([sys.executable, "-m", "thermonet", "info", "scenes/chain.toml"], capture_output=True,
+                          text=True, cwd=os.path.dirname(os.path.dirname(os.path.abspath(__file__))), timeout=300)
+    assert done.returncode == 0, done.stderr
+    assert "springs" in done.stdout
