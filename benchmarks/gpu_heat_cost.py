@@ -1,0 +1,122 @@
+"""What Fourier conduction costs per step on the GPU: CO2 with conduction against the same thermal
+CO2 run without it, on a jittered 6-neighbour lattice, both launch modes, conduction every step
+and every k steps as "auto" picks k.
+
+    python benchmarks/gpu_heat_cost.py [--sizes 3e5,3e6] [--seconds 2]
+    NUMBA_ENABLE_CUDASIM=1 python benchmarks/gpu_heat_cost.py --quick   # a smoke run (tests/test_benchmarks.py)
+
+Needs an NVIDIA GPU and numba-cuda (``pip install '.[cuda]'``, docs/gpu.md says how to carry the
+wheels to a machine without the package index). Per net it prints a markdown table: G
+spring-steps/s of the adiabatic run and of the run with conduction (``stepper.advance`` timed
+with the device synchronized, medians of three runs of about ``--seconds`` each after a warm-up
+that compiles the kernels), their ratio, and the grid-wide phases of one conduction half sweep
+(the node colours of the GPU's sweep order + 3). Hencky springs at 250–350 K, g = 1, C0 = 5,
+h = 0.4× the stable step. Target: conduction every step ≤ 2.5× the adiabatic step at 3e6 springs.
+
+``--quick`` runs a tiny net for a few steps and accepts Numba's CUDA simulator: it checks that
+the script runs, its timings mean nothing.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+import thermonet as tn  # noqa: E402
+from thermonet.cuda import cuda_problem, simulator_enabled  # noqa: E402
+from thermonet.heat.multirate import choose_cycle  # noqa: E402
+from thermonet.stability import stable_step  # noqa: E402
+
+PARAMETERS = dict(c=100.0, beta=0.2, C0=5.0, theta0=300.0)
+G = 1.0
+
+
+def simulations(target_springs: int) -> dict:
+    """name -> CUDA simulation of one 6-neighbour lattice of about ``target_springs`` springs:
+    adiabatic, conduction every step, conduction every k steps ("auto"'s k, no output cadence)."""
+    k = max(1, int(round((target_springs / 3.0) ** (1.0 / 3.0))))
+    net = tn.lattice((k, k, k), neighbours=6, jitter=0.1, seed=1)
+    rng = np.random.default_rng(1)
+    common = dict(temperatures=250.0 + 100.0 * rng.random(net.n_springs),
+                  velocities=rng.normal(0.0, 0.01, (net.n_nodes, 3)), integrator="co2",
+                  stability_guard="off", energy_tolerance=None)
+    probe = tn.Simulation(net, parameters=PARAMETERS, h=1.0, **common)
+    h = 0.4 * stable_step(probe)["h_max"]
+    conduction = dict(parameters={**PARAMETERS, "g": G}, conduction=True)
+    every = tn.Simulation(net, h=h, conduction_every=1, **conduction, **common)
+    auto_k = choose_cycle("auto", every.system.heat.fastest_rate(), h, [])[0]
+    return {"adiabatic": tn.Simulation(net, parameters=PARAMETERS, h=h, backend="cuda", **common),
+            "every step": tn.Simulation(net, h=h, conduction_every=1, backend="cuda", **conduction, **common),
+            f"every {auto_k} steps": tn.Simulation(net, h=h, conduction_every=auto_k, backend="cuda", **conduction,
+                                                   **common)}
+
+
+def rate(sim, cuda, seconds: float, fused: bool, quick: bool) -> float:
+    """Median spring-steps/s of ``sim``'s CUDA stepper (steps in whole conduction cycles)."""
+    stepper, state, m, h = sim.stepper, sim._state, sim.net.n_springs, sim.h
+    cycle = int(sim.conduction_every) if sim.system.heat is not None else 1
+    stepper.fused = fused
+    stepper.advance(state, cycle, h)  # compile and upload
+    cuda.synchronize()
+    if quick:
+        t0 = time.perf_counter()
+        stepper.advance(state, cycle, h)
+        cuda.synchronize()
+        return cycle * m / max(time.perf_counter() - t0, 1e-9)
+    t0 = time.perf_counter()
+    stepper.advance(state, 10 * cycle, h)
+    cuda.synchronize()
+    per_step = max((time.perf_counter() - t0) / (10 * cycle), 1e-7)
+    steps = max(10, int(seconds / per_step)) // cycle * cycle + cycle
+    rates = []
+    for _ in range(3):
+        t0 = time.perf_counter()
+        stepper.advance(state, steps, h)
+        cuda.synchronize()
+        rates.append(steps * m / (time.perf_counter() - t0))
+    return float(np.median(rates))
+
+
+def main(argv=None) -> list[dict]:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--sizes", default="3e5,3e6", help="comma-separated spring counts")
+    ap.add_argument("--seconds", type=float, default=2.0, help="length of each timed run")
+    ap.add_argument("--quick", action="store_true", help="a tiny net, a few steps; the CUDA simulator allowed")
+    args = ap.parse_args(argv)
+    if args.quick:
+        args.sizes = "40"
+    problem = cuda_problem()
+    if problem is None and simulator_enabled() and not args.quick:
+        problem = "Numba's CUDA simulator is on (NUMBA_ENABLE_CUDASIM): its timings mean nothing"
+    if problem is not None:
+        print(f"gpu_heat_cost: needs a CUDA GPU: {problem}", file=sys.stderr)
+        raise SystemExit(2)
+    from numba import cuda
+
+    rows = []
+    print("| springs | launch | run | G spring-steps/s | × the adiabatic step | phases per half sweep |")
+    print("|---:|---|---|---:|---:|---:|")
+    for size in (int(float(s)) for s in args.sizes.split(",")):
+        sims = simulations(size)
+        phases = sims["every step"].system.heat.star_order("cuda").n_colours + 3
+        for fused in (True, False):
+            rates = {name: rate(sim, cuda, args.seconds, fused, args.quick) for name, sim in sims.items()}
+            for name, r in rates.items():
+                row = dict(springs=sims[name].net.n_springs, launch="fused" if fused else "two per stage", run=name,
+                           rate=r, ratio=rates["adiabatic"] / r, phases=0 if name == "adiabatic" else phases)
+                rows.append(row)
+                print(f"| {row['springs']:,} | {row['launch']} | {name} | {r / 1e9:.3g} | {row['ratio']:.2f}× | "
+                      f"{row['phases'] or '–'} |")
+    if args.quick:
+        print("(quick: timings mean nothing)")
+    return rows
+
+
+if __name__ == "__main__":
+    main()
