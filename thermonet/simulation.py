@@ -82,7 +82,7 @@ class Simulation(RunDriver):
         state rewound to the previous stop.
     backend: "cpu" (default) or "cuda": the explicit integrators on an NVIDIA GPU through
         numba-cuda, the state resident on the device (see :mod:`thermonet.cuda`).
-    conduction: Fourier heat conduction between springs (spec-heat §1) through each spring's
+    conduction: Fourier heat conduction between springs (docs/heat.md) through each spring's
         conductance ``g``, given in ``parameters`` like a model parameter (scalar or (m,), ≥ 0);
         default: on when ``g`` is given. Each conduction cycle of k steps becomes
         ``K(kh/2) ∘ A(h)^k ∘ K(kh/2)``, K a sweep of node-star exchanges (:mod:`thermonet.heat`);
@@ -92,7 +92,7 @@ class Simulation(RunDriver):
         1, 2, 5, 10, 20, … with λ k h ≤ 0.3, λ the conduction's fastest rate, that divides the
         output cadences; :mod:`thermonet.heat.multirate`) or a whole number that divides every
         run's output cadences and length. ``self.conduction_cycle`` says which k ran and why.
-    thermal_waves: Green–Naghdi type II thermal waves (spec-heat §2) through ``g_star`` (in
+    thermal_waves: Green–Naghdi type II thermal waves (docs/heat.md) through ``g_star`` (in
         ``parameters``); explicit splittings only; default: on when ``g_star`` is given.
     baths: name -> :class:`thermonet.heat.Bath` (a node group held at θ_b(t)), needs conduction.
     sources: name -> :class:`thermonet.heat.Source` (a spring group receiving power P(t) per

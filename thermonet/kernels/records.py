@@ -90,7 +90,7 @@ class Run(NamedTuple):
 
 
 class Heat(NamedTuple):
-    """Heat flow (spec-heat §1–2): the conduction sweep's order and factors, the thermal waves'
+    """Heat flow (docs/heat.md): the conduction sweep's order and factors, the thermal waves'
     coloured spring pairs, the bath and source entries, and the logs (all arrays empty when heat
     flow is off; the kernels then compile its code out).
 

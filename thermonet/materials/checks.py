@@ -1,4 +1,4 @@
-"""The three convergence checks of continuum materials (spec-heat §5), on gmsh bars at three
+"""The three convergence checks of continuum materials (docs/continuum.md), on gmsh bars at three
 refinements: free thermal expansion, the longitudinal wave speed, the decay of a Fourier
 temperature mode; and total mass and heat capacity.
 

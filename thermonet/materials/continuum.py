@@ -1,6 +1,6 @@
 """Continuum materials: a region's E, α, ρ, c_v, k (and k*) turned into spring parameters.
 
-The isotropic rule of spec-heat §5. Each spring e of a net read from a mesh has a volume share
+The isotropic rule (docs/continuum.md). Each spring e of a net read from a mesh has a volume share
 V_e (``Net.spring_volumes``: every cell of the highest dimension split equally over its edges;
 times a thickness for 2D cells, a cross-section area for 1D ones). For a net of dimension d:
 
