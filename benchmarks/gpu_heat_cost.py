@@ -27,8 +27,10 @@ import time
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 import thermonet as tn  # noqa: E402
+from gpu_throughput import gpu_rate  # noqa: E402
 from thermonet.cuda import cuda_problem, simulator_enabled  # noqa: E402
 from thermonet.heat.multirate import choose_cycle  # noqa: E402
 from thermonet.stability import stable_step  # noqa: E402
@@ -58,29 +60,19 @@ def simulations(target_springs: int) -> dict:
 
 
 def rate(sim, cuda, seconds: float, fused: bool, quick: bool) -> float:
-    """Median spring-steps/s of ``sim``'s CUDA stepper (steps in whole conduction cycles)."""
-    stepper, state, m, h = sim.stepper, sim._state, sim.net.n_springs, sim.h
+    """Spring-steps/s of ``sim``'s CUDA stepper (:func:`gpu_throughput.gpu_rate`, calls in
+    whole conduction cycles); quick: one short call after the compiling one."""
     cycle = int(sim.conduction_every) if sim.system.heat is not None else 1
+    if not quick:
+        return gpu_rate(sim, cuda, seconds, fused, cycle)
+    stepper, state, h = sim.stepper, sim._state, sim.h
     stepper.fused = fused
-    stepper.advance(state, cycle, h)  # compile and upload
-    cuda.synchronize()
-    if quick:
+    for _ in range(2):  # compile and upload, then one timed cycle
+        cuda.synchronize()
         t0 = time.perf_counter()
         stepper.advance(state, cycle, h)
         cuda.synchronize()
-        return cycle * m / max(time.perf_counter() - t0, 1e-9)
-    t0 = time.perf_counter()
-    stepper.advance(state, 10 * cycle, h)
-    cuda.synchronize()
-    per_step = max((time.perf_counter() - t0) / (10 * cycle), 1e-7)
-    steps = max(10, int(seconds / per_step)) // cycle * cycle + cycle
-    rates = []
-    for _ in range(3):
-        t0 = time.perf_counter()
-        stepper.advance(state, steps, h)
-        cuda.synchronize()
-        rates.append(steps * m / (time.perf_counter() - t0))
-    return float(np.median(rates))
+    return cycle * sim.net.n_springs / max(time.perf_counter() - t0, 1e-9)
 
 
 def main(argv=None) -> list[dict]:

@@ -107,22 +107,23 @@ def copy_bandwidth(cuda, n_bytes: int = 2 << 30, repeats: int = 10) -> float:
     return 2 * n * 8 / best
 
 
-def gpu_rate(sim, cuda, seconds: float, fused: bool) -> float:
+def gpu_rate(sim, cuda, seconds: float, fused: bool, multiple: int = 1) -> float:
     """Median spring-steps/s of the CUDA stepper over three runs of about ``seconds``, with one
-    cooperative launch per chunk of steps (``fused``) or two launches per stage."""
-    stepper, state, m = sim.stepper, sim._state, sim.net.n_springs
+    cooperative launch per chunk of steps (``fused``) or two launches per stage; every call a
+    whole number of ``multiple`` steps (a conduction cycle)."""
+    stepper, state, m, h = sim.stepper, sim._state, sim.net.n_springs, sim.h
     stepper.fused = fused
-    stepper.advance(state, 2, H)  # compile and upload
+    stepper.advance(state, 2 * multiple, h)  # compile and upload
     cuda.synchronize()
     t0 = time.perf_counter()
-    stepper.advance(state, 10, H)
+    stepper.advance(state, 10 * multiple, h)
     cuda.synchronize()
-    per_step = max((time.perf_counter() - t0) / 10, 1e-7)
-    steps = max(10, int(seconds / per_step))
+    per_step = max((time.perf_counter() - t0) / (10 * multiple), 1e-7)
+    steps = max(10, int(seconds / per_step)) // multiple * multiple + multiple
     rates = []
     for _ in range(3):
         t0 = time.perf_counter()
-        stepper.advance(state, steps, H)
+        stepper.advance(state, steps, h)
         cuda.synchronize()
         rates.append(steps * m / (time.perf_counter() - t0))
     return float(np.median(rates))

@@ -16,6 +16,8 @@ import thermonet as tn
 from thermonet.cli.main import main
 from thermonet.io import load_checkpoint, read_pvd
 
+from cli_helpers import one_error_line, snapshot
+
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 LATTICE2D = os.path.join(ROOT, "scenes", "lattice2d.toml")
 SPINNING = os.path.join(ROOT, "scenes", "spinning_lattice.toml")
@@ -28,17 +30,6 @@ HOT = [a for key in HOT_SCENE for a in ("--set", key)] + [
     "--set", "output.frames_every=1", "--set", "output.checkpoint_every=1"]
 SMALL = ["--quiet", "--set", "integrator.steps=120", "--set", "output.frames_every=20",
          "--set", "output.diagnostics_every=10", "--set", "output.checkpoint_every=40"]
-
-
-def snapshot(folder) -> dict:
-    """name -> bytes of every file in ``folder``."""
-    return {n: open(os.path.join(folder, n), "rb").read() for n in sorted(os.listdir(folder))}
-
-
-def one_error_line(err: str) -> str:
-    lines = [line for line in err.splitlines() if line.startswith("thermonet: error:")]
-    assert len(lines) == 1 and "Traceback" not in err, err
-    return lines[0]
 
 
 def assert_valid_output(folder, name):

@@ -13,6 +13,8 @@ import pytest
 
 from thermonet.cli.main import main
 
+from cli_helpers import one_error_line, snapshot
+
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 MESHES = os.path.join(ROOT, "meshes")
 #: the thermal shock scene, small: conduction, a bath, a few steps
@@ -41,17 +43,6 @@ frames_every = 4
 diagnostics_every = 2
 checkpoint_every = 6
 """
-
-
-def snapshot(folder) -> dict:
-    """name -> bytes of every file in ``folder``."""
-    return {n: open(os.path.join(folder, n), "rb").read() for n in sorted(os.listdir(folder))}
-
-
-def one_error_line(err: str) -> str:
-    lines = [line for line in err.splitlines() if line.startswith("thermonet: error:")]
-    assert len(lines) == 1 and "Traceback" not in err, err
-    return lines[0]
 
 
 # ----------------------------------------------------------------------------------------------

@@ -10,6 +10,8 @@ import pytest
 
 from thermonet.cli.main import main
 
+from cli_helpers import one_error_line
+
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 SCENES = os.path.join(ROOT, "scenes")
 #: a free jittered lattice of 27 nodes, thermal coupling on: Hamilton's equations alone
@@ -30,12 +32,6 @@ uniform = 0.1
 h = 0.01
 t_end = 0.08
 """
-
-
-def one_error_line(err: str) -> str:
-    lines = [line for line in err.splitlines() if line.startswith("thermonet: error:")]
-    assert len(lines) == 1 and "Traceback" not in err, err
-    return lines[0]
 
 
 def slopes(folder) -> dict:

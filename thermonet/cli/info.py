@@ -171,10 +171,10 @@ def _heat_flow(sim, specs: dict, cadences=()) -> list[str]:
             nodes = int(np.sum(heat.bath_nodes == i))
             ends = int(np.sum(mine & (heat.entry_kind == BATH)))
             out.append(f"    bath {name}: node group {group!r} ({nodes} nodes, {ends} spring ends), "
-                       f"θ_b(t) = {_function(heat.functions[i])}")
+                       f"θ_b(t) = {heat.functions[i].describe()}")
         else:
             group = specs.get(name, {}).get("group", "?")
-            out.append(f"    source {name}: spring group {group!r} ({int(np.sum(mine))} springs), P(t) = {_function(heat.functions[i])} "
+            out.append(f"    source {name}: spring group {group!r} ({int(np.sum(mine))} springs), P(t) = {heat.functions[i].describe()} "
                        "per spring")
     if not heat.names:
         out.append("    no baths or sources (an isolated net: heat only moves inside)")
@@ -195,21 +195,6 @@ def conduction_line(sim, cadences=()) -> str:
 def _span(values) -> str:
     lo, hi = float(np.min(values)), float(np.max(values))
     return f"{lo:g}" if lo == hi else f"{lo:g} .. {hi:g}"
-
-
-def _function(f) -> str:
-    """A time function in words."""
-    p = f.params
-    if f.kind == "constant":
-        return f"{p[0]:g}"
-    if f.kind == "linear":
-        return f"{p[0]:g} + {p[1]:g} t"
-    if f.kind == "ramp":
-        return f"ramp {p[0]:g} → {p[1]:g} over t ≤ {p[2]:g}"
-    if f.kind == "sine":
-        return f"{p[3]:g} + {p[0]:g} sin(2π·{p[1]:g} t + {p[2]:g})"
-    return (f"table of {len(f.times)} points, t {f.times[0]:g} .. {f.times[-1]:g}, "
-            f"values {f.values.min():g} .. {f.values.max():g}")
 
 
 def _continuum(built) -> list[str]:

@@ -23,12 +23,6 @@ from ..loads.stepping import StepperLoads, work_of
 from . import FLAG_ROW, FLAG_SET, FLAG_STAGES, FLAG_STEP, require_cuda
 
 
-def _conduction_due(code: int, every: int, step_in_cycle: int) -> bool:
-    """Whether a conduction row runs on this step of its cycle (the host's copy of
-    :func:`thermonet.heat.cuda._conduction_due`, which imports numba.cuda)."""
-    return step_in_cycle == 0 if code == CONDUCTION_FORWARD else step_in_cycle == every - 1
-
-
 class CudaSplittingStepper(Stepper):
     """A :class:`~thermonet.integrators.splitting.Splitting` bound to a system, on the GPU."""
 
@@ -194,6 +188,8 @@ class CudaSplittingStepper(Stepper):
     def _steps(self, t0: float, n_steps: int, h: float):
         """n_steps steps from time t0 on the device state; None, or where a launch stopped:
         (flag, steps completed before its launch sequence, positions buffer at that start)."""
+        from ..heat.cuda import _conduction_due  # (the rows' own test, run here on the host)
+
         lo, hi = self.system.stretch_bounds
         every, at = self._cycle
         run = records.Run(h, t0, n_steps, bool(self.integrator.track_phi), float(lo), float(hi), False, False, every, at)

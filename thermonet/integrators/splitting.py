@@ -325,7 +325,7 @@ class SplittingStepper(Stepper):
                   bool(reuse), bool(measure), every, cycle_step)
         loads = self.loads.arrays_for(state, h) if self.loads is not None else NO_LOADS  # loads
         done, detected, summed = self._advance(arrays, self._scratch, self._topology, self._springs, self._nodes,
-                                               self._table, self._effects, self._heat_record(state, h), run, loads)
+                                               self._table, self._effects, self._heat_record(state, h, every), run, loads)
         if not detected and self._table.carry != 0.0:
             self._boundary = (state, state.step + int(n_steps))
         if summed:
@@ -334,12 +334,11 @@ class SplittingStepper(Stepper):
             raise blowup_failure(self.system, state.positions, state.entropy, done)
         return None
 
-    def _heat_record(self, state, h: float):
-        """The kernels' Heat record: conduction factors for the half sweeps of this h and the
-        state's cycle length (τ = k h / 2), logs in the state."""
+    def _heat_record(self, state, h: float, every: int):
+        """The kernels' Heat record: conduction factors for the half sweeps of this h and a
+        cycle of ``every`` steps (τ = k h / 2), logs in the state."""
         if self._heat is None:
             return _NO_HEAT
-        every = cycle_position(state, self._heat)[0] if self._conduction else 1
         return self._heat.record(0.5 * every * h, heat_logs(state, self._heat))
 
     def closing_sums(self, state) -> dict | None:
