@@ -65,7 +65,7 @@ def test_the_energy_tolerance_rewinds_to_the_last_stop_when_the_backup_lags_behi
     """The state copy for rewinds is refreshed only every BACKUP_SPAN steps; a rewind then
     replays from the older copy to the last good stop, bit for bit."""
     sim = tn.chain_simulation("co2", h=0.05, energy_tolerance=1e-2)
-    assert sim.BACKUP_SPAN > 150
+    assert sim.runner.BACKUP_SPAN > 150
     with pytest.raises(tn.SimulationError, match="rewound to step 140"):
         sim.run(t_end=50.0, diagnostics_every=10)  # fails at step 150; the copy is of step 0
     assert sim.step == 140 and sim.diagnostics.step[-1] == 140

@@ -153,8 +153,8 @@ def main(path):
     sim.run(steps=2, diagnostics_every=2)
     record(out, "whole-multirate/cuda", sim)
     sim = conduction_sim("cuda", True, bath=500.0, every=2)
-    sim._advance(1)
-    sim._advance(1)
+    sim.runner.advance(1)
+    sim.runner.advance(1)
     sim.record_diagnostics()
     record(out, "calls-multirate/cuda", sim)
     for name, fused in BLOWUPS.items():

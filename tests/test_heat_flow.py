@@ -227,14 +227,14 @@ def test_chunked_threaded_and_resumed_runs_are_bit_identical(tmp_path, every):
     # calls that end inside a conduction cycle (as a run interrupted and checkpointed there)
     inside = make()
     for n in (3, 7, 1, 389):
-        inside._advance(n)
+        inside.runner.advance(n)
     first = make()
-    first._advance(150)
+    first.runner.advance(150)
     save_checkpoint(tmp_path / "c.npz", first.state, {})
     state, _ = load_checkpoint(tmp_path / "c.npz")
     resumed = make()
     resumed.load_state(state)
-    resumed._advance(250)
+    resumed.runner.advance(250)
     for other in (chunked, inside, resumed):
         assert np.array_equal(one.state.positions, other.state.positions)
         assert np.array_equal(one.state.entropy, other.state.entropy)

@@ -1,10 +1,10 @@
-"""The run driver of a :class:`~thermonet.simulation.Simulation`: steps between observer stops
+"""The runner of a :class:`~thermonet.simulation.Simulation`: steps between observer stops
 (diagnostics rows, frames, checkpoints, progress at their cadences), the backup and replay of
 the last good state after a blow-up, and the energy policy checked at the diagnostics cadence.
 
-:class:`RunDriver` is mixed into the Simulation; it works on the Simulation's ``_state``,
-``stepper``, ``system``, ``diagnostics``, ``_h`` and ``_time_origin`` and reads back through its
-public accessors.
+A Simulation holds one :class:`Runner` (``sim.runner``) and calls it from ``run``. The runner
+keeps what only running needs (the backup of the state, the last stepper statistics) and works
+on the Simulation's state, stepper, system and diagnostics through the Simulation it was made for.
 """
 
 from __future__ import annotations
@@ -25,15 +25,30 @@ from .run_guards import energy_departure
 from .state import State
 
 
-class RunDriver:
-    """Running a Simulation in time (see the module docstring)."""
+class Runner:
+    """Running one Simulation in time (see the module docstring)."""
+
+    #: steps a backup of the state may lag behind a chunk's start (explicit CPU runs): copying
+    #: the state at every observer stop costs a noticeable share of a short chunk, and a rewind
+    #: replays at most this many steps more
+    BACKUP_SPAN = 256
+
+    def __init__(self, sim):
+        self.sim = sim
+        #: a copy of an earlier state of this run (explicit CPU runs; :meth:`_keep_backup`), and
+        #: (state, h) it was taken of: a loaded state or a new h makes it useless for replays
+        self.backup: State | None = None
+        self.backup_of: tuple = (None, None)
+        #: the statistics of the stepper's last ``advance`` (implicit steppers' Newton counts)
+        self.last_stats: dict = {}
 
     def steps_until(self, t_end: float) -> int:
         """Steps from the current time to ``t_end``, which must be a whole number of steps
         (:func:`thermonet.step_policy.whole_steps`; an InputError otherwise)."""
+        sim = self.sim
         from .step_policy import whole_steps
 
-        return whole_steps(t_end, self.h, self._state.time)
+        return whole_steps(t_end, sim.h, sim._state.time)
 
     def run(
         self,
@@ -47,7 +62,7 @@ class RunDriver:
 
         diagnostics_every: a diagnostics row every k steps (and at the start and end);
             default: about 1000 rows over the run (a multiple of the conduction cycle).
-        observers: (k, callback) pairs; ``callback(sim)`` is called every k steps (at multiples of
+        observers: (k, callback) pairs (then the Simulation's probes, if any); ``callback(sim)`` is called every k steps (at multiples of
             k in the global step count) and at the end of the run. Where a callback is a bound
             method of an object with a ``flush()`` method (``RunOutput``: frames written on a
             thread), that is called before ``run`` returns or raises.
@@ -56,6 +71,7 @@ class RunDriver:
             method, that is called when the run starts compiling a kernel (first runs only).
         Returns the diagnostics series (``sim.diagnostics``, accumulated over runs).
         """
+        sim = self.sim
         if (t_end is None) == (steps is None):
             raise InputError("run: give exactly one of t_end or steps")
         if steps is None:
@@ -71,39 +87,41 @@ class RunDriver:
         if diagnostics_every < 1:
             raise InputError(f"run: diagnostics_every must be >= 1, got {diagnostics_every}")
         cadences = [(int(diagnostics_every), self._diagnostics_stop)] + [(int(k), cb) for k, cb in observers]
+        if sim.probes is not None:  # (after the observers: they only read the state)
+            cadences += [(int(k), cb) for k, cb in sim.probes.observers(int(diagnostics_every))]
         for k, _ in cadences:
             if k < 1:
                 raise InputError(f"run: observer cadence must be >= 1, got {k}")
         self._choose_conduction_cycle(steps, [k for k, _ in cadences])
-        if not self.diagnostics.rows or self.diagnostics.rows[-1]["step"] != self._state.step:
-            self._record(self)
+        if not sim.diagnostics.rows or sim.diagnostics.rows[-1]["step"] != sim._state.step:
+            self._record()
         for k, cb in cadences[1:]:
-            if self._state.step % k == 0:
-                cb(self)
+            if sim._state.step % k == 0:
+                cb(sim)
         threads_before = None
-        if self.threads:
+        if sim.threads:
             import numba
 
             # for this run only: a later simulation without ``threads`` gets Numba's setting back
             threads_before = numba.get_num_threads()
-            numba.set_num_threads(int(self.threads))
-        start = self._state.step
+            numba.set_num_threads(int(sim.threads))
+        start = sim._state.step
         end = start + steps
         flushes = _flushes(cadences[1:])  # (observers may have been a generator: read once above)
         watch = CompileWatch(getattr(progress, "compiling", None))  # compile time kept out of rates
         t0 = _time.perf_counter()
         watch.__enter__()
         try:
-            while self._state.step < end:
-                cur = self._state.step
+            while sim._state.step < end:
+                cur = sim._state.step
                 stop = min([end] + [(cur // k + 1) * k for k, _ in cadences])
-                self._advance(stop - cur, measure=stop % cadences[0][0] == 0 or stop == end)
-                done = self._state.step
+                self.advance(stop - cur, measure=stop % cadences[0][0] == 0 or stop == end)
+                done = sim._state.step
                 for k, cb in cadences:
                     if done % k == 0 or done == end:
-                        if cb == self._diagnostics_stop and self.diagnostics.rows and self.diagnostics.rows[-1]["step"] == done:
+                        if cb == self._diagnostics_stop and sim.diagnostics.rows and sim.diagnostics.rows[-1]["step"] == done:
                             continue
-                        cb(self)
+                        cb(sim)
                 if progress is not None:
                     progress(done - start, steps, _time.perf_counter() - t0 - watch.seconds)
         except BaseException:
@@ -115,81 +133,80 @@ class RunDriver:
             raise
         finally:
             watch.__exit__()
-            self.compile_time += watch.seconds
+            sim.compile_time += watch.seconds
             if threads_before is not None:
                 numba.set_num_threads(threads_before)
         for flush in flushes:
             flush()
-        self.wall_time += _time.perf_counter() - t0 - watch.seconds
-        self.steps_run += steps
-        return self.diagnostics
+        sim.wall_time += _time.perf_counter() - t0 - watch.seconds
+        sim.steps_run += steps
+        return sim.diagnostics
 
     def _conduction_cycle_wanted(self) -> int:
         """The conduction cycle this run would take with no output cadence to follow (1 without
         conduction)."""
-        heat = getattr(self.system, "heat", None)
+        sim = self.sim
+        heat = sim.system.heat
         if heat is None or not heat.conduction:
             return 1
-        if self.conduction_every != "auto":
-            return int(self.conduction_every)
+        if sim.conduction_every != "auto":
+            return int(sim.conduction_every)
         from .heat.multirate import choose_cycle
 
-        return choose_cycle("auto", heat.fastest_rate(), self._h, [])[0]
+        return choose_cycle("auto", heat.fastest_rate(), sim._h, [])[0]
 
     def _choose_conduction_cycle(self, steps: int, cadences) -> None:
         """The conduction cycle of this run (:mod:`thermonet.heat.multirate`), chosen at a cycle
         boundary so that every output cadence and the run's end fall on one; a run that starts
         inside a cycle (a state left there by ``advance``) finishes it first with the same k."""
-        heat = getattr(self.system, "heat", None)
+        sim = self.sim
+        heat = sim.system.heat
         if heat is None or not heat.conduction or steps <= 0:
             return
         from .heat.multirate import choose_cycle
         from .heat.logs import cycle_position, heat_logs
 
-        every, at = cycle_position(self._state, heat)
+        every, at = cycle_position(sim._state, heat)
         if at != 0:
-            self.conduction_cycle = (every, f"continuing a cycle of {every} steps begun at step "
-                                            f"{self._state.step - at}")
+            sim.conduction_cycle = (every, f"continuing a cycle of {every} steps begun at step "
+                                            f"{sim._state.step - at}")
             return
-        step = self._state.step
-        k, why = choose_cycle(self.conduction_every, heat.fastest_rate(), self._h, list(cadences) + [steps, step])
+        step = sim._state.step
+        k, why = choose_cycle(sim.conduction_every, heat.fastest_rate(), sim._h, list(cadences) + [steps, step])
         if k != every:
-            heat_logs(self._state, heat)["cycle"][:] = (k, step)
-        self.conduction_cycle = (k, why)
+            heat_logs(sim._state, heat)["cycle"][:] = (k, step)
+        sim.conduction_cycle = (k, why)
 
     def _set_step(self, step: int) -> None:
         """Move the step counter; time is origin + (steps since origin)·h, so it does not depend
         on how the run was cut into chunks."""
-        state = self._state
-        origin_step, origin_time = self._time_origin
+        sim = self.sim
+        state = sim._state
+        origin_step, origin_time = sim._time_origin
         state.step = step
-        state.time = origin_time + (step - origin_step) * self._h
+        state.time = origin_time + (step - origin_step) * sim._h
 
-    #: steps a backup of the state may lag behind a chunk's start (explicit CPU runs): copying
-    #: the state at every observer stop costs a noticeable share of a short chunk, and a rewind
-    #: replays at most this many steps more
-    BACKUP_SPAN = 256
-
-    def _advance(self, n: int, measure: bool = False) -> None:
+    def advance(self, n: int, measure: bool = False) -> None:
         """n steps; with ``measure``, a stepper that can reduces the diagnostics sums of the end
         state on the way (see ``SplittingStepper.advance``)."""
-        step0 = self._state.step
+        sim = self.sim
+        step0 = sim._state.step
         backup = self._keep_backup()
         try:
-            if measure and self.stepper.measures:
-                stats = self.stepper.advance(self._state, n, self._h, measure=True)
+            if measure and sim.stepper.measures:
+                stats = sim.stepper.advance(sim._state, n, sim._h, measure=True)
             else:
-                stats = self.stepper.advance(self._state, n, self._h)
+                stats = sim.stepper.advance(sim._state, n, sim._h)
         except StepFailure as exc:
             if exc.details.get("rewind") and backup is not None:
                 self._rewind(backup, step0 + exc.steps_done - backup.step)
             self._set_step(step0 + exc.steps_done)
-            self._record(self)
+            self._record()
             if exc.details.get("rewind"):
                 raise StepFailure(self._blowup_message(exc, step0), exc.steps_done, exc.details) from None
             raise
         self._set_step(step0 + n)
-        self._last_stats = stats or {}
+        self.last_stats = stats or {}
 
     def _keep_backup(self) -> State | None:
         """A copy of the state at this or an earlier chunk start, at most :data:`BACKUP_SPAN`
@@ -197,121 +214,129 @@ class RunDriver:
         stops mid-step and the last good step is then replayed from the copy, bit for bit;
         implicit steppers keep their state intact themselves). A copy costs about a fifth of one
         step."""
-        if self.backend != "cpu" or not self.integrator.explicit:
+        sim = self.sim
+        if sim.backend != "cpu" or not sim.integrator.explicit:
             return None
-        s = self._state
-        b = getattr(self, "_backup", None)
+        s = sim._state
+        b = self.backup
         if self._backup_usable() and s.step - b.step < self.BACKUP_SPAN:
             return b
         if b is None:
-            b = self._backup = s.copy()
+            b = self.backup = s.copy()
         else:
             np.copyto(b.positions, s.positions)
             np.copyto(b.momenta, s.momenta)
             if s.thermal_displacement is not None:
                 np.copyto(b.thermal_displacement, s.thermal_displacement)
-            if self.system.heat is not None:  # heat flow changes η
+            if sim.system.heat is not None:  # heat flow changes η
                 np.copyto(b.entropy, s.entropy)
             _copy_extra(s.extra, b.extra)  # the heat-flow logs, the loads' work
         b.step, b.time = s.step, s.time
-        self._backup_of = (s, self._h)  # a loaded state or a new h makes the copy useless for replays
+        self.backup_of = (s, sim._h)  # a loaded state or a new h makes the copy useless for replays
         return b
 
     def _backup_usable(self) -> bool:
         """Whether the backup is an earlier state of the current history, at the current h."""
-        b = getattr(self, "_backup", None)
+        sim = self.sim
+        b = self.backup
         if b is None:
             return False
-        state, h = getattr(self, "_backup_of", (None, None))
-        return state is self._state and h == self._h and b.step <= self._state.step
+        state, h = self.backup_of
+        return state is sim._state and h == sim._h and b.step <= sim._state.step
 
     def _rewind(self, backup: State, steps: int) -> None:
         """Restore ``backup`` (a chunk start) and replay ``steps`` steps: the run's last good
         state, bit for bit (runs do not depend on how they are chunked)."""
-        s = self._state
+        sim = self.sim
+        s = sim._state
         np.copyto(s.positions, backup.positions)
         np.copyto(s.momenta, backup.momenta)
         if s.thermal_displacement is not None:
             np.copyto(s.thermal_displacement, backup.thermal_displacement)
-        if self.system.heat is not None:
+        if sim.system.heat is not None:
             np.copyto(s.entropy, backup.entropy)
         _copy_extra(backup.extra, s.extra)
         self._set_step(backup.step)
         if steps > 0:
-            self.stepper.advance(s, steps, self._h)
+            sim.stepper.advance(s, steps, sim._h)
             self._set_step(backup.step + steps)
 
     def _blowup_message(self, exc: StepFailure, step0: int) -> str:
+        sim = self.sim
         bad_step = step0 + exc.steps_done + 1
-        good_time = self._state.time
-        return (f"the run left the admissible states in step {bad_step} (t = {good_time + self._h:.6g}): {exc}. "
+        good_time = sim._state.time
+        return (f"the run left the admissible states in step {bad_step} (t = {good_time + sim._h:.6g}): {exc}. "
                 f"Stopped; the state is the last good one (step {bad_step - 1}, t = {good_time:.6g}). "
-                f"{remedy(self.integrator, self._h)}.")
+                f"{remedy(sim.integrator, sim._h)}.")
 
     def record_diagnostics(self) -> None:
         """Record a diagnostics row for the current state unless the last row is of this step
         (checkpoints call it so that a resumed run's rows equal an uninterrupted run's)."""
-        if not self.diagnostics.rows or self.diagnostics.rows[-1]["step"] != self._state.step:
-            self._record(self)
+        sim = self.sim
+        if not sim.diagnostics.rows or sim.diagnostics.rows[-1]["step"] != sim._state.step:
+            self._record()
 
     def _diagnostics_stop(self, _sim=None) -> None:
         """The run loop's diagnostics observer: a row, then the run-time guards
         (:mod:`thermonet.run_guards`): the energy departure, then the stable step."""
-        self._record(self)
-        rows = self.diagnostics.rows
-        departure = energy_departure(rows, self.energy_tolerance)
+        sim = self.sim
+        self._record()
+        rows = sim.diagnostics.rows
+        departure = energy_departure(rows, sim.energy_tolerance)
         if departure is not None:
-            bad_step, bad_time = self._state.step, self._state.time
+            bad_step, bad_time = sim._state.step, sim._state.time
             e0 = rows[0]["energy"]
             where = self._rewind_to_previous_stop()
             raise SimulationError(
                 f"the energy departed from its initial value {e0:.10g} by {departure:.3g} "
-                f"(relative; tolerance {self.energy_tolerance:g}) at step {bad_step} (t = {bad_time:.6g}); "
-                f"{where}. {remedy(self.integrator, self._h)}; "
+                f"(relative; tolerance {sim.energy_tolerance:g}) at step {bad_step} (t = {bad_time:.6g}); "
+                f"{where}. {remedy(sim.integrator, sim._h)}; "
                 f"energy_tolerance (scene: integrator.energy_tolerance) sets the guard")
         try:
-            self.stability_guard.check(self)
+            sim.stability_guard.check(sim)
         except SimulationError as exc:
             where = self._rewind_to_previous_stop()
-            raise type(exc)(f"{exc}; {where}. {remedy(self.integrator, self._h)}; or pass "
+            raise type(exc)(f"{exc}; {where}. {remedy(sim.integrator, sim._h)}; or pass "
                             f"--allow-unstable-step (scene: integrator.check_step = false; API: "
                             f"stability_guard='warn') to only warn") from None
 
     def _rewind_to_previous_stop(self) -> str:
         """Drop the last diagnostics row and rewind the state to the row before (where the
         backup allows); returns where the state now is, in words."""
-        rows = self.diagnostics.rows
-        backup = getattr(self, "_backup", None)
+        sim = self.sim
+        rows = sim.diagnostics.rows
+        backup = self.backup
         dropped = rows.pop()
         last = rows[-1]["step"] if rows else -1
         if rows and self._backup_usable() and backup.step <= last:
             self._rewind(backup, last - backup.step)
-            return (f"the state was rewound to step {last} (t = {self._state.time:.6g}), "
+            return (f"the state was rewound to step {last} (t = {sim._state.time:.6g}), "
                     "the last diagnostics stop before")
         rows.append(dropped)  # no earlier state to go back to: the row stays
-        return f"the state is that of step {self._state.step}"
+        return f"the state is that of step {sim._state.step}"
 
-    def _record(self, _sim=None) -> None:
-        row = self.stepper.diagnostics_row(self.system, self._state)  # a device-resident state
+    def _record(self) -> None:
+        sim = self.sim
+        row = sim.stepper.diagnostics_row(sim.system, sim._state)  # a device-resident state
         if row is None:
-            sums = self.stepper.closing_sums(self._state)  # reduced by the last advance
+            sums = sim.stepper.closing_sums(sim._state)  # reduced by the last advance
             if sums is not None:
-                s = self._state
-                entropy = float(np.sum(s.entropy)) if self.system.thermal else None
-                row = diagnostics_row(self.system, s, entropy=entropy, **sums)
+                s = sim._state
+                entropy = float(np.sum(s.entropy)) if sim.system.thermal else None
+                row = diagnostics_row(sim.system, s, entropy=entropy, **sums)
             else:
-                row = measure(self.system, self._state, self.parallel)
-        heat = self.system.heat
+                row = measure(sim.system, sim._state, sim.parallel)
+        heat = sim.system.heat
         if heat is not None:
             if heat.waves:
-                row["wave_energy"] = wave_energy(heat, self._state.thermal_displacement)
+                row["wave_energy"] = wave_energy(heat, sim._state.thermal_displacement)
                 row["energy"] += row["wave_energy"]
-            row.update(heat_columns(heat, self._state))
-            row.update(balances(row, self.diagnostics.rows[0] if self.diagnostics.rows else row))
-        row.update(getattr(self, "_last_stats", {}) or {})
-        if getattr(self, "loads", None) is not None:  # loads: displacement, reaction, work, balance
-            row.update(self.loads.columns(self, row))
-        self.diagnostics.append(row)
+            row.update(heat_columns(heat, sim._state))
+            row.update(balances(row, sim.diagnostics.rows[0] if sim.diagnostics.rows else row))
+        row.update(self.last_stats)
+        if sim.loads is not None:  # loads: displacement, reaction, work, balance
+            row.update(sim.loads.columns(sim, row))
+        sim.diagnostics.append(row)
         self._check_physical(row)
 
     def _check_physical(self, row: dict) -> None:
@@ -319,23 +344,24 @@ class RunDriver:
         longer physical: a non-finite value (typically h above the stability limit) or a
         temperature θ ≤ 0 (possible in models such as "quadratic"). Checked at the diagnostics
         cadence and at the end of every run, so a run never silently returns such a state."""
+        sim = self.sim
         if math.isfinite(row["energy"]) and row.get("theta_min", 1.0) > 0:
             return
-        s, lay = self.internal_state(), self.layout
+        s, lay = sim.internal_state(), sim.layout
         where = f"at step {s.step} (t = {s.time:.6g})"
-        unstable = f"; h = {self.h} may be above the stability limit"
+        unstable = f"; h = {sim.h} may be above the stability limit"
         bad = ~(np.isfinite(s.positions).all(axis=1) & np.isfinite(s.momenta).all(axis=1))
         if bad.any():
             a = int(lay.node_order[np.flatnonzero(bad)[0]])
             raise SimulationError(f"node {a} has a non-finite position or momentum {where}{unstable}")
-        if self.system.thermal:
-            theta = self.temperatures()
+        if sim.system.thermal:
+            theta = sim.temperatures()
             bad = ~(np.isfinite(theta) & (theta > 0))
             if bad.any():
                 e = int(np.flatnonzero(bad)[0])
                 raise SimulationError(
                     f"spring {e} has temperature {theta[e]:.6g} {where}: the state left the range of model "
-                    f"{self.model.name!r}, where θ must stay > 0, or h = {self.h} is too large"
+                    f"{sim.model.name!r}, where θ must stay > 0, or h = {sim.h} is too large"
                 )
         raise SimulationError(f"the energy is not finite {where}{unstable}")
 

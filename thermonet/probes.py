@@ -135,14 +135,14 @@ def _indices(net, probe: Probe, where: str) -> np.ndarray:
 
 
 def scene_probes(scene, sim) -> Probes | None:
-    """The ``[probes.<name>]`` tables of a scene as :class:`Probes` of ``sim`` (None if none);
-    errors at the key's file:line."""
+    """The ``[probes.<name>]`` tables of a scene attached to ``sim`` (``sim.add_probes``) and
+    returned (None if none); errors at the key's file:line."""
     tables = scene.data.get("probes") or {}
     if not tables:
         return None
     probes = {name: Probe(t["group"], t["quantity"], t.get("every")) for name, t in tables.items()}
     try:
-        return Probes(sim, probes)
+        return sim.add_probes(probes)
     except InputError as exc:
         message = str(exc)
         key, _, rest = message.partition(": ")

@@ -19,7 +19,8 @@ import numpy as np
 
 from .blowup import STRETCH_BOUNDS
 from .diagnostics import Diagnostics, spring_fields
-from .driver import RunDriver
+from .assemble import assemble
+from .driver import Runner
 from .errors import InputError, SimulationError
 from .inputs import (angular_momentum_reference, build_system, check_backend, check_energy_tolerance, check_step,
                      guard_mode, initial_state)
@@ -31,7 +32,6 @@ from .net import Net
 from .run_guards import DEFAULT_ENERGY_TOLERANCE, StabilityGuard
 from .heat.parameters import split_parameters
 from .heat.setup import build_heat
-from .heat.stepper import ConductionAround, integrator_with_heat
 from .heat.logs import heat_logs
 from .state import State
 
@@ -42,9 +42,10 @@ PER_SPRING_LOGS = ("produced", "theta", "length", "pending_eta", "pending_produc
 PARALLEL_MIN_SPRINGS = 16384
 
 
-class Simulation(RunDriver):
+class Simulation:
     """A run of a thermo-elastic spring net: the public façade. Input checking and building live
-    in :mod:`thermonet.inputs`, running in time in :mod:`thermonet.driver`.
+    in :mod:`thermonet.inputs`, the stepper in :func:`thermonet.assemble.assemble`, running in
+    time in the :class:`~thermonet.driver.Runner` the Simulation holds (``self.runner``).
 
     Parameters
     ----------
@@ -140,7 +141,9 @@ class Simulation(RunDriver):
             net = _with_anchors(net, anchors)
         self.model = get_model(model)
         net, parameters, self.continuum = apply_continuum(net, self.model, parameters)
+        model_parameters, transport = split_parameters(parameters)  # the model's, and heat flow's
         self.net = net
+        self._state: State | None = None
         self.h = check_step(h)
         integrator_options = dict(integrator_options or {})
         stepper_keys = {"tolerance", "max_iterations", "retry", "linear_solver", "rtol", "atol",
@@ -154,31 +157,26 @@ class Simulation(RunDriver):
                 raise
             raise InputError(f"integrator {integrator!r}: {unknown}") from None
         self.backend = check_backend(backend, self.integrator)
-        if self.backend != "cpu":
-            stepper_options["backend"] = self.backend
         self.threads = threads
         self.layout = layout = build_layout(net, renumber=renumber)
-        model_parameters, transport = split_parameters(parameters)
         P_user = self.model.parameter_array(model_parameters, net.n_springs)
         self.angular_momentum_about = angular_momentum_reference(net)
         heat = build_heat(net, layout, self.model, P_user, transport, thermal=thermal, conduction=conduction,
                           waves=thermal_waves, baths=baths, sources=sources)
-        from .loads.setup import attach_loads, check_load_support, resolve
+        from .loads.setup import SimulationLoads, check_load_support, hold_driven_axes, resolve
 
         load_set = resolve(loads, net)
         check_load_support(load_set, self.integrator, self.backend)
         self.system = build_system(net, self.model, layout, P_user, gravity, thermal, stretch_bounds, heat, load_set)
-        if heat is not None:
-            self.integrator = integrator_with_heat(self.integrator, heat, self.backend)
         self.energy_tolerance = check_energy_tolerance(energy_tolerance)
         self.stability_guard = StabilityGuard(self, guard_mode(stability_guard))
         self._state = initial_state(net, self.model, layout, P_user, thermal, temperatures, momenta, velocities)
         if parallel is None:
             parallel = threads != 1 and net.n_springs >= PARALLEL_MIN_SPRINGS
         self.parallel = bool(parallel)
-        self.stepper = self.integrator.make_stepper(self.system, parallel=self.parallel, **stepper_options)
-        if heat is not None and not getattr(self.integrator, "explicit", False):
-            self.stepper = ConductionAround(self.stepper, self.system, self.parallel)
+        self.integrator, self.stepper = assemble(self.integrator, self.system, parallel=self.parallel,
+                                                 backend=self.backend, options=stepper_options,
+                                                 time_origin=self.time_origin)
         if heat is not None:
             heat_logs(self._state, heat)
         from .heat.multirate import check_conduction_every
@@ -188,13 +186,18 @@ class Simulation(RunDriver):
             heat_logs(self._state, heat)["cycle"][:] = (self.conduction_every, 0)
         #: (k, why) of the conduction cycle the last run used (None: no conduction, or no run yet)
         self.conduction_cycle = None
-        self.loads = attach_loads(self, load_set)
+        hold_driven_axes(self._state, layout, load_set)
+        #: the loads' columns of the diagnostics rows (None without loads)
+        self.loads = None if load_set is None else SimulationLoads(layout, load_set)
+        #: per-group series attached by :meth:`add_probes` (None: none)
+        self.probes = None
         self.diagnostics = Diagnostics()
         #: seconds spent stepping (Numba compilation excluded) and steps run, over all runs
         self.wall_time = 0.0
         self.steps_run = 0
         #: seconds ``run`` spent compiling kernels (first runs of a model and integrator)
         self.compile_time = 0.0
+        self.runner = Runner(self)
 
     # ------------------------------------------------------------------------------------------
     # time
@@ -215,8 +218,42 @@ class Simulation(RunDriver):
     @h.setter
     def h(self, value) -> None:
         self._h = check_step(value)
-        state = getattr(self, "_state", None)
+        state = self._state
         self._time_origin = (0, 0.0) if state is None else (state.step, state.time)
+
+    def time_origin(self) -> tuple[int, float]:
+        """(step, time) where the run's clock starts: time = origin time + (step − origin step)·h,
+        so a time does not depend on how runs were cut into chunks."""
+        return self._time_origin
+
+    # ------------------------------------------------------------------------------------------
+    # running (:class:`~thermonet.driver.Runner`)
+
+    def run(self, t_end: float | None = None, steps: int | None = None, diagnostics_every: int | None = None,
+            observers=(), progress=None) -> Diagnostics:
+        """Advance by ``steps`` steps, or to ``t_end``; the probes of :meth:`add_probes` record
+        at their cadences (default ``diagnostics_every``). See :meth:`Runner.run
+        <thermonet.driver.Runner.run>` for the arguments; returns ``self.diagnostics``."""
+        return self.runner.run(t_end, steps, diagnostics_every, observers, progress)
+
+    def steps_until(self, t_end: float) -> int:
+        """Steps from the current time to ``t_end`` (a whole number of steps; an InputError
+        otherwise)."""
+        return self.runner.steps_until(t_end)
+
+    def record_diagnostics(self) -> None:
+        """Record a diagnostics row for the current state unless the last row is of this step."""
+        self.runner.record_diagnostics()
+
+    def add_probes(self, probes: Mapping) -> "Probes":
+        """Attach probes: name -> :class:`~thermonet.probes.Probe` (a group's mean, min and max of
+        one quantity at a cadence; docs/scenes.md). Every later :meth:`run` records them;
+        ``self.probes.series`` holds the rows, ``self.probes.to_csv(folder)`` writes them.
+        Returns the :class:`~thermonet.probes.Probes`."""
+        from .probes import Probes
+
+        self.probes = Probes(self, probes)
+        return self.probes
 
     # ------------------------------------------------------------------------------------------
     # reading back (user numbering)

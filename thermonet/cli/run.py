@@ -232,7 +232,7 @@ def _run(args, progress, record=None) -> int:
     total = scene.total_steps()
     from ..probes import scene_probes
 
-    probes = scene_probes(scene, sim)
+    probes = scene_probes(scene, sim)  # attached: every run of sim records them
     if state is None:  # the new run is built and checked: only now may a previous run's files go
         prepare_output_folder(folder, overwrite=args.overwrite)
     if record is not None:
@@ -257,15 +257,8 @@ def _run(args, progress, record=None) -> int:
     except OSError as exc:
         raise OutputError(f"cannot write to the output folder: {describe_os_error(exc)}") from None
     if state is not None:
-        sim.load_state(state)
-        output.restore(meta)
-    # --- probes ---
+        output.resume((state, meta))  # the state, the diagnostics rows, frames and probe series
     observers = list(output.observers())
-    if probes is not None:
-        if state is not None:
-            probes.restore(folder, sim.step)
-        observers += probes.observers(output.diagnostics_every)
-    # --- end probes ---
     stop = StopRequest(progress)
     try:
         with stop.installed():

@@ -27,7 +27,7 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 
 from .atomic import atomic_write, direct_writes_possible, release_page_cache
-from .checkpoint import save_checkpoint
+from .checkpoint import load_checkpoint, save_checkpoint
 from .pvd import PVDIndex
 from .vtu import FrameImage, VTUWriter
 
@@ -157,7 +157,7 @@ class RunOutput:
     @classmethod
     def for_simulation(cls, sim, folder, name: str = "run", *, frames_every: int, diagnostics_every: int | None = None,
                        checkpoint_every: int = 0, fields=None, material_id=None, overwrite: bool = False,
-                       **options) -> "RunOutput":
+                       resume: bool = False, **options) -> "RunOutput":
         """The files of a run of ``sim`` driven from a script, as ``thermonet run`` writes them::
 
             out = RunOutput.for_simulation(sim, "out/mine", frames_every=10)
@@ -169,11 +169,16 @@ class RunOutput:
         ``overwrite`` (which deletes them; :func:`~thermonet.io.folder.prepare_output_folder`).
         fields: default every field of :data:`FIELDS` the simulation has. diagnostics_every:
         default ``frames_every``. material_id: (m,) int (default 0). checkpoint_every: 0 (none)
-        or a cadence (``load_checkpoint`` and ``sim.load_state`` continue from one).
+        or a cadence (``load_checkpoint`` and ``sim.load_state`` continue from one). resume: the
+        folder holds the run to continue (kept as it is; then :meth:`resume` from its checkpoint).
         """
-        from .folder import prepare_output_folder
+        from .folder import check_writable, prepare_output_folder, remove_stale_temporaries
 
-        prepare_output_folder(folder, overwrite=overwrite)
+        if resume:
+            check_writable(folder)
+            remove_stale_temporaries(folder)
+        else:
+            prepare_output_folder(folder, overwrite=overwrite)
         if fields is None:
             fields = available_fields(sim)
         unknown = [f for f in fields if f not in FIELDS]
@@ -199,6 +204,28 @@ class RunOutput:
         if self.checkpoint_every:
             obs.append((self.checkpoint_every, self.write_checkpoint))
         return obs
+
+    def resume(self, checkpoint) -> dict:
+        """Continue the run from ``checkpoint`` (a ``*.checkpoint.npz`` path, or the ``(state,
+        meta)`` of :func:`~thermonet.io.load_checkpoint`): the simulation takes its state, this
+        output its diagnostics rows, frames and run time, the simulation's probes their rows up
+        to that step (from this folder's ``probe_<name>.csv``). A run continued so is bit for
+        bit the uninterrupted one. Returns the checkpoint's ``meta``::
+
+            out = RunOutput.for_simulation(sim, "out/mine", frames_every=10, checkpoint_every=100,
+                                           resume=True)
+            out.resume("out/mine/run.checkpoint.npz")
+            sim.run(t_end=2.0, diagnostics_every=out.diagnostics_every, observers=out.observers())
+        """
+        if isinstance(checkpoint, tuple):
+            state, meta = checkpoint
+        else:
+            state, meta = load_checkpoint(checkpoint)
+        self.sim.load_state(state)
+        self.restore(meta)
+        if self.sim.probes is not None:
+            self.sim.probes.restore(self.folder, self.sim.step)
+        return meta
 
     def restore(self, meta: dict) -> None:
         """Take back what a checkpoint recorded: diagnostics rows, frames, run time."""

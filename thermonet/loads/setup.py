@@ -1,5 +1,6 @@
-"""A Simulation's loads: checked against the integrator and backend, attached to the stepper,
-and measured at every diagnostics row (each load's displacement, reaction or applied force and
+"""A Simulation's loads: checked against the integrator and backend, the initial state's driven
+axes held (the stepper is wrapped for them in :func:`thermonet.assemble.assemble`), and measured
+at every diagnostics row (each load's displacement, reaction or applied force and
 work; the total work and the balance H − H(0) − W)."""
 
 from __future__ import annotations
@@ -25,9 +26,9 @@ def check_load_support(load_set: LoadSet | None, integrator, backend: str) -> No
 class SimulationLoads:
     """The loads of a running Simulation, for its diagnostics rows (see the module docstring)."""
 
-    def __init__(self, sim, load_set: LoadSet):
+    def __init__(self, layout, load_set: LoadSet):
         self.set = load_set
-        lay = sim.layout
+        lay = layout
         self._internal = [lay.node_rank[idx] for idx in load_set.nodes]
         # a force's potential −f·Σ w x is outside the reported H: its work adds f·Σ w x − f(0)·Σ w x(0)
         self._weights = []
@@ -100,23 +101,14 @@ class SimulationLoads:
         state.extra[WORK] = np.zeros(len(self.set))
 
 
-def attach_loads(sim, load_set: LoadSet | None) -> SimulationLoads | None:
-    """Point the stepper's loads at the Simulation's clock, put the driven axes' momenta at 0,
-    and return what the diagnostics rows need (None without loads)."""
+def hold_driven_axes(state, layout, load_set: LoadSet | None) -> None:
+    """Put the momenta of the driven axes of ``state`` (internal numbering) at 0 and give it the
+    loads' work counters (nothing without loads)."""
     if load_set is None:
-        return None
-    if not sim.integrator.explicit:  # loads split around each implicit step
-        from .implicit import ImplicitLoads
-
-        sim.stepper = ImplicitLoads(sim.stepper, sim.system, load_set)
-    stepper_loads = getattr(sim.stepper, "loads", None)
-    if stepper_loads is not None:
-        stepper_loads.time_origin = lambda: sim._time_origin
-    state = sim._state
+        return
     for i, load in enumerate(load_set.loads):
         if load.kind == "drive":
-            rows = sim.layout.node_rank[load_set.nodes[i]]
+            rows = layout.node_rank[load_set.nodes[i]]
             held = load_set.free[i] == 0.0
             state.momenta[np.ix_(rows, np.flatnonzero(held))] = 0.0
     work_of(state, len(load_set))
-    return SimulationLoads(sim, load_set)
