@@ -279,7 +279,7 @@ def test_simulation_takes_anchors_and_refuses_a_quoted_step_and_to_meshio_has_th
     assert np.abs(mesh.cell_data["heat_rate"][0]).max() > 0
     with pytest.raises(InputError, match="anchors: no node group 'far_edn' in the net; node groups: .*far_end"):
         tn.Simulation(net, parameters=params, h=0.01, anchors=["far_edn"])
-    with pytest.raises(InputError, match="anchors: node index 99999 out of range"):
+    with pytest.raises(InputError, match="anchors: node index 99999 is out of range"):
         tn.Simulation(net, parameters=params, h=0.01, anchors=[99999])
     with pytest.raises(InputError, match="time step h must be a number, got str '0.01'"):
         tn.Simulation(net, parameters=params, h="0.01")

@@ -1,4 +1,4 @@
-"""Fourier conduction, baths and sources (spec-heat §1): the checks of §1.5 and the issue's."""
+"""Fourier conduction, baths and sources (docs/theory.md §5): the checks of §5.8 and more."""
 
 import numpy as np
 import pytest
@@ -256,7 +256,7 @@ def test_conduction_around_an_implicit_integrator_keeps_its_balances():
 @pytest.mark.parametrize("kwargs, message", [
     (dict(parameters=dict(g=-1.0)), "parameter 'g' of spring 0 must be finite and ≥ 0"),
     (dict(parameters=dict(g=np.nan)), "must be finite and ≥ 0"),
-    (dict(parameters=dict(g=1.0), baths={"hot": Bath("nowhere", 500.0)}), "baths.hot.group: the net has no node group"),
+    (dict(parameters=dict(g=1.0), baths={"hot": Bath("nowhere", 500.0)}), "baths.hot.group: no node group"),
     (dict(parameters=dict(g=1.0), baths={"hot": Bath("left", -5.0)}), "baths.hot.temperature: a bath temperature must be > 0, got -5 at t = 0"),
     (dict(parameters=dict(g=1.0), baths={"hot": Bath("left", {"start": 300.0, "end": -300.0, "duration": 2.0})}),
      "baths.hot.temperature: a bath temperature must stay > 0, but 300 → -300 over t ∈ \\[0, 2\\] reaches 0 at t = 1"),
@@ -266,7 +266,7 @@ def test_conduction_around_an_implicit_integrator_keeps_its_balances():
     (dict(parameters=dict(g=1.0), thermal=False), "conduction needs thermal coupling on"),
     (dict(baths={"hot": Bath("left", 500.0)}), "baths need conduction on"),
     (dict(conduction=True), "no conductance 'g' is given"),
-    (dict(parameters=dict(g=1.0), sources={"s": Source("nope", 1.0)}), "sources.s.group: the net has no spring group"),
+    (dict(parameters=dict(g=1.0), sources={"s": Source("nope", 1.0)}), "sources.s.group: no spring group"),
     (dict(parameters=dict(g=1.0), baths={"a": Bath("left", 500.0), "b": Bath([0], 400.0)}), "node 0 is already in bath 'a'"),
 ])
 def test_bad_heat_input_names_the_key(kwargs, message):

@@ -63,7 +63,7 @@ def test_a_probe_row_is_the_mean_min_and_max_over_its_group():
 @pytest.mark.parametrize("probe, message", [
     (Probe("nowhere", "tension"), r"probes\.p\.group: no spring or node group 'nowhere'"),
     (Probe("xmax", "pressure"), r"probes\.p\.quantity: must be one of"),
-    (Probe([10_000], "displacement"), r"probes\.p\.group: index outside"),
+    (Probe([10_000], "displacement"), r"probes\.p\.group: node index 10000 is out of range"),
 ])
 def test_bad_probes_name_the_key(probe, message):
     sim = tn.Simulation(tn.lattice((2, 2, 0)), h=1e-3)

@@ -164,6 +164,57 @@ class Net:
     def n_springs(self) -> int:
         return len(self.edges)
 
+    def nodes(self, group, where: str = "group", named: str = "the net", *, empty: bool = False) -> np.ndarray:
+        """(k,) int64 node indices of ``group``: a node group's name or node indices, checked.
+        The one resolver of node groups (baths, loads, anchors, probes, scenes); its errors
+        begin with ``where`` (the key that gave the group) and call the net ``named``. A group
+        that selects nothing is an error unless ``empty`` (regions of a scene may be empty)."""
+        return self._members(group, "node", where, named, False, empty)
+
+    def springs(self, group, where: str = "group", named: str = "the net", *, joining: bool = False,
+                empty: bool = False) -> np.ndarray:
+        """(k,) int64 spring indices of ``group``: a spring group's name (``"all"``: every spring)
+        or spring indices, checked; with ``joining``, a node group's name also selects the springs
+        that join two of its nodes. The one resolver of spring groups (sources, materials,
+        temperatures, probes); errors as :meth:`nodes`."""
+        return self._members(group, "spring", where, named, joining, empty)
+
+    def _members(self, group, what: str, where: str, named: str, joining: bool, empty: bool) -> np.ndarray:
+        springs = what == "spring"
+        count = self.n_springs if springs else self.n_nodes
+        if isinstance(group, str):
+            groups = self.spring_groups if springs else self.node_groups
+            if springs and group == "all" and group not in groups:
+                return np.arange(count, dtype=np.int64)
+            if group in groups:
+                idx = np.asarray(groups[group], dtype=np.int64)
+            elif joining and group in self.node_groups:
+                inside = np.zeros(self.n_nodes, dtype=bool)
+                inside[self.node_groups[group]] = True
+                idx = np.flatnonzero(inside[self.edges].all(axis=1)).astype(np.int64)
+            else:
+                kinds = "spring or node" if joining else what
+                known = (["all"] if springs else []) + sorted(set(groups) | (set(self.node_groups) if joining else set()))
+                raise InputError(f"{where}: no {kinds} group {group!r} in {named}; {kinds} groups: "
+                                 f"{', '.join(known) or 'none'}")
+            if idx.size == 0 and not empty:
+                held = ("holds no node of the net: its mesh points touch no spring (only points that springs join "
+                        "become nodes)") if not springs else "holds no spring"
+                raise InputError(f"{where}: {what} group {group!r} {held}")
+            return idx
+        if isinstance(group, (bool, np.bool_)):
+            raise InputError(f"{where}: expected a {what} group name or {what} indices, got {group!r}")
+        try:
+            idx = np.asarray(group, dtype=np.int64).reshape(-1)
+        except (TypeError, ValueError):
+            raise InputError(f"{where}: expected a {what} group name or {what} indices, got {group!r}") from None
+        bad = idx[(idx < 0) | (idx >= count)]
+        if bad.size:
+            raise InputError(f"{where}: {what} index {int(bad[0])} is out of range 0..{count - 1}")
+        if idx.size == 0 and not empty:
+            raise InputError(f"{where}: the group has no {what}s")
+        return idx
+
     def lengths(self, positions: np.ndarray | None = None) -> np.ndarray:
         """(m,) spring lengths at ``positions`` ((n, 3), default the initial positions)."""
         x = self.positions if positions is None else positions

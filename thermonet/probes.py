@@ -111,27 +111,9 @@ def _indices(net, probe: Probe, where: str) -> np.ndarray:
         raise InputError(f"{where}.quantity: must be one of {', '.join(QUANTITIES)}, got {probe.quantity!r}")
     if probe.every is not None and (isinstance(probe.every, bool) or int(probe.every) < 1):
         raise InputError(f"{where}.every: must be a number of steps >= 1, got {probe.every!r}")
-    springs = probe.quantity in SPRING_QUANTITIES
-    group = probe.group
-    if isinstance(group, str):
-        if springs and group in net.spring_groups:
-            idx = np.asarray(net.spring_groups[group])
-        elif group in net.node_groups:
-            nodes = np.zeros(net.n_nodes, dtype=bool)
-            nodes[net.node_groups[group]] = True
-            idx = np.flatnonzero(nodes[net.edges].all(axis=1)) if springs else np.asarray(net.node_groups[group])
-        else:
-            kinds = "spring or node group" if springs else "node group"
-            known = sorted(set(net.spring_groups) | set(net.node_groups)) if springs else sorted(net.node_groups)
-            raise InputError(f"{where}.group: no {kinds} {group!r} in the net (groups: {', '.join(known) or 'none'})")
-    else:
-        idx = np.asarray(group, dtype=np.int64).reshape(-1)
-        size = net.n_springs if springs else net.n_nodes
-        if idx.size and (idx.min() < 0 or idx.max() >= size):
-            raise InputError(f"{where}.group: index outside 0..{size - 1}")
-    if idx.size == 0:
-        raise InputError(f"{where}.group: selects no {'springs' if springs else 'nodes'}")
-    return idx.astype(np.int64)
+    if probe.quantity in SPRING_QUANTITIES:  # a node group: the springs joining two of its nodes
+        return net.springs(probe.group, f"{where}.group", joining=True)
+    return net.nodes(probe.group, f"{where}.group")
 
 
 def scene_probes(scene, sim) -> Probes | None:

@@ -420,19 +420,10 @@ def _with_anchors(net: Net, anchors) -> Net:
     if isinstance(anchors, (str, int, np.integer)):
         anchors = [anchors]
     anchored = np.array(net.anchored, dtype=bool)
-    n = net.n_nodes
     for item in anchors:
-        if isinstance(item, str):
-            if item not in net.node_groups:
-                raise InputError(f"anchors: no node group {item!r} in the net; node groups: "
-                                 f"{', '.join(sorted(net.node_groups)) or 'none'}")
-            anchored[np.asarray(net.node_groups[item], dtype=np.int64)] = True
-        elif isinstance(item, (int, np.integer)) and not isinstance(item, bool):
-            if not 0 <= int(item) < n:
-                raise InputError(f"anchors: node index {int(item)} out of range 0..{n - 1}")
-            anchored[int(item)] = True
-        else:
+        if not isinstance(item, (str, int, np.integer)) or isinstance(item, bool):
             raise InputError(f"anchors: node group names or node indices, got {item!r}")
+        anchored[net.nodes(item if isinstance(item, str) else [item], "anchors")] = True
     return dataclasses.replace(net, anchored=anchored)
 
 

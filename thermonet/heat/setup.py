@@ -1,4 +1,4 @@
-"""Heat flow as a run sets it up: conduction, thermal waves, baths and sources (spec-heat §1–2).
+"""Heat flow as a run sets it up: conduction, thermal waves, baths and sources (docs/theory.md §5–6).
 
 Users give :class:`Bath` and :class:`Source` records (or mappings with the same keys) and the
 transport parameters ``g``, ``g_star`` (:mod:`thermonet.heat.parameters`); :func:`build_heat`
@@ -188,28 +188,6 @@ def _named(spec, where: str, kind):
                      f"{'temperature' if kind is Bath else 'power'}, got {spec!r}")
 
 
-def _members(group, groups: dict, count: int, where: str, what: str) -> np.ndarray:
-    if isinstance(group, str):
-        if group not in groups:
-            known = ", ".join(sorted(groups)) or "none"
-            raise InputError(f"{where}.group: the net has no {what} group {group!r} ({what} groups: {known})")
-        idx = np.asarray(groups[group], dtype=np.int64)
-    else:
-        try:
-            idx = np.asarray(group, dtype=np.int64).reshape(-1)
-        except (TypeError, ValueError):
-            raise InputError(f"{where}.group: expected a {what} group name or {what} indices, got {group!r}") from None
-        bad = (idx < 0) | (idx >= count)
-        if bad.any():
-            raise InputError(f"{where}.group: {what} index {int(idx[bad][0])} out of range (0..{count - 1})")
-    if len(idx) == 0:
-        if isinstance(group, str) and what == "node":
-            raise InputError(f"{where}.group: node group {group!r} holds no node of the net: its mesh points touch "
-                             "no spring (only points that springs join become nodes)")
-        raise InputError(f"{where}.group: the group has no {what}s")
-    return idx
-
-
 def _check_bath_temperature(f: TimeFunction, where: str) -> None:
     """A bath temperature stays > 0 for t ≥ 0; else an InputError saying when it reaches 0."""
     when = f.first_at_or_below(0.0)
@@ -262,7 +240,7 @@ def build_heat(net, layout, model, P_user, transport: dict, *, thermal: bool, co
     for i, (name, spec) in enumerate(baths.items()):
         where = f"baths.{name}"
         bath = _named(spec, where, Bath)
-        nodes = _members(bath.group, net.node_groups, n, where, "node")
+        nodes = net.nodes(bath.group, f"{where}.group")
         f = time_function(bath.temperature, f"{where}.temperature")
         _check_bath_temperature(f, f"{where}.temperature")
         taken = bath_of_node_user[nodes] >= 0
@@ -276,7 +254,7 @@ def build_heat(net, layout, model, P_user, transport: dict, *, thermal: bool, co
     for name, spec in sources.items():
         where = f"sources.{name}"
         source = _named(spec, where, Source)
-        source_springs.append(layout.spring_rank[_members(source.group, net.spring_groups, m, where, "spring")])
+        source_springs.append(layout.spring_rank[net.springs(source.group, f"{where}.group")])
         names.append(name)
         functions.append(time_function(source.power, f"{where}.power"))
 

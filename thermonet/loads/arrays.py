@@ -150,25 +150,7 @@ def resolve(loads, net) -> LoadSet | None:
 
 def _group_nodes(group, net, where: str) -> np.ndarray:
     """User node indices of a group name or an index list (checked, sorted, unique)."""
-    if isinstance(group, str):
-        if group not in net.node_groups:
-            known = ", ".join(sorted(net.node_groups)) or "none"
-            raise InputError(f"{where}: no node group {group!r} in the net (node groups: {known})")
-        idx = np.asarray(net.node_groups[group], dtype=np.int64)
-    else:
-        try:
-            idx = np.asarray(group, dtype=np.int64).reshape(-1)
-        except (TypeError, ValueError):
-            raise InputError(f"{where}: expected a node group name or node indices, got {group!r}") from None
-        bad = idx[(idx < 0) | (idx >= net.n_nodes)]
-        if bad.size:
-            raise InputError(f"{where}: node {int(bad[0])} outside 0..{net.n_nodes - 1}")
-    if idx.size == 0:
-        if isinstance(group, str):
-            raise InputError(f"{where}: node group {group!r} holds no node of the net: its mesh points touch no "
-                             "spring (only points that springs join become nodes)")
-        raise InputError(f"{where}: the group has no nodes")
-    return np.unique(idx)
+    return np.unique(net.nodes(group, where))
 
 
 def kernel_arrays(load_set: LoadSet, layout, table) -> LoadArrays:

@@ -251,17 +251,53 @@ def apply_continuum(net, model, parameters: Mapping | None):
                          f"{', '.join(derived_parameters(model))} from the continuum")
     properties = check_properties({k: parameters.pop(k) for k in list(parameters) if k in CONTINUUM_KEYS},
                                   where, net.n_springs)
-    springs = np.arange(net.n_springs)
-    values, V = spring_parameters(net, model, properties, springs, where)
-    factor = correct_conductances(net, values, springs)
-    parameters.update(values)
-    density = _per_spring(properties["density"], springs)
-    net = with_masses(net, lumped_masses(net, density, V))
-    from .rigidity import net_dimension as rigidity_dimension, require_rigid
+    net, continuum = apply_regions(net, model, parameters, [(where, np.arange(net.n_springs), properties)], where)
+    return net, parameters, continuum
 
-    require_rigid(net, where)
-    per_spring = {k: _per_spring(v, springs) for k, v in properties.items()}
-    return net, parameters, ContinuumMap(V, rigidity_dimension(net), per_spring, factor)
+
+def apply_regions(net, model, values: dict, regions, rigid_where: str = "materials"):
+    """The rule applied to material regions in order, the one place it is applied (the API's
+    ``parameters`` are one region of every spring, a scene's ``[materials.*]`` tables one region
+    each, later regions winning). regions: (where, springs, params) with params a region's
+    spring parameters, or its continuum properties (scalars or (m,) arrays). Sets ``values``
+    (name -> (m,)) in place: spring parameters as given, and where continuum properties are
+    given the model's stiffness, beta, C0 (and g, g_star where conductivity, gn2_constant are),
+    the conductances times the junction factor of the continuum springs. Returns the net with
+    masses lumped from ρ and a :class:`ContinuumMap` — or (net, None) when no region gives
+    continuum properties. A net that is then a mechanism is an error at ``rigid_where``."""
+    if not any(region_properties(params) for _, _, params in regions):
+        return net, None
+    m = net.n_springs
+    derived_names = derived_parameters(model)
+    volume = np.full(m, np.nan)  # V_e of the springs whose parameters come from a continuum
+    conducting = np.zeros(m, dtype=bool)  # springs whose g, g_star come from a continuum
+    properties: dict = {}
+    for where, springs, params in regions:
+        given = region_properties(params)
+        if not given:  # a spring-parameter region: applied in its place, so that region order holds
+            for k, v in params.items():
+                if k != "model":
+                    values.setdefault(k, np.zeros(m))[springs] = v
+            if any(k in derived_names[:3] for k in params):
+                volume[springs] = np.nan
+            if any(k in ("g", "g_star") for k in params):
+                conducting[springs] = False
+            continue
+        derived, V = spring_parameters(net, model, given, springs, where)
+        for k, v in derived.items():
+            values.setdefault(k, np.zeros(m))[springs] = v
+        volume[springs] = V
+        conducting[springs] = "g" in derived or "g_star" in derived
+        for k, v in given.items():
+            properties.setdefault(k, np.full(m, np.nan))[springs] = v
+    factor = correct_conductances(net, values, np.flatnonzero(conducting))
+    for k, v in properties.items():
+        v[np.isnan(volume)] = np.nan
+    net = with_masses(net, lumped_masses(net, properties["density"], volume))
+    from .rigidity import net_dimension, require_rigid
+
+    require_rigid(net, rigid_where)
+    return net, ContinuumMap(volume, net_dimension(net), properties, factor)
 
 
 def _per_spring(value, springs: np.ndarray) -> np.ndarray:

@@ -147,12 +147,7 @@ def build_net(scene: Scene) -> tuple[Net, object]:
     if d["effects"].get("anchors") is not None:
         anchored[:] = False
         for i, item in enumerate(d["effects"]["anchors"]):
-            if isinstance(item, str):
-                anchored[_node_group(scene, net, item, "effects.anchors")] = True
-            elif item >= net.n_nodes:
-                raise scene.error("effects.anchors", f"node index {item} is out of range 0..{net.n_nodes - 1}")
-            else:
-                anchored[item] = True
+            anchored[_node_group(scene, net, item if isinstance(item, str) else [item], "effects.anchors")] = True
     rest = net.rest_lengths if spec["rest_lengths"] == "initial" else np.full(net.n_springs, spec["rest_lengths"])
     try:
         net = dataclasses.replace(net, masses=masses, anchored=anchored, rest_lengths=rest)
@@ -178,18 +173,20 @@ def _net_name(net) -> str:
 
 
 def _node_group(scene, net, name, key) -> np.ndarray:
-    if name not in net.node_groups:
-        raise scene.error(key, f"no node group {name!r} in {_net_name(net)}; node groups: {', '.join(sorted(net.node_groups)) or 'none'}")
-    return net.node_groups[name]
+    return _group(scene, key, net.nodes, name, _net_name(net))
 
 
 def _spring_group(scene, net, name, key) -> np.ndarray:
-    if name == "all":
-        return np.arange(net.n_springs)
-    if name not in net.spring_groups:
-        raise scene.error(key, f"no spring group {name!r} in {_net_name(net)}; spring groups: "
-                          f"{', '.join(['all'] + sorted(net.spring_groups))}")
-    return net.spring_groups[name]
+    return _group(scene, key, net.springs, name, _net_name(net))
+
+
+def _group(scene, key, resolve, name, named) -> np.ndarray:
+    """``resolve(name, key, named)`` (:meth:`Net.nodes` or :meth:`Net.springs`; a region may be
+    empty), its error at the key's line."""
+    try:
+        return resolve(name, key, named, empty=True)
+    except InputError as exc:
+        raise scene.error(key, str(exc).removeprefix(f"{key}: ")) from None
 
 
 def _no_field(name, mesh) -> str:
@@ -224,54 +221,21 @@ def material_parameters(scene: Scene, net: Net, model) -> tuple[dict, np.ndarray
 
 
 def continuum_materials(scene: Scene, net: Net, model, values: dict):
-    """Regions that give continuum properties set their springs' stiffness, beta, C0, g, g_star
-    in ``values`` (in file order, like spring parameters: later regions win) by the rule of
-    :mod:`thermonet.materials.continuum`; node masses come from their densities. Returns the net
-    (with those masses) and a :class:`~thermonet.materials.ContinuumMap`, or (net, None).
-    A net that is a mechanism is an error."""
-    from ..materials.continuum import (ContinuumMap, correct_conductances, derived_parameters, lumped_masses,
-                                       region_properties, spring_parameters, with_masses)
-    from ..materials.rigidity import net_dimension, require_rigid
+    """The scene's material regions, in file order, through
+    :func:`thermonet.materials.continuum.apply_regions` (the rule's one place): regions that
+    give continuum properties set their springs' stiffness, beta, C0, g, g_star in ``values``
+    and node masses come from their densities. Returns the net (with those masses) and a
+    :class:`~thermonet.materials.ContinuumMap`, or (net, None); errors at the region's line (a
+    net that is a mechanism at net.mesh)."""
+    from ..materials.continuum import apply_regions
 
-    materials = scene.data["materials"]
-    if not any(region_properties(params) for params in materials.values()):
-        return net, None
-    m = net.n_springs
-    derived_names = derived_parameters(model)
-    volume = np.full(m, np.nan)  # V_e of the springs whose parameters come from a continuum
-    conducting = np.zeros(m, dtype=bool)  # springs whose g, g_star come from a continuum
-    properties: dict = {}
-    for region, params in materials.items():
-        springs = _spring_group(scene, net, region, f"materials.{region}")
-        given = region_properties(params)
-        if not given:  # a spring-parameter region: applied again here, so that file order holds
-            for k, v in params.items():
-                if k != "model":
-                    values.setdefault(k, np.zeros(m))[springs] = v
-            if any(k in derived_names[:3] for k in params):
-                volume[springs] = np.nan
-            if any(k in ("g", "g_star") for k in params):
-                conducting[springs] = False
-            continue
-        try:
-            derived, V = spring_parameters(net, model, given, springs, f"materials.{region}")
-        except InputError as exc:
-            raise scene.error(f"materials.{region}", str(exc).removeprefix(f"materials.{region}: ")) from None
-        for k, v in derived.items():
-            values.setdefault(k, np.zeros(m))[springs] = v
-        volume[springs] = V
-        conducting[springs] = "g" in derived or "g_star" in derived
-        for k, v in given.items():
-            properties.setdefault(k, np.full(m, np.nan))[springs] = v
-    factor = correct_conductances(net, values, np.flatnonzero(conducting))
-    for k, v in properties.items():
-        v[np.isnan(volume)] = np.nan
-    net = with_masses(net, lumped_masses(net, properties["density"], volume))
+    regions = [(f"materials.{region}", _spring_group(scene, net, region, f"materials.{region}"), params)
+               for region, params in scene.data["materials"].items()]
     try:
-        require_rigid(net, "materials")
+        return apply_regions(net, model, values, regions, "materials")
     except InputError as exc:
-        raise scene.error("net.mesh", str(exc).removeprefix("materials: ")) from None
-    return net, ContinuumMap(volume, net_dimension(net), properties, factor)
+        key, _, rest = str(exc).partition(": ")
+        raise scene.error("net.mesh" if key == "materials" else key, rest) from None
 
 
 # --- end continuum materials ---
