@@ -13,7 +13,7 @@ drifts of a shared machine hit all alike; steps/s are medians over the repeats, 
 overhead is the median over the repeats of the ratio of two runs of the same repeat. The frame
 columns are the milliseconds per frame the stepping thread spent in the frame observer (filling
 the image) and that the file write took (on the writer thread, overlapped with stepping).
-Targets (issue 4): thermal ≤ 1.5× mechanics; output and diagnostics ≤ 10%.
+Targets: thermal ≤ 1.5× mechanics; output and diagnostics ≤ 10%.
 """
 
 from __future__ import annotations

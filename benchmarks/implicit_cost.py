@@ -1,6 +1,6 @@
-"""What the implicit integrators cost (issues 3 and 19).
+"""What the implicit integrators cost.
 
-Part 0, ratio (issue 19's targets): the per-step cost of each implicit scheme (ho4, gtr-1/2,
+Part 0, ratio (the targets): the per-step cost of each implicit scheme (ho4, gtr-1/2,
 and em2 where registered) relative to a CO2 step of the same net, on the paper's chain and on
 jittered lattices of ``--sizes`` cells per side (5: 540 springs, 11: 4752, 25: 50 700, 32:
 104 544), for each Newton path (``--paths``: compiled, sparse). All simulations of a net are

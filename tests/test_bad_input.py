@@ -1,4 +1,4 @@
-"""Bad input (issue 2): a clear thermonet error that names the offending node, spring, parameter
+"""Bad input: a clear thermonet error that names the offending node, spring, parameter
 or name; never a Numba typing error, and never a NaN-filled result as the only sign."""
 
 import warnings

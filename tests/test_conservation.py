@@ -1,4 +1,4 @@
-"""What the explicit integrators conserve (spec §2.5), measured on the paper's nets (spec §3):
+"""What the explicit integrators conserve (docs/theory.md §2.6), measured on the paper's nets (docs/theory.md §4):
 the chain's initial energy, each spring's entropy bit for bit, linear and angular momenta to
 round-off over 10⁴ steps, and energy: bounded, without drift, oscillating like h^order."""
 
@@ -80,7 +80,7 @@ def test_triangle_linear_and_angular_momentum(integrator):
 
 
 def test_triangle_reproduces_the_papers_figures():
-    """Paper §5.2 (spec §3.2): spring 2's strain ln(l/l0) swings between ≈0 and ≈0.8 and its
+    """Paper §5.2 (docs/theory.md §4): spring 2's strain ln(l/l0) swings between ≈0 and ≈0.8 and its
     temperature between ≈970 and 1000 over t ∈ [0, 10] with CO2, h = 1e-3."""
     sim = tn.triangle_simulation("co2", h=1e-3)
     strain, theta = [], []

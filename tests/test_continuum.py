@@ -1,4 +1,4 @@
-"""Continuum materials on meshes (docs/continuum.md, spec-heat §5): the isotropic rule checked by
+"""Continuum materials on meshes (docs/continuum.md, docs/theory.md §8): the isotropic rule checked by
 refinement on gmsh bars (free expansion, wave speed, Fourier decay, totals), the effective
 properties measured on a net, the rigidity check, and bad input."""
 

@@ -1,5 +1,5 @@
 """Heat flow (conduction with baths and sources, thermal waves) on the CUDA backend against the
-CPU backend (spec-heat §1–2; docs/gpu.md).
+CPU backend (docs/theory.md §5–6; docs/gpu.md).
 
 Under Numba's CUDA simulator: this file, run as a script in a process of its own with
 ``NUMBA_ENABLE_CUDASIM=1`` (the variable must be set before Numba is imported), runs tiny nets on

@@ -1,4 +1,4 @@
-"""EM2, the energy–momentum integrator (spec-heat §4): the models' closed-form discrete gradients
+"""EM2, the energy–momentum integrator (docs/theory.md §3): the models' closed-form discrete gradients
 against 60-digit arithmetic, the generic one's two forms agreeing at their switch, exact Jacobian,
 energy, momenta and entropy kept exactly, order 2, and no stability limit (a stiff net far above
 the explicit step, where the explicit integrators are refused or stopped)."""

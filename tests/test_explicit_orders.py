@@ -1,4 +1,4 @@
-"""Convergence orders of the explicit integrators on the paper's chain (spec §3.1, §2.5).
+"""Convergence orders of the explicit integrators on the paper's chain (docs/theory.md §4, §2.6).
 
 The error at t = 1 of the Numba kernels (through the public Simulation API) is measured against
 Hamilton's equations (spec (18)) integrated by SciPy's DOP853 at rtol = atol = 1e-13 on the NumPy

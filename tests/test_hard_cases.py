@@ -1,4 +1,4 @@
-"""The hard-case suite (issue 6): stiff, strongly deformed, nearly collapsed, thermally extreme
+"""The hard-case suite: stiff, strongly deformed, nearly collapsed, thermally extreme
 and long runs, each with the bound it was measured to meet (docs/robustness.md has the table).
 
 Bounds are the measured figure rounded up by at most about 3×, so a regression that doubles

@@ -26,7 +26,7 @@ def load_example():
 def star_mesh_operator(net, g, capacity, bath_nodes):
     """C⁻¹ K, K the springs' block of the conduction network after eliminating every junction
     (a Schur complement): spring middles joined to both their end nodes through g_e; bath nodes
-    held, every other node eliminated (spec-heat §1.1, §1.4). Dense; for small nets."""
+    held, every other node eliminated (docs/theory.md §5.1, §5.7). Dense; for small nets."""
     m, n = net.n_springs, net.n_nodes
     B = np.zeros((m, n))
     B[np.arange(m), net.edges[:, 0]] += g

@@ -1,4 +1,4 @@
-"""What the implicit integrators conserve (spec §2.5), measured on the paper's nets.
+"""What the implicit integrators conserve (docs/theory.md §2.6), measured on the paper's nets.
 
 Entropy is measured, not assigned: each step stores (48d)/(58d) evaluated on the converged
 unknowns, and for GTR-α the test re-evaluates (48d) itself from consecutive states

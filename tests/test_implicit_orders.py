@@ -1,4 +1,4 @@
-"""Convergence orders of the implicit integrators on the paper's chain (spec §2.5, §3.1).
+"""Convergence orders of the implicit integrators on the paper's chain (docs/theory.md §2.6, §4).
 
 Errors at t = 1 in positions, momenta and temperatures against Hamilton's equations integrated by
 SciPy's DOP853 at rtol = atol = 1e-13 (good to a few 1e-13; see test_explicit_orders.py).

@@ -1,5 +1,5 @@
 """Loads in the explicit CPU kernel: forces, driven groups, reactions, work and the balance
-H − H(0) − W (spec-heat.md §3; docs/loads.md)."""
+H − H(0) − W (docs/theory.md §7; docs/loads.md)."""
 
 import numpy as np
 import pytest

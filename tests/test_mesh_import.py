@@ -1,4 +1,4 @@
-"""Mesh import (issue 2, Scope 1): unique edges of every supported cell type, lumped masses,
+"""Mesh import: unique edges of every supported cell type, lumped masses,
 groups from cell sets and gmsh physical groups, and a .msh written by the real gmsh."""
 
 from itertools import combinations

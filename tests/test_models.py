@@ -1,4 +1,4 @@
-"""The constitutive models (spec §1.1–1.2): the engine's compiled scalar functions against the
+"""The constitutive models (docs/theory.md §1.2–1.3): the engine's compiled scalar functions against the
 NumPy formulas of thermonet.reference, and the thermodynamic identities between them
 (T = ∂F/∂l = ∂U/∂l, Γ = −∂F/∂θ, θ = ∂U/∂η, Γ(l, θ(l, η)) = η, second derivatives)."""
 

@@ -1,4 +1,4 @@
-"""Robust arithmetic over extreme but valid states (issue 6): the "hencky" model's functions,
+"""Robust arithmetic over extreme but valid states: the "hencky" model's functions,
 through the kernels' fast exp/log, against a 40-digit mpmath evaluation of the same formulas.
 
 Ranges: stretch λ = l/l0 in [1e-3, 1e3], θ/θ0 in [1e-3, 1e3], c in [1e-2, 1e8], β in {0, 0.2, 50}.

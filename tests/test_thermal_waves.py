@@ -1,4 +1,4 @@
-"""Green–Naghdi type II thermal waves (spec-heat §2): a Hamiltonian heat flow in the splittings."""
+"""Green–Naghdi type II thermal waves (docs/theory.md §6): a Hamiltonian heat flow in the splittings."""
 
 import numpy as np
 import pytest

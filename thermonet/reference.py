@@ -24,7 +24,7 @@ import numpy as np
 
 
 class HenckyLaw:
-    """Spec §1.1, with L = ln(l/l0)."""
+    """docs/theory.md §1.2, with L = ln(l/l0)."""
 
     parameters = ("c", "beta", "C0", "theta0")
 
@@ -67,7 +67,7 @@ class HenckyLaw:
 
 
 class QuadraticLaw:
-    """Spec §1.2, with d = l − l0."""
+    """docs/theory.md §1.3, with d = l − l0."""
 
     parameters = ("E", "beta", "C0", "theta0", "eta0")
 

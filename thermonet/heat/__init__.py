@@ -1,5 +1,5 @@
 """Heat flow between springs: Fourier conduction, heat baths and sources, Green–Naghdi thermal
-waves (spec-heat §1–2), as one slice: :mod:`.setup` checks a run's heat-flow inputs and
+waves (docs/theory.md §5–6), as one slice: :mod:`.setup` checks a run's heat-flow inputs and
 :mod:`.parameters` the transport parameters g and g*; :mod:`.graph` builds the conduction
 sweep's order (junction blocks, coloured) and the waves' coloured spring pairs;
 :mod:`.exchange` is what one junction, bath end, source or wave pair does on every target,

@@ -1,5 +1,5 @@
 """Heat flow on the GPU: the conduction and thermal-wave rows of the explicit schedule
-(spec-heat §1–2), built from the CPU's per-element functions (:mod:`thermonet.heat.exchange`).
+(docs/theory.md §5–6), built from the CPU's per-element functions (:mod:`thermonet.heat.exchange`).
 
 A heat row is a sequence of *phases*, each a parallel pass whose elements share no spring:
 

@@ -1,6 +1,6 @@
 """The conduction graph of a net: which springs exchange heat, through which conductance.
 
-Nodes are heat junctions without heat capacity (spec-heat §1.1). Eliminating junction i (a
+Nodes are heat junctions without heat capacity (docs/theory.md §5.1). Eliminating junction i (a
 star–mesh transform, exact because it holds no heat) couples every pair of springs e ≠ f meeting
 at i with ``κ_ef = g_e g_f / G_i``, ``G_i = Σ_{s at i} g_s``, summed over the nodes e and f share.
 A node held at a bath temperature is not eliminated: each spring touching it exchanges with the

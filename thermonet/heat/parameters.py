@@ -1,7 +1,7 @@
 """The transport parameters of springs: what heat flow needs besides the model's free energy.
 
 ``g``: each spring's conductance between its middle and each of its ends (power per kelvin,
-spec-heat §1.1); ``g_star``: the Green–Naghdi type II constant (§2). Both are given like model
+docs/theory.md §5.1); ``g_star``: the Green–Naghdi type II constant (§6). Both are given like model
 parameters (a scalar or one value per spring, in the API's ``parameters`` and in a scene's
 material regions) and are ≥ 0.
 """

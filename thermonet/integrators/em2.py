@@ -1,4 +1,4 @@
-"""EM2, the energy–momentum (discrete-gradient midpoint) integrator (spec-heat §4; Gonzalez 1996,
+"""EM2, the energy–momentum (discrete-gradient midpoint) integrator (docs/theory.md §3; Gonzalez 1996,
 Simo & Tarnow 1992): implicit in x¹ only, second order, symmetric.
 
     x¹ = x⁰ + h M⁻¹ (p⁰ + p¹)/2,   p¹ = p⁰ + h m g − h Σ_e ∇̄U_e,   η¹ = η,   Φ¹ = Φ⁰ + h θ(l̄, η)

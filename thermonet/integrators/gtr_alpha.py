@@ -1,4 +1,4 @@
-"""GTR-α, the generalized trapezoidal rule (spec §2.1, paper (45)–(48)), for any α in [0, 1].
+"""GTR-α, the generalized trapezoidal rule (docs/theory.md §2.1, paper (45)–(48)), for any α in [0, 1].
 
 One step finds x¹ and the mean temperature θ̄ = (Φ¹ − Φ⁰)/h of every spring from
 

@@ -1,4 +1,4 @@
-"""HO4: quadratic trajectories in x and Φ with Lobatto quadrature (spec §2.2, paper (53)–(59)),
+"""HO4: quadratic trajectories in x and Φ with Lobatto quadrature (docs/theory.md §2.2, paper (53)–(59)),
 the 3-stage Lobatto IIIA–IIIB partitioned Runge–Kutta method; fourth order, implicit.
 
 One step finds x^½, x¹ (per free node) and Φ^½, Φ¹ (per spring) from

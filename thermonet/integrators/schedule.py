@@ -32,7 +32,7 @@ from ..heat.rows import CONDUCTION_FORWARD, CONDUCTION_REVERSE, THERMAL_WAVES
 MAX_FLOWS = 4
 
 STAGE = -1
-# built-in heat-flow rows (spec-heat §1–2): CONDUCTION_FORWARD, CONDUCTION_REVERSE (the second
+# built-in heat-flow rows (docs/theory.md §5–6): CONDUCTION_FORWARD, CONDUCTION_REVERSE (the second
 # half of a symmetric cycle) and THERMAL_WAVES, codes named in thermonet.heat.rows
 
 

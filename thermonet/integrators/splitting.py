@@ -76,7 +76,7 @@ class Splitting(Integrator):
                        description=f"{flow.name}({coefficient:g} h) around {self.name}")
 
     def with_heat(self, conduction: bool, waves: bool) -> "Splitting":
-        """This splitting with heat flow (spec-heat §1–2): thermal waves as ``W(h/2) ∘ A ∘ W(h/2)``
+        """This splitting with heat flow (docs/theory.md §5–6): thermal waves as ``W(h/2) ∘ A ∘ W(h/2)``
         (a composition ``A = Π base(γ h)`` composes ``W ∘ base ∘ W`` instead, keeping its order),
         conduction as ``K(h/2) ∘ … ∘ K(h/2)`` around everything (second order at most: conduction
         cannot run backwards, so it is not composed)."""
@@ -100,7 +100,7 @@ class Splitting(Integrator):
         # conduction caps the order at 2; waves keep it only in a composition of W ∘ base ∘ W
         order = 2 if conduction or (waves and not self.composition) else self.order
         return replace(out, name=f"{self.name}+{'+'.join(e.split()[-1] for e in effects)}", order=min(order, self.order),
-                       description=f"{self.description}; with {' and '.join(effects)} (spec-heat §1–2)")
+                       description=f"{self.description}; with {' and '.join(effects)} (docs/theory.md §5–6)")
 
     @property
     def heat_rows(self) -> tuple[bool, bool]:

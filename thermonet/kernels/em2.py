@@ -1,4 +1,4 @@
-"""EM2's kernels (spec-heat §4): the discrete-gradient (energy–momentum) midpoint step at fixed
+"""EM2's kernels (docs/theory.md §3): the discrete-gradient (energy–momentum) midpoint step at fixed
 entropy per spring, as Numba templates compiled per model by :func:`build` (registered as scheme
 "em2"). Conventions (records, blocking, status codes): :mod:`.implicit_common`.
 

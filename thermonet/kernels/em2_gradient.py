@@ -1,4 +1,4 @@
-"""EM2's discrete gradient of one spring (spec-heat §4), Q = [U(l¹, η) − U(l⁰, η)]/δ, δ = l¹ − l⁰,
+"""EM2's discrete gradient of one spring (docs/theory.md §3), Q = [U(l¹, η) − U(l⁰, η)]/δ, δ = l¹ − l⁰,
 and dQ/dl¹: the model's closed form where it gives one (``Model.energy_quotient``), else the
 generic forms below; Numba templates bound per model by :func:`bind_gradient` (for
 :mod:`.em2`'s kernels, which inline them, and callable alone for tests).

@@ -1,4 +1,4 @@
-"""GTR-α's kernels (spec §2.1, paper (45)–(48)): residual, Jacobian values (assembled, and as
+"""GTR-α's kernels (docs/theory.md §2.1, paper (45)–(48)): residual, Jacobian values (assembled, and as
 per-spring coefficients for the matrix-free sweep), the matrix-free sweep and the finish, as Numba
 templates compiled per model by :func:`build` (registered as scheme "gtr"). Conventions (records,
 blocking, status codes): :mod:`.implicit_common`.

@@ -1,4 +1,4 @@
-"""HO4's kernels (spec §2.2, paper (53)–(59)): the residual (also as a SUBSET variant over listed
+"""HO4's kernels (docs/theory.md §2.2, paper (53)–(59)): the residual (also as a SUBSET variant over listed
 springs and nodes, for local Jacobi steps) and the finish, as Numba templates compiled per model
 by :func:`build` (registered as scheme "ho4"); the per-spring thermal solve is
 :mod:`.ho4_thermal`, the Newton matrix (assembled, matrix-free, Jacobi rows) :mod:`.ho4_linear`.

@@ -1,4 +1,4 @@
-"""HO4's Newton matrix (spec §2.2) at the last residual's point: its values in the assembled CSR
+"""HO4's Newton matrix (docs/theory.md §2.2) at the last residual's point: its values in the assembled CSR
 matrix, its per-spring coefficients and the matrix-free sweep built on them (see
 :mod:`.gtr_alpha` for the sweep's idea), and the Jacobi step on a few nodes' rows (local steps).
 Numba templates, compiled by :func:`thermonet.kernels.ho4.build`.

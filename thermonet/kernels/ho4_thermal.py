@@ -1,4 +1,4 @@
-"""HO4's per-spring thermal solve (spec §2.2): given a spring's lengths l⁰, l^½, l¹ and entropy η,
+"""HO4's per-spring thermal solve (docs/theory.md §2.2): given a spring's lengths l⁰, l^½, l¹ and entropy η,
 the end temperatures θ⁰, θ¹ (θ^½ their mean) solving
 
     Γ⁰ = Γ¹,  (3Γ⁰ + 4Γ^½ − Γ¹)/6 = η                                       (57b), (58c)

@@ -1,7 +1,7 @@
 """The implicit integrators' shared kernels and their registry: the nodes' part of the finish
 kernels, the small helpers of the per-spring thermal solves, and :func:`implicit_kernels`, which
-compiles a registered scheme's kernels for one model (:mod:`.gtr_alpha`, spec §2.1; :mod:`.ho4`,
-spec §2.2) with the start kernel of :mod:`.implicit_start` (geometry at x⁰, explicit forces, the
+compiles a registered scheme's kernels for one model (:mod:`.gtr_alpha`, docs/theory.md §2.1; :mod:`.ho4`,
+docs/theory.md §2.2) with the start kernel of :mod:`.implicit_start` (geometry at x⁰, explicit forces, the
 predictor).
 
 The unknowns are per free node: the displacement over the step ``d = x¹ − x⁰`` for GTR-α
