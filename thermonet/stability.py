@@ -298,7 +298,7 @@ def stable_step(sim, integrator=None) -> dict:
     h_max = c / max(ω_max, ω_W) and the estimate's method; omega_waves: ω_W of the thermal waves
     (:func:`wave_frequency`, 0 without them) and limit: which of the two sets h_max.
     """
-    from .integrators import get_integrator
+    from .integrators.base import get_integrator  # (the registry; not the package, which imports us back)
 
     integ = sim.integrator if integrator is None else get_integrator(integrator)
     s = sim.internal_state()

@@ -6,6 +6,7 @@ from __future__ import annotations
 import dataclasses
 import os
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -15,7 +16,9 @@ from ..heat.setup import Bath, Source
 from ..materials.continuum import CONTINUUM_KEYS
 from ..models import get_model
 from ..net import Net
-from .scene import Scene
+
+if TYPE_CHECKING:  # annotations only: scene.py builds through this module
+    from .scene import Scene
 
 #: integrator keys of a scene that go to the integrator (and its stepper) as options
 INTEGRATOR_OPTIONS = ("alpha", "tolerance", "max_iterations", "retry", "linear_solver", "newton_path")
