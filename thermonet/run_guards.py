@@ -173,7 +173,7 @@ class StabilityGuard:
         h = sim.h
         from .stability import max_frequency, wave_frequency
 
-        waves = getattr(sim.system, "heat", None) is not None and sim.system.heat.waves
+        waves = sim.system.heat is not None and sim.system.heat.waves
         bound = frequency_bound(sim.system, state.positions, state.entropy)
         wave_bound = wave_frequency(sim, bound_only=True) if waves else 0.0
         if math.isfinite(bound) and h * max(bound * self.scale, wave_bound) <= SAFETY * self.interval:

@@ -168,15 +168,15 @@ class Simulation:
         load_set = resolve(loads, net)
         check_load_support(load_set, self.integrator, self.backend)
         self.system = build_system(net, self.model, layout, P_user, gravity, thermal, stretch_bounds, heat, load_set)
-        self.energy_tolerance = check_energy_tolerance(energy_tolerance)
-        self.stability_guard = StabilityGuard(self, guard_mode(stability_guard))
-        self._state = initial_state(net, self.model, layout, P_user, thermal, temperatures, momenta, velocities)
         if parallel is None:
             parallel = threads != 1 and net.n_springs >= PARALLEL_MIN_SPRINGS
         self.parallel = bool(parallel)
         self.integrator, self.stepper = assemble(self.integrator, self.system, parallel=self.parallel,
                                                  backend=self.backend, options=stepper_options,
                                                  time_origin=self.time_origin)
+        self.energy_tolerance = check_energy_tolerance(energy_tolerance)
+        self.stability_guard = StabilityGuard(self, guard_mode(stability_guard))  # (the integrator with heat)
+        self._state = initial_state(net, self.model, layout, P_user, thermal, temperatures, momenta, velocities)
         if heat is not None:
             heat_logs(self._state, heat)
         from .heat.multirate import check_conduction_every

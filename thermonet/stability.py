@@ -263,7 +263,7 @@ def wave_frequency(sim, bound_only: bool = False) -> float:
     the spring pairs. Their flow is a third sub-flow of the splitting with its own limit
     h ω_W < c. ``bound_only``: the Gershgorin bound ``√(max_e d_e Σ_f k*_ef (d_e + max d))``,
     d = √(θ/C), instead."""
-    heat = getattr(sim.system, "heat", None)
+    heat = sim.system.heat
     if heat is None or not heat.waves or heat.graph.n_pairs == 0:
         return 0.0
     g = heat.graph

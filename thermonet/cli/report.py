@@ -21,7 +21,7 @@ def format_summary(sim, scene: str, out: str | None = None) -> str:
                         f"{nw['iterations_max']})"
                         + (f" + {nw['jacobi_steps'] / max(1, nw['steps']):.3g} Jacobi steps/step" if nw.get("jacobi_steps") else "")
                         + f", final scaled residual <= {nw['residual_max']:.2e}, {nw['retried_steps']} retried steps")
-    if getattr(sim, "conduction_cycle", None):
+    if sim.conduction_cycle:
         k, why = sim.conduction_cycle
         lines.insert(2, f"  conduction every {k} step{'s' if k != 1 else ''} ({why})")
     for name, v in s.items():
@@ -53,7 +53,7 @@ def conserved_quantities(sim) -> set[str]:
         names = {"energy_balance", "entropy_balance"} | ({"energy"} if not heat.names else set())
         if not heat.conduction:  # thermal waves alone are Hamiltonian: entropy is conserved
             names.add("entropy")
-    if getattr(sim, "loads", None) is not None:  # loads: energy changes by the work; its balance holds
+    if sim.loads is not None:  # loads: energy changes by the work; its balance holds
         return (names - {"energy"}) | {"energy_balance"}
     anchored = bool(sim.net.anchored.any())
     gravity = sim.system.gravity is not None

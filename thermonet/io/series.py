@@ -330,7 +330,7 @@ class RunOutput:
             "conserved": summary,
             **({"newton": run["newton"]} if "newton" in run else {}),
             **({"conduction_every": {"k": sim.conduction_cycle[0], "why": sim.conduction_cycle[1]}}
-               if getattr(sim, "conduction_cycle", None) else {}),
+               if sim.conduction_cycle else {}),
             **(extra or {}),
         }
         with atomic_write(self.summary_path, "w") as f:

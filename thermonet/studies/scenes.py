@@ -59,7 +59,7 @@ def effects_beyond_hamilton(sim) -> list[str]:
     sources) and loads, each named (e.g. ``"baths (hot)"``); empty for an adiabatic net under
     gravity and anchors only."""
     out = []
-    heat = getattr(sim.system, "heat", None)
+    heat = sim.system.heat
     if heat is not None:
         if heat.conduction:
             out.append("conduction")
@@ -70,7 +70,7 @@ def effects_beyond_hamilton(sim) -> list[str]:
             out.append(f"baths ({', '.join(names[:heat.n_baths])})")
         if len(names) > heat.n_baths:
             out.append(f"sources ({', '.join(names[heat.n_baths:])})")
-    loads = getattr(sim, "loads", None)
+    loads = sim.loads
     if loads is not None:
         out.append(f"loads ({', '.join(loads.set.names)})")
     return out
