@@ -8,10 +8,10 @@ and tensile scenes on the GPU, then print one table.
 Each part runs as its own process (a part that fails is reported and the others still run), in
 this order: ``pytest -m gpu`` on the CUDA test files (``-n`` workers when pytest-xdist is there);
 ``gpu_throughput.py`` (CO2, 6-neighbour lattices, fused and two launches per stage, against the
-copy bandwidth measured in the same run); with ``--base DIR``, the same script from another
-checkout (e.g. a copy of the main branch) right after it on the same card, so that a change is
-measured against a baseline of the same call; ``gpu_heat_cost.py`` (conduction every step and
-every k steps against the adiabatic step); ``thermonet run`` of the three scenes with
+copy bandwidth measured in the same run); ``gpu_heat_cost.py`` (conduction every step and every
+k steps against the adiabatic step); with ``--base DIR``, each benchmark also from another
+checkout (e.g. a copy of the main branch) right after this one's on the same card, so that a
+change is measured against a baseline of the same call; ``thermonet run`` of the three scenes with
 ``--set integrator.backend=cuda``. docs/gpu.md says how to carry the wheels to a GPU machine
 without the package index. About 5 minutes on one H100.
 
@@ -102,11 +102,12 @@ def main(argv=None) -> list[dict]:
         result = part(f"throughput ({label})", command, tree, 400)
         result["rows"] = throughput_rows(json_path)
         parts.append(result)
-    heat = [py, os.path.join(HERE, "gpu_heat_cost.py")]
-    heat += ["--quick"] if args.quick else ["--sizes", args.heat_sizes, "--seconds", str(args.seconds)]
-    result = part("conduction cost", heat, ROOT, 400)
-    result["rows"] = heat_rows(result["out"])
-    parts.append(result)
+    for label, tree in trees:
+        heat = [py, os.path.join(tree, "benchmarks", "gpu_heat_cost.py")]
+        heat += ["--quick"] if args.quick else ["--sizes", args.heat_sizes, "--seconds", str(args.seconds)]
+        result = part(f"conduction cost ({label})", heat, tree, 400)
+        result["rows"] = heat_rows(result["out"])
+        parts.append(result)
     if not args.quick:
         for scene in SCENES:
             folder = os.path.join(out_dir, f"scene_{scene}")
@@ -131,7 +132,7 @@ def report(parts: list[dict]) -> None:
             summary = "; ".join(f"{r['springs']:,}: {r['gpu_rate_fused'] / 1e9:.2f} fused / "
                                 f"{r['gpu_rate_two_launch'] / 1e9:.2f} two launches G/s, "
                                 f"{r['bandwidth_fraction']:.0%} of copy" for r in p.get("rows", []))
-        elif p["name"] == "conduction cost":
+        elif p["name"].startswith("conduction cost"):
             summary = "; ".join(f"{s} {launch} {run}: {ratio}" for s, launch, run, ratio in p.get("rows", [])
                                 if run != "adiabatic")
         elif p["rc"] != 0:

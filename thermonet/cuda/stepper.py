@@ -21,6 +21,7 @@ from ..kernels import records
 from ..kernels.splitting import kernel_parameters
 from ..loads.stepping import StepperLoads, work_of
 from . import FLAG_ROW, FLAG_SET, FLAG_STAGES, FLAG_STEP, require_cuda
+from .launch import Launcher
 
 
 class CudaSplittingStepper(Stepper):
@@ -65,7 +66,7 @@ class CudaSplittingStepper(Stepper):
             self.fused = False
         n, m = system.n_nodes, system.n_springs
         dev = cuda.to_device
-        # --- heat flow: the record and its logs on the device (thermonet.cuda.heat) ---
+        # --- heat flow: the record and its logs on the device (thermonet.heat.cuda) ---
         conduction, waves = integrator.heat_rows
         if (conduction or waves) and getattr(system, "heat", None) is None:
             raise InputError(f"{integrator.name} has heat-flow rows but the system has no heat flow set up")
@@ -98,6 +99,7 @@ class CudaSplittingStepper(Stepper):
         self._node_out = cuda.device_array(len(NODE_OPS))
         self._bound = None  # the host State whose arrays the device arrays hold (or are newer than)
         self._device_newer = False
+        self._launchers: dict[int, Launcher] = {}
 
     # ------------------------------------------------------------------------------------------
     # host <-> device
@@ -145,15 +147,14 @@ class CudaSplittingStepper(Stepper):
         k = self._k
         n, m = self.system.n_nodes, self.system.n_springs
         if with_force and m > 0:
-            k.spring[k.blocks(m), k.threads](self._x, self._eta, self._phi, self._springs, self._topology.edges,
-                                             self._s, (k1, k2), run, self._flag, where)
+            self._launch(k.spring, k.blocks(m), k.threads, self._x, self._eta, self._phi, self._springs,
+                         self._topology.edges, self._s, (k1, k2), run, self._flag, where)
         if n > 0:
-            k.node[k.blocks(n), k.threads](self._x, self._x_buf, self._p, self._s, self._topology, self._nodes,
-                                           (k1, k2, drift, with_force), self._flag, self._loads)
+            self._launch(k.node, k.blocks(n), k.threads, self._x, self._x_buf, self._p, self._s, self._topology,
+                         self._nodes, (k1, k2, drift, with_force), self._flag, self._loads)
         if self.loads is not None and (with_force or drift != 0.0):  # loads: work, then the drive at t_after
-            k.load_stage[1, len(self.loads.arrays.work)](self._x, self._x_buf, self._s, self._topology, self._nodes,
-                                                         self._loads, (k1, k2, with_force, drift != 0.0),
-                                                         self._t_after)
+            self._launch(k.load_stage, 1, len(self.loads.arrays.work), self._x, self._x_buf, self._s, self._topology,
+                         self._nodes, self._loads, (k1, k2, with_force, drift != 0.0), self._t_after)
         self._x, self._x_buf = self._x_buf, self._x
 
     def _flow(self, slot: int, tau: float, t: float) -> None:
@@ -161,8 +162,8 @@ class CudaSplittingStepper(Stepper):
         kernel = self._k.flows[slot]
         count = data[0].shape[0]
         if count > 0:
-            kernel[self._k.blocks(count), self._k.threads](data, tau, t, self._x, self._p, self._phi, self._eta,
-                                                           self._flag)
+            self._launch(kernel, self._k.blocks(count), self._k.threads, data, tau, t, self._x, self._p, self._phi,
+                         self._eta, self._flag)
 
     def advance(self, state, n_steps: int, h: float, measure: bool = False):
         """As :meth:`thermonet.integrators.splitting.SplittingStepper.advance`: the same rows of the
@@ -242,16 +243,24 @@ class CudaSplittingStepper(Stepper):
         return (flag, 0, x_start) if flag[FLAG_SET] else None
 
     def _heat_row(self, heat, code: int, tau: float, t: float, theta_valid: bool) -> None:
-        """Heat row ``code`` over τ at time t, one launch per phase (:mod:`thermonet.cuda.heat`),
+        """Heat row ``code`` over τ at time t, one launch per phase (:mod:`thermonet.heat.cuda`),
         after a temperature pass when a conduction sweep has no valid θ."""
         k = self._k
         m = self.system.n_springs
         if code != THERMAL_WAVES and not theta_valid and m > 0:
-            k.temperature[k.blocks(m), k.threads](self._x, self._eta, self._topology.edges, self._springs, heat,
-                                                  self._flag)
+            self._launch(k.temperature, k.blocks(m), k.threads, self._x, self._eta, self._topology.edges,
+                         self._springs, heat, self._flag)
         for phase, count in self._heat.phases(code):
             if count > 0:
-                k.sweep[k.blocks(count), k.threads](code, phase, heat, tau, t, self._phi, self._eta, self._flag)
+                self._launch(k.sweep, k.blocks(count), k.threads, code, phase, heat, tau, t, self._phi, self._eta,
+                             self._flag)
+
+    def _launch(self, kernel, blocks: int, threads: int, *args) -> None:
+        """``kernel[blocks, threads](*args)`` through its :class:`~thermonet.cuda.launch.Launcher`."""
+        launcher = self._launchers.get(id(kernel))
+        if launcher is None:
+            launcher = self._launchers[id(kernel)] = Launcher(kernel)
+        launcher(blocks, threads, *args)
 
     _t_after = 0.0  # loads: the time at the end of the current stage's drift
 
