@@ -33,12 +33,20 @@ class CudaSplittingStepper(Stepper):
     #: between the passes) instead of two launches per stage; the same numbers either way (tested
     #: bit for bit on an H100). None: by net size, below :data:`FUSED_MAX_SPRINGS`.
     fused: bool | None = None
-    #: Measured on an H100 (CO2, 6-neighbour lattices, G spring-steps/s fused / two launches):
-    #: 1e5 springs 10.0 / 0.50, 1e6 13.0 / 7.0, 3e6 14.7 / 21.3, 1e7 15.3 / 22.3. Launching from
-    #: Python costs ~70 µs a launch, which bounds two launches per stage on small nets; a
-    #: cooperative launch keeps only the blocks that fit at once, which caps it at ~65% of the copy
-    #: bandwidth on large ones. The two cross near 2e6 springs (both ≈ 144 µs a step there).
+    #: Measured on an H100 (CO2, 6-neighbour lattices, G spring-steps/s fused / two launches,
+    #: ``benchmarks/gpu_check.py``): 1e5 springs 5.1 / 0.87, 1e6 14.0 / 6.5, 3e6 17.8 / 19.8,
+    #: 1e7 19.8 / 22.0. A launch costs tens of µs of host time even through a
+    #: :class:`~thermonet.cuda.launch.Launcher`, which bounds two launches per stage on small nets;
+    #: a cooperative launch keeps only the blocks that fit at once, which caps it below the copy
+    #: bandwidth on large ones. The two cross between 1e6 and 3e6 springs.
     FUSED_MAX_SPRINGS = 2_000_000
+    #: below this many springs a fused launch runs at most SMALL_NET_BLOCKS_PER_SM blocks per
+    #: multiprocessor, not all that fit: each grid-wide barrier costs more with more blocks, and on
+    #: small nets that outweighs the memory parallelism of a full grid (H100, G spring-steps/s with
+    #: 2 blocks per multiprocessor against all that fit: 1e5 springs 6.5–7.3 against 5.1–6.5, 3e5
+    #: 11.1–12.1 against 10.4–10.9; at 1e6 the full grid is faster, 14.2–14.6 against 11.4–11.9)
+    SMALL_NET_SPRINGS = 500_000
+    SMALL_NET_BLOCKS_PER_SM = 2
     #: most steps per fused launch (a launch cannot be interrupted; a few hundred steps keep
     #: Ctrl-C and progress reports responsive and cost one launch each)
     FUSED_MAX_STEPS = 256
@@ -291,8 +299,9 @@ class CudaSplittingStepper(Stepper):
 
     def _cooperative_blocks(self, args) -> int:
         """Blocks of the fused launch: enough for one thread per spring or node, at most as many
-        as can be resident at once (a grid-wide barrier needs every block running); one block
-        under the simulator, which supports grid barriers only there."""
+        as can be resident at once (a grid-wide barrier needs every block running), and at most
+        :data:`SMALL_NET_BLOCKS_PER_SM` a multiprocessor on small nets; one block under the
+        simulator, which supports grid barriers only there."""
         from numba import typeof
 
         from . import simulator_enabled
@@ -302,6 +311,9 @@ class CudaSplittingStepper(Stepper):
         k = self._k
         kernel = k.steps.compile(tuple(typeof(a) for a in args))
         resident = kernel.max_cooperative_grid_blocks(k.threads)
+        if self.system.n_springs < self.SMALL_NET_SPRINGS:
+            multiprocessors = self._cuda.get_current_device().MULTIPROCESSOR_COUNT
+            resident = min(resident, self.SMALL_NET_BLOCKS_PER_SM * multiprocessors)
         needed = k.blocks(max(self.system.n_springs, self.system.n_nodes, 1))
         return max(1, min(resident, needed))
 
