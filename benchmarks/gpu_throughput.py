@@ -2,6 +2,7 @@
 and the CPU backend.
 
     python benchmarks/gpu_throughput.py [--sizes 1e5,1e6,1e7,5e7] [--seconds 2] [--cpu-max 1e7] [--json out.json]
+    NUMBA_ENABLE_CUDASIM=1 python benchmarks/gpu_throughput.py --quick   # a smoke run (tests/test_benchmarks.py)
 
 Needs an NVIDIA GPU and numba-cuda (``pip install '.[cuda]'``); refuses to run otherwise, and
 under Numba's CUDA simulator (its timings mean nothing). For 6-neighbour lattice nets (jitter
@@ -23,14 +24,18 @@ springs it prints a markdown table:
 - device memory per spring, and the largest net that would fit in the device's free memory at
   that rate of use (an estimate from the measured bytes per spring, not a run).
 
-Before timing, the GPU and CPU backends run 20 steps from one state on a small net and their
-largest relative difference is printed (round-off: fused multiply-adds on the GPU).
+Before timing, the GPU and CPU backends run 20 steps from one state on a small net at the same h
+and their largest relative difference is printed (round-off: fused multiply-adds on the GPU).
+
+``--quick`` runs a tiny net for a few steps and accepts Numba's CUDA simulator (no copy bandwidth,
+no CPU column): it checks that the script runs; its timings mean nothing.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import platform
 import sys
@@ -76,8 +81,26 @@ def bytes_per_step(n: int, m: int, params_per_spring: int) -> int:
 
 
 def device_bytes(stepper) -> int:
-    """Bytes of every device array the CUDA stepper holds."""
-    return sum(getattr(v, "nbytes", 0) for v in vars(stepper).values() if hasattr(v, "copy_to_host"))
+    """Bytes of every device array the CUDA stepper holds, directly or in its records (each array
+    counted once)."""
+    seen, visited = {}, set()
+
+    def walk(value):
+        if id(value) in visited:
+            return
+        visited.add(id(value))
+        if hasattr(value, "copy_to_host"):
+            seen[id(value)] = value.nbytes
+        elif isinstance(value, (tuple, list)):
+            for item in value:
+                walk(item)
+        elif type(value).__module__ == "thermonet.heat.cuda":  # the device heat record's holder
+            for item in vars(value).values():
+                walk(item)
+
+    for v in vars(stepper).values():
+        walk(v)
+    return sum(seen.values())
 
 
 def _copy(src, dst):
@@ -107,13 +130,19 @@ def copy_bandwidth(cuda, n_bytes: int = 2 << 30, repeats: int = 10) -> float:
     return 2 * n * 8 / best
 
 
-def gpu_rate(sim, cuda, seconds: float, fused: bool, multiple: int = 1) -> float:
+def gpu_rate(sim, cuda, seconds: float, fused: bool, multiple: int = 1, quick: bool = False) -> float:
     """Median spring-steps/s of the CUDA stepper over three runs of about ``seconds``, with one
     cooperative launch per chunk of steps (``fused``) or two launches per stage; every call a
-    whole number of ``multiple`` steps (a conduction cycle)."""
+    whole number of ``multiple`` steps (a conduction cycle). quick: one short timed call."""
     stepper, state, m, h = sim.stepper, sim._state, sim.net.n_springs, sim.h
     stepper.fused = fused
     stepper.advance(state, 2 * multiple, h)  # compile and upload
+    if quick:
+        cuda.synchronize()
+        t0 = time.perf_counter()
+        stepper.advance(state, multiple, h)
+        cuda.synchronize()
+        return multiple * m / max(time.perf_counter() - t0, 1e-9)
     cuda.synchronize()
     t0 = time.perf_counter()
     stepper.advance(state, 10 * multiple, h)
@@ -141,12 +170,13 @@ def cpu_rate(target: int, seconds: float) -> float:
     return steps * sim.net.n_springs / (time.perf_counter() - t0)
 
 
-def agreement() -> float:
-    """Largest relative difference of positions, momenta, Φ after 20 steps, GPU vs CPU."""
+def agreement(springs: int = 3000, steps: int = 20) -> float:
+    """Largest relative difference of positions, momenta, Φ after ``steps`` steps at the same h,
+    GPU vs CPU."""
     out = []
     for backend in ("cpu", "cuda"):
-        sim = lattice_sim(3000, backend)
-        sim.run(steps=20, diagnostics_every=20)
+        sim = lattice_sim(springs, backend)
+        sim.run(steps=steps, diagnostics_every=steps)
         s = sim.state
         out.append((s.positions, s.momenta, s.thermal_displacement))
     return max(float(np.max(np.abs(a - b)) / np.max(np.abs(a))) for a, b in zip(*out))
@@ -154,14 +184,17 @@ def agreement() -> float:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--quick", action="store_true", help="a tiny net, a few steps; the CUDA simulator allowed")
     ap.add_argument("--sizes", default="1e5,1e6,1e7,5e7", help="comma-separated spring counts")
     ap.add_argument("--seconds", type=float, default=2.0, help="length of each timed run")
     ap.add_argument("--cpu-max", type=float, default=1e7, help="largest net also timed on the CPU backend")
     ap.add_argument("--json", help="also write the rows to this JSON file")
     args = ap.parse_args(argv)
+    if args.quick:
+        args.sizes, args.cpu_max = "60", 0.0
 
     problem = "Numba's CUDA simulator is on (NUMBA_ENABLE_CUDASIM): its timings mean nothing" \
-        if simulator_enabled() else cuda_problem()
+        if simulator_enabled() and not args.quick else cuda_problem()
     if problem is not None:
         print(f"gpu_throughput: needs a CUDA GPU: {problem}", file=sys.stderr)
         return 2
@@ -169,11 +202,14 @@ def main(argv=None) -> int:
     free, total = cuda.current_context().get_memory_info()
     import numba_cuda
 
-    print(f"device: {dev.name.decode() if isinstance(dev.name, bytes) else dev.name}, "
+    name = getattr(dev, "name", "Numba's CUDA simulator")
+    print(f"device: {name.decode() if isinstance(name, bytes) else name}, "
           f"{total / 2**30:.1f} GiB; numba-cuda {numba_cuda.__version__}, numpy {np.__version__}, "
           f"python {platform.python_version()}")
-    print(f"GPU vs CPU after 20 steps (3000 springs): max relative difference {agreement():.2e}")
-    bandwidth = copy_bandwidth(cuda)
+    springs, steps = (60, 3) if args.quick else (3000, 20)
+    print(f"GPU vs CPU after {steps} steps ({springs} springs, the same h): max relative difference "
+          f"{agreement(springs, steps):.2e}")
+    bandwidth = float("nan") if args.quick else copy_bandwidth(cuda)
     print(f"device copy bandwidth (read + write): {bandwidth / 1e12:.2f} TB/s\n")
     print("| springs | nodes | GPU G spring-steps/s | fused launch | two launches per stage | B/spring-step | "
           "of copy bandwidth | CPU G spring-steps/s | speed-up | device B/spring | largest net that fits (est.) |")
@@ -186,12 +222,13 @@ def main(argv=None) -> int:
             print(f"| {size:.0e} | – | did not fit: {type(exc).__name__}: {exc} |")
             break
         n, m = sim.net.n_nodes, sim.net.n_springs
-        fused = gpu_rate(sim, cuda, args.seconds, fused=True)
-        two_launch = gpu_rate(sim, cuda, args.seconds, fused=False)
+        fused = gpu_rate(sim, cuda, args.seconds, fused=True, quick=args.quick)
+        two_launch = gpu_rate(sim, cuda, args.seconds, fused=False, quick=args.quick)
         rate = fused if m < sim.stepper.FUSED_MAX_SPRINGS else two_launch  # what the default runs
-        b = bytes_per_step(n, m, 0 if sim.stepper._P.shape[1] == 1 else sim.stepper._P.shape[0]) / m
+        P = sim.stepper._springs.P
+        b = bytes_per_step(n, m, 0 if P.shape[1] == 1 else P.shape[0]) / m
         per_spring = device_bytes(sim.stepper) / m
-        fits = int(free / per_spring)
+        fits = int(free / per_spring) if math.isfinite(free / per_spring) else 0  # (the simulator: no memory)
         del sim
         cpu = cpu_rate(size, args.seconds) if size <= args.cpu_max else float("nan")
         row = dict(springs=m, nodes=n, gpu_rate=rate, gpu_rate_fused=fused, gpu_rate_two_launch=two_launch,
@@ -203,7 +240,9 @@ def main(argv=None) -> int:
               f"{row['bandwidth_fraction']:.0%} | {cpu / 1e9:.3f} | {row['speedup']:.0f}× | {per_spring:.0f} | {fits:.2e} |", flush=True)
         if args.json:  # after every row: a run cut short by a time limit keeps what it measured
             with open(args.json, "w") as f:
-                json.dump(dict(device=str(dev.name), bandwidth=bandwidth, rows=rows), f, indent=1)
+                json.dump(dict(device=str(name), bandwidth=bandwidth, rows=rows), f, indent=1)
+    if args.quick:
+        print("(quick: timings mean nothing)")
     return 0
 
 

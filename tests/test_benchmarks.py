@@ -29,22 +29,30 @@ def test_heat_cost_quick_mode_runs_and_reports_the_conduction_cycle(capsys):
     assert "| steel bracket" in text and "| scenes/thermal_shock.toml" in text
 
 
-def test_gpu_heat_cost_quick_mode_runs_under_the_cuda_simulator():
+def test_gpu_check_quick_mode_runs_its_benchmarks_under_the_cuda_simulator(monkeypatch, capsys):
+    """benchmarks/gpu_check.py --quick: gpu_throughput.py and gpu_heat_cost.py in their quick modes
+    (subprocesses under Numba's CUDA simulator), their rows read back into the one table."""
     import importlib.util
-    import os
-    import subprocess
-    import sys
 
     import pytest
 
     if importlib.util.find_spec("numba_cuda") is None:
         pytest.skip("numba-cuda is not installed (pip install '.[cuda]')")
-    env = dict(os.environ, NUMBA_ENABLE_CUDASIM="1")
-    done = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "gpu_heat_cost.py"), "--quick"], env=env,
-                          capture_output=True, text=True, timeout=600)
-    assert done.returncode == 0, done.stderr[-2000:]
-    rows = [line for line in done.stdout.splitlines() if line.startswith("| 54 |")]
-    assert len(rows) == 6  # two launch modes × adiabatic, every step, "auto"'s k
-    assert all(float(r.split("|")[5].strip().rstrip("×")) > 0 for r in rows)
-    # conduction's phases per half sweep on the GPU: the lattice's node colours + 3
-    assert all(r.split("|")[6].strip() in ("–", "5") for r in rows)
+    monkeypatch.setenv("NUMBA_ENABLE_CUDASIM", "1")
+    parts = load("gpu_check").main(["--quick"])
+    assert [p["name"] for p in parts] == ["throughput (this tree)", "conduction cost (this tree)"]
+    assert all(p["rc"] == 0 for p in parts), [p["out"][-2000:] for p in parts]
+    throughput, heat = parts
+    (row,) = throughput["rows"]  # the quick mode's one tiny lattice
+    assert row["springs"] == 144 and row["nodes"] == 64
+    assert row["gpu_rate_fused"] > 0 and row["gpu_rate_two_launch"] > 0
+    assert 100 < row["bytes_per_spring_step"] < 150 and row["device_bytes_per_spring"] > 0
+    assert "max relative difference 0.00e+00" in throughput["out"]  # the simulator runs the CPU's operations
+    # two launch modes × adiabatic, every step, "auto"'s k; conduction's phases per half sweep
+    # on the GPU: the lattice's node colours + 3
+    table = [line for line in heat["out"].splitlines() if line.startswith("| 54 |")]
+    assert len(table) == 6 and len(heat["rows"]) == 6
+    assert all(float(r.split("|")[5].strip().rstrip("×")) > 0 for r in table)
+    assert all(r.split("|")[6].strip() in ("–", "5") for r in table)
+    out = capsys.readouterr().out
+    assert "## GPU check" in out and "| throughput (this tree) | 0 |" in out

@@ -290,7 +290,7 @@ def _toolkit_compiles() -> bool:
 @pytest.mark.skipif(not _toolkit_compiles(), reason="needs the CUDA toolkit libraries (NVVM, NVRTC) of "
                     "numba-cuda[cu12] or [cu13]; no GPU needed")
 def test_heat_kernels_compile_to_ptx_for_h100():
-    from thermonet.cuda.heat import compile_heat_ptx
+    from thermonet.heat.cuda import compile_heat_ptx
 
     ptx = compile_heat_ptx(tn.get_model("hencky"), cc=(9, 0))
     assert set(ptx) == {"sweep", "temperature"}
@@ -308,7 +308,7 @@ def test_fused_kernel_with_heat_rows_compiles_for_h100_but_for_its_grid_barriers
 
     from numba import cuda, njit, typeof
 
-    from thermonet.cuda import heat as device_heat
+    from thermonet.heat import cuda as device_heat
     from thermonet.cuda import kernels
     from thermonet.integrators.schedule import MAX_FLOWS, StageTable
     from thermonet.kernels import records
@@ -358,7 +358,11 @@ def test_gpu_heat_flow_equals_cpu_and_launch_modes_agree(make):
     for field in ("positions", "momenta", "thermal_displacement", "entropy"):
         assert _close(getattr(cpu, field), getattr(reference, field), 1e-10), field
     for name in LOGS:
-        assert _close(cpu.extra["heat"][name], reference.extra["heat"][name], 1e-10), name
+        x, y = cpu.extra["heat"][name], reference.extra["heat"][name]
+        if name == "theta_ok":  # valid on both (2 on the CPU: a call ended with a reverse sweep)
+            assert (x[0] >= 1.0) == (y[0] >= 1.0), name
+        else:
+            assert _close(x, y, 1e-10), name
     for state in states.values():
         if state is cpu:
             continue

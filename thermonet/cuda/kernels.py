@@ -67,6 +67,11 @@ UNIFORM = False
 #: its cost grows with blocks and with barriers: few blocks there, tiny reduction trees.
 THREADS = 256
 SIMULATOR_THREADS = 32
+#: launch bounds of the fused kernel (threads per block, blocks per multiprocessor): registers
+#: capped at 64 a thread, so that four blocks fit on a multiprocessor. Unbounded it takes 96 on
+#: an H100, two blocks each: a cooperative grid of 264 blocks, too few to give each spring of a
+#: 1e5-spring net its own thread. None: unbounded.
+FUSED_LAUNCH_BOUNDS = (THREADS, 4)
 #: threads per block of the diagnostics sums, a compile-time constant of their shared-memory trees
 #: (a power of two), and their (grid-stride) blocks
 REDUCE_THREADS = 256
@@ -106,12 +111,12 @@ def cuda_kernels(model, thermal: bool = True, uniform: bool = False, flows=(), c
     by all springs, a ``(k, 1)`` array, when ``uniform``: see
     :func:`thermonet.kernels.splitting.kernel_parameters`), with the extra sub-flows ``flows``
     (:class:`~thermonet.integrators.schedule.SubFlow` s, slot order) and the heat-flow rows it
-    may meet compiled in (``conduction``, ``waves``: :mod:`thermonet.cuda.heat`); with ``loads``
+    may meet compiled in (``conduction``, ``waves``: :mod:`thermonet.heat.cuda`); with ``loads``
     the node kernel adds the loads' forces and ``load_start`` / ``load_stage`` run the loads' own
     passes (two launches per stage only: the fused ``steps`` kernel is not compiled with them)."""
     sim = simulator_enabled()
     key = (model_fingerprint(model), bool(thermal), bool(uniform), sim, tuple(id(f) for f in flows),
-           bool(conduction), bool(waves), bool(loads))
+           bool(conduction), bool(waves), bool(loads), FUSED_LAUNCH_BOUNDS)
     if key not in _CACHE:
         ns = kernel_namespace(model, thermal, uniform)
         if sim:
@@ -146,13 +151,17 @@ def cuda_kernels(model, thermal: bool = True, uniform: bool = False, flows=(), c
         for name, template in _SHARED:  # in order: later ones call earlier ones
             ns[name] = inline(rebind(template, tag, ns))  # shared by the two-launch and the fused path
 
-        def compile_(template, namespace=ns, suffix=""):
-            return jit(rebind(template, tag + suffix, namespace))
+        def compile_(template, namespace=ns, suffix="", compiler=jit):
+            return compiler(rebind(template, tag + suffix, namespace))
+
+        fused_jit = jit if sim or FUSED_LAUNCH_BOUNDS is None else \
+            cuda.jit(cache=True, launch_bounds=FUSED_LAUNCH_BOUNDS)
 
         flow_kernels = tuple(compile_(_flow_kernel, dict(ns, update=ns[f"flow_update_{slot}"]), f"_{slot}")
                              for slot in range(len(flows)))
         kernels = CudaKernels(
-            compile_(_spring_kernel), compile_(_node_kernel), flow_kernels, compile_(_steps_kernel),
+            compile_(_spring_kernel), compile_(_node_kernel), flow_kernels,
+            compile_(_steps_kernel, compiler=fused_jit),
             compile_(_spring_sums_kernel), compile_(_node_sums_kernel), compile_(_finish_kernel),
             SIMULATOR_THREADS if sim else THREADS, reduce_threads, SIMULATOR_REDUCE_BLOCKS if sim else REDUCE_BLOCKS)
         if conduction or waves:  # heat flow
@@ -245,7 +254,7 @@ def _steps_kernel(state, x_buf, s, topology, springs, nodes, table, flows, run, 
     the stages to know which holds the result. A spring outside the admissible states stops the
     launch after its spring pass, with ``flag`` saying where. flows: (the extra sub-flows' data,
     the :class:`~thermonet.kernels.records.Heat` record); heat rows run their phases
-    (:mod:`thermonet.cuda.heat`) between barriers.
+    (:mod:`thermonet.heat.cuda`) between barriers.
     """
     grid = cuda.cg.this_grid()
     first = cuda.grid(1)

@@ -21,6 +21,7 @@ from ..kernels import records
 from ..kernels.splitting import kernel_parameters
 from ..loads.stepping import StepperLoads, work_of
 from . import FLAG_ROW, FLAG_SET, FLAG_STAGES, FLAG_STEP, require_cuda
+from .launch import Launcher
 
 
 class CudaSplittingStepper(Stepper):
@@ -32,12 +33,20 @@ class CudaSplittingStepper(Stepper):
     #: between the passes) instead of two launches per stage; the same numbers either way (tested
     #: bit for bit on an H100). None: by net size, below :data:`FUSED_MAX_SPRINGS`.
     fused: bool | None = None
-    #: Measured on an H100 (CO2, 6-neighbour lattices, G spring-steps/s fused / two launches):
-    #: 1e5 springs 10.0 / 0.50, 1e6 13.0 / 7.0, 3e6 14.7 / 21.3, 1e7 15.3 / 22.3. Launching from
-    #: Python costs ~70 µs a launch, which bounds two launches per stage on small nets; a
-    #: cooperative launch keeps only the blocks that fit at once, which caps it at ~65% of the copy
-    #: bandwidth on large ones. The two cross near 2e6 springs (both ≈ 144 µs a step there).
+    #: Measured on an H100 (CO2, 6-neighbour lattices, G spring-steps/s fused / two launches,
+    #: ``benchmarks/gpu_check.py``): 1e5 springs 5.1 / 0.87, 1e6 14.0 / 6.5, 3e6 17.8 / 19.8,
+    #: 1e7 19.8 / 22.0. A launch costs tens of µs of host time even through a
+    #: :class:`~thermonet.cuda.launch.Launcher`, which bounds two launches per stage on small nets;
+    #: a cooperative launch keeps only the blocks that fit at once, which caps it below the copy
+    #: bandwidth on large ones. The two cross between 1e6 and 3e6 springs.
     FUSED_MAX_SPRINGS = 2_000_000
+    #: below this many springs a fused launch runs at most SMALL_NET_BLOCKS_PER_SM blocks per
+    #: multiprocessor, not all that fit: each grid-wide barrier costs more with more blocks, and on
+    #: small nets that outweighs the memory parallelism of a full grid (H100, G spring-steps/s with
+    #: 2 blocks per multiprocessor against all that fit: 1e5 springs 6.5–7.3 against 5.1–6.5, 3e5
+    #: 11.1–12.1 against 10.4–10.9; at 1e6 the full grid is faster, 14.2–14.6 against 11.4–11.9)
+    SMALL_NET_SPRINGS = 500_000
+    SMALL_NET_BLOCKS_PER_SM = 2
     #: most steps per fused launch (a launch cannot be interrupted; a few hundred steps keep
     #: Ctrl-C and progress reports responsive and cost one launch each)
     FUSED_MAX_STEPS = 256
@@ -65,7 +74,7 @@ class CudaSplittingStepper(Stepper):
             self.fused = False
         n, m = system.n_nodes, system.n_springs
         dev = cuda.to_device
-        # --- heat flow: the record and its logs on the device (thermonet.cuda.heat) ---
+        # --- heat flow: the record and its logs on the device (thermonet.heat.cuda) ---
         conduction, waves = integrator.heat_rows
         if (conduction or waves) and getattr(system, "heat", None) is None:
             raise InputError(f"{integrator.name} has heat-flow rows but the system has no heat flow set up")
@@ -98,6 +107,7 @@ class CudaSplittingStepper(Stepper):
         self._node_out = cuda.device_array(len(NODE_OPS))
         self._bound = None  # the host State whose arrays the device arrays hold (or are newer than)
         self._device_newer = False
+        self._launchers: dict[int, Launcher] = {}
 
     # ------------------------------------------------------------------------------------------
     # host <-> device
@@ -145,15 +155,14 @@ class CudaSplittingStepper(Stepper):
         k = self._k
         n, m = self.system.n_nodes, self.system.n_springs
         if with_force and m > 0:
-            k.spring[k.blocks(m), k.threads](self._x, self._eta, self._phi, self._springs, self._topology.edges,
-                                             self._s, (k1, k2), run, self._flag, where)
+            self._launch(k.spring, k.blocks(m), k.threads, self._x, self._eta, self._phi, self._springs,
+                         self._topology.edges, self._s, (k1, k2), run, self._flag, where)
         if n > 0:
-            k.node[k.blocks(n), k.threads](self._x, self._x_buf, self._p, self._s, self._topology, self._nodes,
-                                           (k1, k2, drift, with_force), self._flag, self._loads)
+            self._launch(k.node, k.blocks(n), k.threads, self._x, self._x_buf, self._p, self._s, self._topology,
+                         self._nodes, (k1, k2, drift, with_force), self._flag, self._loads)
         if self.loads is not None and (with_force or drift != 0.0):  # loads: work, then the drive at t_after
-            k.load_stage[1, len(self.loads.arrays.work)](self._x, self._x_buf, self._s, self._topology, self._nodes,
-                                                         self._loads, (k1, k2, with_force, drift != 0.0),
-                                                         self._t_after)
+            self._launch(k.load_stage, 1, len(self.loads.arrays.work), self._x, self._x_buf, self._s, self._topology,
+                         self._nodes, self._loads, (k1, k2, with_force, drift != 0.0), self._t_after)
         self._x, self._x_buf = self._x_buf, self._x
 
     def _flow(self, slot: int, tau: float, t: float) -> None:
@@ -161,8 +170,8 @@ class CudaSplittingStepper(Stepper):
         kernel = self._k.flows[slot]
         count = data[0].shape[0]
         if count > 0:
-            kernel[self._k.blocks(count), self._k.threads](data, tau, t, self._x, self._p, self._phi, self._eta,
-                                                           self._flag)
+            self._launch(kernel, self._k.blocks(count), self._k.threads, data, tau, t, self._x, self._p, self._phi,
+                         self._eta, self._flag)
 
     def advance(self, state, n_steps: int, h: float, measure: bool = False):
         """As :meth:`thermonet.integrators.splitting.SplittingStepper.advance`: the same rows of the
@@ -242,16 +251,24 @@ class CudaSplittingStepper(Stepper):
         return (flag, 0, x_start) if flag[FLAG_SET] else None
 
     def _heat_row(self, heat, code: int, tau: float, t: float, theta_valid: bool) -> None:
-        """Heat row ``code`` over τ at time t, one launch per phase (:mod:`thermonet.cuda.heat`),
+        """Heat row ``code`` over τ at time t, one launch per phase (:mod:`thermonet.heat.cuda`),
         after a temperature pass when a conduction sweep has no valid θ."""
         k = self._k
         m = self.system.n_springs
         if code != THERMAL_WAVES and not theta_valid and m > 0:
-            k.temperature[k.blocks(m), k.threads](self._x, self._eta, self._topology.edges, self._springs, heat,
-                                                  self._flag)
+            self._launch(k.temperature, k.blocks(m), k.threads, self._x, self._eta, self._topology.edges,
+                         self._springs, heat, self._flag)
         for phase, count in self._heat.phases(code):
             if count > 0:
-                k.sweep[k.blocks(count), k.threads](code, phase, heat, tau, t, self._phi, self._eta, self._flag)
+                self._launch(k.sweep, k.blocks(count), k.threads, code, phase, heat, tau, t, self._phi, self._eta,
+                             self._flag)
+
+    def _launch(self, kernel, blocks: int, threads: int, *args) -> None:
+        """``kernel[blocks, threads](*args)`` through its :class:`~thermonet.cuda.launch.Launcher`."""
+        launcher = self._launchers.get(id(kernel))
+        if launcher is None:
+            launcher = self._launchers[id(kernel)] = Launcher(kernel)
+        launcher(blocks, threads, *args)
 
     _t_after = 0.0  # loads: the time at the end of the current stage's drift
 
@@ -282,8 +299,9 @@ class CudaSplittingStepper(Stepper):
 
     def _cooperative_blocks(self, args) -> int:
         """Blocks of the fused launch: enough for one thread per spring or node, at most as many
-        as can be resident at once (a grid-wide barrier needs every block running); one block
-        under the simulator, which supports grid barriers only there."""
+        as can be resident at once (a grid-wide barrier needs every block running), and at most
+        :data:`SMALL_NET_BLOCKS_PER_SM` a multiprocessor on small nets; one block under the
+        simulator, which supports grid barriers only there."""
         from numba import typeof
 
         from . import simulator_enabled
@@ -293,6 +311,9 @@ class CudaSplittingStepper(Stepper):
         k = self._k
         kernel = k.steps.compile(tuple(typeof(a) for a in args))
         resident = kernel.max_cooperative_grid_blocks(k.threads)
+        if self.system.n_springs < self.SMALL_NET_SPRINGS:
+            multiprocessors = self._cuda.get_current_device().MULTIPROCESSOR_COUNT
+            resident = min(resident, self.SMALL_NET_BLOCKS_PER_SM * multiprocessors)
         needed = k.blocks(max(self.system.n_springs, self.system.n_nodes, 1))
         return max(1, min(resident, needed))
 
