@@ -69,11 +69,15 @@ def lattice_sim(target_springs: int, backend: str) -> tn.Simulation:
 
 
 def bytes_per_step(n: int, m: int, params_per_spring: int) -> int:
-    """Compulsory bytes of one CO2 step, thermal, no gravity: one pass over the nodes
-    (:mod:`thermonet.cuda.stage`): x 24n, p read+write 48n, x_new 24n, inc_ptr 8n, 1/m 8n,
-    anchored 1n, inc_spring + inc_other 16m, η 8m, l0 8m, Φ read+write 16m, per-spring
-    parameters 8km (0 when shared)."""
-    return 48 * m + 113 * n + 8 * params_per_spring * m
+    """Compulsory bytes of one CO2 step (one spring launch, one node launch), thermal, no gravity.
+
+    Spring launch: edges 8m, x 24n, η 8m, l0 8m, Φ read+write 16m, T/l write 8m, per-spring
+    parameters 8km (0 when shared). Node launch: x 24n, p read+write 48n, x_new 24n, inc_ptr 8n,
+    1/m 8n, anchored 1n, inc_spring + inc_other 8m, T/l 8m.
+    """
+    spring = 48 * m + 24 * n + 8 * params_per_spring * m
+    node = 16 * m + 8 * m + 113 * n
+    return spring + node
 
 
 def device_bytes(stepper) -> int:
