@@ -324,9 +324,8 @@ def test_fused_kernel_with_heat_rows_compiles_for_h100_but_for_its_grid_barriers
         ns[f"flow_update_{slot}"] = inline(kernels._no_update)
     for name, template in kernels._SHARED:
         ns[name] = inline(rebind(template, tag, ns))
-    ns["_stage_update"] = inline(rebind(kernels._stage_update, tag, ns))
     source = textwrap.dedent(inspect.getsource(kernels._steps_kernel))
-    assert source.count("grid.sync()") >= 4  # (a stage is one pass: one barrier)
+    assert source.count("grid.sync()") >= 5
     source = source.replace("grid = cuda.cg.this_grid()", "pass").replace("grid.sync()", "cuda.syncthreads()")
     namespace = dict(vars(kernels), **ns)
     exec(source, namespace)

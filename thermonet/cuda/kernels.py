@@ -1,12 +1,15 @@
 """CUDA kernels of the explicit step's sub-flows and of the diagnostics sums, compiled per model.
 
-A stage of the schedule (:mod:`thermonet.integrators.schedule`) is one pass over the nodes,
-:func:`thermonet.cuda.stage._stage_kernel` (each node computes T/l of its incident springs, kicks p
-and drifts into a second position buffer; each spring's owner end updates Φ and tests it: a
-spring outside the admissible states sets ``flag`` with where it happened, and every later
-launch of the call returns at once). With loads a stage is two launches, built from the sub-flows
-of :mod:`thermonet.kernels.subflows` (the CPU kernel's own): :func:`_spring_kernel` (``s[e] =
-T/l``, Φ, the test) then :func:`_node_kernel` (the CSR gather of ``Σ s_e (x_b − x_a)``, kick, drift).
+A stage of the schedule (:mod:`thermonet.integrators.schedule`) is two launches, each running
+the sub-flows of :mod:`thermonet.kernels.subflows` (the CPU kernel's own):
+
+1. :func:`_spring_kernel`, one thread per spring e: ``s[e] = T/l`` at x and ``Φ[e] += k h θ``
+   (the two kicks that meet at a step boundary as two separate additions, as on the CPU), and
+   the admissibility test: a spring outside the admissible states sets ``flag`` with where it
+   happened, and every later launch of the call returns at once (the CPU kernel's stop);
+2. :func:`_node_kernel`, one thread per node a: gathers ``f_a = Σ s_e (x_b − x_a)`` over its
+   CSR incidence list in the CPU's order, kicks ``p`` and drifts into a second position buffer
+   (other threads still read the old one).
 
 An extra sub-flow row is one launch of its slot's :func:`_flow_kernel`. :func:`_steps_kernel`
 runs whole chunks of steps in one cooperative launch, the same rows over grid-stride loops.
@@ -43,7 +46,6 @@ from ..kernels import subflows
 from ..kernels.specialize import MODEL_FUNCTIONS, function_fingerprint, kernel_namespace, model_fingerprint, rebind
 from ..kernels.subflows import bind_subflows
 from . import FLAG_ROW, FLAG_SET, FLAG_STAGES, FLAG_STEP, simulator_enabled
-from .stage import _stage_kernel, _stage_update
 
 # Bound per model by cuda_kernels(); see thermonet.kernels.splitting for their meaning.
 temperature = tension = internal_energy = free_energy = None
@@ -65,10 +67,11 @@ UNIFORM = False
 #: its cost grows with blocks and with barriers: few blocks there, tiny reduction trees.
 THREADS = 256
 SIMULATOR_THREADS = 32
-#: launch bounds of the fused kernel (threads per block, blocks per multiprocessor): at most 85
-#: registers a thread, three blocks a multiprocessor (ptxas for sm_90: 72 registers, no spills;
-#: capped at 64 for four blocks it spills). None: unbounded.
-FUSED_LAUNCH_BOUNDS = (THREADS, 3)
+#: launch bounds of the fused kernel (threads per block, blocks per multiprocessor): registers
+#: capped at 64 a thread, so that four blocks fit on a multiprocessor. Unbounded it takes 96 on
+#: an H100, two blocks each: a cooperative grid of 264 blocks, too few to give each spring of a
+#: 1e5-spring net its own thread. None: unbounded.
+FUSED_LAUNCH_BOUNDS = (THREADS, 4)
 #: threads per block of the diagnostics sums, a compile-time constant of their shared-memory trees
 #: (a power of two), and their (grid-stride) blocks
 REDUCE_THREADS = 256
@@ -92,7 +95,6 @@ class CudaKernels:
     def __init__(self, spring, node, flows, steps, spring_sums, node_sums, finish, threads, reduce_threads,
                  reduce_blocks):
         self.spring, self.node, self.flows, self.steps = spring, node, flows, steps
-        self.stage = None  # a stage in one pass (thermonet.cuda.stage), the path without loads
         self.sweep = self.temperature = None  # heat flow: see cuda_kernels(conduction=, waves=)
         self.load_start = self.load_stage = None  # loads: see cuda_kernels(loads=True)
         self.spring_sums, self.node_sums, self.finish = spring_sums, node_sums, finish
@@ -148,7 +150,6 @@ def cuda_kernels(model, thermal: bool = True, uniform: bool = False, flows=(), c
             ns[f"flow_update_{slot}"] = update  # (a device function even when empty: the fused kernel calls it)
         for name, template in _SHARED:  # in order: later ones call earlier ones
             ns[name] = inline(rebind(template, tag, ns))  # shared by the two-launch and the fused path
-        ns["_stage_update"] = inline(rebind(_stage_update, tag, ns))
 
         def compile_(template, namespace=ns, suffix="", compiler=jit):
             return compiler(rebind(template, tag + suffix, namespace))
@@ -163,7 +164,6 @@ def cuda_kernels(model, thermal: bool = True, uniform: bool = False, flows=(), c
             compile_(_steps_kernel, compiler=fused_jit),
             compile_(_spring_sums_kernel), compile_(_node_sums_kernel), compile_(_finish_kernel),
             SIMULATOR_THREADS if sim else THREADS, reduce_threads, SIMULATOR_REDUCE_BLOCKS if sim else REDUCE_BLOCKS)
-        kernels.stage = compile_(_stage_kernel)
         if conduction or waves:  # heat flow
             kernels.sweep, kernels.temperature = heat.heat_kernels(compile_)  # (thermonet.heat.cuda)
         if loads:  # loads
@@ -316,13 +316,16 @@ def _steps_kernel(state, x_buf, s, topology, springs, nodes, table, flows, run, 
             with_force = k1 != 0.0 or k2 != 0.0
             if with_force or d != 0.0:
                 theta_valid = False  # (a stage without drift leaves θ(l, η), recomputed the same)
-            for a in range(first, xs.shape[0], stride):  # the stage in one pass (thermonet.cuda.stage)
-                if _stage_update(a, xs, xn, state, springs, topology, nodes, (k1 * h, k2 * h, d * h, with_force),
-                                 run):
-                    _raise_flag(flag, (step, r if step < run.n_steps else n_rows, parity))
+            if with_force:
+                for e in range(first, edges.shape[0], stride):
+                    if _spring_update(e, xs, eta, phi, springs, edges, s, (k1 * h, k2 * h), run):
+                        _raise_flag(flag, (step, r if step < run.n_steps else n_rows, parity))
+                grid.sync()
+                if flag[FLAG_SET] != 0:
+                    return
+            for a in range(first, xs.shape[0], stride):
+                _node_update(a, xs, xn, p, s, topology, nodes, (k1 * h, k2 * h, d * h, with_force), nodes)
             grid.sync()
-            if with_force and flag[FLAG_SET] != 0:
-                return
             parity = 1 - parity
         pending = table.carry
     if CONDUCTION and first == 0:
@@ -526,7 +529,6 @@ def compile_ptx(model, thermal: bool = True, uniform: bool = False, cc=(9, 0)) -
     bind_subflows(ns, tag, njit(inline="always"))
     for name, template in _SHARED:
         ns[name] = njit(inline="always")(rebind(template, tag, ns))
-    ns["_stage_update"] = njit(inline="always")(rebind(_stage_update, tag, ns))
     v, x, u = np.empty(1), np.empty((1, 3)), np.empty(1, np.uint32)
     springs = records.Springs(v, np.empty((len(model.parameters), 1)))
     topology = records.Topology(np.empty((1, 2), np.uint32), np.empty(2, np.int64), u, u)
@@ -536,8 +538,6 @@ def compile_ptx(model, thermal: bool = True, uniform: bool = False, cc=(9, 0)) -
     samples = {
         "spring": (_spring_kernel, (x, v, v, springs, topology.edges, v, (1.0, 1.0), run, flag, (0, 0, 0))),
         "node": (_node_kernel, (x, x, x, v, topology, nodes, (1.0, 1.0, 1.0, True), flag, nodes)),
-        "stage": (_stage_kernel, (x, x, records.StateArrays(x, x, v, v), springs, topology, nodes, (1.0, 1.0, 1.0, True),
-                                  run, flag, (0, 0, 0))),
         "spring_sums": (_spring_sums_kernel, (x, v, v, springs.P, topology.edges, x)),
         "node_sums": (_node_sums_kernel, (x, x, v, nodes.anchored, v, v, x)),
         "finish": (_finish_kernel, (x, np.empty(1, np.int32), v)),

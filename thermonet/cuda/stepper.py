@@ -22,7 +22,6 @@ from ..kernels.splitting import kernel_parameters
 from ..loads.stepping import StepperLoads, work_of
 from . import FLAG_ROW, FLAG_SET, FLAG_STAGES, FLAG_STEP, require_cuda
 from .launch import Launcher
-from .stage import owned_incidences
 
 
 class CudaSplittingStepper(Stepper):
@@ -85,10 +84,7 @@ class CudaSplittingStepper(Stepper):
         self._table = records_to_device(table, dev)
         self._rows = [(int(c), float(k), float(d)) for c, k, d in zip(table.code, table.kick, table.drift)]
         self._carry = float(table.carry)
-        topology = records.topology(system.layout)
-        if self.loads is None:  # a stage in one pass: each spring's owner marked (thermonet.cuda.stage)
-            topology = topology._replace(inc_other=owned_incidences(*topology))
-        self._topology = records_to_device(topology, dev)
+        self._topology = records_to_device(records.topology(system.layout), dev)
         self._springs = records_to_device(records.Springs(system.rest_lengths, P), dev)
         self._nodes = records_to_device(records.nodes(system), dev)
         self._effects = records_to_device(flow_data(flows, system), dev)
@@ -112,7 +108,6 @@ class CudaSplittingStepper(Stepper):
         self._bound = None  # the host State whose arrays the device arrays hold (or are newer than)
         self._device_newer = False
         self._launchers: dict[int, Launcher] = {}
-        self._state_record = records.StateArrays(self._x, self._p, self._phi, self._eta)  # (its x unused)
 
     # ------------------------------------------------------------------------------------------
     # host <-> device
@@ -159,12 +154,6 @@ class CudaSplittingStepper(Stepper):
     def _stage(self, k1: float, k2: float, drift: float, with_force: bool, run, where) -> None:
         k = self._k
         n, m = self.system.n_nodes, self.system.n_springs
-        if self.loads is None:  # one pass (thermonet.cuda.stage)
-            if n > 0:
-                self._launch(k.stage, k.blocks(n), k.threads, self._x, self._x_buf, self._state_record, self._springs,
-                             self._topology, self._nodes, (k1, k2, drift, with_force), run, self._flag, where)
-            self._x, self._x_buf = self._x_buf, self._x
-            return
         if with_force and m > 0:
             self._launch(k.spring, k.blocks(m), k.threads, self._x, self._eta, self._phi, self._springs,
                          self._topology.edges, self._s, (k1, k2), run, self._flag, where)
