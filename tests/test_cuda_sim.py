@@ -279,3 +279,16 @@ def test_gpu_fused_launch_equals_two_launches(integrator):
         for field in ("positions", "momenta", "thermal_displacement"):
             np.testing.assert_array_equal(getattr(state, field), getattr(reference, field), err_msg=field)
 
+
+
+def test_fused_grid_covers_the_net_within_residency_and_caps_small_nets():
+    """The fused launch's grid (H100 figures: 132 multiprocessors, 528 resident blocks of 256
+    threads for the launch-bounded kernel): one thread per spring where it fits, all resident
+    blocks on large nets, 2 blocks a multiprocessor below SMALL_NET_SPRINGS."""
+    from thermonet.cuda.stepper import CudaSplittingStepper, fused_grid
+
+    assert CudaSplittingStepper.SMALL_NET_BLOCKS_PER_SM == 2
+    assert fused_grid(1000, 343, 256, 528, 132) == 4  # a tiny net: one thread per spring
+    assert fused_grid(104_544, 35_937, 256, 528, 132) == 264  # would need 409: capped at 2 per SM
+    assert fused_grid(1_014_300, 343_000, 256, 528, 132) == 528  # large: every resident block
+    assert fused_grid(0, 0, 256, 528, 132) == 1

@@ -310,12 +310,9 @@ class CudaSplittingStepper(Stepper):
             return 1
         k = self._k
         kernel = k.steps.compile(tuple(typeof(a) for a in args))
-        resident = kernel.max_cooperative_grid_blocks(k.threads)
-        if self.system.n_springs < self.SMALL_NET_SPRINGS:
-            multiprocessors = self._cuda.get_current_device().MULTIPROCESSOR_COUNT
-            resident = min(resident, self.SMALL_NET_BLOCKS_PER_SM * multiprocessors)
-        needed = k.blocks(max(self.system.n_springs, self.system.n_nodes, 1))
-        return max(1, min(resident, needed))
+        return fused_grid(self.system.n_springs, self.system.n_nodes, k.threads,
+                          kernel.max_cooperative_grid_blocks(k.threads),
+                          self._cuda.get_current_device().MULTIPROCESSOR_COUNT)
 
     def _keep_backup(self, state, h: float) -> None:
         """A device copy of the state at this call's start, unless one of this history at most
@@ -378,6 +375,18 @@ class CudaSplittingStepper(Stepper):
         kinetic, potential, px, py, pz, Lx, Ly, Lz = (float(v) for v in self._node_out.copy_to_host())
         return diagnostics_row(system, state, kinetic, internal, potential, entropy, (px, py, pz), (Lx, Ly, Lz),
                                theta_min, theta_max)
+
+
+def fused_grid(springs: int, nodes: int, threads: int, resident: int, multiprocessors: int) -> int:
+    """Blocks of a fused launch over a net of ``springs`` and ``nodes``: one thread per spring or
+    node if that many blocks of ``threads`` can be resident at once (``resident``, the device's
+    answer for the kernel), else all that can; on nets below
+    :data:`CudaSplittingStepper.SMALL_NET_SPRINGS` at most
+    :data:`~CudaSplittingStepper.SMALL_NET_BLOCKS_PER_SM` per multiprocessor."""
+    if springs < CudaSplittingStepper.SMALL_NET_SPRINGS:
+        resident = min(resident, CudaSplittingStepper.SMALL_NET_BLOCKS_PER_SM * multiprocessors)
+    needed = (max(springs, nodes, 1) + threads - 1) // threads
+    return max(1, min(resident, needed))
 
 
 def records_to_device(record, to_device):
