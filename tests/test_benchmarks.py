@@ -48,3 +48,45 @@ def test_gpu_heat_cost_quick_mode_runs_under_the_cuda_simulator():
     assert all(float(r.split("|")[5].strip().rstrip("×")) > 0 for r in rows)
     # conduction's phases per half sweep on the GPU: the lattice's node colours + 3
     assert all(r.split("|")[6].strip() in ("–", "5") for r in rows)
+
+
+def finite_positive(*values) -> bool:
+    return all(v is not None and math.isfinite(v) and v > 0 for v in values)
+
+
+def test_loads_cost_quick_mode_runs_every_configuration_with_its_loads(capsys):
+    module = load("loads_cost")
+    rows = module.main(["--quick"])
+    assert [r["configuration"] for r in rows] == [c[0] for c in module.CONFIGS]
+    assert all(r["springs"] == 144 and finite_positive(r["rate"], r["ratio"]) for r in rows)
+    assert rows[0]["ratio"] == 1.0  # (a) against itself
+    loads = {r["configuration"][:3]: {c[:-5] for c in r["columns"] if c.endswith("_work") and c != "work"}
+             for r in rows}
+    # (a) and (e) have no loads; (b) drives x = max, (c) and (d) add the force on z = max
+    assert loads == {"(a)": set(), "(b)": {"pull"}, "(c)": {"pull", "push"}, "(d)": {"pull", "push"},
+                     "(e)": set()}
+    by = {r["configuration"][:3]: r["diagnostics_rows"] for r in rows}
+    assert by["(d)"] > by["(c)"] and by["(e)"] > by["(a)"]  # a diagnostics row every 10 steps
+    text = capsys.readouterr().out
+    assert "144 springs" in text and "| configuration | steps/s (median) | cost vs (a) |" in text
+
+
+def test_effects_cost_quick_mode_runs_every_configuration_and_writes_frames(capsys):
+    module = load("effects_cost")
+    rows = module.main(["--quick"])
+    assert [r["configuration"] for r in rows] == [c[0] for c in module.CONFIGS]
+    assert all(r["springs"] == 144 and finite_positive(r["rate"], r["cost"]) for r in rows)
+    assert rows[0]["cost"] == 1.0 and rows[0]["overhead"] is None
+    assert all(math.isfinite(r["overhead"]) and r["overhead"] > -1 for r in rows[1:])
+    for r, config in zip(rows, module.CONFIGS):
+        frames, writes = config[2], config[4]
+        if not frames:
+            assert r["frame_ms"] is r["write_ms"] is r["written"] is None
+            continue
+        assert finite_positive(r["frame_ms"], r["write_ms"])
+        # where the frames were written: as forced, or (the default) on the writer thread
+        assert r["written"].split(",")[0] == ("thread" if writes.get("background", True) else "observer")
+        if writes.get("direct") is False:
+            assert "direct" not in r["written"]
+    text = capsys.readouterr().out
+    assert "| configuration | steps/s | cost vs (a) | overhead over | ms/frame in observer | ms/frame write |" in text
