@@ -90,3 +90,26 @@ def test_effects_cost_quick_mode_runs_every_configuration_and_writes_frames(caps
             assert "direct" not in r["written"]
     text = capsys.readouterr().out
     assert "| configuration | steps/s | cost vs (a) | overhead over | ms/frame in observer | ms/frame write |" in text
+
+
+def test_ab_explicit_quick_mode_times_this_checkout_against_a_copy_of_itself():
+    import os
+    import re
+    import subprocess
+    import sys
+
+    # a script: its workers are spawned processes that import it as __main__
+    done = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "ab_explicit.py"), "--quick"],
+                          env=dict(os.environ), capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert "| integrator | springs | old (ms/step) | new (ms/step) | new/old (paired range) |" in done.stdout
+    rows = [line for line in done.stdout.splitlines() if line.startswith("| co2 |")]
+    assert len(rows) == 1
+    cells = [c.strip() for c in rows[0].strip("|").split("|")]
+    assert cells[1] == "144"  # the 3³ lattice's springs, in both workers
+    old, new = float(cells[2]), float(cells[3])
+    ratio, low, high = map(float, re.fullmatch(r"([\d.]+) \(([\d.]+)–([\d.]+)\)", cells[4]).groups())
+    assert finite_positive(old, new, ratio, low) and low <= high
+    assert abs(ratio - new / old) <= 0.01 * ratio  # the table's times are rounded to 3 digits
+    # two repeats: the ratio of the medians (means of two) lies between the paired ratios
+    assert low - 0.005 <= ratio <= high + 0.005
