@@ -113,3 +113,19 @@ def test_ab_explicit_quick_mode_times_this_checkout_against_a_copy_of_itself():
     assert abs(ratio - new / old) <= 0.01 * ratio  # the table's times are rounded to 3 digits
     # two repeats: the ratio of the medians (means of two) lies between the paired ratios
     assert low - 0.005 <= ratio <= high + 0.005
+
+
+def test_explicit_throughput_quick_mode_times_both_kernels_and_the_numpy_step(capsys):
+    rows = load("explicit_throughput").main(["--quick"])
+    assert len(rows) == 1
+    r = rows[0]
+    assert (r["springs"], r["nodes"]) == (882, 343)  # the 7³-cell lattice closest to 1e3 springs
+    assert finite_positive(r["serial"], r["parallel"], r["numpy"], r["ratio"], r["achieved_gbs"])
+    assert r["default"] == "serial"  # below 16 384 springs
+    assert math.isclose(r["ratio"], r["serial"] / r["numpy"])
+    assert r["agreement"] < 1e-13  # the same CO2 step as the kernel's, up to round-off
+    # the compulsory traffic of one step (docs: ≈ 118–125 B per spring-step) and the arrays held
+    assert 100 < r["bytes_per_spring_step"] < 150 and 100 < r["memory_per_spring"] < 300
+    text = capsys.readouterr().out
+    assert "| springs | nodes | thermonet 1 thread (M/s) | thermonet parallel (M/s) | NumPy (M/s) | ratio |" in text
+    assert "| 882 | 343 | **" in text and "STREAM triad" in text
