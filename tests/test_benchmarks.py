@@ -129,3 +129,24 @@ def test_explicit_throughput_quick_mode_times_both_kernels_and_the_numpy_step(ca
     text = capsys.readouterr().out
     assert "| springs | nodes | thermonet 1 thread (M/s) | thermonet parallel (M/s) | NumPy (M/s) | ratio |" in text
     assert "| 882 | 343 | **" in text and "STREAM triad" in text
+
+
+def test_lammps_compare_quick_mode_runs_thermonets_side_without_lammps(tmp_path, capsys):
+    absent = tmp_path / "lmp"  # LAMMPS is optional: its runs are skipped with the reason, thermonet's still run
+    rows = load("lammps_compare").main(["--quick", "--lmp", str(absent)])
+    text = capsys.readouterr().out
+    assert f"LAMMPS not found ({absent} does not exist): its runs are skipped." in text
+    assert "lattice 6³ cells: 343 nodes, 882 bonds" in text and "(no LAMMPS: thermonet's runs only)" in text
+    assert "| run | M bond-steps/s (median) | range over rounds | energy: max relative deviation |" in text
+    by = {r["run"]: r for r in rows}
+    assert sorted(by) == sorted(f"thermonet {kind}, {t}" for kind in ("mechanics-only", "thermal")
+                                for t in ("1 thread", "2 threads"))
+    for r in rows:
+        assert len(r["rates"]) == 1 and finite_positive(*r["rates"])
+        assert 0 < r["drift"] < 1e-2  # velocity Verlet at h = 2e-3 over 20 steps: bounded energy error
+        assert float(r["percent"].rstrip(" %")) >= 0  # (a cache-resident net may pass the triad bound)
+    for kind in ("mechanics-only", "thermal"):  # same dynamics on 1 and 2 threads (serial kernel at this size)
+        assert math.isclose(by[f"thermonet {kind}, 1 thread"]["drift"], by[f"thermonet {kind}, 2 threads"]["drift"],
+                            rel_tol=1e-9)
+    # thermal coupling adds η and Φ (read, and Φ written) to the compulsory traffic
+    assert int(by["thermonet thermal, 1 thread"]["bytes"]) > int(by["thermonet mechanics-only, 1 thread"]["bytes"])
