@@ -150,3 +150,33 @@ def test_lammps_compare_quick_mode_runs_thermonets_side_without_lammps(tmp_path,
                             rel_tol=1e-9)
     # thermal coupling adds η and Φ (read, and Φ written) to the compulsory traffic
     assert int(by["thermonet thermal, 1 thread"]["bytes"]) > int(by["thermonet mechanics-only, 1 thread"]["bytes"])
+
+
+def test_accuracy_cost_quick_mode_runs_the_chains_study_and_long_runs(tmp_path, capsys):
+    module = load("accuracy_cost")
+    results = module.main(["--quick", "--out", str(tmp_path)])
+    assert [r["scene"] for r in results] == ["chain"]
+    r = results[0]
+    assert sorted(pathlib.Path(f).name for f in r["files"]) == ["cost.csv", "cost_position.png", "cost_summary.txt"]
+    assert all(pathlib.Path(f).stat().st_size > 0 for f in r["files"])
+    rows = r["study"].rows
+    count = {s: sum(1 for x in rows if x["solver"] == s) for s in {x["solver"] for x in rows}}
+    # every method at h = 0.04 · 2⁻ⁱ, i = 0…3; DOP853 at rtol 1e-3 … 1e-13, RK45 at 1e-3 … 1e-9
+    assert count == {**{m: 4 for m in module.METHODS}, "scipy-DOP853": 11, "scipy-RK45": 7}
+    assert all(x["status"] == "ok" and finite_positive(x["time"], x["position"]) for x in rows)
+    co2 = [x["position"] for x in sorted((x for x in rows if x["solver"] == "co2"), key=lambda x: -x["h"])]
+    assert all(a > b for a, b in zip(co2, co2[1:]))
+    assert 1.8 < math.log2(co2[-2] / co2[-1]) < 2.2  # second order
+    loosest = r["accuracy"][0]  # 1e-2: reached by thermonet and by DOP853, and both interpolated
+    assert loosest["accuracy"] == 1e-2 and loosest["thermonet"]["position"] <= 1e-2
+    assert loosest["dop853"]["position"] <= 1e-2
+    assert finite_positive(loosest["thermonet_interpolated"], loosest["dop853_interpolated"])
+    long = {(name, h): (err, wall, status) for name, h, err, wall, status in r["long_thermonet"]}
+    assert all(status == "ok" and finite_positive(err, wall) for err, wall, status in long.values())
+    # the energy error of a second-order symplectic method over t = 20: ∝ h²
+    assert 3.5 < long[("co2", 0.01)][0] / long[("co2", 0.005)][0] < 4.5
+    dop = [err for _, err, _, status in r["long_dop853"] if status == "ok"]
+    assert len(dop) == 3 and dop[0] > dop[1] > dop[2] > 0  # tighter tolerances, smaller energy error
+    text = capsys.readouterr().out
+    assert "### chain: error in positions at t = 1" in text and "### chain: long run to t = 20" in text
+    assert "| accuracy | cheapest thermonet run | cheapest compiled DOP853 | DOP853 / thermonet " in text
