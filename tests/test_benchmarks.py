@@ -180,3 +180,27 @@ def test_accuracy_cost_quick_mode_runs_the_chains_study_and_long_runs(tmp_path, 
     text = capsys.readouterr().out
     assert "### chain: error in positions at t = 1" in text and "### chain: long run to t = 20" in text
     assert "| accuracy | cheapest thermonet run | cheapest compiled DOP853 | DOP853 / thermonet " in text
+
+
+def test_evaluations_to_accuracy_quick_mode_measures_orders_and_evaluations(capsys):
+    module = load("evaluations_to_accuracy")
+    result = module.main(["--quick"])
+    names = module.QUICK["methods"].split(",")
+    assert list(result["orders"]) == names and list(result["reach"]) == ["chain"]
+    for name, (declared, local, fit) in result["orders"].items():
+        assert declared == module.method(name).order
+        assert abs(fit - declared) < 0.25, (name, fit)  # each table (registered or typed here) has its order
+    for name in names:
+        evals = module.method(name).force_evaluations
+        rows = result["sweeps"]["chain"][name]
+        assert len(rows) >= 4 and all(e == steps * evals <= 2000 for steps, e, _ in rows)
+        assert all(a[0] < b[0] for a, b in zip(rows, rows[1:]))
+        assert all(math.isfinite(err) and err > 0 for *_, err in rows)
+        reach = [v for v in result["reach"]["chain"][name] if v is not None]
+        assert reach, name  # 1e-2 at least
+        # tighter accuracies take more evaluations, within the sweep's range
+        assert all(rows[0][1] <= a <= b <= rows[-1][1] for a, b in zip(reach, reach[1:] + reach[-1:]))
+    text = capsys.readouterr().out
+    assert "### Measured orders (chain, t = 1" in text and "### chain: force evaluations to reach" in text
+    assert "| method | order | evaluations per step | 1e-02 |" in text and "| method | CO4/· 1e-02 |" in text
+    assert "| co4 | 1.00 |" in text  # CO4 against itself
