@@ -204,3 +204,38 @@ def test_evaluations_to_accuracy_quick_mode_measures_orders_and_evaluations(caps
     assert "### Measured orders (chain, t = 1" in text and "### chain: force evaluations to reach" in text
     assert "| method | order | evaluations per step | 1e-02 |" in text and "| method | CO4/· 1e-02 |" in text
     assert "| co4 | 1.00 |" in text  # CO4 against itself
+
+
+def test_implicit_cost_quick_mode_runs_every_part(capsys):
+    out = load("implicit_cost").main(["--quick"])
+    assert list(out) == ["ratio", "crossover", "scaling", "chain", "study"]
+    (row,) = out["ratio"]
+    assert (row["net"], row["springs"]) == ("chain", 3) and finite_positive(row["co2"])
+    assert sorted(row["ratios"]) == sorted((m, p) for m in ("ho4", "gtr-1/2", "em2") for p in ("compiled", "sparse"))
+    assert finite_positive(*row["ratios"].values())
+    cross = {(str(r["shape"]), r["method"]): r for r in out["crossover"]}
+    assert sorted(cross) == sorted((s, m) for s in ("chain", "(1, 1, 1)") for m in ("gtr-1/2", "ho4"))
+    for shape, nodes in (("chain", 3), ("(1, 1, 1)", 8)):  # GTR: x per node; HO4: x and a midpoint
+        assert cross[(shape, "gtr-1/2")]["unknowns"] == 3 * nodes and cross[(shape, "ho4")]["unknowns"] == 6 * nodes
+        assert all(finite_positive(cross[(shape, m)]["dense"], cross[(shape, m)]["sweeps"]) for m in ("gtr-1/2", "ho4"))
+    scaling = out["scaling"]
+    assert sorted((r["method"], r["solver"]) for r in scaling) == sorted(
+        (m, s) for m in ("gtr-1/2", "ho4", "em2") for s in ("splu", "matfree", "gmres"))
+    for r in scaling:
+        s = r["summary"]
+        assert r["springs"] == 54 and s["steps"] == 3 and s["iterations_mean"] > 0
+        assert finite_positive(r["seconds"], r["co2_seconds"]) and all(math.isfinite(v) for v in r["split_ms"].values())
+    iterations, errors = out["chain"]
+    assert len(iterations) == 9 and all(0 < mean <= top <= 50 for _, _, mean, top in iterations)
+    assert all(err is not None and err > 0 for _, _, err, _ in errors)
+    # each method's order at its two smallest steps, against DOP853 at 1e-13 (t = 1)
+    for method, order in {"gtr-0": 1, "gtr-1": 1, "co2": 2, "co4": 4, "co6": 6, "gtr-1/2": 2, "ho4": 4, "em2": 2}.items():
+        (h0, e0), (h1, e1) = [(h, e) for m, h, e, _ in errors if m == method][-2:]
+        assert abs(math.log(e0 / e1) / math.log(h0 / h1) - order) < 0.3, method
+    study = out["study"]
+    assert {r["solver"] for r in study.rows} == {"gtr-0", "gtr-1", "gtr-1/2", "co2", "ho4", "co4", "co6"}
+    text = capsys.readouterr().out
+    for head in ("| net | springs | CO2 µs/step | ho4 compiled |", "| lattice | springs | method | unknowns | dense |",
+                 "| springs | method | solver | ms/step | × CO2 | Newton it./step |", "| method | h | error | wall s |",
+                 "| accuracy | cheapest of the paper's five |"):
+        assert head in text
