@@ -239,3 +239,27 @@ def test_implicit_cost_quick_mode_runs_every_part(capsys):
                  "| springs | method | solver | ms/step | × CO2 | Newton it./step |", "| method | h | error | wall s |",
                  "| accuracy | cheapest of the paper's five |"):
         assert head in text
+
+
+def test_implicit_profile_quick_mode_times_the_drivers_kernels(capsys):
+    import numba
+
+    module = load("implicit_profile")
+    threads = numba.get_num_threads()
+    try:  # (the script sets the thread count of this process)
+        out = module.main(["--quick"])
+    finally:
+        numba.set_num_threads(threads)
+    assert (out["method"], out["springs"], out["steps"]) == ("gtr-1/2", 54, 4)
+    assert finite_positive(out["co2_step"], out["step"], out["mean_step"])
+    names = [name for name, _ in module.TIMED]
+    calls = {name: per_step for name, per_step, _ in out["kernels"]}
+    assert list(calls) == [n for n in names if n in calls]  # in the driver's order
+    # one start, predictor and finish per step; at least one residual
+    assert calls["start"] == calls["predictor"] == calls["finish"] == 1.0 and calls["residual"] >= 1.0
+    assert all(math.isfinite(share) and share >= 0 for *_, share in out["kernels"])
+    # the counted cycles split the measured step time: the shares add up to it (in CO2 steps)
+    assert math.isclose(sum(share for *_, share in out["kernels"]), out["mean_step"] / out["co2_step"], rel_tol=1e-9)
+    text = capsys.readouterr().out
+    assert "gtr-1/2, lattice 2³ (54 springs), 1 thread(s), 4 steps" in text
+    assert "| kernel | calls/step | CO2 steps per step |" in text
