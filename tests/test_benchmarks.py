@@ -110,7 +110,7 @@ def test_ab_explicit_quick_mode_times_this_checkout_against_a_copy_of_itself():
     old, new = float(cells[2]), float(cells[3])
     ratio, low, high = map(float, re.fullmatch(r"([\d.]+) \(([\d.]+)–([\d.]+)\)", cells[4]).groups())
     assert finite_positive(old, new, ratio, low) and low <= high
-    assert abs(ratio - new / old) <= 0.01 * ratio  # the table's times are rounded to 3 digits
+    assert abs(ratio - new / old) <= 0.015 * ratio  # the table's times are rounded to 3 digits (±0.5 % each)
     # two repeats: the ratio of the medians (means of two) lies between the paired ratios
     assert low - 0.005 <= ratio <= high + 0.005
 
