@@ -5,6 +5,9 @@ and "chain" (the paper's §5.1).
     python benchmarks/accuracy_cost.py [--scenes lattice,chain] [--repeats 3] [--t-end 10]
                                        [--long-t 1000] [--out DIR] [--quick]
 
+``--quick``: the chain alone (unless ``--scenes``), t_end 1, long runs to 20, 3 halvings, 1 repeat
+(a smoke run).
+
 Prints markdown tables:
 
 1. per scene, for each position accuracy 1e-2 … 1e-8 at t = t_end (the paper's norm: root of
@@ -85,6 +88,8 @@ def describe(r):
 
 
 def accuracy_tables(study):
+    """Print the two tables of ``study``; returns the first's rows: per accuracy, the cheapest
+    thermonet, DOP853 and RK45 runs (None where none reaches it) and the interpolated times."""
     curves = dict(study.curves())
     for label, rows in curves.items():
         for r in rows:
@@ -95,6 +100,7 @@ def accuracy_tables(study):
     print("| accuracy | cheapest thermonet run | cheapest compiled DOP853 | DOP853 / thermonet "
           "| cheapest compiled RK45 | RK45 / thermonet | DOP853 / thermonet, interpolated |")
     print("|---|---|---|---|---|---|---|")
+    rows = []
     for acc in ACCURACIES:
         tn_best = study.cheapest(acc, scipy=False)
         dop = min((r for r in study.rows if r["solver"] == "scipy-DOP853" and r["position"] <= acc),
@@ -106,6 +112,8 @@ def accuracy_tables(study):
         dop_interp = time_at_accuracy(curves.get("scipy-DOP853", []), acc)
         interp = (f"{dop_interp / min(tn_interp):.1f}× ({fmt_time(dop_interp)} / {fmt_time(min(tn_interp))})"
                   if tn_interp and dop_interp else "–")
+        rows.append({"accuracy": acc, "thermonet": tn_best, "dop853": dop, "rk45": rk,
+                     "thermonet_interpolated": min(tn_interp) if tn_interp else None, "dop853_interpolated": dop_interp})
         print(f"| {acc:.0e} | {describe(tn_best)} | {describe(dop)} | {ratio(dop)} | {describe(rk)} | {ratio(rk)} "
               f"| {interp} |")
     print(f"\n{study.scene}: 4th- and 6th-order methods at equal accuracy (interpolated on each curve)\n")
@@ -121,6 +129,7 @@ def accuracy_tables(study):
                 fmt_time(t_new), f"{t_old / t_new:.2f}" if t_old and t_new else "–",
                 f"{f_old / f_new:.2f}" if f_old and f_new else "–"]
         print(f"| {acc:.0e} | " + " | ".join(cells) + " |")
+    return rows
 
 
 def energy_error_thermonet(scene, name, h, t_end, samples=200):
@@ -154,6 +163,8 @@ def energy_error_scipy(scene, method, rtol, t_end, samples=200):
 
 
 def long_run_table(scene, t_long, scipy_rtols, thermonet_runs):
+    """Print the long-run tables; returns (thermonet rows (name, h, energy error, wall, status),
+    DOP853 rows (rtol, energy error, wall, status))."""
     print(f"\n### {scene}: long run to t = {t_long:g}, relative energy error max|E(t) − E(0)|/|E(0)|\n")
     tn_rows = []
     for name, h in thermonet_runs:
@@ -179,6 +190,7 @@ def long_run_table(scene, t_long, scipy_rtols, thermonet_runs):
         best = min(ok, key=lambda r: r[2])
         print(f"| rtol {rtol:.0e} | {err:.2e}, {fmt_time(wall)} | {best[0].upper()} h {best[1]:g} "
               f"| {best[2]:.2e}, {fmt_time(best[3])} | {err / best[2]:.3g}× |")
+    return tn_rows, sp_rows
 
 
 def interleaved_study(scene, t_end, dt, halvings, repeats, rtol, scipy, max_seconds=10.0):
@@ -235,9 +247,11 @@ def interleaved_study(scene, t_end, dt, halvings, repeats, rtol, scipy, max_seco
     return study
 
 
-def main(argv=None):
+def main(argv=None) -> list[dict]:
+    """Run the benchmark (``argv``: its command line); returns per scene a dict: its cost study,
+    the files written, the accuracy table's rows and the long runs' rows."""
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--scenes", default="lattice,chain")
+    ap.add_argument("--scenes", default=None, help="default: lattice,chain (--quick: chain)")
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--t-end", type=float, default=10.0)
     ap.add_argument("--long-t", type=float, default=1000.0)
@@ -245,25 +259,31 @@ def main(argv=None):
     ap.add_argument("--halvings", type=int, default=6)
     ap.add_argument("--reference-rtol", type=float, default=3e-14)
     ap.add_argument("--out", default="thermonet-out/accuracy-cost")
-    ap.add_argument("--quick", action="store_true", help="t_end 1, long runs to 20, 1 repeat (a smoke run)")
+    ap.add_argument("--quick", action="store_true", help="the chain (unless --scenes), t_end 1, long runs to 20, "
+                    "3 halvings, 1 repeat (a smoke run)")
     args = ap.parse_args(argv)
     if args.quick:
         args.t_end, args.long_t, args.repeats, args.halvings = 1.0, 20.0, 1, 3
+    args.scenes = args.scenes or ("chain" if args.quick else "lattice,chain")
     print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
           f"load average {os.getloadavg()[0]:.2f}; single-threaded runs")
     scipy = {"DOP853": [10.0**-k for k in range(3, 14)], "RK45": [10.0**-k for k in range(3, 10)]}
+    results = []
     for scene in args.scenes.split(","):
         study = interleaved_study(scene, args.t_end, args.dt, args.halvings, args.repeats, args.reference_rtol, scipy)
         files = study.write(os.path.join(args.out, scene), accuracies=ACCURACIES)
-        accuracy_tables(study)
+        table = accuracy_tables(study)
         print(f"\n(plot and CSV: {', '.join(files)})")
         runs = [("co2", 0.01), ("co2", 0.005), ("bm4", 0.02), ("bm4", 0.01), ("bm6", 0.04), ("bm6", 0.02),
                 ("bm6", 0.01)]
         if scene == "chain":  # cheap enough to go down to DOP853's cost at tight tolerances
             runs += [("bm6", 0.005), ("bm6", 0.0025)]
         rtols = [1e-5, 1e-7, 1e-9] if scene == "chain" else [1e-5, 1e-7]
-        long_run_table(scene, args.long_t, rtols, runs)
+        long_thermonet, long_dop853 = long_run_table(scene, args.long_t, rtols, runs)
+        results.append({"scene": scene, "study": study, "files": files, "accuracy": table,
+                        "long_thermonet": long_thermonet, "long_dop853": long_dop853})
     print(f"\nload average at the end {os.getloadavg()[0]:.2f}")
+    return results
 
 
 if __name__ == "__main__":

@@ -7,6 +7,7 @@ below it force each way (direct or through the page cache; on the writer thread 
 frame observer), for comparison.
 
     python benchmarks/effects_cost.py [--cells 32] [--steps 1000] [--repeats 3]
+    python benchmarks/effects_cost.py --quick    # a 3³ lattice, 200 steps, one repeat (a smoke run)
 
 Prints a markdown table. The configurations run interleaved, one run each per repeat, so that
 drifts of a shared machine hit all alike; steps/s are medians over the repeats, and an
@@ -87,12 +88,20 @@ def measure(text: str, overrides, frames_every: int, diagnostics_every, folder: 
     return rate, sim.net.n_springs, 1e3 * out.frame_seconds / frames, 1e3 * out.write_seconds / frames, how
 
 
-def main() -> None:
+def main(argv=None) -> list[dict]:
+    """Run the benchmark (``argv``: its command line); returns its rows as dicts (configuration,
+    springs, steps/s, cost vs (a), overhead over the configuration before it, and for the
+    configurations with frames: frames written, ms per frame in the observer and per write, how
+    the frames were written)."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cells", type=int, default=32, help="lattice cells per axis (32: about 1e5 springs)")
     ap.add_argument("--steps", type=int, default=1000)
     ap.add_argument("--repeats", type=int, default=3)
-    args = ap.parse_args()
+    ap.add_argument("--quick", action="store_true", help="a 3³ lattice, 200 steps (two frames), one repeat "
+                    "(a smoke run)")
+    args = ap.parse_args(argv)
+    if args.quick:
+        args.cells, args.steps, args.repeats = 3, 200, 1
     text = SCENE.format(n=args.cells, steps=args.steps)
     with tempfile.TemporaryDirectory() as folder:
         for _, overrides, frames, diag, writes, _ in CONFIGS:  # compile every kernel first
@@ -112,17 +121,25 @@ def main() -> None:
           f"{os.cpu_count()} cores, {numba.get_num_threads()} threads\n")
     print("| configuration | steps/s | cost vs (a) | overhead over | ms/frame in observer | ms/frame write |")
     print("|---|---:|---:|---|---:|---:|")
+    rows = []
     for name, _, frames, _, _, before in CONFIGS:
         r = statistics.median(rate[name])
+        row = {"configuration": name, "springs": m, "rate": r, "cost": base / r, "overhead": None,
+               "frame_ms": None, "write_ms": None, "written": None}
         over = "–"
         if before is not None:
             paired = statistics.median(b / a for a, b in zip(rate[name], rate[before]))
+            row["overhead"] = paired - 1
             over = f"{100 * (paired - 1):+.1f} % over {before.split()[0]}"
         fill = write = "–"
         if frames:
-            fill = f"{statistics.median(x[2] for x in runs[name]):.2f}"
-            write = f"{statistics.median(x[3] for x in runs[name]):.2f} ({runs[name][0][4]})"
+            row["frame_ms"] = statistics.median(x[2] for x in runs[name])
+            row["write_ms"] = statistics.median(x[3] for x in runs[name])
+            row["written"] = runs[name][0][4]
+            fill, write = f"{row['frame_ms']:.2f}", f"{row['write_ms']:.2f} ({row['written']})"
         print(f"| {name} | {r:,.0f} | {base / r:.2f}× | {over} | {fill} | {write} |")
+        rows.append(row)
+    return rows
 
 
 if __name__ == "__main__":

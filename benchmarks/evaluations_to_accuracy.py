@@ -3,6 +3,7 @@ published kick/drift tables that thermonet does not register, over a dense range
 
     python benchmarks/evaluations_to_accuracy.py [--scenes chain,lattice] [--methods co4,bm4,...]
                                                  [--max-evaluations 1.2e5] [--orders]
+    python benchmarks/evaluations_to_accuracy.py --quick   # a smoke run: see QUICK
 
 Every method runs from t = 0 to ``--t-end`` (10) at the step sizes whose force evaluations per run
 (evaluations per step × steps) go from ``--start-evaluations`` (200) to ``--max-evaluations`` in
@@ -282,7 +283,9 @@ def evaluations_to_reach(rows, acc):
     return math.exp(math.log(e0) + w * (math.log(e1) - math.log(e0)))
 
 
-def measured_orders(names):
+def measured_orders(names) -> dict:
+    """Print each method's measured order; returns name -> (declared order, local slopes, fitted
+    slope)."""
     from thermonet import reference as ref
     from thermonet.paper import CHAIN_MOMENTA, CHAIN_PARAMETERS, CHAIN_TEMPERATURES
 
@@ -295,6 +298,7 @@ def measured_orders(names):
     print("| method | declared | local slopes, h = 0.1·2⁻ⁱ, i = 0…8 "
           "| fitted (4 smallest h with error > 1e-12) |")
     print("|---|---|---|---|")
+    orders = {}
     for name in names:
         integrator = method(name)
         h = np.array([0.1 * 2.0**-i for i in range(9)])
@@ -309,6 +313,8 @@ def measured_orders(names):
         ok = np.flatnonzero(err > 1e-12)[-4:]
         fit = np.polyfit(np.log(h[ok]), np.log(err[ok]), 1)[0] if len(ok) >= 3 else float("nan")
         print(f"| {name} | {integrator.order} | {' '.join(f'{s:.2f}' for s in local)} | {fit:.2f} |", flush=True)
+        orders[name] = (integrator.order, local, fit)
+    return orders
 
 
 def fmt(v):
@@ -319,7 +325,18 @@ def ratio(a, b):
     return "–" if a is None or b is None else f"{a / b:.2f}"
 
 
-def main(argv=None):
+#: --quick: three registered methods and three unregistered tables (a composition of CO2, a
+#: symmetric kick/drift sequence, one not symmetric) on the chain to t = 1, 200–2000 evaluations,
+#: 2 per doubling, with their measured orders
+QUICK = dict(methods="co4,co6,bm4,suzuki4,mcl-s4k,mcat4", t_end=1.0, max_evaluations=2000.0, per_doubling=2,
+             orders=True, scenes="chain")
+
+
+def main(argv=None) -> dict:
+    """Run the benchmark (``argv``: its command line); returns {"orders": name -> (declared,
+    local slopes, fitted slope) (with --orders), "reach": scene -> name -> evaluations to reach
+    each of ACCURACIES (None: not reached), "sweeps": scene -> name -> [(steps, evaluations,
+    error)]}."""
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--scenes", default="chain")
     ap.add_argument("--methods", default=",".join(REGISTERED + list(CANDIDATES)),
@@ -330,7 +347,11 @@ def main(argv=None):
     ap.add_argument("--per-doubling", type=int, default=8)
     ap.add_argument("--reference-rtol", type=float, default=3e-14)
     ap.add_argument("--orders", action="store_true", help="first print each method's measured order on the chain")
+    ap.add_argument("--quick", action="store_true", help="a smoke run (QUICK: 6 methods, the chain to t = 1, "
+                    "up to 2000 evaluations, --orders)")
     args = ap.parse_args(argv)
+    if args.quick:
+        vars(args).update(QUICK)
     names = [n.strip() for n in args.methods.split(",") if n.strip()]
     for n in ("co4", "co6"):
         if n not in names:
@@ -338,20 +359,20 @@ def main(argv=None):
     warnings.simplefilter("ignore")
     print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores; evaluations are "
           f"counted, not timed")
-    if args.orders:
-        measured_orders(names)
+    result = {"orders": measured_orders(names) if args.orders else {}, "reach": {}, "sweeps": {}}
     for scene in args.scenes.split(","):
         started = time.perf_counter()
         reference = reference_solution(scene, args.t_end, args.reference_rtol, check=("bm6", 0.04 / 32))
         print(f"\n### {scene}: force evaluations to reach a position error at t = {args.t_end:g}\n")
         print(f"reference: {reference.description}; runs from {args.start_evaluations:g} to "
               f"{args.max_evaluations:g} evaluations, {args.per_doubling} per doubling\n")
-        reach = {}
+        reach, sweeps = result["reach"].setdefault(scene, {}), result["sweeps"].setdefault(scene, {})
         for name in names:
             integrator = method(name)
             rows = sweep(scene, integrator, reference, args.t_end, args.start_evaluations, args.max_evaluations,
                          args.per_doubling)
             reach[name] = [evaluations_to_reach(rows, acc) for acc in ACCURACIES]
+            sweeps[name] = rows
         head = " | ".join(f"{a:.0e}" for a in ACCURACIES)
         print(f"| method | order | evaluations per step | {head} |")
         print("|---|---|---|" + "---|" * len(ACCURACIES))
@@ -368,6 +389,7 @@ def main(argv=None):
             cells += [ratio(a, b) for a, b in zip(reach["co6"], reach[name])]
             print(f"| {name} | " + " | ".join(cells) + " |")
         print(f"\n({scene}: {time.perf_counter() - started:.0f} s)")
+    return result
 
 
 if __name__ == "__main__":

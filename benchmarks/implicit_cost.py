@@ -34,6 +34,7 @@ to pay off. The reference is DOP853 at rtol = atol = 1e-13 on Hamilton's equatio
     python benchmarks/implicit_cost.py --part chain
     python benchmarks/implicit_cost.py --part crossover               # dense LU against sweeps (compiled)
     python benchmarks/implicit_cost.py --part study                   # the cost study on the chain
+    python benchmarks/implicit_cost.py --quick      # every part, smallest: a smoke run (QUICK below)
 
 Part 3, study: the cost study of docs/paper-reproduction.md (Fig. 9) on the chain, t = 10,
 thermonet only: per accuracy, the cheapest of the paper's five integrators and the cheapest run
@@ -76,16 +77,18 @@ def seconds_per_step(sim: tn.Simulation, steps: int) -> float:
     return (time.perf_counter() - t0) / steps
 
 
-def scaling(sizes, steps, h, direct_max_springs, solvers, settle=0):
+def scaling(sizes, steps, h, direct_max_springs, solvers, settle=0, co2_work=3e7):
+    """Print the scaling table; returns its rows (dicts). ``co2_work``: spring-steps per CO2 sample."""
     print(f"lattice (k³ cells, 6 neighbours, jitter 0.1), h = {h}, {steps} steps per run"
           + (f" after {settle} untimed steps" if settle else "") + "\n")
     print("| springs | method | solver | ms/step | × CO2 | Newton it./step | Jacobi steps/step | linear it./solve | residual ms | assembly ms | factor. ms | solve ms |")
     print("|---:|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    table = []
     for k in sizes:
         co2 = lattice_simulation(k, "co2", h)
         m = co2.net.n_springs
         n_steps = max(3, min(steps, int(2e6 / m)))
-        co2_steps = max(50, int(3e7 / m))  # ≈ 0.2 s per sample at 1e5 springs
+        co2_steps = max(50, int(co2_work / m))  # 3e7: ≈ 0.2 s per sample at 1e5 springs
         samples = [seconds_per_step(co2, co2_steps) for _ in range(3)]
         rows = []
         for method in ("gtr-1/2", "ho4", "em2"):
@@ -105,10 +108,13 @@ def scaling(sizes, steps, h, direct_max_springs, solvers, settle=0):
         t_co2 = statistics.median(samples)  # three samples before the implicit runs, three after
         print(f"| {m} | co2 | – | {1e3 * t_co2:.3f} | 1 | – | – | – | – | – | – | – |", flush=True)
         for method, solver, t, s, lin, per in rows:
+            table.append({"springs": m, "method": method, "solver": solver, "seconds": t, "co2_seconds": t_co2,
+                          "summary": s, "linear_per_solve": lin, "split_ms": per})
             print(f"| {m} | {method} | {solver} | {1e3 * t:.2f} | {t / t_co2:.1f} | {s['iterations_mean']:.2f} | "
                   f"{s['jacobi_steps'] / s['steps']:.2f} | {lin} | "
                   f"{per['residual']:.2f} | {per['assembly']:.2f} | {per['factorization']:.2f} | {per['solve']:.2f} |",
                   flush=True)
+    return table
 
 
 def ratio_nets(cells: int, method: str, h: float, parallel, **options) -> tn.Simulation:
@@ -120,12 +126,15 @@ def ratio_nets(cells: int, method: str, h: float, parallel, **options) -> tn.Sim
 
 
 def ratio(sizes, h, paths, rounds, seconds, parallel=None, clock=time.perf_counter, methods=("ho4", "gtr-1/2", "em2")):
+    """Print the ratio table; returns its rows: net, springs, CO2 seconds per step and
+    (method, path) -> ratio."""
     methods = [m for m in methods if m in tn.available_integrators()]
     print(f"per-step cost × CO2 on the same net, median of {rounds} interleaved rounds "
           f"(h = 0.01 on the chain, {h} on the lattices; {'CPU' if clock is time.process_time else 'wall'} time, "
           f"{'serial' if parallel is False else 'threaded from 16384 springs'})\n")
     print("| net | springs | CO2 µs/step | " + " | ".join(f"{m} {p}" for m in methods for p in paths) + " |")
     print("|---|---:|---:|" + "---:|" * (len(methods) * len(paths)))
+    rows = []
     for k in sizes:
         sims = {("co2", "-"): ratio_nets(k, "co2", h, parallel)}
         for m in methods:
@@ -148,23 +157,31 @@ def ratio(sizes, h, paths, rounds, seconds, parallel=None, clock=time.perf_count
                 sim.run(steps=steps[key], diagnostics_every=10**9)
                 per[key].append((clock() - t0) / steps[key])
         co2 = per[("co2", "-")]
-        cells = [f"{statistics.median(a / b for a, b in zip(per[(m, p)], co2)):.1f}" for m in methods for p in paths]
+        ratios = {(m, p): statistics.median(a / b for a, b in zip(per[(m, p)], co2)) for m in methods for p in paths}
+        cells = [f"{r:.1f}" for r in ratios.values()]
         name = "chain" if k == 0 else f"lattice {k}³"
+        rows.append({"net": name, "springs": sims[("co2", "-")].net.n_springs, "co2": statistics.median(co2),
+                     "ratios": ratios})
         print(f"| {name} | {sims[('co2', '-')].net.n_springs} | {1e6 * statistics.median(co2):.2f} | "
               + " | ".join(cells) + " |", flush=True)
+    return rows
 
 
-def chain(t_end):
+def chain(t_end, iterations_t_end=10.0):
+    """Print the chain's tables; returns (Newton iteration rows (method, h, mean, max), error rows
+    (method, h, error, wall seconds; error None where the run failed))."""
     from thermonet import reference as ref
     from thermonet.paper import CHAIN_MOMENTA, CHAIN_PARAMETERS, CHAIN_TEMPERATURES
 
-    print("chain: Newton iterations per step to t = 10")
+    print(f"chain: Newton iterations per step to t = {iterations_t_end:g}")
     print("| method | h | mean | max |\n|---|---:|---:|---:|")
+    iterations, errors = [], []
     for method in ("gtr-1/2", "ho4", "em2"):
         for h in (0.01, 0.005, 0.001):
             sim = tn.chain_simulation(method, h=h)
-            sim.run(t_end=10.0, diagnostics_every=10**9)
+            sim.run(t_end=iterations_t_end, diagnostics_every=10**9)
             s = sim.stepper.summary()
+            iterations.append((method, h, s["iterations_mean"], s["iterations_max"]))
             print(f"| {method} | {h} | {s['iterations_mean']:.2f} | {s['iterations_max']} |", flush=True)
 
     net = tn.chain()
@@ -189,19 +206,27 @@ def chain(t_end):
                 sim.run(t_end=t_end, diagnostics_every=10**9)
             except tn.SimulationError as exc:
                 print(f"| {method} | {h:.3g} | failed: {str(exc)[:60]} | |")
+                errors.append((method, h, None, None))
                 continue
             wall = time.perf_counter() - t0
             err = np.abs(sim.state.positions - x_ref).max()
+            errors.append((method, h, float(err), wall))
             print(f"| {method} | {h:.4g} | {err:.2e} | {wall:.3f} |", flush=True)
+    return iterations, errors
 
 
-def crossover(rounds):
+CROSSOVER_SHAPES = ("chain", (1, 1, 1), (2, 1, 1), (2, 2, 1), (2, 2, 2), (3, 2, 2), (3, 3, 3))
+
+
+def crossover(rounds, shapes=CROSSOVER_SHAPES, steps=200):
     """The compiled path's dense LU against its sweeps on the chain and small lattices: µs per step
-    (CPU time, serial, median of interleaved rounds)."""
+    (CPU time, serial, median of interleaved rounds); returns the rows (shape, springs, method,
+    unknowns, dense and sweeps seconds per step)."""
     print("compiled path, dense LU against matrix-free sweeps, µs per step (CPU time, serial)")
     print("| lattice | springs | method | unknowns | dense | sweeps |\n|---|---:|---|---:|---:|---:|")
     rng = np.random.default_rng(0)
-    for shape in ("chain", (1, 1, 1), (2, 1, 1), (2, 2, 1), (2, 2, 2), (3, 2, 2), (3, 3, 3)):
+    rows = []
+    for shape in shapes:
         net = tn.chain() if shape == "chain" else tn.lattice(shape, jitter=0.1, seed=1)
         temps, moms = rng.uniform(300.0, 600.0, net.n_springs), rng.normal(0.0, 1.0, (net.n_nodes, 3))
         for method in ("gtr-1/2", "ho4"):
@@ -219,16 +244,20 @@ def crossover(rounds):
             for _ in range(rounds):
                 for kind, sim in sims.items():
                     t0 = time.process_time()
-                    sim.run(steps=200, diagnostics_every=10**9)
-                    per[kind].append((time.process_time() - t0) / 200)
+                    sim.run(steps=steps, diagnostics_every=10**9)
+                    per[kind].append((time.process_time() - t0) / steps)
             size = sims["dense"].stepper.pattern.size
+            rows.append({"shape": shape, "springs": net.n_springs, "method": method, "unknowns": size,
+                         "dense": statistics.median(per["dense"]), "sweeps": statistics.median(per["sweeps"])})
             print(f"| {shape} | {net.n_springs} | {method} | {size} | {1e6 * statistics.median(per['dense']):.1f} | "
                   f"{1e6 * statistics.median(per['sweeps']):.1f} |", flush=True)
+    return rows
 
 
 def study(t_end, repeats, halvings):
     """The cost study on the paper's chain (thermonet.studies.cost_study, no SciPy runs): per
-    accuracy, the cheapest of the paper's five integrators and each method's interpolated time."""
+    accuracy, the cheapest of the paper's five integrators and each method's interpolated time.
+    Returns the study (thermonet.studies.CostStudy)."""
     from thermonet.studies import Runner, cost_study
 
     paper = ["gtr-0", "gtr-1", "gtr-1/2", "co2", "ho4"]
@@ -248,9 +277,19 @@ def study(t_end, repeats, halvings):
         ok = [r for r in cost.rows if r["solver"] in paper and math.isfinite(r["time"]) and r["position"] <= acc]
         best = min(ok, key=lambda r: r["time"])["solver"] if ok else "–"
         print(f"| {acc:.0e} | {best} | " + " | ".join(cells) + " |", flush=True)
+    return cost
 
 
-def main(argv=None):
+#: --quick: every part at its smallest (the chain for the ratios; the 2³ lattice for scaling;
+#: crossover on the chain and one cell; the chain's tables and the study to t = 1), one round
+QUICK = dict(ratio_sizes=[0], scaling_sizes=[2], rounds=1, seconds=0.01, steps=3, co2_work=3e5,
+             shapes=("chain", (1, 1, 1)), crossover_steps=20, t_end=1.0, iterations_t_end=1.0, study_t_end=1.0,
+             study_repeats=1, study_halvings=2)
+
+
+def main(argv=None) -> dict:
+    """Run the benchmark (``argv``: its command line); returns each part's rows (part -> what its
+    function returns)."""
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--part", choices=("ratio", "crossover", "scaling", "chain", "study", "all"), default="all")
     ap.add_argument("--study-t-end", type=float, default=10.0, help="study: t_end of the cost study")
@@ -279,22 +318,34 @@ def main(argv=None):
     ap.add_argument("--settle", type=int, default=0,
                     help="untimed steps of each implicit run before the timed ones (the later regime)")
     ap.add_argument("--t-end", type=float, default=100.0)
+    ap.add_argument("--quick", action="store_true", help="every part (or --part) at its smallest, one round: a smoke "
+                    "run (QUICK)")
     args = ap.parse_args(argv)
+    q = dict(ratio_sizes=[0, 5, 11, 25, 32], scaling_sizes=[3, 7, 15, 32], co2_work=3e7, shapes=CROSSOVER_SHAPES,
+             crossover_steps=200, iterations_t_end=10.0)
+    if args.quick:
+        q.update(QUICK)
+        for key in ("rounds", "seconds", "steps", "t_end", "study_t_end", "study_repeats", "study_halvings"):
+            setattr(args, key, q[key])
+    out = {}
     if args.part in ("ratio", "all"):
-        ratio(args.sizes or [0, 5, 11, 25, 32], args.h, args.paths, args.rounds, args.seconds,
-              False if args.serial else None, time.process_time if args.cpu_time else time.perf_counter, args.methods)
+        out["ratio"] = ratio(args.sizes or q["ratio_sizes"], args.h, args.paths, args.rounds, args.seconds,
+                             False if args.serial else None, time.process_time if args.cpu_time else time.perf_counter,
+                             args.methods)
         print()
     if args.part in ("crossover", "all"):
-        crossover(args.rounds)
+        out["crossover"] = crossover(args.rounds, q["shapes"], q["crossover_steps"])
         print()
     if args.part in ("scaling", "all"):
-        scaling(args.sizes or [3, 7, 15, 32], args.steps, args.h, args.direct_max_springs, args.solvers, args.settle)
+        out["scaling"] = scaling(args.sizes or q["scaling_sizes"], args.steps, args.h, args.direct_max_springs,
+                                 args.solvers, args.settle, q["co2_work"])
         print()
     if args.part in ("chain", "all"):
-        chain(args.t_end)
+        out["chain"] = chain(args.t_end, q["iterations_t_end"])
         print()
     if args.part in ("study", "all"):
-        study(args.study_t_end, args.study_repeats, args.study_halvings)
+        out["study"] = study(args.study_t_end, args.study_repeats, args.study_halvings)
+    return out
 
 
 if __name__ == "__main__":

