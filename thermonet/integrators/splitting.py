@@ -13,7 +13,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
-import numba
 import numpy as np
 
 from ..errors import InputError
@@ -276,12 +275,10 @@ class SplittingStepper(Stepper):
 
     def __init__(self, integrator: Splitting, system, parallel: bool = False):
         from ..kernels import records
-        from ..kernels.fused import ring_slots
         from ..kernels.splitting import kernel_parameters, splitting_kernels
 
         self.integrator = integrator
         self.system = system
-        self._parallel = bool(parallel)
         P, uniform = kernel_parameters(system.parameters)
         flows = integrator.subflows
         conduction, waves = integrator.heat_rows
@@ -295,17 +292,14 @@ class SplittingStepper(Stepper):
         self._advance = splitting_kernels(system.model, parallel, system.thermal, uniform, flows, conduction, waves,
                                           self.loads is not None)
         n, m = system.n_nodes, system.n_springs
-        self._topology = records.topology(system.layout)
-        # T/l per spring, then (one sweep per stage, kernels.fused) a ring per thread
-        ring = 0 if conduction or self.loads is not None else ring_slots(
-            self._topology.sweep, numba.config.NUMBA_NUM_THREADS if parallel else 1)
-        self._scratch = records.Scratch(np.empty((n, 3)), np.empty(m + ring), np.empty((n, 3)),
+        self._scratch = records.Scratch(np.empty((n, 3)), np.empty(m), np.empty((n, 3)),
                                         np.empty(m if system.thermal else 0), np.empty(m), np.empty(11))
         self._measured = None  # (state, step, sums) of the last call asked to measure its end
         # (state, step) whose forces and temperatures the last call's closing kick left in the
         # keep buffers: a call continuing from exactly there starts from them
         self._boundary = None
         self._no_thermal = np.empty(0)
+        self._topology = records.topology(system.layout)
         self._springs = records.Springs(system.rest_lengths, P)
         self._nodes = records.nodes(system)
         self._effects = flow_data(flows, system)
@@ -328,7 +322,7 @@ class SplittingStepper(Stepper):
         self._boundary = None
         every, cycle_step = cycle_position(state, self._heat) if self._conduction else (1, 0)
         run = Run(float(h), float(state.time), int(n_steps), bool(self.integrator.track_phi), float(lo), float(hi),
-                  bool(reuse), bool(measure), every, cycle_step, numba.get_num_threads() if self._parallel else 1)
+                  bool(reuse), bool(measure), every, cycle_step)
         loads = self.loads.arrays_for(state, h) if self.loads is not None else NO_LOADS  # loads
         done, detected, summed = self._advance(arrays, self._scratch, self._topology, self._springs, self._nodes,
                                                self._table, self._effects, self._heat_record(state, h, every), run, loads)

@@ -19,16 +19,12 @@ class Topology(NamedTuple):
 
     edges: (m, 2) uint32; inc_ptr: (n+1,) int64 CSR offsets of each node's incident springs;
     inc_spring, inc_other: (2m,) uint32, the incident spring and the node at its other end.
-    first_spring (n+1,) int64 and sweep (4,) int64: what the CPU's one-pass stage needs
-    (:func:`thermonet.kernels.fused.sweep_layout`; sweep[2] == 0: two passes).
     """
 
     edges: np.ndarray
     inc_ptr: np.ndarray
     inc_spring: np.ndarray
     inc_other: np.ndarray
-    first_spring: np.ndarray = np.zeros(1, dtype=np.int64)
-    sweep: np.ndarray = np.zeros(4, dtype=np.int64)
 
 
 class Springs(NamedTuple):
@@ -79,8 +75,7 @@ class Run(NamedTuple):
     stretches (stretch_min, stretch_max); reuse_boundary (the previous call's closing forces
     are valid here); want_sums (reduce the end state's diagnostics sums); conduction_every:
     the steps k of one conduction cycle ``K(k h/2) ∘ A(h)^k ∘ K(k h/2)`` (1: every step);
-    cycle_step: how many steps of its cycle the state has made at the call's start (0..k−1);
-    threads: the chunks the CPU's one-sweep stage splits the nodes into (its threads)."""
+    cycle_step: how many steps of its cycle the state has made at the call's start (0..k−1)."""
 
     h: float
     t0: float
@@ -92,7 +87,6 @@ class Run(NamedTuple):
     want_sums: bool
     conduction_every: int = 1
     cycle_step: int = 0
-    threads: int = 1
 
 
 class Heat(NamedTuple):
@@ -193,13 +187,10 @@ def no_heat_cpu() -> NoHeat:
 
 def topology(layout) -> Topology:
     """The :class:`Topology` of a :class:`~thermonet.layout.Layout`, as unsigned views."""
-    from .fused import sweep_layout
-
-    edges = np.ascontiguousarray(layout.edges).view(np.uint32)
-    inc_ptr = np.ascontiguousarray(layout.inc_ptr, dtype=np.int64)
-    inc_spring = np.ascontiguousarray(layout.inc_spring).view(np.uint32)
-    inc_other = np.ascontiguousarray(layout.inc_other).view(np.uint32)
-    return Topology(edges, inc_ptr, inc_spring, inc_other, *sweep_layout(edges, inc_ptr, inc_spring, inc_other))
+    return Topology(np.ascontiguousarray(layout.edges).view(np.uint32),
+                    np.ascontiguousarray(layout.inc_ptr, dtype=np.int64),
+                    np.ascontiguousarray(layout.inc_spring).view(np.uint32),
+                    np.ascontiguousarray(layout.inc_other).view(np.uint32))
 
 
 def nodes(system) -> Nodes:

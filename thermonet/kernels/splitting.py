@@ -68,8 +68,6 @@ from ..loads.elements import bind_loads
 from . import subflows
 from .subflows import bind_subflows
 from ..heat.rows import THERMAL_WAVES
-from . import fused
-from .fused import BLOCK, bind_fused, squared_lengths  # noqa: F401 (BLOCK, squared_lengths: re-exported)
 from .schedule_passes import _apply_flow, _copy_rows, _copy_values, _flow_pass, _no_flow, _thermal_kick
 from .specialize import function_fingerprint, kernel_namespace, model_fingerprint, rebind, specialize
 
@@ -81,7 +79,7 @@ from .specialize import function_fingerprint, kernel_namespace, model_fingerprin
 # thermonet.kernels.subflows; the small passes (thermal_kick, ...) those of .schedule_passes;
 # the loads' functions (node_load, cpu_*) those of thermonet.loads.elements, with LOADS.
 spring_pass = node_pass = boundary_spring_pass = boundary_node_pass = None
-thermal_kick = copy_rows = apply_flow = fused_stage = None
+thermal_kick = copy_rows = apply_flow = None
 spring_force = spring_energy = spring_temperature = outside_admissible = advance_thermal_displacement = None
 gather_force = kick_momentum = drift_position = load_row = store_row = None
 temperature_pass = refresh_pass = conduction_sweep = wave_sweep = gather_two_forces = _deferred_kick = None
@@ -93,12 +91,15 @@ WAVES = False
 CLOSING = False
 REFERENCE_TEMPERATURE = 0
 UNIFORM = False
-FUSED = False  # a stage is one sweep (thermonet.kernels.fused) where the layout allows
+
+#: springs per block of the spring pass: small enough that a block of s, η, l0, Φ stays in L1
+BLOCK = 512
 
 _CACHE: dict = {}
 
 _OPTIONS = dict(cache=True, error_model="numpy", boundscheck=False, _nrt=False)  # specialize(): no reference counting
 
+_squared_length = njit(inline="always", error_model="numpy", boundscheck=False)(subflows.squared_length)
 
 
 def kernel_parameters(P: np.ndarray) -> tuple[np.ndarray, bool]:
@@ -129,7 +130,6 @@ def splitting_kernels(model, parallel: bool, thermal: bool = True, uniform: bool
         flows_tag = f"_f{function_fingerprint(*(f.update for f in flows))}" if flows else ""
         tag = (f"{model.name}_{key[0]}_{'par' if parallel else 'ser'}_{'thermal' if thermal else 'mech'}"
                f"{'_uniform' if uniform else ''}_s{subflows.source_digest()}{flows_tag}")
-        tag += "" if conduction or loads else f"_1p{fused.source_digest()}"
         if conduction or waves:
             tag += f"_{'k' if conduction else ''}{'w' if waves else ''}{heat_exchange.source_digest()}"
         ns = kernel_namespace(model, thermal, uniform)
@@ -144,9 +144,6 @@ def splitting_kernels(model, parallel: bool, thermal: bool = True, uniform: bool
         ns["LOADS"] = bool(loads)
         if loads:
             tag += bind_loads(ns, tag, inline)
-        ns["FUSED"] = not (conduction or loads)
-        if ns["FUSED"]:
-            bind_fused(ns, tag, inline, parallel, _OPTIONS)
         ns["spring_pass"] = specialize(_spring_pass, tag, ns, parallel=parallel, **_OPTIONS)
         ns["node_pass"] = specialize(_node_pass, tag, ns, parallel=parallel, **_OPTIONS)
         boundary = dict(ns, CLOSING=True)
@@ -172,6 +169,15 @@ def splitting_kernels(model, parallel: bool, thermal: bool = True, uniform: bool
             ns["conduction_boundary"] = specialize(conduction_boundary, tag, ns, inline="always", **_OPTIONS)
         _CACHE[key] = specialize(_advance, tag, ns, **_OPTIONS)
     return _CACHE[key]
+
+
+@njit(inline="always", error_model="numpy", boundscheck=False)
+def squared_lengths(x, edges, lo, n, out, base):
+    """out[base + i] = |x_b − x_a|² of springs lo … lo + n − 1: the gather half of a blocked
+    spring pass (kept apart from the arithmetic so that the arithmetic loop vectorizes).
+    edges: (m, 2) uint32."""
+    for i in range(n):
+        out[base + i] = _squared_length(x, edges, np.uint64(lo + i))
 
 
 @njit(inline="always", error_model="numpy", boundscheck=False)
@@ -448,7 +454,6 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run
             with_force = k1 != 0.0 or k2 != 0.0
             steps = (k1 * h, k2 * h, table.drift[r] * h, with_force)
             reuse = run.reuse_boundary and step == 0 and r == 0 and with_force and not swept_first
-            swept = False  # the stage ran as one sweep, node pass included
             if reuse:  # the previous call's closing kick evaluated these at these positions
                 if THERMAL and run.track_phi:
                     thermal_kick(phi, scratch.theta_keep, k2 * h)
@@ -456,13 +461,8 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run
                 if CONDUCTION and theta_valid:
                     bad = refresh_pass(scratch.theta_keep, heat.length, phi, springs, scratch.s, (k1 * h, k2 * h), run)
                 else:
-                    bad = -1
-                    if FUSED:
-                        bad = fused_stage(cur, nxt, state, topology, springs, nodes, scratch, steps[:3], run)
-                    swept = bad >= 0
-                    if not swept:
-                        bad = spring_pass(cur, eta, phi, topology, springs, scratch, (k1 * h, k2 * h), run, False,
-                                          heat.length)[0]
+                    bad = spring_pass(cur, eta, phi, topology, springs, scratch, (k1 * h, k2 * h), run, False,
+                                      heat.length)[0]
                 if bad > 0:
                     if CONDUCTION and deferred != 0.0:  # p still misses it: the step is replayed anyway
                         deferred = 0.0
@@ -484,7 +484,7 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run
                 if LOADS:
                     cpu_load_work(cur, heat.s_before, topology, nodes, loads, 0.0, deferred * h)
                 deferred = 0.0
-            elif not swept:
+            else:
                 node_pass(cur, nxt, p, topology, nodes, scratch, steps, 0, False, (heat.s_before, loads))
             if LOADS and with_force:
                 cpu_load_work(cur, scratch.s, topology, nodes, loads, k1 * h, k2 * h)
