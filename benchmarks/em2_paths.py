@@ -91,7 +91,7 @@ youngs_modulus = 200e9
 thermal_expansion = 12e-6
 density = 7850.0
 heat_capacity = 3.6e6
-conductivity = 45.0
+conductivity = {conductivity!r}
 theta0 = 293.15
 [initial.temperature]
 uniform = 293.15
@@ -99,13 +99,14 @@ uniform = 293.15
 thermal = true
 conduction = true
 anchors = ["clamp"]
+{effects}
 [baths.machine]
 group = "clamp"
-temperature = {{ start = 293.15, end = 393.15, duration = 1.0 }}
+temperature = {{ start = 293.15, end = 393.15, duration = {duration!r} }}
 [loads.push]
 type = "force"
 group = "top"
-force = {{ start = 0.0, end = 2000.0, duration = 1.0 }}
+force = {{ start = 0.0, end = 2000.0, duration = {duration!r} }}
 direction = [1, 0, 0]
 total = true
 [integrator]
@@ -118,7 +119,7 @@ energy_tolerance = false
 {options}
 [output]
 frames_every = 1000000
-diagnostics_every = 1000000
+diagnostics_every = {diagnostics}
 checkpoint_every = 0
 """
 #: the part's meshes made so far, by size (a temporary folder per process)
@@ -163,13 +164,19 @@ def part_mesh(size: float) -> str:
     return path
 
 
-def part_simulation(size: float, integrator: str, h: float, threads: int | None = None, **options) -> tn.Simulation:
+def part_simulation(size: float, integrator: str, h: float, threads: int | None = None, conductivity: float = 45.0,
+                    duration: float = 1.0, diagnostics: int = 1000000, **options) -> tn.Simulation:
     """The steel part (``part``) at mesh size ``size``, step h, ``threads`` (None: Numba's
-    default), the given Newton options."""
+    default), the given Newton options; the conductivity (W/(m K)) and the ramps' duration (s)
+    may be changed (em2_accuracy.py)."""
     from thermonet.scenes.build import build_scene
     from thermonet.scenes.scene import scene_from_text
 
-    text = PART_SCENE.format(mesh=part_mesh(size), integrator=integrator, h=h, t_end=1000 * h,
+    h = float(h)
+    text = PART_SCENE.format(mesh=part_mesh(size), integrator=integrator, h=h, t_end=h * max(1000, math.ceil(duration / h)),
+                             conductivity=float(conductivity), duration=float(duration), diagnostics=diagnostics,
+                             effects=f"conduction_every = {options.pop('conduction_every')}"
+                             if "conduction_every" in options else "",
                              threads=f"threads = {threads}" if threads else "",
                              options="\n".join(f"{k} = {v!r}".replace("'", '"') for k, v in options.items()))
     return build_scene(scene_from_text(text)).simulation

@@ -228,11 +228,14 @@ def newton(problem, u: np.ndarray, options: NewtonOptions, solver, timers: Newto
             # at the rounding floor of the residual's terms, and no longer falling
             return NewtonResult(True, it, history, jacobi_steps=jacobi_steps, reused=reused)
         # a kept factorization's correction converges linearly, by its measured contraction c:
-        # the error left after it is about c/(1 − c) times its size, at most a quarter of it
-        # while c ≤ REUSE_CONTRACTION (else the factorization no longer pays: refactorize)
+        # the error left after it is about c/(1 − c) times its size; above the solver's
+        # contraction_limit (REUSE_CONTRACTION, or more where a factorization costs many solves)
+        # the factorization no longer pays: refactorize
         c = rho / history[-2] if last == "kept" and history[-2] > 0 else 0.0
-        contracted = last != "kept" or c <= REUSE_CONTRACTION
-        left = increment * c / (1.0 - c) if last == "kept" and contracted else increment  # (fresh: its size)
+        # (at the rounding floor a contraction says nothing: the test above ends it next time)
+        contracted = (last != "kept" or floored
+                      or c <= solver.contraction_limit(history[-2], options.tolerance, REUSE_CONTRACTION))
+        left = increment * c / (1.0 - c) if last == "kept" and c < 1.0 else increment  # (fresh: its size)
         # (or at the rounding floor, after a correction below the unknowns' own tolerance)
         if (it > 0 and (rho <= 1e3 * options.tolerance or floored)
                 and left <= options.rtol * np.abs(u).max() + options.atol):
