@@ -236,11 +236,14 @@ def newton(problem, u: np.ndarray, options: NewtonOptions, solver, timers: Newto
         contracted = (last != "kept" or floored
                       or c <= solver.contraction_limit(history[-2], options.tolerance, REUSE_CONTRACTION))
         left = increment * c / (1.0 - c) if last == "kept" and c < 1.0 else increment  # (fresh: its size)
-        # (or at the rounding floor, after a correction below the unknowns' own tolerance)
-        if (it > 0 and (rho <= 1e3 * options.tolerance or floored)
-                and left <= options.rtol * np.abs(u).max() + options.atol):
-            if contracted:
-                return NewtonResult(True, it, history, jacobi_steps=jacobi_steps, reused=reused)
+        # a small correction near the tolerance: converged after a fresh Newton correction (the
+        # next would be quadratically smaller); at the rounding floor, once what is left of the
+        # error is below the unknowns' absolute tolerance (their rounding, for EM2); else one
+        # more kept correction, which costs little, takes the residual below the tolerance
+        small = left <= options.rtol * np.abs(u).max() + options.atol
+        if it > 0 and contracted and ((rho <= 1e3 * options.tolerance and last != "kept" and small)
+                                      or (floored and left <= options.atol)):
+            return NewtonResult(True, it, history, jacobi_steps=jacobi_steps, reused=reused)
         if not contracted:
             solver.stale = True  # factorize at the next iteration
         if corrections - local_rounds == options.max_iterations:
