@@ -227,22 +227,18 @@ def newton(problem, u: np.ndarray, options: NewtonOptions, solver, timers: Newto
         if floored and rho > 0.5 * history[-2]:
             # at the rounding floor of the residual's terms, and no longer falling
             return NewtonResult(True, it, history, jacobi_steps=jacobi_steps, reused=reused)
-        # a kept factorization's correction converges linearly, by its measured contraction c:
-        # the error left after it is about c/(1 − c) times its size; above the solver's
-        # contraction_limit (REUSE_CONTRACTION, or more where a factorization costs many solves)
-        # the factorization no longer pays: refactorize
+        # a kept factorization's correction converges linearly, by its measured contraction c;
+        # above the solver's contraction_limit (REUSE_CONTRACTION, or more where a factorization
+        # costs many solves) the factorization no longer pays: refactorize (not at the rounding
+        # floor, where a contraction says nothing: the test above ends the iteration next time)
         c = rho / history[-2] if last == "kept" and history[-2] > 0 else 0.0
-        # (at the rounding floor a contraction says nothing: the test above ends it next time)
         contracted = (last != "kept" or floored
                       or c <= solver.contraction_limit(history[-2], options.tolerance, REUSE_CONTRACTION))
-        left = increment * c / (1.0 - c) if last == "kept" and c < 1.0 else increment  # (fresh: its size)
         # a small correction near the tolerance: converged after a fresh Newton correction (the
-        # next would be quadratically smaller); at the rounding floor, once what is left of the
-        # error is below the unknowns' absolute tolerance (their rounding, for EM2); else one
-        # more kept correction, which costs little, takes the residual below the tolerance
-        small = left <= options.rtol * np.abs(u).max() + options.atol
-        if it > 0 and contracted and ((rho <= 1e3 * options.tolerance and last != "kept" and small)
-                                      or (floored and left <= options.atol)):
+        # next would be quadratically smaller); after a kept one (linear), one more kept
+        # correction, which costs little, takes the residual below the tolerance
+        if (it > 0 and last != "kept" and rho <= 1e3 * options.tolerance
+                and increment <= options.rtol * np.abs(u).max() + options.atol):
             return NewtonResult(True, it, history, jacobi_steps=jacobi_steps, reused=reused)
         if not contracted:
             solver.stale = True  # factorize at the next iteration
