@@ -13,7 +13,7 @@ gets through simulated time faster):
 - ``auto``: the default.
 
 Nets: ``part``, the steel L-bracket of examples/steel_bracket.py meshed by gmsh at ``--mesh-size``
-(tetrahedra; 0.003 m: 9 400 springs, 0.0013 m: 94 000), slowly heated through its bolted base
+(tetrahedra; 0.003 m: 9 270 springs, 0.0012 m: 97 958), slowly heated through its bolted base
 (a bath ramping 293.15 → 393.15 K over a second) and slowly pushed on its flange's top face (a
 force ramping to 2 kN over a second), with conduction: the quasi-static use EM2 is meant for;
 ``lattice``, a jittered 18-neighbour 3D lattice of ``--cells`` cells per side (hencky,
@@ -337,7 +337,7 @@ def main(argv=None) -> list[dict]:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--nets", nargs="+", default=["lattice", "bracket"], choices=["part", "lattice", "bracket"])
     ap.add_argument("--mesh-size", nargs="+", type=float, default=[0.003],
-                    help="the part's gmsh size(s) in m (0.003: 9 400 springs, 0.0013: 94 000)")
+                    help="the part's gmsh size(s) in m (0.003: 9 270 springs, 0.0012: 97 958)")
     ap.add_argument("--threads", nargs="+", type=int, default=[0],
                     help="thread counts, each measured in turn (0: Numba's default)")
     ap.add_argument("--cells", type=int, default=8, help="lattice cells per side (8: 6 048 springs)")

@@ -205,10 +205,10 @@ class EM2Stepper(ImplicitStepper):
         return np.array([[0.0, 1.0, 0.0, 0.0]])
 
     def predict(self, u: np.ndarray) -> None:
-        """The midpoint step of each node on its own springs' stiffness (kernels.em2), or, where
-        the step before ended at this step's start with the same h, that step's displacement
-        again (constant velocity: a slowly moving part's) if its residual is the smaller (max
-        |R|); and the residual's rounding floor (``residual_floor``, read by the Newton
+        """The midpoint step of each node on its own springs' stiffness (kernels.em2), or, with
+        kept factorizations and where the step before ended at this step's start with the same
+        h, that step's displacement again (constant velocity: a slowly moving part's) if its
+        residual is the smaller (max |R|); and the residual's rounding floor (``residual_floor``, read by the Newton
         iteration): ATOL_ULPS ulps of the largest spring force that one ulp of length would make,
         (h/2) κ_e l⁰_e with κ_e the predictor's spring stiffness. A max |R| below it that a
         Newton correction no longer reduces (less than 2×) is the rounding of the force terms: a
@@ -219,8 +219,9 @@ class EM2Stepper(ImplicitStepper):
         start = self.work.start  # (guess: the predictor's per-spring stiffness κ_e, until the finish)
         self.residual_floor = (ATOL_ULPS * np.finfo(np.float64).eps * 0.5 * self.h
                                * float(np.max(start.guess * start.len0, initial=0.0)))
-        before = self._previous
-        if before is None or before[0] != self.h or not np.array_equal(before[2], self._step_start[0]):
+        before = self._previous  # (with kept factorizations, the path far above the limit)
+        if (before is None or before[0] != self.h or not getattr(self.solver, "carries_factorization", False)
+                or not np.array_equal(before[2], self._step_start[0])):
             return
         status, _ = self.residual(u)
         own = self.norms[0] if status == 0 else math.inf

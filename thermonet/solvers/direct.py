@@ -104,9 +104,21 @@ class ReusedLU(SparseLU):
         self.point = point() if point is not None else None
         self.factorizations += 1
 
+    @property
+    def carries_factorization(self) -> bool:
+        """Whether its factorization is carried from step to step (``worth``: KEPT_ANYWHERE_WORTH
+        solves or more; none made yet: False)."""
+        return self.worth >= KEPT_ANYWHERE_WORTH
+
     def new_step(self) -> None:
-        """A new step starts: a kept factorization is now an earlier step's."""
-        self.carried = True
+        """A new step starts: a kept factorization is now an earlier step's, kept where it is
+        worth KEPT_ANYWHERE_WORTH solves or more (else refactorizing costs little, and a step
+        that starts with exact Newton corrections ends nearer its root: on a single spring at
+        h ω = 100, 5.8e-13 of the energy drifted over 200 steps with, 1.2e-12 without)."""
+        if self.carries_factorization:
+            self.carried = True
+        else:
+            self.stale = True
 
     def contraction_limit(self, rho: float, tolerance: float, least: float) -> float:
         """The largest contraction per correction for which the kept factorization still pays:
@@ -116,6 +128,12 @@ class ReusedLU(SparseLU):
         net: 20–100) is kept at contractions up to 0.3–0.9."""
         decades = max(math.log10(max(rho, KEPT_FLOOR) / max(tolerance, KEPT_FLOOR)), 1.0)
         return min(max(least, 10.0 ** (-4.0 * decades / self.worth)), KEPT_MAX_CONTRACTION)
+
+    def decides_at_floor(self) -> bool:
+        """Whether the kept factorization is judged by its cost (newton: contraction_limit, and
+        no fresh iteration to confirm a small kept correction): one worth KEPT_ANYWHERE_WORTH
+        solves or more."""
+        return self.worth >= KEPT_ANYWHERE_WORTH
 
     def usable(self, h: float, rho: float, below: float) -> bool:
         """Whether the kept factorization may make the next correction at step h, scaled

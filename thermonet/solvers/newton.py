@@ -219,6 +219,12 @@ def newton(problem, u: np.ndarray, options: NewtonOptions, solver, timers: Newto
             rmax = np.abs(problem.R).max() if problem.R.size else 0.0
         rho = float(rmax / scale) if scale > 0 else 0.0
         history.append(rho)
+        kept = last == "kept"
+        # a kept factorization worth many solves (solvers.direct: a large 3D net's) is judged
+        # by what it costs; a cheap one as ever (REUSE_CONTRACTION, a fresh iteration decides)
+        costly = kept and solver.decides_at_floor()
+        if kept and not costly and not rho <= REUSE_CONTRACTION * history[-2]:
+            solver.stale = True  # the kept factorization no longer pays: factorize at the next iteration
         if not math.isfinite(rho):
             return NewtonResult(False, it, history, 0, -1, "residual not finite", jacobi_steps, reused)
         if rho <= options.tolerance:
@@ -227,21 +233,19 @@ def newton(problem, u: np.ndarray, options: NewtonOptions, solver, timers: Newto
         if floored and rho > 0.5 * history[-2]:
             # at the rounding floor of the residual's terms, and no longer falling
             return NewtonResult(True, it, history, jacobi_steps=jacobi_steps, reused=reused)
-        # a kept factorization's correction converges linearly, by its measured contraction c;
-        # above the solver's contraction_limit (REUSE_CONTRACTION, or more where a factorization
-        # costs many solves) the factorization no longer pays: refactorize (not at the rounding
-        # floor, where a contraction says nothing: the test above ends the iteration next time)
-        c = rho / history[-2] if last == "kept" and history[-2] > 0 else 0.0
-        contracted = (last != "kept" or floored
-                      or c <= solver.contraction_limit(history[-2], options.tolerance, REUSE_CONTRACTION))
-        # a small correction near the tolerance: converged after a fresh Newton correction (the
-        # next would be quadratically smaller); after a kept one (linear), one more kept
-        # correction, which costs little, takes the residual below the tolerance
-        if (it > 0 and last != "kept" and rho <= 1e3 * options.tolerance
-                and increment <= options.rtol * np.abs(u).max() + options.atol):
-            return NewtonResult(True, it, history, jacobi_steps=jacobi_steps, reused=reused)
-        if not contracted:
-            solver.stale = True  # factorize at the next iteration
+        if costly and not floored and not (
+                rho <= solver.contraction_limit(history[-2], options.tolerance, REUSE_CONTRACTION) * history[-2]):
+            # it converges linearly, and more slowly than pays: refactorize (at the rounding
+            # floor a contraction says nothing: the test above ends the iteration next time)
+            solver.stale = True
+        if it > 0 and rho <= 1e3 * options.tolerance and increment <= options.rtol * np.abs(u).max() + options.atol:
+            if not kept:
+                return NewtonResult(True, it, history, jacobi_steps=jacobi_steps, reused=reused)
+            # a kept factorization's correction converges linearly: a small one does not say the
+            # root is reached; a fresh Newton iteration (quadratic) decides, or, where a
+            # factorization costs many solves, one more kept correction
+            if not costly:
+                solver.stale = True
         if corrections - local_rounds == options.max_iterations:
             break
         if (stall and len(history) > STALL_WINDOW and rho > REUSE_BELOW
