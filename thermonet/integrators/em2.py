@@ -220,7 +220,7 @@ class EM2Stepper(ImplicitStepper):
         self.residual_floor = (ATOL_ULPS * np.finfo(np.float64).eps * 0.5 * self.h
                                * float(np.max(start.guess * start.len0, initial=0.0)))
         before = self._previous  # (with kept factorizations, the path far above the limit)
-        if (before is None or before[0] != self.h or not getattr(self.solver, "carries_factorization", False)
+        if (before is None or before[0] != self.h or not getattr(self.solver, "reuses_factorization", False)
                 or not np.array_equal(before[2], self._step_start[0])):
             return
         status, _ = self.residual(u)
