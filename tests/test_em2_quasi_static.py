@@ -67,3 +67,39 @@ def test_a_slowly_heated_and_loaded_part_at_100x_the_explicit_limit_is_within_1_
     fine, coarse = em2[100], em2[1000]
     assert fine["theta_error"] < 0.01 and fine["ux_error"] < 0.01, fine
     assert coarse["ux_error"] > fine["ux_error"], (fine, coarse)
+
+
+def test_a_carried_factorization_is_rebuilt_on_resume_bit_for_bit(tmp_path, monkeypatch):
+    """Factorizations carried from step to step (here on every net: the worth threshold set to
+    0) leave their point in the state: the thermal shock at 10× (scenes/thermal_shock.toml), 12 steps
+    in one run against 6 + a checkpoint + 6 resumed in a new simulation, the same bits, with
+    fewer factorizations than steps (so a carried one was used)."""
+    import thermonet.solvers.direct as direct
+    from thermonet.io.checkpoint import load_checkpoint, save_checkpoint
+
+    monkeypatch.setattr(direct, "KEPT_ANYWHERE_WORTH", 0.0)
+    paths = _benchmark("em2_paths")
+    h_max = None
+
+    def make():
+        nonlocal h_max
+        if h_max is None:
+            from thermonet.stability import stable_step
+            h_max = stable_step(paths.scene_simulation("thermal_shock", "co2", 1e-3, 12))["h_max"]
+        return paths.scene_simulation("thermal_shock", "em2", 10 * h_max, 12)
+
+    one = make()
+    one.run(steps=12, diagnostics_every=6)
+    s = one.stepper.summary()
+    assert s["factorizations"] < s["steps"] and s["reused_factorizations"] > 0, s
+    first = make()
+    first.run(steps=6, diagnostics_every=6)
+    assert "factorization_point" in first.state.extra
+    save_checkpoint(tmp_path / "c.npz", first.state, {})
+    state, _ = load_checkpoint(tmp_path / "c.npz")
+    resumed = make()
+    resumed.load_state(state)
+    resumed.run(steps=6, diagnostics_every=6)
+    assert one.step == resumed.step == 12
+    for name in ("positions", "momenta", "entropy", "thermal_displacement"):
+        assert np.array_equal(getattr(one.state, name), getattr(resumed.state, name)), name

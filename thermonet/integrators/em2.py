@@ -180,7 +180,7 @@ class EM2Stepper(ImplicitStepper):
         solver = self.solver
         if not getattr(solver, "reuses_factorization", False):
             return
-        saved = state.extra.get(self.FACTORIZATION_KEY)
+        saved = state.extra.get(self.FACTORIZATION_KEY)  # (only of one carried from step to step)
         if not isinstance(saved, np.ndarray) or saved.size < 2:
             solver.stale = True  # none kept with this state: the next step factorizes
         elif saved is not solver.point and not (
@@ -195,7 +195,7 @@ class EM2Stepper(ImplicitStepper):
         else:
             state.extra.pop(self.PREVIOUS_KEY, None)
         solver = self.solver
-        if getattr(solver, "reuses_factorization", False) and not solver.stale and solver.point is not None:
+        if getattr(solver, "carries_factorization", False) and not solver.stale and solver.point is not None:
             state.extra[self.FACTORIZATION_KEY] = solver.point
         else:
             state.extra.pop(self.FACTORIZATION_KEY, None)
@@ -208,8 +208,8 @@ class EM2Stepper(ImplicitStepper):
         """The midpoint step of each node on its own springs' stiffness (kernels.em2), or, with
         kept factorizations and where the step before ended at this step's start with the same
         h, that step's displacement again (constant velocity: a slowly moving part's) if its
-        residual is the smaller (max |R|); and the residual's rounding floor (``residual_floor``, read by the Newton
-        iteration): ATOL_ULPS ulps of the largest spring force that one ulp of length would make,
+        residual is the smaller (max |R|); and the residual's rounding floor (``residual_floor``,
+        read by the Newton iteration): ATOL_ULPS ulps of the largest spring force that one ulp of length would make,
         (h/2) κ_e l⁰_e with κ_e the predictor's spring stiffness. A max |R| below it that a
         Newton correction no longer reduces (less than 2×) is the rounding of the force terms: a
         net at rest in exact equilibrium has a max |R| of a few 1e-16 over a max Rabs of the

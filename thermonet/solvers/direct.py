@@ -129,7 +129,7 @@ class ReusedLU(SparseLU):
         decades = max(math.log10(max(rho, KEPT_FLOOR) / max(tolerance, KEPT_FLOOR)), 1.0)
         return min(max(least, 10.0 ** (-4.0 * decades / self.worth)), KEPT_MAX_CONTRACTION)
 
-    def decides_at_floor(self) -> bool:
+    def judged_by_cost(self) -> bool:
         """Whether the kept factorization is judged by its cost (newton: contraction_limit, and
         no fresh iteration to confirm a small kept correction): one worth KEPT_ANYWHERE_WORTH
         solves or more."""

@@ -222,7 +222,7 @@ def newton(problem, u: np.ndarray, options: NewtonOptions, solver, timers: Newto
         kept = last == "kept"
         # a kept factorization worth many solves (solvers.direct: a large 3D net's) is judged
         # by what it costs; a cheap one as ever (REUSE_CONTRACTION, a fresh iteration decides)
-        costly = kept and solver.decides_at_floor()
+        costly = kept and solver.judged_by_cost()
         if kept and not costly and not rho <= REUSE_CONTRACTION * history[-2]:
             solver.stale = True  # the kept factorization no longer pays: factorize at the next iteration
         if not math.isfinite(rho):
