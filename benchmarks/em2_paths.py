@@ -12,7 +12,11 @@ gets through simulated time faster):
 - ``splu-reuse``: ``newton_path = "sparse"``, ``linear_solver = "splu-reuse"`` (kept factorizations);
 - ``auto``: the default.
 
-Nets: ``lattice``, a jittered 18-neighbour 3D lattice of ``--cells`` cells per side (hencky,
+Nets: ``part``, the steel L-bracket of examples/steel_bracket.py meshed by gmsh at ``--mesh-size``
+(tetrahedra; 0.003 m: 9 270 springs, 0.0012 m: 97 958), slowly heated through its bolted base
+(a bath ramping 293.15 → 393.15 K over a second) and slowly pushed on its flange's top face (a
+force ramping to 2 kN over a second), with conduction: the quasi-static use EM2 is meant for;
+``lattice``, a jittered 18-neighbour 3D lattice of ``--cells`` cells per side (hencky,
 c = 100, θ0 = 300), its bottom face clamped, at rest and 50 K above θ0 (thermal stress, a slow
 expansion; with 6 neighbours the cubic cells would be mechanisms, held only by the springs'
 tension); ``bracket``, scenes/bracket.toml (a gmsh tetrahedral aluminium part, SI units, hot
@@ -24,6 +28,9 @@ in turn, ms/step the median over the rounds; a path that fails a step is reporte
     python benchmarks/em2_paths.py --nets bracket --factors 1 2 3 5 10
     python benchmarks/em2_paths.py --quick                # a small lattice, 2 steps (the test's)
     python benchmarks/em2_paths.py --scenes               # substepped steps on the shipped scenes, 10× and 100×
+    python benchmarks/em2_paths.py --nets part --mesh-size 0.003 --threads 1 2 --factors 10 100 1e4
+
+``--threads``: each measurement at each thread count (``integrator.threads``; 1: the serial kernels).
 """
 
 from __future__ import annotations
@@ -59,7 +66,7 @@ def lattice_simulation(cells: int, integrator: str, h: float, **options) -> tn.S
     net = tn.Net(net.positions, net.edges, net.masses, anchored)
     return tn.Simulation(net, model="hencky", parameters=dict(c=100.0, beta=0.2, C0=5.0, theta0=300.0),
                          temperatures=350.0, integrator=integrator, h=h, integrator_options=options,
-                         stability_guard="off", energy_tolerance=None)
+                         stability_guard="off", energy_tolerance=None, threads=THREADS[0])
 
 
 def bracket_simulation(integrator: str, h: float, **options) -> tn.Simulation:
@@ -69,7 +76,110 @@ def bracket_simulation(integrator: str, h: float, **options) -> tn.Simulation:
 
     sets = [f"integrator.name={integrator}", f"integrator.h={h!r}", "integrator.check_step=false",
             f"integrator.t_end={h * 1000!r}"] + [f"integrator.{k}={v}" for k, v in options.items()]
+    sets += [f"integrator.threads={THREADS[0]}"] if THREADS[0] else []
     return build_scene(load_scene(os.path.join(HERE, "..", "scenes", "bracket.toml"), sets)).simulation
+
+
+#: the steel part (``part``): examples/steel_bracket.py's material and base bath, a force on the
+#: flange's top face; the mesh at {mesh}, the step {h}, the threads {threads}
+PART_SCENE = """name = "steel_part"
+[net]
+mesh = "{mesh}"
+[materials.bracket]
+model = "hencky"
+youngs_modulus = 200e9
+thermal_expansion = 12e-6
+density = 7850.0
+heat_capacity = 3.6e6
+conductivity = {conductivity!r}
+theta0 = 293.15
+[initial.temperature]
+uniform = 293.15
+[effects]
+thermal = true
+conduction = true
+anchors = ["clamp"]
+{effects}
+[baths.machine]
+group = "clamp"
+temperature = {{ start = 293.15, end = 393.15, duration = {duration!r} }}
+[loads.push]
+type = "force"
+group = "top"
+force = {{ start = 0.0, end = 2000.0, duration = {duration!r} }}
+direction = [1, 0, 0]
+total = true
+[integrator]
+name = "{integrator}"
+h = {h!r}
+t_end = {t_end!r}
+check_step = false
+energy_tolerance = false
+{threads}
+{options}
+[output]
+frames_every = 1000000
+diagnostics_every = {diagnostics}
+checkpoint_every = 0
+"""
+#: the part's meshes made so far, by size (a temporary folder per process)
+_PART_MESHES: dict = {}
+
+
+def part_mesh(size: float) -> str:
+    """The part's mesh at gmsh size ``size`` (m): meshes/make_meshes.py's bracket with the node
+    groups "clamp" (the bolted end face) and "top" (the flange's top face); made once per size."""
+    if size in _PART_MESHES:
+        return _PART_MESHES[size]
+    import tempfile
+
+    import gmsh
+
+    path = os.path.join(tempfile.mkdtemp(prefix="em2_part_"), f"part_{size:g}.msh")
+    gmsh.initialize()
+    try:
+        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
+        gmsh.model.add("part")
+        occ = gmsh.model.occ
+        base = occ.addBox(0, 0, 0, 0.06, 0.04, 0.006)
+        flange = occ.addBox(0, 0, 0.006, 0.006, 0.04, 0.046)
+        occ.fragment([(3, base)], [(3, flange)])
+        occ.synchronize()
+        gmsh.option.setNumber("Mesh.MeshSizeMin", size)
+        gmsh.option.setNumber("Mesh.MeshSizeMax", size)
+        gmsh.model.addPhysicalGroup(3, [t for _, t in gmsh.model.getEntities(3)], name="bracket")
+        box = gmsh.model.getEntitiesInBoundingBox
+        gmsh.model.addPhysicalGroup(2, [t for _, t in box(0.0599, -1e-4, -1e-4, 0.0601, 0.0401, 0.0061, dim=2)],
+                                    name="clamp")
+        gmsh.model.addPhysicalGroup(2, [t for _, t in box(-1e-4, -1e-4, 0.0519, 0.0061, 0.0401, 0.0521, dim=2)],
+                                    name="top")
+        gmsh.option.setNumber("Mesh.Algorithm3D", 1)
+        gmsh.option.setNumber("Mesh.RandomSeed", 1)
+        gmsh.model.mesh.generate(3)
+        gmsh.write(path)
+    finally:
+        gmsh.finalize()
+    _PART_MESHES[size] = path
+    return path
+
+
+def part_simulation(size: float, integrator: str, h: float, threads: int | None = None, conductivity: float = 45.0,
+                    duration: float = 1.0, diagnostics: int = 1000000, **options) -> tn.Simulation:
+    """The steel part (``part``) at mesh size ``size``, step h, ``threads`` (None: Numba's
+    default), the given Newton options; the conductivity (W/(m K)) and the ramps' duration (s)
+    may be changed (em2_accuracy.py)."""
+    from thermonet.scenes.build import build_scene
+    from thermonet.scenes.scene import scene_from_text
+
+    h = float(h)
+    text = PART_SCENE.format(mesh=part_mesh(size), integrator=integrator, h=h, t_end=h * max(1000, math.ceil(duration / h)),
+                             conductivity=float(conductivity), duration=float(duration), diagnostics=diagnostics,
+                             effects=f"conduction_every = {options.pop('conduction_every')}"
+                             if "conduction_every" in options else "",
+                             threads=f"threads = {threads}" if threads else "",
+                             options="\n".join(f"{k} = {v!r}".replace("'", '"') for k, v in options.items()))
+    return build_scene(scene_from_text(text)).simulation
 
 
 def scene_simulation(name: str, integrator: str, h: float, steps: int) -> tn.Simulation:
@@ -82,6 +192,9 @@ def scene_simulation(name: str, integrator: str, h: float, steps: int) -> tn.Sim
     return build_scene(load_scene(os.path.join(HERE, "..", "scenes", f"{name}.toml"), sets)).simulation
 
 
+#: the part's mesh size and the threads of the measurement under way (main's --mesh-size, --threads)
+MESH_SIZE = [0.003]
+THREADS = [None]
 SCENES = ("lattice2d", "chain", "triangle", "default", "spinning_lattice", "thermal_shock", "tensile", "bracket")
 
 
@@ -116,18 +229,23 @@ def scene_fractions(names, factors, steps: int, out=print) -> list[dict]:
 
 
 def make(net: str, cells: int, integrator: str, h: float, **options) -> tn.Simulation:
+    if net == "part":
+        return part_simulation(MESH_SIZE[0], integrator, h, THREADS[0], **options)
     if net == "lattice":
         return lattice_simulation(cells, integrator, h, **options)
     return bracket_simulation(integrator, h, **options)
 
 
-def run_paths(net: str, cells: int, h: float, paths, steps: int, rounds: int) -> list[dict]:
+def run_paths(net: str, cells: int, h: float, paths, steps: int, rounds: int, co2=None, co2_steps: int = 0) -> list[dict]:
     """The paths at one step, interleaved (a drift of a shared machine hits all alike): each
     simulation takes one untimed step (compilation, first factorization), then ``rounds``
-    rounds each time ``steps`` steps of every path in turn; ms/step is the median over the
-    rounds. Returns a row per path: ms/step and the stepper's summary (or the failure)."""
+    rounds each time ``steps`` steps of every path in turn, and ``co2_steps`` of the CO2
+    simulation ``co2`` where given; ms/step is the median over the rounds. Returns a row per
+    path: ms/step, CO2's ms/step in the same rounds (``co2_ms``) and the stepper's summary (or
+    the failure)."""
     sims = {path: make(net, cells, "em2", h, **PATHS[path]) for path in paths}
     times = {path: [] for path in paths}
+    co2_times = []
     failed = {}
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # substeps are reported in the table
@@ -142,7 +260,12 @@ def run_paths(net: str, cells: int, h: float, paths, steps: int, rounds: int) ->
                         times[path].append((time.perf_counter() - t0) / steps)
                 except tn.SimulationError as exc:
                     failed[path] = str(exc).split(";")[0]
-    return [dict(path=path, failed=failed.get(path),
+            if co2 is not None and r:
+                t0 = time.perf_counter()
+                co2.run(steps=co2_steps, diagnostics_every=10**9)
+                co2_times.append(1e3 * (time.perf_counter() - t0) / co2_steps)
+    co2_ms = statistics.median(co2_times) if co2_times else math.nan
+    return [dict(path=path, failed=failed.get(path), co2_ms=co2_ms,
                  ms=math.inf if path in failed else 1e3 * statistics.median(times[path]),
                  summary=sim.stepper.summary(), springs=sim.net.n_springs) for path, sim in sims.items()]
 
@@ -160,22 +283,19 @@ def measure(nets, cells: int, factors, steps: int, paths=tuple(PATHS), out=print
         co2 = make(net, cells, "co2", CO2_FRACTION * est["h_max"])
         co2.run(steps=1, diagnostics_every=10**9)
         n_co2 = max(20, 20 * steps)
-        samples = []
-        for _ in range(3):
-            t0 = time.perf_counter()
-            co2.run(steps=n_co2, diagnostics_every=10**9)
-            samples.append(1e3 * (time.perf_counter() - t0) / n_co2)
-        co2_ms = statistics.median(samples)
-        co2_rate = co2_ms / (CO2_FRACTION * est["h_max"])  # ms per unit of simulated time
-        out(f"| {net} | {co2.net.n_springs} | {CO2_FRACTION:g} | {2 * CO2_FRACTION:.3g} | co2 | {co2_ms:.3f} | | | "
-            f"| | (CO2 at {CO2_FRACTION:g}× its stable step: the speed-up column's reference) | 1 |")
         for factor in factors:
             h = factor * est["h_max"]
             if "sweeps" in paths and factor > sweeps_max_factor:
                 out(f"| {net} | | {factor:g} | {h * est['omega_max']:.3g} | sweeps | not run (above "
                     f"--sweeps-max-factor {sweeps_max_factor:g}) | | | | | | |")
-            for row in run_paths(net, cells, h, [p for p in paths if p != "sweeps" or factor <= sweeps_max_factor],
-                                 steps, rounds):
+            done = run_paths(net, cells, h, [p for p in paths if p != "sweeps" or factor <= sweeps_max_factor],
+                             steps, rounds, co2, n_co2)
+            co2_ms = done[0]["co2_ms"]
+            co2_rate = co2_ms / (CO2_FRACTION * est["h_max"])  # ms per unit of simulated time
+            out(f"| {net} | {co2.net.n_springs} | {CO2_FRACTION:g} | {2 * CO2_FRACTION:.3g} | co2 | {co2_ms:.3f} | | | "
+                f"| | (CO2 at {CO2_FRACTION:g}× its stable step, in the same rounds: the speed-up column's "
+                f"reference) | 1 |")
+            for row in done:
                 path = row["path"]
                 s = row["summary"]
                 row.update(net=net, factor=factor, h=h, h_omega=h * est["omega_max"],
@@ -206,7 +326,7 @@ def fastest(rows: list[dict]) -> dict:
         if key not in best or r["ms"] < best[key]["ms"]:
             best[key] = r
     for r in rows:
-        if r["path"] == "auto":
+        if r["path"] == "auto" and (r["net"], r["factor"]) in best:
             key = (r["net"], r["factor"])
             out[key] = best[key]["path"]
             out[key + ("auto",)] = r["ms"] / best[key]["ms"]
@@ -215,7 +335,11 @@ def fastest(rows: list[dict]) -> dict:
 
 def main(argv=None) -> list[dict]:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--nets", nargs="+", default=["lattice", "bracket"], choices=["lattice", "bracket"])
+    ap.add_argument("--nets", nargs="+", default=["lattice", "bracket"], choices=["part", "lattice", "bracket"])
+    ap.add_argument("--mesh-size", nargs="+", type=float, default=[0.003],
+                    help="the part's gmsh size(s) in m (0.003: 9 270 springs, 0.0012: 97 958)")
+    ap.add_argument("--threads", nargs="+", type=int, default=[0],
+                    help="thread counts, each measured in turn (0: Numba's default)")
     ap.add_argument("--cells", type=int, default=8, help="lattice cells per side (8: 6 048 springs)")
     ap.add_argument("--factors", nargs="+", type=float, default=[1, 3, 10, 100, 1e4],
                     help="steps as multiples of CO2's stable step")
@@ -239,15 +363,25 @@ def main(argv=None) -> list[dict]:
     if args.quick:
         args.nets, args.cells, args.factors, args.steps, args.rounds = ["lattice"], 3, [1, 100], 2, 1
         args.paths = ["sweeps", "splu-reuse", "auto"]
-    print(f"EM2 per path; load: {os.getloadavg()[0]:.2f} (1-min average), {os.cpu_count()} CPUs\n")
-    rows = measure(args.nets, args.cells, args.factors, args.steps, args.paths,
-                   sweeps_max_factor=args.sweeps_max_factor, rounds=args.rounds)
-    best = fastest(rows) if "auto" in args.paths else {}
-    if best:
-        print("\n| net | factor | fastest | auto / fastest |\n|---|---:|---|---:|")
-        for key, path in best.items():
-            if len(key) == 2:
-                print(f"| {key[0]} | {key[1]:g} | {path} | {best[key + ('auto',)]:.2f} |")
+    rows = []
+    for size in args.mesh_size if "part" in args.nets else args.mesh_size[:1]:
+        for threads in args.threads:
+            MESH_SIZE[0], THREADS[0] = size, threads or None
+            print(f"\nEM2 per path; {threads or 'default'} thread(s)"
+                  + (f", the part at mesh size {size:g} m" if "part" in args.nets else "")
+                  + f"; load: {os.getloadavg()[0]:.2f} (1-min average), {os.cpu_count()} CPUs\n")
+            part = measure(args.nets, args.cells, args.factors, args.steps, args.paths,
+                           sweeps_max_factor=args.sweeps_max_factor, rounds=args.rounds)
+            for r in part:
+                r.update(threads=threads, mesh_size=size)
+            rows += part
+            best = fastest(part) if "auto" in args.paths else {}
+            if best:
+                print("\n| net | factor | fastest | auto / fastest |\n|---|---:|---|---:|")
+                for key, path in best.items():
+                    if len(key) == 2:
+                        print(f"| {key[0]} | {key[1]:g} | {path} | {best[key + ('auto',)]:.2f} |")
+            print(f"(load at the end: {os.getloadavg()[0]:.2f})")
     return rows
 
 

@@ -104,6 +104,9 @@ class EM2Stepper(ImplicitStepper):
 
     def __init__(self, integrator, system, options, parallel: bool = False):
         super().__init__(integrator, system, options, parallel)
+        #: (h, u, x¹) of the last step finished, the predictor's other guess (predict)
+        self._previous = None
+        self._previous_saved = None
         self.solver = self.wrap_solver(self.solver)
 
     def wrap_solver(self, solver):
@@ -121,33 +124,117 @@ class EM2Stepper(ImplicitStepper):
     def begin(self, x, p, eta, h: float) -> None:
         super().begin(x, p, eta, h)
         if getattr(self.solver, "reuses_factorization", False):
-            # kept factorizations serve the iterations of one step only: a run resumed from a
-            # checkpoint (which holds no factorization) then continues bit for bit; measured on
-            # the bracket at 10×, 100× and 1e4× CO2's stable step, a factorization kept across
-            # steps was never used (a step's predictor is farther from its root than REUSE_BELOW)
-            self.solver.stale = True
+            self.solver.new_step()  # a kept factorization is now an earlier step's (modified Newton)
         if self.rounding_atol:
             floor = self.atol_rounding() * float(np.abs(x).max(initial=0.0))
             if not 0.5 * self.options.atol <= floor <= 2.0 * self.options.atol:
                 self.options = dataclasses.replace(self.options, atol=floor)
+
+    # -- kept factorizations across steps, and across a checkpoint ---------------------------
+    #: the key in ``state.extra`` of the point where the kept factorization was made (solvers.
+    #: direct.ReusedLU): (h, x⁰, p⁰, η, u) flattened; absent where none is kept
+    FACTORIZATION_KEY = "factorization_point"
+
+    def jacobian_point(self) -> np.ndarray:
+        """Where the Jacobian is being made: the step (h, x⁰, p⁰, η) and the unknowns u of the
+        last residual, one flat copy."""
+        x0, p0, eta, h = self._step_start
+        return np.concatenate(([h], x0.ravel(), p0.ravel(), eta, self.u))
+
+    def refactorize_at(self, point: np.ndarray) -> None:
+        """The kept factorization rebuilt at a saved ``point`` (jacobian_point): the same
+        Jacobian values, so the same factorization, as where it was first made."""
+        n, m = self.system.n_nodes, self.system.n_springs
+        h = float(point[0])
+        x0, p0 = point[1:1 + 3 * n].reshape(n, 3), point[1 + 3 * n:1 + 6 * n].reshape(n, 3)
+        eta = point[1 + 6 * n:1 + 6 * n + m]
+        options, saved_u = self.options, self.u.copy()
+        try:
+            self.begin(x0, p0, eta, h)
+            self.predict(self.trial)  # (the start values the residual reads)
+            self.u[:] = point[1 + 6 * n + m:]
+            status, _ = self.residual(self.u)
+            if status != 0:
+                self.solver.stale = True
+                return
+            if self.data.size != self.pattern.nnz:
+                self.data = np.zeros(self.pattern.nnz)
+            self.jacobian(self.data)
+            self.solver.factorize(self.data, h)
+        finally:
+            self.options = options  # (begin may move atol: the run's own steps decide it)
+            self.u[:] = saved_u
+
+    #: the key in ``state.extra`` of the last step's (h, u, x¹), the predictor's other guess
+    PREVIOUS_KEY = "em2_previous_step"
+
+    def _history_from(self, state) -> None:
+        super()._history_from(state)
+        saved = state.extra.get(self.PREVIOUS_KEY)
+        if isinstance(saved, np.ndarray) and saved.size == 1 + self.u.size + 3 * self.system.n_nodes:
+            if self._previous is None or saved is not self._previous_saved:
+                size = self.u.size
+                self._previous = (float(saved[0]), saved[1:1 + size].copy(), saved[1 + size:].reshape(-1, 3).copy())
+        else:
+            self._previous = None
+        solver = self.solver
+        if not getattr(solver, "reuses_factorization", False):
+            return
+        saved = state.extra.get(self.FACTORIZATION_KEY)  # (only of one carried from step to step)
+        if not isinstance(saved, np.ndarray) or saved.size < 2:
+            solver.stale = True  # none kept with this state: the next step factorizes
+        elif saved is not solver.point and not (
+                not solver.stale and solver.point is not None and np.array_equal(saved, solver.point)):
+            self.refactorize_at(saved)  # resumed, or rewound: the factorization this state was left with
+
+    def _history_to(self, state) -> None:
+        super()._history_to(state)
+        if self._previous is not None:
+            h, u, x1 = self._previous
+            self._previous_saved = state.extra[self.PREVIOUS_KEY] = np.concatenate(([h], u, x1.ravel()))
+        else:
+            state.extra.pop(self.PREVIOUS_KEY, None)
+        solver = self.solver
+        if getattr(solver, "carries_factorization", False) and not solver.stale and solver.point is not None:
+            state.extra[self.FACTORIZATION_KEY] = solver.point
+        else:
+            state.extra.pop(self.FACTORIZATION_KEY, None)
 
     def predictor_coefficients(self, h: float) -> np.ndarray:
         """The start kernel's output is the acceleration a (the predictor is EM2's own)."""
         return np.array([[0.0, 1.0, 0.0, 0.0]])
 
     def predict(self, u: np.ndarray) -> None:
-        """The midpoint step of each node on its own springs' stiffness (kernels.em2); and the
-        residual's rounding floor (``residual_floor``, read by the Newton iteration): ATOL_ULPS
-        ulps of the largest spring force that one ulp of length would make, (h/2) κ_e l⁰_e with κ_e
-        the predictor's spring stiffness. A max |R| below it that a Newton correction no longer
-        reduces (less than 2×) is the rounding of the force terms: a net at rest in exact
-        equilibrium has a max |R| of a few 1e-16 over a max Rabs of the same size, a scaled
-        residual of order 1 that no Newton correction can reduce."""
+        """The midpoint step of each node on its own springs' stiffness (kernels.em2), or, with
+        kept factorizations and where the step before ended at this step's start with the same
+        h, that step's displacement again (constant velocity: a slowly moving part's) if its
+        residual is the smaller (max |R|); and the residual's rounding floor (``residual_floor``,
+        read by the Newton iteration): ATOL_ULPS ulps of the largest spring force that one ulp of length would make,
+        (h/2) κ_e l⁰_e with κ_e the predictor's spring stiffness. A max |R| below it that a
+        Newton correction no longer reduces (less than 2×) is the rounding of the force terms: a
+        net at rest in exact equilibrium has a max |R| of a few 1e-16 over a max Rabs of the
+        same size, a scaled residual of order 1 that no Newton correction can reduce."""
         self.kernels.predict(self._step_start, self._topology, self._springs, self._nodes, self._work,
                              self.accel, u)
         start = self.work.start  # (guess: the predictor's per-spring stiffness κ_e, until the finish)
         self.residual_floor = (ATOL_ULPS * np.finfo(np.float64).eps * 0.5 * self.h
                                * float(np.max(start.guess * start.len0, initial=0.0)))
+        before = self._previous  # (with kept factorizations, the path far above the limit)
+        if (before is None or before[0] != self.h or not getattr(self.solver, "reuses_factorization", False)
+                or not np.array_equal(before[2], self._step_start[0])):
+            return
+        status, _ = self.residual(u)
+        own = self.norms[0] if status == 0 else math.inf
+        status, _ = self.residual(before[1])
+        if status == 0 and self.norms[0] < own:
+            u[:] = before[1]
+
+    def finish(self, phi0, new):
+        status, spring = self.kernels.finish(self._step_start, self._topology, self._springs, self._nodes,
+                                             self._work, self.u, phi0, plain(new))
+        if status == 0:  # (the next step's other predictor)
+            self._previous = (self.h, self.u.copy(), new.x.copy())
+        return status, spring
 
     def residual(self, u: np.ndarray):
         status, spring, rmax, smax = self.kernels.residual(self._step_start, self._topology, self._springs,
@@ -164,10 +251,6 @@ class EM2Stepper(ImplicitStepper):
 
     def jacobian(self, data: np.ndarray) -> None:
         self.kernels.jacobian(self._topology, self._springs, self._nodes, self._work, self._places, self.h, data)
-
-    def finish(self, phi0, new):
-        return self.kernels.finish(self._step_start, self._topology, self._springs, self._nodes,
-                                   self._work, self.u, phi0, plain(new))
 
 
 EM2_INTEGRATOR = register_integrator(EM2())

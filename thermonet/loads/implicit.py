@@ -57,20 +57,27 @@ class ImplicitLoads:
         base = state.step - step0
         work = work_of(state, len(self.set))
         stats = None
-        for i in range(n_steps):
-            k = float(base + i)
-            keep = (state.positions.copy(), state.momenta.copy(), work.copy())
-            self._kick(state, t0 + k * h, 0.5 * h, work)
-            self._move(state, t0 + (k + 0.5) * h, work)
-            try:
-                stats = self.inner.advance(state, 1, h)
-            except StepFailure as exc:  # the state is this step's start: undo the loads' half
-                np.copyto(state.positions, keep[0])
-                np.copyto(state.momenta, keep[1])
-                np.copyto(work, keep[2])
-                raise StepFailure(str(exc), steps_done=i, details=exc.details) from None
-            self._move(state, t0 + (k + 1.0) * h, work)
-            self._kick(state, t0 + (k + 1.0) * h, 0.5 * h, work)
+        first, start = state.step, state.time
+        try:
+            for i in range(n_steps):
+                k = float(base + i)
+                keep = (state.positions.copy(), state.momenta.copy(), work.copy())
+                self._kick(state, t0 + k * h, 0.5 * h, work)
+                self._move(state, t0 + (k + 0.5) * h, work)
+                # the inner stepper's step one at a time, each at its own step and time (heat
+                # flow's baths and sources and its conduction cycle read them)
+                state.step, state.time = first + i, start + i * h
+                try:
+                    stats = self.inner.advance(state, 1, h)
+                except StepFailure as exc:  # the state is this step's start: undo the loads' half
+                    np.copyto(state.positions, keep[0])
+                    np.copyto(state.momenta, keep[1])
+                    np.copyto(work, keep[2])
+                    raise StepFailure(str(exc), steps_done=i, details=exc.details) from None
+                self._move(state, t0 + (k + 1.0) * h, work)
+                self._kick(state, t0 + (k + 1.0) * h, 0.5 * h, work)
+        finally:
+            state.step, state.time = first, start  # (the driver advances them)
         return stats
 
     def _kick(self, state, t: float, tau: float, work: np.ndarray) -> None:

@@ -96,8 +96,9 @@ LOCAL_FRACTION = 0.1
 LOCAL_STALL = 0.5
 LOCAL_MAX_ROUNDS = 8
 #: Modified Newton (a solver with ``reuses_factorization``, ``linear_solver="splu-reuse"``): a kept
-#: factorization makes the correction only while the scaled residual is at most REUSE_BELOW (near
-#: the root: no line search there, whose halvings a stale matrix's direction would waste), and is
+#: factorization made in the same step makes the correction only while the scaled residual is at
+#: most REUSE_BELOW (near the root: no line search there, whose halvings a stale matrix's
+#: direction would waste), one carried from an earlier step from the step's start; either is
 #: dropped once a correction it made reduced the scaled residual by less than REUSE_CONTRACTION
 #: (the next iteration assembles and factorizes afresh). A correction with a kept factorization
 #: costs a residual and two triangular solves, a small fraction of an assembly and a
@@ -218,21 +219,33 @@ def newton(problem, u: np.ndarray, options: NewtonOptions, solver, timers: Newto
             rmax = np.abs(problem.R).max() if problem.R.size else 0.0
         rho = float(rmax / scale) if scale > 0 else 0.0
         history.append(rho)
-        if last == "kept" and not rho <= REUSE_CONTRACTION * history[-2]:
+        kept = last == "kept"
+        # a kept factorization worth many solves (solvers.direct: a large 3D net's) is judged
+        # by what it costs; a cheap one as ever (REUSE_CONTRACTION, a fresh iteration decides)
+        costly = kept and solver.judged_by_cost()
+        if kept and not costly and not rho <= REUSE_CONTRACTION * history[-2]:
             solver.stale = True  # the kept factorization no longer pays: factorize at the next iteration
         if not math.isfinite(rho):
             return NewtonResult(False, it, history, 0, -1, "residual not finite", jacobi_steps, reused)
         if rho <= options.tolerance:
             return NewtonResult(True, it, history, jacobi_steps=jacobi_steps, reused=reused)
-        if it > 0 and rmax <= getattr(problem, "residual_floor", 0.0) and rho > 0.5 * history[-2]:
+        floored = it > 0 and rmax <= getattr(problem, "residual_floor", 0.0)
+        if floored and rho > 0.5 * history[-2]:
             # at the rounding floor of the residual's terms, and no longer falling
             return NewtonResult(True, it, history, jacobi_steps=jacobi_steps, reused=reused)
+        if costly and not floored and not (
+                rho <= solver.contraction_limit(history[-2], options.tolerance, REUSE_CONTRACTION) * history[-2]):
+            # it converges linearly, and more slowly than pays: refactorize (at the rounding
+            # floor a contraction says nothing: the test above ends the iteration next time)
+            solver.stale = True
         if it > 0 and rho <= 1e3 * options.tolerance and increment <= options.rtol * np.abs(u).max() + options.atol:
-            if last != "kept":
+            if not kept:
                 return NewtonResult(True, it, history, jacobi_steps=jacobi_steps, reused=reused)
             # a kept factorization's correction converges linearly: a small one does not say the
-            # root is reached; a fresh Newton iteration (quadratic) decides, as on the other paths
-            solver.stale = True
+            # root is reached; a fresh Newton iteration (quadratic) decides, or, where a
+            # factorization costs many solves, one more kept correction
+            if not costly:
+                solver.stale = True
         if corrections - local_rounds == options.max_iterations:
             break
         if (stall and len(history) > STALL_WINDOW and rho > REUSE_BELOW
