@@ -101,7 +101,7 @@ class NumpyCO2:
 # memory bandwidth
 
 
-@njit(parallel=True, cache=True)
+@njit(parallel=True)  # not cached: the tests load this script under a module name Numba's cache cannot re-import
 def _triad(a, b, c, scalar):
     for i in prange(a.shape[0]):
         a[i] = b[i] + scalar * c[i]
