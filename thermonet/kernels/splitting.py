@@ -501,10 +501,7 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run
             temperature_pass(cur, eta, topology, springs, scratch.theta_keep, heat.length)
         bad = conduction_boundary(state, cur, topology, springs, scratch, heat, run, pending, REVERSE | SAVE, n_steps)
         if bad > 0:
-            if swaps % 2 == 1:
-                copy_rows(x_buf, x)
-            heat.theta_ok[0] = 0.0
-            return n_steps - 1, True, False
+            return _stopped(x, x_buf, swaps, heat, n_steps - 1)
         if pending != 0.0:
             deferred = pending
             if LOADS:
@@ -519,11 +516,7 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run
         bad, energy, theta_min, theta_max = boundary_spring_pass(cur, eta, phi, topology, springs, scratch,
                                                                  (0.0, pending * h), run, True, heat.length)
         if bad > 0:
-            if swaps % 2 == 1:
-                copy_rows(x_buf, x)
-            if CONDUCTION:
-                heat.theta_ok[0] = 0.0
-            return n_steps - 1, True, False
+            return _stopped(x, x_buf, swaps, heat, n_steps - 1)
         theta_valid = True  # (the closing spring pass keeps θ and l)
         # drift 0: the positions stay in cur
         if LOADS:
