@@ -22,7 +22,6 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-import time
 
 import numpy as np
 
@@ -61,18 +60,9 @@ def simulations(target_springs: int) -> dict:
 
 def rate(sim, cuda, seconds: float, fused: bool, quick: bool) -> float:
     """Spring-steps/s of ``sim``'s CUDA stepper (:func:`gpu_throughput.gpu_rate`, calls in
-    whole conduction cycles); quick: one short call after the compiling one."""
+    whole conduction cycles; quick: one short call after the compiling one)."""
     cycle = int(sim.conduction_every) if sim.system.heat is not None else 1
-    if not quick:
-        return gpu_rate(sim, cuda, seconds, fused, cycle)
-    stepper, state, h = sim.stepper, sim._state, sim.h
-    stepper.fused = fused
-    for _ in range(2):  # compile and upload, then one timed cycle
-        cuda.synchronize()
-        t0 = time.perf_counter()
-        stepper.advance(state, cycle, h)
-        cuda.synchronize()
-    return cycle * sim.net.n_springs / max(time.perf_counter() - t0, 1e-9)
+    return gpu_rate(sim, cuda, seconds, fused, cycle, quick=quick)
 
 
 def main(argv=None) -> list[dict]:
