@@ -10,7 +10,9 @@ wheels to a machine without the package index). Per net it prints a markdown tab
 spring-steps/s of the adiabatic run and of the run with conduction (``stepper.advance`` timed
 with the device synchronized, medians of three runs of about ``--seconds`` each after a warm-up
 that compiles the kernels), their ratio, and the grid-wide phases of one conduction half sweep
-(the node colours of the GPU's sweep order + 3). Hencky springs at 250–350 K, g = 1, C0 = 5,
+(the node colours of the GPU's sweep order + 3). Then, per net, a launch profile of the step with
+conduction (:func:`launch_profile`): host and wall µs of each launch of a half sweep, which says
+whether the host or the device bounds it. Hencky springs at 250–350 K, g = 1, C0 = 5,
 h = 0.4× the stable step. Target: conduction every step ≤ 2.5× the adiabatic step at 3e6 springs.
 
 ``--quick`` runs a tiny net for a few steps and accepts Numba's CUDA simulator: it checks that
@@ -22,6 +24,7 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+import time
 
 import numpy as np
 
@@ -65,11 +68,57 @@ def rate(sim, cuda, seconds: float, fused: bool, quick: bool) -> float:
     return gpu_rate(sim, cuda, seconds, fused, cycle, quick=quick)
 
 
+def launch_profile(sim, cuda, repeats: int) -> list[dict]:
+    """Where a conduction step's time goes with two launches per stage: each launch of a
+    forward half sweep (the temperature pass, then its phases) and of an adiabatic stage,
+    ``repeats`` times back to back. Per launch: the host's time to enqueue it (the loop before
+    the device is synchronized) and the wall time (after it): wall ≈ host means the host
+    bounds that launch, wall > host means the device does. The runs leave the state
+    meaningless (phases repeated on their own), so this comes after the timed runs."""
+    from thermonet.heat.cuda import BLOCKS, BOUNDARY, FINISH, START, _phase_span
+    from thermonet.heat.rows import CONDUCTION_FORWARD
+
+    stepper, m = sim.stepper, sim.net.n_springs
+    stepper.fused = False
+    stepper.advance(sim._state, 2, sim.h)  # compile and upload
+    heat, k, code = stepper._heat.record(sim.h, 1), stepper._k, CONDUCTION_FORWARD
+    tau = 0.5 * sim.h
+    launches = [("temperature pass", m, lambda: stepper._launch(
+        k.temperature, k.blocks(m), k.threads, stepper._x, stepper._eta, stepper._topology.edges, stepper._springs,
+        heat, stepper._flag))]
+    kinds = {START: "θ start", BOUNDARY: "baths and sources", BLOCKS: "star colour", FINISH: "finish (η)"}
+    dh = stepper._heat
+    for phase, count in dh.phases(code):
+        kind = _phase_span(code, phase, dh.colour_ptr, dh.star_colour_ptr, dh.n_bound, dh.m)[0]
+        if count > 0:
+            launches.append((f"phase {phase}: {kinds[kind]}", count, lambda phase=phase, count=count: stepper._launch(
+                k.sweep, k.blocks(count), k.threads, code, phase, heat, tau, 0.0, stepper._phi, stepper._eta,
+                stepper._flag)))
+    rows = []
+    for name, elements, launch in launches:
+        launch()
+        cuda.synchronize()
+        t0 = time.perf_counter()
+        for _ in range(repeats):
+            launch()
+        host = time.perf_counter() - t0
+        cuda.synchronize()
+        wall = time.perf_counter() - t0
+        rows.append(dict(launch=name, elements=elements, host_us=1e6 * host / repeats, wall_us=1e6 * wall / repeats))
+    sims_step = time.perf_counter()
+    stepper.advance(sim._state, repeats, sim.h)
+    cuda.synchronize()
+    rows.append(dict(launch="whole step (two launches per stage)", elements=m, host_us=float("nan"),
+                     wall_us=1e6 * (time.perf_counter() - sims_step) / repeats))
+    return rows
+
+
 def main(argv=None) -> list[dict]:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--sizes", default="3e5,3e6", help="comma-separated spring counts")
     ap.add_argument("--seconds", type=float, default=2.0, help="length of each timed run")
     ap.add_argument("--quick", action="store_true", help="a tiny net, a few steps; the CUDA simulator allowed")
+    ap.add_argument("--repeats", type=int, default=50, help="back-to-back launches per row of the launch profile")
     args = ap.parse_args(argv)
     if args.quick:
         args.sizes = "40"
@@ -95,6 +144,14 @@ def main(argv=None) -> list[dict]:
                 rows.append(row)
                 print(f"| {row['springs']:,} | {row['launch']} | {name} | {r / 1e9:.3g} | {row['ratio']:.2f}× | "
                       f"{row['phases'] or '–'} |")
+        repeats = 2 if args.quick else args.repeats
+        print(f"\nlaunch profile, {sims['every step'].net.n_springs:,} springs, conduction every step "
+              f"(µs per launch, {repeats} back to back):\n")
+        print("| launch | elements | host µs | wall µs |")
+        print("|---|---:|---:|---:|")
+        for row in launch_profile(sims["every step"], cuda, repeats):
+            rows.append(dict(springs=sims["every step"].net.n_springs, **row))
+            print(f"| {row['launch']} | {row['elements']:,} | {row['host_us']:.1f} | {row['wall_us']:.1f} |")
     if args.quick:
         print("(quick: timings mean nothing)")
     return rows

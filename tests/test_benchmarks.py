@@ -54,6 +54,11 @@ def test_gpu_check_quick_mode_runs_its_benchmarks_under_the_cuda_simulator(monke
     assert len(table) == 6 and len(heat["rows"]) == 6
     assert all(float(r.split("|")[5].strip().rstrip("×")) > 0 for r in table)
     assert all(r.split("|")[6].strip() in ("–", "5") for r in table)
+    # the launch profile: the temperature pass, θ start, two star colours, finish, the whole step
+    profile = [line.split("|")[1].strip() for line in heat["out"].splitlines()
+               if line.startswith("| ") and line.split("|")[1].strip()[:5] in ("tempe", "phase", "whole")]
+    assert profile[0] == "temperature pass" and profile[-1].startswith("whole step"), profile
+    assert sum("star colour" in name for name in profile) == 2 and any("finish" in name for name in profile)
     out = capsys.readouterr().out
     assert "## GPU check" in out and "| throughput (this tree) | 0 |" in out
 
