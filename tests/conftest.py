@@ -1,11 +1,19 @@
 """Fixtures shared by several test modules."""
 
-import numpy as np
-import pytest
+import os
 
-import thermonet as tn
-from thermonet import reference as ref
-from thermonet.paper import CHAIN_MOMENTA, CHAIN_PARAMETERS, CHAIN_TEMPERATURES
+# The suite runs pytest-xdist workers, each with Numba's OpenMP pool of one thread per core: more
+# threads than cores. GNU OpenMP's idle threads spin by default and take the cores the other
+# workers' threads need (threaded tests of heat flow and loads, measured on 2 busy cores: 15-24 s
+# against 3 s); passive waiting yields them. Set before a parallel kernel loads the runtime.
+os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+
+import thermonet as tn  # noqa: E402
+from thermonet import reference as ref  # noqa: E402
+from thermonet.paper import CHAIN_MOMENTA, CHAIN_PARAMETERS, CHAIN_TEMPERATURES  # noqa: E402
 
 
 @pytest.fixture(scope="session")
