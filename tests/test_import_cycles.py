@@ -14,8 +14,6 @@ PACKAGE = "thermonet"
 #: cycles that remain, each in files this layout keeps for now; remove an entry once its cycle is
 #: broken (the test then insists that it stays broken)
 KNOWN_CYCLES = [
-    # the compiled implicit core: the start kernel and the scheme compiler call each other
-    {"thermonet.kernels.implicit_common", "thermonet.kernels.implicit_start"},
     # the explicit splittings make the CUDA stepper (backend="cuda"), which reads the
     # splittings' flow data back
     {"thermonet.integrators.splitting", "thermonet.cuda.stepper"},
