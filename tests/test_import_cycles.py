@@ -14,9 +14,6 @@ PACKAGE = "thermonet"
 #: cycles that remain, each in files this layout keeps for now; remove an entry once its cycle is
 #: broken (the test then insists that it stays broken)
 KNOWN_CYCLES = [
-    # the explicit splittings make the CUDA stepper (backend="cuda"), which reads the
-    # splittings' flow data back
-    {"thermonet.integrators.splitting", "thermonet.cuda.stepper"},
 ]
 
 

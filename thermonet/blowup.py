@@ -12,6 +12,7 @@ import math
 
 import numpy as np
 
+from .integrators.base import StepFailure
 from .kernels.springs import map_springs
 
 #: default admissible stretches l/l0 of the blow-up detector (open interval)
@@ -79,3 +80,13 @@ def diagnose(system, positions: np.ndarray, entropy: np.ndarray | None) -> dict:
             nodes = [int(lay.node_order[a]) for a in edges[e]]
             return {"spring": int(user[k]), "nodes": nodes, "problem": phrase(e)}
     return {}
+
+
+def blowup_failure(system, positions, entropy, steps_done: int) -> StepFailure:
+    """The :class:`StepFailure` of a kernel that stopped on an inadmissible spring at
+    ``positions`` (internal numbering), naming the spring: the caller rewinds and replays
+    ``steps_done`` steps."""
+    found = diagnose(system, positions, entropy)
+    where = (f"spring {found['spring']} (nodes {found['nodes'][0]}–{found['nodes'][1]}) has {found['problem']}"
+             if found else "a spring left the admissible states")
+    return StepFailure(where, steps_done=int(steps_done), details={"rewind": True, **found})
