@@ -19,7 +19,7 @@ from .blowup import remedy
 from .compile_watch import CompileWatch
 from .diagnostics import Diagnostics, diagnostics_row, measure
 from .errors import InputError, SimulationError
-from .heat.logs import balances, heat_columns, wave_energy
+from .heat.logs import balances, cycle_position, heat_columns, heat_logs, wave_energy
 from .integrators.base import StepFailure
 from .run_guards import energy_departure
 from .state import State
@@ -164,7 +164,6 @@ class Runner:
         if heat is None or not heat.conduction or steps <= 0:
             return
         from .heat.multirate import choose_cycle
-        from .heat.logs import cycle_position, heat_logs
 
         every, at = cycle_position(sim._state, heat)
         if at != 0:

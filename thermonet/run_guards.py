@@ -28,7 +28,9 @@ import warnings
 
 import numpy as np
 
+from .compile_watch import CompileWatch
 from .errors import SimulationError
+from .kernels.specialize import model_fingerprint, model_namespace, specialize
 
 #: default energy guard: a run stops when |H − H(0)| exceeds this fraction of |H(0)|
 DEFAULT_ENERGY_TOLERANCE = 0.1
@@ -94,8 +96,6 @@ _KERNELS: dict = {}
 
 
 def _bound_kernel(model, thermal: bool):
-    from .kernels.specialize import model_fingerprint, model_namespace, specialize
-
     key = (model_fingerprint(model), bool(thermal))
     if key not in _KERNELS:
         ns = model_namespace(model)
@@ -158,8 +158,6 @@ class StabilityGuard:
             self.skipped += 1
             return
         self.checked += 1
-        from .compile_watch import CompileWatch
-
         with CompileWatch() as compiling:  # a first run's compilation is not the guard's running cost
             try:
                 self._check(sim)

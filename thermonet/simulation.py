@@ -17,22 +17,23 @@ from typing import Mapping
 
 import numpy as np
 
+from .assemble import assemble
 from .blowup import STRETCH_BOUNDS
 from .diagnostics import Diagnostics, spring_fields
-from .assemble import assemble
 from .driver import Runner
 from .errors import InputError, SimulationError
+from .heat.logs import heat_logs
+from .heat.parameters import split_parameters
+from .heat.setup import build_heat
 from .inputs import (angular_momentum_reference, build_system, check_backend, check_energy_tolerance, check_step,
                      guard_mode, initial_state)
 from .integrators import get_integrator
+from .kernels.springs import log_strain
 from .layout import build_layout
 from .materials.continuum import apply_continuum
 from .models import get_model
 from .net import Net
 from .run_guards import DEFAULT_ENERGY_TOLERANCE, StabilityGuard
-from .heat.parameters import split_parameters
-from .heat.setup import build_heat
-from .heat.logs import heat_logs
 from .state import State
 
 #: heat-flow logs with one value per spring (stored in the user's numbering outside the engine)
@@ -354,8 +355,6 @@ class Simulation:
     def strains(self) -> np.ndarray:
         """(m,) logarithmic strains ln(l / l0) (the log of output frames: equal to theirs bit for
         bit, within about an ulp of NumPy's)."""
-        from .kernels.springs import log_strain
-
         return log_strain(self.lengths(), self.net.rest_lengths)
 
     def tensions(self) -> np.ndarray:

@@ -7,7 +7,13 @@ import os
 
 import numpy as np
 
+from ..blowup import UNLIMITED
+from ..builders import from_meshio, read_meshio
 from ..errors import InputError
+from ..heat.exchange import BATH
+from ..heat.graph import pairs_per_spring
+from ..materials.rigidity import floppy_modes
+from ..simulation import Simulation
 
 HELP = "describe a mesh or a scene: nodes, springs, cell types, groups, materials, memory, stable step"
 
@@ -45,9 +51,6 @@ def handle(args) -> int:
 
 
 def describe_mesh(path: str) -> list[str]:
-    from ..builders import from_meshio, read_meshio
-    from ..simulation import Simulation
-
     mesh = read_meshio(path)
     net = from_meshio(mesh, source=path)
     cells = {}
@@ -84,8 +87,6 @@ def describe_scene(path: str, overrides) -> list[str]:
     if net.pieces_note():
         out.append(f"  pieces: {net.pieces_note()}")
     if scene.mesh_path():
-        from ..builders import read_meshio
-
         mesh = built.mesh if built.mesh is not None else read_meshio(scene.mesh_path())
         cells = {}
         for block in mesh.cells:
@@ -143,9 +144,6 @@ def heat_bytes(n_springs: int, n_pairs: int, n_nodes: int = 0) -> int:
 def _heat_flow(sim, specs: dict, cadences=()) -> list[str]:
     """The heat-flow lines: conduction and thermal waves, the pair graph, baths, sources (specs:
     the scene's bath and source tables by name)."""
-    from ..heat.exchange import BATH
-    from ..heat.graph import pairs_per_spring
-
     heat = sim.system.heat
     if heat is None:
         return ["  heat flow: off (adiabatic springs; effects.conduction, effects.thermal_waves)"]
@@ -201,7 +199,6 @@ def _continuum(built) -> list[str]:
     """The effective properties the net has, measured on it (docs/continuum.md)."""
     from ..materials.homogenize import boundary_nodes, box_boundary
     from ..materials.report import describe, measure
-    from ..materials.rigidity import floppy_modes
 
     net, cmap = built.net, built.continuum
     boundary = boundary_nodes(built.mesh, net) if built.mesh is not None else box_boundary(net.positions)
@@ -230,8 +227,6 @@ def _stable_step(sim, where: str) -> str:
     import math
 
     from ..stability import stability_interval, stable_step
-
-    from ..blowup import UNLIMITED
 
     if getattr(sim.integrator, "unconditionally_stable", False):
         return (f"  stable step: none, {sim.integrator.name} has no stability limit (energy exact at any step; "

@@ -7,6 +7,9 @@ import contextlib
 import os
 import sys
 import warnings
+from ..blowup import remedy
+from ..errors import InputError, OutputError, SimulationError, ThermonetError
+from ..run_guards import broken_conservation
 
 HELP = "run a scene and write VTU/PVD frames, diagnostics.csv, summary.json and checkpoints"
 
@@ -51,7 +54,6 @@ def overrides_of(args) -> list[str]:
 
 
 def handle(args) -> int:
-    from ..errors import ThermonetError
     from .progress import ProgressBar
 
     progress = None if args.quiet else ProgressBar()
@@ -170,11 +172,9 @@ class StopRequest:
 
 
 def _run(args, progress, record=None) -> int:
-    from ..errors import InputError, OutputError, SimulationError
     from ..io import RunOutput, load_checkpoint
     from ..io.folder import (check_output_folder, check_writable, describe_os_error, fresh_folder,
                              prepare_output_folder, remove_stale_temporaries)
-    from ..run_guards import broken_conservation
     from ..scenes import load_scene, scene_from_text
     from .report import format_summary
 
@@ -311,7 +311,6 @@ def _refuse_other_scene(checkpoint, saved, scene) -> None:
     """A checkpoint whose scene hash differs: allowed where only keys free on resume changed
     (a checkpoint of another version's hash), refused naming the keys that changed the trajectory,
     or the mesh file."""
-    from ..errors import InputError
     from ..scenes import scene_from_text
     from ..scenes.scene import FREE_ON_RESUME, trajectory_changes
 
@@ -338,8 +337,6 @@ def _refuse_other_scene(checkpoint, saved, scene) -> None:
 
 
 def _remedy(integrator, h) -> str:
-    from ..blowup import remedy
-
     return remedy(integrator, h)
 
 

@@ -10,6 +10,8 @@ from __future__ import annotations
 import math
 import os
 import sys
+from ..errors import InputError, UnknownNameError
+from ..integrators import available_integrators
 
 HELP = "convergence, cost (work-precision) and long-run energy studies of the integrators"
 
@@ -67,9 +69,6 @@ def add_args(p) -> None:
 
 
 def _integrators(text: str | None, study: str) -> list[str]:
-    from ..integrators import available_integrators
-    from ..errors import UnknownNameError
-
     known = set(available_integrators())
     if text is None:
         return [n for n in DEFAULT_INTEGRATORS[study].split(",") if n in known]
@@ -81,9 +80,6 @@ def _integrators(text: str | None, study: str) -> list[str]:
 
 
 def _check(text: str):
-    from ..errors import InputError, UnknownNameError
-    from ..integrators import available_integrators
-
     if text.lower() == "none":
         return None
     try:
@@ -99,8 +95,6 @@ def _check(text: str):
 
 
 def _scipy(text: str) -> dict:
-    from ..errors import InputError
-
     if text.lower() == "none":
         return {}
     out = {}
@@ -164,7 +158,6 @@ def _plan(args) -> dict:
     """The study's arguments checked, and its defaults resolved (from the scene's step and the
     integrators' stability limits), in this process, before a Dask cluster starts or a run is
     made: any problem is an InputError naming the argument."""
-    from ..errors import InputError
     from ..studies.convergence import default_check, default_time_step, time_steps
     from ..studies.scenes import check_scene, scene_effects, scene_time
     from ..studies.tasks import check_steps
@@ -234,8 +227,6 @@ def _plan(args) -> dict:
 
 
 def _whole(check_steps, t_end: float, h: float, what: str) -> None:
-    from ..errors import InputError
-
     try:
         check_steps(t_end, h)
     except InputError as exc:

@@ -18,7 +18,9 @@ import numpy as np
 from ..blowup import blowup_failure
 from ..errors import InputError
 from ..heat.logs import cycle_position, heat_logs
+from ..kernels import records
 from ..kernels.records import Run, StateArrays, no_heat_cpu
+from ..kernels.splitting import kernel_parameters, splitting_kernels
 from ..loads.elements import NO_LOADS
 from ..loads.stepping import StepperLoads
 from .base import Integrator, Stepper, register_integrator
@@ -275,9 +277,6 @@ class SplittingStepper(Stepper):
     """A :class:`Splitting` bound to a system: owns the scratch buffers, calls the fused kernel."""
 
     def __init__(self, integrator: Splitting, system, parallel: bool = False):
-        from ..kernels import records
-        from ..kernels.splitting import kernel_parameters, splitting_kernels
-
         self.integrator = integrator
         self.system = system
         P, uniform = kernel_parameters(system.parameters)

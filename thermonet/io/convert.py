@@ -10,6 +10,7 @@ tension per spring (thermal ones only with thermal coupling).
 from __future__ import annotations
 
 import numpy as np
+from ..errors import InputError
 
 
 def net_mesh(net):
@@ -57,8 +58,6 @@ def to_pyvista(mesh):
     """A ``pyvista.UnstructuredGrid`` of a meshio mesh from :func:`net_mesh` or
     :func:`simulation_mesh` (PyVista imported here: an optional dependency, ``pip install
     'thermonet[vis]'``)."""
-    from ..errors import InputError
-
     try:
         import pyvista as pv
     except ImportError:

@@ -26,6 +26,8 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
+from .. import __version__
+from ..errors import InputError
 from .atomic import atomic_write, direct_writes_possible, release_page_cache
 from .checkpoint import load_checkpoint, save_checkpoint
 from .pvd import PVDIndex
@@ -183,8 +185,6 @@ class RunOutput:
             fields = available_fields(sim)
         unknown = [f for f in fields if f not in FIELDS]
         if unknown:
-            from ..errors import InputError
-
             raise InputError(f"unknown output field {unknown[0]!r}; fields: {', '.join(FIELDS)}")
         if material_id is None:
             material_id = np.zeros(sim.net.n_springs, dtype=np.int32)
@@ -368,8 +368,6 @@ def versions() -> dict:
     import meshio
     import numba
     import scipy
-
-    from .. import __version__
 
     return {"thermonet": __version__, "python": platform.python_version(), "numpy": np.__version__,
             "numba": numba.__version__, "scipy": scipy.__version__, "meshio": meshio.__version__}

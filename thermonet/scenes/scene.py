@@ -12,6 +12,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..errors import InputError
+from ..heat.parameters import TRANSPORT_PARAMETERS
+from ..materials.continuum import CONTINUUM_KEYS, region_problem
+from ..models import get_model
 from .schema import FIELD_NAMES, Invalid, validate
 from .source import SceneError, apply_overrides, key_lines, parse_toml
 
@@ -311,13 +314,8 @@ def check(scene: Scene) -> None:
         raise scene.error(f"materials.{second}.model",
                           f"a run uses one model, but the scene names several ({listing}); "
                           "per-region materials are per-region parameter values of one model")
-    from ..heat.parameters import TRANSPORT_PARAMETERS
-    from ..models import get_model
-
     model = get_model(next(iter(models), "hencky"))
     # --- continuum materials (docs/continuum.md) ---
-    from ..materials.continuum import CONTINUUM_KEYS, region_problem
-
     known = ["model", *model.parameters, *TRANSPORT_PARAMETERS, *CONTINUUM_KEYS]
     for region, params in d["materials"].items():  # a typo, before what it leaves missing
         for k in params:

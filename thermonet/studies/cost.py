@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..errors import InputError
 from ..integrators import get_integrator
 from .convergence import time_steps
 from .reference import DEFAULT_CHECK, DEFAULT_RTOL, ReferenceSolution, assemble_reference, reference_tasks
@@ -160,8 +161,6 @@ def cost_study(scene: str, integrators, dt: float = 0.1, halvings: int = 8, t_en
     ``scipy-<method>-numpy``) or "both".
     """
     if scipy_rhs not in ("compiled", "numpy", "both"):
-        from ..errors import InputError
-
         raise InputError(f"scipy_rhs must be 'compiled', 'numpy' or 'both', got {scipy_rhs!r}")
     variants = {"compiled": [(True, "")], "numpy": [(False, "-numpy")],
                 "both": [(True, ""), (False, "-numpy")]}[scipy_rhs]

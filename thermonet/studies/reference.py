@@ -16,6 +16,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from ..errors import InputError, SimulationError
 from .runner import Runner
 from .snapshot import QUANTITIES, Snapshot
 from .tasks import integrator_endpoint, ode_endpoint
@@ -51,8 +52,6 @@ def reference_tasks(scene: str, t_end: float, rtol: float = DEFAULT_RTOL, check=
     (their distance bounds the reference's error for any converging integrator)."""
     if effects:
         if check is None:
-            from ..errors import InputError
-
             raise InputError(f"the scene has {', '.join(effects)}, which Hamilton's equations leave out: the "
                              "reference is an integrator at a fine step (--check INTEGRATOR:H), not 'none'")
         name, h = check
@@ -66,8 +65,6 @@ def reference_tasks(scene: str, t_end: float, rtol: float = DEFAULT_RTOL, check=
 
 def assemble_reference(ref_result: dict, check_result: dict | None, t_end: float, rtol: float = DEFAULT_RTOL,
                        check=DEFAULT_CHECK, effects=()) -> ReferenceSolution:
-    from ..errors import SimulationError
-
     snap = ref_result["snapshot"]
     if effects:
         name, h = check

@@ -12,7 +12,7 @@ import time
 
 import numpy as np
 
-from ..errors import ThermonetError
+from ..errors import InputError, ThermonetError
 from .scenes import make_simulation
 from .snapshot import Snapshot
 
@@ -41,8 +41,6 @@ def check_steps(t_end: float, h: float) -> int:
     states at the same time)."""
     n = round(t_end / h)
     if n < 1 or abs(n * h - t_end) > 1e-9 * t_end:
-        from ..errors import InputError
-
         raise InputError(f"t_end = {t_end:g} is not a whole number of steps h = {h:g}")
     return int(n)
 
