@@ -14,6 +14,7 @@ import numpy as np
 
 from .integrators.base import StepFailure
 from .kernels.springs import map_springs
+from .stability import stability_interval
 
 #: default admissible stretches l/l0 of the blow-up detector (open interval)
 STRETCH_BOUNDS = (1e-4, 1e4)
@@ -28,8 +29,6 @@ def remedy(integrator, h: float) -> str:
     ones, and GTR-1/2 and HO4, whose limits are hω < 2 and 2√2), EM2, which has none (energy is
     exact at any step; the fast modes lose accuracy, not stability). For EM2 itself: a smaller h
     (its failures are Newton's) or retries as substeps."""
-    from .stability import stability_interval
-
     smaller = f"a smaller h than {h:g} (`thermonet info` estimates the stable step)"
     if getattr(integrator, "unconditionally_stable", False):
         return (f"Try a smaller h than {h:g}, or let {integrator.name} retry failed steps as substeps "

@@ -8,6 +8,7 @@ import math
 
 import numpy as np
 
+from .cuda import require_cuda
 from .errors import InputError
 from .integrators import explicit_integrators
 from .kernels.springs import map_springs
@@ -25,8 +26,6 @@ def check_backend(backend, integrator) -> str:
         if not integrator.explicit:
             raise InputError(f"integrator {integrator.name!r} is implicit; backend 'cuda' runs only the explicit "
                              f"integrators ({', '.join(explicit_integrators())})")
-        from .cuda import require_cuda
-
         require_cuda()
     return name
 

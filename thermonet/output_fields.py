@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .heat.fields import heat_rate, junction_temperature
 from .kernels.gather import as_index, passes
 from .kernels.springs import frame_spring_kernel
 
@@ -81,8 +82,6 @@ class OutputFields:
 
     def _write_heat_fields(self, heat, t: float) -> None:
         """node_temperature as junction temperatures, heat_rate per spring (user numbering)."""
-        from .heat.fields import heat_rate, junction_temperature
-
         lay = self.sim.layout
         if "node_temperature" in self.point:
             self.point["node_temperature"][lay.node_order] = junction_temperature(heat, lay, self._theta_internal, t)

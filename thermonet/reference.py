@@ -17,6 +17,7 @@ from dataclasses import dataclass
 from typing import Callable, Mapping
 
 import numpy as np
+
 from .integrators.splitting import YOSHIDA4, YOSHIDA6A
 
 # ---------------------------------------------------------------------------------------------

@@ -23,6 +23,7 @@ from .diagnostics import Diagnostics, spring_fields
 from .driver import Runner
 from .errors import InputError, SimulationError
 from .heat.logs import heat_logs
+from .heat.multirate import check_conduction_every
 from .heat.parameters import split_parameters
 from .heat.setup import build_heat
 from .inputs import (angular_momentum_reference, build_system, check_backend, check_energy_tolerance, check_step,
@@ -30,9 +31,12 @@ from .inputs import (angular_momentum_reference, build_system, check_backend, ch
 from .integrators import get_integrator
 from .kernels.springs import log_strain
 from .layout import build_layout
+from .loads.setup import SimulationLoads, check_load_support, hold_driven_axes, resolve
 from .materials.continuum import apply_continuum
 from .models import get_model
 from .net import Net
+from .output_fields import OutputFields
+from .probes import Probes
 from .run_guards import DEFAULT_ENERGY_TOLERANCE, StabilityGuard
 from .state import State
 
@@ -164,8 +168,6 @@ class Simulation:
         self.angular_momentum_about = angular_momentum_reference(net)
         heat = build_heat(net, layout, self.model, P_user, transport, thermal=thermal, conduction=conduction,
                           waves=thermal_waves, baths=baths, sources=sources)
-        from .loads.setup import SimulationLoads, check_load_support, hold_driven_axes, resolve
-
         load_set = resolve(loads, net)
         check_load_support(load_set, self.integrator, self.backend)
         self.system = build_system(net, self.model, layout, P_user, gravity, thermal, stretch_bounds, heat, load_set)
@@ -180,8 +182,6 @@ class Simulation:
         self._state = initial_state(net, self.model, layout, P_user, thermal, temperatures, momenta, velocities)
         if heat is not None:
             heat_logs(self._state, heat)
-        from .heat.multirate import check_conduction_every
-
         self.conduction_every = check_conduction_every(conduction_every)
         if heat is not None and heat.conduction and self.conduction_every != "auto":  # cycles counted from step 0
             heat_logs(self._state, heat)["cycle"][:] = (self.conduction_every, 0)
@@ -251,8 +251,6 @@ class Simulation:
         one quantity at a cadence; docs/scenes.md). Every later :meth:`run` records them;
         ``self.probes.series`` holds the rows, ``self.probes.to_csv(folder)`` writes them.
         Returns the :class:`~thermonet.probes.Probes`."""
-        from .probes import Probes
-
         self.probes = Probes(self, probes)
         return self.probes
 
@@ -384,8 +382,6 @@ class Simulation:
         points (n, 3) the positions; point: name -> target of ``displacement``, ``velocity``,
         ``momentum`` ((n, 3)) or ``node_temperature`` ((n,)); cell: name -> (m,) target of
         ``temperature``, ``tension``, ``strain``, ``entropy``, ``thermal_displacement``."""
-        from .output_fields import OutputFields
-
         return OutputFields(self, points, point, cell)
 
     def conservation_summary(self) -> dict:

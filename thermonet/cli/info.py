@@ -12,8 +12,13 @@ from ..builders import from_meshio, read_meshio
 from ..errors import InputError
 from ..heat.exchange import BATH
 from ..heat.graph import pairs_per_spring
+from ..heat.multirate import choose_cycle
+from ..materials.homogenize import boundary_nodes, box_boundary
+from ..materials.report import describe, measure
 from ..materials.rigidity import floppy_modes
+from ..scenes import load_scene
 from ..simulation import Simulation
+from ..stability import stability_interval, stable_step
 
 HELP = "describe a mesh or a scene: nodes, springs, cell types, groups, materials, memory, stable step"
 
@@ -73,8 +78,6 @@ def describe_mesh(path: str) -> list[str]:
 
 
 def describe_scene(path: str, overrides) -> list[str]:
-    from ..scenes import load_scene
-
     scene = load_scene(path, overrides)
     built = scene.build()
     net, sim = built.net, built.simulation
@@ -181,8 +184,6 @@ def _heat_flow(sim, specs: dict, cadences=()) -> list[str]:
 
 def conduction_line(sim, cadences=()) -> str:
     """Which conduction cycle a run with output ``cadences`` (steps) takes, and why."""
-    from ..heat.multirate import choose_cycle
-
     try:
         k, why = choose_cycle(sim.conduction_every, sim.system.heat.fastest_rate(), sim.h, cadences)
     except InputError as exc:  # (run refuses it the same way)
@@ -197,9 +198,6 @@ def _span(values) -> str:
 
 def _continuum(built) -> list[str]:
     """The effective properties the net has, measured on it (docs/continuum.md)."""
-    from ..materials.homogenize import boundary_nodes, box_boundary
-    from ..materials.report import describe, measure
-
     net, cmap = built.net, built.continuum
     boundary = boundary_nodes(built.mesh, net) if built.mesh is not None else box_boundary(net.positions)
     eff = measure(net, built.simulation.model, built.parameters, cmap.volume, boundary, cmap.dimension)
@@ -225,8 +223,6 @@ def _groups(net) -> list[str]:
 
 def _stable_step(sim, where: str) -> str:
     import math
-
-    from ..stability import stability_interval, stable_step
 
     if getattr(sim.integrator, "unconditionally_stable", False):
         return (f"  stable step: none, {sim.integrator.name} has no stability limit (energy exact at any step; "

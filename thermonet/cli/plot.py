@@ -7,6 +7,7 @@ import csv
 import os
 
 import numpy as np
+
 from ..errors import InputError
 
 HELP = "plot a run's diagnostics.csv and probe CSVs as PNGs (energy, balance, entropy, momenta, loads, probes)"

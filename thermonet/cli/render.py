@@ -6,7 +6,9 @@ from __future__ import annotations
 import os
 
 import numpy as np
+
 from ..errors import InputError
+from ..io import read_pvd
 
 HELP = "render a frame of a run's output to a PNG (springs as tubes coloured by temperature; needs PyVista)"
 
@@ -20,8 +22,6 @@ def add_args(p) -> None:
 
 
 def handle(args) -> int:
-    from ..io import read_pvd
-
     try:
         import pyvista as pv
     except ImportError:

@@ -7,9 +7,19 @@ import contextlib
 import os
 import sys
 import warnings
+
 from ..blowup import remedy
 from ..errors import InputError, OutputError, SimulationError, ThermonetError
+from ..io import RunOutput, atomic_write, load_checkpoint
+from ..io.folder import (check_output_folder, check_writable, describe_os_error, fresh_folder, prepare_output_folder,
+                         remove_stale_temporaries)
+from ..probes import scene_probes
 from ..run_guards import broken_conservation
+from ..scenes import load_scene, scene_from_text
+from ..scenes.scene import FREE_ON_RESUME, trajectory_changes
+from ..step_policy import StepWarning, UnstableStepError, check_step
+from .progress import ProgressBar
+from .report import format_summary
 
 HELP = "run a scene and write VTU/PVD frames, diagnostics.csv, summary.json and checkpoints"
 
@@ -54,8 +64,6 @@ def overrides_of(args) -> list[str]:
 
 
 def handle(args) -> int:
-    from .progress import ProgressBar
-
     progress = None if args.quiet else ProgressBar()
     record = RunLog(getattr(args, "argv", None))
     with record.capturing():
@@ -172,12 +180,6 @@ class StopRequest:
 
 
 def _run(args, progress, record=None) -> int:
-    from ..io import RunOutput, load_checkpoint
-    from ..io.folder import (check_output_folder, check_writable, describe_os_error, fresh_folder,
-                             prepare_output_folder, remove_stale_temporaries)
-    from ..scenes import load_scene, scene_from_text
-    from .report import format_summary
-
     overrides = overrides_of(args)
     state = meta = None
     if args.resume and args.overwrite:
@@ -230,16 +232,12 @@ def _run(args, progress, record=None) -> int:
         if note and not args.quiet:
             print(f"thermonet: warning: {note}", file=sys.stderr)
     total = scene.total_steps()
-    from ..probes import scene_probes
-
     probes = scene_probes(scene, sim)  # attached: every run of sim records them
     if state is None:  # the new run is built and checked: only now may a previous run's files go
         prepare_output_folder(folder, overwrite=args.overwrite)
     if record is not None:
         record.folder = folder
     try:  # the scene as run (overrides applied), beside its output
-        from ..io import atomic_write
-
         with atomic_write(os.path.join(folder, SCENE_AS_RUN), "w") as f:
             f.write(scene.as_run())
     except OSError as exc:
@@ -311,9 +309,6 @@ def _refuse_other_scene(checkpoint, saved, scene) -> None:
     """A checkpoint whose scene hash differs: allowed where only keys free on resume changed
     (a checkpoint of another version's hash), refused naming the keys that changed the trajectory,
     or the mesh file."""
-    from ..scenes import scene_from_text
-    from ..scenes.scene import FREE_ON_RESUME, trajectory_changes
-
     free = ", ".join(f"integrator.{k}" for k in FREE_ON_RESUME)
     try:
         before = scene_from_text(saved["text"], file=saved["file"], base_dir=saved["base_dir"],
@@ -369,8 +364,6 @@ def _run_warnings(quiet: bool, progress):
             sys.stderr.write("\n")
         print(f"thermonet: warning: {message}", file=sys.stderr)
 
-    from ..step_policy import StepWarning
-
     with warnings.catch_warnings():
         warnings.simplefilter("always", StepWarning)  # the guard warns once per run itself
         warnings.showwarning = show
@@ -381,8 +374,6 @@ def _check_step(sim, scene, args) -> None:
     """The step-limit policy (thermonet.step_policy) at the initial state: refuse (an InputError)
     or warn on stderr."""
     import warnings
-
-    from ..step_policy import StepWarning, UnstableStepError, check_step
 
     allow = args.allow_unstable_step or not scene["integrator"]["check_step"]
     with warnings.catch_warnings():

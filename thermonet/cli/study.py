@@ -10,8 +10,10 @@ from __future__ import annotations
 import math
 import os
 import sys
+
 from ..errors import InputError, UnknownNameError
 from ..integrators import available_integrators
+from ..step_policy import StepWarning
 
 HELP = "convergence, cost (work-precision) and long-run energy studies of the integrators"
 
@@ -118,8 +120,6 @@ def handle(args) -> int:
     scene_tag = os.path.splitext(os.path.basename(args.scene))[0]
     out = args.out or os.path.join("thermonet-out", f"study-{args.study}-{scene_tag}")
     import warnings
-
-    from ..step_policy import StepWarning
 
     warnings.simplefilter("ignore", StepWarning)  # a run near its limit is measured, and reported if it fails
     with Runner(serial=args.serial, scheduler=args.scheduler, n_workers=args.workers) as runner:

@@ -10,6 +10,7 @@ tension per spring (thermal ones only with thermal coupling).
 from __future__ import annotations
 
 import numpy as np
+
 from ..errors import InputError
 
 

@@ -26,10 +26,10 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
-from .. import __version__
 from ..errors import InputError
 from .atomic import atomic_write, direct_writes_possible, release_page_cache
 from .checkpoint import load_checkpoint, save_checkpoint
+from .folder import check_writable, prepare_output_folder, remove_stale_temporaries
 from .pvd import PVDIndex
 from .vtu import FrameImage, VTUWriter
 
@@ -174,8 +174,6 @@ class RunOutput:
         or a cadence (``load_checkpoint`` and ``sim.load_state`` continue from one). resume: the
         folder holds the run to continue (kept as it is; then :meth:`resume` from its checkpoint).
         """
-        from .folder import check_writable, prepare_output_folder, remove_stale_temporaries
-
         if resume:
             check_writable(folder)
             remove_stale_temporaries(folder)
@@ -368,6 +366,8 @@ def versions() -> dict:
     import meshio
     import numba
     import scipy
+
+    from .. import __version__  # (the package defines it after its imports, this module among them)
 
     return {"thermonet": __version__, "python": platform.python_version(), "numpy": np.__version__,
             "numba": numba.__version__, "scipy": scipy.__version__, "meshio": meshio.__version__}

@@ -16,6 +16,7 @@ no drift, of the integrator's order).
 from __future__ import annotations
 
 import numpy as np
+
 from ..kernels.specialize import rebind
 from ..timefunctions import evaluate as evaluate_, evaluate_rate as evaluate_rate_
 

@@ -13,8 +13,10 @@ import os
 import tempfile
 
 import numpy as np
+
 from ..builders import read_mesh
 from ..simulation import Simulation
+from .report import spring_rest_values
 from .rigidity import stiffness
 
 #: the bar (length, width, height) and the material the checks use (consistent units; any
@@ -82,8 +84,6 @@ def wave_speed(net) -> float:
     d²F/dl² of its springs from the model; its lumped masses): ω L / π over √(E/ρ)."""
     from scipy.sparse import diags
     from scipy.sparse.linalg import eigsh
-
-    from .report import spring_rest_values
 
     sim = Simulation(net, parameters=parameters(), integrator="co2", h=1e-3)
     P = sim.layout.springs_to_user(sim.system.parameters.T).T

@@ -13,6 +13,7 @@ import numpy as np
 from ..builders import chain, from_meshio, lattice, read_meshio, triangle
 from ..errors import InputError
 from ..heat.setup import Bath, Source
+from ..loads.scene import scene_loads
 from ..materials.continuum import CONTINUUM_KEYS, apply_regions
 from ..models import get_model
 from ..net import Net
@@ -59,8 +60,6 @@ def build_scene(scene: Scene) -> BuiltScene:
     init = d["initial"]
     kind = "momentum" if init["momentum"] is not None else "velocity"
     motion = node_vectors(scene, net, mesh, kind)
-    from ..loads.scene import scene_loads  # loads
-
     loads = scene_loads(scene, net)  # loads
     try:
         sim = Simulation(

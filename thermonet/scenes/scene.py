@@ -15,6 +15,8 @@ from ..errors import InputError
 from ..heat.parameters import TRANSPORT_PARAMETERS
 from ..materials.continuum import CONTINUUM_KEYS, region_problem
 from ..models import get_model
+from ..step_policy import whole_steps
+from .build import build_scene
 from .schema import FIELD_NAMES, Invalid, validate
 from .source import SceneError, apply_overrides, key_lines, parse_toml
 
@@ -100,8 +102,6 @@ class Scene:
     def total_steps(self) -> int:
         """Steps from t = 0 to the scene's end (t_end must be a whole number of steps; checked
         when the scene is loaded)."""
-        from ..step_policy import whole_steps
-
         integ = self.data["integrator"]
         if integ.get("steps") is not None:
             return int(integ["steps"])
@@ -144,8 +144,6 @@ class Scene:
 
     def build(self):
         """The :class:`~thermonet.scenes.build.BuiltScene` (net, simulation, material ids)."""
-        from .build import build_scene
-
         return build_scene(self)
 
 
@@ -259,8 +257,6 @@ def check(scene: Scene) -> None:
     if (integ.get("t_end") is None) == (integ.get("steps") is None):
         raise scene.error("integrator", "give exactly one of integrator.t_end or integrator.steps")
     if integ.get("t_end") is not None:
-        from ..step_policy import whole_steps
-
         try:
             whole_steps(integ["t_end"], integ["h"])
         except InputError as exc:

@@ -30,7 +30,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..integrators import get_integrator
-from .convergence import time_steps
+from .convergence import default_check, time_steps
 from .reference import DEFAULT_CHECK, DEFAULT_RTOL, ReferenceSolution, assemble_reference, reference_tasks
 from .runner import Runner
 from .scenes import check_scene, scene_effects
@@ -173,8 +173,6 @@ def cost_study(scene: str, integrators, dt: float = 0.1, halvings: int = 8, t_en
         check_steps(t_end, h)
     effects = scene_effects(scene)
     if effects:  # SciPy's baselines solve Hamilton's equations, which leave these out: no baseline
-        from .convergence import default_check
-
         scipy = {}
         if check is DEFAULT_CHECK:
             check = default_check(scene, t_end, hs[-1], effects)

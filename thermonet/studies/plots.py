@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+
 from ..errors import InputError
 
 LABELS = {"position": "error in position", "momentum": "error in momentum", "temperature": "error in temperature"}

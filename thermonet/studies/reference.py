@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 from ..errors import InputError, SimulationError
 from .runner import Runner
+from .scenes import scene_effects
 from .snapshot import QUANTITIES, Snapshot
 from .tasks import integrator_endpoint, ode_endpoint
 
@@ -88,8 +89,6 @@ def reference_solution(scene: str, t_end: float, rtol: float = DEFAULT_RTOL, che
                        runner: Runner | None = None) -> ReferenceSolution:
     """Compute the reference (and its check, in parallel on ``runner``); for a scene with effects
     beyond Hamilton's equations, see :func:`reference_tasks`."""
-    from .scenes import scene_effects
-
     runner = runner or Runner(serial=True)
     effects = scene_effects(scene)
     ref, chk = reference_tasks(scene, t_end, rtol, check, effects)
