@@ -44,8 +44,6 @@ def _mb(b: float) -> str:
 
 def handle(args) -> int:
     target = args.target
-    from ..errors import InputError
-
     if os.path.isdir(target):
         raise InputError(f"{target}: is a folder; give a mesh file or a scene (.toml)")
     if not os.path.exists(target):

@@ -171,8 +171,6 @@ def default_check(scene: str, t_end: float, finest: float | None = None, effects
     reference itself: CO4 at ``finest`` (the study's finest step) / 16, or half its stability
     limit where that is smaller, a whole fraction of ``t_end`` by an even number of steps (its
     check runs at twice the step)."""
-    from .scenes import make_simulation, scene_effects
-
     if effects is None:
         effects = scene_effects(scene)
     if effects:
