@@ -3,7 +3,8 @@
 The explicit kernel only counts springs outside the admissible states (it must stay cheap);
 when it stops, this module finds the first such spring (user numbering) at the positions where
 it was found and names the quantity: a non-finite position, a stretch l/l0 beyond the bounds, a
-temperature θ ≤ 0, or a non-finite tension.
+temperature θ ≤ 0, or a non-finite tension; :func:`blowup_failure` wraps that as the
+:class:`~thermonet.integrators.base.StepFailure` the CPU and CUDA steppers raise.
 """
 
 from __future__ import annotations
