@@ -115,7 +115,7 @@ class Runner:
             while sim._state.step < end:
                 cur = sim._state.step
                 stop = min([end] + [(cur // k + 1) * k for k, _ in cadences])
-                self.advance(stop - cur, measure=stop % cadences[0][0] == 0 or stop == end)
+                self.advance(stop - cur, measure=stop % int(diagnostics_every) == 0 or stop == end)
                 done = sim._state.step
                 for k, cb in cadences:
                     if done % k == 0 or done == end:
