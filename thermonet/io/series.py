@@ -26,6 +26,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
+from .. import __version__
 from ..errors import InputError
 from .atomic import atomic_write, direct_writes_possible, release_page_cache
 from .checkpoint import load_checkpoint, save_checkpoint
@@ -366,8 +367,6 @@ def versions() -> dict:
     import meshio
     import numba
     import scipy
-
-    from .. import __version__  # (the package defines it after its imports, this module among them)
 
     return {"thermonet": __version__, "python": platform.python_version(), "numpy": np.__version__,
             "numba": numba.__version__, "scipy": scipy.__version__, "meshio": meshio.__version__}
