@@ -8,19 +8,6 @@ import os
 import sys
 import warnings
 
-from ..blowup import remedy
-from ..errors import InputError, OutputError, SimulationError, ThermonetError
-from ..io import RunOutput, atomic_write, load_checkpoint
-from ..io.folder import (check_output_folder, check_writable, describe_os_error, fresh_folder, prepare_output_folder,
-                         remove_stale_temporaries)
-from ..probes import scene_probes
-from ..run_guards import broken_conservation
-from ..scenes import load_scene, scene_from_text
-from ..scenes.scene import FREE_ON_RESUME, trajectory_changes
-from ..step_policy import StepWarning, UnstableStepError, check_step
-from .progress import ProgressBar
-from .report import format_summary
-
 HELP = "run a scene and write VTU/PVD frames, diagnostics.csv, summary.json and checkpoints"
 
 #: the copy of the scene as run, in the output folder
@@ -64,6 +51,9 @@ def overrides_of(args) -> list[str]:
 
 
 def handle(args) -> int:
+    from ..errors import ThermonetError
+    from .progress import ProgressBar
+
     progress = None if args.quiet else ProgressBar()
     record = RunLog(getattr(args, "argv", None))
     with record.capturing():
@@ -180,6 +170,14 @@ class StopRequest:
 
 
 def _run(args, progress, record=None) -> int:
+    from ..errors import InputError, OutputError, SimulationError
+    from ..io import RunOutput, load_checkpoint
+    from ..io.folder import (check_output_folder, check_writable, describe_os_error, fresh_folder,
+                             prepare_output_folder, remove_stale_temporaries)
+    from ..run_guards import broken_conservation
+    from ..scenes import load_scene, scene_from_text
+    from .report import format_summary
+
     overrides = overrides_of(args)
     state = meta = None
     if args.resume and args.overwrite:
@@ -232,12 +230,16 @@ def _run(args, progress, record=None) -> int:
         if note and not args.quiet:
             print(f"thermonet: warning: {note}", file=sys.stderr)
     total = scene.total_steps()
+    from ..probes import scene_probes
+
     probes = scene_probes(scene, sim)  # attached: every run of sim records them
     if state is None:  # the new run is built and checked: only now may a previous run's files go
         prepare_output_folder(folder, overwrite=args.overwrite)
     if record is not None:
         record.folder = folder
     try:  # the scene as run (overrides applied), beside its output
+        from ..io import atomic_write
+
         with atomic_write(os.path.join(folder, SCENE_AS_RUN), "w") as f:
             f.write(scene.as_run())
     except OSError as exc:
@@ -309,6 +311,10 @@ def _refuse_other_scene(checkpoint, saved, scene) -> None:
     """A checkpoint whose scene hash differs: allowed where only keys free on resume changed
     (a checkpoint of another version's hash), refused naming the keys that changed the trajectory,
     or the mesh file."""
+    from ..errors import InputError
+    from ..scenes import scene_from_text
+    from ..scenes.scene import FREE_ON_RESUME, trajectory_changes
+
     free = ", ".join(f"integrator.{k}" for k in FREE_ON_RESUME)
     try:
         before = scene_from_text(saved["text"], file=saved["file"], base_dir=saved["base_dir"],
@@ -332,6 +338,8 @@ def _refuse_other_scene(checkpoint, saved, scene) -> None:
 
 
 def _remedy(integrator, h) -> str:
+    from ..blowup import remedy
+
     return remedy(integrator, h)
 
 
@@ -364,6 +372,8 @@ def _run_warnings(quiet: bool, progress):
             sys.stderr.write("\n")
         print(f"thermonet: warning: {message}", file=sys.stderr)
 
+    from ..step_policy import StepWarning
+
     with warnings.catch_warnings():
         warnings.simplefilter("always", StepWarning)  # the guard warns once per run itself
         warnings.showwarning = show
@@ -374,6 +384,8 @@ def _check_step(sim, scene, args) -> None:
     """The step-limit policy (thermonet.step_policy) at the initial state: refuse (an InputError)
     or warn on stderr."""
     import warnings
+
+    from ..step_policy import StepWarning, UnstableStepError, check_step
 
     allow = args.allow_unstable_step or not scene["integrator"]["check_step"]
     with warnings.catch_warnings():

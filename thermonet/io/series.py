@@ -27,10 +27,8 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 
 from .. import __version__
-from ..errors import InputError
 from .atomic import atomic_write, direct_writes_possible, release_page_cache
 from .checkpoint import load_checkpoint, save_checkpoint
-from .folder import check_writable, prepare_output_folder, remove_stale_temporaries
 from .pvd import PVDIndex
 from .vtu import FrameImage, VTUWriter
 
@@ -175,6 +173,8 @@ class RunOutput:
         or a cadence (``load_checkpoint`` and ``sim.load_state`` continue from one). resume: the
         folder holds the run to continue (kept as it is; then :meth:`resume` from its checkpoint).
         """
+        from .folder import check_writable, prepare_output_folder, remove_stale_temporaries
+
         if resume:
             check_writable(folder)
             remove_stale_temporaries(folder)
@@ -184,6 +184,8 @@ class RunOutput:
             fields = available_fields(sim)
         unknown = [f for f in fields if f not in FIELDS]
         if unknown:
+            from ..errors import InputError
+
             raise InputError(f"unknown output field {unknown[0]!r}; fields: {', '.join(FIELDS)}")
         if material_id is None:
             material_id = np.zeros(sim.net.n_springs, dtype=np.int32)
