@@ -1,7 +1,7 @@
 """Generate the meshes shipped in meshes/ with gmsh (``python meshes/make_meshes.py``).
 
-- chain.msh: the paper's chain of three springs (spec §3.1): nodes 0..3, node 0 the anchor.
-- triangle.msh: the paper's triangle net (spec §3.2).
+- chain.msh: the paper's chain of three springs (Mata & Lew 2011 §5.1): nodes 0..3, node 0 the anchor.
+- triangle.msh: the paper's triangle net (Mata & Lew 2011 §5.2).
 - lattice2d.msh: a 2D triangulated 8×4 lattice, clamped on its left edge, two materials.
 - truss_block.msh: a 3D tetrahedral truss block 4×1×1 made of four unit slabs: materials
   "soft" (x < 2) and "stiff" (x > 2), a "hot" tip slab (x > 3), a clamped face "clamp" (x = 0)

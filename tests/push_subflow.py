@@ -1,28 +1,31 @@
 """A sub-flow defined outside the package, as docs/architecture.md's worked example: a constant
 push f on listed nodes, p_a += τ f_a. Nothing in ``thermonet/`` knows of it; the CPU kernel and
-both CUDA launch modes run it from its one definition here."""
+both CUDA launch modes run it from its one definition, which is the example's own code: this
+module takes the imports and definitions of that code block (``push_update``, ``push``)."""
 
 from __future__ import annotations
 
-import numpy as np
+import ast
+import os
+import re
 
-from thermonet.integrators.schedule import SubFlow
-
-
-def push_update(i, data, tau, t, x, p, phi, eta):
-    """Element i of the push: node data[0][i] (internal numbering) gets tau × force data[1][i]."""
-    a = data[0][i]
-    p[a, 0] += tau * data[1][i, 0]
-    p[a, 1] += tau * data[1][i, 1]
-    p[a, 2] += tau * data[1][i, 2]
+DOC = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "docs", "architecture.md")
 
 
-def push(nodes, force) -> SubFlow:
-    """The push of ``force`` (3,) on each of the user's ``nodes``."""
-    nodes = np.asarray(nodes, dtype=np.int64)
-    force = np.asarray(force, dtype=np.float64)
+def example_code(name: str) -> str:
+    """The python block that follows ``<!-- example: name -->`` in docs/architecture.md."""
+    with open(DOC, encoding="utf-8") as f:
+        text = f.read()
+    found = re.search(rf"<!-- example: {re.escape(name)} -->\n```python\n(.*?)\n```", text, re.S)
+    if found is None:
+        raise LookupError(f"docs/architecture.md has no example {name!r}")
+    return found.group(1)
 
-    def prepare(system):
-        return system.layout.node_rank[nodes].astype(np.int64), np.tile(force, (len(nodes), 1))
 
-    return SubFlow("push", push_update, prepare, "a constant force on listed nodes")
+def _definitions(code: str) -> ast.Module:
+    tree = ast.parse(code)
+    tree.body = [n for n in tree.body if isinstance(n, (ast.Import, ast.ImportFrom, ast.FunctionDef))]
+    return tree
+
+
+exec(compile(_definitions(example_code("subflow")), f"{DOC} (example: subflow)", "exec"), globals())

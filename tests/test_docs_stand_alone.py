@@ -1,5 +1,5 @@
 """The repository's text stands on its own: no file of thermonet/, tests/, benchmarks/,
-examples/, docs/ or the README cites a file outside the repository (the folder beside it, a
+examples/, docs/, scenes/, meshes/ or the README cites a file outside the repository (the folder beside it, a
 private specification's sections) or a tracker issue a reader cannot see. Theory is cited as
 docs/theory.md §n.m, which this test also checks exists for every section cited."""
 
@@ -9,7 +9,7 @@ import re
 import pytest
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-FOLDERS = ("thermonet", "tests", "benchmarks", "examples", "docs")
+FOLDERS = ("thermonet", "tests", "benchmarks", "examples", "docs", "scenes", "meshes")
 TEXT = (".py", ".md", ".toml", ".txt", ".cfg", ".sh", ".json", ".ini", ".yaml", ".yml")
 
 #: what a reader outside the project's own tree cannot follow (written so as not to match itself)

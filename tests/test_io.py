@@ -416,7 +416,8 @@ def test_frame_spring_pass_equals_the_public_accessors_bit_for_bit(parallel, mod
     """The frame's one spring pass (computed and scattered to user order) against
     sim.temperatures(), tensions(), strains() and the state's η and Φ; strains within an ulp of
     NumPy's log."""
-    from thermonet.kernels.springs import frame_spring_kernel
+    from thermonet.kernels.records import Springs
+    from thermonet.kernels.springs import FrameFields, frame_spring_kernel
 
     net = tn.lattice((4, 3, 3), jitter=0.2, seed=3)
     rng = np.random.default_rng(5)
@@ -431,10 +432,10 @@ def test_frame_spring_pass_equals_the_public_accessors_bit_for_bit(parallel, mod
     eta = s.entropy if thermal else none
     phi = s.thermal_displacement if thermal else none
     kernel = frame_spring_kernel(system.model, thermal, parallel)
-    kernel(s.positions, eta, phi, (system.rest_lengths, system.parameters), system.edges.view(np.uint32),
-           np.ascontiguousarray(sim.layout.spring_order, dtype=np.int64), np.empty((4, m)),
-           (out["temperature"], out["tension"], out["strain"], out["entropy"] if thermal else none,
-            out["phi"] if thermal else none), out["internal"])
+    fields = FrameFields(temperature=out["temperature"], tension=out["tension"], strain=out["strain"],
+                         entropy=out["entropy"] if thermal else none, thermal_displacement=out["phi"] if thermal else none)
+    kernel(s.positions, eta, phi, Springs(system.rest_lengths, system.parameters), system.edges.view(np.uint32),
+           np.ascontiguousarray(sim.layout.spring_order, dtype=np.int64), np.empty((4, m)), fields, out["internal"])
     np.testing.assert_array_equal(out["temperature"], sim.temperatures())
     np.testing.assert_array_equal(out["internal"], sim.internal_spring_fields().temperature)
     np.testing.assert_array_equal(out["tension"], sim.tensions())

@@ -4,6 +4,9 @@ Implements the variational integrators of Mata & Lew, "Variational time integrat
 dimensional thermo-elasto-dynamics without heat conduction", IJNME 88 (2011) 1-30.
 """
 
+#: set before the imports below, so that a module they load may read it at its own import
+__version__ = "0.1.0"
+
 from .builders import chain, from_meshio, lattice, read_mesh, triangle
 from .diagnostics import Diagnostics
 from .errors import InputError, MeshError, SimulationError, ThermonetError, UnknownNameError
@@ -16,7 +19,6 @@ from .simulation import Simulation
 from .state import State
 from .timefunctions import TimeFunction
 
-__version__ = "0.1.0"
 
 __all__ = [
     "Net", "chain", "triangle", "lattice", "read_mesh", "from_meshio",

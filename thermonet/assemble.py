@@ -15,6 +15,9 @@ from __future__ import annotations
 
 from typing import Callable, NamedTuple
 
+from .heat.stepper import ConductionAround, integrator_with_heat
+from .loads.implicit import ImplicitLoads
+
 
 class Assembly(NamedTuple):
     """What :func:`assemble` makes: the integrator the run reports (an explicit splitting with
@@ -29,8 +32,6 @@ def assemble(integrator, system, *, parallel: bool, backend: str, options: dict,
     """The integrator and stepper of a run of ``system`` (heat and loads as ``system`` holds
     them). options: the stepper's options (solver settings; ``backend`` is added for a device);
     time_origin: the Simulation's clock, ``() -> (step, time)`` where the run's time starts."""
-    from .heat.stepper import ConductionAround, integrator_with_heat
-
     heat, loads = system.heat, system.loads
     if heat is not None:
         integrator = integrator_with_heat(integrator, heat, backend)
@@ -42,8 +43,6 @@ def assemble(integrator, system, *, parallel: bool, backend: str, options: dict,
         if heat is not None:
             stepper = ConductionAround(stepper, system, parallel)
         if loads is not None:
-            from .loads.implicit import ImplicitLoads
-
             stepper = ImplicitLoads(stepper, system, loads)
     if loads is not None:
         clock = getattr(stepper, "loads", None)  # the stepper's loads read their time from the run's clock

@@ -3,7 +3,8 @@
 The explicit kernel only counts springs outside the admissible states (it must stay cheap);
 when it stops, this module finds the first such spring (user numbering) at the positions where
 it was found and names the quantity: a non-finite position, a stretch l/l0 beyond the bounds, a
-temperature θ ≤ 0, or a non-finite tension.
+temperature θ ≤ 0, or a non-finite tension; :func:`blowup_failure` wraps that as the
+:class:`~thermonet.integrators.base.StepFailure` the CPU and CUDA steppers raise.
 """
 
 from __future__ import annotations
@@ -12,7 +13,9 @@ import math
 
 import numpy as np
 
+from .integrators.base import StepFailure
 from .kernels.springs import map_springs
+from .stability import stability_interval
 
 #: default admissible stretches l/l0 of the blow-up detector (open interval)
 STRETCH_BOUNDS = (1e-4, 1e4)
@@ -27,8 +30,6 @@ def remedy(integrator, h: float) -> str:
     ones, and GTR-1/2 and HO4, whose limits are hω < 2 and 2√2), EM2, which has none (energy is
     exact at any step; the fast modes lose accuracy, not stability). For EM2 itself: a smaller h
     (its failures are Newton's) or retries as substeps."""
-    from .stability import stability_interval
-
     smaller = f"a smaller h than {h:g} (`thermonet info` estimates the stable step)"
     if getattr(integrator, "unconditionally_stable", False):
         return (f"Try a smaller h than {h:g}, or let {integrator.name} retry failed steps as substeps "
@@ -79,3 +80,13 @@ def diagnose(system, positions: np.ndarray, entropy: np.ndarray | None) -> dict:
             nodes = [int(lay.node_order[a]) for a in edges[e]]
             return {"spring": int(user[k]), "nodes": nodes, "problem": phrase(e)}
     return {}
+
+
+def blowup_failure(system, positions, entropy, steps_done: int) -> StepFailure:
+    """The :class:`StepFailure` of a kernel that stopped on an inadmissible spring at
+    ``positions`` (internal numbering), naming the spring: the caller rewinds and replays
+    ``steps_done`` steps."""
+    found = diagnose(system, positions, entropy)
+    where = (f"spring {found['spring']} (nodes {found['nodes'][0]}–{found['nodes'][1]}) has {found['problem']}"
+             if found else "a spring left the admissible states")
+    return StepFailure(where, steps_done=int(steps_done), details={"rewind": True, **found})

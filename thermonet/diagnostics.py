@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .kernels.reductions import diagnostic_sums_kernel
 from .kernels.springs import spring_field_kernel
 
 CONSERVED = ("energy", "entropy", "px", "py", "pz", "Lx", "Ly", "Lz")
@@ -42,8 +43,6 @@ def spring_fields(system, positions: np.ndarray, entropy: np.ndarray, parallel: 
 
 def measure(system, state, parallel: bool = False) -> dict[str, float]:
     """One diagnostics row for ``state`` (internal numbering): two fused passes, no temporaries."""
-    from .kernels.reductions import diagnostic_sums_kernel
-
     P, uniform = system.kernel_parameters
     spring_sums, node_sums = diagnostic_sums_kernel(system.model, system.thermal, parallel, uniform)
     eta = state.entropy if system.thermal else _EMPTY

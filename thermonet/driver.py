@@ -19,10 +19,12 @@ from .blowup import remedy
 from .compile_watch import CompileWatch
 from .diagnostics import Diagnostics, diagnostics_row, measure
 from .errors import InputError, SimulationError
-from .heat.logs import balances, heat_columns, wave_energy
+from .heat.logs import balances, cycle_position, heat_columns, heat_logs, wave_energy
+from .heat.multirate import choose_cycle
 from .integrators.base import StepFailure
 from .run_guards import energy_departure
 from .state import State
+from .step_policy import whole_steps
 
 
 class Runner:
@@ -46,8 +48,6 @@ class Runner:
         """Steps from the current time to ``t_end``, which must be a whole number of steps
         (:func:`thermonet.step_policy.whole_steps`; an InputError otherwise)."""
         sim = self.sim
-        from .step_policy import whole_steps
-
         return whole_steps(t_end, sim.h, sim._state.time)
 
     def run(
@@ -115,7 +115,7 @@ class Runner:
             while sim._state.step < end:
                 cur = sim._state.step
                 stop = min([end] + [(cur // k + 1) * k for k, _ in cadences])
-                self.advance(stop - cur, measure=stop % cadences[0][0] == 0 or stop == end)
+                self.advance(stop - cur, measure=stop % int(diagnostics_every) == 0 or stop == end)
                 done = sim._state.step
                 for k, cb in cadences:
                     if done % k == 0 or done == end:
@@ -151,8 +151,6 @@ class Runner:
             return 1
         if sim.conduction_every != "auto":
             return int(sim.conduction_every)
-        from .heat.multirate import choose_cycle
-
         return choose_cycle("auto", heat.fastest_rate(), sim._h, [])[0]
 
     def _choose_conduction_cycle(self, steps: int, cadences) -> None:
@@ -163,9 +161,6 @@ class Runner:
         heat = sim.system.heat
         if heat is None or not heat.conduction or steps <= 0:
             return
-        from .heat.multirate import choose_cycle
-        from .heat.logs import cycle_position, heat_logs
-
         every, at = cycle_position(sim._state, heat)
         if at != 0:
             sim.conduction_cycle = (every, f"continuing a cycle of {every} steps begun at step "

@@ -8,8 +8,12 @@ import math
 
 import numpy as np
 
+from .cuda import require_cuda
 from .errors import InputError
+from .integrators import explicit_integrators
+from .kernels.springs import map_springs
 from .net import Net
+from .run_guards import GUARD_MODES
 from .state import State
 from .system import System
 
@@ -20,12 +24,8 @@ def check_backend(backend, integrator) -> str:
         raise InputError(f"unknown backend {backend!r}; known: cpu, cuda")
     if name == "cuda":
         if not integrator.explicit:
-            from .integrators import explicit_integrators
-
             raise InputError(f"integrator {integrator.name!r} is implicit; backend 'cuda' runs only the explicit "
                              f"integrators ({', '.join(explicit_integrators())})")
-        from .cuda import require_cuda
-
         require_cuda()
     return name
 
@@ -116,8 +116,6 @@ def angular_momentum_reference(net: Net) -> str:
 
 def guard_mode(mode) -> str:
     """The stable-step guard's mode: "stop" (True), "warn" or "off" (False, None)."""
-    from .run_guards import GUARD_MODES
-
     if mode is True:
         return "stop"
     if mode is False or mode is None:
@@ -191,8 +189,6 @@ def initial_temperatures(net, model, temperatures, P_user) -> np.ndarray:
 
 def initial_entropies(net, model, temperatures, P_user) -> np.ndarray:
     """(m,) η = Γ(l(0), θ(0)) per spring (user numbering); P_user: (k, m) parameters."""
-    from .kernels.springs import map_springs
-
     theta0 = initial_temperatures(net, model, temperatures, P_user)
     lengths = net.lengths()
     eta = np.empty(net.n_springs)

@@ -14,11 +14,13 @@ from __future__ import annotations
 
 import numpy as np
 
+from .heat.fields import heat_rate, junction_temperature
 from .kernels.gather import as_index, passes
-from .kernels.springs import frame_spring_kernel
+from .kernels.records import Springs
+from .kernels.springs import FrameFields, frame_spring_kernel
 
 #: spring fields, in the order the frame spring pass takes their targets
-SPRING_FIELDS = ("temperature", "tension", "strain", "entropy", "thermal_displacement")
+SPRING_FIELDS = FrameFields._fields  # ("temperature", "tension", "strain", "entropy", "thermal_displacement")
 #: spring fields of heat flow, computed from the temperatures (thermonet.heat.fields)
 HEAT_SPRING_FIELDS = ("heat_rate",)
 #: node fields the node pass writes (positions always)
@@ -69,8 +71,9 @@ class OutputFields:
             none = self._none
             eta = state.entropy if system.thermal else none
             phi = state.thermal_displacement if system.thermal else none
-            self._spring_pass(state.positions, eta, phi, (system.rest_lengths, system.parameters), self._edges,
-                              self._spring_order, self._scratch, tuple(cell.get(name, none) for name in SPRING_FIELDS),
+            springs = Springs(system.rest_lengths, system.parameters)
+            fields = FrameFields(**{name: cell.get(name, none) for name in SPRING_FIELDS})
+            self._spring_pass(state.positions, eta, phi, springs, self._edges, self._spring_order, self._scratch, fields,
                               self._theta_internal)
         heat = sim.system.heat
         if heat is not None and heat.conduction and ("node_temperature" in point or "heat_rate" in cell):
@@ -81,8 +84,6 @@ class OutputFields:
 
     def _write_heat_fields(self, heat, t: float) -> None:
         """node_temperature as junction temperatures, heat_rate per spring (user numbering)."""
-        from .heat.fields import heat_rate, junction_temperature
-
         lay = self.sim.layout
         if "node_temperature" in self.point:
             self.point["node_temperature"][lay.node_order] = junction_temperature(heat, lay, self._theta_internal, t)

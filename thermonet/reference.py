@@ -18,6 +18,8 @@ from typing import Callable, Mapping
 
 import numpy as np
 
+from .integrators.splitting import YOSHIDA4, YOSHIDA6A
+
 # ---------------------------------------------------------------------------------------------
 # constitutive laws, as NumPy formulas (Mata & Lew 2011, (31) and (26)). Every function takes (m,) arrays
 # and a mapping of (m,) parameter arrays and returns (m,).
@@ -311,8 +313,6 @@ def splitting_step(kicks, drifts) -> Callable[[ReferenceNet, ReferenceState, flo
 
 
 def _yoshida():
-    from .integrators.splitting import YOSHIDA4, YOSHIDA6A
-
     return YOSHIDA4, YOSHIDA6A
 
 

@@ -28,7 +28,11 @@ import warnings
 
 import numpy as np
 
+from .compile_watch import CompileWatch
 from .errors import SimulationError
+from .kernels.specialize import model_fingerprint, model_namespace, specialize
+from .stability import max_frequency, stability_interval, wave_frequency
+from .step_policy import REFUSE, SAFETY, StepWarning
 
 #: default energy guard: a run stops when |H − H(0)| exceeds this fraction of |H(0)|
 DEFAULT_ENERGY_TOLERANCE = 0.1
@@ -94,8 +98,6 @@ _KERNELS: dict = {}
 
 
 def _bound_kernel(model, thermal: bool):
-    from .kernels.specialize import model_fingerprint, model_namespace, specialize
-
     key = (model_fingerprint(model), bool(thermal))
     if key not in _KERNELS:
         ns = model_namespace(model)
@@ -130,8 +132,6 @@ class StabilityGuard:
     """
 
     def __init__(self, sim, mode: str = "stop"):
-        from .stability import stability_interval
-
         self.mode = mode
         self.interval = stability_interval(sim.integrator)
         self.active = mode != "off" and math.isfinite(self.interval) and sim.backend == "cpu"
@@ -158,8 +158,6 @@ class StabilityGuard:
             self.skipped += 1
             return
         self.checked += 1
-        from .compile_watch import CompileWatch
-
         with CompileWatch() as compiling:  # a first run's compilation is not the guard's running cost
             try:
                 self._check(sim)
@@ -167,12 +165,8 @@ class StabilityGuard:
                 self.seconds += time.perf_counter() - now - compiling.seconds
 
     def _check(self, sim) -> None:
-        from .step_policy import REFUSE, SAFETY, StepWarning
-
         state = sim.internal_state()
         h = sim.h
-        from .stability import max_frequency, wave_frequency
-
         waves = sim.system.heat is not None and sim.system.heat.waves
         bound = frequency_bound(sim.system, state.positions, state.entropy)
         wave_bound = wave_frequency(sim, bound_only=True) if waves else 0.0

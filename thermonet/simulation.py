@@ -17,22 +17,27 @@ from typing import Mapping
 
 import numpy as np
 
+from .assemble import assemble
 from .blowup import STRETCH_BOUNDS
 from .diagnostics import Diagnostics, spring_fields
-from .assemble import assemble
 from .driver import Runner
 from .errors import InputError, SimulationError
+from .heat.logs import heat_logs
+from .heat.multirate import check_conduction_every
+from .heat.parameters import split_parameters
+from .heat.setup import build_heat
 from .inputs import (angular_momentum_reference, build_system, check_backend, check_energy_tolerance, check_step,
                      guard_mode, initial_state)
 from .integrators import get_integrator
+from .kernels.springs import log_strain
 from .layout import build_layout
+from .loads.setup import SimulationLoads, check_load_support, hold_driven_axes, resolve
 from .materials.continuum import apply_continuum
 from .models import get_model
 from .net import Net
+from .output_fields import OutputFields
+from .probes import Probes
 from .run_guards import DEFAULT_ENERGY_TOLERANCE, StabilityGuard
-from .heat.parameters import split_parameters
-from .heat.setup import build_heat
-from .heat.logs import heat_logs
 from .state import State
 
 #: heat-flow logs with one value per spring (stored in the user's numbering outside the engine)
@@ -163,8 +168,6 @@ class Simulation:
         self.angular_momentum_about = angular_momentum_reference(net)
         heat = build_heat(net, layout, self.model, P_user, transport, thermal=thermal, conduction=conduction,
                           waves=thermal_waves, baths=baths, sources=sources)
-        from .loads.setup import SimulationLoads, check_load_support, hold_driven_axes, resolve
-
         load_set = resolve(loads, net)
         check_load_support(load_set, self.integrator, self.backend)
         self.system = build_system(net, self.model, layout, P_user, gravity, thermal, stretch_bounds, heat, load_set)
@@ -179,8 +182,6 @@ class Simulation:
         self._state = initial_state(net, self.model, layout, P_user, thermal, temperatures, momenta, velocities)
         if heat is not None:
             heat_logs(self._state, heat)
-        from .heat.multirate import check_conduction_every
-
         self.conduction_every = check_conduction_every(conduction_every)
         if heat is not None and heat.conduction and self.conduction_every != "auto":  # cycles counted from step 0
             heat_logs(self._state, heat)["cycle"][:] = (self.conduction_every, 0)
@@ -250,8 +251,6 @@ class Simulation:
         one quantity at a cadence; docs/scenes.md). Every later :meth:`run` records them;
         ``self.probes.series`` holds the rows, ``self.probes.to_csv(folder)`` writes them.
         Returns the :class:`~thermonet.probes.Probes`."""
-        from .probes import Probes
-
         self.probes = Probes(self, probes)
         return self.probes
 
@@ -354,8 +353,6 @@ class Simulation:
     def strains(self) -> np.ndarray:
         """(m,) logarithmic strains ln(l / l0) (the log of output frames: equal to theirs bit for
         bit, within about an ulp of NumPy's)."""
-        from .kernels.springs import log_strain
-
         return log_strain(self.lengths(), self.net.rest_lengths)
 
     def tensions(self) -> np.ndarray:
@@ -385,8 +382,6 @@ class Simulation:
         points (n, 3) the positions; point: name -> target of ``displacement``, ``velocity``,
         ``momentum`` ((n, 3)) or ``node_temperature`` ((n,)); cell: name -> (m,) target of
         ``temperature``, ``tension``, ``strain``, ``entropy``, ``thermal_displacement``."""
-        from .output_fields import OutputFields
-
         return OutputFields(self, points, point, cell)
 
     def conservation_summary(self) -> dict:

@@ -30,6 +30,7 @@ from numba import njit
 from scipy.sparse.linalg import ArpackNoConvergence, eigsh
 
 from .diagnostics import spring_fields
+from .integrators.base import get_integrator
 from .kernels.springs import map_springs
 
 #: the implicit integrators' stability intervals, measured on a linear spring (h·ω), used when an
@@ -306,8 +307,6 @@ def stable_step(sim, integrator=None) -> dict:
     h_max = c / max(ω_max, ω_W) and the estimate's method; omega_waves: ω_W of the thermal waves
     (:func:`wave_frequency`, 0 without them) and limit: which of the two sets h_max.
     """
-    from .integrators.base import get_integrator  # (the registry; not the package, which imports us back)
-
     integ = sim.integrator if integrator is None else get_integrator(integrator)
     s = sim.internal_state()
     est = max_frequency(sim.system, s.positions, s.entropy)

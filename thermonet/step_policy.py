@@ -24,7 +24,9 @@ import math
 import warnings
 from dataclasses import dataclass
 
+from .blowup import UNLIMITED
 from .errors import InputError
+from .stability import stable_step
 
 #: warn above this fraction of h_max
 SAFETY = 0.9
@@ -61,9 +63,6 @@ def check_step(sim, *, allow_unstable: bool = False, warn: bool = True) -> StepC
     """Apply the policy to ``sim`` (a :class:`~thermonet.simulation.Simulation`) at its current
     state. Raises :class:`UnstableStepError` for a refused step unless ``allow_unstable``; emits a
     :class:`StepWarning` for "warn" and "allowed" verdicts when ``warn``."""
-    from .blowup import UNLIMITED
-    from .stability import stable_step
-
     if getattr(sim.integrator, "unconditionally_stable", False):
         return StepCheck(float(sim.h), math.inf, 0.0, "ok", "",
                          {"integrator": sim.integrator.name, "h_max": math.inf, "interval": math.inf})

@@ -65,8 +65,6 @@ class System:
         computed once."""
         cached = self.__dict__.get("_kernel_parameters")
         if cached is None:
-            from .kernels.splitting import kernel_parameters
-
             cached = kernel_parameters(self.parameters)
             object.__setattr__(self, "_kernel_parameters", cached)
         return cached
@@ -84,4 +82,5 @@ class System:
         return ~self.anchored
 
 
+from .kernels.splitting import kernel_parameters
 from .state import State  # noqa: E402,F401  (importable from here as well)

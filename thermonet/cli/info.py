@@ -7,7 +7,18 @@ import os
 
 import numpy as np
 
+from ..blowup import UNLIMITED
+from ..builders import from_meshio, read_meshio
 from ..errors import InputError
+from ..heat.exchange import BATH
+from ..heat.graph import pairs_per_spring
+from ..heat.multirate import choose_cycle
+from ..materials.homogenize import boundary_nodes, box_boundary
+from ..materials.report import describe, measure
+from ..materials.rigidity import floppy_modes
+from ..scenes import load_scene
+from ..simulation import Simulation
+from ..stability import stability_interval, stable_step
 
 HELP = "describe a mesh or a scene: nodes, springs, cell types, groups, materials, memory, stable step"
 
@@ -33,8 +44,6 @@ def _mb(b: float) -> str:
 
 def handle(args) -> int:
     target = args.target
-    from ..errors import InputError
-
     if os.path.isdir(target):
         raise InputError(f"{target}: is a folder; give a mesh file or a scene (.toml)")
     if not os.path.exists(target):
@@ -45,9 +54,6 @@ def handle(args) -> int:
 
 
 def describe_mesh(path: str) -> list[str]:
-    from ..builders import from_meshio, read_meshio
-    from ..simulation import Simulation
-
     mesh = read_meshio(path)
     net = from_meshio(mesh, source=path)
     cells = {}
@@ -70,8 +76,6 @@ def describe_mesh(path: str) -> list[str]:
 
 
 def describe_scene(path: str, overrides) -> list[str]:
-    from ..scenes import load_scene
-
     scene = load_scene(path, overrides)
     built = scene.build()
     net, sim = built.net, built.simulation
@@ -84,8 +88,6 @@ def describe_scene(path: str, overrides) -> list[str]:
     if net.pieces_note():
         out.append(f"  pieces: {net.pieces_note()}")
     if scene.mesh_path():
-        from ..builders import read_meshio
-
         mesh = built.mesh if built.mesh is not None else read_meshio(scene.mesh_path())
         cells = {}
         for block in mesh.cells:
@@ -143,9 +145,6 @@ def heat_bytes(n_springs: int, n_pairs: int, n_nodes: int = 0) -> int:
 def _heat_flow(sim, specs: dict, cadences=()) -> list[str]:
     """The heat-flow lines: conduction and thermal waves, the pair graph, baths, sources (specs:
     the scene's bath and source tables by name)."""
-    from ..heat.exchange import BATH
-    from ..heat.graph import pairs_per_spring
-
     heat = sim.system.heat
     if heat is None:
         return ["  heat flow: off (adiabatic springs; effects.conduction, effects.thermal_waves)"]
@@ -183,8 +182,6 @@ def _heat_flow(sim, specs: dict, cadences=()) -> list[str]:
 
 def conduction_line(sim, cadences=()) -> str:
     """Which conduction cycle a run with output ``cadences`` (steps) takes, and why."""
-    from ..heat.multirate import choose_cycle
-
     try:
         k, why = choose_cycle(sim.conduction_every, sim.system.heat.fastest_rate(), sim.h, cadences)
     except InputError as exc:  # (run refuses it the same way)
@@ -199,10 +196,6 @@ def _span(values) -> str:
 
 def _continuum(built) -> list[str]:
     """The effective properties the net has, measured on it (docs/continuum.md)."""
-    from ..materials.homogenize import boundary_nodes, box_boundary
-    from ..materials.report import describe, measure
-    from ..materials.rigidity import floppy_modes
-
     net, cmap = built.net, built.continuum
     boundary = boundary_nodes(built.mesh, net) if built.mesh is not None else box_boundary(net.positions)
     eff = measure(net, built.simulation.model, built.parameters, cmap.volume, boundary, cmap.dimension)
@@ -228,10 +221,6 @@ def _groups(net) -> list[str]:
 
 def _stable_step(sim, where: str) -> str:
     import math
-
-    from ..stability import stability_interval, stable_step
-
-    from ..blowup import UNLIMITED
 
     if getattr(sim.integrator, "unconditionally_stable", False):
         return (f"  stable step: none, {sim.integrator.name} has no stability limit (energy exact at any step; "

@@ -17,8 +17,9 @@ from __future__ import annotations
 import argparse
 import sys
 
-from ..errors import ThermonetError
 from . import info as info_cmd, plot as plot_cmd, render as render_cmd, run as run_cmd, study as study_cmd
+from ..errors import ThermonetError
+from ..io.folder import describe_os_error
 
 SUBCOMMANDS = {"run": run_cmd, "info": info_cmd, "render": render_cmd, "study": study_cmd, "plot": plot_cmd}
 
@@ -55,8 +56,6 @@ def main(argv=None) -> int:
     except OSError as exc:  # a file an output writer could not write, outside `thermonet run`'s own handling
         if args.debug:
             raise
-        from ..io.folder import describe_os_error
-
         print(f"thermonet: error: {describe_os_error(exc)}", file=sys.stderr)
         return 4
     except KeyboardInterrupt:

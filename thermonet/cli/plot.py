@@ -8,6 +8,8 @@ import os
 
 import numpy as np
 
+from ..errors import InputError
+
 HELP = "plot a run's diagnostics.csv and probe CSVs as PNGs (energy, balance, entropy, momenta, loads, probes)"
 
 
@@ -46,8 +48,6 @@ def _units(outdir: str) -> str:
 
 def plot_run(outdir: str, to: str | None = None) -> list[str]:
     """The PNGs of the run in ``outdir`` (written to ``to``, default OUTDIR/plots); their paths."""
-    from ..errors import InputError
-
     diagnostics = os.path.join(outdir, "diagnostics.csv")
     if not os.path.isfile(diagnostics):
         raise InputError(f"{outdir}: no diagnostics.csv here; give the output folder of `thermonet run`")

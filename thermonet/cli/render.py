@@ -7,6 +7,9 @@ import os
 
 import numpy as np
 
+from ..errors import InputError
+from ..io import read_pvd
+
 HELP = "render a frame of a run's output to a PNG (springs as tubes coloured by temperature; needs PyVista)"
 
 
@@ -19,9 +22,6 @@ def add_args(p) -> None:
 
 
 def handle(args) -> int:
-    from ..errors import InputError
-    from ..io import read_pvd
-
     try:
         import pyvista as pv
     except ImportError:
@@ -48,8 +48,6 @@ def handle(args) -> int:
 
 
 def render_frame(pv, vtu_path: str, time: float, png: str, field: str | None, size) -> None:
-    from ..errors import InputError
-
     grid = pv.read(vtu_path)
     lines = grid.cells_dict.get(pv.CellType.LINE)
     if lines is None:

@@ -11,6 +11,10 @@ import math
 import os
 import sys
 
+from ..errors import InputError, UnknownNameError
+from ..integrators import available_integrators
+from ..step_policy import StepWarning
+
 HELP = "convergence, cost (work-precision) and long-run energy studies of the integrators"
 
 DEFAULT_INTEGRATORS = {"convergence": "gtr-0,gtr-1,gtr-1/2,co2,ho4,co4,omf4",
@@ -67,9 +71,6 @@ def add_args(p) -> None:
 
 
 def _integrators(text: str | None, study: str) -> list[str]:
-    from ..integrators import available_integrators
-    from ..errors import UnknownNameError
-
     known = set(available_integrators())
     if text is None:
         return [n for n in DEFAULT_INTEGRATORS[study].split(",") if n in known]
@@ -81,9 +82,6 @@ def _integrators(text: str | None, study: str) -> list[str]:
 
 
 def _check(text: str):
-    from ..errors import InputError, UnknownNameError
-    from ..integrators import available_integrators
-
     if text.lower() == "none":
         return None
     try:
@@ -99,8 +97,6 @@ def _check(text: str):
 
 
 def _scipy(text: str) -> dict:
-    from ..errors import InputError
-
     if text.lower() == "none":
         return {}
     out = {}
@@ -124,8 +120,6 @@ def handle(args) -> int:
     scene_tag = os.path.splitext(os.path.basename(args.scene))[0]
     out = args.out or os.path.join("thermonet-out", f"study-{args.study}-{scene_tag}")
     import warnings
-
-    from ..step_policy import StepWarning
 
     warnings.simplefilter("ignore", StepWarning)  # a run near its limit is measured, and reported if it fails
     with Runner(serial=args.serial, scheduler=args.scheduler, n_workers=args.workers) as runner:
@@ -164,7 +158,6 @@ def _plan(args) -> dict:
     """The study's arguments checked, and its defaults resolved (from the scene's step and the
     integrators' stability limits), in this process, before a Dask cluster starts or a run is
     made: any problem is an InputError naming the argument."""
-    from ..errors import InputError
     from ..studies.convergence import default_check, default_time_step, time_steps
     from ..studies.scenes import check_scene, scene_effects, scene_time
     from ..studies.tasks import check_steps
@@ -234,8 +227,6 @@ def _plan(args) -> dict:
 
 
 def _whole(check_steps, t_end: float, h: float, what: str) -> None:
-    from ..errors import InputError
-
     try:
         check_steps(t_end, h)
     except InputError as exc:

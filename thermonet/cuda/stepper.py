@@ -13,10 +13,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..blowup import blowup_failure
 from ..diagnostics import diagnostics_row
 from ..errors import InputError
 from ..heat.rows import CONDUCTION_FORWARD, THERMAL_WAVES
 from ..integrators.base import Stepper
+from ..integrators.schedule import flow_data
 from ..kernels import records
 from ..kernels.splitting import kernel_parameters
 from ..loads.stepping import StepperLoads, work_of
@@ -59,7 +61,6 @@ class CudaSplittingStepper(Stepper):
         require_cuda()
         from numba import cuda
 
-        from ..integrators.splitting import flow_data
         from ..heat.cuda import DeviceHeat
         from .kernels import NODE_OPS, SPRING_OPS, cuda_kernels
 
@@ -329,8 +330,6 @@ class CudaSplittingStepper(Stepper):
     def _stopped(self, state, h: float, flag, steps_before: int, x_start) -> None:
         """A launch found a spring outside the admissible states: name it from the positions
         where it was found, restore the backup, replay the good steps and raise."""
-        from ..integrators.splitting import blowup_failure
-
         step, row = int(flag[FLAG_STEP]), int(flag[FLAG_ROW])
         found_at = x_start if int(flag[FLAG_STAGES]) % 2 == 0 else (self._x_buf if x_start is self._x else self._x)
         positions = found_at.copy_to_host()

@@ -130,3 +130,10 @@ def stage_table(kicks, drifts, flows=()) -> StageTable:
     kick = np.array([r[1] for r in rows], dtype=np.float64)
     drift = np.array([r[2] for r in rows], dtype=np.float64)
     return StageTable(code, kick, drift, float(kicks[n_stages]) if shared else 0.0)
+
+
+def flow_data(flows, system) -> tuple:
+    """The kernels' ``effects`` record: one data tuple per flow slot (4), each flow's
+    ``prepare(system)`` (as contiguous arrays), an unused slot a one-array placeholder."""
+    data = [tuple(np.ascontiguousarray(a) for a in f.prepare(system)) for f in flows]
+    return tuple(data + [(np.empty(0),)] * (MAX_FLOWS - len(data)))

@@ -15,13 +15,16 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from ..blowup import blowup_failure
 from ..errors import InputError
 from ..heat.logs import cycle_position, heat_logs
+from ..kernels import records
 from ..kernels.records import Run, StateArrays, no_heat_cpu
+from ..kernels.splitting import kernel_parameters, splitting_kernels
 from ..loads.elements import NO_LOADS
 from ..loads.stepping import StepperLoads
-from .base import Integrator, StepFailure, Stepper, register_integrator
-from .schedule import CONDUCTION, MAX_FLOWS, WAVES, BuiltinFlow, StageTable, flow_slots, stage_table
+from .base import Integrator, Stepper, register_integrator
+from .schedule import CONDUCTION, WAVES, BuiltinFlow, StageTable, flow_data, flow_slots, stage_table
 
 
 @dataclass(frozen=True, repr=False)
@@ -274,9 +277,6 @@ class SplittingStepper(Stepper):
     """A :class:`Splitting` bound to a system: owns the scratch buffers, calls the fused kernel."""
 
     def __init__(self, integrator: Splitting, system, parallel: bool = False):
-        from ..kernels import records
-        from ..kernels.splitting import kernel_parameters, splitting_kernels
-
         self.integrator = integrator
         self.system = system
         P, uniform = kernel_parameters(system.parameters)
@@ -351,22 +351,3 @@ class SplittingStepper(Stepper):
         U, tmin, tmax, K, V, px, py, pz, lx, ly, lz = (float(v) for v in sums)
         return dict(kinetic=K, internal=U, potential=V, momentum=(px, py, pz), angular_momentum=(lx, ly, lz),
                     theta_min=tmin, theta_max=tmax)
-
-
-def flow_data(flows, system) -> tuple:
-    """The kernels' ``effects`` record: one data tuple per flow slot (4), each flow's
-    ``prepare(system)`` (as contiguous arrays), an unused slot a one-array placeholder."""
-    data = [tuple(np.ascontiguousarray(a) for a in f.prepare(system)) for f in flows]
-    return tuple(data + [(np.empty(0),)] * (MAX_FLOWS - len(data)))
-
-
-def blowup_failure(system, positions, entropy, steps_done: int) -> StepFailure:
-    """The :class:`StepFailure` of a kernel that stopped on an inadmissible spring at
-    ``positions`` (internal numbering), naming the spring: the caller rewinds and replays
-    ``steps_done`` steps."""
-    from ..blowup import diagnose
-
-    found = diagnose(system, positions, entropy)
-    where = (f"spring {found['spring']} (nodes {found['nodes'][0]}–{found['nodes'][1]}) has {found['problem']}"
-             if found else "a spring left the admissible states")
-    return StepFailure(where, steps_done=int(steps_done), details={"rewind": True, **found})

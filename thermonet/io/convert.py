@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..errors import InputError
+
 
 def net_mesh(net):
     """``meshio.Mesh`` of a :class:`~thermonet.net.Net`: points (n, 3) = initial positions, one
@@ -57,8 +59,6 @@ def to_pyvista(mesh):
     """A ``pyvista.UnstructuredGrid`` of a meshio mesh from :func:`net_mesh` or
     :func:`simulation_mesh` (PyVista imported here: an optional dependency, ``pip install
     'thermonet[vis]'``)."""
-    from ..errors import InputError
-
     try:
         import pyvista as pv
     except ImportError:

@@ -26,6 +26,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
+from .. import __version__
 from .atomic import atomic_write, direct_writes_possible, release_page_cache
 from .checkpoint import load_checkpoint, save_checkpoint
 from .pvd import PVDIndex
@@ -368,8 +369,6 @@ def versions() -> dict:
     import meshio
     import numba
     import scipy
-
-    from .. import __version__
 
     return {"thermonet": __version__, "python": platform.python_version(), "numpy": np.__version__,
             "numba": numba.__version__, "scipy": scipy.__version__, "meshio": meshio.__version__}

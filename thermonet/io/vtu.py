@@ -13,6 +13,7 @@ Readers checked by the tests: meshio and VTK (through PyVista).
 from __future__ import annotations
 
 import sys
+from typing import NamedTuple
 
 import numpy as np
 
@@ -38,6 +39,21 @@ def field_dtype(array: np.ndarray) -> np.dtype:
     return dtype if dtype in _VTK_TYPES else np.dtype(np.float64)
 
 
+class _Array(NamedTuple):
+    """One array of the appended block: its XML section and name, dtype and shape, and its data
+    where it never changes (the topology), else None."""
+
+    section: str
+    name: str
+    dtype: np.dtype
+    shape: tuple
+    constant: np.ndarray | None
+
+    @property
+    def nbytes(self) -> int:
+        return int(np.prod(self.shape)) * self.dtype.itemsize
+
+
 class FrameImage:
     """The bytes of one .vtu file of a net, with a writable view per array.
 
@@ -53,25 +69,24 @@ class FrameImage:
         edges = np.asarray(edges)
         n, m = int(n_nodes), len(edges)
         index = np.dtype(np.int32) if max(n, 2 * m) < INT32_LIMIT else np.dtype(np.int64)
-        # (section, name, dtype, shape, constant data or None)
-        arrays = [("Points", "Points", np.dtype(np.float64), (n, 3), None),
-                  ("Cells", "connectivity", index, (2 * m,), edges.reshape(-1)),
-                  ("Cells", "offsets", index, (m,), np.arange(2, 2 * m + 1, 2)),
-                  ("Cells", "types", np.dtype(np.uint8), (m,), np.full(m, VTK_LINE))]
+        arrays = [_Array("Points", "Points", np.dtype(np.float64), (n, 3), None),
+                  _Array("Cells", "connectivity", index, (2 * m,), edges.reshape(-1)),
+                  _Array("Cells", "offsets", index, (m,), np.arange(2, 2 * m + 1, 2)),
+                  _Array("Cells", "types", np.dtype(np.uint8), (m,), np.full(m, VTK_LINE))]
         for section, rows, fields in (("PointData", n, point_fields), ("CellData", m, cell_fields)):
             for name, (dtype, components) in fields.items():
-                arrays.append((section, name, np.dtype(dtype), (rows, components) if components else (rows,), None))
+                arrays.append(_Array(section, name, np.dtype(dtype), (rows, components) if components else (rows,), None))
         # 8-byte multiples first: each of those starts 8-aligned (the data start is aligned too)
-        order = sorted(range(len(arrays)), key=lambda k: (_nbytes(arrays[k]) % 8 != 0, k))
+        order = sorted(range(len(arrays)), key=lambda k: (arrays[k].nbytes % 8 != 0, k))
         offsets, offset = {}, 0
         for k in order:
             offsets[k] = offset
-            offset += _HEADER.itemsize + _nbytes(arrays[k])
+            offset += _HEADER.itemsize + arrays[k].nbytes
         tags = {"Points": [], "Cells": [], "PointData": [], "CellData": []}
-        for k, (section, name, dtype, shape, _) in enumerate(arrays):
-            components = f' NumberOfComponents="{shape[1]}"' if len(shape) == 2 else ""
-            tags[section].append(f'<DataArray type="{_VTK_TYPES[dtype]}" Name="{name}"{components} '
-                                 f'format="appended" offset="{offsets[k]}"/>')
+        for k, a in enumerate(arrays):
+            components = f' NumberOfComponents="{a.shape[1]}"' if len(a.shape) == 2 else ""
+            tags[a.section].append(f'<DataArray type="{_VTK_TYPES[a.dtype]}" Name="{a.name}"{components} '
+                                   f'format="appended" offset="{offsets[k]}"/>')
         head = "\n".join([
             '<?xml version="1.0"?>',
             f'<VTKFile type="UnstructuredGrid" version="1.0" byte_order="{_BYTE_ORDER}" header_type="UInt64">',
@@ -91,17 +106,17 @@ class FrameImage:
         self.buffer[start + offset:] = np.frombuffer(_FOOTER, dtype=np.uint8)
         self.points = None
         self.point, self.cell = {}, {}
-        for k, (section, name, dtype, shape, constant) in enumerate(arrays):
+        for k, a in enumerate(arrays):
             at = start + offsets[k]
-            self.buffer[at:at + _HEADER.itemsize].view(_HEADER)[0] = _nbytes(arrays[k])
+            self.buffer[at:at + _HEADER.itemsize].view(_HEADER)[0] = a.nbytes
             at += _HEADER.itemsize
-            view = self.buffer[at:at + _nbytes(arrays[k])].view(dtype).reshape(shape)
-            if constant is not None:
-                view[...] = constant
-            elif section == "Points":
+            view = self.buffer[at:at + a.nbytes].view(a.dtype).reshape(a.shape)
+            if a.constant is not None:
+                view[...] = a.constant
+            elif a.section == "Points":
                 self.points = view
             else:
-                (self.point if section == "PointData" else self.cell)[name] = view
+                (self.point if a.section == "PointData" else self.cell)[a.name] = view
         self.n_nodes, self.n_cells = n, m
 
     def write(self, path, direct: bool = True) -> bool:
@@ -109,11 +124,6 @@ class FrameImage:
         the file system allows and ``direct`` (:func:`~thermonet.io.atomic.atomic_write_direct`);
         returns whether it did."""
         return atomic_write_direct(path, self._padded, len(self.buffer), direct)
-
-
-def _nbytes(array_spec) -> int:
-    _, _, dtype, shape, _ = array_spec
-    return int(np.prod(shape)) * dtype.itemsize
 
 
 class VTUWriter:

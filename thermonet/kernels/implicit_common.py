@@ -67,6 +67,9 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from .implicit_base import (BLOCK, COLLAPSED, NO_TEMPERATURE, NOT_FINITE, OK, STATUS_TEXT,  # noqa: F401 (re-exported)
+                            _admissible, _first_flagged)
+from .implicit_start import _adiabatic_stiffness, _start
 from .specialize import model_fingerprint, model_namespace, specialize
 
 # Bound per model by specialize(); listed so the templates read as ordinary code.
@@ -103,18 +106,9 @@ INLINE = dict(inline="always", error_model="numpy", boundscheck=False, _nrt=Fals
 #: the order of the correction squared (quadratic convergence), below round-off
 THETA_STOP = 1e-9
 LOCAL_ITERATIONS = 60
-#: springs per block of a spring pass (as the explicit kernel's)
-BLOCK = 512
 #: Newton corrections of a vectorized thermal solve (warm-started: the first one is exact or
 #: leaves an error ~ its square; the second must then be below THETA_STOP)
 VECTOR_CORRECTIONS = 2
-
-OK, COLLAPSED, NO_TEMPERATURE, NOT_FINITE = 0, 1, 2, 3
-STATUS_TEXT = {
-    COLLAPSED: "spring collapsed (length not positive or not finite)",
-    NO_TEMPERATURE: "no positive finite temperature solves the spring's thermal equations",
-    NOT_FINITE: "non-finite momentum or entropy after the step",
-}
 
 
 class ImplicitKernels:
@@ -149,8 +143,6 @@ def implicit_kernels(model, scheme: str, parallel: bool = False, uniform: bool =
     if key not in _CACHE:
         if scheme not in _SCHEMES:
             raise ValueError(f"unknown implicit scheme {scheme!r}; known: {', '.join(sorted(_SCHEMES))}")
-        from .implicit_start import _adiabatic_stiffness, _start
-
         build, keeps_start, extrapolates = _SCHEMES[scheme]
         tag = f"{model.name}_{key[1]}{'_uniform' if uniform else ''}"
         ptag = f"{tag}_{'par' if parallel else 'ser'}"
@@ -204,12 +196,6 @@ def _usable(t):
 
 
 @njit(cache=True, inline="always")
-def _admissible(t):
-    """Positive and finite, written without branches (for the vectorized loops)."""
-    return (t > 0.0) & (t < math.inf)
-
-
-@njit(cache=True, inline="always")
 def _listed_position(indices, j):
     """j: the index of a full kernel's loop (its ``listed``)."""
     return j
@@ -248,15 +234,6 @@ def _first_flagged_entry(flag, indices, lo, n, none):
         if flag[indices[lo + i]] != 0:
             bad = min(bad, indices[lo + i])
     return bad
-
-
-@njit(cache=True, inline="always")
-def _first_flagged(flag, lo, n, none):
-    """The smallest index lo ≤ e < lo + n with flag[e] != 0, else ``none``."""
-    for i in range(n):
-        if flag[lo + i] != 0:
-            return lo + i
-    return none
 
 
 @njit(cache=True, inline="always")

@@ -13,7 +13,7 @@ import math
 import numpy as np
 from numba import prange
 
-from .implicit_common import BLOCK, COLLAPSED, NO_TEMPERATURE, OK, _admissible, _first_flagged
+from .implicit_base import BLOCK, COLLAPSED, NO_TEMPERATURE, OK, _admissible, _first_flagged
 
 # Bound per model by specialize(); listed so the template reads as ordinary code.
 temperature = tension = d2F_dl2 = d2F_dl_dtheta = d2F_dtheta2 = adiabatic_stiffness = None

@@ -5,6 +5,7 @@ maps of one model function. Run at the diagnostics and output cadences, outside 
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit, prange
@@ -31,13 +32,24 @@ def spring_field_kernel(model, thermal: bool = True, parallel: bool = False):
     return _spring_pass(_spring_fields, model, thermal, parallel)
 
 
+class FrameFields(NamedTuple):
+    """The spring fields a frame pass writes, each (m,) in the user's numbering, or (0,) for a
+    field not wanted (the names of :data:`thermonet.output_fields.SPRING_FIELDS`)."""
+
+    temperature: np.ndarray
+    tension: np.ndarray
+    strain: np.ndarray
+    entropy: np.ndarray
+    thermal_displacement: np.ndarray
+
+
 def frame_spring_kernel(model, thermal: bool = True, parallel: bool = False):
-    """``frame_springs(x, eta, phi, (l0, P), edges, order, scratch, (theta, tension, strain,
-    entropy, thermal_displacement), theta_internal)`` for ``model``: one blocked pass that
-    computes each spring's length, temperature, tension and strain (:func:`log_strain`) from
-    positions x (n, 3) and entropies eta (m,), and writes them, with eta and the thermal
-    displacement phi (m,), to user spring ``order[e]`` of the output arrays (each (m,), or (0,)
-    for a field not wanted). theta_internal: (m,) the temperatures in the internal numbering too, or (0,).
+    """``frame_springs(x, eta, phi, springs, edges, order, scratch, fields, theta_internal)`` for
+    ``model``: one blocked pass that computes each spring's length, temperature, tension and
+    strain (:func:`log_strain`) from positions x (n, 3) and entropies eta (m,), and writes them,
+    with eta and the thermal displacement phi (m,), to user spring ``order[e]`` of the output
+    arrays of ``fields`` (a :class:`FrameFields`; each (m,), or (0,) for a field not wanted).
+    springs: a :class:`~thermonet.kernels.records.Springs` (rest lengths, parameters). theta_internal: (m,) the temperatures in the internal numbering too, or (0,).
     scratch: (4, m) float64. edges: (m, 2) uint32; order: (m,) int64. Values equal
     :func:`spring_field_kernel`'s (and :func:`log_strain`'s) bit for bit: the same operations."""
     return _spring_pass(_frame_springs, model, thermal, parallel)
@@ -107,8 +119,9 @@ def _frame_springs(x, eta, phi, springs, edges, order, scratch, fields, theta_in
     """See :func:`frame_spring_kernel`. Blocked like :func:`_spring_fields`: per block the gather
     (squared lengths), the arithmetic over contiguous scratch rows (which vectorizes), then one
     loop scattering every wanted field to its user position."""
-    l0, P = springs
-    theta, tens, strain, entropy, thermal_displacement = fields
+    l0, P = springs.rest, springs.P
+    theta, tens, strain = fields.temperature, fields.tension, fields.strain
+    entropy, thermal_displacement = fields.entropy, fields.thermal_displacement
     m = edges.shape[0]
     with_theta = theta.shape[0] > 0
     with_tension = tens.shape[0] > 0

@@ -13,6 +13,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..errors import InputError
+from ..integrators.schedule import STAGE
 from ..timefunctions import pack
 from .spec import AXES, Drive, Force
 
@@ -203,7 +204,7 @@ def row_times(table) -> tuple[np.ndarray, np.ndarray]:
     R = len(table.code)
     kick, after = np.zeros(R), np.zeros(R)
     tau = 0.0
-    stage = table.code == -1  # other rows (sub-flows, heat flow) keep their time in ``drift``
+    stage = table.code == STAGE  # other rows (sub-flows, heat flow) keep their time in ``drift``
     last = max((r for r in range(R) if stage[r] and table.drift[r] != 0.0), default=-1)
     for r in range(R):
         kick[r] = tau

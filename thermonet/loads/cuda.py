@@ -13,6 +13,8 @@ from __future__ import annotations
 from numba import cuda
 
 from . import elements
+from ..kernels.specialize import rebind
+from ..timefunctions import evaluate_py, evaluate_rate_py
 
 evaluate_load = load_power = add_work = drive_member = None
 
@@ -22,9 +24,6 @@ def bind_device_loads(ns: dict, tag: str, inline, simulator: bool) -> str:
     (compiled by ``inline``: device functions, or Python under the simulator). Returns the
     suffix of the kernels' cache tag."""
     from numba import njit
-
-    from ..kernels.specialize import rebind
-    from ..timefunctions import evaluate_py, evaluate_rate_py
 
     suffix = f"_L{elements.source_digest()}"
     compile_time = (lambda fn: fn) if simulator else njit(inline="always")

@@ -17,6 +17,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..kernels.specialize import rebind
+from ..timefunctions import evaluate as evaluate_, evaluate_rate as evaluate_rate_
+
 gather_force = evaluate = evaluate_rate = None
 
 
@@ -154,9 +157,6 @@ def bind_loads(ns: dict, tag: str, compile_) -> str:
     """Bind this module's functions into the kernel namespace ``ns`` (which already holds the
     sub-flows' ``gather_force``), each compiled by ``compile_``; the time functions are the
     compiled ones. Returns the suffix the kernels' cache tag takes."""
-    from ..timefunctions import evaluate as evaluate_, evaluate_rate as evaluate_rate_
-    from ..kernels.specialize import rebind
-
     suffix = f"_L{source_digest()}"
     ns["evaluate"] = evaluate_
     ns["evaluate_rate"] = evaluate_rate_

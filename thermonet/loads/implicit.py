@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..diagnostics import spring_fields
 from ..errors import InputError
 from ..integrators.base import StepFailure
 from .stepping import work_of
@@ -92,8 +93,6 @@ class ImplicitLoads:
     def _move(self, state, t: float, work: np.ndarray) -> None:
         if not self._drives:
             return
-        from ..diagnostics import spring_fields
-
         x = state.positions
         for i, rows, ref in self._drives:
             comps = self.set.components[i]

@@ -14,6 +14,11 @@ import tempfile
 
 import numpy as np
 
+from ..builders import read_mesh
+from ..simulation import Simulation
+from .report import spring_rest_values
+from .rigidity import stiffness
+
 #: the bar (length, width, height) and the material the checks use (consistent units; any
 #: unit system works: the rule is linear in every property)
 BAR = (1.0, 0.25, 0.25)
@@ -49,8 +54,6 @@ def bar_mesh(path: str, size: float, lengths=BAR, seed: int = 1) -> str:
 
 def bar_net(size: float, folder: str | None = None):
     """The spring net of the bar at mesh size ``size`` (its mesh written to ``folder``)."""
-    from ..builders import read_mesh
-
     folder = folder or tempfile.mkdtemp(prefix="thermonet-bar-")
     path = bar_mesh(os.path.join(folder, f"bar_{size:g}.msh"), size)
     return read_mesh(path)
@@ -67,8 +70,6 @@ def free_expansion(net, dtheta: float = 50.0) -> dict:
     per axis over α Δθ."""
     import dataclasses
 
-    from ..simulation import Simulation
-
     alpha = MATERIAL["thermal_expansion"]
     heated = dataclasses.replace(net, positions=net.positions * np.exp(alpha * dtheta), rest_lengths=net.rest_lengths)
     sim = Simulation(heated, parameters=parameters(), temperatures=THETA0 + dtheta, integrator="co2", h=1e-3)
@@ -83,10 +84,6 @@ def wave_speed(net) -> float:
     d²F/dl² of its springs from the model; its lumped masses): ω L / π over √(E/ρ)."""
     from scipy.sparse import diags
     from scipy.sparse.linalg import eigsh
-
-    from ..simulation import Simulation
-    from .report import spring_rest_values
-    from .rigidity import stiffness
 
     sim = Simulation(net, parameters=parameters(), integrator="co2", h=1e-3)
     P = sim.layout.springs_to_user(sim.system.parameters.T).T
@@ -109,8 +106,6 @@ def fourier_decay(net, t_end: float = 0.25, h: float = 6.25e-4, amplitude: float
     """A temperature mode cos(π x / L) in the insulated bar (β = 0), run with conduction: its
     measured decay rate (from the spring temperatures projected on the mode, between t_end/5 and
     t_end) over k q² / c_v."""
-    from ..simulation import Simulation
-
     middle = 0.5 * (net.positions[net.edges[:, 0]] + net.positions[net.edges[:, 1]])
     x0, L = net.positions[:, 0].min(), np.ptp(net.positions[:, 0])
     q = np.pi / L
@@ -135,8 +130,6 @@ def fourier_decay(net, t_end: float = 0.25, h: float = 6.25e-4, amplitude: float
 
 def totals(net) -> dict:
     """Total mass and heat capacity over ρ V and c_v V (V: the mesh's volume)."""
-    from ..simulation import Simulation
-
     sim = Simulation(net, parameters=parameters(), integrator="co2", h=1e-3)
     V = float(np.prod(BAR))
     return {"mass": float(sim.net.masses.sum() / (MATERIAL["density"] * V)),

@@ -25,6 +25,7 @@ from typing import Mapping, NamedTuple
 import numpy as np
 
 from ..errors import InputError
+from .rigidity import net_dimension, require_rigid, span_dimension
 
 #: continuum properties a material region (or the API's ``parameters``) may give, SI units
 CONTINUUM_KEYS = {
@@ -136,8 +137,6 @@ def spring_volumes(net, properties: Mapping, springs: np.ndarray, where: str) ->
                          f"which knows each spring's share of the cells' volume; {net.source} does not")
     d = int(net.cell_dimension)
     if d == 2:
-        from .rigidity import span_dimension
-
         if span_dimension(net.positions) == 3:
             raise InputError(f"{where}: the triangles or quads of {net.source} do not lie in a plane; the rule "
                              "knows flat 2D nets (membranes in their plane), not shells")
@@ -201,8 +200,6 @@ def junction_factor(net, g: np.ndarray) -> float:
     x, e = net.positions, net.edges
     d = x[e[:, 1]] - x[e[:, 0]]
     l2 = np.einsum("ij,ij->i", d, d)
-    from .rigidity import net_dimension
-
     dim = net_dimension(net)
     n = net.n_nodes
     b = np.zeros((n, 3))
@@ -294,8 +291,6 @@ def apply_regions(net, model, values: dict, regions, rigid_where: str = "materia
     for k, v in properties.items():
         v[np.isnan(volume)] = np.nan
     net = with_masses(net, lumped_masses(net, properties["density"], volume))
-    from .rigidity import net_dimension, require_rigid
-
     require_rigid(net, rigid_where)
     return net, ContinuumMap(volume, net_dimension(net), properties, factor)
 

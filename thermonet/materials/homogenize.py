@@ -16,6 +16,9 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
+from ..builders import CELL_DIM
+from ..heat.graph import pair_graph
+from ..layout import build_layout
 from .rigidity import principal_frame, stiffness
 
 _VOIGT = {3: ((0, 0), (1, 1), (2, 2), (1, 2), (0, 2), (0, 1)), 2: ((0, 0), (1, 1), (0, 1)), 1: ((0, 0),)}
@@ -56,8 +59,6 @@ class Conductive(NamedTuple):
 def boundary_nodes(mesh, net) -> np.ndarray:
     """(n,) bool: nodes on the surface of the mesh's cells of the highest dimension (facets
     that belong to one cell only)."""
-    from ..builders import CELL_DIM
-
     top = net.cell_dimension
     keys = {}
     for block in mesh.cells:
@@ -105,9 +106,6 @@ def conductivity_tensor(net, g, volume: float, boundary, d: int) -> Conductive:
     """Effective conductivity of spring conductances g (m,): spring temperatures θ_e = G·x_e at
     the springs' middles for springs touching a boundary node, the others relaxed, through the
     pair conductances κ_ef of :func:`thermonet.heat.graph.pair_graph`; K_ab = Θ_a·L Θ_b / V."""
-    from ..heat.graph import pair_graph
-    from ..layout import build_layout
-
     layout = build_layout(net, renumber=False)
     graph = pair_graph(layout, np.asarray(g, dtype=np.float64)[None, :])
     m = net.n_springs

@@ -7,6 +7,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..kernels.springs import map_springs
 from .homogenize import Conductive, Elastic, conductivity_tensor, elastic_tensor
 
 
@@ -24,8 +25,6 @@ class Effective(NamedTuple):
 def spring_rest_values(model, P: np.ndarray, l0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(stiffness d²F/dl², heat capacity −θ ∂²F/∂θ²), each (m,), at rest and θ0, from the model's
     own functions and the (k, m) parameters P."""
-    from ..kernels.springs import map_springs
-
     theta0 = np.ascontiguousarray(P[model.parameters.index(model.reference_temperature)])
     l0 = np.ascontiguousarray(l0, dtype=np.float64)
     P = np.ascontiguousarray(P, dtype=np.float64)

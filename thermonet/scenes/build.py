@@ -13,9 +13,11 @@ import numpy as np
 from ..builders import chain, from_meshio, lattice, read_meshio, triangle
 from ..errors import InputError
 from ..heat.setup import Bath, Source
-from ..materials.continuum import CONTINUUM_KEYS
+from ..loads.scene import scene_loads
+from ..materials.continuum import CONTINUUM_KEYS, apply_regions
 from ..models import get_model
 from ..net import Net
+from ..simulation import Simulation, integrator_option_problem
 
 if TYPE_CHECKING:  # annotations only: scene.py builds through this module
     from .scene import Scene
@@ -41,8 +43,6 @@ class BuiltScene:
 
 
 def build_scene(scene: Scene) -> BuiltScene:
-    from ..simulation import Simulation
-
     d = scene.data
     net, mesh = build_net(scene)
     model = get_model(next((r["model"] for r in d["materials"].values() if "model" in r), "hencky"))
@@ -52,8 +52,6 @@ def build_scene(scene: Scene) -> BuiltScene:
     # --- end continuum materials ---
     integ = d["integrator"]
     options = {k: integ[k] for k in INTEGRATOR_OPTIONS if integ.get(k) is not None}
-    from ..simulation import integrator_option_problem
-
     for key in integ.get("options") or {}:  # a typo at its line, with what it may have meant
         problem = integrator_option_problem([key])
         if problem is not None:
@@ -62,8 +60,6 @@ def build_scene(scene: Scene) -> BuiltScene:
     init = d["initial"]
     kind = "momentum" if init["momentum"] is not None else "velocity"
     motion = node_vectors(scene, net, mesh, kind)
-    from ..loads.scene import scene_loads  # loads
-
     loads = scene_loads(scene, net)  # loads
     try:
         sim = Simulation(
@@ -230,8 +226,6 @@ def continuum_materials(scene: Scene, net: Net, model, values: dict):
     and node masses come from their densities. Returns the net (with those masses) and a
     :class:`~thermonet.materials.ContinuumMap`, or (net, None); errors at the region's line (a
     net that is a mechanism at net.mesh)."""
-    from ..materials.continuum import apply_regions
-
     regions = [(f"materials.{region}", _spring_group(scene, net, region, f"materials.{region}"), params)
                for region, params in scene.data["materials"].items()]
     try:

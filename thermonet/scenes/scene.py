@@ -12,6 +12,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..errors import InputError
+from ..heat.parameters import TRANSPORT_PARAMETERS
+from ..materials.continuum import CONTINUUM_KEYS, region_problem
+from ..models import get_model
+from ..step_policy import whole_steps
+from .build import build_scene
 from .schema import FIELD_NAMES, Invalid, validate
 from .source import SceneError, apply_overrides, key_lines, parse_toml
 
@@ -97,8 +102,6 @@ class Scene:
     def total_steps(self) -> int:
         """Steps from t = 0 to the scene's end (t_end must be a whole number of steps; checked
         when the scene is loaded)."""
-        from ..step_policy import whole_steps
-
         integ = self.data["integrator"]
         if integ.get("steps") is not None:
             return int(integ["steps"])
@@ -141,8 +144,6 @@ class Scene:
 
     def build(self):
         """The :class:`~thermonet.scenes.build.BuiltScene` (net, simulation, material ids)."""
-        from .build import build_scene
-
         return build_scene(self)
 
 
@@ -256,8 +257,6 @@ def check(scene: Scene) -> None:
     if (integ.get("t_end") is None) == (integ.get("steps") is None):
         raise scene.error("integrator", "give exactly one of integrator.t_end or integrator.steps")
     if integ.get("t_end") is not None:
-        from ..step_policy import whole_steps
-
         try:
             whole_steps(integ["t_end"], integ["h"])
         except InputError as exc:
@@ -311,13 +310,8 @@ def check(scene: Scene) -> None:
         raise scene.error(f"materials.{second}.model",
                           f"a run uses one model, but the scene names several ({listing}); "
                           "per-region materials are per-region parameter values of one model")
-    from ..heat.parameters import TRANSPORT_PARAMETERS
-    from ..models import get_model
-
     model = get_model(next(iter(models), "hencky"))
     # --- continuum materials (docs/continuum.md) ---
-    from ..materials.continuum import CONTINUUM_KEYS, region_problem
-
     known = ["model", *model.parameters, *TRANSPORT_PARAMETERS, *CONTINUUM_KEYS]
     for region, params in d["materials"].items():  # a typo, before what it leaves missing
         for k in params:

@@ -14,6 +14,9 @@ from dataclasses import dataclass, field
 from typing import Any, Callable
 
 from ..builders import CELL_EDGES
+from ..integrators import available_integrators
+from ..models import available_models
+from ..solvers.newton import NEWTON_PATHS
 
 NO_DEFAULT = object()
 
@@ -242,20 +245,14 @@ def _hint(v, valid) -> str:
 
 
 def _models():
-    from ..models import available_models
-
     return available_models()
 
 
 def _integrators():
-    from ..integrators import available_integrators
-
     return available_integrators()
 
 
 def _newton_paths():
-    from ..solvers.newton import NEWTON_PATHS
-
     return NEWTON_PATHS
 
 

@@ -15,9 +15,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..integrators import get_integrator
+from ..stability import stability_interval, stable_step
+from ..step_policy import SAFETY
 from .reference import DEFAULT_CHECK, DEFAULT_RTOL, ReferenceSolution, assemble_reference, reference_tasks
 from .runner import Runner
-from .scenes import check_scene, scene_effects
+from .scenes import BUILTIN, check_scene, make_simulation, scene_effects, scene_time
 from .slopes import asymptotic_slope
 from .snapshot import QUANTITIES
 from .tasks import check_steps, integrator_endpoint
@@ -147,10 +149,6 @@ def default_time_step(scene: str, integrators, t_end: float) -> float:
     """The coarsest step of a study when none is given: the paper's 0.1 for the built-in scenes,
     else the scene's own h; at most ``SAFETY`` (0.9) × the smallest stability limit of the
     integrators at the initial state, and a whole fraction of ``t_end``."""
-    from ..stability import stability_interval, stable_step
-    from ..step_policy import SAFETY
-    from .scenes import BUILTIN, make_simulation, scene_time
-
     h = PAPER_DT if scene in BUILTIN else scene_time(scene)[0]
     for name in integrators:
         sim = make_simulation(scene, name, h)
@@ -173,9 +171,6 @@ def default_check(scene: str, t_end: float, finest: float | None = None, effects
     reference itself: CO4 at ``finest`` (the study's finest step) / 16, or half its stability
     limit where that is smaller, a whole fraction of ``t_end`` by an even number of steps (its
     check runs at twice the step)."""
-    from ..stability import stable_step
-    from .scenes import make_simulation, scene_effects
-
     if effects is None:
         effects = scene_effects(scene)
     if effects:

@@ -28,8 +28,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..errors import InputError
 from ..integrators import get_integrator
-from .convergence import time_steps
+from .convergence import default_check, time_steps
 from .reference import DEFAULT_CHECK, DEFAULT_RTOL, ReferenceSolution, assemble_reference, reference_tasks
 from .runner import Runner
 from .scenes import check_scene, scene_effects
@@ -160,8 +161,6 @@ def cost_study(scene: str, integrators, dt: float = 0.1, halvings: int = 8, t_en
     ``scipy-<method>-numpy``) or "both".
     """
     if scipy_rhs not in ("compiled", "numpy", "both"):
-        from ..errors import InputError
-
         raise InputError(f"scipy_rhs must be 'compiled', 'numpy' or 'both', got {scipy_rhs!r}")
     variants = {"compiled": [(True, "")], "numpy": [(False, "-numpy")],
                 "both": [(True, ""), (False, "-numpy")]}[scipy_rhs]
@@ -174,8 +173,6 @@ def cost_study(scene: str, integrators, dt: float = 0.1, halvings: int = 8, t_en
         check_steps(t_end, h)
     effects = scene_effects(scene)
     if effects:  # SciPy's baselines solve Hamilton's equations, which leave these out: no baseline
-        from .convergence import default_check
-
         scipy = {}
         if check is DEFAULT_CHECK:
             check = default_check(scene, t_end, hs[-1], effects)

@@ -16,6 +16,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..errors import SimulationError
+from ..kernels.springs import map_springs
+from ..models import get_model
 from ..reference import LAWS, HamiltonRHS, ReferenceNet
 from .snapshot import Snapshot
 
@@ -25,8 +28,6 @@ class _MappedLaw:
     (``temperature(l, η, l0, P)``, ``tension(l, θ, l0, P)``; P is the (k, m) parameter array)."""
 
     def __init__(self, model):
-        from ..kernels.springs import map_springs
-
         self._temperature = map_springs(model, "temperature")
         self._tension = map_springs(model, "tension")
 
@@ -62,8 +63,6 @@ def hamilton_rhs(sim, compiled: bool = False) -> tuple[HamiltonRHS, np.ndarray]:
     (:class:`~thermonet.studies.compiled_rhs.CompiledHamiltonRHS`) instead of the NumPy one;
     other models always use their own compiled scalar functions mapped over the springs.
     """
-    from ..models import get_model
-
     net, system = sim.net, sim.system
     state = sim.state
     # parameters back in the user's spring numbering: (k, m)
@@ -114,8 +113,6 @@ def solve_hamilton(sim, t_end: float, method: str = "DOP853", rtol: float = 1e-1
     sol = solve_ivp(rhs, (0.0, float(t_end)), y0, method=method, rtol=rtol, atol=atol, t_eval=t_eval)
     wall = time.perf_counter() - start
     if not sol.success:
-        from ..errors import SimulationError
-
         raise SimulationError(f"solve_ivp {method} (rtol={rtol:g}) failed: {sol.message}")
     x, p, _phi = rhs.unpack(sol.y[:, -1])
     free = rhs.free

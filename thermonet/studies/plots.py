@@ -6,6 +6,8 @@ import math
 
 import numpy as np
 
+from ..errors import InputError
+
 LABELS = {"position": "error in position", "momentum": "error in momentum", "temperature": "error in temperature"}
 MARKERS = "osD^v<>phx*"
 
@@ -15,8 +17,6 @@ def pyplot():
     try:
         import matplotlib
     except ImportError:
-        from ..errors import InputError
-
         raise InputError("figures need matplotlib: pip install 'thermonet[vis]'") from None
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt

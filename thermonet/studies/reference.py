@@ -16,7 +16,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from ..errors import InputError, SimulationError
 from .runner import Runner
+from .scenes import scene_effects
 from .snapshot import QUANTITIES, Snapshot
 from .tasks import integrator_endpoint, ode_endpoint
 
@@ -51,8 +53,6 @@ def reference_tasks(scene: str, t_end: float, rtol: float = DEFAULT_RTOL, check=
     (their distance bounds the reference's error for any converging integrator)."""
     if effects:
         if check is None:
-            from ..errors import InputError
-
             raise InputError(f"the scene has {', '.join(effects)}, which Hamilton's equations leave out: the "
                              "reference is an integrator at a fine step (--check INTEGRATOR:H), not 'none'")
         name, h = check
@@ -66,8 +66,6 @@ def reference_tasks(scene: str, t_end: float, rtol: float = DEFAULT_RTOL, check=
 
 def assemble_reference(ref_result: dict, check_result: dict | None, t_end: float, rtol: float = DEFAULT_RTOL,
                        check=DEFAULT_CHECK, effects=()) -> ReferenceSolution:
-    from ..errors import SimulationError
-
     snap = ref_result["snapshot"]
     if effects:
         name, h = check
@@ -91,8 +89,6 @@ def reference_solution(scene: str, t_end: float, rtol: float = DEFAULT_RTOL, che
                        runner: Runner | None = None) -> ReferenceSolution:
     """Compute the reference (and its check, in parallel on ``runner``); for a scene with effects
     beyond Hamilton's equations, see :func:`reference_tasks`."""
-    from .scenes import scene_effects
-
     runner = runner or Runner(serial=True)
     effects = scene_effects(scene)
     ref, chk = reference_tasks(scene, t_end, rtol, check, effects)

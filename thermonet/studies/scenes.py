@@ -12,7 +12,9 @@ from __future__ import annotations
 
 import os
 
+from ..builders import lattice
 from ..errors import InputError
+from ..paper import chain_simulation, triangle_simulation
 from ..simulation import Simulation
 
 BUILTIN = ("chain", "triangle", "lattice")
@@ -24,12 +26,8 @@ def make_simulation(scene: str, integrator: str, h: float, **options) -> Simulat
     options: passed on to :class:`~thermonet.Simulation` (e.g. ``threads=1``).
     """
     if scene == "chain":
-        from ..paper import chain_simulation
-
         return chain_simulation(integrator, h, **options)
     if scene == "triangle":
-        from ..paper import triangle_simulation
-
         return triangle_simulation(integrator, h, **options)
     if scene == "lattice":
         return lattice_simulation(integrator, h, **options)
@@ -42,8 +40,6 @@ def lattice_simulation(integrator: str, h: float, cells: int = 8, **options) -> 
     masses, default "hencky" springs (c = 100, β = 0.2, C0 = 5, θ0 = 300), temperatures uniform in
     250–350, velocities normal with standard deviation 0.2 per component; all seeded (seed 1)."""
     import numpy as np
-
-    from ..builders import lattice
 
     net = lattice((cells, cells, cells), neighbours=6, jitter=0.1, seed=1)
     rng = np.random.default_rng(1)

@@ -12,7 +12,8 @@ import time
 
 import numpy as np
 
-from ..errors import ThermonetError
+from ..errors import InputError, ThermonetError
+from .ode import solve_hamilton
 from .scenes import make_simulation
 from .snapshot import Snapshot
 
@@ -41,8 +42,6 @@ def check_steps(t_end: float, h: float) -> int:
     states at the same time)."""
     n = round(t_end / h)
     if n < 1 or abs(n * h - t_end) > 1e-9 * t_end:
-        from ..errors import InputError
-
         raise InputError(f"t_end = {t_end:g} is not a whole number of steps h = {h:g}")
     return int(n)
 
@@ -65,8 +64,6 @@ def integrator_endpoint(scene: str, integrator: str, h: float, t_end: float) -> 
 def ode_endpoint(scene: str, t_end: float, method: str = "DOP853", rtol: float = 1e-13, atol: float = 1e-13) -> dict:
     """Hamilton's equations of ``scene`` by ``solve_ivp``: {snapshot, nfev, wall_time, status}."""
     settle_numba_threads()
-    from .ode import solve_hamilton
-
     res = solve_hamilton(make_simulation(scene, "co2", 1.0), t_end, method, rtol, atol)
     return {"snapshot": res.snapshot, "nfev": res.nfev, "wall_time": res.wall_time, "status": "ok"}
 
@@ -106,8 +103,6 @@ def timed_ode_run(scene: str, t_end: float, method: str, rtol: float, atol: floa
     ``repeats`` timed solves; {snapshot, nfev, status, times, time (median)}. ``compiled``: with
     the Numba-compiled right-hand side (built-in models), else the NumPy one."""
     settle_numba_threads()
-    from .ode import solve_hamilton
-
     atol = rtol if atol is None else atol
     solve_hamilton(make_simulation(scene, "co2", 1.0), min(t_end, 1e-2), method, rtol, atol, compiled=compiled)
     times, res = [], None
