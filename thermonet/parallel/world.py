@@ -44,3 +44,20 @@ def world(comm=None):
 def is_root(comm) -> bool:
     """Whether this process writes the run's shared files (rank 0, or no communicator)."""
     return comm is None or comm.Get_rank() == 0
+
+
+def on_root(comm, fn, *args):
+    """``fn(*args)`` run by rank 0 only (a folder prepared, a name chosen), its result or its
+    error on every process: no process waits for a root that failed."""
+    if comm is None:
+        return fn(*args)
+    result = error = None
+    if comm.Get_rank() == 0:
+        try:
+            result = fn(*args)
+        except Exception as exc:  # sent to the others, raised everywhere
+            error = exc
+    result, error = comm.bcast((result, error), root=0)
+    if error is not None:
+        raise error
+    return result
