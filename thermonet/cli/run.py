@@ -132,8 +132,9 @@ class StopRequest:
     second signal stops it at once. Called as the run's progress callback (forwarding to the
     progress bar, if any)."""
 
-    def __init__(self, progress):
+    def __init__(self, progress, comm=None):
         self.progress = progress
+        self.comm = comm  # a run over MPI processes: they stop together, at the same chunk
         self.compiling = getattr(progress, "compiling", None)
         #: the signal received (None: none), and whether a second one cut a step short
         self.signal = None
@@ -142,6 +143,9 @@ class StopRequest:
     def __call__(self, done, total, elapsed) -> None:
         if self.progress is not None:
             self.progress(done, total, elapsed)
+        if self.comm is not None:
+            signals = self.comm.allgather(self.signal)
+            self.signal = next((s for s in signals if s is not None), None)
         if self.signal is not None:
             raise KeyboardInterrupt
 
@@ -274,7 +278,7 @@ def _run(args, progress, record=None) -> int:
     if state is not None:
         output.resume((state, meta))  # the state, the diagnostics rows, frames and probe series
     observers = list(output.observers())
-    stop = StopRequest(progress)
+    stop = StopRequest(progress, comm)
     try:
         with stop.installed():
             sim.run(steps=max(0, total - sim.step), diagnostics_every=output.diagnostics_every,
