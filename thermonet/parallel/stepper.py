@@ -27,17 +27,20 @@ from ..loads.elements import NO_LOADS
 from .domain import decomposition, share
 from .halo import Halo
 from .partition import partition
+from .stages import stage_functions
 
 
-def splitting_passes(model, parallel: bool, thermal: bool, uniform: bool) -> dict:
-    """The compiled passes of the CPU kernel's variant without flows, heat flow or loads (their
-    namespace: ``spring_pass``, ``node_pass``, ``boundary_spring_pass``, ``boundary_node_pass``)."""
+def splitting_stages(model, parallel: bool, thermal: bool, uniform: bool):
+    """(stage, closing) of :mod:`thermonet.parallel.stages` around the passes of the CPU kernel's
+    variant without flows, heat flow or loads."""
     from ..kernels import splitting
     from ..kernels.specialize import model_fingerprint
 
     splitting.splitting_kernels(model, parallel, thermal, uniform)
     key = (model_fingerprint(model), bool(parallel), bool(thermal), bool(uniform), (), False, False, False)
-    return splitting._PASSES[key]
+    variant = (f"{model.name}_{key[0]}_{'par' if parallel else 'ser'}_{'thermal' if thermal else 'mech'}"
+               f"{'_uniform' if uniform else ''}")
+    return stage_functions(splitting._PASSES[key], variant)
 
 
 class DistributedStepper(Stepper):
@@ -65,7 +68,7 @@ class DistributedStepper(Stepper):
         self.halo = Halo(comm, sh.send, sh.recv)
         thermal = system.thermal
         P, uniform = system.kernel_parameters
-        self._passes = splitting_passes(system.model, parallel, thermal, uniform)
+        self._stage, self._closing = splitting_stages(system.model, parallel, thermal, uniform)
         self._topology = sh.topology
         self._springs = records.Springs(np.ascontiguousarray(system.rest_lengths[sh.springs]),
                                         P if uniform else np.ascontiguousarray(P[:, sh.springs]))
@@ -93,34 +96,25 @@ class DistributedStepper(Stepper):
         lo, hi = self.system.stretch_bounds
         run = records.Run(float(h), float(state.time), int(n_steps), bool(self.integrator.track_phi), float(lo),
                           float(hi), False, False, 1, 0)
-        p, phi, eta = self._p, self._phi, self._eta
+        arrays = records.StateArrays(self._x, self._p, self._phi, self._eta)
         cur, nxt = self._x, self._scratch.x_buf
-        passes, topology, springs, nodes, scratch = (self._passes, self._topology, self._springs, self._nodes,
-                                                     self._scratch)
-        length, inputs = self._no_heat.length, (self._no_heat.s_before, NO_LOADS)
+        local = (self._topology, self._springs, self._nodes, self._scratch)
+        extra = (self._no_heat.length, (self._no_heat.s_before, NO_LOADS))
         pending = 0.0
         for step in range(n_steps):
             for r, (k2, drift) in enumerate(zip(self._kicks, self._drifts)):
                 k1 = pending if r == 0 else 0.0
-                with_force = k1 != 0.0 or k2 != 0.0
-                if with_force:
-                    bad = passes["spring_pass"](cur, eta, phi, topology, springs, scratch, (k1 * h, k2 * h), run,
-                                                False, length)[0]
-                    if self._any(bad):  # row 0's positions end the previous step: that one was bad
-                        return self._stopped(state, cur, step - 1 if r == 0 and step > 0 else step)
-                passes["node_pass"](cur, nxt, p, topology, nodes, scratch, (k1 * h, k2 * h, drift * h, with_force),
-                                    0, False, inputs)
+                steps = (k1 * h, k2 * h, drift * h, k1 != 0.0 or k2 != 0.0)
+                bad = self._stage(cur, nxt, arrays, *local, steps, run, extra)
+                if steps[3] and self._any(bad):  # row 0's positions end the previous step: that one was bad
+                    return self._stopped(state, cur, step - 1 if r == 0 and step > 0 else step)
                 cur, nxt = nxt, cur
                 if drift != 0.0:
                     self.halo.exchange(cur)
             pending = self._carry
         if pending != 0.0:  # the closing kick (drift 0: the positions stay in cur)
-            bad = passes["boundary_spring_pass"](cur, eta, phi, topology, springs, scratch, (0.0, pending * h), run,
-                                                 True, length)[0]
-            if self._any(bad):
+            if self._any(self._closing(cur, nxt, arrays, *local, pending * h, run, extra)):
                 return self._stopped(state, cur, n_steps - 1)
-            passes["boundary_node_pass"](cur, nxt, p, topology, nodes, scratch, (0.0, pending * h, 0.0, True), 1,
-                                         False, inputs)
         self._give(state, cur)
         return None
 
