@@ -185,10 +185,18 @@ class _GatherPlan:
                 state.thermal_displacement[springs] = chunk[6 * k:]
 
 
-def distribute(sim, comm, method: str = "rcb") -> DistributedStepper:
-    """The stepper of ``sim`` over the processes of ``comm`` (its effects checked first)."""
+#: environment variable choosing the partitioner ("rcb", the default, or "metis")
+PARTITION_VARIABLE = "THERMONET_PARTITION"
+
+
+def distribute(sim, comm, method: str | None = None) -> DistributedStepper:
+    """The stepper of ``sim`` over the processes of ``comm`` (its effects checked first);
+    method: the partitioner, default ``$THERMONET_PARTITION`` or "rcb"."""
+    import os
+
     from .support import check_support
 
+    method = method or os.environ.get(PARTITION_VARIABLE, "rcb")
     check_support(sim, comm.Get_size())
     points = sim.layout.nodes_to_internal(np.asarray(sim.net.positions, dtype=np.float64))
     return DistributedStepper(sim.integrator, sim.system, comm, points, sim.parallel, method)
