@@ -194,3 +194,36 @@ def test_mpi_scaling_quick_mode_runs_one_and_two_processes_with_the_same_bits(ca
     two = rows[1]["ranks"]
     assert len(two) == 2 and all(r["bytes"] > 0 and r["messages"] >= 1 and r["rss_mb"] > 0 for r in two)
     assert "| 2 processes × 1 thread |" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("method", ["rcb", "metis"])
+def test_every_owned_node_sums_its_springs_in_the_whole_nets_order(method):
+    """The invariant behind the bits: in its share, each owned node lists the same springs, to the
+    same other nodes, in the same order as in the whole net; the halo lists agree pairwise."""
+    from thermonet.layout import build_layout
+    from thermonet.parallel.domain import decomposition, share
+    from thermonet.parallel.partition import partition
+
+    if method == "metis":
+        pytest.importorskip("pymetis")
+    net = tn.lattice((5, 4, 3), neighbours=18, jitter=0.1)
+    layout = build_layout(net)
+    edges = layout.edges
+    owner = partition(layout.nodes_to_internal(net.positions), edges, 3, method)
+    dec = decomposition(owner, edges, 3)
+    shares = [share(dec, edges, r) for r in range(3)]
+    assert np.array_equal(np.sort(np.concatenate([s.nodes[s.owned] for s in shares])), np.arange(net.n_nodes))
+    assert np.array_equal(np.sort(np.concatenate([dec.owned_springs(r) for r in range(3)])), np.arange(net.n_springs))
+    for s in shares:
+        topo = s.topology
+        for a in np.flatnonzero(s.owned):
+            g = s.nodes[a]
+            lo, hi = topo.inc_ptr[a], topo.inc_ptr[a + 1]
+            whole = slice(layout.inc_ptr[g], layout.inc_ptr[g + 1])
+            assert np.array_equal(s.springs[topo.inc_spring[lo:hi]], layout.inc_spring[whole])
+            assert np.array_equal(s.nodes[topo.inc_other[lo:hi]], layout.inc_other[whole])
+        assert np.array_equal(s.nodes[topo.edges.view(np.int32)], edges[s.springs])  # orientation kept
+        ghosts = np.flatnonzero(~s.owned)
+        assert np.array_equal(np.sort(np.concatenate(list(s.recv.values()))), ghosts)
+        for q, idx in s.send.items():
+            assert np.array_equal(s.nodes[idx], shares[q].nodes[shares[q].recv[s.rank]])

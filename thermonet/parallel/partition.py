@@ -48,7 +48,10 @@ def metis(edges: np.ndarray, n: int, parts: int) -> np.ndarray:
     both = both[order]
     xadj = np.zeros(n + 1, dtype=np.int64)
     np.cumsum(np.bincount(both[:, 0], minlength=n), out=xadj[1:])
-    _, membership = pymetis.part_graph(parts, xadj=xadj, adjncy=both[:, 1])
+    if hasattr(pymetis, "CSRAdjacency"):  # (pymetis ≥ 2025.2; the keywords are deprecated there)
+        _, membership = pymetis.part_graph(parts, adjacency=pymetis.CSRAdjacency(xadj, both[:, 1]))
+    else:
+        _, membership = pymetis.part_graph(parts, xadj=xadj, adjncy=both[:, 1])
     return np.asarray(membership, dtype=np.int64)
 
 
