@@ -56,7 +56,7 @@ def handle(args) -> int:
     from .progress import ProgressBar
 
     if not is_root(world()):  # a run over MPI processes: rank 0 speaks and writes the shared files
-        args.quiet = True
+        args.quiet = args.echo = True
     progress = None if args.quiet else ProgressBar()
     record = RunLog(getattr(args, "argv", None))
     with record.capturing():
