@@ -227,3 +227,16 @@ def test_every_owned_node_sums_its_springs_in_the_whole_nets_order(method):
         assert np.array_equal(np.sort(np.concatenate(list(s.recv.values()))), ghosts)
         for q, idx in s.send.items():
             assert np.array_equal(s.nodes[idx], shares[q].nodes[shares[q].recv[s.rank]])
+
+
+@needs_mpi
+def test_every_kind_of_splitting_over_processes_is_one_process_bit_for_bit():
+    """Drift first (F10, BM6A), a kick of 0 (GTR-0, GTR-1), no Φ (NM2), a composition (CO4): each
+    over 2 processes and alone, in the same processes (one launch)."""
+    names = ["f10", "gtr-0", "gtr-1", "nm2", "bm6a", "co4"]
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([ROOT, os.environ.get("PYTHONPATH", "")]),
+               NUMBA_NUM_THREADS="1")
+    done = subprocess.run([MPIEXEC, "-n", "2", sys.executable, os.path.join(ROOT, "tests", "mpi_integrators.py"),
+                           DEFAULT, "20", *names], env=env, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert done.stdout.split() == [w for n in names for w in (n, "same")], done.stdout
