@@ -3,18 +3,20 @@
     python benchmarks/mpi_scaling.py [--springs 1e6] [--steps 200] [--repeats 3] [--quick]
 
 Runs the same net (a 6-neighbour lattice of about ``--springs`` springs, jitter 0.1, "hencky"
-springs, random temperatures and velocities; ``--quick``: the built-in default scene, a few
-fifty steps) in one process on one thread, in one process on two threads (the threaded
+springs, random temperatures and velocities; ``--quick``: the built-in default scene, fifty
+steps) in one process on one thread, in one process on two threads (the threaded
 kernel's own scaling, the reference) and over two MPI processes of one thread each
 (``mpiexec -n 2``), and prints a markdown table: wall time per step (the median of the repeats,
 after a warm-up call that loads or compiles the kernels), speed-up over one thread, the halo
 each process sends per step (messages, bytes), the peak resident memory of each process, and
-whether the two-process state is bit for bit the one-process one.
+whether the two-process state is bit for bit the one-process one. Memory per process: the
+arrays the stepping works on (a process's share, or the whole net in one process), the resident
+memory after the run and its peak (which includes compiling, where a kernel was compiled).
 
 The model for P processes on a cluster: t_P = t_1 / P + stages × (messages × latency + bytes /
 bandwidth), from the measured halo of the two-process run scaled by the surface of a cube's
 share ((1/P)^(2/3) of the whole net's cross-section per neighbour, six neighbours in 3D), for a
-network of ``--latency`` seconds and ``--bandwidth`` bytes/s (defaults: 2 µs, 10 Gb/s and 100 Gb/s).
+network of ``--latency`` seconds (default 2 µs) at 10 Gb/s and 100 Gb/s.
 
 The workers are this script with ``--worker``, started by ``mpiexec``; the machine's load average
 is printed with the table (on a shared machine ratios measured side by side are what counts).
@@ -70,7 +72,8 @@ def worker(args) -> None:
     comm = sim.comm
     halo = getattr(sim.stepper, "halo", None)
     stages = sum(1 for d in sim.integrator.drifts if d != 0.0)
-    mine = {"rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
+    mine = {"rss_mb": resident_mb(), "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
+            "stepping_mb": stepping_bytes(sim) / 2**20,
             "messages": 0 if halo is None else len(halo._send) * stages,
             "bytes": 0 if halo is None else halo.bytes_per_exchange * stages,
             "ghosts": 0 if halo is None else sim.stepper.share.ghosts}
@@ -81,6 +84,39 @@ def worker(args) -> None:
     np.save(args.worker, np.concatenate([s.positions.ravel(), s.momenta.ravel()]))
     print(json.dumps({"seconds_per_step": float(np.median(times)), "springs": sim.net.n_springs,
                       "nodes": sim.net.n_nodes, "stages": stages, "ranks": every}))
+
+
+def resident_mb() -> float:
+    """This process's resident memory now (MB; after the run: compilation's peak left out)."""
+    try:
+        with open("/proc/self/status") as f:
+            return next(int(line.split()[1]) for line in f if line.startswith("VmRSS:")) / 1024.0
+    except (OSError, StopIteration):
+        return float("nan")
+
+
+def stepping_bytes(sim) -> int:
+    """Bytes of the arrays the stepping works on: the stepper's own (a distributed stepper's share:
+    its state, buffers, incidence lists, parameters) and, in one process, the state's."""
+    seen, total = set(), 0
+
+    def add(value):
+        nonlocal total
+        if isinstance(value, np.ndarray):
+            base = value if value.base is None else value.base
+            if id(base) not in seen and isinstance(base, np.ndarray):
+                seen.add(id(base))
+                total += base.nbytes
+        elif isinstance(value, (tuple, list)):
+            for v in value:
+                add(v)
+
+    for value in vars(sim.stepper).values():
+        add(value)
+    if sim.comm is None:
+        s = sim._state
+        add((s.positions, s.momenta, s.thermal_displacement, s.entropy))
+    return total
 
 
 def measure(args, ranks: int, threads: int, out: str) -> dict:
@@ -142,14 +178,19 @@ def main(argv=None) -> list:
         row["identical"] = bool(np.array_equal(state, states[0]))
     print(f"\n{base['springs']} springs, {base['nodes']} nodes; load average {os.getloadavg()[0]:.2f} "
           f"on {os.cpu_count()} cores\n")
-    print("| run | s/step | speed-up | halo msgs/step/process | halo bytes/step/process | peak RSS MB/process "
-          "| same bits as 1 process |")
-    print("|---|---|---|---|---|---|---|")
+    print("| run | s/step | speed-up | halo msgs/step/process | halo bytes/step/process | ghosts/process "
+          "| stepping arrays MB/process | resident MB/process (peak) | same bits as 1 process |")
+    print("|---|---|---|---|---|---|---|---|---|")
     for row in rows:
         ranks = row["ranks"]
+
+        def each(key, form="%.0f"):
+            return " / ".join(form % r[key] for r in ranks)
+
         print(f"| {row['label']} | {row['seconds_per_step']:.3e} | {row['speedup']:.2f} | "
-              f"{max(r['messages'] for r in ranks)} | {max(r['bytes'] for r in ranks)} | "
-              f"{' / '.join('%.0f' % r['rss_mb'] for r in ranks)} | {'yes' if row['identical'] else 'NO'} |")
+              f"{max(r['messages'] for r in ranks)} | {max(r['bytes'] for r in ranks)} | {each('ghosts', '%d')} | "
+              f"{each('stepping_mb', '%.1f')} | {each('rss_mb')} ({each('peak_mb')}) | "
+              f"{'yes' if row['identical'] else 'NO'} |")
     bandwidths = (10e9 / 8, 100e9 / 8)
     print(f"\nModel, t_P = t_1/P + halo (latency {args.latency:.0e} s; 10 and 100 Gb/s):\n")
     print("| processes | s/step at 10 Gb/s | s/step at 100 Gb/s |")

@@ -193,6 +193,8 @@ def test_mpi_scaling_quick_mode_runs_one_and_two_processes_with_the_same_bits(ca
     assert all(r["identical"] and r["seconds_per_step"] > 0 for r in rows)
     two = rows[1]["ranks"]
     assert len(two) == 2 and all(r["bytes"] > 0 and r["messages"] >= 1 and r["rss_mb"] > 0 for r in two)
+    one = rows[0]["ranks"][0]
+    assert all(0 < r["stepping_mb"] < one["stepping_mb"] for r in two)  # a share, not the whole net
     assert "| 2 processes × 1 thread |" in capsys.readouterr().out
 
 
