@@ -344,6 +344,7 @@ class RunOutput:
             "springs": sim.net.n_springs,
             "integrator": sim.integrator.name,
             "backend": sim.backend,
+            **({"processes": sim.comm.Get_size()} if getattr(sim, "comm", None) is not None else {}),
             "h": sim.h,
             "steps": sim.step,
             "time": sim.time,
