@@ -24,23 +24,27 @@ from ..integrators.base import Stepper
 from ..integrators.splitting import blowup_failure
 from ..kernels import records
 from ..loads.elements import NO_LOADS
+from ..loads.stepping import StepperLoads
 from .domain import decomposition, share
 from .halo import Halo
 from .partition import partition
+from .loads import ShareLoads, load_functions
 from .stages import stage_functions
 
 
-def splitting_stages(model, parallel: bool, thermal: bool, uniform: bool):
+def splitting_stages(model, parallel: bool, thermal: bool, uniform: bool, loads: bool = False):
     """(stage, closing) of :mod:`thermonet.parallel.stages` around the passes of the CPU kernel's
-    variant without flows, heat flow or loads."""
+    variant without flows or heat flow (with loads where ``loads``), and with loads the loads'
+    functions (:func:`thermonet.parallel.loads.load_functions`), else None."""
     from ..kernels import splitting
     from ..kernels.specialize import model_fingerprint
 
-    splitting.splitting_kernels(model, parallel, thermal, uniform)
-    key = (model_fingerprint(model), bool(parallel), bool(thermal), bool(uniform), (), False, False, False)
+    splitting.splitting_kernels(model, parallel, thermal, uniform, (), False, False, loads)
+    key = (model_fingerprint(model), bool(parallel), bool(thermal), bool(uniform), (), False, False, bool(loads))
     variant = (f"{model.name}_{key[0]}_{'par' if parallel else 'ser'}_{'thermal' if thermal else 'mech'}"
-               f"{'_uniform' if uniform else ''}")
-    return stage_functions(splitting._PASSES[key], variant)
+               f"{'_uniform' if uniform else ''}{'_loads' if loads else ''}")
+    ns = splitting._PASSES[key]
+    return stage_functions(ns, variant), (load_functions(ns, variant) if loads else None)
 
 
 class DistributedStepper(Stepper):
@@ -68,11 +72,16 @@ class DistributedStepper(Stepper):
         self.halo = Halo(comm, sh.send, sh.recv)
         thermal = system.thermal
         P, uniform = system.kernel_parameters
-        self._stage, self._closing = splitting_stages(system.model, parallel, thermal, uniform)
+        with_loads = system.loads is not None
+        (self._stage, self._closing), functions = splitting_stages(system.model, parallel, thermal, uniform,
+                                                                   with_loads)
         self._topology = sh.topology
         self._springs = records.Springs(np.ascontiguousarray(system.rest_lengths[sh.springs]),
                                         P if uniform else np.ascontiguousarray(P[:, sh.springs]))
         base = records.nodes(system)
+        #: the loads' clock and arrays (the Simulation points ``loads.time_origin`` at its clock)
+        self.loads = StepperLoads.of(system, table) if with_loads else None
+        self._loads = ShareLoads(self.loads, sh, dec, base, functions) if with_loads else None
         self._nodes = records.Nodes(np.ascontiguousarray(base.masses[sh.nodes]),
                                     np.ascontiguousarray(base.inv_mass[sh.nodes]),
                                     np.ascontiguousarray(base.anchored[sh.nodes] | ~sh.owned),  # ghosts held
@@ -99,22 +108,35 @@ class DistributedStepper(Stepper):
         arrays = records.StateArrays(self._x, self._p, self._phi, self._eta)
         cur, nxt = self._x, self._scratch.x_buf
         local = (self._topology, self._springs, self._nodes, self._scratch)
-        extra = (self._no_heat.length, (self._no_heat.s_before, NO_LOADS))
+        loads = self._loads
+        la = NO_LOADS if loads is None else loads.arrays_for(state, h)
+        extra = (self._no_heat.length, (self._no_heat.s_before, la))
         pending = 0.0
         for step in range(n_steps):
             for r, (k2, drift) in enumerate(zip(self._kicks, self._drifts)):
                 k1 = pending if r == 0 else 0.0
                 steps = (k1 * h, k2 * h, drift * h, k1 != 0.0 or k2 != 0.0)
+                if loads is not None and steps[3]:  # (as the CPU kernel: thermonet.kernels.splitting)
+                    loads.evaluate(la, _stage_time(la, h, step, la.kick_time[r]))
                 bad = self._stage(cur, nxt, arrays, *local, steps, run, extra)
                 if steps[3] and self._any(bad):  # row 0's positions end the previous step: that one was bad
                     return self._stopped(state, cur, step - 1 if r == 0 and step > 0 else step)
+                if loads is not None and steps[3]:
+                    loads.add_work(self.comm, cur, self._scratch.s, self._topology, self._nodes, steps[0], steps[1])
                 cur, nxt = nxt, cur
                 if drift != 0.0:
                     self.halo.exchange(cur)
+                    if loads is not None:
+                        loads.evaluate(la, _stage_time(la, h, step, la.drift_time[r]))
+                        loads.drive(cur, la)
             pending = self._carry
         if pending != 0.0:  # the closing kick (drift 0: the positions stay in cur)
+            if loads is not None:
+                loads.evaluate(la, _stage_time(la, h, n_steps, 0.0))
             if self._any(self._closing(cur, nxt, arrays, *local, pending * h, run, extra)):
                 return self._stopped(state, cur, n_steps - 1)
+            if loads is not None:
+                loads.add_work(self.comm, cur, self._scratch.s, self._topology, self._nodes, 0.0, pending * h)
         self._give(state, cur)
         return None
 
@@ -148,6 +170,11 @@ class DistributedStepper(Stepper):
 
     def summary(self) -> dict | None:
         return None
+
+
+def _stage_time(loads, h: float, step: int, tau: float) -> float:
+    """:func:`thermonet.loads.elements.stage_time`, the same operations in the same order."""
+    return loads.clock[0] + ((loads.clock[1] + step) + tau) * h
 
 
 class _GatherPlan:
@@ -199,4 +226,7 @@ def distribute(sim, comm, method: str | None = None) -> DistributedStepper:
     method = method or os.environ.get(PARTITION_VARIABLE, "rcb")
     check_support(sim, comm.Get_size())
     points = sim.layout.nodes_to_internal(np.asarray(sim.net.positions, dtype=np.float64))
-    return DistributedStepper(sim.integrator, sim.system, comm, points, sim.parallel, method)
+    stepper = DistributedStepper(sim.integrator, sim.system, comm, points, sim.parallel, method)
+    if stepper.loads is not None:
+        stepper.loads.time_origin = sim.time_origin  # the run's clock, as assemble() does
+    return stepper

@@ -9,7 +9,7 @@ def refusal(sim, size: int) -> str | None:
     """Why ``sim`` cannot run over ``size`` processes (the first unsupported effect), or None.
 
     Carried: the explicit splittings on the CPU backend, with or without thermal coupling,
-    gravity, anchors. Not yet: the rest, each named.
+    gravity, anchors, loads. Not yet: the rest, each named.
     """
     system, integrator = sim.system, sim.integrator
     heat = system.heat
@@ -19,7 +19,6 @@ def refusal(sim, size: int) -> str | None:
                                   "bm6, ...)"),
         (heat is not None and heat.conduction, "heat conduction (effects.conduction, g) with baths and sources"),
         (heat is not None and getattr(heat, "waves", False), "thermal waves (g_star)"),
-        (system.loads is not None, "loads (drives and forces)"),
         (bool(getattr(integrator, "flows", ())), "extra sub-flows in the integrator's schedule"),
     ]
     for unsupported_here, effect in unsupported:
