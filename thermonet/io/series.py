@@ -324,9 +324,8 @@ class RunOutput:
             "wall_time_s": sim.wall_time,
             "steps_run": sim.steps_run,
         }
-        state = sim.state
         if self.root:  # (every process holds the whole state: one checkpoint resumes on any count)
-            save_checkpoint(self.checkpoint_path, state, meta)
+            save_checkpoint(self.checkpoint_path, sim.state, meta)
         self.checkpoint_step = sim.step
         self.write_csv()
 
