@@ -212,6 +212,22 @@ class _GatherPlan:
                 state.thermal_displacement[springs] = chunk[6 * k:]
 
 
+def threads_per_process(comm) -> int:
+    """The cores this process may use divided by the processes of ``comm`` on its machine (≥ 1)."""
+    import os
+
+    from mpi4py import MPI
+
+    local = comm.Split_type(MPI.COMM_TYPE_SHARED)
+    try:
+        on_machine = local.Get_size()
+    finally:
+        local.Free()
+    affinity = getattr(os, "sched_getaffinity", None)
+    cores = len(affinity(0)) if affinity is not None else (os.cpu_count() or 1)
+    return max(1, cores // on_machine)
+
+
 #: environment variable choosing the partitioner ("rcb", the default, or "metis")
 PARTITION_VARIABLE = "THERMONET_PARTITION"
 
@@ -225,6 +241,8 @@ def distribute(sim, comm, method: str | None = None) -> DistributedStepper:
 
     method = method or os.environ.get(PARTITION_VARIABLE, "rcb")
     check_support(sim, comm.Get_size())
+    if sim.threads is None:  # the machine's cores shared among its processes, not each taking all
+        sim.threads = threads_per_process(comm)
     points = sim.layout.nodes_to_internal(np.asarray(sim.net.positions, dtype=np.float64))
     stepper = DistributedStepper(sim.integrator, sim.system, comm, points, sim.parallel, method)
     if stepper.loads is not None:
