@@ -95,7 +95,8 @@ def joined_frame(pvtu: str, ranks: int) -> meshio.Mesh:
             point_data[k][ids] = p.point_data[k]
         for k in cell_data:
             cell_data[k][sid] = p.cell_data[k][0]
-    return meshio.Mesh(points, [("line", cells)], point_data=point_data, cell_data={k: [v] for k, v in cell_data.items()})
+    return meshio.Mesh(points, [("line", cells)], point_data=point_data,
+                       cell_data={k: [v] for k, v in cell_data.items()})
 
 
 def assert_same_frames(one, many, ranks, name: str = "truss_block") -> list:
