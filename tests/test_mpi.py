@@ -158,6 +158,9 @@ def test_two_processes_cut_in_two_and_resumed_on_three_are_one_process_bit_for_b
     assert_same_run(one_process, out)
     # frame 0 from two pieces; 100 (rewritten on resume) and 200 from three
     assert assert_same_frames(one_process, out, (2, 3)) == [2, 3, 3]
+    from thermonet.io.folder import run_files  # (--overwrite removes them, a new run is refused)
+
+    assert {"truss_block_000000.pvtu", "truss_block_000000_p1.vtu", "truss_block_000002_p2.vtu"} <= set(run_files(out))
     assert not [f for f in os.listdir(out) if f.endswith(".vtu") and "_p" not in f]  # pieces only
 
 
