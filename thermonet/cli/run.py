@@ -314,6 +314,9 @@ def _run(args, progress, record=None) -> int:
         raise OutputError(f"writing the output failed at the end of the run: {describe_os_error(exc)}") from None
     if not args.quiet:
         print(format_summary(sim, scene.name, folder))
+        if comm is not None:
+            print(f"  over {comm.Get_size()} MPI processes ({sim.threads} thread(s) each); frames as .pvtu + one .vtu "
+                  f"piece per process")
         files = [f"{scene.name}.pvd ({len(output.pvd.frames)} frames)" if output.frames_every else None,
                  "diagnostics.csv", *probe_files, "summary.json", SCENE_AS_RUN, RunLog.NAME,
                  os.path.basename(output.checkpoint_path) if output.checkpoint_every else None]
