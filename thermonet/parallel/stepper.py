@@ -27,8 +27,8 @@ from ..loads.elements import NO_LOADS
 from ..loads.stepping import StepperLoads
 from .domain import decomposition, share
 from .halo import Halo
-from .partition import partition
 from .loads import ShareLoads, load_functions
+from .partition import partition
 from .stages import stage_functions
 
 
@@ -39,11 +39,10 @@ def splitting_stages(model, parallel: bool, thermal: bool, uniform: bool, loads:
     from ..kernels import splitting
     from ..kernels.specialize import model_fingerprint
 
-    splitting.splitting_kernels(model, parallel, thermal, uniform, (), False, False, loads)
-    key = (model_fingerprint(model), bool(parallel), bool(thermal), bool(uniform), (), False, False, bool(loads))
-    variant = (f"{model.name}_{key[0]}_{'par' if parallel else 'ser'}_{'thermal' if thermal else 'mech'}"
-               f"{'_uniform' if uniform else ''}{'_loads' if loads else ''}")
-    ns = splitting._PASSES[key]
+    advance = splitting.splitting_kernels(model, parallel, thermal, uniform, (), False, False, loads)
+    ns = next(splitting._PASSES[k] for k, v in splitting._CACHE.items() if v is advance)  # that variant's passes
+    variant = (f"{model.name}_{model_fingerprint(model)}_{'par' if parallel else 'ser'}"
+               f"_{'thermal' if thermal else 'mech'}{'_uniform' if uniform else ''}{'_loads' if loads else ''}")
     return stage_functions(ns, variant), (load_functions(ns, variant) if loads else None)
 
 
