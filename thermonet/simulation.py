@@ -110,6 +110,8 @@ class Simulation:
     anchors: node group names of the net (a mesh's physical groups) or node indices to hold
         fixed, on top of the net's own anchored nodes (``read_mesh(anchors=...)`` does the same
         when reading a mesh).
+    comm: an mpi4py communicator to distribute the net over (docs/parallel.md); default: the
+        processes of ``mpiexec`` when started by it, else none. Results are those of one process.
     """
 
     def __init__(
@@ -139,6 +141,7 @@ class Simulation:
         sources: Mapping | None = None,
         loads=None,
         anchors=None,
+        comm=None,
     ):
         if not isinstance(net, Net):
             raise InputError(f"net must be a thermonet.Net, got {type(net).__name__}")
@@ -177,6 +180,14 @@ class Simulation:
         self.integrator, self.stepper = assemble(self.integrator, self.system, parallel=self.parallel,
                                                  backend=self.backend, options=stepper_options,
                                                  time_origin=self.time_origin)
+        from .parallel import world
+
+        #: the MPI communicator the net is distributed over (None: one process)
+        self.comm = world(comm)
+        if self.comm is not None:
+            from .parallel.stepper import distribute
+
+            self.stepper = distribute(self, self.comm)
         self.energy_tolerance = check_energy_tolerance(energy_tolerance)
         self.stability_guard = StabilityGuard(self, guard_mode(stability_guard))  # (the integrator with heat)
         self._state = initial_state(net, self.model, layout, P_user, thermal, temperatures, momenta, velocities)

@@ -51,7 +51,8 @@ def main(argv=None) -> int:
     except ThermonetError as exc:
         if args.debug:
             raise
-        print(f"thermonet: error: {exc}", file=sys.stderr)
+        if not getattr(args, "echo", False):  # (an MPI process beside rank 0: the same error, said once)
+            print(f"thermonet: error: {exc}", file=sys.stderr)
         return exc.exit_code
     except OSError as exc:  # a file an output writer could not write, outside `thermonet run`'s own handling
         if args.debug:
@@ -59,7 +60,8 @@ def main(argv=None) -> int:
         print(f"thermonet: error: {describe_os_error(exc)}", file=sys.stderr)
         return 4
     except KeyboardInterrupt:
-        print("thermonet: interrupted", file=sys.stderr)
+        if not getattr(args, "echo", False):
+            print("thermonet: interrupted", file=sys.stderr)
         return 130
 
 

@@ -52,8 +52,11 @@ def overrides_of(args) -> list[str]:
 
 def handle(args) -> int:
     from ..errors import ThermonetError
+    from ..parallel.world import is_root, world
     from .progress import ProgressBar
 
+    if not is_root(world()):  # a run over MPI processes: rank 0 speaks and writes the shared files
+        args.quiet = args.echo = True
     progress = None if args.quiet else ProgressBar()
     record = RunLog(getattr(args, "argv", None))
     with record.capturing():
@@ -129,8 +132,9 @@ class StopRequest:
     second signal stops it at once. Called as the run's progress callback (forwarding to the
     progress bar, if any)."""
 
-    def __init__(self, progress):
+    def __init__(self, progress, comm=None):
         self.progress = progress
+        self.comm = comm  # a run over MPI processes: they stop together, at the same chunk
         self.compiling = getattr(progress, "compiling", None)
         #: the signal received (None: none), and whether a second one cut a step short
         self.signal = None
@@ -139,6 +143,9 @@ class StopRequest:
     def __call__(self, done, total, elapsed) -> None:
         if self.progress is not None:
             self.progress(done, total, elapsed)
+        if self.comm is not None:
+            signals = self.comm.allgather(self.signal)
+            self.signal = next((s for s in signals if s is not None), None)
         if self.signal is not None:
             raise KeyboardInterrupt
 
@@ -175,8 +182,11 @@ def _run(args, progress, record=None) -> int:
     from ..io.folder import (check_output_folder, check_writable, describe_os_error, fresh_folder,
                              prepare_output_folder, remove_stale_temporaries)
     from ..run_guards import broken_conservation
+    from ..parallel.world import is_root, on_root, world
     from ..scenes import load_scene, scene_from_text
     from .report import format_summary
+
+    comm = world()  # None in one process; the folder is chosen and prepared by rank 0 only
 
     overrides = overrides_of(args)
     state = meta = None
@@ -208,17 +218,22 @@ def _run(args, progress, record=None) -> int:
             check_writable(folder)
         except OSError as exc:
             raise OutputError(f"--resume: cannot write the output folder {folder}: {describe_os_error(exc)}") from None
-        remove_stale_temporaries(folder)
+        on_root(comm, remove_stale_temporaries, folder)
     else:
         scene = load_scene(args.scene, overrides)
-        folder = args.out
-        if folder is None:  # never refused: a previous run there keeps its files, this one goes beside it
-            base = scene["output"].get("folder") or os.path.join("thermonet-out", scene.name)
-            folder = base if args.overwrite else fresh_folder(base)
-            if folder != base and not args.quiet:
-                print(f"thermonet: {base} holds a previous run: writing to {folder} (--out DIR chooses the "
-                      f"folder, --overwrite replaces that run)", file=sys.stderr)
-        check_output_folder(folder, overwrite=args.overwrite)  # refused before anything is built
+
+        def choose_folder():
+            folder = args.out
+            if folder is None:  # never refused: a previous run there keeps its files, this one goes beside it
+                base = scene["output"].get("folder") or os.path.join("thermonet-out", scene.name)
+                folder = base if args.overwrite else fresh_folder(base)
+                if folder != base and not args.quiet:
+                    print(f"thermonet: {base} holds a previous run: writing to {folder} (--out DIR chooses the "
+                          f"folder, --overwrite replaces that run)", file=sys.stderr)
+            check_output_folder(folder, overwrite=args.overwrite)  # refused before anything is built
+            return folder
+
+        folder = on_root(comm, choose_folder)
 
     built = scene.build()
     sim = built.simulation
@@ -234,16 +249,20 @@ def _run(args, progress, record=None) -> int:
 
     probes = scene_probes(scene, sim)  # attached: every run of sim records them
     if state is None:  # the new run is built and checked: only now may a previous run's files go
-        prepare_output_folder(folder, overwrite=args.overwrite)
-    if record is not None:
+        on_root(comm, lambda: prepare_output_folder(folder, overwrite=args.overwrite))
+    if record is not None and is_root(comm):
         record.folder = folder
-    try:  # the scene as run (overrides applied), beside its output
+
+    def write_scene():  # the scene as run (overrides applied), beside its output
         from ..io import atomic_write
 
-        with atomic_write(os.path.join(folder, SCENE_AS_RUN), "w") as f:
-            f.write(scene.as_run())
-    except OSError as exc:
-        raise OutputError(f"cannot write to the output folder: {describe_os_error(exc)}") from None
+        try:
+            with atomic_write(os.path.join(folder, SCENE_AS_RUN), "w") as f:
+                f.write(scene.as_run())
+        except OSError as exc:
+            raise OutputError(f"cannot write to the output folder: {describe_os_error(exc)}") from None
+
+    on_root(comm, write_scene)
     try:
         output = RunOutput(
             sim, folder, scene.name,
@@ -259,7 +278,7 @@ def _run(args, progress, record=None) -> int:
     if state is not None:
         output.resume((state, meta))  # the state, the diagnostics rows, frames and probe series
     observers = list(output.observers())
-    stop = StopRequest(progress)
+    stop = StopRequest(progress, comm)
     try:
         with stop.installed():
             sim.run(steps=max(0, total - sim.step), diagnostics_every=output.diagnostics_every,
@@ -274,7 +293,7 @@ def _run(args, progress, record=None) -> int:
             # the last good state (a failed run was rewound to it), or the step a signal stopped at
             _try(output.write_checkpoint, sim)
         _try(output.write_csv)
-        if probes is not None:  # probes
+        if probes is not None and is_root(comm):  # probes
             _try(probes.to_csv, folder)
         if not args.quiet or failure is not None:
             print(_where_to_continue(sim, output, exc), file=sys.stderr)
@@ -285,7 +304,7 @@ def _run(args, progress, record=None) -> int:
         progress.close()
     try:
         output.write_csv()
-        probe_files = probes.to_csv(folder) if probes is not None else []  # probes
+        probe_files = probes.to_csv(folder) if probes is not None and is_root(comm) else []  # probes
         output.write_summary(sim, {"broken_conservation": broken_conservation(sim, sim.energy_tolerance),
                                    "files": {"scene_as_run": SCENE_AS_RUN, "log": RunLog.NAME},
                                    # continuum materials are given in SI units; spring parameters in the
@@ -295,6 +314,9 @@ def _run(args, progress, record=None) -> int:
         raise OutputError(f"writing the output failed at the end of the run: {describe_os_error(exc)}") from None
     if not args.quiet:
         print(format_summary(sim, scene.name, folder))
+        if comm is not None:
+            print(f"  over {comm.Get_size()} MPI processes ({sim.threads} thread(s) each); frames as .pvtu + one .vtu "
+                  f"piece per process")
         files = [f"{scene.name}.pvd ({len(output.pvd.frames)} frames)" if output.frames_every else None,
                  "diagnostics.csv", *probe_files, "summary.json", SCENE_AS_RUN, RunLog.NAME,
                  os.path.basename(output.checkpoint_path) if output.checkpoint_every else None]

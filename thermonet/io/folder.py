@@ -1,7 +1,8 @@
 """The output folder of a run: whose files are in it, refusing to overwrite them silently,
 removing them on request, and cleaning up after a killed run.
 
-A run's files are ``<name>.pvd``, its ``<name>_NNNNNN.vtu`` frames, ``diagnostics.csv``,
+A run's files are ``<name>.pvd``, its ``<name>_NNNNNN.vtu`` frames (over MPI processes
+``<name>_NNNNNN.pvtu`` and its pieces ``<name>_NNNNNN_p<rank>.vtu``), ``diagnostics.csv``,
 ``probe_<name>.csv``, ``summary.json``, ``<name>.checkpoint.npz``, ``scene-as-run.toml``,
 ``run.log`` and, after a process was killed while writing, the
 temporary files of atomic writes (``*.tmp-<pid>``, ``diagnostics.csv.tmp``).
@@ -14,8 +15,8 @@ import re
 
 from ..errors import InputError, OutputError
 
-_RUN_FILE = re.compile(r"(.+\.pvd|.+_\d{6}\.vtu|.+\.checkpoint\.npz|diagnostics\.csv|summary\.json|probe_.+\.csv"
-                       r"|scene-as-run\.toml|run\.log)$")
+_RUN_FILE = re.compile(r"(.+\.pvd|.+_\d{6}\.vtu|.+_\d{6}_p\d+\.vtu|.+_\d{6}\.pvtu|.+\.checkpoint\.npz"
+                       r"|diagnostics\.csv|summary\.json|probe_.+\.csv|scene-as-run\.toml|run\.log)$")
 _TEMPORARY = re.compile(r".+\.tmp(-\d+)?$")
 
 

@@ -138,6 +138,16 @@ class RunOutput:
         self.summary_path = os.path.join(self.folder, "summary.json")
         self._frame = (FrameFiller(sim, VTUWriter(sim.net.edges, sim.net.n_nodes), self.fields, self.material_id)
                        if self.frames_every else None)
+        #: a run over MPI processes (docs/parallel.md): each writes its piece of a frame, rank 0
+        #: the rest
+        comm = getattr(sim, "comm", None)
+        self.root = comm is None or comm.Get_rank() == 0
+        self._pieces = None
+        if comm is not None and self._frame is not None:
+            from ..parallel.frames import PieceWriter
+
+            self._pieces = PieceWriter(sim, self._frame.image)
+            background = False  # a piece's write ends in a barrier: on the calling thread
         self._csv_written = -np.inf
         #: step of the last checkpoint written (or restored), None before the first
         self.checkpoint_step = None
@@ -175,11 +185,16 @@ class RunOutput:
         """
         from .folder import check_writable, prepare_output_folder, remove_stale_temporaries
 
-        if resume:
-            check_writable(folder)
-            remove_stale_temporaries(folder)
-        else:
-            prepare_output_folder(folder, overwrite=overwrite)
+        from ..parallel.world import on_root
+
+        def prepare():
+            if resume:
+                check_writable(folder)
+                remove_stale_temporaries(folder)
+            else:
+                prepare_output_folder(folder, overwrite=overwrite)
+
+        on_root(getattr(sim, "comm", None), prepare)  # once, by rank 0, in a run over MPI processes
         if fields is None:
             fields = available_fields(sim)
         unknown = [f for f in fields if f not in FIELDS]
@@ -248,6 +263,11 @@ class RunOutput:
         else:
             filename = f"{self.name}_{len(self.pvd.frames):06d}.vtu"
         image = self._frame.fill()
+        if self._pieces is not None:
+            filename = self._pieces.write(image, self.folder, filename.rsplit(".", 1)[0], self.direct)
+            self.pvd.add(step, sim.time, filename, write=self.root)
+            self.frame_seconds += _time.perf_counter() - t0
+            return
         args = (image, os.path.join(self.folder, filename), step, sim.time, filename)
         if self.background:
             self._pending = _writer().submit(self._store_frame, *args)
@@ -282,7 +302,7 @@ class RunOutput:
         try:
             self._wait()
         finally:
-            if not self.pvd.written:
+            if not self.pvd.written and self.root:
                 self.pvd.write()
                 self._pvd_written = _time.monotonic()
 
@@ -291,7 +311,8 @@ class RunOutput:
             self.write_csv()
 
     def write_csv(self) -> None:
-        self.sim.diagnostics.to_csv(self.csv_path)
+        if self.root:
+            self.sim.diagnostics.to_csv(self.csv_path)
         self._csv_written = _time.monotonic()
 
     def write_checkpoint(self, sim) -> None:
@@ -304,7 +325,8 @@ class RunOutput:
             "wall_time_s": sim.wall_time,
             "steps_run": sim.steps_run,
         }
-        save_checkpoint(self.checkpoint_path, sim.state, meta)
+        if self.root:  # (every process holds the whole state: one checkpoint resumes on any count)
+            save_checkpoint(self.checkpoint_path, sim.state, meta)
         self.checkpoint_step = sim.step
         self.write_csv()
 
@@ -322,6 +344,7 @@ class RunOutput:
             "springs": sim.net.n_springs,
             "integrator": sim.integrator.name,
             "backend": sim.backend,
+            **({"processes": sim.comm.Get_size()} if getattr(sim, "comm", None) is not None else {}),
             "h": sim.h,
             "steps": sim.step,
             "time": sim.time,
@@ -334,9 +357,10 @@ class RunOutput:
                if sim.conduction_cycle else {}),
             **(extra or {}),
         }
-        with atomic_write(self.summary_path, "w") as f:
-            json.dump(out, f, indent=2, allow_nan=True)
-            f.write("\n")
+        if self.root:
+            with atomic_write(self.summary_path, "w") as f:
+                json.dump(out, f, indent=2, allow_nan=True)
+                f.write("\n")
         return out
 
 

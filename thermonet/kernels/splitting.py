@@ -96,6 +96,7 @@ UNIFORM = False
 BLOCK = 512
 
 _CACHE: dict = {}
+_PASSES: dict = {}  # each variant's namespace: its passes, for thermonet.parallel's stage driver
 
 _OPTIONS = dict(cache=True, error_model="numpy", boundscheck=False, _nrt=False)  # specialize(): no reference counting
 
@@ -168,6 +169,7 @@ def splitting_kernels(model, parallel: bool, thermal: bool = True, uniform: bool
             ns["_deferred_kick"] = specialize(deferred_kick, tag, ns, inline="always", **_OPTIONS)
             ns["conduction_boundary"] = specialize(conduction_boundary, tag, ns, inline="always", **_OPTIONS)
         _CACHE[key] = specialize(_advance, tag, ns, **_OPTIONS)
+        _PASSES[key] = ns
     return _CACHE[key]
 
 

@@ -1,0 +1,281 @@
+"""A net run over MPI processes (docs/parallel.md) is the run of one process, bit for bit.
+
+The default scene runs in this process (which also fills Numba's disk cache: the processes
+started by ``mpiexec`` then load the kernels instead of compiling them) and over 2 processes, cut
+in two and resumed; the tensile scene (a drive) with a multi-stage splitting (a halo exchange per
+stage) over 3; their diagnostics and probe files, checkpoints and frames (ParaView's parallel
+pieces, joined back by the node and spring numbers they carry) must be the same bytes.
+Effects the distributed step does not carry are refused in one line naming them.
+"""
+
+import importlib.util
+import os
+import shutil
+import subprocess
+import sys
+from xml.etree import ElementTree as ET
+
+import meshio
+import numpy as np
+import pytest
+
+import thermonet as tn
+from thermonet.cli.main import main
+from thermonet.errors import InputError
+from thermonet.io.pvd import read_pvd
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+DEFAULT = os.path.join(ROOT, "scenes", "default.toml")
+TENSILE = os.path.join(ROOT, "scenes", "tensile.toml")
+#: 200 steps of the default scene: rows every 20, frames every 100, the checkpoint at the end
+RUN = ["--set", "output.frames_every=100", "--set", "output.diagnostics_every=20",
+       "--set", "output.checkpoint_every=200", "--quiet"]
+SHORT = ["--set", "integrator.t_end=0.04"]
+
+
+def _mpiexec():
+    """The mpiexec beside this Python (the mpich wheel's), else on the PATH; None without one."""
+    beside = os.path.join(os.path.dirname(sys.executable), "mpiexec")
+    return beside if os.access(beside, os.X_OK) else shutil.which("mpiexec")
+
+
+MPIEXEC = _mpiexec()
+needs_mpi = pytest.mark.skipif(MPIEXEC is None or importlib.util.find_spec("mpi4py") is None,
+                               reason="needs mpi4py and mpiexec (pip install 'thermonet[mpi]')")
+
+
+def mpirun(ranks: int, *args, timeout: int = 300) -> subprocess.CompletedProcess:
+    """``mpiexec -n ranks python -m thermonet *args`` with this checkout on the path."""
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([ROOT, os.environ.get("PYTHONPATH", "")]),
+               NUMBA_NUM_THREADS="1")
+    done = subprocess.run([MPIEXEC, "-n", str(ranks), sys.executable, "-m", "thermonet", *args], env=env,
+                          capture_output=True, text=True, timeout=timeout)
+    assert done.returncode == 0, done.stdout + done.stderr
+    return done
+
+
+def checkpoint(folder, name: str = "truss_block") -> dict:
+    path = os.path.join(folder, f"{name}.checkpoint.npz")
+    with np.load(path) as z:
+        return {k: z[k] for k in z.files if k != "meta"}
+
+
+def assert_same_run(one, many, name: str = "truss_block") -> None:
+    """Same diagnostics (and probe) bytes, same checkpointed state bits."""
+    tables = sorted(f for f in os.listdir(one) if f.endswith(".csv"))
+    assert tables == sorted(f for f in os.listdir(many) if f.endswith(".csv"))
+    for table in tables:
+        with open(os.path.join(one, table), "rb") as a, open(os.path.join(many, table), "rb") as b:
+            assert a.read() == b.read(), table
+    a, b = checkpoint(one, name), checkpoint(many, name)
+    assert a.keys() == b.keys() and {"positions", "momenta", "entropy", "thermal_displacement"} <= set(a)
+    for k in a:
+        assert np.array_equal(a[k], b[k]), k
+
+
+def joined_frame(pvtu: str, ranks: int) -> meshio.Mesh:
+    """The pieces a .pvtu lists, read with meshio and put back in the whole net's numbering."""
+    sources = [p.get("Source") for p in ET.parse(pvtu).getroot().iter("Piece")]
+    assert len(sources) == ranks
+    pieces = [meshio.read(os.path.join(os.path.dirname(pvtu), s)) for s in sources]
+    nodes = np.concatenate([p.point_data["node_id"] for p in pieces])
+    springs = np.concatenate([p.cell_data["spring_id"][0] for p in pieces])
+    n, m = nodes.max() + 1, len(springs)
+    assert np.array_equal(np.sort(springs), np.arange(m))  # each spring in exactly one piece
+    points = np.empty((n, 3))
+    cells = np.empty((m, 2), dtype=np.int64)
+    point_data = {k: np.empty((n,) + v.shape[1:], v.dtype) for k, v in pieces[0].point_data.items() if k != "node_id"}
+    cell_data = {k: np.empty((m,) + v[0].shape[1:], v[0].dtype) for k, v in pieces[0].cell_data.items()
+                 if k != "spring_id"}
+    for p in pieces:
+        ids, sid = p.point_data["node_id"], p.cell_data["spring_id"][0]
+        points[ids] = p.points
+        cells[sid] = ids[p.cells[0].data]
+        for k in point_data:
+            point_data[k][ids] = p.point_data[k]
+        for k in cell_data:
+            cell_data[k][sid] = p.cell_data[k][0]
+    return meshio.Mesh(points, [("line", cells)], point_data=point_data,
+                       cell_data={k: [v] for k, v in cell_data.items()})
+
+
+def assert_same_frames(one, many, ranks, name: str = "truss_block") -> list:
+    """Every frame of ``many`` (each of ``ranks`` pieces: a count, or the counts allowed) joined
+    is that of ``one``; returns the frames' piece counts."""
+    counts = []
+    serial, parallel = read_pvd(os.path.join(one, f"{name}.pvd")), read_pvd(os.path.join(many, f"{name}.pvd"))
+    assert [t for t, _ in serial] == [t for t, _ in parallel] and len(serial) >= 2
+    for (_, a), (_, b) in zip(serial, parallel):
+        assert b.endswith(".pvtu")
+        pieces = len(list(ET.parse(b).getroot().iter("Piece")))
+        assert pieces in (ranks if isinstance(ranks, tuple) else (ranks,))
+        counts.append(pieces)
+        whole, joined = meshio.read(a), joined_frame(b, pieces)
+        assert np.array_equal(whole.points, joined.points)
+        assert np.array_equal(whole.cells[0].data, joined.cells[0].data)
+        assert whole.point_data.keys() == joined.point_data.keys() and whole.cell_data.keys() == joined.cell_data.keys()
+        for k in whole.point_data:
+            assert np.array_equal(whole.point_data[k], joined.point_data[k]), k
+        for k in whole.cell_data:
+            assert np.array_equal(whole.cell_data[k][0], joined.cell_data[k][0]), k
+    return counts
+
+
+def compile_here(scene: str) -> None:
+    """Compile the distributed step's own functions for ``scene`` in this process (one step over
+    ``MPI.COMM_SELF``), so that the processes ``mpiexec`` starts load them from the disk cache
+    instead of each compiling them at once on a machine with fewer cores than processes."""
+    from mpi4py import MPI
+
+    from thermonet.parallel.stepper import DistributedStepper
+    from thermonet.scenes import load_scene
+
+    sim = load_scene(scene).build().simulation
+    points = sim.layout.nodes_to_internal(sim.net.positions)
+    stepper = DistributedStepper(sim.integrator, sim.system, MPI.COMM_SELF, points, sim.parallel)
+    if stepper.loads is not None:
+        stepper.loads.time_origin = sim.time_origin
+    stepper.advance(sim.internal_state().copy(), 1, sim.h)
+
+
+@pytest.fixture(scope="module")
+def one_process(tmp_path_factory):
+    """The default scene's 200 steps in this process (the kernels compiled here, cached on disk)."""
+    out = tmp_path_factory.mktemp("one") / "run"
+    assert main(["run", DEFAULT, "--out", str(out), *SHORT, *RUN]) == 0
+    if MPIEXEC is not None and importlib.util.find_spec("mpi4py") is not None:
+        compile_here(DEFAULT)
+    return out
+
+
+@needs_mpi
+def test_two_processes_cut_in_two_and_resumed_on_three_are_one_process_bit_for_bit(one_process, tmp_path):
+    """The checkpoint holds the whole state: a run cut on 2 processes continues on 3."""
+    out = tmp_path / "run"
+    mpirun(2, "run", DEFAULT, "--out", str(out), "--set", "integrator.t_end=0.02", *RUN)
+    assert checkpoint(out)["step"] == 100
+    mpirun(3, "run", "--resume", str(out), *SHORT, "--quiet")
+    assert_same_run(one_process, out)
+    # frame 0 from two pieces; 100 (rewritten on resume) and 200 from three
+    assert assert_same_frames(one_process, out, (2, 3)) == [2, 3, 3]
+    from thermonet.io.folder import run_files  # (--overwrite removes them, a new run is refused)
+
+    assert {"truss_block_000000.pvtu", "truss_block_000000_p1.vtu", "truss_block_000002_p2.vtu"} <= set(run_files(out))
+    assert not [f for f in os.listdir(out) if f.endswith(".vtu") and "_p" not in f]  # pieces only
+
+
+@needs_mpi
+def test_three_processes_pulling_the_tensile_bar_with_omf4_are_one_process_bit_for_bit(tmp_path):
+    """The tensile scene (a drive: its reaction and work summed over the grip's nodes in order;
+    probes) with OMF4 (five kicks and four drifts per step, a halo exchange after each drift)."""
+    args = ["--set", 'integrator.name="omf4"', "--set", "integrator.t_end=0.2", "--set", "output.frames_every=50",
+            "--set", "output.diagnostics_every=10", "--set", "output.checkpoint_every=100", "--quiet"]
+    assert main(["run", TENSILE, "--out", str(tmp_path / "one"), *args]) == 0
+    compile_here(TENSILE)
+    mpirun(3, "run", TENSILE, "--out", str(tmp_path / "three"), *args)
+    assert_same_run(tmp_path / "one", tmp_path / "three", "tensile")
+    assert "extra.load_work" in checkpoint(tmp_path / "three", "tensile")
+    assert_same_frames(tmp_path / "one", tmp_path / "three", 3, "tensile")
+
+
+class TwoProcesses:
+    """A stand-in communicator of two processes: the effects are checked before any message."""
+
+    def Get_size(self):
+        return 2
+
+    def Get_rank(self):
+        return 0
+
+
+def _refused(match: str, **kwargs) -> str:
+    parameters = dict(c=100.0, beta=0.2, C0=5.0, theta0=300.0)
+    parameters.update(kwargs.pop("extra", {}))
+    with pytest.raises(InputError, match=match) as info:
+        tn.Simulation(tn.chain(), parameters=parameters, comm=TwoProcesses(), **kwargs)
+    message = str(info.value)
+    assert "\n" not in message and "over 2 MPI processes" in message
+    return message
+
+
+def test_effects_the_distributed_step_does_not_carry_are_refused_by_name():
+    from push_subflow import push
+
+    _refused("heat conduction", extra=dict(g=1.0))
+    _refused("implicit integrator 'em2'", integrator="em2")
+    _refused("extra sub-flows", integrator=tn.get_integrator("co2").with_flow(push([1], [0.1, 0.0, 0.0])))
+
+
+def test_mpi4py_is_needed_only_under_an_mpi_launcher(monkeypatch):
+    from thermonet.parallel import world
+    from thermonet.parallel.world import LAUNCHER_VARIABLES
+
+    for name in LAUNCHER_VARIABLES:
+        monkeypatch.delenv(name, raising=False)
+    monkeypatch.setitem(sys.modules, "mpi4py", None)  # as if not installed
+    assert world() is None  # one process: mpi4py is not imported
+    monkeypatch.setenv("PMI_SIZE", "2")
+    with pytest.raises(InputError, match=r"mpi4py is not installed: pip install 'thermonet\[mpi\]'"):
+        world()
+
+
+@needs_mpi
+def test_mpi_scaling_quick_mode_runs_one_and_two_processes_with_the_same_bits(one_process, capsys):
+    spec = importlib.util.spec_from_file_location("benchmark_mpi_scaling", os.path.join(ROOT, "benchmarks",
+                                                                                          "mpi_scaling.py"))
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    rows = module.main(["--quick"])
+    assert [r["processes"] for r in rows] == [1, 2]
+    assert all(r["identical"] and r["seconds_per_step"] > 0 for r in rows)
+    two = rows[1]["ranks"]
+    assert len(two) == 2 and all(r["bytes"] > 0 and r["messages"] >= 1 and r["rss_mb"] > 0 for r in two)
+    one = rows[0]["ranks"][0]
+    assert all(0 < r["stepping_mb"] < one["stepping_mb"] for r in two)  # a share, not the whole net
+    assert "| 2 processes × 1 thread |" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("method", ["rcb", "metis"])
+def test_every_owned_node_sums_its_springs_in_the_whole_nets_order(method):
+    """The invariant behind the bits: in its share, each owned node lists the same springs, to the
+    same other nodes, in the same order as in the whole net; the halo lists agree pairwise."""
+    from thermonet.layout import build_layout
+    from thermonet.parallel.domain import decomposition, share
+    from thermonet.parallel.partition import partition
+
+    if method == "metis":
+        pytest.importorskip("pymetis")
+    net = tn.lattice((5, 4, 3), neighbours=18, jitter=0.1)
+    layout = build_layout(net)
+    edges = layout.edges
+    owner = partition(layout.nodes_to_internal(net.positions), edges, 3, method)
+    dec = decomposition(owner, edges, 3)
+    shares = [share(dec, edges, r) for r in range(3)]
+    assert np.array_equal(np.sort(np.concatenate([s.nodes[s.owned] for s in shares])), np.arange(net.n_nodes))
+    assert np.array_equal(np.sort(np.concatenate([dec.owned_springs(r) for r in range(3)])), np.arange(net.n_springs))
+    for s in shares:
+        topo = s.topology
+        for a in np.flatnonzero(s.owned):
+            g = s.nodes[a]
+            lo, hi = topo.inc_ptr[a], topo.inc_ptr[a + 1]
+            whole = slice(layout.inc_ptr[g], layout.inc_ptr[g + 1])
+            assert np.array_equal(s.springs[topo.inc_spring[lo:hi]], layout.inc_spring[whole])
+            assert np.array_equal(s.nodes[topo.inc_other[lo:hi]], layout.inc_other[whole])
+        assert np.array_equal(s.nodes[topo.edges.view(np.int32)], edges[s.springs])  # orientation kept
+        ghosts = np.flatnonzero(~s.owned)
+        assert np.array_equal(np.sort(np.concatenate(list(s.recv.values()))), ghosts)
+        for q, idx in s.send.items():
+            assert np.array_equal(s.nodes[idx], shares[q].nodes[shares[q].recv[s.rank]])
+
+
+@needs_mpi
+def test_every_kind_of_splitting_over_processes_is_one_process_bit_for_bit(one_process):
+    """Drift first (F10, BM6A), a kick of 0 (GTR-0, GTR-1), no Φ (NM2), a composition (CO4): each
+    over 2 processes and alone, in the same processes (one launch)."""
+    names = ["f10", "gtr-0", "gtr-1", "nm2", "bm6a", "co4"]
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([ROOT, os.environ.get("PYTHONPATH", "")]),
+               NUMBA_NUM_THREADS="1")
+    done = subprocess.run([MPIEXEC, "-n", "2", sys.executable, os.path.join(ROOT, "tests", "mpi_integrators.py"),
+                           DEFAULT, "20", *names], env=env, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert done.stdout.split() == [w for n in names for w in (n, "same")], done.stdout

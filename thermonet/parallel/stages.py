@@ -1,0 +1,53 @@
+"""A stage and a closing kick of the distributed step, compiled around the CPU kernel's passes.
+
+They call the passes exactly as the kernel's ``advance`` does (the same argument types, literal
+flags included), so the passes' compiled code comes from the disk cache that a run of one process
+filled: the processes of a run then compile only these two small functions (once; cached too).
+"""
+
+from __future__ import annotations
+
+from ..kernels.specialize import function_fingerprint, specialize
+
+# bound per kernel variant by stage_functions(), as in thermonet.kernels.splitting
+spring_pass = node_pass = boundary_spring_pass = boundary_node_pass = None
+
+_OPTIONS = dict(cache=True, error_model="numpy", boundscheck=False, _nrt=False)
+_CACHE: dict = {}
+
+
+def _stage(cur, nxt, state, topology, springs, nodes, scratch, steps, run, extra):
+    """One stage row: the spring pass at cur (kicks steps[0], steps[1] of Φ) unless steps[3] is
+    False, then, unless a spring left the admissible states, the node pass (kicks, drift
+    steps[2]) into nxt. state: StateArrays (p, Φ, η read); extra: (length, (s_before, loads)).
+    Returns the number of inadmissible springs."""
+    if steps[3]:
+        bad = spring_pass(cur, state.eta, state.phi, topology, springs, scratch, (steps[0], steps[1]), run, False,
+                          extra[0])[0]
+        if bad > 0:
+            return bad
+    node_pass(cur, nxt, state.p, topology, nodes, scratch, steps, 0, False, extra[1])
+    return 0
+
+
+def _closing(cur, nxt, state, topology, springs, nodes, scratch, kick, run, extra):
+    """A call's closing kick of ``kick`` (a fraction of h times h) at cur, drift 0, keeping its
+    forces and temperatures as the CPU kernel's does. Returns the number of inadmissible springs."""
+    bad = boundary_spring_pass(cur, state.eta, state.phi, topology, springs, scratch, (0.0, kick), run, True,
+                               extra[0])[0]
+    if bad > 0:
+        return bad
+    boundary_node_pass(cur, nxt, state.p, topology, nodes, scratch, (0.0, kick, 0.0, True), 1, run.want_sums,
+                       extra[1])
+    return 0
+
+
+def stage_functions(namespace: dict, variant: str):
+    """(stage, closing) compiled around the passes of ``namespace`` (a CPU kernel variant's,
+    :func:`thermonet.parallel.stepper.splitting_passes`); variant: a name unique to it."""
+    if variant not in _CACHE:
+        passes = [namespace[k] for k in ("spring_pass", "node_pass", "boundary_spring_pass", "boundary_node_pass")]
+        tag = f"{variant}_{function_fingerprint(*(p.py_func for p in passes))}"
+        ns = dict(zip(("spring_pass", "node_pass", "boundary_spring_pass", "boundary_node_pass"), passes))
+        _CACHE[variant] = (specialize(_stage, tag, ns, **_OPTIONS), specialize(_closing, tag, ns, **_OPTIONS))
+    return _CACHE[variant]

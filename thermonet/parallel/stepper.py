@@ -1,0 +1,249 @@
+"""The explicit step over several processes: the CPU kernel's own passes on each process's
+share, the ghosts' positions exchanged after every drift.
+
+Each process runs the stage rows of the integrator's schedule as the CPU kernel
+(:mod:`thermonet.kernels.splitting`) does, calling its compiled spring and node passes (the same
+functions, from the same disk cache) on its share (:mod:`thermonet.parallel.domain`): per spring
+θ, T/l and Φ; per owned node the force gathered in the whole net's order, the kick and the drift;
+then the halo. Two kicks meeting at a step boundary stay two additions and a call ends with the
+closing kick, exactly as in one process, so every owned node and spring gets the same bits as in
+one process.
+
+The Simulation's state stays the whole net's on every process: a call takes its share from it
+and gives the owned values back to every process at its end (one ``Allgatherv``), so the
+diagnostics rows, guards, rewinds, probes and checkpoints of the runner work on it unchanged and
+give the same numbers as one process.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import InputError
+from ..integrators.base import Stepper
+from ..integrators.splitting import blowup_failure
+from ..kernels import records
+from ..loads.elements import NO_LOADS
+from ..loads.stepping import StepperLoads
+from .domain import decomposition, share
+from .halo import Halo
+from .loads import ShareLoads, load_functions
+from .partition import partition
+from .stages import stage_functions
+
+
+def splitting_stages(model, parallel: bool, thermal: bool, uniform: bool, loads: bool = False):
+    """(stage, closing) of :mod:`thermonet.parallel.stages` around the passes of the CPU kernel's
+    variant without flows or heat flow (with loads where ``loads``), and with loads the loads'
+    functions (:func:`thermonet.parallel.loads.load_functions`), else None."""
+    from ..kernels import splitting
+    from ..kernels.specialize import model_fingerprint
+
+    advance = splitting.splitting_kernels(model, parallel, thermal, uniform, (), False, False, loads)
+    ns = next(splitting._PASSES[k] for k, v in splitting._CACHE.items() if v is advance)  # that variant's passes
+    variant = (f"{model.name}_{model_fingerprint(model)}_{'par' if parallel else 'ser'}"
+               f"_{'thermal' if thermal else 'mech'}{'_uniform' if uniform else ''}{'_loads' if loads else ''}")
+    return stage_functions(ns, variant), (load_functions(ns, variant) if loads else None)
+
+
+class DistributedStepper(Stepper):
+    """An explicit :class:`~thermonet.integrators.splitting.Splitting` over the processes of
+    ``comm``: see the module docstring.
+
+    integrator: the splitting; system: the whole net's System (every process builds it);
+    points: (n, 3) reference positions, internal numbering (the partition's input);
+    parallel: multi-threaded passes; method: "rcb" or "metis" (:mod:`thermonet.parallel.partition`).
+    """
+
+    measures = False
+
+    def __init__(self, integrator, system, comm, points, parallel: bool = False, method: str = "rcb"):
+        self.integrator, self.system, self.comm = integrator, system, comm
+        self.size, self.rank = comm.Get_size(), comm.Get_rank()
+        table = integrator.table_between_sweeps
+        if (np.asarray(table.code) != -1).any():
+            raise InputError(f"{integrator.name}: a run over MPI processes runs kick/drift stages only")
+        self._kicks, self._drifts, self._carry = list(table.kick), list(table.drift), float(table.carry)
+        edges = system.edges
+        owner = partition(points, edges, self.size, method) if self.rank == 0 else None
+        self.decomposition = dec = decomposition(comm.bcast(owner, root=0), edges, self.size)
+        self.share = sh = share(dec, edges, self.rank)
+        self.halo = Halo(comm, sh.send, sh.recv)
+        thermal = system.thermal
+        P, uniform = system.kernel_parameters
+        with_loads = system.loads is not None
+        (self._stage, self._closing), functions = splitting_stages(system.model, parallel, thermal, uniform,
+                                                                   with_loads)
+        self._topology = sh.topology
+        self._springs = records.Springs(np.ascontiguousarray(system.rest_lengths[sh.springs]),
+                                        P if uniform else np.ascontiguousarray(P[:, sh.springs]))
+        base = records.nodes(system)
+        #: the loads' clock and arrays (the Simulation points ``loads.time_origin`` at its clock)
+        self.loads = StepperLoads.of(system, table) if with_loads else None
+        self._loads = ShareLoads(self.loads, sh, dec, base, functions) if with_loads else None
+        self._nodes = records.Nodes(np.ascontiguousarray(base.masses[sh.nodes]),
+                                    np.ascontiguousarray(base.inv_mass[sh.nodes]),
+                                    np.ascontiguousarray(base.anchored[sh.nodes] | ~sh.owned),  # ghosts held
+                                    base.gravity, base.with_gravity, base.reference)
+        nl, ml = len(sh.nodes), len(sh.springs)
+        self._x, self._p = np.empty((nl, 3)), np.empty((nl, 3))
+        self._phi = np.empty(ml if thermal else 0)
+        self._eta = np.empty(ml if thermal else 0)
+        self._scratch = records.Scratch(np.empty((nl, 3)), np.empty(ml), np.empty((nl, 3)),
+                                        np.empty(ml if thermal else 0), np.empty(ml), np.empty(11))
+        self._no_heat = records.no_heat_cpu()
+        self._bad = np.zeros(1, dtype=np.int64)
+        self._gather = _GatherPlan(dec, sh, thermal, self.rank)
+
+    # ------------------------------------------------------------------------------------------
+    def advance(self, state, n_steps: int, h: float, measure: bool = False):
+        """``n_steps`` steps of h of the whole net's ``state`` (in place, on every process)."""
+        if n_steps <= 0:
+            return None
+        self._take(state)
+        lo, hi = self.system.stretch_bounds
+        run = records.Run(float(h), float(state.time), int(n_steps), bool(self.integrator.track_phi), float(lo),
+                          float(hi), False, False, 1, 0)
+        arrays = records.StateArrays(self._x, self._p, self._phi, self._eta)
+        cur, nxt = self._x, self._scratch.x_buf
+        local = (self._topology, self._springs, self._nodes, self._scratch)
+        loads = self._loads
+        la = NO_LOADS if loads is None else loads.arrays_for(state, h)
+        extra = (self._no_heat.length, (self._no_heat.s_before, la))
+        pending = 0.0
+        for step in range(n_steps):
+            for r, (k2, drift) in enumerate(zip(self._kicks, self._drifts)):
+                k1 = pending if r == 0 else 0.0
+                steps = (k1 * h, k2 * h, drift * h, k1 != 0.0 or k2 != 0.0)
+                if loads is not None and steps[3]:  # (as the CPU kernel: thermonet.kernels.splitting)
+                    loads.evaluate(la, _stage_time(la, h, step, la.kick_time[r]))
+                bad = self._stage(cur, nxt, arrays, *local, steps, run, extra)
+                if steps[3] and self._any(bad):  # row 0's positions end the previous step: that one was bad
+                    return self._stopped(state, cur, step - 1 if r == 0 and step > 0 else step)
+                if loads is not None and steps[3]:
+                    loads.add_work(self.comm, cur, self._scratch.s, self._topology, self._nodes, steps[0], steps[1])
+                cur, nxt = nxt, cur
+                if drift != 0.0:
+                    self.halo.exchange(cur)
+                    if loads is not None:
+                        loads.evaluate(la, _stage_time(la, h, step, la.drift_time[r]))
+                        loads.drive(cur, la)
+            pending = self._carry
+        if pending != 0.0:  # the closing kick (drift 0: the positions stay in cur)
+            if loads is not None:
+                loads.evaluate(la, _stage_time(la, h, n_steps, 0.0))
+            if self._any(self._closing(cur, nxt, arrays, *local, pending * h, run, extra)):
+                return self._stopped(state, cur, n_steps - 1)
+            if loads is not None:
+                loads.add_work(self.comm, cur, self._scratch.s, self._topology, self._nodes, 0.0, pending * h)
+        self._give(state, cur)
+        return None
+
+    def _any(self, bad: int) -> bool:
+        """Whether a spring left the admissible states on any process (all learn it together)."""
+        from mpi4py import MPI
+
+        self._bad[0] = bad
+        self.comm.Allreduce(MPI.IN_PLACE, self._bad, op=MPI.SUM)
+        return bool(self._bad[0])
+
+    def _stopped(self, state, cur, steps_done: int):
+        """A spring left the admissible states: the positions where it was found into the whole
+        state (the runner rewinds and replays), and the failure naming the spring."""
+        self._give(state, cur)
+        raise blowup_failure(self.system, state.positions, state.entropy, max(steps_done, 0))
+
+    # ------------------------------------------------------------------------------------------
+    def _take(self, state) -> None:
+        """This process's share of the whole state (the runner may have replaced or rewound it)."""
+        sh = self.share
+        np.take(state.positions, sh.nodes, axis=0, out=self._x)
+        np.take(state.momenta, sh.nodes, axis=0, out=self._p)
+        if self.system.thermal:
+            np.take(state.thermal_displacement, sh.springs, out=self._phi)
+            np.take(state.entropy, sh.springs, out=self._eta)
+
+    def _give(self, state, x: np.ndarray) -> None:
+        """Every process's owned values into the whole state on every process."""
+        self._gather.allgather(self.comm, state, x, self._p, self._phi)
+
+    def summary(self) -> dict | None:
+        return None
+
+
+def _stage_time(loads, h: float, step: int, tau: float) -> float:
+    """:func:`thermonet.loads.elements.stage_time`, the same operations in the same order."""
+    return loads.clock[0] + ((loads.clock[1] + step) + tau) * h
+
+
+class _GatherPlan:
+    """Where each process's owned nodes and reported springs go in the whole state: one
+    ``Allgatherv`` of [x (3 n_q), p (3 n_q), Φ (m_q)] per process q."""
+
+    def __init__(self, dec, sh, thermal: bool, rank: int):
+        self.nodes = [dec.owned_nodes(q) for q in range(dec.size)]
+        self.springs = [dec.owned_springs(q) for q in range(dec.size)]
+        self.thermal = thermal
+        self.local_nodes = np.flatnonzero(sh.owned)
+        self.local_springs = np.searchsorted(sh.springs, self.springs[rank])
+        k = 1 if thermal else 0
+        self.counts = np.array([6 * len(a) + k * len(b) for a, b in zip(self.nodes, self.springs)], dtype=np.int64)
+        self.offsets = np.concatenate([[0], np.cumsum(self.counts)[:-1]])
+        self.recv = np.empty(int(self.counts.sum()))
+        self.send = np.empty(int(self.counts[rank]))
+
+    def allgather(self, comm, state, x, p, phi) -> None:
+        from mpi4py import MPI
+
+        n = len(self.local_nodes)
+        send = self.send
+        send[:3 * n] = x[self.local_nodes].ravel()
+        send[3 * n:6 * n] = p[self.local_nodes].ravel()
+        if self.thermal:
+            send[6 * n:] = phi[self.local_springs]
+        comm.Allgatherv(send, [self.recv, self.counts, self.offsets, MPI.DOUBLE])
+        for q, (nodes, springs) in enumerate(zip(self.nodes, self.springs)):
+            chunk = self.recv[self.offsets[q]:self.offsets[q] + self.counts[q]]
+            k = len(nodes)
+            state.positions[nodes] = chunk[:3 * k].reshape(k, 3)
+            state.momenta[nodes] = chunk[3 * k:6 * k].reshape(k, 3)
+            if self.thermal:
+                state.thermal_displacement[springs] = chunk[6 * k:]
+
+
+def threads_per_process(comm) -> int:
+    """The cores this process may use divided by the processes of ``comm`` on its machine (≥ 1)."""
+    import os
+
+    from mpi4py import MPI
+
+    local = comm.Split_type(MPI.COMM_TYPE_SHARED)
+    try:
+        on_machine = local.Get_size()
+    finally:
+        local.Free()
+    affinity = getattr(os, "sched_getaffinity", None)
+    cores = len(affinity(0)) if affinity is not None else (os.cpu_count() or 1)
+    return max(1, cores // on_machine)
+
+
+#: environment variable choosing the partitioner ("rcb", the default, or "metis")
+PARTITION_VARIABLE = "THERMONET_PARTITION"
+
+
+def distribute(sim, comm, method: str | None = None) -> DistributedStepper:
+    """The stepper of ``sim`` over the processes of ``comm`` (its effects checked first);
+    method: the partitioner, default ``$THERMONET_PARTITION`` or "rcb"."""
+    import os
+
+    from .support import check_support
+
+    method = method or os.environ.get(PARTITION_VARIABLE, "rcb")
+    check_support(sim, comm.Get_size())
+    if sim.threads is None:  # the machine's cores shared among its processes, not each taking all
+        sim.threads = threads_per_process(comm)
+    points = sim.layout.nodes_to_internal(np.asarray(sim.net.positions, dtype=np.float64))
+    stepper = DistributedStepper(sim.integrator, sim.system, comm, points, sim.parallel, method)
+    if stepper.loads is not None:
+        stepper.loads.time_origin = sim.time_origin  # the run's clock, as assemble() does
+    return stepper
