@@ -173,5 +173,8 @@ def _nested_dissection(adj: sp.csc_matrix) -> np.ndarray | None:
     adj = adj.tocsr()
     adj.setdiag(0)
     adj.eliminate_zeros()
-    perm, _ = pymetis.nested_dissection(pymetis.CSRAdjacency(adj.indptr, adj.indices))
+    if hasattr(pymetis, "CSRAdjacency"):  # (pymetis 2025 on; before, the arrays by keyword)
+        perm, _ = pymetis.nested_dissection(pymetis.CSRAdjacency(adj.indptr, adj.indices))
+    else:
+        perm, _ = pymetis.nested_dissection(xadj=adj.indptr, adjncy=adj.indices)
     return np.asarray(perm, dtype=np.int64)
