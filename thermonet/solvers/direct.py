@@ -1,8 +1,8 @@
 """The direct linear solver of a Newton step (``linear_solver="splu"``): SciPy's SuperLU. The
 fill-reducing ordering is computed once (minimum degree on AᵀA + A of the node graph, METIS's
 nested dissection on large nets) and baked into the pattern (:mod:`.pattern`), so each
-factorization runs with the NATURAL ordering and skips the ordering phase; pivoting prefers the (dominant) diagonal. For small nets: a 3D net's
-factorization fills in superlinearly.
+factorization runs with the NATURAL ordering and skips the ordering phase; pivoting prefers
+the (dominant) diagonal. For small nets: a 3D net's factorization fills in superlinearly.
 """
 
 from __future__ import annotations

@@ -170,9 +170,7 @@ def _nested_dissection(adj: sp.csc_matrix) -> np.ndarray | None:
         import pymetis
     except ImportError:
         return None
-    adj = adj.tocsr()
-    adj.setdiag(0)
-    adj.eliminate_zeros()
+    adj = (sp.triu(adj, 1) + sp.tril(adj, -1)).tocsr()  # (METIS takes no self-loops)
     if hasattr(pymetis, "CSRAdjacency"):  # (pymetis 2025 on; before, the arrays by keyword)
         perm, _ = pymetis.nested_dissection(pymetis.CSRAdjacency(adj.indptr, adj.indices))
     else:
