@@ -57,6 +57,16 @@ SWEEPS_MAX_HW = 10.0
 #: at h·ω_max = 2 on 144 unknowns); below, the compiled path's dense LU (AUTO_DENSE_MAX_UNKNOWNS:
 #: no Python call per iteration)
 SPLU_ALWAYS_MAX_UNKNOWNS = 200
+#: … and on a quiet net of more than AUTO_DENSE_MAX_UNKNOWNS unknowns (out-of-balance force and
+#: motion over the step at most QUIET_STRAIN as a strain, :func:`.large_steps.unrest`; a part
+#: at rest or loaded slowly), where a factorization carried from step to step with the last step's
+#: displacement as predictor needs about two corrections per step and no new factorization:
+#: measured on the steel part of benchmarks/em2_paths.py faster than the sweeps at h·ω_max = 2
+#: and 6 at 9 270 springs (5 172 unknowns), and 6.6× faster at h·ω_max = 2 at 97 958 springs
+#: (47 637 unknowns). A net released out of balance rings (the hot lattice and the bracket:
+#: the Jacobian turns with the motion, the last step is a poor guess), and there the sweeps
+#: are 3–5× faster at those steps
+QUIET_STRAIN = 1e-6
 
 
 @dataclass(frozen=True)
@@ -71,11 +81,13 @@ class PathChoice:
     reason: str
 
 
-def choose_by_step(h: float, omega_max: float, size: int, sweeps_max_hw: float = None) -> PathChoice:
+def choose_by_step(h: float, omega_max: float, size: int, sweeps_max_hw: float = None,
+                   unrest: float = math.inf) -> PathChoice:
     """The "auto" path of a scheme that chooses by the step (EM2), for step h on a net of
-    ``size`` unknowns whose largest angular frequency is ``omega_max``: "sweeps" (the compiled
-    path the stepper was made with: matrix-free sweeps, or the dense LU on the smallest nets)
-    or "splu-reuse" (the sparse path, SuperLU with kept factorizations)."""
+    ``size`` unknowns whose largest angular frequency is ``omega_max`` and whose state is
+    ``unrest`` away from a quiet one (a strain, :func:`.large_steps.unrest`; inf: unknown):
+    "sweeps" (the compiled path the stepper was made with: matrix-free sweeps, or the dense LU
+    on the smallest nets) or "splu-reuse" (the sparse path, SuperLU with kept factorizations)."""
     limit = SWEEPS_MAX_HW if sweeps_max_hw is None else sweeps_max_hw
     hw = float(h) * float(omega_max)
     where = f"h·ω_max = {hw:.3g}" + (f" ({hw / 2:.3g}× CO2's stable step)" if math.isfinite(hw) else "")
@@ -85,6 +97,11 @@ def choose_by_step(h: float, omega_max: float, size: int, sweeps_max_hw: float =
         return PathChoice(h, hw, "sparse", "splu-reuse",
                           f"{where}, {size} unknowns (≤ {SPLU_ALWAYS_MAX_UNKNOWNS}): SuperLU with kept "
                           f"factorizations is the cheapest at any step on a net this small")
+    if hw <= limit and unrest <= QUIET_STRAIN and size > AUTO_DENSE_MAX_UNKNOWNS:
+        return PathChoice(h, hw, "sparse", "splu-reuse",
+                          f"{where}, a quiet net (out of balance and motion {unrest:.2g} ≤ {QUIET_STRAIN:g} as "
+                          f"a strain): a factorization carried from step to step needs about two solves per "
+                          f"step ({size} unknowns)")
     if hw <= limit:
         return PathChoice(h, hw, "compiled", "sweeps",
                           f"{where} ≤ {limit:g}: inertia-preconditioned sweeps converge in a few sweeps")

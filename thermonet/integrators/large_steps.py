@@ -8,6 +8,7 @@ them).
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 
@@ -28,7 +29,8 @@ def choose_path(stepper, state, h: float) -> None:
     # the dense LU) serves the steps near the limit
     compiled, solver = stepper._paths.setdefault("made", (stepper.compiled, stepper.solver))
     omega = max_frequency(stepper.system, state.positions, state.entropy).omega_max
-    choice = choose_by_step(h, omega, stepper.pattern.size)
+    quiet = unrest(stepper.system, state.positions, state.momenta, state.entropy, h)
+    choice = choose_by_step(h, omega, stepper.pattern.size, unrest=quiet)
     if choice.linear_solver == "sweeps":
         made = compiled.linear_solver if compiled is not None else solver.name
         if made != "sweeps":
@@ -42,6 +44,34 @@ def choose_path(stepper, state, h: float) -> None:
         stepper._paths[choice.linear_solver] = (None, stepper.wrap_solver(solver))
     stepper.compiled, stepper.solver = stepper._paths[choice.linear_solver]
     stepper.path_choice = choice
+
+
+def unrest(system, x: np.ndarray, p: np.ndarray, eta: np.ndarray | None, h: float) -> float:
+    """How far the state (x, p, η; (n, 3), (n, 3), (m,)) is from a quiet one, as a strain: the
+    larger of the springs' and gravity's out-of-balance force on a free node over the largest
+    force per unit strain of a spring (κ_e l0_e, κ_e its adiabatic stiffness), and the largest
+    relative displacement of a spring's ends over a step h at their velocities, |v_b − v_a| h / l0_e.
+    Force loads are not counted (a part held by them counts as out of balance). inf where a
+    stiffness is not finite."""
+    from ..stability import spring_stiffness
+
+    axial, geometric, n_vec = spring_stiffness(system, x, eta)
+    edges, l0 = system.edges, system.rest_lengths
+    scale = float(np.max(np.abs(axial) * l0, initial=0.0))
+    if not (np.isfinite(axial).all() and np.isfinite(geometric).all() and np.isfinite(scale)) or scale <= 0.0:
+        return math.inf
+    length = np.linalg.norm(x[edges[:, 1]] - x[edges[:, 0]], axis=1)
+    pull = (geometric * length)[:, None] * n_vec  # tension T n, pulling a towards b
+    force = np.zeros_like(x)
+    np.add.at(force, edges[:, 0], pull)
+    np.subtract.at(force, edges[:, 1], pull)
+    if system.gravity is not None:
+        force += system.masses[:, None] * system.gravity[None, :]
+    free = ~system.anchored
+    imbalance = float(np.max(np.linalg.norm(force[free], axis=1), initial=0.0)) / scale
+    v = p * system.inv_mass[:, None]
+    motion = float(np.max(np.linalg.norm(v[edges[:, 1]] - v[edges[:, 0]], axis=1) * h / l0, initial=0.0))
+    return max(imbalance, motion)
 
 
 def continued(stepper, x, p, eta, h: float, failed: NewtonResult) -> NewtonResult:

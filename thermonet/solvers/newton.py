@@ -108,6 +108,24 @@ REUSE_BELOW = 1e-3
 REUSE_CONTRACTION = 0.2
 
 
+#: At the residual's rounding floor, a correction whose reduction of the scaled residual is this
+#: many times weaker than the reduction of the correction before it has met the floor: a kept
+#: factorization on a slowly loaded part contracts 3e-6 per correction (1e-1 → 3e-7), and the
+#: next correction's 30× (→ 1e-8, under the floor) is the rounding's, which one more correction
+#: would only confirm (a third solve per step at 100× CO2's stable step on the steel part)
+FLOOR_STALL_FACTOR = 10.0
+
+
+def _floor_stall(history: list) -> float:
+    """The reduction of the last correction (history[-1] / history[-2]) above which a residual
+    at the rounding floor is converged: 0.5, or FLOOR_STALL_FACTOR times the reduction of the
+    correction before where that is smaller (a linear contraction does not weaken tenfold from
+    one correction to the next with the same matrix; a quadratic one strengthens)."""
+    if len(history) >= 3 and history[-3] > 0:
+        return min(0.5, FLOOR_STALL_FACTOR * history[-2] / history[-3])
+    return 0.5
+
+
 def _jacobi_pays(rho: float, contraction: float, tolerance: float) -> bool:
     """Whether at most JACOBI_MAX_STEPS Jacobi steps, each reducing the scaled residual ``rho``
     by ``contraction``, reach ``tolerance``."""
@@ -172,7 +190,8 @@ def newton(problem, u: np.ndarray, options: NewtonOptions, solver, timers: Newto
     problem: ``residual(u) -> (status, spring)`` fills ``problem.R`` and ``problem.Rabs`` (and,
     optionally, ``problem.norms`` = (max |R|, max Rabs)) and whatever the Jacobian needs; an
     optional ``problem.residual_floor``: a max |R| at or below it that the last correction
-    reduced less than 2× is converged whatever its scaled value (the rounding of the residual's
+    reduced less than 2× (or FLOOR_STALL_FACTOR times less than the one before, _floor_stall)
+    is converged whatever its scaled value (the rounding of the residual's
     own terms; EM2's: a net at rest in exact equilibrium has a residual of round-off over a
     scale of round-off);
     ``jacobian(data)`` fills the CSR values at the last residual's point, ``data`` its value
@@ -230,7 +249,7 @@ def newton(problem, u: np.ndarray, options: NewtonOptions, solver, timers: Newto
         if rho <= options.tolerance:
             return NewtonResult(True, it, history, jacobi_steps=jacobi_steps, reused=reused)
         floored = it > 0 and rmax <= getattr(problem, "residual_floor", 0.0)
-        if floored and rho > 0.5 * history[-2]:
+        if floored and rho > _floor_stall(history) * history[-2]:
             # at the rounding floor of the residual's terms, and no longer falling
             return NewtonResult(True, it, history, jacobi_steps=jacobi_steps, reused=reused)
         if costly and not floored and not (

@@ -1,0 +1,91 @@
+"""The direct solver's pieces: the pattern's transposed order (SuperLU solves A x = b without
+transposing), METIS's nested dissection on large nets, a factorization's worth read once per
+pivot sequence, and Newton's test of a residual at its rounding floor."""
+
+import numpy as np
+import scipy.sparse as sp
+
+import thermonet as tn
+import thermonet.solvers.direct as direct
+import thermonet.solvers.pattern as pattern_module
+from thermonet.solvers import BlockPattern
+from thermonet.solvers.direct import ReusedLU, SparseLU
+from thermonet.solvers.newton import FLOOR_STALL_FACTOR, _floor_stall
+
+
+def lattice_pattern(cells=4, block=3):
+    net = tn.lattice((cells, cells, cells), neighbours=18, jitter=0.1, seed=2)
+    anchored = net.positions[:, 2] < 0.5
+    return BlockPattern.build(np.asarray(net.edges), anchored, block)
+
+
+def diagonally_dominant_values(p: BlockPattern, seed=0) -> np.ndarray:
+    """(nnz,) values of a nonsymmetric, diagonally dominant matrix in the pattern."""
+    rng = np.random.default_rng(seed)
+    data = rng.uniform(-1.0, 1.0, p.nnz)
+    A = p.matrix(data).tolil()
+    A.setdiag(np.abs(p.matrix(data)).sum(axis=1).A.ravel() + 1.0)
+    A = A.tocsr()
+    A.sort_indices()
+    assert np.array_equal(A.indices, p.indices) and np.array_equal(A.indptr, p.indptr)
+    return A.data
+
+
+def test_the_transpose_map_gives_the_transposed_values():
+    p = lattice_pattern(3)
+    data = np.random.default_rng(1).standard_normal(p.nnz)
+    At = p.matrix(data).T.tocsr()
+    At.sort_indices()
+    assert np.array_equal(At.indptr, p.indptr) and np.array_equal(At.indices, p.indices)
+    assert np.array_equal(data[p.transpose], At.data)
+
+
+def test_splu_solves_the_matrix_itself():
+    """A x = b for a nonsymmetric matrix (a transposed solve would give Aᵀ x = b)."""
+    p = lattice_pattern(3)
+    data = diagonally_dominant_values(p)
+    b = np.random.default_rng(2).standard_normal(p.size)
+    lu = SparseLU(p)
+    lu.factorize(data)
+    x = lu.solve(b)
+    assert np.abs(p.matrix(data) @ x - b).max() <= 1e-12 * np.abs(b).max()
+
+
+def test_large_nets_are_ordered_by_nested_dissection(monkeypatch):
+    """At METIS_MIN_NODES free nodes or more the order is METIS's (another permutation than
+    minimum degree's), and SuperLU on it solves as before."""
+    mmd = lattice_pattern(5)
+    monkeypatch.setattr(pattern_module, "METIS_MIN_NODES", 10)
+    nd = lattice_pattern(5)
+    assert not np.array_equal(nd.free_index, mmd.free_index)
+    assert np.array_equal(np.sort(nd.free_index[nd.free_index >= 0]), np.arange(nd.n_free))
+    data = diagonally_dominant_values(nd)
+    b = np.ones(nd.size)
+    lu = SparseLU(nd)
+    lu.factorize(data)
+    assert np.abs(nd.matrix(data) @ lu.solve(b) - b).max() <= 1e-12
+
+
+def test_a_factorizations_worth_is_read_once_per_pivot_sequence(monkeypatch):
+    p = lattice_pattern(3)
+    calls = []
+    real = direct.factorization_worth
+    monkeypatch.setattr(direct, "factorization_worth", lambda lu: calls.append(1) or real(lu))
+    lu = ReusedLU(p)
+    lu.factorize(diagonally_dominant_values(p, 0), 1.0)
+    first = lu.worth
+    lu.factorize(diagonally_dominant_values(p, 1), 1.0)  # diagonal pivots both times: the same factors' structure
+    assert len(calls) == 1 and lu.worth == first == real(lu._lu)
+    lu._worth_of = (lu._worth_of[0][::-1].copy(), -1.0)  # another pivot sequence: read again
+    lu.factorize(diagonally_dominant_values(p, 2), 1.0)
+    assert len(calls) == 2 and lu.worth == first
+
+
+def test_a_residual_at_its_floor_is_converged_once_a_correction_contracts_far_less():
+    # no correction before the last: the plain test (reduced less than 2×)
+    assert _floor_stall([1.0, 1e-8]) == 0.5
+    # a kept factorization contracting 3e-6, then 30× at the floor: the rounding's
+    limit = _floor_stall([1e-1, 3e-7, 1e-8])
+    assert limit == FLOOR_STALL_FACTOR * 3e-6 and 1e-8 > limit * 3e-7
+    # a slow contraction before: no more permissive than 2×
+    assert _floor_stall([1e-6, 5e-7, 4e-7]) == 0.5
