@@ -249,7 +249,7 @@ def conduction_boundary(state, cur, topology, springs, scratch, heat, run, pendi
     if pending != 0.0:  # (its T/l straight into heat.s_before)
         before = Scratch(scratch.x_buf, heat.s_before, scratch.f_keep, scratch.theta_keep, scratch.energy_buf,
                          scratch.sums)
-        bad = spring_pass(cur, state.eta, state.phi, topology, springs, before, (0.0, pending * run.h), run, False,
+        bad = spring_pass(cur, state.eta, state.phi, topology, springs, before, (0.0, pending * run.h), run, True,
                           heat.length)[0]
         if bad > 0:
             return bad

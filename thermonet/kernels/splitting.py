@@ -202,9 +202,9 @@ def _spring_pass(x, eta, phi, topology, springs, scratch, steps, run, keep, leng
     x: (n, 3); eta, phi: (m,); steps: (2,) tuple of floats. Returns (the number of springs
     outside the admissible states, Σ energy, min θ, max θ); the sums are 0, inf, −inf unless
     summed. Compiled twice: with CLOSING for the calls' first and last kicks, and without (keep
-    and sums compiled out) for every other. With CONDUCTION each spring's length goes to
-    length (m,) and its θ to theta_keep, where the conduction sweeps and :func:`_refresh_pass`
-    take them.
+    and sums compiled out) for every other. With CONDUCTION and ``keep`` each spring's length
+    goes to length (m,) and its θ to theta_keep, where the conduction sweeps and
+    :func:`_refresh_pass` take them (a kick followed by no drift: θ and l stay valid).
     """
     edges = topology.edges
     l0 = springs.rest
@@ -234,7 +234,7 @@ def _spring_pass(x, eta, phi, topology, springs, scratch, steps, run, keep, leng
             theta, force = spring_force(l, eta[e] if THERMAL else 0.0, rest, P, c)
             s[e] = force
             bad += outside_admissible(l, rest, force, theta, stretch_min, stretch_max)
-            if CONDUCTION:  # the conduction sweeps and the refresh pass start from θ and l
+            if CONDUCTION and keep:  # the conduction sweeps and the refresh pass start from θ and l
                 theta_keep[e] = theta
                 length[e] = l
             if CLOSING:
@@ -462,8 +462,8 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run
                 elif CONDUCTION and theta_valid:
                     bad = refresh_pass(scratch.theta_keep, heat.length, phi, springs, scratch.s, (k1 * h, k2 * h), run)
                 else:
-                    bad = spring_pass(cur, eta, phi, topology, springs, scratch, (k1 * h, k2 * h), run, False,
-                                      heat.length)[0]
+                    bad = spring_pass(cur, eta, phi, topology, springs, scratch, (k1 * h, k2 * h), run,
+                                      table.drift[r] == 0.0, heat.length)[0]
                 if bad > 0:
                     if CONDUCTION and deferred != 0.0:  # p still misses it: the step is replayed anyway
                         deferred = 0.0
