@@ -220,11 +220,13 @@ def _conduction_sweep(heat, theta, theta_start, eta, tau, t, directions):
             colour = n_colours - 1 - i
             for b in prange(ptr[colour], ptr[colour + 1]):
                 star_block(b, heat, True, theta)
-        for j in prange(n_bound):
-            boundary_exchange(j, heat, tau, t, True, theta, logs)
+        if n_bound > 0:  # (a parallel loop costs a barrier even when empty)
+            for j in prange(n_bound):
+                boundary_exchange(j, heat, tau, t, True, theta, logs)
     if directions & FORWARD:
-        for j in prange(n_bound):
-            boundary_exchange(j, heat, tau, t, False, theta, logs)
+        if n_bound > 0:
+            for j in prange(n_bound):
+                boundary_exchange(j, heat, tau, t, False, theta, logs)
         for colour in range(n_colours):
             for b in prange(ptr[colour], ptr[colour + 1]):
                 star_block(b, heat, False, theta)
