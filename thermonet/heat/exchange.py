@@ -57,6 +57,19 @@ def star_node(i, heat, theta):
     weight = heat.weight
     mask = heat.factor_mask[0]
     total = 0.0
+    if mask == 0:
+        # the shared factors held in registers (the same products, the same bits): read through
+        # the mask, they would be loaded again after every store to theta, which may alias them
+        # (a quarter of the sweep's time on the CPU)
+        w = weight[0]
+        d = heat.decay[0]
+        for j in range(lo, hi):
+            total += w * theta[inc_spring[np.uint64(j)]]
+        junction = total * heat.node_scale[i]
+        for j in range(lo, hi):
+            e = inc_spring[np.uint64(j)]
+            theta[e] = junction + (theta[e] - junction) * d
+        return
     for j in range(lo, hi):
         ju = np.uint64(j)
         total += weight[ju & mask] * theta[inc_spring[ju]]

@@ -22,8 +22,8 @@ def heat_columns(heat, state) -> dict:
     """The logged columns of ``state`` (see the module docstring; the balances are added by
     :func:`balances`)."""
     logs = state.extra["heat"]
-    per_name = np.zeros(len(heat.names))
-    np.add.at(per_name, heat.entry_fn, logs["entry_heat"])
+    # (bincount adds the entries in order from 0, as np.add.at would, at a fraction of its cost)
+    per_name = np.bincount(heat.entry_fn, weights=logs["entry_heat"], minlength=len(heat.names))
     flux = float(np.sum(logs["entry_flux"]))
     row = {"entropy_produced": float(np.sum(logs["produced"]))}
     for name, q in zip(heat.names, per_name):

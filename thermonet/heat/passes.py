@@ -30,14 +30,19 @@ FORWARD = 1
 REVERSE = 2
 SAVE = 4
 CONTINUE = 8
+#: leave the entropy update to the caller, who runs it with the next kick's spring pass
+#: (:func:`_finish_refresh_pass`: one pass over the springs instead of two)
+DEFER_FINISH = 16
 
 # Bound per kernel variant (see thermonet.kernels.splitting; spring_pass and node_pass for
 # conduction_boundary, which only the explicit step uses).
 spring_pass = temperature_pass = conduction_sweep = node_pass = None
+finish_refresh_pass = refresh_pass = None
 cpu_evaluate_loads = cpu_load_work = None
 LOADS = False
 star_node = star_block = boundary_exchange = finish_spring = wave_exchange = spring_temperature = squared_length = None
-tension = outside_admissible = advance_thermal_displacement = None
+tension = outside_admissible = advance_thermal_displacement = spring_energy = None
+boundary_node_pass = None
 UNIFORM = False
 #: springs per block of the temperature pass (see thermonet.kernels.splitting.BLOCK)
 BLOCK = 512
@@ -63,8 +68,10 @@ def bind_heat_passes(ns: dict, tag: str, parallel: bool) -> None:
     ns["gather_two_forces"] = specialize(_gather_two_forces, tag, ns, inline="always", **_OPTIONS)
     ns["temperature_pass"] = specialize(_temperature_pass, tag, ns, parallel=parallel, **_OPTIONS)
     ns["refresh_pass"] = specialize(_refresh_pass, tag, ns, parallel=parallel, **_OPTIONS)
+    ns["finish_refresh_pass"] = specialize(_finish_refresh_pass, tag, ns, parallel=parallel, **_OPTIONS)
     ns["conduction_sweep"] = specialize(_conduction_sweep, tag, ns, parallel=parallel, **_OPTIONS)
     ns["wave_sweep"] = specialize(_wave_sweep, tag, ns, parallel=parallel, **_OPTIONS)
+    ns["state_spring_sums"] = specialize(_state_spring_sums, tag, ns, parallel=parallel, **_OPTIONS)
 
 
 def _temperature_pass(x, eta, topology, springs, theta, length):
@@ -149,11 +156,45 @@ def _refresh_pass(theta, length, phi, springs, s, steps, run):
     return bad
 
 
+def _finish_refresh_pass(heat, theta, eta, phi, springs, s, steps, run):
+    """The sweeps' entropy update left to the caller (DEFER_FINISH: :func:`finish_spring` from
+    heat.theta_start, heat.capacity into eta and heat.produced) and :func:`_refresh_pass` (same
+    arguments) in one pass over the springs: the same operations per spring, the same bits.
+    Returns the number of springs outside the admissible states."""
+    theta_start = heat.theta_start
+    capacity = heat.capacity
+    produced = heat.produced
+    length = heat.length
+    P = springs.P
+    rest = springs.rest
+    phi_h1, phi_h2 = steps
+    track_phi = run.track_phi
+    stretch_min = run.stretch_min
+    stretch_max = run.stretch_max
+    bad = 0
+    m = theta.shape[0]
+    for blk in prange((m + BLOCK - 1) // BLOCK):
+        lo = blk * BLOCK
+        for i in range(min(BLOCK, m - lo)):  # (two loops over a block: each vectorizes, one would not)
+            finish_spring(np.uint64(lo + i), theta, theta_start, eta, capacity, produced)
+        for i in range(min(BLOCK, m - lo)):
+            eu = np.uint64(lo + i)
+            c = np.uint64(0) if UNIFORM else eu
+            l = length[eu]
+            th = theta[eu]
+            force = tension(l, th, rest[eu], P, c) / l
+            s[eu] = force
+            bad += outside_admissible(l, rest[eu], force, th, stretch_min, stretch_max)
+            if track_phi:
+                advance_thermal_displacement(phi, eu, th, phi_h1, phi_h2)
+    return bad
+
+
 def _conduction_sweep(heat, theta, theta_start, eta, tau, t, directions):
     """Conduction half sweeps over τ each at time t (see the module docstring): ``directions``
     REVERSE, FORWARD or both (the reverse one first), with SAVE or CONTINUE. theta must hold the
     springs' temperatures at the current positions, and is kept so; theta_start (m,) is
-    scratch. Ends with each spring's entropy update (:func:`finish_spring`)."""
+    scratch. Ends with each spring's entropy update (:func:`finish_spring`) unless DEFER_FINISH."""
     ptr = heat.star_colour_ptr
     n_colours = ptr.shape[0] - 1
     # the arrays written in parallel loops are taken out of the record first: Numba's parallel
@@ -179,11 +220,13 @@ def _conduction_sweep(heat, theta, theta_start, eta, tau, t, directions):
             colour = n_colours - 1 - i
             for b in prange(ptr[colour], ptr[colour + 1]):
                 star_block(b, heat, True, theta)
-        for j in prange(n_bound):
-            boundary_exchange(j, heat, tau, t, True, theta, logs)
+        if n_bound > 0:  # (a parallel loop costs a barrier even when empty)
+            for j in prange(n_bound):
+                boundary_exchange(j, heat, tau, t, True, theta, logs)
     if directions & FORWARD:
-        for j in prange(n_bound):
-            boundary_exchange(j, heat, tau, t, False, theta, logs)
+        if n_bound > 0:
+            for j in prange(n_bound):
+                boundary_exchange(j, heat, tau, t, False, theta, logs)
         for colour in range(n_colours):
             for b in prange(ptr[colour], ptr[colour + 1]):
                 star_block(b, heat, False, theta)
@@ -192,8 +235,9 @@ def _conduction_sweep(heat, theta, theta_start, eta, tau, t, directions):
             pending_theta[e] = theta_start[e]
             pending_eta[e] = eta[e]
             pending_produced[e] = produced[e]
-    for e in prange(m):
-        finish_spring(e, theta, theta_start, eta, capacity, produced)
+    if not directions & DEFER_FINISH:
+        for e in prange(m):
+            finish_spring(e, theta, theta_start, eta, capacity, produced)
 
 
 def conduction_boundary(state, cur, topology, springs, scratch, heat, run, pending, directions, step):
@@ -207,7 +251,7 @@ def conduction_boundary(state, cur, topology, springs, scratch, heat, run, pendi
     if pending != 0.0:  # (its T/l straight into heat.s_before)
         before = Scratch(scratch.x_buf, heat.s_before, scratch.f_keep, scratch.theta_keep, scratch.energy_buf,
                          scratch.sums)
-        bad = spring_pass(cur, state.eta, state.phi, topology, springs, before, (0.0, pending * run.h), run, False,
+        bad = spring_pass(cur, state.eta, state.phi, topology, springs, before, (0.0, pending * run.h), run, True,
                           heat.length)[0]
         if bad > 0:
             return bad
@@ -216,14 +260,62 @@ def conduction_boundary(state, cur, topology, springs, scratch, heat, run, pendi
     return 0
 
 
-def deferred_kick(x, x_new, p, topology, nodes, scratch, heat, loads, tau, t):
-    """The kick deferred past the sweeps (tau, already times h) by itself, with the forces in
-    heat.s_before at x and, with LOADS, the loads at time t (and their work)."""
+def deferred_kick(x, x_new, p, topology, nodes, scratch, heat, loads, when, want_sums):
+    """The kick deferred past the sweeps by itself, with the forces in heat.s_before at x and,
+    with LOADS, the loads at time t (and their work); when = (τ, already times h; t). With
+    ``want_sums`` (a call's end) it is the call's closing node pass: returns the node sums of a
+    diagnostics row at (x, the new p) as :func:`thermonet.kernels.splitting._node_pass` reduces
+    them (else zeros)."""
+    tau, t = when
     if LOADS:
         cpu_evaluate_loads(loads, t)
-    node_pass(x, x_new, p, topology, nodes, scratch, (tau, 0.0, 0.0, True), 3, False, (heat.s_before, loads))
+    if want_sums:
+        sums = boundary_node_pass(x, x_new, p, topology, nodes, scratch, (tau, 0.0, 0.0, True), 3, True,
+                                  (heat.s_before, loads))
+    else:
+        sums = node_pass(x, x_new, p, topology, nodes, scratch, (tau, 0.0, 0.0, True), 3, False,
+                         (heat.s_before, loads))
     if LOADS:
         cpu_load_work(x, heat.s_before, topology, nodes, loads, 0.0, tau)
+    return sums
+
+
+def _state_spring_sums(x, eta, topology, springs, length, theta):
+    """(Σ U(l, η), min θ, max θ) over the springs at (x (n, 3), η (m,)), with the arithmetic and
+    order of :func:`thermonet.kernels.reductions._spring_sums` (the same bits): the spring sums
+    of a call that ends on a conduction sweep, whose last spring pass ran before the sweep
+    changed η. length, theta: (m,) scratch."""
+    edges = topology.edges
+    l0 = springs.rest
+    P = springs.P
+    m = edges.shape[0]
+    energy = 0.0
+    theta_min = math.inf
+    theta_max = -math.inf
+    for blk in prange((m + BLOCK - 1) // BLOCK):
+        lo = blk * BLOCK
+        n = min(BLOCK, m - lo)
+        for i in range(n):
+            theta[lo + i] = squared_length(x, edges, np.uint64(lo + i))
+        for i in range(n):
+            e = np.uint64(lo + i)
+            c = np.uint64(0) if UNIFORM else e
+            l = math.sqrt(theta[e])
+            th = spring_temperature(l, eta[e], l0[e], P, c)
+            theta[e] = th
+            length[e] = spring_energy(l, eta[e], th, l0[e], P, c)
+        block_sum = 0.0
+        block_min = math.inf
+        block_max = -math.inf
+        for i in range(n):
+            e = np.uint64(lo + i)
+            block_sum += length[e]
+            block_min = min(block_min, theta[e])
+            block_max = max(block_max, theta[e])
+        energy += block_sum
+        theta_min = min(theta_min, block_min)
+        theta_max = max(theta_max, block_max)
+    return energy, theta_min, theta_max
 
 
 def _wave_sweep(heat, phi, eta, tau):
@@ -238,6 +330,18 @@ def _wave_sweep(heat, phi, eta, tau):
 _CACHE: dict = {}
 
 
+def source_digest() -> str:
+    """A short hash of this module's and :mod:`thermonet.heat.exchange`'s sources, part of the
+    cache names of the kernels that compile them in (Numba's disk cache checks only the file of
+    the function it caches, not the passes that file's kernel calls)."""
+    import hashlib
+    import inspect
+    import sys
+
+    text = inspect.getsource(sys.modules[__name__]) + exchange.source_digest()
+    return hashlib.sha256(text.encode()).hexdigest()[:8]
+
+
 def heat_kernels(model, parallel: bool, uniform: bool):
     """(temperature_pass, conduction_sweep) for steppers that run conduction around their own
     steps (the implicit ones): ``temperature_pass(x, eta, topology, springs, theta, length)``,
@@ -247,7 +351,7 @@ def heat_kernels(model, parallel: bool, uniform: bool):
     key = (model_fingerprint(model), bool(parallel), bool(uniform))
     if key not in _CACHE:
         tag = (f"{model.name}_{key[0]}_{'par' if parallel else 'ser'}{'_uniform' if uniform else ''}"
-               f"_h{exchange.source_digest()}")
+               f"_h{source_digest()}")
         ns = kernel_namespace(model, True, uniform)
         inline = njit(inline="always", error_model="numpy", boundscheck=False)
         bind_subflows(ns, tag, inline)

@@ -1,12 +1,14 @@
 """The small passes of the explicit schedule (templates specialized per kernel variant by
 :func:`thermonet.kernels.splitting.splitting_kernels`, which binds ``flow_pass_*`` and ``update``):
-the thermal half of a kick, row and value copies, and the extra sub-flows' passes."""
+the thermal half of a kick, row and value copies, the extra sub-flows' passes, and the kernel's
+way out when a spring left the admissible states."""
 
 from __future__ import annotations
 
 from numba import njit, prange
 
-flow_pass_0 = flow_pass_1 = flow_pass_2 = flow_pass_3 = update = None
+flow_pass_0 = flow_pass_1 = flow_pass_2 = flow_pass_3 = update = copy_rows = None
+CONDUCTION = False
 
 
 def _thermal_kick(phi, theta, coefficient):
@@ -54,3 +56,22 @@ def _apply_flow(slot, effects, tau, t, x, p, phi, eta):
         flow_pass_2(effects[2], tau, t, x, p, phi, eta)
     else:
         flow_pass_3(effects[3], tau, t, x, p, phi, eta)
+
+
+@njit(inline="always", error_model="numpy", boundscheck=False)
+def store_sums(sums, spring_sums, node_sums):
+    """A diagnostics row's sums (11,): Σ U, min θ, max θ (spring_sums), then node_sums (8)."""
+    for q in range(3):
+        sums[q] = spring_sums[q]
+    for q in range(8):
+        sums[3 + q] = node_sums[q]
+
+
+def _stopped(x, x_buf, swaps, heat, steps_done):
+    """What ``advance`` returns when a spring left the admissible states: the positions where it
+    was found back in x, the heat sweeps' saved temperatures no longer valid."""
+    if swaps % 2 == 1:
+        copy_rows(x_buf, x)
+    if CONDUCTION:
+        heat.theta_ok[0] = 0.0
+    return steps_done, True, False

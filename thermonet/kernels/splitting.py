@@ -61,14 +61,14 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from ..heat import exchange as heat_exchange
-from ..heat.passes import (CONTINUE, FORWARD, REVERSE, SAVE, bind_heat_flow, bind_heat_passes, conduction_boundary,
-                           deferred_kick)
+from ..heat.passes import (CONTINUE, DEFER_FINISH, FORWARD, REVERSE, SAVE, bind_heat_flow, bind_heat_passes,
+                           conduction_boundary, deferred_kick, source_digest as heat_source_digest)
 from ..loads.elements import bind_loads
 from . import subflows
 from .subflows import bind_subflows
 from ..heat.rows import THERMAL_WAVES
-from .schedule_passes import _apply_flow, _copy_rows, _copy_values, _flow_pass, _no_flow, _thermal_kick
+from .schedule_passes import (_apply_flow, _copy_rows, _copy_values, _flow_pass, _no_flow, _stopped, _thermal_kick,
+                              store_sums)
 from .specialize import function_fingerprint, kernel_namespace, model_fingerprint, rebind, specialize
 
 # Bound per kernel variant by splitting_kernels(); listed so the templates read as ordinary code.
@@ -82,7 +82,8 @@ spring_pass = node_pass = boundary_spring_pass = boundary_node_pass = None
 thermal_kick = copy_rows = apply_flow = None
 spring_force = spring_energy = spring_temperature = outside_admissible = advance_thermal_displacement = None
 gather_force = kick_momentum = drift_position = load_row = store_row = None
-temperature_pass = refresh_pass = conduction_sweep = wave_sweep = gather_two_forces = _deferred_kick = None
+temperature_pass = refresh_pass = finish_refresh_pass = conduction_sweep = wave_sweep = gather_two_forces = None
+_deferred_kick = state_spring_sums = None
 node_load = cpu_evaluate_loads = cpu_load_work = cpu_drive_positions = stage_time = None
 LOADS = False
 THERMAL = True
@@ -132,7 +133,7 @@ def splitting_kernels(model, parallel: bool, thermal: bool = True, uniform: bool
         tag = (f"{model.name}_{key[0]}_{'par' if parallel else 'ser'}_{'thermal' if thermal else 'mech'}"
                f"{'_uniform' if uniform else ''}_s{subflows.source_digest()}{flows_tag}")
         if conduction or waves:
-            tag += f"_{'k' if conduction else ''}{'w' if waves else ''}{heat_exchange.source_digest()}"
+            tag += f"_{'k' if conduction else ''}{'w' if waves else ''}{heat_source_digest()}"
         ns = kernel_namespace(model, thermal, uniform)
         ns["CLOSING"] = False
         ns["CONDUCTION"] = bool(conduction)
@@ -203,9 +204,9 @@ def _spring_pass(x, eta, phi, topology, springs, scratch, steps, run, keep, leng
     x: (n, 3); eta, phi: (m,); steps: (2,) tuple of floats. Returns (the number of springs
     outside the admissible states, Σ energy, min θ, max θ); the sums are 0, inf, −inf unless
     summed. Compiled twice: with CLOSING for the calls' first and last kicks, and without (keep
-    and sums compiled out) for every other. With CONDUCTION each spring's length goes to
-    length (m,) and its θ to theta_keep, where the conduction sweeps and :func:`_refresh_pass`
-    take them.
+    and sums compiled out) for every other. With CONDUCTION and ``keep`` each spring's length
+    goes to length (m,) and its θ to theta_keep, where the conduction sweeps and
+    :func:`_refresh_pass` take them (a kick followed by no drift: θ and l stay valid).
     """
     edges = topology.edges
     l0 = springs.rest
@@ -235,7 +236,7 @@ def _spring_pass(x, eta, phi, topology, springs, scratch, steps, run, keep, leng
             theta, force = spring_force(l, eta[e] if THERMAL else 0.0, rest, P, c)
             s[e] = force
             bad += outside_admissible(l, rest, force, theta, stretch_min, stretch_max)
-            if CONDUCTION:  # the conduction sweeps and the refresh pass start from θ and l
+            if CONDUCTION and keep:  # the conduction sweeps and the refresh pass start from θ and l
                 theta_keep[e] = theta
                 length[e] = l
             if CLOSING:
@@ -358,16 +359,6 @@ def _node_pass(x, x_new, p, topology, nodes, scratch, steps, force_source, want_
     return kinetic, potential, px, py, pz, lx, ly, lz
 
 
-def _stopped(x, x_buf, swaps, heat, steps_done):
-    """What ``advance`` returns when a spring left the admissible states: the positions where it
-    was found back in x, the heat sweeps' saved temperatures no longer valid."""
-    if swaps % 2 == 1:
-        copy_rows(x_buf, x)
-    if CONDUCTION:
-        heat.theta_ok[0] = 0.0
-    return steps_done, True, False
-
-
 def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run, loads):
     """Advance ``state`` (x, p, Φ in place; η too where a sub-flow changes it) by ``run.n_steps``
     steps of the schedule ``table`` (a :class:`~thermonet.integrators.schedule.StageTable`).
@@ -416,6 +407,10 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run
     swept_first = ended_cycle = False  # a sweep ran before the first kick / after the last step
     every = run.conduction_every
     resume_sweep = False  # the previous call ended with a reverse half sweep: continue its update
+    # a sweep inside the call leaves its entropy update to the spring pass of the kick that row 0
+    # starts with (one pass over the springs instead of two): ``unfinished`` until then
+    defer = DEFER_FINISH if THERMAL_WAVES < codes[0] < 0 and table.kick[0] != 0.0 else 0
+    unfinished = False
     if CONDUCTION and heat.theta_ok[0] >= 1.0:  # continue the previous call's sweeps
         _copy_values(heat.theta, scratch.theta_keep)
         theta_valid = True
@@ -424,7 +419,7 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run
         if CONDUCTION and (run.cycle_step + step) % every == 0:
             # a cycle starts: the last one's reverse half sweep (when it ended in this call) and
             # this one's forward half sweep, back to back
-            directions = FORWARD | REVERSE if step > 0 else (FORWARD | CONTINUE if resume_sweep else FORWARD)
+            directions = defer | (FORWARD | REVERSE if step > 0 else (FORWARD | CONTINUE if resume_sweep else FORWARD))
             if pending == 0.0 and not theta_valid:
                 temperature_pass(cur, eta, topology, springs, scratch.theta_keep, heat.length)
             bad = conduction_boundary(state, cur, topology, springs, scratch, heat, run, pending, directions, step)
@@ -436,11 +431,13 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run
                     deferred_time = stage_time(loads, h, step, 0.0)
                 pending = 0.0
             theta_valid = True
+            unfinished = defer != 0
             swept_first = swept_first or step == 0
         for r in range(n_rows):
             if codes[r] >= 0:
                 if CONDUCTION and deferred != 0.0:  # a sub-flow may read p: apply the kick first
-                    _deferred_kick(cur, nxt, p, topology, nodes, scratch, heat, loads, deferred * h, deferred_time)
+                    _deferred_kick(cur, nxt, p, topology, nodes, scratch, heat, loads, (deferred * h, deferred_time),
+                                   False)
                     deferred = 0.0
                 apply_flow(codes[r], effects, table.kick[r] * h, run.t0 + (step + table.drift[r]) * h,
                            cur, p, phi, eta)
@@ -460,11 +457,15 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run
                 if THERMAL and run.track_phi:
                     thermal_kick(phi, scratch.theta_keep, k2 * h)
             elif with_force:
-                if CONDUCTION and theta_valid:
+                if CONDUCTION and unfinished:
+                    bad = finish_refresh_pass(heat, scratch.theta_keep, eta, phi, springs, scratch.s, (k1 * h, k2 * h),
+                                              run)
+                    unfinished = False
+                elif CONDUCTION and theta_valid:
                     bad = refresh_pass(scratch.theta_keep, heat.length, phi, springs, scratch.s, (k1 * h, k2 * h), run)
                 else:
-                    bad = spring_pass(cur, eta, phi, topology, springs, scratch, (k1 * h, k2 * h), run, False,
-                                      heat.length)[0]
+                    bad = spring_pass(cur, eta, phi, topology, springs, scratch, (k1 * h, k2 * h), run,
+                                      table.drift[r] == 0.0, heat.length)[0]
                 if bad > 0:
                     if CONDUCTION and deferred != 0.0:  # p still misses it: the step is replayed anyway
                         deferred = 0.0
@@ -498,7 +499,7 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run
         pending = carry
     if CONDUCTION and (run.cycle_step + n_steps) % every == 0:
         # the call ends a cycle: its reverse half sweep, after the pending closing kick's spring
-        # pass; the kick itself after the sweep (no diagnostics sums: η changed after them)
+        # pass; the kick itself after the sweep (the spring sums then from the swept η)
         if pending == 0.0 and not theta_valid:
             temperature_pass(cur, eta, topology, springs, scratch.theta_keep, heat.length)
         bad = conduction_boundary(state, cur, topology, springs, scratch, heat, run, pending, REVERSE | SAVE, n_steps)
@@ -511,9 +512,14 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run
             pending = 0.0
         theta_valid = True
         ended_cycle = True
-    if CONDUCTION and deferred != 0.0:  # drift 0: the positions stay
-        _deferred_kick(cur, nxt, p, topology, nodes, scratch, heat, loads, deferred * h, deferred_time)
     summed = False
+    if CONDUCTION and deferred != 0.0:  # drift 0: the positions stay; a cycle's end: the call's closing kick
+        node_sums = _deferred_kick(cur, nxt, p, topology, nodes, scratch, heat, loads, (deferred * h, deferred_time),
+                                   ended_cycle and run.want_sums)
+        if ended_cycle and run.want_sums:
+            store_sums(scratch.sums, state_spring_sums(cur, eta, topology, springs, scratch.energy_buf,
+                                                       heat.theta_start), node_sums)
+            summed = True
     if pending != 0.0:
         bad, energy, theta_min, theta_max = boundary_spring_pass(cur, eta, phi, topology, springs, scratch,
                                                                  (0.0, pending * h), run, True, heat.length)
@@ -528,12 +534,7 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run
         if LOADS:
             cpu_load_work(cur, scratch.s, topology, nodes, loads, 0.0, pending * h)
         if run.want_sums:
-            sums = scratch.sums
-            sums[0] = energy
-            sums[1] = theta_min
-            sums[2] = theta_max
-            for q in range(8):
-                sums[3 + q] = node_sums[q]
+            store_sums(scratch.sums, (energy, theta_min, theta_max), node_sums)
             summed = True
     if CONDUCTION:
         if theta_valid:
