@@ -81,12 +81,7 @@ def build_layout(net: Net, renumber: bool = True) -> Layout:
     spring_rank[spring_order] = np.arange(m)
     edges = internal[spring_order]
 
-    ends = np.concatenate([edges[:, 0], edges[:, 1]])
-    others = np.concatenate([edges[:, 1], edges[:, 0]])
-    springs = np.concatenate([np.arange(m), np.arange(m)])
-    order = np.lexsort((springs, ends))
-    inc_ptr = np.zeros(n + 1, dtype=np.int64)
-    np.cumsum(np.bincount(ends, minlength=n), out=inc_ptr[1:])
+    inc_ptr, inc_spring, inc_other = incidence(edges, n)
     return Layout(
         node_order=node_order,
         node_rank=node_rank,
@@ -94,6 +89,20 @@ def build_layout(net: Net, renumber: bool = True) -> Layout:
         spring_rank=spring_rank,
         edges=np.ascontiguousarray(edges, dtype=np.int32),
         inc_ptr=inc_ptr,
-        inc_spring=springs[order].astype(np.int32),
-        inc_other=others[order].astype(np.int32),
+        inc_spring=inc_spring,
+        inc_other=inc_other,
     )
+
+
+def incidence(edges: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Incidence lists of ``edges`` (m, 2) over n nodes, each node's springs in spring order:
+    (inc_ptr (n + 1,) int64, inc_spring (2m,) int32, inc_other (2m,) int32), node i's springs
+    and their other ends at inc_ptr[i]:inc_ptr[i + 1]."""
+    m = len(edges)
+    ends = np.concatenate([edges[:, 0], edges[:, 1]])
+    others = np.concatenate([edges[:, 1], edges[:, 0]])
+    springs = np.concatenate([np.arange(m), np.arange(m)])
+    order = np.lexsort((springs, ends))
+    inc_ptr = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(np.bincount(ends, minlength=n), out=inc_ptr[1:])
+    return inc_ptr, springs[order].astype(np.int32), others[order].astype(np.int32)

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..kernels import records
+from ..layout import incidence
 
 
 @dataclass(frozen=True)
@@ -101,13 +102,6 @@ def _halo_lists(owner, e0, e1, o0, o1, rank, local) -> tuple[dict, dict]:
 def _topology(edges: np.ndarray, n: int) -> records.Topology:
     """The incidence lists of local ``edges`` (ml, 2) over n local nodes, built as the whole
     net's are (:func:`thermonet.layout.build_layout`: each node's springs in spring order)."""
-    m = len(edges)
-    ends = np.concatenate([edges[:, 0], edges[:, 1]])
-    others = np.concatenate([edges[:, 1], edges[:, 0]])
-    springs = np.concatenate([np.arange(m), np.arange(m)])
-    order = np.lexsort((springs, ends))
-    inc_ptr = np.zeros(n + 1, dtype=np.int64)
-    np.cumsum(np.bincount(ends, minlength=n), out=inc_ptr[1:])
+    inc_ptr, inc_spring, inc_other = incidence(edges, n)
     return records.Topology(np.ascontiguousarray(edges, dtype=np.int32).view(np.uint32), inc_ptr,
-                            springs[order].astype(np.int32).view(np.uint32),
-                            others[order].astype(np.int32).view(np.uint32))
+                            inc_spring.view(np.uint32), inc_other.view(np.uint32))
