@@ -208,7 +208,8 @@ def test_no_conductance_is_bit_identical_to_no_conduction():
 
 
 @pytest.mark.parametrize("every", [1, 4])
-def test_chunked_threaded_and_resumed_runs_are_bit_identical(tmp_path, every):
+def test_chunked_and_resumed_runs_are_bit_identical(tmp_path, every):
+    # (thread counts: tests/test_loads_heat.py, whose one threaded kernel carries loads and heat)
     from thermonet.io.checkpoint import load_checkpoint, save_checkpoint
 
     net, theta = hot_jittered_net(13)
@@ -221,7 +222,7 @@ def test_chunked_threaded_and_resumed_runs_are_bit_identical(tmp_path, every):
 
     one = make()
     one.run(steps=400, diagnostics_every=400)
-    chunked = make(parallel=True, threads=2)
+    chunked = make()
     for _ in range(4):
         chunked.run(steps=100, diagnostics_every=4)
     # calls that end inside a conduction cycle (as a run interrupted and checkpointed there)

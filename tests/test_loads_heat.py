@@ -66,8 +66,6 @@ def test_the_balance_with_loads_and_heat_does_not_drift():
 
 
 def test_chunked_and_resumed_runs_with_loads_and_heat_are_bit_identical(tmp_path):
-    # (thread counts: tests/test_loads.py and tests/test_heat_flow.py; a threaded kernel with both
-    # costs a minute of compilation on a cold cache)
     from thermonet.io.checkpoint import load_checkpoint, save_checkpoint
 
     # (conduction every step: calls of 7 steps; cycles cut by calls: tests/test_heat_flow.py)
@@ -89,6 +87,34 @@ def test_chunked_and_resumed_runs_with_loads_and_heat_are_bit_identical(tmp_path
         assert np.array_equal(one.state.entropy, other.state.entropy)
         assert np.array_equal(one.state.extra["load_work"], other.state.extra["load_work"])
         assert np.array_equal(one.state.extra["heat"]["entry_heat"], other.state.extra["heat"]["entry_heat"])
+
+
+def same_bits(a, b):
+    for f in ("positions", "momenta", "thermal_displacement", "entropy"):
+        assert np.array_equal(getattr(a.state, f), getattr(b.state, f)), f
+    assert np.array_equal(a.state.extra["load_work"], b.state.extra["load_work"])
+    for k in ("produced", "entry_heat", "entry_flux"):
+        assert np.array_equal(a.state.extra["heat"][k], b.state.extra["heat"][k]), k
+
+
+@pytest.mark.parametrize("every", [1, 4])
+def test_the_threaded_kernel_with_loads_and_heat_does_not_depend_on_the_thread_count(every):
+    """One threaded kernel carries both effects (each alone would be a threaded variant of its own
+    to compile): one and two threads give the same bits, in chunks that cut conduction cycles, and
+    the serial kernel's bits for everything but the loads' reductions' round-off."""
+    serial = loaded_hot_strip(0.004, conduction_every=every)
+    serial.run(steps=240, diagnostics_every=240)
+    runs = {}
+    for threads in (1, 2):
+        sim = loaded_hot_strip(0.004, conduction_every=every, parallel=True, threads=threads)
+        for n in (3, 37, 200):
+            sim.runner.advance(n)
+        runs[threads] = sim
+    same_bits(runs[1], runs[2])
+    for k in ("produced", "entry_heat", "entry_flux"):
+        assert np.array_equal(serial.state.extra["heat"][k], runs[2].state.extra["heat"][k]), k
+    assert np.array_equal(serial.state.entropy, runs[2].state.entropy)
+    np.testing.assert_allclose(runs[2].state.positions, serial.state.positions, rtol=0, atol=1e-13)
 
 
 def test_loads_with_conduction_around_an_implicit_integrator_keep_the_balance_of_order_2():
