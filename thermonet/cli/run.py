@@ -4,9 +4,26 @@ time series, diagnostics, summary and checkpoints, and print the conservation su
 from __future__ import annotations
 
 import contextlib
+import datetime
 import os
+import signal
 import sys
+import threading
 import warnings
+
+from ..blowup import remedy
+from ..errors import InputError, OutputError, SimulationError, ThermonetError
+from ..io import RunOutput, atomic_write, load_checkpoint
+from ..io.folder import (check_output_folder, check_writable, describe_os_error, fresh_folder,
+                         prepare_output_folder, remove_stale_temporaries)
+from ..parallel.world import is_root, on_root, world
+from ..probes import scene_probes
+from ..run_guards import broken_conservation
+from ..scenes import load_scene, scene_from_text
+from ..scenes.scene import FREE_ON_RESUME, trajectory_changes
+from ..step_policy import StepWarning, UnstableStepError, check_step
+from .progress import ProgressBar
+from .report import format_summary
 
 HELP = "run a scene and write VTU/PVD frames, diagnostics.csv, summary.json and checkpoints"
 
@@ -51,10 +68,6 @@ def overrides_of(args) -> list[str]:
 
 
 def handle(args) -> int:
-    from ..errors import ThermonetError
-    from ..parallel.world import is_root, world
-    from .progress import ProgressBar
-
     if not is_root(world()):  # a run over MPI processes: rank 0 speaks and writes the shared files
         args.quiet = args.echo = True
     progress = None if args.quiet else ProgressBar()
@@ -101,8 +114,6 @@ class RunLog:
     def write(self) -> None:
         if self.folder is None:
             return
-        import datetime
-
         stamp = datetime.datetime.now().astimezone().isoformat(timespec="seconds")
         head = f"# {stamp}: thermonet {' '.join(self.argv)}\n"
         try:
@@ -157,9 +168,6 @@ class StopRequest:
 
     @contextlib.contextmanager
     def installed(self):
-        import signal
-        import threading
-
         if threading.current_thread() is not threading.main_thread():
             yield self
             return
@@ -177,15 +185,6 @@ class StopRequest:
 
 
 def _run(args, progress, record=None) -> int:
-    from ..errors import InputError, OutputError, SimulationError
-    from ..io import RunOutput, load_checkpoint
-    from ..io.folder import (check_output_folder, check_writable, describe_os_error, fresh_folder,
-                             prepare_output_folder, remove_stale_temporaries)
-    from ..run_guards import broken_conservation
-    from ..parallel.world import is_root, on_root, world
-    from ..scenes import load_scene, scene_from_text
-    from .report import format_summary
-
     comm = world()  # None in one process; the folder is chosen and prepared by rank 0 only
 
     overrides = overrides_of(args)
@@ -245,8 +244,6 @@ def _run(args, progress, record=None) -> int:
         if note and not args.quiet:
             print(f"thermonet: warning: {note}", file=sys.stderr)
     total = scene.total_steps()
-    from ..probes import scene_probes
-
     probes = scene_probes(scene, sim)  # attached: every run of sim records them
     if state is None:  # the new run is built and checked: only now may a previous run's files go
         on_root(comm, lambda: prepare_output_folder(folder, overwrite=args.overwrite))
@@ -254,8 +251,6 @@ def _run(args, progress, record=None) -> int:
         record.folder = folder
 
     def write_scene():  # the scene as run (overrides applied), beside its output
-        from ..io import atomic_write
-
         try:
             with atomic_write(os.path.join(folder, SCENE_AS_RUN), "w") as f:
                 f.write(scene.as_run())
@@ -333,10 +328,6 @@ def _refuse_other_scene(checkpoint, saved, scene) -> None:
     """A checkpoint whose scene hash differs: allowed where only keys free on resume changed
     (a checkpoint of another version's hash), refused naming the keys that changed the trajectory,
     or the mesh file."""
-    from ..errors import InputError
-    from ..scenes import scene_from_text
-    from ..scenes.scene import FREE_ON_RESUME, trajectory_changes
-
     free = ", ".join(f"integrator.{k}" for k in FREE_ON_RESUME)
     try:
         before = scene_from_text(saved["text"], file=saved["file"], base_dir=saved["base_dir"],
@@ -360,8 +351,6 @@ def _refuse_other_scene(checkpoint, saved, scene) -> None:
 
 
 def _remedy(integrator, h) -> str:
-    from ..blowup import remedy
-
     return remedy(integrator, h)
 
 
@@ -394,8 +383,6 @@ def _run_warnings(quiet: bool, progress):
             sys.stderr.write("\n")
         print(f"thermonet: warning: {message}", file=sys.stderr)
 
-    from ..step_policy import StepWarning
-
     with warnings.catch_warnings():
         warnings.simplefilter("always", StepWarning)  # the guard warns once per run itself
         warnings.showwarning = show
@@ -405,10 +392,6 @@ def _run_warnings(quiet: bool, progress):
 def _check_step(sim, scene, args) -> None:
     """The step-limit policy (thermonet.step_policy) at the initial state: refuse (an InputError)
     or warn on stderr."""
-    import warnings
-
-    from ..step_policy import StepWarning, UnstableStepError, check_step
-
     allow = args.allow_unstable_step or not scene["integrator"]["check_step"]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", StepWarning)

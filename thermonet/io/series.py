@@ -24,11 +24,16 @@ import platform
 import time as _time
 from concurrent.futures import ThreadPoolExecutor
 
+import numba
 import numpy as np
 
 from .. import __version__
+from ..errors import InputError
+from ..parallel.frames import PieceWriter
+from ..parallel.world import on_root
 from .atomic import atomic_write, direct_writes_possible, release_page_cache
 from .checkpoint import load_checkpoint, save_checkpoint
+from .folder import check_writable, prepare_output_folder, remove_stale_temporaries
 from .pvd import PVDIndex
 from .vtu import FrameImage, VTUWriter
 
@@ -144,8 +149,6 @@ class RunOutput:
         self.root = comm is None or comm.Get_rank() == 0
         self._pieces = None
         if comm is not None and self._frame is not None:
-            from ..parallel.frames import PieceWriter
-
             self._pieces = PieceWriter(sim, self._frame.image)
             background = False  # a piece's write ends in a barrier: on the calling thread
         self._csv_written = -np.inf
@@ -183,10 +186,6 @@ class RunOutput:
         or a cadence (``load_checkpoint`` and ``sim.load_state`` continue from one). resume: the
         folder holds the run to continue (kept as it is; then :meth:`resume` from its checkpoint).
         """
-        from .folder import check_writable, prepare_output_folder, remove_stale_temporaries
-
-        from ..parallel.world import on_root
-
         def prepare():
             if resume:
                 check_writable(folder)
@@ -199,8 +198,6 @@ class RunOutput:
             fields = available_fields(sim)
         unknown = [f for f in fields if f not in FIELDS]
         if unknown:
-            from ..errors import InputError
-
             raise InputError(f"unknown output field {unknown[0]!r}; fields: {', '.join(FIELDS)}")
         if material_id is None:
             material_id = np.zeros(sim.net.n_springs, dtype=np.int32)
@@ -372,8 +369,6 @@ def idle_core(sim) -> bool:
     cores = len(affinity(0)) if affinity is not None else (os.cpu_count() or 1)
     stepping = 1
     if sim.backend == "cpu" and sim.parallel:
-        import numba
-
         stepping = int(sim.threads) if sim.threads else numba.get_num_threads()
     return cores > stepping
 
@@ -391,7 +386,6 @@ def _writer() -> ThreadPoolExecutor:
 
 def versions() -> dict:
     import meshio
-    import numba
     import scipy
 
     return {"thermonet": __version__, "python": platform.python_version(), "numpy": np.__version__,
