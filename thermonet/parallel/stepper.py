@@ -25,6 +25,7 @@ from ..integrators.splitting import blowup_failure
 from ..kernels import records
 from ..loads.elements import NO_LOADS
 from ..loads.stepping import StepperLoads
+from .conduction import DistributedConduction
 from .domain import decomposition, share
 from .halo import Halo
 from .loads import ShareLoads, load_functions
@@ -32,18 +33,36 @@ from .partition import partition
 from .stages import stage_functions
 
 
+def splitting_passes(model, parallel: bool, thermal: bool, uniform: bool, loads: bool = False,
+                     conduction: bool = False) -> tuple[dict, str]:
+    """(namespace, variant): the passes of the CPU kernel's variant without flows (with loads
+    where ``loads``, with the conduction sweeps where ``conduction``) and a name unique to it."""
+    from ..kernels import splitting
+    from ..kernels.specialize import model_fingerprint
+
+    advance = splitting.splitting_kernels(model, parallel, thermal, uniform, (), conduction, False, loads)
+    ns = next(splitting._PASSES[k] for k, v in splitting._CACHE.items() if v is advance)  # that variant's passes
+    variant = (f"{model.name}_{model_fingerprint(model)}_{'par' if parallel else 'ser'}"
+               f"_{'thermal' if thermal else 'mech'}{'_uniform' if uniform else ''}{'_loads' if loads else ''}"
+               f"{'_conduction' if conduction else ''}")
+    return ns, variant
+
+
 def splitting_stages(model, parallel: bool, thermal: bool, uniform: bool, loads: bool = False):
     """(stage, closing) of :mod:`thermonet.parallel.stages` around the passes of the CPU kernel's
     variant without flows or heat flow (with loads where ``loads``), and with loads the loads'
     functions (:func:`thermonet.parallel.loads.load_functions`), else None."""
-    from ..kernels import splitting
-    from ..kernels.specialize import model_fingerprint
-
-    advance = splitting.splitting_kernels(model, parallel, thermal, uniform, (), False, False, loads)
-    ns = next(splitting._PASSES[k] for k, v in splitting._CACHE.items() if v is advance)  # that variant's passes
-    variant = (f"{model.name}_{model_fingerprint(model)}_{'par' if parallel else 'ser'}"
-               f"_{'thermal' if thermal else 'mech'}{'_uniform' if uniform else ''}{'_loads' if loads else ''}")
+    ns, variant = splitting_passes(model, parallel, thermal, uniform, loads)
     return stage_functions(ns, variant), (load_functions(ns, variant) if loads else None)
+
+
+def conduction_stages(model, parallel: bool, uniform: bool) -> tuple[tuple, object, object]:
+    """(stage functions of :mod:`thermonet.parallel.heat_stages`, temperature_pass,
+    conduction_sweep) of the CPU kernel's conducting variant (thermal, without flows or loads)."""
+    from .heat_stages import heat_stage_functions
+
+    ns, variant = splitting_passes(model, parallel, True, uniform, False, True)
+    return heat_stage_functions(ns, variant), ns["temperature_pass"], ns["conduction_sweep"]
 
 
 class DistributedStepper(Stepper):
@@ -94,6 +113,9 @@ class DistributedStepper(Stepper):
         self._no_heat = records.no_heat_cpu()
         self._bad = np.zeros(1, dtype=np.int64)
         self._gather = _GatherPlan(dec, sh, thermal, self.rank)
+        self._conduction = None
+        if integrator.heat_rows[0]:  # conduction: its own call (thermonet.parallel.conduction)
+            self._conduction = DistributedConduction(self, *conduction_stages(system.model, parallel, uniform))
 
     # ------------------------------------------------------------------------------------------
     def advance(self, state, n_steps: int, h: float, measure: bool = False):
@@ -101,6 +123,8 @@ class DistributedStepper(Stepper):
         if n_steps <= 0:
             return None
         self._take(state)
+        if self._conduction is not None:
+            return self._conduction.advance(state, n_steps, h)
         lo, hi = self.system.stretch_bounds
         run = records.Run(float(h), float(state.time), int(n_steps), bool(self.integrator.track_phi), float(lo),
                           float(hi), False, False, 1, 0)
