@@ -3,8 +3,9 @@
 The default scene runs in this process (which also fills Numba's disk cache: the processes
 started by ``mpiexec`` then load the kernels instead of compiling them) and over 2 processes, cut
 in two and resumed; the tensile scene (a drive) with a multi-stage splitting (a halo exchange per
-stage) over 3; their diagnostics and probe files, checkpoints and frames (ParaView's parallel
-pieces, joined back by the node and spring numbers they carry) must be the same bytes.
+stage) over 3; the thermal-shock scene (conduction from a bath, multirate) over 2, resumed on 3;
+their diagnostics and probe files, checkpoints and frames (ParaView's parallel pieces, joined
+back by the node and spring numbers they carry) must be the same bytes.
 Effects the distributed step does not carry are refused in one line naming them.
 """
 
@@ -27,6 +28,7 @@ from thermonet.io.pvd import read_pvd
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 DEFAULT = os.path.join(ROOT, "scenes", "default.toml")
 TENSILE = os.path.join(ROOT, "scenes", "tensile.toml")
+SHOCK = os.path.join(ROOT, "scenes", "thermal_shock.toml")
 #: 200 steps of the default scene: rows every 20, frames every 100, the checkpoint at the end
 RUN = ["--set", "output.frames_every=100", "--set", "output.diagnostics_every=20",
        "--set", "output.checkpoint_every=200", "--quiet"]
@@ -44,12 +46,14 @@ needs_mpi = pytest.mark.skipif(MPIEXEC is None or importlib.util.find_spec("mpi4
                                reason="needs mpi4py and mpiexec (pip install 'thermonet[mpi]')")
 
 
-def mpirun(ranks: int, *args, timeout: int = 300) -> subprocess.CompletedProcess:
-    """``mpiexec -n ranks python -m thermonet *args`` with this checkout on the path."""
+def mpirun(ranks: int, *args, timeout: int = 300, module: bool = True) -> subprocess.CompletedProcess:
+    """``mpiexec -n ranks python -m thermonet *args`` (``python *args`` unless ``module``) with
+    this checkout on the path."""
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([ROOT, os.environ.get("PYTHONPATH", "")]),
                NUMBA_NUM_THREADS="1")
-    done = subprocess.run([MPIEXEC, "-n", str(ranks), sys.executable, "-m", "thermonet", *args], env=env,
-                          capture_output=True, text=True, timeout=timeout)
+    command = [sys.executable, "-m", "thermonet", *args] if module else [sys.executable, *args]
+    done = subprocess.run([MPIEXEC, "-n", str(ranks), *command], env=env, capture_output=True, text=True,
+                          timeout=timeout)
     assert done.returncode == 0, done.stdout + done.stderr
     return done
 
@@ -205,6 +209,27 @@ def test_three_processes_pulling_the_tensile_bar_with_omf4_are_one_process_bit_f
     assert_same_frames(tmp_path / "one", tmp_path / "three", 3, "tensile")
 
 
+@needs_mpi
+def test_the_thermal_shock_on_two_processes_resumed_on_three_is_one_process_bit_for_bit(tmp_path):
+    """Conduction from a bath (the sweeps on the whole net from the gathered temperatures, the
+    kick deferred past them) every 2 steps: cut on 2 processes, resumed on 3; then calls of uneven
+    lengths ending inside 2- and 3-step cycles (as a replay after a blow-up) on 3 processes."""
+    args = ["--set", "effects.conduction_every=2", "--set", "output.frames_every=10", "--set",
+            "output.diagnostics_every=2", "--set", "output.checkpoint_every=10", "--quiet"]
+    assert main(["run", SHOCK, "--out", str(tmp_path / "one"), "--set", "integrator.t_end=0.2", *args]) == 0
+    compile_here(SHOCK)
+    mpirun(2, "run", SHOCK, "--out", str(tmp_path / "cut"), "--set", "integrator.t_end=0.1", *args)
+    mpirun(3, "run", "--resume", str(tmp_path / "cut"), "--set", "integrator.t_end=0.2", "--quiet")
+    assert_same_run(tmp_path / "one", tmp_path / "cut", "thermal_shock")
+    assert {"heat_produced", "heat_entry_heat", "heat_theta", "heat_pending_eta"} <= set(
+        checkpoint(tmp_path / "cut", "thermal_shock"))
+    assert assert_same_frames(tmp_path / "one", tmp_path / "cut", (2, 3), "thermal_shock") == [2, 3, 3]
+    for every in ("2", "3"):
+        done = mpirun(3, os.path.join(ROOT, "tests", "mpi_conduction.py"), SHOCK, every, "3", "1", "4", "1",
+                      module=False)
+        assert done.stdout.split() == ["same"], done.stdout
+
+
 class TwoProcesses:
     """A stand-in communicator of two processes: the effects are checked before any message."""
 
@@ -218,8 +243,10 @@ class TwoProcesses:
 def _refused(match: str, **kwargs) -> str:
     parameters = dict(c=100.0, beta=0.2, C0=5.0, theta0=300.0)
     parameters.update(kwargs.pop("extra", {}))
+    net = tn.chain()
+    net.node_groups["all"] = np.arange(net.n_nodes)
     with pytest.raises(InputError, match=match) as info:
-        tn.Simulation(tn.chain(), parameters=parameters, comm=TwoProcesses(), **kwargs)
+        tn.Simulation(net, parameters=parameters, comm=TwoProcesses(), **kwargs)
     message = str(info.value)
     assert "\n" not in message and "over 2 MPI processes" in message
     return message
@@ -228,7 +255,11 @@ def _refused(match: str, **kwargs) -> str:
 def test_effects_the_distributed_step_does_not_carry_are_refused_by_name():
     from push_subflow import push
 
-    _refused("heat conduction", extra=dict(g=1.0))
+    from thermonet.loads import Force
+
+    _refused("thermal waves", extra=dict(g=1.0, g_star=1.0))
+    _refused("heat conduction together with loads", extra=dict(g=1.0),
+             loads={"push": Force("all", [1.0, 0.0, 0.0], total=True)})
     _refused("implicit integrator 'em2'", integrator="em2")
     _refused("extra sub-flows", integrator=tn.get_integrator("co2").with_flow(push([1], [0.1, 0.0, 0.0])))
 

@@ -1,0 +1,39 @@
+"""Run by tests/test_mpi.py under ``mpiexec``: a conducting scene advanced in calls of uneven
+lengths that end inside conduction cycles of ``EVERY`` steps (as a replay after a blow-up does),
+over all processes and in each process alone, compared bit for bit (the state and every heat
+log); rank 0 prints "same" or "DIFFERENT: <what>"."""
+
+import os
+import sys
+
+import numpy as np
+from mpi4py import MPI
+
+from thermonet.heat.logs import heat_logs
+from thermonet.parallel.world import LAUNCHER_VARIABLES
+from thermonet.scenes import load_scene
+
+SCENE, EVERY, CALLS = sys.argv[1], int(sys.argv[2]), [int(n) for n in sys.argv[3:]]
+
+
+def run(alone: bool) -> dict:
+    """The state's arrays and heat logs after the calls; ``alone``: as if not started by mpiexec."""
+    saved = {k: os.environ.pop(k) for k in LAUNCHER_VARIABLES if k in os.environ} if alone else {}
+    try:
+        sim = load_scene(SCENE).build().simulation
+    finally:
+        os.environ.update(saved)
+    assert (sim.comm is None) == alone
+    state = sim.internal_state()
+    heat_logs(state, sim.system.heat)["cycle"][:] = (EVERY, 0)
+    for n in CALLS:
+        sim.runner.advance(n)
+    out = {k: getattr(state, k) for k in ("positions", "momenta", "thermal_displacement", "entropy")}
+    out.update({f"heat_{k}": v for k, v in state.extra["heat"].items()})
+    return out
+
+
+many, one = run(False), run(True)
+different = [k for k in one if not np.array_equal(one[k], many[k])]
+if MPI.COMM_WORLD.Get_rank() == 0:
+    print("same" if not different else f"DIFFERENT: {' '.join(different)}", flush=True)
