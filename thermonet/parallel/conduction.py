@@ -5,15 +5,10 @@ step by step, in the same order and with the same compiled passes, on the proces
 (:mod:`thermonet.parallel.heat_stages`): the kick deferred past a sweep, the refresh of the
 forces from the swept temperatures, the closing kick, the sweeps' continuation across calls.
 
-The conduction sweep itself (the star colours one after the other, the baths and sources, the
-entropy update) runs on the whole net, on every process: before a sweep the processes gather the
-springs' temperatures at the current positions (one ``Allgatherv``: each spring from the process
-that reports it), then each runs the one-process sweep (:func:`thermonet.heat.passes.
-_conduction_sweep`, the same compiled function) on the whole net's θ, η and heat logs, and takes
-its share's θ and η back. Every process thus holds the whole net's entropies and logs, identical
-to one process's; only the temperatures and lengths the next call continues from are gathered at
-the end of a call. The sweep is therefore not divided among the processes (its cost, one pass
-over the net's junctions per half sweep, stays that of one process): docs/parallel.md.
+The conduction sweeps are divided among the processes (:mod:`thermonet.parallel.sweep`): each
+sweeps its blocks of junctions colour by colour and sends the temperatures it changed to the
+processes holding them between the colours; a call gathers the share's entropies and heat logs
+into the whole state at its end, with the temperatures and lengths the next call continues from.
 """
 
 from __future__ import annotations
@@ -24,52 +19,28 @@ from ..heat.logs import cycle_position, heat_logs
 from ..heat.passes import CONTINUE, FORWARD, REVERSE, SAVE
 from ..kernels import records
 from ..loads.elements import NO_LOADS
-
-
-class SpringGather:
-    """The whole net's values of a per-spring quantity from each process's reported springs
-    (:meth:`~thermonet.parallel.domain.Decomposition.owned_springs`): one ``Allgatherv``.
-
-    dec: the decomposition; sh: this process's share.
-    """
-
-    def __init__(self, dec, sh, rank: int):
-        self.springs = [dec.owned_springs(q) for q in range(dec.size)]
-        self.local = np.searchsorted(sh.springs, self.springs[rank])
-        self.counts = np.array([len(s) for s in self.springs], dtype=np.int64)
-        self.offsets = np.concatenate([[0], np.cumsum(self.counts)[:-1]]).astype(np.int64)
-        self.send = np.empty(int(self.counts[rank]))
-        self.recv = np.empty(int(self.counts.sum()))
-        self.order = np.concatenate(self.springs) if self.springs else np.empty(0, dtype=np.int64)
-
-    def gather(self, comm, local: np.ndarray, whole: np.ndarray) -> None:
-        """whole (m,) ← every process's reported values of local (ml,) (this share's springs)."""
-        from mpi4py import MPI
-
-        np.take(local, self.local, out=self.send)
-        comm.Allgatherv(self.send, [self.recv, self.counts, self.offsets, MPI.DOUBLE])
-        whole[self.order] = self.recv
+from .sweep import DistributedSweep
 
 
 class DistributedConduction:
     """The conducting calls of a :class:`~thermonet.parallel.stepper.DistributedStepper`.
 
     stepper: the stepper (its share, halo, records and buffers); functions: the compiled stage
-    functions of :func:`~thermonet.parallel.heat_stages.heat_stage_functions`; temperature_pass,
-    sweep: the conducting CPU kernel variant's (:mod:`thermonet.heat.passes`).
+    functions of :func:`~thermonet.parallel.heat_stages.heat_stage_functions`; temperature_pass:
+    the conducting CPU kernel variant's; phases: the sweep's, of
+    :func:`~thermonet.parallel.heat_stages.sweep_phase_functions`.
     """
 
-    def __init__(self, stepper, functions, temperature_pass, sweep):
+    def __init__(self, stepper, functions, temperature_pass, phases):
         self.stepper = stepper
         self.heat = stepper.system.heat
         self._forces, self._before_sweep, self._kick_drift, self._deferred_alone, self._closing = functions
-        self._temperature, self._sweep = temperature_pass, sweep
+        self._temperature = temperature_pass
         sh = stepper.share
-        ml, m = len(sh.springs), stepper.system.n_springs
+        ml = len(sh.springs)
         self._length = np.empty(ml)  # the share's spring lengths kept with θ (the whole net's heat.length)
         self._s_before = np.empty(ml)  # the forces of a kick deferred past a sweep
-        self._theta = np.empty(m)  # the whole net's θ a sweep runs on
-        self._gather = SpringGather(stepper.decomposition, sh, stepper.rank)
+        self._sweep = DistributedSweep(self.heat, stepper.decomposition, sh, stepper.comm, phases)
 
     def advance(self, state, n_steps: int, h: float) -> None:
         """``n_steps`` steps of the share (taken from ``state`` by the stepper), as the CPU
@@ -90,6 +61,7 @@ class DistributedConduction:
         topology, springs, nodes = st._topology, st._springs, st._nodes
         length, s_before = self._length, self._s_before
         np.take(logs["length"], sh.springs, out=length)
+        self._sweep.begin(logs)
         cur, nxt = st._x, scratch.x_buf
         kicks, drifts, carry = st._kicks, st._drifts, st._carry
         pending = deferred = 0.0
@@ -107,7 +79,8 @@ class DistributedConduction:
             if pending != 0.0 and st._any(self._before_sweep(cur, arrays, topology, springs, before, length, pending,
                                                             run)):
                 return False
-            self._whole_sweep(state, record, directions, 0.5 * run.conduction_every * run.h, run.t0 + step * run.h)
+            self._sweep.sweep(record, scratch.theta_keep, arrays.eta, 0.5 * run.conduction_every * run.h,
+                              run.t0 + step * run.h, directions)
             return True
 
         for step in range(n_steps):
@@ -153,27 +126,16 @@ class DistributedConduction:
                                      pending, run)):
                 return self._failed(state, logs, cur, n_steps - 1)
             theta_valid = True
-        comm = st.comm
-        self._gather.gather(comm, length, logs["length"])
-        if theta_valid:
-            self._gather.gather(comm, scratch.theta_keep, logs["theta"])
+        more = [(length, logs["length"])] + ([(scratch.theta_keep, logs["theta"])] if theta_valid else [])
+        self._sweep.gather(st._eta, state, logs, more)
         logs["theta_ok"][0] = (2.0 if ended_cycle else 1.0) if theta_valid else 0.0
         st._give(state, cur)
         return None
 
-    def _whole_sweep(self, state, record, directions: int, tau: float, t: float) -> None:
-        """The one-process sweep on the whole net: θ gathered, η and the logs updated in place
-        (identically on every process), the share's θ and η taken back."""
-        st = self.stepper
-        sh = st.share
-        theta = self._theta
-        self._gather.gather(st.comm, st._scratch.theta_keep, theta)
-        self._sweep(record, theta, record.theta_start, state.entropy, tau, t, directions)
-        np.take(theta, sh.springs, out=st._scratch.theta_keep)
-        np.take(state.entropy, sh.springs, out=st._eta)
-
     def _failed(self, state, logs, cur, steps_done: int):
-        """A spring left the admissible states: the sweeps' kept temperatures are no longer
-        valid (as the kernel's), then the stepper's stop."""
+        """A spring left the admissible states: the state as far as it got (η and the logs
+        gathered), the sweeps' kept temperatures no longer valid (as the kernel's), then the
+        stepper's stop."""
+        self._sweep.gather(self.stepper._eta, state, logs, [])
         logs["theta_ok"][0] = 0.0
         return self.stepper._stopped(state, cur, steps_done)

@@ -8,6 +8,8 @@ functions call that kernel variant's passes with the argument expressions its ``
 
 from __future__ import annotations
 
+from numba import prange
+
 from ..kernels.specialize import function_fingerprint, specialize
 
 # bound per kernel variant by heat_stage_functions() (a conducting variant's passes)
@@ -72,3 +74,42 @@ def heat_stage_functions(namespace: dict, variant: str):
         _CACHE[variant] = tuple(specialize(f, tag, ns, **_OPTIONS)
                                 for f in (_forces, _before_sweep, _kick_drift, _deferred_alone, _closing))
     return _CACHE[variant]
+
+
+# ------------------------------------------------------------------------------------------------
+# the phases of a conduction sweep divided among the processes (thermonet.parallel.sweep)
+star_block = boundary_exchange = finish_spring = None  # bound per variant
+_PHASE_NAMES = ("star_block", "boundary_exchange", "finish_spring")
+
+
+def _colour_phase(heat, theta, colour, reverse):
+    """The blocks of one colour (heat: a process's part of the sweep, local indices), each block's
+    nodes last to first when ``reverse``: :func:`thermonet.heat.passes._conduction_sweep`'s loop."""
+    ptr = heat.star_colour_ptr
+    for b in prange(ptr[colour], ptr[colour + 1]):
+        star_block(b, heat, reverse, theta)
+
+
+def _boundary_phase(heat, theta, tau, t, reverse):
+    """The baths and sources of the process's boundary springs over τ at time t."""
+    logs = (heat.produced, heat.entry_heat, heat.entry_flux)
+    for j in prange(heat.bound_spring.shape[0]):
+        boundary_exchange(j, heat, tau, t, reverse, theta, logs)
+
+
+def _finish(theta, theta_start, eta, capacity, produced, m):
+    """Each of the first m springs' entropy update after the sweep (:func:`finish_spring`)."""
+    for e in prange(m):
+        finish_spring(e, theta, theta_start, eta, capacity, produced)
+
+
+def sweep_phase_functions(namespace: dict, variant: str, parallel: bool):
+    """(colour_phase, boundary_phase, finish) compiled around a conducting variant's exchange
+    functions (:mod:`thermonet.heat.exchange`); variant: a name unique to it."""
+    key = (variant, "phases")
+    if key not in _CACHE:
+        ns = {k: namespace[k] for k in _PHASE_NAMES}
+        tag = f"{variant}_{function_fingerprint(*(ns[k].py_func for k in _PHASE_NAMES))}"
+        _CACHE[key] = tuple(specialize(f, tag, ns, parallel=parallel, **_OPTIONS)
+                            for f in (_colour_phase, _boundary_phase, _finish))
+    return _CACHE[key]

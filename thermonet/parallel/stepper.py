@@ -56,13 +56,14 @@ def splitting_stages(model, parallel: bool, thermal: bool, uniform: bool, loads:
     return stage_functions(ns, variant), (load_functions(ns, variant) if loads else None)
 
 
-def conduction_stages(model, parallel: bool, uniform: bool) -> tuple[tuple, object, object]:
-    """(stage functions of :mod:`thermonet.parallel.heat_stages`, temperature_pass,
-    conduction_sweep) of the CPU kernel's conducting variant (thermal, without flows or loads)."""
-    from .heat_stages import heat_stage_functions
+def conduction_stages(model, parallel: bool, uniform: bool) -> tuple[tuple, object, tuple]:
+    """(stage functions, temperature_pass, sweep phases) of :mod:`thermonet.parallel.heat_stages`
+    around the CPU kernel's conducting variant (thermal, without flows or loads)."""
+    from .heat_stages import heat_stage_functions, sweep_phase_functions
 
     ns, variant = splitting_passes(model, parallel, True, uniform, False, True)
-    return heat_stage_functions(ns, variant), ns["temperature_pass"], ns["conduction_sweep"]
+    return (heat_stage_functions(ns, variant), ns["temperature_pass"],
+            sweep_phase_functions(ns, variant, parallel))
 
 
 class DistributedStepper(Stepper):
