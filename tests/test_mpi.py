@@ -46,11 +46,11 @@ needs_mpi = pytest.mark.skipif(MPIEXEC is None or importlib.util.find_spec("mpi4
                                reason="needs mpi4py and mpiexec (pip install 'thermonet[mpi]')")
 
 
-def mpirun(ranks: int, *args, timeout: int = 300, module: bool = True) -> subprocess.CompletedProcess:
+def mpirun(ranks: int, *args, timeout: int = 300, module: bool = True, **variables) -> subprocess.CompletedProcess:
     """``mpiexec -n ranks python -m thermonet *args`` (``python *args`` unless ``module``) with
-    this checkout on the path."""
+    this checkout on the path and the environment ``variables``."""
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([ROOT, os.environ.get("PYTHONPATH", "")]),
-               NUMBA_NUM_THREADS="1")
+               NUMBA_NUM_THREADS="1", **variables)
     command = [sys.executable, "-m", "thermonet", *args] if module else [sys.executable, *args]
     done = subprocess.run([MPIEXEC, "-n", str(ranks), *command], env=env, capture_output=True, text=True,
                           timeout=timeout)
@@ -211,9 +211,10 @@ def test_three_processes_pulling_the_tensile_bar_with_omf4_are_one_process_bit_f
 
 @needs_mpi
 def test_the_thermal_shock_on_two_processes_resumed_on_three_is_one_process_bit_for_bit(tmp_path):
-    """Conduction from a bath (the sweeps on the whole net from the gathered temperatures, the
-    kick deferred past them) every 2 steps: cut on 2 processes, resumed on 3; then calls of uneven
-    lengths ending inside 2- and 3-step cycles (as a replay after a blow-up) on 3 processes."""
+    """Conduction from a bath (each process sweeping its blocks, temperatures exchanged between
+    colours; the kick deferred past the sweeps) every 2 steps: cut on 2 processes, resumed on 3;
+    then calls of uneven lengths ending inside 2- and 3-step cycles (as a replay after a blow-up)
+    on 3 processes, parts cut between the sweep's blocks (the default) and across them (RCB)."""
     args = ["--set", "effects.conduction_every=2", "--set", "output.frames_every=10", "--set",
             "output.diagnostics_every=2", "--set", "output.checkpoint_every=10", "--quiet"]
     assert main(["run", SHOCK, "--out", str(tmp_path / "one"), "--set", "integrator.t_end=0.2", *args]) == 0
@@ -224,9 +225,9 @@ def test_the_thermal_shock_on_two_processes_resumed_on_three_is_one_process_bit_
     assert {"heat_produced", "heat_entry_heat", "heat_theta", "heat_pending_eta"} <= set(
         checkpoint(tmp_path / "cut", "thermal_shock"))
     assert assert_same_frames(tmp_path / "one", tmp_path / "cut", (2, 3), "thermal_shock") == [2, 3, 3]
-    for every in ("2", "3"):
+    for every, parts in (("2", "blocks"), ("3", "rcb")):
         done = mpirun(3, os.path.join(ROOT, "tests", "mpi_conduction.py"), SHOCK, every, "3", "1", "4", "1",
-                      module=False)
+                      module=False, THERMONET_PARTITION=parts)
         assert done.stdout.split() == ["same"], done.stdout
 
 

@@ -72,12 +72,13 @@ class DistributedStepper(Stepper):
 
     integrator: the splitting; system: the whole net's System (every process builds it);
     points: (n, 3) reference positions, internal numbering (the partition's input);
-    parallel: multi-threaded passes; method: "rcb" or "metis" (:mod:`thermonet.parallel.partition`).
+    parallel: multi-threaded passes; method: "rcb", "metis" or "blocks"
+    (:mod:`thermonet.parallel.partition`), default "blocks" with conduction, else "rcb".
     """
 
     measures = False
 
-    def __init__(self, integrator, system, comm, points, parallel: bool = False, method: str = "rcb"):
+    def __init__(self, integrator, system, comm, points, parallel: bool = False, method: str | None = None):
         self.integrator, self.system, self.comm = integrator, system, comm
         self.size, self.rank = comm.Get_size(), comm.Get_rank()
         table = integrator.table_between_sweeps
@@ -85,7 +86,10 @@ class DistributedStepper(Stepper):
             raise InputError(f"{integrator.name}: a run over MPI processes runs kick/drift stages only")
         self._kicks, self._drifts, self._carry = list(table.kick), list(table.drift), float(table.carry)
         edges = system.edges
-        owner = partition(points, edges, self.size, method) if self.rank == 0 else None
+        conducting = integrator.heat_rows[0]
+        method = method or ("blocks" if conducting else "rcb")
+        spans = _block_spans(system.heat.star_order("cpu")) if method == "blocks" and conducting else None
+        owner = partition(points, edges, self.size, method, spans) if self.rank == 0 else None
         self.decomposition = dec = decomposition(comm.bcast(owner, root=0), edges, self.size)
         self.share = sh = share(dec, edges, self.rank)
         self.halo = Halo(comm, sh.send, sh.recv)
@@ -115,7 +119,7 @@ class DistributedStepper(Stepper):
         self._bad = np.zeros(1, dtype=np.int64)
         self._gather = _GatherPlan(dec, sh, thermal, self.rank)
         self._conduction = None
-        if integrator.heat_rows[0]:  # conduction: its own call (thermonet.parallel.conduction)
+        if conducting:  # conduction: its own call (thermonet.parallel.conduction)
             self._conduction = DistributedConduction(self, *conduction_stages(system.model, parallel, uniform))
 
     # ------------------------------------------------------------------------------------------
@@ -196,6 +200,11 @@ class DistributedStepper(Stepper):
         return None
 
 
+def _block_spans(order) -> np.ndarray:
+    """(B, 2) the first and last node of each block of a conduction sweep's order."""
+    return np.stack([order.node[order.block_ptr[:-1]], order.node[order.block_ptr[1:] - 1]], axis=1)
+
+
 def _stage_time(loads, h: float, step: int, tau: float) -> float:
     """:func:`thermonet.loads.elements.stage_time`, the same operations in the same order."""
     return loads.clock[0] + ((loads.clock[1] + step) + tau) * h
@@ -252,18 +261,19 @@ def threads_per_process(comm) -> int:
     return max(1, cores // on_machine)
 
 
-#: environment variable choosing the partitioner ("rcb", the default, or "metis")
+#: environment variable choosing the partitioner ("rcb", "metis" or "blocks"; the default: "blocks"
+#: with conduction, else "rcb")
 PARTITION_VARIABLE = "THERMONET_PARTITION"
 
 
 def distribute(sim, comm, method: str | None = None) -> DistributedStepper:
     """The stepper of ``sim`` over the processes of ``comm`` (its effects checked first);
-    method: the partitioner, default ``$THERMONET_PARTITION`` or "rcb"."""
+    method: the partitioner, default ``$THERMONET_PARTITION`` or "blocks" with conduction, else "rcb"."""
     import os
 
     from .support import check_support
 
-    method = method or os.environ.get(PARTITION_VARIABLE, "rcb")
+    method = method or os.environ.get(PARTITION_VARIABLE) or None
     check_support(sim, comm.Get_size())
     if sim.threads is None:  # the machine's cores shared among its processes, not each taking all
         sim.threads = threads_per_process(comm)
