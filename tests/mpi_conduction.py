@@ -1,7 +1,11 @@
 """Run by tests/test_mpi.py under ``mpiexec``: a conducting scene advanced in calls of uneven
-lengths that end inside conduction cycles of ``EVERY`` steps (as a replay after a blow-up does),
-over all processes and in each process alone, compared bit for bit (the state and every heat
-log); rank 0 prints "same" or "DIFFERENT: <what>"."""
+lengths that end inside conduction cycles (as a replay after a blow-up does), over all processes
+and in each process alone, compared bit for bit (the state and every heat log).
+
+    mpiexec -n P python tests/mpi_conduction.py SCENE CALLS EVERY:PARTS ...
+
+CALLS: the calls' lengths, comma-separated; per EVERY:PARTS (the cycle's steps, the
+partitioner) rank 0 prints "same" or "DIFFERENT: <what>"."""
 
 import os
 import sys
@@ -10,13 +14,14 @@ import numpy as np
 from mpi4py import MPI
 
 from thermonet.heat.logs import heat_logs
+from thermonet.parallel.stepper import PARTITION_VARIABLE
 from thermonet.parallel.world import LAUNCHER_VARIABLES
 from thermonet.scenes import load_scene
 
-SCENE, EVERY, CALLS = sys.argv[1], int(sys.argv[2]), [int(n) for n in sys.argv[3:]]
+SCENE, CALLS = sys.argv[1], [int(n) for n in sys.argv[2].split(",")]
 
 
-def run(alone: bool) -> dict:
+def run(every: int, alone: bool) -> dict:
     """The state's arrays and heat logs after the calls; ``alone``: as if not started by mpiexec."""
     saved = {k: os.environ.pop(k) for k in LAUNCHER_VARIABLES if k in os.environ} if alone else {}
     try:
@@ -25,7 +30,7 @@ def run(alone: bool) -> dict:
         os.environ.update(saved)
     assert (sim.comm is None) == alone
     state = sim.internal_state()
-    heat_logs(state, sim.system.heat)["cycle"][:] = (EVERY, 0)
+    heat_logs(state, sim.system.heat)["cycle"][:] = (every, 0)
     for n in CALLS:
         sim.runner.advance(n)
     out = {k: getattr(state, k) for k in ("positions", "momenta", "thermal_displacement", "entropy")}
@@ -33,7 +38,10 @@ def run(alone: bool) -> dict:
     return out
 
 
-many, one = run(False), run(True)
-different = [k for k in one if not np.array_equal(one[k], many[k])]
-if MPI.COMM_WORLD.Get_rank() == 0:
-    print("same" if not different else f"DIFFERENT: {' '.join(different)}", flush=True)
+for spec in sys.argv[3:]:
+    every, parts = spec.split(":")
+    os.environ[PARTITION_VARIABLE] = parts
+    many, one = run(int(every), False), run(int(every), True)
+    different = [k for k in one if not np.array_equal(one[k], many[k])]
+    if MPI.COMM_WORLD.Get_rank() == 0:
+        print("same" if not different else f"DIFFERENT: {' '.join(different)}", flush=True)
