@@ -326,6 +326,26 @@ def test_every_owned_node_sums_its_springs_in_the_whole_nets_order(method):
             assert np.array_equal(s.nodes[idx], shares[q].nodes[shares[q].recv[s.rank]])
 
 
+def test_blocks_parts_keep_every_conduction_block_in_one_process():
+    """The default parts with conduction: ranges of the internal numbering cut between the
+    sweep's blocks (a block straddling two processes would make its owner hold and exchange the
+    other side's temperatures at every colour); balanced to within a block."""
+    from thermonet.heat.graph import star_order
+    from thermonet.layout import build_layout
+    from thermonet.parallel.partition import partition
+    from thermonet.parallel.stepper import _block_spans
+
+    net = tn.lattice((9, 4, 3), neighbours=18, jitter=0.1)
+    layout = build_layout(net)
+    order = star_order(layout, np.ones(net.n_springs), np.ones(net.n_nodes, dtype=bool), 16)
+    owner = partition(layout.nodes_to_internal(net.positions), layout.edges, 3, "blocks", _block_spans(order))
+    for b in range(order.n_blocks):
+        assert len(np.unique(owner[order.node[order.block_ptr[b]:order.block_ptr[b + 1]]])) == 1
+    counts = np.bincount(owner, minlength=3)
+    assert counts.min() > 0 and counts.max() - counts.min() <= 2 * 16
+    assert np.all(np.diff(owner) >= 0)  # ranges of the numbering
+
+
 @needs_mpi
 def test_every_kind_of_splitting_over_processes_is_one_process_bit_for_bit(one_process):
     """Drift first (F10, BM6A), a kick of 0 (GTR-0, GTR-1), no Φ (NM2), a composition (CO4): each
