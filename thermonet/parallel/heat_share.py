@@ -37,7 +37,7 @@ class HeatShare:
     springs: (ls,) int64 whole-net numbers of the springs r holds θ of (the share's ml first);
     colour_ptr: (C+1,) int64 r's blocks of each colour; block_ptr: (b+1,) int64 their nodes in
     nodes (0..k−1, in sweep order); node: (k,) int64 their whole-net numbers;
-    incidence: (2k',) int64 the whole-net incidence (position in inc_spring) of each of the
+    incidence: (k',) int64 the whole-net incidence (position in inc_spring) of each of the
     nodes' springs, in order; inc_ptr (k+1,) int64, inc_spring (k',) uint32 the local lists;
     bound: (S_r,) int64 the whole-net boundary springs r sweeps (indices into bound_spring);
     entries: (E_r,) int64 their entries (whole-net entry numbers, ascending);
@@ -103,8 +103,7 @@ def heat_shares(order, inc_ptr, inc_spring, bound_spring, bound_ptr, dec, share_
     m, size = len(dec.spring_owner), dec.size
     n_blocks = len(order.block_ptr) - 1
     block_owner = dec.owner[order.node[order.block_ptr[:-1]]] if n_blocks else np.zeros(0, dtype=np.int64)
-    holds, further = [], []
-    parts = []
+    holds, further, parts = [], [], []  # per process: the springs it holds θ of; of those, beyond its share
     for q in range(size):
         blocks = np.flatnonzero(block_owner == q)
         nodes, incidence = _touched(order, inc_ptr, inc_spring, blocks)
