@@ -2,10 +2,11 @@
 lengths that end inside conduction cycles (as a replay after a blow-up does), over all processes
 and in each process alone, compared bit for bit (the state and every heat log).
 
-    mpiexec -n P python tests/mpi_conduction.py SCENE CALLS EVERY:PARTS ...
+    mpiexec -n P python tests/mpi_conduction.py SCENE CALLS EVERY:PARTS ... [-- ARGS]
 
 CALLS: the calls' lengths, comma-separated; per EVERY:PARTS (the cycle's steps, the
-partitioner) rank 0 prints "same" or "DIFFERENT: <what>"."""
+partitioner) rank 0 prints "same" or "DIFFERENT: <what>". ARGS: a ``thermonet`` command run
+first over the same processes (the test's resumed run: one launch instead of two)."""
 
 import os
 import sys
@@ -18,7 +19,8 @@ from thermonet.parallel.stepper import PARTITION_VARIABLE
 from thermonet.parallel.world import LAUNCHER_VARIABLES
 from thermonet.scenes import load_scene
 
-SCENE, CALLS = sys.argv[1], [int(n) for n in sys.argv[2].split(",")]
+ARGS = sys.argv[1:sys.argv.index("--")] if "--" in sys.argv else sys.argv[1:]
+SCENE, CALLS, SPECS = ARGS[0], [int(n) for n in ARGS[1].split(",")], ARGS[2:]
 
 
 def run(every: int, alone: bool) -> dict:
@@ -38,7 +40,11 @@ def run(every: int, alone: bool) -> dict:
     return out
 
 
-for spec in sys.argv[3:]:
+if "--" in sys.argv:
+    from thermonet.cli.main import main
+
+    assert main(sys.argv[sys.argv.index("--") + 1:]) == 0
+for spec in SPECS:
     every, parts = spec.split(":")
     os.environ[PARTITION_VARIABLE] = parts
     many, one = run(int(every), False), run(int(every), True)
