@@ -62,12 +62,12 @@ class HeatShare:
 def _touched(order, inc_ptr, inc_spring, blocks) -> tuple[np.ndarray, np.ndarray]:
     """(nodes, incidence positions) of ``blocks`` (ascending block numbers) in sweep order."""
     sizes = order.block_ptr[blocks + 1] - order.block_ptr[blocks]
-    nodes = order.node[np.repeat(order.block_ptr[blocks], sizes) + _ranges(sizes)]
+    nodes = order.node[np.repeat(order.block_ptr[blocks], sizes) + ranges(sizes)]
     deg = inc_ptr[nodes + 1] - inc_ptr[nodes]
-    return nodes, np.repeat(inc_ptr[nodes], deg) + _ranges(deg)
+    return nodes, np.repeat(inc_ptr[nodes], deg) + ranges(deg)
 
 
-def _ranges(sizes: np.ndarray) -> np.ndarray:
+def ranges(sizes: np.ndarray) -> np.ndarray:
     """0..s−1 for each s of sizes, concatenated."""
     total = int(sizes.sum())
     if total == 0:
@@ -134,7 +134,7 @@ def heat_shares(order, inc_ptr, inc_spring, bound_spring, bound_ptr, dec, share_
     start_source = np.where(np.logical_or.reduce(further), spring_owner, -1) if size else np.full(m, -1)
     bound = np.flatnonzero(spring_owner[bound_spring] == rank) if len(bound_spring) else np.zeros(0, dtype=np.int64)
     entry_sizes = bound_ptr[bound + 1] - bound_ptr[bound]
-    entries = np.repeat(bound_ptr[bound], entry_sizes) + _ranges(entry_sizes)
+    entries = np.repeat(bound_ptr[bound], entry_sizes) + ranges(entry_sizes)
     return HeatShare(springs, np.searchsorted(blocks, order.colour_ptr).astype(np.int64),
                      np.concatenate([[0], np.cumsum(block_sizes)]).astype(np.int64), nodes, incidence,
                      np.concatenate([[0], np.cumsum(deg)]).astype(np.int64),

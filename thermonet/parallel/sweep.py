@@ -16,7 +16,7 @@ import numpy as np
 
 from ..heat.passes import CONTINUE, FORWARD, REVERSE, SAVE
 from ..kernels import records
-from .heat_share import heat_shares
+from .heat_share import heat_shares, ranges
 
 #: message tag of the temperatures exchanged between a sweep's phases
 TAG = 34
@@ -77,8 +77,7 @@ def _entries_of(bound_spring, bound_ptr, reports) -> np.ndarray:
     """(E_q,) int64 the entries of the boundary springs a process reports (reports: (m,) bool)."""
     bound = np.flatnonzero(reports[bound_spring])
     sizes = bound_ptr[bound + 1] - bound_ptr[bound]
-    starts = np.repeat(bound_ptr[bound], sizes)
-    return (starts + np.arange(int(sizes.sum())) - np.repeat(np.cumsum(sizes) - sizes, sizes)).astype(np.int64)
+    return np.repeat(bound_ptr[bound], sizes) + ranges(sizes)
 
 
 class DistributedSweep:
