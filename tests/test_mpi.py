@@ -181,9 +181,14 @@ def one_process(tmp_path_factory):
 
 @needs_mpi
 def test_two_processes_cut_in_two_and_resumed_on_three_are_one_process_bit_for_bit(one_process, tmp_path):
-    """The checkpoint holds the whole state: a run cut on 2 processes continues on 3."""
+    """The checkpoint holds the whole state: a run cut on 2 processes continues on 3. In the same
+    launch of 2 processes, every kind of splitting over them and alone: drift first (F10, BM6A), a
+    kick of 0 (GTR-0, GTR-1), no Φ (NM2), a composition (CO4)."""
     out = tmp_path / "run"
-    mpirun(2, "run", DEFAULT, "--out", str(out), "--set", "integrator.t_end=0.02", *RUN)
+    names = ["f10", "gtr-0", "gtr-1", "nm2", "bm6a", "co4"]
+    done = mpirun(2, os.path.join(ROOT, "tests", "mpi_integrators.py"), DEFAULT, "20", *names, "--", "run", DEFAULT,
+                  "--out", str(out), "--set", "integrator.t_end=0.02", *RUN, module=False)
+    assert done.stdout.split() == [w for n in names for w in (n, "same")], done.stdout
     assert checkpoint(out)["step"] == 100
     mpirun(3, "run", "--resume", str(out), *SHORT, "--quiet")
     assert_same_run(one_process, out)
@@ -345,16 +350,3 @@ def test_blocks_parts_keep_every_conduction_block_in_one_process():
     counts = np.bincount(owner, minlength=3)
     assert counts.min() > 0 and counts.max() - counts.min() <= 2 * 16
     assert np.all(np.diff(owner) >= 0)  # ranges of the numbering
-
-
-@needs_mpi
-def test_every_kind_of_splitting_over_processes_is_one_process_bit_for_bit(one_process):
-    """Drift first (F10, BM6A), a kick of 0 (GTR-0, GTR-1), no Φ (NM2), a composition (CO4): each
-    over 2 processes and alone, in the same processes (one launch)."""
-    names = ["f10", "gtr-0", "gtr-1", "nm2", "bm6a", "co4"]
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join([ROOT, os.environ.get("PYTHONPATH", "")]),
-               NUMBA_NUM_THREADS="1")
-    done = subprocess.run([MPIEXEC, "-n", "2", sys.executable, os.path.join(ROOT, "tests", "mpi_integrators.py"),
-                           DEFAULT, "20", *names], env=env, capture_output=True, text=True, timeout=300)
-    assert done.returncode == 0, done.stdout + done.stderr
-    assert done.stdout.split() == [w for n in names for w in (n, "same")], done.stdout
