@@ -25,6 +25,7 @@ from ..integrators.splitting import blowup_failure
 from ..kernels import records
 from ..loads.elements import NO_LOADS
 from ..loads.stepping import StepperLoads
+from .conduction import DistributedConduction
 from .domain import decomposition, share
 from .halo import Halo
 from .loads import ShareLoads, load_functions
@@ -32,18 +33,37 @@ from .partition import partition
 from .stages import stage_functions
 
 
+def splitting_passes(model, parallel: bool, thermal: bool, uniform: bool, loads: bool = False,
+                     conduction: bool = False) -> tuple[dict, str]:
+    """(namespace, variant): the passes of the CPU kernel's variant without flows (with loads
+    where ``loads``, with the conduction sweeps where ``conduction``) and a name unique to it."""
+    from ..kernels import splitting
+    from ..kernels.specialize import model_fingerprint
+
+    advance = splitting.splitting_kernels(model, parallel, thermal, uniform, (), conduction, False, loads)
+    ns = next(splitting._PASSES[k] for k, v in splitting._CACHE.items() if v is advance)  # that variant's passes
+    variant = (f"{model.name}_{model_fingerprint(model)}_{'par' if parallel else 'ser'}"
+               f"_{'thermal' if thermal else 'mech'}{'_uniform' if uniform else ''}{'_loads' if loads else ''}"
+               f"{'_conduction' if conduction else ''}")
+    return ns, variant
+
+
 def splitting_stages(model, parallel: bool, thermal: bool, uniform: bool, loads: bool = False):
     """(stage, closing) of :mod:`thermonet.parallel.stages` around the passes of the CPU kernel's
     variant without flows or heat flow (with loads where ``loads``), and with loads the loads'
     functions (:func:`thermonet.parallel.loads.load_functions`), else None."""
-    from ..kernels import splitting
-    from ..kernels.specialize import model_fingerprint
-
-    advance = splitting.splitting_kernels(model, parallel, thermal, uniform, (), False, False, loads)
-    ns = next(splitting._PASSES[k] for k, v in splitting._CACHE.items() if v is advance)  # that variant's passes
-    variant = (f"{model.name}_{model_fingerprint(model)}_{'par' if parallel else 'ser'}"
-               f"_{'thermal' if thermal else 'mech'}{'_uniform' if uniform else ''}{'_loads' if loads else ''}")
+    ns, variant = splitting_passes(model, parallel, thermal, uniform, loads)
     return stage_functions(ns, variant), (load_functions(ns, variant) if loads else None)
+
+
+def conduction_stages(model, parallel: bool, uniform: bool) -> tuple[tuple, object, tuple]:
+    """(stage functions, temperature_pass, sweep phases) of :mod:`thermonet.parallel.heat_stages`
+    around the CPU kernel's conducting variant (thermal, without flows or loads)."""
+    from .heat_stages import heat_stage_functions, sweep_phase_functions
+
+    ns, variant = splitting_passes(model, parallel, True, uniform, False, True)
+    return (heat_stage_functions(ns, variant), ns["temperature_pass"],
+            sweep_phase_functions(ns, variant, parallel))
 
 
 class DistributedStepper(Stepper):
@@ -52,12 +72,13 @@ class DistributedStepper(Stepper):
 
     integrator: the splitting; system: the whole net's System (every process builds it);
     points: (n, 3) reference positions, internal numbering (the partition's input);
-    parallel: multi-threaded passes; method: "rcb" or "metis" (:mod:`thermonet.parallel.partition`).
+    parallel: multi-threaded passes; method: "rcb", "metis" or "blocks"
+    (:mod:`thermonet.parallel.partition`), default "blocks" with conduction, else "rcb".
     """
 
     measures = False
 
-    def __init__(self, integrator, system, comm, points, parallel: bool = False, method: str = "rcb"):
+    def __init__(self, integrator, system, comm, points, parallel: bool = False, method: str | None = None):
         self.integrator, self.system, self.comm = integrator, system, comm
         self.size, self.rank = comm.Get_size(), comm.Get_rank()
         table = integrator.table_between_sweeps
@@ -65,7 +86,10 @@ class DistributedStepper(Stepper):
             raise InputError(f"{integrator.name}: a run over MPI processes runs kick/drift stages only")
         self._kicks, self._drifts, self._carry = list(table.kick), list(table.drift), float(table.carry)
         edges = system.edges
-        owner = partition(points, edges, self.size, method) if self.rank == 0 else None
+        conducting = integrator.heat_rows[0]
+        method = method or ("blocks" if conducting else "rcb")
+        spans = _block_spans(system.heat.star_order("cpu")) if method == "blocks" and conducting else None
+        owner = partition(points, edges, self.size, method, spans) if self.rank == 0 else None
         self.decomposition = dec = decomposition(comm.bcast(owner, root=0), edges, self.size)
         self.share = sh = share(dec, edges, self.rank)
         self.halo = Halo(comm, sh.send, sh.recv)
@@ -94,6 +118,9 @@ class DistributedStepper(Stepper):
         self._no_heat = records.no_heat_cpu()
         self._bad = np.zeros(1, dtype=np.int64)
         self._gather = _GatherPlan(dec, sh, thermal, self.rank)
+        self._conduction = None
+        if conducting:  # conduction: its own call (thermonet.parallel.conduction)
+            self._conduction = DistributedConduction(self, *conduction_stages(system.model, parallel, uniform))
 
     # ------------------------------------------------------------------------------------------
     def advance(self, state, n_steps: int, h: float, measure: bool = False):
@@ -101,6 +128,8 @@ class DistributedStepper(Stepper):
         if n_steps <= 0:
             return None
         self._take(state)
+        if self._conduction is not None:
+            return self._conduction.advance(state, n_steps, h)
         lo, hi = self.system.stretch_bounds
         run = records.Run(float(h), float(state.time), int(n_steps), bool(self.integrator.track_phi), float(lo),
                           float(hi), False, False, 1, 0)
@@ -171,6 +200,11 @@ class DistributedStepper(Stepper):
         return None
 
 
+def _block_spans(order) -> np.ndarray:
+    """(B, 2) the first and last node of each block of a conduction sweep's order."""
+    return np.stack([order.node[order.block_ptr[:-1]], order.node[order.block_ptr[1:] - 1]], axis=1)
+
+
 def _stage_time(loads, h: float, step: int, tau: float) -> float:
     """:func:`thermonet.loads.elements.stage_time`, the same operations in the same order."""
     return loads.clock[0] + ((loads.clock[1] + step) + tau) * h
@@ -227,18 +261,19 @@ def threads_per_process(comm) -> int:
     return max(1, cores // on_machine)
 
 
-#: environment variable choosing the partitioner ("rcb", the default, or "metis")
+#: environment variable choosing the partitioner ("rcb", "metis" or "blocks"; the default: "blocks"
+#: with conduction, else "rcb")
 PARTITION_VARIABLE = "THERMONET_PARTITION"
 
 
 def distribute(sim, comm, method: str | None = None) -> DistributedStepper:
     """The stepper of ``sim`` over the processes of ``comm`` (its effects checked first);
-    method: the partitioner, default ``$THERMONET_PARTITION`` or "rcb"."""
+    method: the partitioner, default ``$THERMONET_PARTITION`` or "blocks" with conduction, else "rcb"."""
     import os
 
     from .support import check_support
 
-    method = method or os.environ.get(PARTITION_VARIABLE, "rcb")
+    method = method or os.environ.get(PARTITION_VARIABLE) or None
     check_support(sim, comm.Get_size())
     if sim.threads is None:  # the machine's cores shared among its processes, not each taking all
         sim.threads = threads_per_process(comm)

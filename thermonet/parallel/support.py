@@ -9,7 +9,8 @@ def refusal(sim, size: int) -> str | None:
     """Why ``sim`` cannot run over ``size`` processes (the first unsupported effect), or None.
 
     Carried: the explicit splittings on the CPU backend, with or without thermal coupling,
-    gravity, anchors, loads. Not yet: the rest, each named.
+    gravity, anchors, loads, heat conduction with baths and sources (multirate too). Not yet:
+    the rest, each named.
     """
     system, integrator = sim.system, sim.integrator
     heat = system.heat
@@ -17,9 +18,10 @@ def refusal(sim, size: int) -> str | None:
         (sim.backend != "cpu", f"backend {sim.backend!r} (the GPU backend runs one net per process)"),
         (not integrator.explicit, f"the implicit integrator {integrator.name!r} (use an explicit one: co2, omf4, "
                                   "bm6, ...)"),
-        (heat is not None and heat.conduction, "heat conduction (effects.conduction, g) with baths and sources"),
+        (heat is not None and heat.conduction and system.loads is not None,
+         "heat conduction together with loads (drives, forces)"),
         (heat is not None and getattr(heat, "waves", False), "thermal waves (g_star)"),
-        (bool(getattr(integrator, "flows", ())), "extra sub-flows in the integrator's schedule"),
+        (bool(getattr(integrator, "subflows", ())), "extra sub-flows in the integrator's schedule"),
     ]
     for unsupported_here, effect in unsupported:
         if unsupported_here:

@@ -1,0 +1,73 @@
+"""Memory of each process of a conducting net run over MPI processes, against one process.
+
+    python benchmarks/mpi_memory.py [--springs 1e6]                       # one process
+    NUMBA_NUM_THREADS=1 mpiexec -n 2 python benchmarks/mpi_memory.py      # each of two
+
+A 6-neighbour lattice of about ``--springs`` springs (jitter 0.1) with conduction (g = 4, every 2
+steps) and a bath on one face, 4 steps; each process prints its resident memory after building
+the Simulation, after the steps and at its peak, the bytes of the whole state with its heat logs
+(held by every process) and, over several processes, those of its share's arrays (the stepping
+state and buffers, the incidence lists, the conduction sweep's arrays: the share plus the halo).
+"""
+
+from __future__ import annotations
+
+import argparse
+import resource
+import time
+
+import numpy as np
+
+
+def resident_mb() -> float:
+    """This process's resident memory now (Linux), MB."""
+    with open("/proc/self/status") as f:
+        for line in f:
+            if line.startswith("VmRSS:"):
+                return int(line.split()[1]) / 1024
+    return float("nan")
+
+
+def share_bytes(stepper) -> int:
+    """Bytes of the arrays a distributed stepper holds for its share only."""
+    sh, conduction = stepper.share, stepper._conduction
+    arrays = [stepper._x, stepper._p, stepper._phi, stepper._eta, *stepper._scratch, *sh.topology]
+    if conduction is not None:
+        sweep = conduction._sweep
+        arrays += [conduction._length, conduction._s_before, sweep.theta, sweep.theta_start, sweep.produced,
+                   *sweep.pending.values(), sweep.part.inc_ptr, sweep.part.inc_spring]
+    return sum(a.nbytes for a in arrays)
+
+
+def main(argv=None) -> None:
+    import thermonet as tn
+    from thermonet.heat import Bath
+
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--springs", type=float, default=1e6)
+    args = parser.parse_args(argv)
+    k = max(1, int(round((args.springs / 3.0) ** (1.0 / 3.0))))
+    net = tn.lattice((k, k, k), jitter=0.1, seed=1)
+    net.node_groups["hot"] = np.arange(k * k)
+    start = time.perf_counter()
+    sim = tn.Simulation(net, parameters=dict(c=100.0, beta=0.002, C0=1.0, theta0=300.0, g=4.0), h=0.01, threads=1,
+                        parallel=False, conduction=True, conduction_every=2, stability_guard="off",
+                        energy_tolerance=None, baths={"hot": Bath("hot", 900.0)})
+    built, after_build = time.perf_counter() - start, resident_mb()
+    sim.run(steps=4, diagnostics_every=4)
+    state = sim.internal_state()
+    whole = sum(a.nbytes for a in (state.positions, state.momenta, state.thermal_displacement, state.entropy))
+    whole += sum(v.nbytes for v in state.extra["heat"].values())
+    rank = 0 if sim.comm is None else sim.comm.Get_rank()
+    line = (f"process {rank}: {net.n_springs} springs, {net.n_nodes} nodes; whole state and heat logs "
+            f"{whole / 2**20:.1f} MB; resident after building {after_build:.0f} MB (built in {built:.1f} s), after 4 "
+            f"steps {resident_mb():.0f} MB, peak {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MB")
+    if sim.comm is not None:
+        sh = sim.stepper.share
+        line += (f"; share: {len(sh.nodes)} nodes ({sh.ghosts} ghosts), {len(sh.springs)} springs, arrays "
+                 f"{share_bytes(sim.stepper) / 2**20:.1f} MB")
+    print(line, flush=True)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,53 @@
+"""Run by tests/test_mpi.py under ``mpiexec``: a conducting scene advanced in calls of uneven
+lengths that end inside conduction cycles (as a replay after a blow-up does), over all processes
+and in each process alone, compared bit for bit (the state and every heat log).
+
+    mpiexec -n P python tests/mpi_conduction.py SCENE CALLS EVERY:PARTS ... [-- ARGS]
+
+CALLS: the calls' lengths, comma-separated; per EVERY:PARTS (the cycle's steps, the
+partitioner) rank 0 prints "same" or "DIFFERENT: <what>". ARGS: a ``thermonet`` command run
+first over the same processes (the test's resumed run: one launch instead of two)."""
+
+import os
+import sys
+
+import numpy as np
+from mpi4py import MPI
+
+from thermonet.heat.logs import heat_logs
+from thermonet.parallel.stepper import PARTITION_VARIABLE
+from thermonet.parallel.world import LAUNCHER_VARIABLES
+from thermonet.scenes import load_scene
+
+ARGS = sys.argv[1:sys.argv.index("--")] if "--" in sys.argv else sys.argv[1:]
+SCENE, CALLS, SPECS = ARGS[0], [int(n) for n in ARGS[1].split(",")], ARGS[2:]
+
+
+def run(every: int, alone: bool) -> dict:
+    """The state's arrays and heat logs after the calls; ``alone``: as if not started by mpiexec."""
+    saved = {k: os.environ.pop(k) for k in LAUNCHER_VARIABLES if k in os.environ} if alone else {}
+    try:
+        sim = load_scene(SCENE).build().simulation
+    finally:
+        os.environ.update(saved)
+    assert (sim.comm is None) == alone
+    state = sim.internal_state()
+    heat_logs(state, sim.system.heat)["cycle"][:] = (every, 0)
+    for n in CALLS:
+        sim.runner.advance(n)
+    out = {k: getattr(state, k) for k in ("positions", "momenta", "thermal_displacement", "entropy")}
+    out.update({f"heat_{k}": v for k, v in state.extra["heat"].items()})
+    return out
+
+
+if "--" in sys.argv:
+    from thermonet.cli.main import main
+
+    assert main(sys.argv[sys.argv.index("--") + 1:]) == 0
+for spec in SPECS:
+    every, parts = spec.split(":")
+    os.environ[PARTITION_VARIABLE] = parts
+    many, one = run(int(every), False), run(int(every), True)
+    different = [k for k in one if not np.array_equal(one[k], many[k])]
+    if MPI.COMM_WORLD.Get_rank() == 0:
+        print("same" if not different else f"DIFFERENT: {' '.join(different)}", flush=True)

@@ -1,0 +1,205 @@
+"""A conduction sweep divided among the processes, bit for bit the whole net's sweep of one
+process (:func:`thermonet.heat.passes._conduction_sweep`).
+
+Each process sweeps its blocks (:mod:`thermonet.parallel.heat_share`) colour by colour with the
+CPU kernel's own star exchange, and after each colour, and after the baths and sources, sends
+the temperatures it changed to the processes that hold them (non-blocking point-to-point
+messages, as the position halo). Every spring's temperature thus goes through the same
+exchanges, in the same order, with the same operands as in one process. The entropy update and
+the logs are kept per process for its share's springs and its boundary entries; the call that
+runs the sweeps gathers them into the whole state at its end (:meth:`DistributedSweep.gather`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..heat.passes import CONTINUE, FORWARD, REVERSE, SAVE
+from ..kernels import records
+from .heat_share import heat_shares, ranges
+
+#: message tag of the temperatures exchanged between a sweep's phases
+TAG = 34
+
+
+class ValueExchange:
+    """Spring values sent to and received from other processes by a
+    :class:`~thermonet.parallel.heat_share.Plan` (local indices), into one (ls,) array."""
+
+    def __init__(self, comm, plan):
+        self.comm = comm
+        self._send = [(q, idx, np.empty(len(idx))) for q, idx in sorted(plan.send.items())]
+        self._recv = [(q, idx, np.empty(len(idx))) for q, idx in sorted(plan.recv.items())]
+        self.bytes = sum(buf.nbytes for _, _, buf in self._send)
+
+    def exchange(self, values: np.ndarray) -> None:
+        from mpi4py import MPI
+
+        requests = [self.comm.Irecv(buf, source=q, tag=TAG) for q, _, buf in self._recv]
+        for q, idx, buf in self._send:
+            np.take(values, idx, out=buf)
+            requests.append(self.comm.Isend(buf, dest=q, tag=TAG))
+        MPI.Request.Waitall(requests)
+        for _, idx, buf in self._recv:
+            values[idx] = buf
+
+
+class IndexGather:
+    """Whole-net arrays from each process's part: process q gives the values at whole indices
+    ``parts[q]``, rank r takes them from positions ``local`` of its arrays. One ``Allgatherv``
+    for several arrays at once."""
+
+    def __init__(self, parts: list, local: np.ndarray, rank: int):
+        self.parts, self.local = parts, local
+        self.counts = np.array([len(p) for p in parts], dtype=np.int64)
+        self.order = np.concatenate(parts).astype(np.int64) if parts else np.zeros(0, dtype=np.int64)
+        self.rank = rank
+
+    def gather(self, comm, pairs: list) -> None:
+        """For each (local array, whole array) of ``pairs``: whole[parts[q]] ← q's local values."""
+        from mpi4py import MPI
+
+        k = len(pairs)
+        if k == 0:
+            return
+        send = np.concatenate([np.take(local, self.local) for local, _ in pairs])
+        counts = k * self.counts
+        offsets = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
+        recv = np.empty(int(counts.sum()))
+        comm.Allgatherv(send, [recv, counts, offsets, MPI.DOUBLE])
+        for q, (count, offset) in enumerate(zip(self.counts, offsets)):
+            chunk = recv[offset:offset + k * count].reshape(k, count)
+            for j, (_, whole) in enumerate(pairs):
+                whole[self.parts[q]] = chunk[j]
+
+
+def _entries_of(bound_spring, bound_ptr, reports) -> np.ndarray:
+    """(E_q,) int64 the entries of the boundary springs a process reports (reports: (m,) bool)."""
+    bound = np.flatnonzero(reports[bound_spring])
+    sizes = bound_ptr[bound + 1] - bound_ptr[bound]
+    return np.repeat(bound_ptr[bound], sizes) + ranges(sizes)
+
+
+class DistributedSweep:
+    """The conduction sweeps of one process's share (see the module docstring).
+
+    heat: the whole net's :class:`~thermonet.heat.setup.HeatSetup`; dec, sh: the decomposition
+    and this process's share; comm: the communicator; phases: (colour_phase, boundary_phase,
+    finish) of :func:`~thermonet.parallel.heat_stages.sweep_phase_functions`.
+    """
+
+    def __init__(self, heat, dec, sh, comm, phases):
+        rank, size = comm.Get_rank(), comm.Get_size()
+        self.comm, self.heat = comm, heat
+        self._colour_phase, self._boundary_phase, self._finish = phases
+        layout = heat.layout
+        bound_spring, starts = np.unique(heat.entry_spring, return_index=True)  # as HeatSetup.record's
+        bound_spring = bound_spring.astype(np.int64)
+        bound_ptr = np.append(starts, len(heat.entry_spring)).astype(np.int64)
+        edges = np.asarray(layout.edges, dtype=np.int64)
+        shares = [np.flatnonzero((dec.owner[edges[:, 0]] == q) | (dec.owner[edges[:, 1]] == q)) for q in range(size)]
+        self.part = hs = heat_shares(heat.star_order("cpu"), layout.inc_ptr, layout.inc_spring, bound_spring,
+                                     bound_ptr, dec, shares, rank)
+        self.ml = ml = len(sh.springs)
+        assert np.array_equal(hs.springs[:ml], sh.springs)
+        ls = len(hs.springs)
+        self._start = ValueExchange(comm, hs.start)
+        self._colours = [ValueExchange(comm, p) for p in hs.colours]
+        self._boundary = ValueExchange(comm, hs.boundary)
+        self._any_boundary = len(bound_spring) > 0
+        local = np.full(len(heat.capacity), -1, dtype=np.int64)
+        local[hs.springs] = np.arange(ls)
+        self._bound_spring = np.ascontiguousarray(local[bound_spring[hs.bound]])
+        sizes = bound_ptr[hs.bound + 1] - bound_ptr[hs.bound]
+        self._bound_ptr = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+        self._capacity = np.ascontiguousarray(heat.capacity[hs.springs])
+        self._inv_capacity = 1.0 / self._capacity
+        self._block_node = np.arange(len(hs.node), dtype=np.int64)
+        self.theta = np.empty(ls)
+        self.theta_start = np.empty(ls)
+        self.produced = np.empty(ls)
+        self.pending = {k: np.empty(ml) for k in ("pending_eta", "pending_produced", "pending_theta")}
+        self.entry_heat = np.empty(len(hs.entries))
+        self.entry_flux = np.empty(len(hs.entries))
+        self._record = None
+        reported = [dec.owned_springs(q) for q in range(size)]
+        self._springs_gather = IndexGather(reported, np.searchsorted(sh.springs, reported[rank]), rank)
+        entries = [_entries_of(bound_spring, bound_ptr, dec.spring_owner == q) for q in range(size)]
+        assert np.array_equal(entries[rank], hs.entries)
+        self._entries_gather = IndexGather(entries, np.arange(len(hs.entries)), rank)
+
+    def begin(self, logs: dict) -> None:
+        """A call starts: this process's part of the whole logs (the same on every process)."""
+        hs = self.part
+        np.take(logs["produced"], hs.springs, out=self.produced)
+        for k, v in self.pending.items():
+            np.take(logs[k], hs.springs[:self.ml], out=v)
+        np.take(logs["entry_heat"], hs.entries, out=self.entry_heat)
+        np.take(logs["entry_flux"], hs.entries, out=self.entry_flux)
+
+    def gather(self, eta: np.ndarray, state, logs: dict, more: list) -> None:
+        """A call ends: the share's η (ml,) and this process's logs into the whole state's η
+        and logs on every process, each spring from the process that reports it; with them the
+        (share array (ml,), whole array) pairs ``more``."""
+        self._springs_gather.gather(self.comm, [(eta, state.entropy), (self.produced[:self.ml], logs["produced"])]
+                                    + [(v, logs[k]) for k, v in self.pending.items()] + list(more))
+        self._entries_gather.gather(self.comm, [(self.entry_heat, logs["entry_heat"]),
+                                                (self.entry_flux, logs["entry_flux"])])
+
+    def _local_record(self, record):
+        """This process's :class:`~thermonet.kernels.records.Heat` for the sweep factors of
+        ``record`` (the whole net's, rebuilt when τ changes)."""
+        if self._record is not None and self._record[0] is record.weight:
+            return self._record[1]
+        hs = self.part
+        shared = record.factor_mask[0] == 0
+        weight = record.weight if shared else np.ascontiguousarray(record.weight[hs.incidence])
+        decay = record.decay if shared else np.ascontiguousarray(record.decay[hs.incidence])
+        empty = np.zeros(0)
+        local = records.Heat(hs.colour_ptr, hs.block_ptr, self._block_node, hs.inc_ptr, hs.inc_spring, weight, decay,
+                             record.factor_mask, np.ascontiguousarray(record.node_scale[hs.node]), record.first,
+                             record.second, record.wave, record.colour_ptr, self._capacity, self._inv_capacity,
+                             self._bound_spring, self._bound_ptr, np.ascontiguousarray(record.entry_kind[hs.entries]),
+                             np.ascontiguousarray(record.entry_fn[hs.entries]),
+                             np.ascontiguousarray(record.entry_rate[hs.entries]), record.fn_kind, record.fn_params,
+                             record.fn_ptr, record.fn_times, record.fn_values, self.produced, self.entry_heat,
+                             self.entry_flux, empty, record.theta_ok, empty, self.pending["pending_eta"],
+                             self.pending["pending_produced"], self.pending["pending_theta"], empty, self.theta_start)
+        self._record = (record.weight, local)
+        return local
+
+    def sweep(self, record, theta_keep: np.ndarray, eta: np.ndarray, tau: float, t: float, directions: int) -> None:
+        """The half sweeps ``directions`` (REVERSE, FORWARD, both; SAVE, CONTINUE) over τ at t
+        from the share's θ (ml,) (updated in place) and η (ml,) (its entropy update made)."""
+        heat = self._local_record(record)
+        ml, theta, start = self.ml, self.theta, self.theta_start
+        theta[:ml] = theta_keep
+        self._start.exchange(theta)
+        if directions & CONTINUE:
+            start[:ml] = self.pending["pending_theta"]
+            eta[:] = self.pending["pending_eta"]
+            self.produced[:ml] = self.pending["pending_produced"]
+        else:
+            start[:ml] = theta[:ml]
+        n_colours = len(self._colours)
+        if directions & REVERSE:
+            for i in range(n_colours):
+                colour = n_colours - 1 - i
+                self._colour_phase(heat, theta, colour, True)
+                self._colours[colour].exchange(theta)
+            if self._any_boundary:
+                self._boundary_phase(heat, theta, tau, t, True)
+                self._boundary.exchange(theta)
+        if directions & FORWARD:
+            if self._any_boundary:
+                self._boundary_phase(heat, theta, tau, t, False)
+                self._boundary.exchange(theta)
+            for colour in range(n_colours):
+                self._colour_phase(heat, theta, colour, False)
+                self._colours[colour].exchange(theta)
+        if directions & SAVE:
+            self.pending["pending_theta"][:] = start[:ml]
+            self.pending["pending_eta"][:] = eta
+            self.pending["pending_produced"][:] = self.produced[:ml]
+        self._finish(theta, start, eta, self._capacity, self.produced, ml)
+        theta_keep[:] = theta[:ml]
