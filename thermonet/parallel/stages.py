@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from ..kernels.specialize import function_fingerprint, specialize
 
-# bound per kernel variant by stage_functions(), as in thermonet.kernels.splitting
+# bound per kernel variant by stage_functions(), as in thermonet.explicit.cpu
 spring_pass = node_pass = boundary_spring_pass = boundary_node_pass = None
 
 _OPTIONS = dict(cache=True, error_model="numpy", boundscheck=False, _nrt=False)

@@ -2,12 +2,12 @@
 
 Every explicit integrator of thermonet is a sequence ``K(k0) D(d0) K(k1) … D(d_{S−1}) K(k_S)``
 of sub-flows with coefficients (fractions of h), possibly with further sub-flows between them,
-given to the kernel as the rows of a :class:`~thermonet.integrators.schedule.StageTable`:
+given to the kernel as the rows of a :class:`~thermonet.explicit.schedule.StageTable`:
 
 - kick ``K(k)``: at the current positions x, per spring θ = θ(l, η) and T = T(l, θ);
   ``p += k h f(x, θ)`` and ``Φ += k h θ`` (entropy η is untouched, so it is conserved exactly);
 - drift ``D(d)``: ``x += d h M⁻¹ p``;
-- a flow row: an extra :class:`~thermonet.integrators.schedule.SubFlow`, one parallel pass over
+- a flow row: an extra :class:`~thermonet.explicit.schedule.SubFlow`, one parallel pass over
   its elements.
 
 What each sub-flow does to one spring or node is :mod:`thermonet.kernels.subflows` (shared with
@@ -63,13 +63,15 @@ from numba import njit, prange
 
 from ..heat.passes import (CONTINUE, DEFER_FINISH, FORWARD, REVERSE, SAVE, bind_heat_flow, bind_heat_passes,
                            conduction_boundary, deferred_kick, source_digest as heat_source_digest)
-from ..loads.elements import bind_loads
-from . import subflows
-from .subflows import bind_subflows
 from ..heat.rows import THERMAL_WAVES
-from .schedule_passes import (_apply_flow, _copy_rows, _copy_values, _flow_pass, _no_flow, _stopped, _thermal_kick,
-                              store_sums)
-from .specialize import function_fingerprint, kernel_namespace, model_fingerprint, rebind, specialize
+from ..kernels import subflows
+from ..kernels.blocks import BLOCK, squared_lengths
+from ..kernels.reductions import node_diagnostic_terms
+from ..kernels.schedule_passes import _copy_rows, _copy_values
+from ..kernels.specialize import function_fingerprint, kernel_namespace, model_fingerprint, rebind, specialize
+from ..kernels.subflows import bind_subflows
+from ..loads.elements import bind_loads
+from .passes import _apply_flow, _flow_pass, _no_flow, _stopped, _thermal_kick, store_sums
 
 # Bound per kernel variant by splitting_kernels(); listed so the templates read as ordinary code.
 # THERMAL, CLOSING, REFERENCE_TEMPERATURE and UNIFORM are compile-time constants: with THERMAL
@@ -93,28 +95,10 @@ CLOSING = False
 REFERENCE_TEMPERATURE = 0
 UNIFORM = False
 
-#: springs per block of the spring pass: small enough that a block of s, η, l0, Φ stays in L1
-BLOCK = 512
-
 _CACHE: dict = {}
 _PASSES: dict = {}  # each variant's namespace: its passes, for thermonet.parallel's stage driver
 
 _OPTIONS = dict(cache=True, error_model="numpy", boundscheck=False, _nrt=False)  # specialize(): no reference counting
-
-_squared_length = njit(inline="always", error_model="numpy", boundscheck=False)(subflows.squared_length)
-
-
-def kernel_parameters(P: np.ndarray) -> tuple[np.ndarray, bool]:
-    """The parameter array the kernels should read, and whether it is shared by all springs.
-
-    P: (k, m) per-spring parameters. Returns ``(P[:, :1] copy, True)`` when every row is
-    constant, else ``(P, False)``; pass the flag to :func:`splitting_kernels` as ``uniform``.
-    """
-    P = np.ascontiguousarray(P, dtype=np.float64)
-    if P.shape[1] > 0 and bool(np.all(P == P[:, :1])):
-        return np.ascontiguousarray(P[:, :1]), True
-    return P, False
-
 
 def splitting_kernels(model, parallel: bool, thermal: bool = True, uniform: bool = False, flows=(),
                       conduction: bool = False, waves: bool = False, loads: bool = False):
@@ -122,7 +106,7 @@ def splitting_kernels(model, parallel: bool, thermal: bool = True, uniform: bool
     ``model`` (multi-threaded when ``parallel``; purely mechanical when not ``thermal``, in which
     case ``phi`` and ``eta`` may be empty arrays; for a ``(k, 1)`` parameter array shared by all
     springs when ``uniform``, see :func:`kernel_parameters`) with the extra sub-flows ``flows``
-    (:class:`~thermonet.integrators.schedule.SubFlow` s, slot order) in its flow slots, the
+    (:class:`~thermonet.explicit.schedule.SubFlow` s, slot order) in its flow slots, the
     heat-flow rows it may meet compiled in (``conduction``, ``waves``; both need ``thermal``), and
     with ``loads`` the node pass and the step read a :class:`~thermonet.loads.arrays.LoadArrays`
     (the ``loads`` argument; otherwise a placeholder, and the loads' code is compiled out)."""
@@ -172,27 +156,6 @@ def splitting_kernels(model, parallel: bool, thermal: bool = True, uniform: bool
         _CACHE[key] = specialize(_advance, tag, ns, **_OPTIONS)
         _PASSES[key] = ns
     return _CACHE[key]
-
-
-@njit(inline="always", error_model="numpy", boundscheck=False)
-def squared_lengths(x, edges, lo, n, out, base):
-    """out[base + i] = |x_b − x_a|² of springs lo … lo + n − 1: the gather half of a blocked
-    spring pass (kept apart from the arithmetic so that the arithmetic loop vectorizes).
-    edges: (m, 2) uint32."""
-    for i in range(n):
-        out[base + i] = _squared_length(x, edges, np.uint64(lo + i))
-
-
-@njit(inline="always", error_model="numpy", boundscheck=False)
-def node_diagnostic_terms(x0, x1, x2, p0, p1, p2, mass, gravity, ref):
-    """One free node's terms of a diagnostics row: kinetic energy, gravity potential −m g·x, p,
-    and (x − ref) × p (shared by the fused closing kick and the stand-alone reduction)."""
-    r0 = x0 - ref[0]
-    r1 = x1 - ref[1]
-    r2 = x2 - ref[2]
-    return (0.5 * (p0 * p0 + p1 * p1 + p2 * p2) / mass,
-            -(mass * (gravity[0] * x0 + gravity[1] * x1 + gravity[2] * x2)),
-            r1 * p2 - r2 * p1, r2 * p0 - r0 * p2, r0 * p1 - r1 * p0)
 
 
 def _spring_pass(x, eta, phi, topology, springs, scratch, steps, run, keep, length):
@@ -361,7 +324,7 @@ def _node_pass(x, x_new, p, topology, nodes, scratch, steps, force_source, want_
 
 def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run, loads):
     """Advance ``state`` (x, p, Φ in place; η too where a sub-flow changes it) by ``run.n_steps``
-    steps of the schedule ``table`` (a :class:`~thermonet.integrators.schedule.StageTable`).
+    steps of the schedule ``table`` (a :class:`~thermonet.explicit.schedule.StageTable`).
 
     The closing kick's forces and temperatures are kept in f_keep and theta_keep; with
     ``run.reuse_boundary`` the first kick takes them from there instead of evaluating them (the

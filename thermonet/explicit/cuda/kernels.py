@@ -1,6 +1,6 @@
 """CUDA kernels of the explicit step's sub-flows and of the diagnostics sums, compiled per model.
 
-A stage of the schedule (:mod:`thermonet.integrators.schedule`) is two launches, each running
+A stage of the schedule (:mod:`thermonet.explicit.schedule`) is two launches, each running
 the sub-flows of :mod:`thermonet.kernels.subflows` (the CPU kernel's own):
 
 1. :func:`_spring_kernel`, one thread per spring e: ``s[e] = T/l`` at x and ``Φ[e] += k h θ``
@@ -39,15 +39,15 @@ import math
 import numpy as np
 from numba import cuda, float64, njit
 
-from ..heat import exchange as heat_exchange
-from ..heat.rows import CONDUCTION_FORWARD, CONDUCTION_REVERSE, THERMAL_WAVES
-from ..integrators.schedule import MAX_FLOWS
-from ..kernels import subflows
-from ..kernels.specialize import MODEL_FUNCTIONS, function_fingerprint, kernel_namespace, model_fingerprint, rebind
-from ..kernels.subflows import bind_subflows
+from ...heat import exchange as heat_exchange
+from ...heat.rows import CONDUCTION_FORWARD, CONDUCTION_REVERSE, THERMAL_WAVES
+from ...kernels import subflows
+from ...kernels.specialize import MODEL_FUNCTIONS, function_fingerprint, kernel_namespace, model_fingerprint, rebind
+from ...kernels.subflows import bind_subflows
+from ..schedule import MAX_FLOWS
 from . import FLAG_ROW, FLAG_SET, FLAG_STAGES, FLAG_STEP, simulator_enabled
 
-# Bound per model by cuda_kernels(); see thermonet.kernels.splitting for their meaning.
+# Bound per model by cuda_kernels(); see thermonet.explicit.cpu for their meaning.
 temperature = tension = internal_energy = free_energy = None
 spring_force = spring_energy = spring_temperature = outside_admissible = advance_thermal_displacement = None
 squared_length = None
@@ -71,7 +71,7 @@ SIMULATOR_THREADS = 32
 #: capped at 64 a thread, so that four blocks fit on a multiprocessor. Unbounded it takes 96 on
 #: an H100 (two blocks each); bounded, the fused launch went from 12.0 to 14.0 G spring-steps/s
 #: at 1e6 springs and from 14.0 to 17.8 at 3e6 (small nets use fewer blocks anyway:
-#: thermonet.cuda.stepper.fused_grid). None: unbounded.
+#: thermonet.explicit.cuda.stepper.fused_grid). None: unbounded.
 FUSED_LAUNCH_BOUNDS = (THREADS, 4)
 #: threads per block of the diagnostics sums, a compile-time constant of their shared-memory trees
 #: (a power of two), and their (grid-stride) blocks
@@ -110,8 +110,8 @@ def cuda_kernels(model, thermal: bool = True, uniform: bool = False, flows=(), c
                  waves: bool = False, loads: bool = False) -> CudaKernels:
     """The CUDA kernels for ``model`` (purely mechanical when not ``thermal``; parameters shared
     by all springs, a ``(k, 1)`` array, when ``uniform``: see
-    :func:`thermonet.kernels.splitting.kernel_parameters`), with the extra sub-flows ``flows``
-    (:class:`~thermonet.integrators.schedule.SubFlow` s, slot order) and the heat-flow rows it
+    :func:`thermonet.kernels.specialize.kernel_parameters`), with the extra sub-flows ``flows``
+    (:class:`~thermonet.explicit.schedule.SubFlow` s, slot order) and the heat-flow rows it
     may meet compiled in (``conduction``, ``waves``: :mod:`thermonet.heat.cuda`); with ``loads``
     the node kernel adds the loads' forces and ``load_start`` / ``load_stage`` run the loads' own
     passes (two launches per stage only: the fused ``steps`` kernel is not compiled with them)."""
@@ -133,7 +133,7 @@ def cuda_kernels(model, thermal: bool = True, uniform: bool = False, flows=(), c
         # --- heat flow ---
         ns["CONDUCTION"], ns["WAVES"] = bool(conduction), bool(waves)
         if conduction or waves:
-            from ..heat import cuda as heat
+            from ...heat import cuda as heat
 
             tag += f"_{'k' * conduction}{'w' * waves}{heat_exchange.source_digest()}{heat.source_digest()}"
             heat.bind_device_heat(ns, tag, inline)
@@ -143,7 +143,7 @@ def cuda_kernels(model, thermal: bool = True, uniform: bool = False, flows=(), c
         # --- end heat flow ---
         ns["LOADS"] = bool(loads)
         if loads:
-            from ..loads.cuda import bind_device_loads
+            from ...loads.cuda import bind_device_loads
 
             tag += bind_device_loads(ns, tag, inline, sim)
         for slot in range(MAX_FLOWS):
@@ -168,7 +168,7 @@ def cuda_kernels(model, thermal: bool = True, uniform: bool = False, flows=(), c
         if conduction or waves:  # heat flow
             kernels.sweep, kernels.temperature = heat.heat_kernels(compile_)  # (thermonet.heat.cuda)
         if loads:  # loads
-            from ..loads.cuda import load_stage_kernel, load_start_kernel
+            from ...loads.cuda import load_stage_kernel, load_start_kernel
 
             kernels.load_start, kernels.load_stage = compile_(load_start_kernel), compile_(load_stage_kernel)
         _CACHE[key] = kernels
@@ -249,7 +249,7 @@ def _flow_kernel(data, tau, t, x, p, phi, eta, flag):
 def _steps_kernel(state, x_buf, s, topology, springs, nodes, table, flows, run, flag):
     """``run.n_steps`` whole steps in one cooperative launch: every row of the schedule ``table``
     over grid-stride loops, separated by grid-wide barriers, in the order and with the
-    coefficients of :meth:`~thermonet.cuda.stepper.CudaSplittingStepper.advance`'s two-launch
+    coefficients of :meth:`~thermonet.explicit.cuda.stepper.CudaSplittingStepper.advance`'s two-launch
     path (the same per-spring and per-node updates, so the same numbers), and the call's closing
     kick. Positions alternate between ``state.x`` and ``x_buf`` stage by stage; the caller counts
     the stages to know which holds the result. A spring outside the admissible states stops the
@@ -522,7 +522,7 @@ def compile_ptx(model, thermal: bool = True, uniform: bool = False, cc=(9, 0)) -
     present (the ``gpu`` tests compile and run it); it runs the same inlined updates."""
     from numba import typeof
 
-    from ..kernels import records
+    from ...kernels import records
 
     ns = kernel_namespace(model, thermal, uniform)
     ns["REDUCE_THREADS"] = REDUCE_THREADS

@@ -2,7 +2,7 @@
 and higher-order compositions of CO2 (CO4, CO6).
 
 A scheme ``K(k0) D(d0) K(k1) … D(d_{S−1}) K(k_S)`` is data: the ``kicks`` (S+1) and ``drifts`` (S)
-coefficients, as fractions of h. See :mod:`thermonet.kernels.splitting` for what a kick and a
+coefficients, as fractions of h. See :mod:`thermonet.explicit.cpu` for what a kick and a
 drift do. A kick never changes η, so every splitting conserves each spring's entropy exactly;
 kicks and drifts are symplectic and equivariant under rigid motions, so linear and angular
 momenta are conserved to round-off. Symmetric compositions of the symmetric CO2 keep all of this
@@ -20,10 +20,11 @@ from ..errors import InputError
 from ..heat.logs import cycle_position, heat_logs
 from ..kernels import records
 from ..kernels.records import Run, StateArrays, no_heat_cpu
-from ..kernels.splitting import kernel_parameters, splitting_kernels
+from ..kernels.specialize import kernel_parameters
 from ..loads.elements import NO_LOADS
 from ..loads.stepping import StepperLoads
-from .base import Integrator, Stepper, register_integrator
+from ..integrators.base import Integrator, Stepper, register_integrator
+from .cpu import splitting_kernels
 from .schedule import CONDUCTION, WAVES, BuiltinFlow, StageTable, flow_data, flow_slots, stage_table
 
 
@@ -43,7 +44,7 @@ class Splitting(Integrator):
     description: str = ""
     explicit: bool = True
     #: further sub-flows, ((position, SubFlow, coefficient), ...): position i ≤ S runs before
-    #: kick i, S + 1 after the last kick (see :mod:`thermonet.integrators.schedule`)
+    #: kick i, S + 1 after the last kick (see :mod:`thermonet.explicit.schedule`)
     flows: tuple = ()
     #: (base, gammas) when this splitting is ``compose(base, gammas, ...)``: a composition with
     #: thermal waves composes the base with the waves' flow (:meth:`with_heat`)
@@ -55,7 +56,7 @@ class Splitting(Integrator):
 
     @property
     def table(self) -> StageTable:
-        """The schedule every backend's kernels read (:func:`~thermonet.integrators.schedule.stage_table`)."""
+        """The schedule every backend's kernels read (:func:`~thermonet.explicit.schedule.stage_table`)."""
         return stage_table(self.kicks, self.drifts, self.flows)
 
     @property
@@ -119,9 +120,9 @@ class Splitting(Integrator):
 
     def make_stepper(self, system, parallel: bool = False, backend: str = "cpu", **options) -> Stepper:
         """The CPU :class:`SplittingStepper`, or for ``backend="cuda"`` the GPU one
-        (:class:`thermonet.cuda.stepper.CudaSplittingStepper`, state resident on the device)."""
+        (:class:`thermonet.explicit.cuda.stepper.CudaSplittingStepper`, state resident on the device)."""
         if backend == "cuda":
-            from ..cuda.stepper import CudaSplittingStepper
+            from .cuda.stepper import CudaSplittingStepper
 
             return CudaSplittingStepper(self, system)
         return SplittingStepper(self, system, parallel)
