@@ -71,7 +71,9 @@ from ..kernels.schedule_passes import _copy_rows, _copy_values
 from ..kernels.specialize import function_fingerprint, kernel_namespace, model_fingerprint, rebind, specialize
 from ..kernels.subflows import bind_subflows
 from ..loads.elements import bind_loads
+from .codes import FORCE_DEFERRED, FORCE_GATHER, FORCE_GATHER_KEEP, FORCE_KEPT
 from .passes import _apply_flow, _flow_pass, _no_flow, _stopped, _thermal_kick, store_sums
+from .schedule import FIRST_FLOW_SLOT
 
 # Bound per kernel variant by splitting_kernels(); listed so the templates read as ordinary code.
 # THERMAL, CLOSING, REFERENCE_TEMPERATURE and UNIFORM are compile-time constants: with THERMAL
@@ -230,10 +232,11 @@ def _node_pass(x, x_new, p, topology, nodes, scratch, steps, force_source, want_
     """Per node a: f = Σ s_e (x_b − x_a) (+ m g); p += kick1 f; p += kick2 f; x_new = x + drift p/m,
     with steps = (kick1, kick2, drift, with_force) (fractions of h already multiplied by h).
 
-    x, x_new, p: (n, 3). force_source: 0 gather f; 1 gather f and keep it in f_keep (n, 3) (a
-    call's closing kick, whose drift is 0: x_new is then not written, the positions stay in
-    x); 2 take f from f_keep; 3 (CONDUCTION) kick1 with the forces of s_before (m,) (a kick
-    deferred past the conduction sweeps, which do not touch p), kick2 with those of s.
+    x, x_new, p: (n, 3). force_source (:mod:`thermonet.explicit.codes`): FORCE_GATHER gather f;
+    FORCE_GATHER_KEEP gather f and keep it in f_keep (n, 3) (a call's closing kick, whose drift is
+    0: x_new is then not written, the positions stay in x); FORCE_KEPT take f from f_keep;
+    FORCE_DEFERRED (CONDUCTION) kick1 with the forces of s_before (m,) (a kick deferred past the
+    conduction sweeps, which do not touch p), kick2 with those of s.
     inputs = (s_before, loads): with LOADS, the node's force load (a
     :class:`~thermonet.loads.arrays.LoadArrays`) is added to f and its driven axes zeroed
     (:func:`thermonet.loads.elements.node_load`). Returns, with ``want_sums`` (CLOSING only), the
@@ -260,7 +263,7 @@ def _node_pass(x, x_new, p, topology, nodes, scratch, steps, force_source, want_
         node_drive = loads.node_drive
         load_value = loads.value
         load_free = loads.free
-    move = not (CLOSING and force_source == 1)
+    move = not (CLOSING and force_source == FORCE_GATHER_KEEP)
     sums = CLOSING and want_sums
     kinetic = 0.0
     potential = 0.0
@@ -279,7 +282,7 @@ def _node_pass(x, x_new, p, topology, nodes, scratch, steps, force_source, want_
         p0, p1, p2 = load_row(p, a)
         deferred = False
         if CONDUCTION:
-            deferred = force_source == 3
+            deferred = force_source == FORCE_DEFERRED
         if deferred:  # not CLOSING: no sums, no keep
             if kick2 != 0.0:
                 f0, f1, f2, g0, g1, g2 = gather_two_forces(a, x, s_before, s, inc_ptr, inc_spring, inc_other, masses,
@@ -297,13 +300,13 @@ def _node_pass(x, x_new, p, topology, nodes, scratch, steps, force_source, want_
                 p0, p1, p2 = kick_momentum(p0, p1, p2, g0, g1, g2, 0.0, kick2)
             store_row(p, a, p0, p1, p2)
         elif with_force:
-            if CLOSING and force_source == 2:
+            if CLOSING and force_source == FORCE_KEPT:
                 f0, f1, f2 = load_row(f_keep, a)
             else:
                 f0, f1, f2 = gather_force(a, x, s, inc_ptr, inc_spring, inc_other, masses, gravity, with_gravity)
                 if LOADS:
                     f0, f1, f2 = node_load(a, f0, f1, f2, node_force, node_weight, node_drive, load_value, load_free)
-                if CLOSING and force_source == 1:
+                if CLOSING and force_source == FORCE_GATHER_KEEP:
                     store_row(f_keep, a, f0, f1, f2)
             p0, p1, p2 = kick_momentum(p0, p1, p2, f0, f1, f2, kick1, kick2)
             store_row(p, a, p0, p1, p2)
@@ -372,7 +375,7 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run
     resume_sweep = False  # the previous call ended with a reverse half sweep: continue its update
     # a sweep inside the call leaves its entropy update to the spring pass of the kick that row 0
     # starts with (one pass over the springs instead of two): ``unfinished`` until then
-    defer = DEFER_FINISH if THERMAL_WAVES < codes[0] < 0 and table.kick[0] != 0.0 else 0
+    defer = DEFER_FINISH if THERMAL_WAVES < codes[0] < FIRST_FLOW_SLOT and table.kick[0] != 0.0 else 0
     unfinished = False
     if CONDUCTION and heat.theta_ok[0] >= 1.0:  # continue the previous call's sweeps
         _copy_values(heat.theta, scratch.theta_keep)
@@ -397,7 +400,7 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run
             unfinished = defer != 0
             swept_first = swept_first or step == 0
         for r in range(n_rows):
-            if codes[r] >= 0:
+            if codes[r] >= FIRST_FLOW_SLOT:
                 if CONDUCTION and deferred != 0.0:  # a sub-flow may read p: apply the kick first
                     _deferred_kick(cur, nxt, p, topology, nodes, scratch, heat, loads, (deferred * h, deferred_time),
                                    False)
@@ -443,15 +446,16 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run
             elif LOADS and deferred != 0.0:
                 cpu_evaluate_loads(loads, deferred_time)
             if reuse:
-                boundary_node_pass(cur, nxt, p, topology, nodes, scratch, steps, 2, False, (heat.s_before, loads))
+                boundary_node_pass(cur, nxt, p, topology, nodes, scratch, steps, FORCE_KEPT, False,
+                                   (heat.s_before, loads))
             elif CONDUCTION and deferred != 0.0:
-                node_pass(cur, nxt, p, topology, nodes, scratch, (deferred * h, k2 * h, table.drift[r] * h, True), 3,
-                          False, (heat.s_before, loads))
+                node_pass(cur, nxt, p, topology, nodes, scratch, (deferred * h, k2 * h, table.drift[r] * h, True),
+                          FORCE_DEFERRED, False, (heat.s_before, loads))
                 if LOADS:
                     cpu_load_work(cur, heat.s_before, topology, nodes, loads, 0.0, deferred * h)
                 deferred = 0.0
             else:
-                node_pass(cur, nxt, p, topology, nodes, scratch, steps, 0, False, (heat.s_before, loads))
+                node_pass(cur, nxt, p, topology, nodes, scratch, steps, FORCE_GATHER, False, (heat.s_before, loads))
             if LOADS and with_force:
                 cpu_load_work(cur, scratch.s, topology, nodes, loads, k1 * h, k2 * h)
             cur, nxt = nxt, cur
@@ -492,8 +496,8 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run
         # drift 0: the positions stay in cur
         if LOADS:
             cpu_evaluate_loads(loads, stage_time(loads, h, n_steps, 0.0))
-        node_sums = boundary_node_pass(cur, nxt, p, topology, nodes, scratch, (0.0, pending * h, 0.0, True), 1,
-                                       run.want_sums, (heat.s_before, loads))
+        node_sums = boundary_node_pass(cur, nxt, p, topology, nodes, scratch, (0.0, pending * h, 0.0, True),
+                                       FORCE_GATHER_KEEP, run.want_sums, (heat.s_before, loads))
         if LOADS:
             cpu_load_work(cur, scratch.s, topology, nodes, loads, 0.0, pending * h)
         if run.want_sums:

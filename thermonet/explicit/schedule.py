@@ -31,7 +31,10 @@ from ..heat.rows import CONDUCTION_FORWARD, CONDUCTION_REVERSE, THERMAL_WAVES
 #: over a fixed number of slots, so that each stays a compile-time call)
 MAX_FLOWS = 4
 
+#: a stage row: a kick fused with the drift after it
 STAGE = -1
+#: the first sub-flow slot: a row whose code is at least this runs sub-flow slot ``code``
+FIRST_FLOW_SLOT = 0
 # built-in heat-flow rows (docs/theory.md §5–6): CONDUCTION_FORWARD, CONDUCTION_REVERSE (the second
 # half of a symmetric cycle) and THERMAL_WAVES, codes named in thermonet.heat.rows
 

@@ -22,6 +22,7 @@ import numpy as np
 from ..blowup import blowup_failure
 from ..errors import InputError
 from ..explicit import cpu
+from ..explicit.schedule import STAGE
 from ..integrators.base import Stepper
 from ..kernels import records
 from ..kernels.specialize import model_fingerprint
@@ -60,7 +61,7 @@ class DistributedStepper(Stepper):
         self.integrator, self.system, self.comm = integrator, system, comm
         self.size, self.rank = comm.Get_size(), comm.Get_rank()
         table = integrator.table_between_sweeps
-        if (np.asarray(table.code) != -1).any():
+        if (np.asarray(table.code) != STAGE).any():
             raise InputError(f"{integrator.name}: a run over MPI processes runs kick/drift stages only")
         self._kicks, self._drifts, self._carry = list(table.kick), list(table.drift), float(table.carry)
         edges = system.edges

@@ -44,7 +44,7 @@ from ...heat.rows import CONDUCTION_FORWARD, CONDUCTION_REVERSE, THERMAL_WAVES
 from ...kernels import subflows
 from ...kernels.specialize import MODEL_FUNCTIONS, function_fingerprint, kernel_namespace, model_fingerprint, rebind
 from ...kernels.subflows import bind_subflows
-from ..schedule import MAX_FLOWS
+from ..schedule import FIRST_FLOW_SLOT, MAX_FLOWS
 from . import FLAG_ROW, FLAG_SET, FLAG_STAGES, FLAG_STEP, simulator_enabled
 
 # Bound per model by cuda_kernels(); see thermonet.explicit.cpu for their meaning.
@@ -80,11 +80,13 @@ REDUCE_BLOCKS = 256
 SIMULATOR_REDUCE_THREADS = 4
 SIMULATOR_REDUCE_BLOCKS = 2
 
-#: columns of the spring sums and the operation reducing each: 0 sum, 1 min, 2 max
+#: the reductions of the sums' columns, by name (compile-time constants of the finishing kernel)
+SUM, MIN, MAX = 0, 1, 2
+#: columns of the spring sums and the reduction of each
 SPRING_SUMS = ("internal", "entropy", "theta_min", "theta_max")
-SPRING_OPS = (0, 0, 1, 2)
+SPRING_OPS = (SUM, SUM, MIN, MAX)
 NODE_SUMS = ("kinetic", "potential", "px", "py", "pz", "Lx", "Ly", "Lz")
-NODE_OPS = (0,) * 8
+NODE_OPS = (SUM,) * 8
 
 
 _CACHE: dict = {}
@@ -278,7 +280,7 @@ def _steps_kernel(state, x_buf, s, topology, springs, nodes, table, flows, run, 
             xn = x_buf if parity == 0 else x
             if step < run.n_steps:
                 code = table.code[r]
-                if code >= 0:
+                if code >= FIRST_FLOW_SLOT:
                     tau = table.kick[r] * h
                     t = run.t0 + (step + table.drift[r]) * h
                     _flow_grid(code, effects, tau, t, xs, p, phi, eta, first, stride)
@@ -475,7 +477,7 @@ def _node_sums_kernel(x, p, masses, anchored, ref, gravity, partial):
 
 
 def _finish_kernel(partial, ops, out):
-    """One block: out[q] = the reduction ops[q] (0 sum, 1 min, 2 max) of partial[:, q].
+    """One block: out[q] = the reduction ops[q] (SUM, MIN or MAX) of partial[:, q].
 
     partial: (blocks, Q); ops: (Q,) int32, Q ≤ 8; out: (Q,).
     """
@@ -484,7 +486,7 @@ def _finish_kernel(partial, ops, out):
     n_q = ops.shape[0]
     for q in range(n_q):
         op = ops[q]
-        v = 0.0 if op == 0 else (math.inf if op == 1 else -math.inf)
+        v = 0.0 if op == SUM else (math.inf if op == MIN else -math.inf)
         for i in range(t, partial.shape[0], REDUCE_THREADS):
             v = _combine(op, v, partial[i, q])
         sh[q, t] = v
@@ -503,10 +505,10 @@ def _finish_kernel(partial, ops, out):
 
 @njit(inline="always")
 def _combine(op, a, b):
-    """a and b reduced by op: 0 sum, 1 min, 2 max."""
-    if op == 0:
+    """a and b reduced by op: SUM, MIN or MAX."""
+    if op == SUM:
         return a + b
-    return min(a, b) if op == 1 else max(a, b)
+    return min(a, b) if op == MIN else max(a, b)
 
 
 #: device functions the kernels share, bound per model before the kernels (callers after callees)

@@ -21,7 +21,7 @@ from ...integrators.base import Stepper
 from ...kernels import records
 from ...kernels.specialize import kernel_parameters
 from ...loads.stepping import StepperLoads, work_of
-from ..schedule import flow_data
+from ..schedule import FIRST_FLOW_SLOT, flow_data
 from . import FLAG_ROW, FLAG_SET, FLAG_STAGES, FLAG_STEP, require_cuda
 from .launch import Launcher
 
@@ -224,7 +224,7 @@ class CudaSplittingStepper(Stepper):
         for step in range(n_steps):
             t_step = t0 + step * h
             for r, (code, kick, drift) in enumerate(self._rows):
-                if code >= 0:
+                if code >= FIRST_FLOW_SLOT:
                     self._flow(code, kick * h, t_step + drift * h)
                     theta_valid = False
                     continue
