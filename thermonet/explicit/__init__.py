@@ -4,7 +4,7 @@ that runs them.
 - :mod:`.splitting`: ``Splitting`` (kicks, drifts and extra sub-flows as data), ``compose``,
   ``palindrome`` and the shipped tables (GTR-0, GTR-1, CO2, F10, NM2, CO4, CO6, BM4, BM6, BM6A,
   OMF4), registered with :func:`thermonet.integrators.register_integrator` (importing
-  :mod:`thermonet.integrators` imports them); the CPU stepper.
+  :mod:`thermonet.integrators` imports them); :mod:`.stepper`, the CPU stepper.
 - :mod:`.schedule`: ``SubFlow`` and the stage table every backend reads, with its row codes;
   :mod:`.codes`: the other codes the kernels read by name.
 - :mod:`.cpu`, :mod:`.passes`: the CPU kernel (a blocked spring pass and a node pass per stage)

@@ -175,7 +175,7 @@ class CudaSplittingStepper(Stepper):
                          self._eta, self._flag)
 
     def advance(self, state, n_steps: int, h: float, measure: bool = False):
-        """As :meth:`thermonet.explicit.splitting.SplittingStepper.advance`: the same rows of the
+        """As :meth:`thermonet.explicit.stepper.SplittingStepper.advance`: the same rows of the
         same schedule and chunk-boundary handling, so results do not depend on how a run is cut
         into chunks; a spring outside the admissible states stops the call, the device state is
         rewound to the last good step and :class:`~thermonet.integrators.base.StepFailure` names
