@@ -43,7 +43,7 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 import thermonet as tn  # noqa: E402
-from thermonet.integrators.splitting import CO2, F10, Splitting, compose, palindrome  # noqa: E402
+from thermonet.explicit.splitting import CO2, F10, Splitting, compose, palindrome  # noqa: E402
 from thermonet.studies import reference_solution  # noqa: E402
 from thermonet.studies.scenes import make_simulation  # noqa: E402
 from thermonet.studies.snapshot import Snapshot  # noqa: E402

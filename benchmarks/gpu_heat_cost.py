@@ -33,7 +33,7 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 import thermonet as tn  # noqa: E402
 from gpu_throughput import gpu_rate  # noqa: E402
-from thermonet.cuda import cuda_problem, simulator_enabled  # noqa: E402
+from thermonet.explicit.cuda import cuda_problem, simulator_enabled  # noqa: E402
 from thermonet.heat.multirate import choose_cycle  # noqa: E402
 from thermonet.stability import stable_step  # noqa: E402
 

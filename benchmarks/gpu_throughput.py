@@ -46,7 +46,7 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 import thermonet as tn  # noqa: E402
-from thermonet.cuda import cuda_problem, simulator_enabled  # noqa: E402
+from thermonet.explicit.cuda import cuda_problem, simulator_enabled  # noqa: E402
 
 try:
     from numba import cuda

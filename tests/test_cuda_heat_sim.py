@@ -29,7 +29,7 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)  # this checkout's thermonet, also when run as a script
 
 import thermonet as tn  # noqa: E402
-from thermonet.cuda import gpu_available  # noqa: E402
+from thermonet.explicit.cuda import gpu_available  # noqa: E402
 from thermonet.heat import Bath, Source  # noqa: E402
 from thermonet.timefunctions import TimeFunction  # noqa: E402
 
@@ -308,12 +308,12 @@ def test_fused_kernel_with_heat_rows_compiles_for_h100_but_for_its_grid_barriers
 
     from numba import cuda, njit, typeof
 
+    from thermonet.explicit.cuda import kernels
+    from thermonet.explicit.schedule import MAX_FLOWS, StageTable
     from thermonet.heat import cuda as device_heat
-    from thermonet.cuda import kernels
-    from thermonet.integrators.schedule import MAX_FLOWS, StageTable
     from thermonet.kernels import records
     from thermonet.kernels.specialize import kernel_namespace, rebind
-    from thermonet.kernels.splitting import bind_subflows
+    from thermonet.kernels.subflows import bind_subflows
 
     ns = kernel_namespace(tn.get_model("hencky"), True, True)
     ns.update(CONDUCTION=True, WAVES=True)

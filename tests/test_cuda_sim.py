@@ -23,7 +23,7 @@ import numpy as np
 import pytest
 
 import thermonet as tn
-from thermonet.cuda import gpu_available
+from thermonet.explicit.cuda import gpu_available
 from thermonet.errors import InputError
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -154,7 +154,7 @@ def test_unknown_backend_is_refused():
 
 
 def test_missing_numba_cuda_is_named(monkeypatch):
-    import thermonet.cuda as tc
+    import thermonet.explicit.cuda as tc
 
     real = importlib.util.find_spec
     monkeypatch.setattr(tc.importlib.util, "find_spec", lambda name, *a: None if name == "numba_cuda" else real(name, *a))
@@ -166,7 +166,7 @@ def test_missing_numba_cuda_is_named(monkeypatch):
 def test_no_gpu_names_the_simulator():
     from numba import cuda
 
-    from thermonet.cuda import simulator_enabled
+    from thermonet.explicit.cuda import simulator_enabled
 
     if simulator_enabled() or cuda.is_available():
         pytest.skip("a GPU (or the simulator) is available here")
@@ -180,7 +180,7 @@ def test_unsupported_numpy_is_named(monkeypatch):
     the backend check must say so in one line instead."""
     import builtins
 
-    from thermonet.cuda import _compiler_problem
+    from thermonet.explicit.cuda import _compiler_problem
 
     real_import = builtins.__import__
 
@@ -222,7 +222,7 @@ def _toolkit_compiles() -> bool:
                     "numba-cuda[cu12] or [cu13]; no GPU needed")
 @pytest.mark.parametrize("model", ["hencky", "quadratic"])
 def test_kernels_compile_to_ptx_for_h100(model):
-    from thermonet.cuda.kernels import compile_ptx
+    from thermonet.explicit.cuda.kernels import compile_ptx
 
     for thermal in (True, False):
         ptx = compile_ptx(tn.get_model(model), thermal=thermal, uniform=True, cc=(9, 0))
@@ -285,7 +285,7 @@ def test_fused_grid_covers_the_net_within_residency_and_caps_small_nets():
     """The fused launch's grid (H100 figures: 132 multiprocessors, 528 resident blocks of 256
     threads for the launch-bounded kernel): one thread per spring where it fits, all resident
     blocks on large nets, 2 blocks a multiprocessor below SMALL_NET_SPRINGS."""
-    from thermonet.cuda.stepper import CudaSplittingStepper, fused_grid
+    from thermonet.explicit.cuda.stepper import CudaSplittingStepper, fused_grid
 
     assert CudaSplittingStepper.SMALL_NET_BLOCKS_PER_SM == 2
     assert fused_grid(1000, 343, 256, 528, 132) == 4  # a tiny net: one thread per spring

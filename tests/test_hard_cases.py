@@ -86,7 +86,8 @@ def test_policy_verdicts(factor, verdict):
 
 
 def test_policy_is_silent_for_a_user_integrator_without_interval():
-    from thermonet.integrators import CO2, Integrator
+    from thermonet.explicit.splitting import CO2
+    from thermonet.integrators import Integrator
 
     class Mine(Integrator):  # an implicit-looking user integrator: no kicks, no declared interval
         name, order, explicit = "mine", 2, False

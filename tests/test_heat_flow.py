@@ -286,7 +286,7 @@ def test_bad_heat_input_names_the_key(kwargs, message):
 
 
 def test_state_copies_do_not_share_the_heat_logs_and_orders_are_honest():
-    from thermonet.integrators.splitting import BM4, CO4
+    from thermonet.explicit.splitting import BM4, CO4
 
     net, theta = hot_jittered_net(19)
     sim = tn.Simulation(net, parameters=dict(c=100, beta=1.0, C0=1.0, theta0=300, g=0.4), temperatures=theta,

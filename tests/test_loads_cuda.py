@@ -12,7 +12,7 @@ import sys
 import numpy as np
 import pytest
 
-from thermonet.cuda import gpu_available
+from thermonet.explicit.cuda import gpu_available
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 HAVE_NUMBA_CUDA = importlib.util.find_spec("numba_cuda") is not None

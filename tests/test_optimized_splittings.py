@@ -26,7 +26,7 @@ import numpy as np
 import pytest
 
 import thermonet as tn
-from thermonet.integrators.splitting import BM4, BM6, BM6A, CO4, CO6, OMF4
+from thermonet.explicit.splitting import BM4, BM6, BM6A, CO4, CO6, OMF4
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 T_END = 1.0

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import thermonet as tn
-from thermonet.integrators import CO2, CO4, CO6, F10, GTR0, GTR1, NM2
+from thermonet.explicit.splitting import CO2, CO4, CO6, F10, GTR0, GTR1, NM2
 from thermonet.stability import max_frequency, stability_interval, stable_step
 
 

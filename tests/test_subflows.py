@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 import thermonet as tn
-from thermonet.integrators import CO2, CO4, F10, compose
-from thermonet.integrators.schedule import MAX_FLOWS, STAGE, SubFlow, stage_table
+from thermonet.explicit.schedule import MAX_FLOWS, STAGE, SubFlow, stage_table
+from thermonet.explicit.splitting import CO2, CO4, F10, compose
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from push_subflow import push  # noqa: E402

@@ -8,8 +8,8 @@ import math
 
 import numpy as np
 
-from .cuda import require_cuda
 from .errors import InputError
+from .explicit.cuda import require_cuda
 from .integrators import explicit_integrators
 from .kernels.springs import map_springs
 from .net import Net

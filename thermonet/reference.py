@@ -18,7 +18,7 @@ from typing import Callable, Mapping
 
 import numpy as np
 
-from .integrators.splitting import YOSHIDA4, YOSHIDA6A
+from .explicit.splitting import YOSHIDA4, YOSHIDA6A
 
 # ---------------------------------------------------------------------------------------------
 # constitutive laws, as NumPy formulas (Mata & Lew 2011, (31) and (26)). Every function takes (m,) arrays

@@ -87,7 +87,7 @@ class Simulation:
         1.5 h_max a stop (StabilityLimitExceeded, a SimulationError; "warn": warned only), the
         state rewound to the previous stop.
     backend: "cpu" (default) or "cuda": the explicit integrators on an NVIDIA GPU through
-        numba-cuda, the state resident on the device (see :mod:`thermonet.cuda`).
+        numba-cuda, the state resident on the device (see :mod:`thermonet.explicit.cuda`).
     conduction: Fourier heat conduction between springs (docs/heat.md) through each spring's
         conductance ``g``, given in ``parameters`` like a model parameter (scalar or (m,), ≥ 0);
         default: on when ``g`` is given. Each conduction cycle of k steps becomes

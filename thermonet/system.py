@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .kernels.specialize import kernel_parameters
 from .layout import Layout
 from .models.base import Model
 
@@ -61,7 +62,7 @@ class System:
     @property
     def kernel_parameters(self) -> tuple[np.ndarray, bool]:
         """(P, uniform): the parameters as the kernels read them, a shared (k, 1) column when
-        every spring has the same ones (see :func:`thermonet.kernels.splitting.kernel_parameters`);
+        every spring has the same ones (see :func:`thermonet.kernels.specialize.kernel_parameters`);
         computed once."""
         cached = self.__dict__.get("_kernel_parameters")
         if cached is None:
@@ -82,5 +83,4 @@ class System:
         return ~self.anchored
 
 
-from .kernels.splitting import kernel_parameters
 from .state import State  # noqa: E402,F401  (importable from here as well)

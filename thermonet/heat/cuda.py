@@ -38,8 +38,8 @@ import sys
 import numpy as np
 from numba import cuda
 
-from ..cuda import FLAG_SET
 from ..errors import InputError
+from ..explicit.cuda import FLAG_SET
 from ..kernels.records import Heat, no_heat
 from ..kernels.specialize import rebind
 from . import exchange
@@ -168,7 +168,7 @@ def heat_kernels(compile_):
 def conduction_coefficient(integrator) -> float:
     """The coefficient c of the integrator's conduction rows (τ = c h; 0 when none): one for all
     of them, as the CPU stepper's half sweeps."""
-    from ..integrators.schedule import BuiltinFlow
+    from ..explicit.schedule import BuiltinFlow
 
     taus = sorted({c for _, f, c in integrator.flows if isinstance(f, BuiltinFlow) and f.code != THERMAL_WAVES})
     if len(taus) > 1:
@@ -249,7 +249,7 @@ class DeviceHeat:
 
 def compile_heat_ptx(model, uniform: bool = True, cc=(9, 0)) -> dict[str, str]:
     """PTX of the heat kernels (conduction and thermal waves compiled in) for ``model`` and
-    compute capability ``cc``, as :func:`thermonet.cuda.kernels.compile_ptx` does for the
+    compute capability ``cc``, as :func:`thermonet.explicit.cuda.kernels.compile_ptx` does for the
     stepping kernels (the toolkit, no GPU). Returns name -> PTX text."""
     from numba import njit, typeof
 

@@ -1,5 +1,5 @@
 """The CPU passes of heat flow (templates compiled per model by
-:func:`thermonet.kernels.splitting.splitting_kernels` and :func:`heat_kernels`).
+:func:`thermonet.explicit.cpu.splitting_kernels` and :func:`heat_kernels`).
 
 A conduction sweep (:func:`_conduction_sweep`) runs at a step boundary: the reverse half sweep
 that ends a conduction cycle (the star colours backwards, each block's nodes last to first, then
@@ -18,6 +18,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from ..explicit.codes import FORCE_DEFERRED
 from ..kernels.records import Scratch
 from ..kernels.specialize import kernel_namespace, model_fingerprint, rebind, specialize
 from . import exchange
@@ -34,7 +35,7 @@ CONTINUE = 8
 #: (:func:`_finish_refresh_pass`: one pass over the springs instead of two)
 DEFER_FINISH = 16
 
-# Bound per kernel variant (see thermonet.kernels.splitting; spring_pass and node_pass for
+# Bound per kernel variant (see thermonet.explicit.cpu; spring_pass and node_pass for
 # conduction_boundary, which only the explicit step uses).
 spring_pass = temperature_pass = conduction_sweep = node_pass = None
 finish_refresh_pass = refresh_pass = None
@@ -44,7 +45,7 @@ star_node = star_block = boundary_exchange = finish_spring = wave_exchange = spr
 tension = outside_admissible = advance_thermal_displacement = spring_energy = None
 boundary_node_pass = None
 UNIFORM = False
-#: springs per block of the temperature pass (see thermonet.kernels.splitting.BLOCK)
+#: springs per block of the temperature pass (see thermonet.kernels.blocks.BLOCK)
 BLOCK = 512
 
 _OPTIONS = dict(cache=True, error_model="numpy", boundscheck=False, _nrt=False)  # specialize(): no reference counting
@@ -77,7 +78,7 @@ def bind_heat_passes(ns: dict, tag: str, parallel: bool) -> None:
 def _temperature_pass(x, eta, topology, springs, theta, length):
     """theta[e] = θ(l_e, η_e) and length[e] = l_e at positions x, per spring: in blocks, the
     gather first (squared lengths into length), then a loop over contiguous arrays that
-    vectorizes (as the spring pass of :mod:`thermonet.kernels.splitting`)."""
+    vectorizes (as the spring pass of :mod:`thermonet.explicit.cpu`)."""
     edges = topology.edges
     m = edges.shape[0]
     P = springs.P
@@ -264,16 +265,16 @@ def deferred_kick(x, x_new, p, topology, nodes, scratch, heat, loads, when, want
     """The kick deferred past the sweeps by itself, with the forces in heat.s_before at x and,
     with LOADS, the loads at time t (and their work); when = (τ, already times h; t). With
     ``want_sums`` (a call's end) it is the call's closing node pass: returns the node sums of a
-    diagnostics row at (x, the new p) as :func:`thermonet.kernels.splitting._node_pass` reduces
+    diagnostics row at (x, the new p) as :func:`thermonet.explicit.cpu._node_pass` reduces
     them (else zeros)."""
     tau, t = when
     if LOADS:
         cpu_evaluate_loads(loads, t)
     if want_sums:
-        sums = boundary_node_pass(x, x_new, p, topology, nodes, scratch, (tau, 0.0, 0.0, True), 3, True,
+        sums = boundary_node_pass(x, x_new, p, topology, nodes, scratch, (tau, 0.0, 0.0, True), FORCE_DEFERRED, True,
                                   (heat.s_before, loads))
     else:
-        sums = node_pass(x, x_new, p, topology, nodes, scratch, (tau, 0.0, 0.0, True), 3, False,
+        sums = node_pass(x, x_new, p, topology, nodes, scratch, (tau, 0.0, 0.0, True), FORCE_DEFERRED, False,
                          (heat.s_before, loads))
     if LOADS:
         cpu_load_work(x, heat.s_before, topology, nodes, loads, 0.0, tau)

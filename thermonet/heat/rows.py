@@ -1,4 +1,4 @@
-"""The stage-table codes of the heat-flow rows (:mod:`thermonet.integrators.schedule`), named
+"""The stage-table codes of the heat-flow rows (:mod:`thermonet.explicit.schedule`), named
 here so that every kernel reads them by name: a row with one of these codes is a built-in heat
 flow, not a stage (−1) or a sub-flow slot (≥ 0). With the CPU's explicit step the conduction
 rows only mark where the sweeps stand (at the step's ends: the kernel runs them at the cycle's

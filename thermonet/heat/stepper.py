@@ -1,7 +1,7 @@
 """Heat flow around any adiabatic integrator.
 
 Explicit splittings run conduction and thermal waves in their own kernels
-(:meth:`~thermonet.integrators.splitting.Splitting.with_heat`, compiled into the fused kernel).
+(:meth:`~thermonet.explicit.splitting.Splitting.with_heat`, compiled into the fused kernel).
 Every other stepper (the implicit ones) is wrapped by :class:`ConductionAround`:
 ``K_f(kh/2) ∘ A(h)^k ∘ K_r(kh/2)`` per conduction cycle of k steps (k = 1: every step), the
 sweeps compiled (:func:`thermonet.heat.passes.heat_kernels`), the steps A the stepper's own.

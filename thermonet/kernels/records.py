@@ -29,7 +29,7 @@ class Topology(NamedTuple):
 
 class Springs(NamedTuple):
     """Per-spring data: rest (m,) rest lengths; P (k, m) model parameters, or (k, 1) when every
-    spring has the same (see :func:`thermonet.kernels.splitting.kernel_parameters`)."""
+    spring has the same (see :func:`thermonet.kernels.specialize.kernel_parameters`)."""
 
     rest: np.ndarray
     P: np.ndarray

@@ -10,10 +10,11 @@ import numpy as np
 from numba import njit, prange
 
 from . import subflows
-from .splitting import BLOCK, bind_subflows, node_diagnostic_terms, squared_lengths
+from .subflows import bind_subflows
+from .blocks import BLOCK, squared_lengths
 from .specialize import kernel_namespace, model_fingerprint, specialize
 
-# Bound per model by specialize(); see kernels/splitting.py for THERMAL / REFERENCE_TEMPERATURE /
+# Bound per model by specialize(); see thermonet.explicit.cpu for THERMAL / REFERENCE_TEMPERATURE /
 # UNIFORM.
 spring_temperature = spring_energy = None
 THERMAL = True
@@ -21,6 +22,18 @@ REFERENCE_TEMPERATURE = 0
 UNIFORM = False
 
 _CACHE: dict = {}
+
+
+@njit(inline="always", error_model="numpy", boundscheck=False)
+def node_diagnostic_terms(x0, x1, x2, p0, p1, p2, mass, gravity, ref):
+    """One free node's terms of a diagnostics row: kinetic energy, gravity potential −m g·x, p,
+    and (x − ref) × p (shared by the fused closing kick and the stand-alone reduction)."""
+    r0 = x0 - ref[0]
+    r1 = x1 - ref[1]
+    r2 = x2 - ref[2]
+    return (0.5 * (p0 * p0 + p1 * p1 + p2 * p2) / mass,
+            -(mass * (gravity[0] * x0 + gravity[1] * x1 + gravity[2] * x2)),
+            r1 * p2 - r2 * p1, r2 * p0 - r0 * p2, r0 * p1 - r1 * p0)
 
 
 def diagnostic_sums_kernel(model, thermal: bool, parallel: bool, uniform: bool = False):

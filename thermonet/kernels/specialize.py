@@ -18,6 +18,7 @@ import hashlib
 import types
 import weakref
 
+import numpy as np
 from numba import njit
 
 MODEL_FUNCTIONS = ("free_energy", "tension", "entropy", "temperature", "internal_energy",
@@ -108,6 +109,19 @@ def kernel_namespace(model, thermal: bool = True, uniform: bool = False) -> dict
     ns["REFERENCE_TEMPERATURE"] = model.parameter_index(model.reference_temperature)
     ns["UNIFORM"] = bool(uniform)
     return ns
+
+
+def kernel_parameters(P: np.ndarray) -> tuple[np.ndarray, bool]:
+    """The parameter array the kernels should read, and whether it is shared by all springs.
+
+    P: (k, m) per-spring parameters. Returns ``(P[:, :1] copy, True)`` when every row is
+    constant, else ``(P, False)``; pass the flag to :func:`kernel_namespace` as ``uniform``
+    (the kernels then call the model's functions with column ``e = 0``).
+    """
+    P = np.ascontiguousarray(P, dtype=np.float64)
+    if P.shape[1] > 0 and bool(np.all(P == P[:, :1])):
+        return np.ascontiguousarray(P[:, :1]), True
+    return P, False
 
 
 def specialize(template, tag: str, namespace: dict, **jit_options):

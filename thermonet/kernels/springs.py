@@ -12,7 +12,8 @@ from numba import njit, prange
 
 from .fastmath import log
 from . import subflows
-from .splitting import BLOCK, bind_subflows, squared_lengths
+from .subflows import bind_subflows
+from .blocks import BLOCK, squared_lengths
 from .specialize import MODEL_FUNCTIONS, kernel_namespace, model_fingerprint, specialize
 
 # Bound per model by specialize(); THERMAL False: every spring at its reference temperature

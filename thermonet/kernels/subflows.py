@@ -1,7 +1,7 @@
 """The explicit integrators' sub-flows, one definition each, for every target.
 
-Each function here is plain Python that the CPU kernels (:mod:`thermonet.kernels.splitting`,
-compiled with ``njit(inline="always")``) and the CUDA kernels (:mod:`thermonet.cuda.kernels`,
+Each function here is plain Python that the CPU kernels (:mod:`thermonet.explicit.cpu`,
+compiled with ``njit(inline="always")``) and the CUDA kernels (:mod:`thermonet.explicit.cuda.kernels`,
 compiled as device functions, or run as Python under the simulator) call by global name. They
 are rebound per model like any kernel template (:func:`thermonet.kernels.specialize.rebind`):
 ``temperature`` and ``tension`` are the model's, ``THERMAL`` and ``REFERENCE_TEMPERATURE``
@@ -18,7 +18,7 @@ The sub-flows of a kick/drift splitting:
 - **drift** ``D(d)`` at fixed p: x += d h M⁻¹ p (:func:`drift_position`).
 
 Further sub-flows (conduction, driven nodes, external forces, ...) are :class:`SubFlow` records
-scheduled between these (see :mod:`thermonet.integrators.schedule`); the kernels run them
+scheduled between these (see :mod:`thermonet.explicit.schedule`); the kernels run them
 through the same element-wise passes on every target.
 """
 

@@ -13,7 +13,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..errors import InputError
-from ..integrators.schedule import STAGE
+from ..explicit.schedule import STAGE
 from ..timefunctions import pack
 from .spec import AXES, Drive, Force
 

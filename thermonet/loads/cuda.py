@@ -1,7 +1,7 @@
 """The loads' passes on the GPU (numba-cuda; Python under the CUDA simulator): the per-element
 functions of :mod:`thermonet.loads.elements`, one thread per load.
 
-A stage of the two-launch path (:class:`~thermonet.cuda.stepper.CudaSplittingStepper`) runs,
+A stage of the two-launch path (:class:`~thermonet.explicit.cuda.stepper.CudaSplittingStepper`) runs,
 after its node kernel, :func:`load_stage_kernel`: the kick's work at the stage's time (its rates
 were evaluated at the end of the drift before, or by :func:`load_start_kernel` at the call's
 start: the same time, bit for bit), then the loads at the end of this stage's drift and the

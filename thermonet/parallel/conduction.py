@@ -1,6 +1,6 @@
 """Heat conduction in the explicit step over processes, bit for bit that of one process.
 
-A call runs the CPU kernel's conducting ``advance`` (:func:`thermonet.kernels.splitting._advance`)
+A call runs the CPU kernel's conducting ``advance`` (:func:`thermonet.explicit.cpu._advance`)
 step by step, in the same order and with the same compiled passes, on the process's share
 (:mod:`thermonet.parallel.heat_stages`): the kick deferred past a sweep, the refresh of the
 forces from the swept temperatures, the closing kick, the sweeps' continuation across calls.

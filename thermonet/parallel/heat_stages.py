@@ -1,7 +1,7 @@
 """The passes of a conducting step over processes, compiled around the CPU kernel's own.
 
 :mod:`thermonet.parallel.conduction` drives a call of the explicit step with conduction as the
-CPU kernel's ``advance`` does (:mod:`thermonet.kernels.splitting`), between messages. These small
+CPU kernel's ``advance`` does (:mod:`thermonet.explicit.cpu`), between messages. These small
 functions call that kernel variant's passes with the argument expressions its ``advance`` uses
 (literal flags included), so the passes come from the disk cache a run of one process filled.
 """
@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from numba import prange
 
+from ..explicit.codes import FORCE_DEFERRED, FORCE_GATHER, FORCE_GATHER_KEEP
 from ..kernels.specialize import function_fingerprint, specialize
 
 # bound per kernel variant by heat_stage_functions() (a conducting variant's passes)
@@ -41,15 +42,16 @@ def _kick_drift(cur, nxt, state, topology, nodes, scratch, steps, s_before, load
     """A stage's node pass into nxt: with the forces of s, or (``deferred`` ≠ 0) first the kick
     deferred past the sweep with those of s_before, then this stage's kick of s."""
     if deferred != 0.0:
-        node_pass(cur, nxt, state.p, topology, nodes, scratch, (deferred * h, kick * h, drift * h, True), 3, False,
-                  (s_before, loads))
+        node_pass(cur, nxt, state.p, topology, nodes, scratch, (deferred * h, kick * h, drift * h, True),
+                  FORCE_DEFERRED, False, (s_before, loads))
     else:
-        node_pass(cur, nxt, state.p, topology, nodes, scratch, steps, 0, False, (s_before, loads))
+        node_pass(cur, nxt, state.p, topology, nodes, scratch, steps, FORCE_GATHER, False, (s_before, loads))
 
 
 def _deferred_alone(cur, nxt, state, topology, nodes, scratch, s_before, loads, tau):
     """The kick deferred past a call's last sweep, by itself (drift 0: the positions stay in cur)."""
-    node_pass(cur, nxt, state.p, topology, nodes, scratch, (tau, 0.0, 0.0, True), 3, False, (s_before, loads))
+    node_pass(cur, nxt, state.p, topology, nodes, scratch, (tau, 0.0, 0.0, True), FORCE_DEFERRED, False,
+              (s_before, loads))
 
 
 def _closing(cur, nxt, state, topology, springs, nodes, scratch, length, s_before, loads, pending, run):
@@ -60,8 +62,8 @@ def _closing(cur, nxt, state, topology, springs, nodes, scratch, length, s_befor
                                length)[0]
     if bad > 0:
         return bad
-    boundary_node_pass(cur, nxt, state.p, topology, nodes, scratch, (0.0, pending * h, 0.0, True), 1, run.want_sums,
-                       (s_before, loads))
+    boundary_node_pass(cur, nxt, state.p, topology, nodes, scratch, (0.0, pending * h, 0.0, True),
+                       FORCE_GATHER_KEEP, run.want_sums, (s_before, loads))
     return 0
 
 

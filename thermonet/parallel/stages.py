@@ -7,9 +7,10 @@ filled: the processes of a run then compile only these two small functions (once
 
 from __future__ import annotations
 
+from ..explicit.codes import FORCE_GATHER, FORCE_GATHER_KEEP
 from ..kernels.specialize import function_fingerprint, specialize
 
-# bound per kernel variant by stage_functions(), as in thermonet.kernels.splitting
+# bound per kernel variant by stage_functions(), as in thermonet.explicit.cpu
 spring_pass = node_pass = boundary_spring_pass = boundary_node_pass = None
 
 _OPTIONS = dict(cache=True, error_model="numpy", boundscheck=False, _nrt=False)
@@ -26,7 +27,7 @@ def _stage(cur, nxt, state, topology, springs, nodes, scratch, steps, run, extra
                           extra[0])[0]
         if bad > 0:
             return bad
-    node_pass(cur, nxt, state.p, topology, nodes, scratch, steps, 0, False, extra[1])
+    node_pass(cur, nxt, state.p, topology, nodes, scratch, steps, FORCE_GATHER, False, extra[1])
     return 0
 
 
@@ -37,8 +38,8 @@ def _closing(cur, nxt, state, topology, springs, nodes, scratch, kick, run, extr
                                extra[0])[0]
     if bad > 0:
         return bad
-    boundary_node_pass(cur, nxt, state.p, topology, nodes, scratch, (0.0, kick, 0.0, True), 1, run.want_sums,
-                       extra[1])
+    boundary_node_pass(cur, nxt, state.p, topology, nodes, scratch, (0.0, kick, 0.0, True), FORCE_GATHER_KEEP,
+                       run.want_sums, extra[1])
     return 0
 
 

@@ -2,7 +2,7 @@
 share, the ghosts' positions exchanged after every drift.
 
 Each process runs the stage rows of the integrator's schedule as the CPU kernel
-(:mod:`thermonet.kernels.splitting`) does, calling its compiled spring and node passes (the same
+(:mod:`thermonet.explicit.cpu`) does, calling its compiled spring and node passes (the same
 functions, from the same disk cache) on its share (:mod:`thermonet.parallel.domain`): per spring
 θ, T/l and Φ; per owned node the force gathered in the whole net's order, the kick and the drift;
 then the halo. Two kicks meeting at a step boundary stay two additions and a call ends with the
@@ -19,10 +19,13 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..blowup import blowup_failure
 from ..errors import InputError
+from ..explicit import cpu
+from ..explicit.schedule import STAGE
 from ..integrators.base import Stepper
-from ..integrators.splitting import blowup_failure
 from ..kernels import records
+from ..kernels.specialize import model_fingerprint
 from ..loads.elements import NO_LOADS
 from ..loads.stepping import StepperLoads
 from .conduction import DistributedConduction
@@ -37,11 +40,8 @@ def splitting_passes(model, parallel: bool, thermal: bool, uniform: bool, loads:
                      conduction: bool = False) -> tuple[dict, str]:
     """(namespace, variant): the passes of the CPU kernel's variant without flows (with loads
     where ``loads``, with the conduction sweeps where ``conduction``) and a name unique to it."""
-    from ..kernels import splitting
-    from ..kernels.specialize import model_fingerprint
-
-    advance = splitting.splitting_kernels(model, parallel, thermal, uniform, (), conduction, False, loads)
-    ns = next(splitting._PASSES[k] for k, v in splitting._CACHE.items() if v is advance)  # that variant's passes
+    advance = cpu.splitting_kernels(model, parallel, thermal, uniform, (), conduction, False, loads)
+    ns = next(cpu._PASSES[k] for k, v in cpu._CACHE.items() if v is advance)  # that variant's passes
     variant = (f"{model.name}_{model_fingerprint(model)}_{'par' if parallel else 'ser'}"
                f"_{'thermal' if thermal else 'mech'}{'_uniform' if uniform else ''}{'_loads' if loads else ''}"
                f"{'_conduction' if conduction else ''}")
@@ -67,7 +67,7 @@ def conduction_stages(model, parallel: bool, uniform: bool) -> tuple[tuple, obje
 
 
 class DistributedStepper(Stepper):
-    """An explicit :class:`~thermonet.integrators.splitting.Splitting` over the processes of
+    """An explicit :class:`~thermonet.explicit.splitting.Splitting` over the processes of
     ``comm``: see the module docstring.
 
     integrator: the splitting; system: the whole net's System (every process builds it);
@@ -82,7 +82,7 @@ class DistributedStepper(Stepper):
         self.integrator, self.system, self.comm = integrator, system, comm
         self.size, self.rank = comm.Get_size(), comm.Get_rank()
         table = integrator.table_between_sweeps
-        if (np.asarray(table.code) != -1).any():
+        if (np.asarray(table.code) != STAGE).any():
             raise InputError(f"{integrator.name}: a run over MPI processes runs kick/drift stages only")
         self._kicks, self._drifts, self._carry = list(table.kick), list(table.drift), float(table.carry)
         edges = system.edges
@@ -144,7 +144,7 @@ class DistributedStepper(Stepper):
             for r, (k2, drift) in enumerate(zip(self._kicks, self._drifts)):
                 k1 = pending if r == 0 else 0.0
                 steps = (k1 * h, k2 * h, drift * h, k1 != 0.0 or k2 != 0.0)
-                if loads is not None and steps[3]:  # (as the CPU kernel: thermonet.kernels.splitting)
+                if loads is not None and steps[3]:  # (as the CPU kernel: thermonet.explicit.cpu)
                     loads.evaluate(la, _stage_time(la, h, step, la.kick_time[r]))
                 bad = self._stage(cur, nxt, arrays, *local, steps, run, extra)
                 if steps[3] and self._any(bad):  # row 0's positions end the previous step: that one was bad

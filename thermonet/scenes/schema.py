@@ -260,7 +260,7 @@ def _backends():
     return BACKENDS
 
 
-#: compute backends a scene may name ("cuda": explicit integrators on a GPU, see thermonet.cuda)
+#: compute backends a scene may name ("cuda": explicit integrators on a GPU, see thermonet.explicit.cuda)
 BACKENDS = ("cpu", "cuda")
 
 GENERATORS = ("chain", "triangle", "lattice")

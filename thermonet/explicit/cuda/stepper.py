@@ -1,4 +1,4 @@
-"""The CUDA stepper: a :class:`~thermonet.integrators.splitting.Splitting` run on the GPU with the
+"""The CUDA stepper: a :class:`~thermonet.explicit.splitting.Splitting` run on the GPU with the
 state resident in device memory.
 
 The host :class:`~thermonet.system.State` stays the one the :class:`~thermonet.simulation.Simulation`
@@ -13,21 +13,21 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..blowup import blowup_failure
-from ..diagnostics import diagnostics_row
-from ..errors import InputError
-from ..heat.rows import CONDUCTION_FORWARD, THERMAL_WAVES
-from ..integrators.base import Stepper
-from ..integrators.schedule import flow_data
-from ..kernels import records
-from ..kernels.splitting import kernel_parameters
-from ..loads.stepping import StepperLoads, work_of
+from ...blowup import blowup_failure
+from ...diagnostics import diagnostics_row
+from ...errors import InputError
+from ...heat.rows import CONDUCTION_FORWARD, THERMAL_WAVES
+from ...integrators.base import Stepper
+from ...kernels import records
+from ...kernels.specialize import kernel_parameters
+from ...loads.stepping import StepperLoads, work_of
+from ..schedule import FIRST_FLOW_SLOT, flow_data
 from . import FLAG_ROW, FLAG_SET, FLAG_STAGES, FLAG_STEP, require_cuda
 from .launch import Launcher
 
 
 class CudaSplittingStepper(Stepper):
-    """A :class:`~thermonet.integrators.splitting.Splitting` bound to a system, on the GPU."""
+    """A :class:`~thermonet.explicit.splitting.Splitting` bound to a system, on the GPU."""
 
     #: the state lives on the device: the simulation must sync() before reading its arrays
     resident = True
@@ -38,7 +38,7 @@ class CudaSplittingStepper(Stepper):
     #: Measured on an H100 (CO2, 6-neighbour lattices, G spring-steps/s fused / two launches,
     #: ``benchmarks/gpu_check.py``): 1e5 springs 5.1 / 0.87, 1e6 14.0 / 6.5, 3e6 17.8 / 19.8,
     #: 1e7 19.8 / 22.0. A launch costs tens of µs of host time even through a
-    #: :class:`~thermonet.cuda.launch.Launcher`, which bounds two launches per stage on small nets;
+    #: :class:`~thermonet.explicit.cuda.launch.Launcher`, which bounds two launches per stage on small nets;
     #: a cooperative launch keeps only the blocks that fit at once, which caps it below the copy
     #: bandwidth on large ones. The two cross between 1e6 and 3e6 springs.
     FUSED_MAX_SPRINGS = 2_000_000
@@ -61,7 +61,7 @@ class CudaSplittingStepper(Stepper):
         require_cuda()
         from numba import cuda
 
-        from ..heat.cuda import DeviceHeat
+        from ...heat.cuda import DeviceHeat
         from .kernels import NODE_OPS, SPRING_OPS, cuda_kernels
 
         self.integrator = integrator
@@ -175,7 +175,7 @@ class CudaSplittingStepper(Stepper):
                          self._eta, self._flag)
 
     def advance(self, state, n_steps: int, h: float, measure: bool = False):
-        """As :meth:`thermonet.integrators.splitting.SplittingStepper.advance`: the same rows of the
+        """As :meth:`thermonet.explicit.stepper.SplittingStepper.advance`: the same rows of the
         same schedule and chunk-boundary handling, so results do not depend on how a run is cut
         into chunks; a spring outside the admissible states stops the call, the device state is
         rewound to the last good step and :class:`~thermonet.integrators.base.StepFailure` names
@@ -186,7 +186,7 @@ class CudaSplittingStepper(Stepper):
         self._keep_backup(state, h)
         self._call_step = state.step  # loads: the clock's step
         if self._heat.setup is not None and self._heat.setup.conduction:  # the conduction cycle
-            from ..heat.logs import cycle_position
+            from ...heat.logs import cycle_position
 
             self._cycle = cycle_position(state, self._heat.setup)
         stop = self._steps(float(state.time), int(n_steps), float(h))
@@ -198,7 +198,7 @@ class CudaSplittingStepper(Stepper):
     def _steps(self, t0: float, n_steps: int, h: float):
         """n_steps steps from time t0 on the device state; None, or where a launch stopped:
         (flag, steps completed before its launch sequence, positions buffer at that start)."""
-        from ..heat.cuda import _conduction_due  # (the rows' own test, run here on the host)
+        from ...heat.cuda import _conduction_due  # (the rows' own test, run here on the host)
 
         lo, hi = self.system.stretch_bounds
         every, at = self._cycle
@@ -224,7 +224,7 @@ class CudaSplittingStepper(Stepper):
         for step in range(n_steps):
             t_step = t0 + step * h
             for r, (code, kick, drift) in enumerate(self._rows):
-                if code >= 0:
+                if code >= FIRST_FLOW_SLOT:
                     self._flow(code, kick * h, t_step + drift * h)
                     theta_valid = False
                     continue
@@ -265,7 +265,7 @@ class CudaSplittingStepper(Stepper):
                              self._flag)
 
     def _launch(self, kernel, blocks: int, threads: int, *args) -> None:
-        """``kernel[blocks, threads](*args)`` through its :class:`~thermonet.cuda.launch.Launcher`."""
+        """``kernel[blocks, threads](*args)`` through its :class:`~thermonet.explicit.cuda.launch.Launcher`."""
         launcher = self._launchers.get(id(kernel))
         if launcher is None:
             launcher = self._launchers[id(kernel)] = Launcher(kernel)

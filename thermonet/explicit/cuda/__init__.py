@@ -1,6 +1,6 @@
 """GPU backend of the explicit integrators (``backend="cuda"``), on NVIDIA's numba-cuda.
 
-The same kick/drift stages as :mod:`thermonet.kernels.splitting`, as two CUDA kernels per stage,
+The same kick/drift stages as :mod:`thermonet.explicit.cpu`, as two CUDA kernels per stage,
 with the state resident on the device across steps (:mod:`.stepper`); the kernels are compiled per
 model from the model's own ``@njit`` scalar functions (:mod:`.kernels`). Importing this package
 imports no CUDA code: :func:`require_cuda` says whether the backend can run, and why not.
@@ -15,7 +15,7 @@ from __future__ import annotations
 import importlib.util
 import os
 
-from ..errors import InputError
+from ...errors import InputError
 
 INSTALL_HINT = "pip install 'thermonet[cuda]' (numba-cuda >= 0.30)"
 

@@ -2,7 +2,7 @@
 and higher-order compositions of CO2 (CO4, CO6).
 
 A scheme ``K(k0) D(d0) K(k1) … D(d_{S−1}) K(k_S)`` is data: the ``kicks`` (S+1) and ``drifts`` (S)
-coefficients, as fractions of h. See :mod:`thermonet.kernels.splitting` for what a kick and a
+coefficients, as fractions of h. See :mod:`thermonet.explicit.cpu` for what a kick and a
 drift do. A kick never changes η, so every splitting conserves each spring's entropy exactly;
 kicks and drifts are symplectic and equivariant under rigid motions, so linear and angular
 momenta are conserved to round-off. Symmetric compositions of the symmetric CO2 keep all of this
@@ -13,18 +13,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
-import numpy as np
-
-from ..blowup import blowup_failure
 from ..errors import InputError
-from ..heat.logs import cycle_position, heat_logs
-from ..kernels import records
-from ..kernels.records import Run, StateArrays, no_heat_cpu
-from ..kernels.splitting import kernel_parameters, splitting_kernels
-from ..loads.elements import NO_LOADS
-from ..loads.stepping import StepperLoads
-from .base import Integrator, Stepper, register_integrator
-from .schedule import CONDUCTION, WAVES, BuiltinFlow, StageTable, flow_data, flow_slots, stage_table
+from ..integrators.base import Integrator, Stepper, register_integrator
+from .schedule import CONDUCTION, WAVES, BuiltinFlow, StageTable, flow_slots, stage_table
+from .stepper import SplittingStepper
 
 
 @dataclass(frozen=True, repr=False)
@@ -43,7 +35,7 @@ class Splitting(Integrator):
     description: str = ""
     explicit: bool = True
     #: further sub-flows, ((position, SubFlow, coefficient), ...): position i ≤ S runs before
-    #: kick i, S + 1 after the last kick (see :mod:`thermonet.integrators.schedule`)
+    #: kick i, S + 1 after the last kick (see :mod:`thermonet.explicit.schedule`)
     flows: tuple = ()
     #: (base, gammas) when this splitting is ``compose(base, gammas, ...)``: a composition with
     #: thermal waves composes the base with the waves' flow (:meth:`with_heat`)
@@ -55,7 +47,7 @@ class Splitting(Integrator):
 
     @property
     def table(self) -> StageTable:
-        """The schedule every backend's kernels read (:func:`~thermonet.integrators.schedule.stage_table`)."""
+        """The schedule every backend's kernels read (:func:`~thermonet.explicit.schedule.stage_table`)."""
         return stage_table(self.kicks, self.drifts, self.flows)
 
     @property
@@ -118,10 +110,10 @@ class Splitting(Integrator):
         return inner + (1 if (self.kicks[0] != 0.0 or self.kicks[-1] != 0.0) else 0)
 
     def make_stepper(self, system, parallel: bool = False, backend: str = "cpu", **options) -> Stepper:
-        """The CPU :class:`SplittingStepper`, or for ``backend="cuda"`` the GPU one
-        (:class:`thermonet.cuda.stepper.CudaSplittingStepper`, state resident on the device)."""
+        """The CPU :class:`~thermonet.explicit.stepper.SplittingStepper`, or for ``backend="cuda"`` the GPU one
+        (:class:`thermonet.explicit.cuda.stepper.CudaSplittingStepper`, state resident on the device)."""
         if backend == "cuda":
-            from ..cuda.stepper import CudaSplittingStepper
+            from .cuda.stepper import CudaSplittingStepper
 
             return CudaSplittingStepper(self, system)
         return SplittingStepper(self, system, parallel)
@@ -268,86 +260,3 @@ OMF4 = register_integrator(Splitting(
     description="Omelyan, Mryglod & Folk's optimized symmetric splitting, order 4, 5 force evaluations, velocity "
                 "version (Comput. Phys. Commun. 151 (2003) 272, eqs. (63), (71))",
 ))
-
-
-_NO_HEAT = no_heat_cpu()
-
-
-class SplittingStepper(Stepper):
-    """A :class:`Splitting` bound to a system: owns the scratch buffers, calls the fused kernel."""
-
-    def __init__(self, integrator: Splitting, system, parallel: bool = False):
-        self.integrator = integrator
-        self.system = system
-        P, uniform = kernel_parameters(system.parameters)
-        flows = integrator.subflows
-        conduction, waves = integrator.heat_rows
-        heat = getattr(system, "heat", None)
-        if (conduction or waves) and heat is None:
-            raise InputError(f"{integrator.name} has heat-flow rows but the system has no heat flow set up")
-        self._heat = heat
-        self._conduction = conduction
-        self._table = integrator.table_between_sweeps
-        self.loads = StepperLoads.of(system, self._table)
-        self._advance = splitting_kernels(system.model, parallel, system.thermal, uniform, flows, conduction, waves,
-                                          self.loads is not None)
-        n, m = system.n_nodes, system.n_springs
-        self._scratch = records.Scratch(np.empty((n, 3)), np.empty(m), np.empty((n, 3)),
-                                        np.empty(m if system.thermal else 0), np.empty(m), np.empty(11))
-        self._measured = None  # (state, step, sums) of the last call asked to measure its end
-        # (state, step) whose forces and temperatures the last call's closing kick left in the
-        # keep buffers: a call continuing from exactly there starts from them
-        self._boundary = None
-        self._no_thermal = np.empty(0)
-        self._topology = records.topology(system.layout)
-        self._springs = records.Springs(system.rest_lengths, P)
-        self._nodes = records.nodes(system)
-        self._effects = flow_data(flows, system)
-
-    #: advance(..., measure=True) can reduce the end state's diagnostics sums on the way
-    measures = True
-
-    def advance(self, state, n_steps: int, h: float, measure: bool = False):
-        """``n_steps`` steps of h from ``state`` (in place). With ``measure`` the closing kick
-        also reduces the end state's diagnostics sums: :meth:`closing_sums` returns them."""
-        self._measured = None
-        if n_steps <= 0:
-            return None
-        thermal = self.system.thermal
-        arrays = StateArrays(state.positions, state.momenta,
-                             state.thermal_displacement if thermal else self._no_thermal,
-                             state.entropy if thermal else self._no_thermal)
-        lo, hi = self.system.stretch_bounds
-        reuse = self._boundary is not None and self._boundary[0] is state and self._boundary[1] == state.step
-        self._boundary = None
-        every, cycle_step = cycle_position(state, self._heat) if self._conduction else (1, 0)
-        run = Run(float(h), float(state.time), int(n_steps), bool(self.integrator.track_phi), float(lo), float(hi),
-                  bool(reuse), bool(measure), every, cycle_step)
-        loads = self.loads.arrays_for(state, h) if self.loads is not None else NO_LOADS  # loads
-        done, detected, summed = self._advance(arrays, self._scratch, self._topology, self._springs, self._nodes,
-                                               self._table, self._effects, self._heat_record(state, h, every), run, loads)
-        if not detected and self._table.carry != 0.0:
-            self._boundary = (state, state.step + int(n_steps))
-        if summed:
-            self._measured = (state, state.step + int(n_steps), self._scratch.sums.copy())
-        if detected:
-            raise blowup_failure(self.system, state.positions, state.entropy, done)
-        return None
-
-    def _heat_record(self, state, h: float, every: int):
-        """The kernels' Heat record: conduction factors for the half sweeps of this h and a
-        cycle of ``every`` steps (τ = k h / 2), logs in the state."""
-        if self._heat is None:
-            return _NO_HEAT
-        return self._heat.record(0.5 * every * h, heat_logs(state, self._heat))
-
-    def closing_sums(self, state) -> dict | None:
-        """See :meth:`Stepper.closing_sums`."""
-        if self._measured is None:
-            return None
-        kept, step, sums = self._measured
-        if kept is not state or step != state.step:
-            return None
-        U, tmin, tmax, K, V, px, py, pz, lx, ly, lz = (float(v) for v in sums)
-        return dict(kinetic=K, internal=U, potential=V, momentum=(px, py, pz), angular_momentum=(lx, ly, lz),
-                    theta_min=tmin, theta_max=tmax)

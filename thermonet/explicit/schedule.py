@@ -1,10 +1,10 @@
 """The schedule of an explicit step: which sub-flow runs, with which coefficient, in which order.
 
 An explicit integrator is a sequence of sub-flows with coefficients (fractions of h): the kicks
-and drifts of a :class:`~thermonet.integrators.splitting.Splitting`, and any number of further
+and drifts of a :class:`~thermonet.explicit.splitting.Splitting`, and any number of further
 :class:`SubFlow` s (up to :data:`MAX_FLOWS` distinct ones) placed between them. :func:`stage_table`
 turns that into the one table every target reads — the CPU kernel
-(:mod:`thermonet.kernels.splitting`) and both CUDA launch modes (:mod:`thermonet.cuda`):
+(:mod:`thermonet.explicit.cpu`) and both CUDA launch modes (:mod:`thermonet.explicit.cuda`):
 
 - a *stage* row ``(−1, k, d)``: a kick of k h fused with the drift of d h that follows it (one
   spring pass and one node pass);
@@ -31,7 +31,10 @@ from ..heat.rows import CONDUCTION_FORWARD, CONDUCTION_REVERSE, THERMAL_WAVES
 #: over a fixed number of slots, so that each stays a compile-time call)
 MAX_FLOWS = 4
 
+#: a stage row: a kick fused with the drift after it
 STAGE = -1
+#: the first sub-flow slot: a row whose code is at least this runs sub-flow slot ``code``
+FIRST_FLOW_SLOT = 0
 # built-in heat-flow rows (docs/theory.md §5–6): CONDUCTION_FORWARD, CONDUCTION_REVERSE (the second
 # half of a symmetric cycle) and THERMAL_WAVES, codes named in thermonet.heat.rows
 

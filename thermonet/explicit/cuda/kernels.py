@@ -1,6 +1,6 @@
 """CUDA kernels of the explicit step's sub-flows and of the diagnostics sums, compiled per model.
 
-A stage of the schedule (:mod:`thermonet.integrators.schedule`) is two launches, each running
+A stage of the schedule (:mod:`thermonet.explicit.schedule`) is two launches, each running
 the sub-flows of :mod:`thermonet.kernels.subflows` (the CPU kernel's own):
 
 1. :func:`_spring_kernel`, one thread per spring e: ``s[e] = T/l`` at x and ``Φ[e] += k h θ``
@@ -39,15 +39,15 @@ import math
 import numpy as np
 from numba import cuda, float64, njit
 
-from ..heat import exchange as heat_exchange
-from ..heat.rows import CONDUCTION_FORWARD, CONDUCTION_REVERSE, THERMAL_WAVES
-from ..integrators.schedule import MAX_FLOWS
-from ..kernels import subflows
-from ..kernels.specialize import MODEL_FUNCTIONS, function_fingerprint, kernel_namespace, model_fingerprint, rebind
-from ..kernels.subflows import bind_subflows
+from ...heat import exchange as heat_exchange
+from ...heat.rows import CONDUCTION_FORWARD, CONDUCTION_REVERSE, THERMAL_WAVES
+from ...kernels import subflows
+from ...kernels.specialize import MODEL_FUNCTIONS, function_fingerprint, kernel_namespace, model_fingerprint, rebind
+from ...kernels.subflows import bind_subflows
+from ..schedule import FIRST_FLOW_SLOT, MAX_FLOWS
 from . import FLAG_ROW, FLAG_SET, FLAG_STAGES, FLAG_STEP, simulator_enabled
 
-# Bound per model by cuda_kernels(); see thermonet.kernels.splitting for their meaning.
+# Bound per model by cuda_kernels(); see thermonet.explicit.cpu for their meaning.
 temperature = tension = internal_energy = free_energy = None
 spring_force = spring_energy = spring_temperature = outside_admissible = advance_thermal_displacement = None
 squared_length = None
@@ -71,7 +71,7 @@ SIMULATOR_THREADS = 32
 #: capped at 64 a thread, so that four blocks fit on a multiprocessor. Unbounded it takes 96 on
 #: an H100 (two blocks each); bounded, the fused launch went from 12.0 to 14.0 G spring-steps/s
 #: at 1e6 springs and from 14.0 to 17.8 at 3e6 (small nets use fewer blocks anyway:
-#: thermonet.cuda.stepper.fused_grid). None: unbounded.
+#: thermonet.explicit.cuda.stepper.fused_grid). None: unbounded.
 FUSED_LAUNCH_BOUNDS = (THREADS, 4)
 #: threads per block of the diagnostics sums, a compile-time constant of their shared-memory trees
 #: (a power of two), and their (grid-stride) blocks
@@ -80,11 +80,13 @@ REDUCE_BLOCKS = 256
 SIMULATOR_REDUCE_THREADS = 4
 SIMULATOR_REDUCE_BLOCKS = 2
 
-#: columns of the spring sums and the operation reducing each: 0 sum, 1 min, 2 max
+#: the reductions of the sums' columns, by name (compile-time constants of the finishing kernel)
+SUM, MIN, MAX = 0, 1, 2
+#: columns of the spring sums and the reduction of each
 SPRING_SUMS = ("internal", "entropy", "theta_min", "theta_max")
-SPRING_OPS = (0, 0, 1, 2)
+SPRING_OPS = (SUM, SUM, MIN, MAX)
 NODE_SUMS = ("kinetic", "potential", "px", "py", "pz", "Lx", "Ly", "Lz")
-NODE_OPS = (0,) * 8
+NODE_OPS = (SUM,) * 8
 
 
 _CACHE: dict = {}
@@ -110,8 +112,8 @@ def cuda_kernels(model, thermal: bool = True, uniform: bool = False, flows=(), c
                  waves: bool = False, loads: bool = False) -> CudaKernels:
     """The CUDA kernels for ``model`` (purely mechanical when not ``thermal``; parameters shared
     by all springs, a ``(k, 1)`` array, when ``uniform``: see
-    :func:`thermonet.kernels.splitting.kernel_parameters`), with the extra sub-flows ``flows``
-    (:class:`~thermonet.integrators.schedule.SubFlow` s, slot order) and the heat-flow rows it
+    :func:`thermonet.kernels.specialize.kernel_parameters`), with the extra sub-flows ``flows``
+    (:class:`~thermonet.explicit.schedule.SubFlow` s, slot order) and the heat-flow rows it
     may meet compiled in (``conduction``, ``waves``: :mod:`thermonet.heat.cuda`); with ``loads``
     the node kernel adds the loads' forces and ``load_start`` / ``load_stage`` run the loads' own
     passes (two launches per stage only: the fused ``steps`` kernel is not compiled with them)."""
@@ -133,7 +135,7 @@ def cuda_kernels(model, thermal: bool = True, uniform: bool = False, flows=(), c
         # --- heat flow ---
         ns["CONDUCTION"], ns["WAVES"] = bool(conduction), bool(waves)
         if conduction or waves:
-            from ..heat import cuda as heat
+            from ...heat import cuda as heat
 
             tag += f"_{'k' * conduction}{'w' * waves}{heat_exchange.source_digest()}{heat.source_digest()}"
             heat.bind_device_heat(ns, tag, inline)
@@ -143,7 +145,7 @@ def cuda_kernels(model, thermal: bool = True, uniform: bool = False, flows=(), c
         # --- end heat flow ---
         ns["LOADS"] = bool(loads)
         if loads:
-            from ..loads.cuda import bind_device_loads
+            from ...loads.cuda import bind_device_loads
 
             tag += bind_device_loads(ns, tag, inline, sim)
         for slot in range(MAX_FLOWS):
@@ -168,7 +170,7 @@ def cuda_kernels(model, thermal: bool = True, uniform: bool = False, flows=(), c
         if conduction or waves:  # heat flow
             kernels.sweep, kernels.temperature = heat.heat_kernels(compile_)  # (thermonet.heat.cuda)
         if loads:  # loads
-            from ..loads.cuda import load_stage_kernel, load_start_kernel
+            from ...loads.cuda import load_stage_kernel, load_start_kernel
 
             kernels.load_start, kernels.load_stage = compile_(load_start_kernel), compile_(load_stage_kernel)
         _CACHE[key] = kernels
@@ -249,7 +251,7 @@ def _flow_kernel(data, tau, t, x, p, phi, eta, flag):
 def _steps_kernel(state, x_buf, s, topology, springs, nodes, table, flows, run, flag):
     """``run.n_steps`` whole steps in one cooperative launch: every row of the schedule ``table``
     over grid-stride loops, separated by grid-wide barriers, in the order and with the
-    coefficients of :meth:`~thermonet.cuda.stepper.CudaSplittingStepper.advance`'s two-launch
+    coefficients of :meth:`~thermonet.explicit.cuda.stepper.CudaSplittingStepper.advance`'s two-launch
     path (the same per-spring and per-node updates, so the same numbers), and the call's closing
     kick. Positions alternate between ``state.x`` and ``x_buf`` stage by stage; the caller counts
     the stages to know which holds the result. A spring outside the admissible states stops the
@@ -278,7 +280,7 @@ def _steps_kernel(state, x_buf, s, topology, springs, nodes, table, flows, run, 
             xn = x_buf if parity == 0 else x
             if step < run.n_steps:
                 code = table.code[r]
-                if code >= 0:
+                if code >= FIRST_FLOW_SLOT:
                     tau = table.kick[r] * h
                     t = run.t0 + (step + table.drift[r]) * h
                     _flow_grid(code, effects, tau, t, xs, p, phi, eta, first, stride)
@@ -475,7 +477,7 @@ def _node_sums_kernel(x, p, masses, anchored, ref, gravity, partial):
 
 
 def _finish_kernel(partial, ops, out):
-    """One block: out[q] = the reduction ops[q] (0 sum, 1 min, 2 max) of partial[:, q].
+    """One block: out[q] = the reduction ops[q] (SUM, MIN or MAX) of partial[:, q].
 
     partial: (blocks, Q); ops: (Q,) int32, Q ≤ 8; out: (Q,).
     """
@@ -484,7 +486,7 @@ def _finish_kernel(partial, ops, out):
     n_q = ops.shape[0]
     for q in range(n_q):
         op = ops[q]
-        v = 0.0 if op == 0 else (math.inf if op == 1 else -math.inf)
+        v = 0.0 if op == SUM else (math.inf if op == MIN else -math.inf)
         for i in range(t, partial.shape[0], REDUCE_THREADS):
             v = _combine(op, v, partial[i, q])
         sh[q, t] = v
@@ -503,10 +505,10 @@ def _finish_kernel(partial, ops, out):
 
 @njit(inline="always")
 def _combine(op, a, b):
-    """a and b reduced by op: 0 sum, 1 min, 2 max."""
-    if op == 0:
+    """a and b reduced by op: SUM, MIN or MAX."""
+    if op == SUM:
         return a + b
-    return min(a, b) if op == 1 else max(a, b)
+    return min(a, b) if op == MIN else max(a, b)
 
 
 #: device functions the kernels share, bound per model before the kernels (callers after callees)
@@ -522,7 +524,7 @@ def compile_ptx(model, thermal: bool = True, uniform: bool = False, cc=(9, 0)) -
     present (the ``gpu`` tests compile and run it); it runs the same inlined updates."""
     from numba import typeof
 
-    from ..kernels import records
+    from ...kernels import records
 
     ns = kernel_namespace(model, thermal, uniform)
     ns["REDUCE_THREADS"] = REDUCE_THREADS

@@ -2,12 +2,12 @@
 
 Every explicit integrator of thermonet is a sequence ``K(k0) D(d0) K(k1) … D(d_{S−1}) K(k_S)``
 of sub-flows with coefficients (fractions of h), possibly with further sub-flows between them,
-given to the kernel as the rows of a :class:`~thermonet.integrators.schedule.StageTable`:
+given to the kernel as the rows of a :class:`~thermonet.explicit.schedule.StageTable`:
 
 - kick ``K(k)``: at the current positions x, per spring θ = θ(l, η) and T = T(l, θ);
   ``p += k h f(x, θ)`` and ``Φ += k h θ`` (entropy η is untouched, so it is conserved exactly);
 - drift ``D(d)``: ``x += d h M⁻¹ p``;
-- a flow row: an extra :class:`~thermonet.integrators.schedule.SubFlow`, one parallel pass over
+- a flow row: an extra :class:`~thermonet.explicit.schedule.SubFlow`, one parallel pass over
   its elements.
 
 What each sub-flow does to one spring or node is :mod:`thermonet.kernels.subflows` (shared with
@@ -63,13 +63,17 @@ from numba import njit, prange
 
 from ..heat.passes import (CONTINUE, DEFER_FINISH, FORWARD, REVERSE, SAVE, bind_heat_flow, bind_heat_passes,
                            conduction_boundary, deferred_kick, source_digest as heat_source_digest)
-from ..loads.elements import bind_loads
-from . import subflows
-from .subflows import bind_subflows
 from ..heat.rows import THERMAL_WAVES
-from .schedule_passes import (_apply_flow, _copy_rows, _copy_values, _flow_pass, _no_flow, _stopped, _thermal_kick,
-                              store_sums)
-from .specialize import function_fingerprint, kernel_namespace, model_fingerprint, rebind, specialize
+from ..kernels import subflows
+from ..kernels.blocks import BLOCK, squared_lengths
+from ..kernels.reductions import node_diagnostic_terms
+from ..kernels.schedule_passes import _copy_rows, _copy_values
+from ..kernels.specialize import function_fingerprint, kernel_namespace, model_fingerprint, rebind, specialize
+from ..kernels.subflows import bind_subflows
+from ..loads.elements import bind_loads
+from .codes import FORCE_DEFERRED, FORCE_GATHER, FORCE_GATHER_KEEP, FORCE_KEPT
+from .passes import _apply_flow, _flow_pass, _no_flow, _stopped, _thermal_kick, store_sums
+from .schedule import FIRST_FLOW_SLOT
 
 # Bound per kernel variant by splitting_kernels(); listed so the templates read as ordinary code.
 # THERMAL, CLOSING, REFERENCE_TEMPERATURE and UNIFORM are compile-time constants: with THERMAL
@@ -93,28 +97,10 @@ CLOSING = False
 REFERENCE_TEMPERATURE = 0
 UNIFORM = False
 
-#: springs per block of the spring pass: small enough that a block of s, η, l0, Φ stays in L1
-BLOCK = 512
-
 _CACHE: dict = {}
 _PASSES: dict = {}  # each variant's namespace: its passes, for thermonet.parallel's stage driver
 
 _OPTIONS = dict(cache=True, error_model="numpy", boundscheck=False, _nrt=False)  # specialize(): no reference counting
-
-_squared_length = njit(inline="always", error_model="numpy", boundscheck=False)(subflows.squared_length)
-
-
-def kernel_parameters(P: np.ndarray) -> tuple[np.ndarray, bool]:
-    """The parameter array the kernels should read, and whether it is shared by all springs.
-
-    P: (k, m) per-spring parameters. Returns ``(P[:, :1] copy, True)`` when every row is
-    constant, else ``(P, False)``; pass the flag to :func:`splitting_kernels` as ``uniform``.
-    """
-    P = np.ascontiguousarray(P, dtype=np.float64)
-    if P.shape[1] > 0 and bool(np.all(P == P[:, :1])):
-        return np.ascontiguousarray(P[:, :1]), True
-    return P, False
-
 
 def splitting_kernels(model, parallel: bool, thermal: bool = True, uniform: bool = False, flows=(),
                       conduction: bool = False, waves: bool = False, loads: bool = False):
@@ -122,7 +108,7 @@ def splitting_kernels(model, parallel: bool, thermal: bool = True, uniform: bool
     ``model`` (multi-threaded when ``parallel``; purely mechanical when not ``thermal``, in which
     case ``phi`` and ``eta`` may be empty arrays; for a ``(k, 1)`` parameter array shared by all
     springs when ``uniform``, see :func:`kernel_parameters`) with the extra sub-flows ``flows``
-    (:class:`~thermonet.integrators.schedule.SubFlow` s, slot order) in its flow slots, the
+    (:class:`~thermonet.explicit.schedule.SubFlow` s, slot order) in its flow slots, the
     heat-flow rows it may meet compiled in (``conduction``, ``waves``; both need ``thermal``), and
     with ``loads`` the node pass and the step read a :class:`~thermonet.loads.arrays.LoadArrays`
     (the ``loads`` argument; otherwise a placeholder, and the loads' code is compiled out)."""
@@ -172,27 +158,6 @@ def splitting_kernels(model, parallel: bool, thermal: bool = True, uniform: bool
         _CACHE[key] = specialize(_advance, tag, ns, **_OPTIONS)
         _PASSES[key] = ns
     return _CACHE[key]
-
-
-@njit(inline="always", error_model="numpy", boundscheck=False)
-def squared_lengths(x, edges, lo, n, out, base):
-    """out[base + i] = |x_b − x_a|² of springs lo … lo + n − 1: the gather half of a blocked
-    spring pass (kept apart from the arithmetic so that the arithmetic loop vectorizes).
-    edges: (m, 2) uint32."""
-    for i in range(n):
-        out[base + i] = _squared_length(x, edges, np.uint64(lo + i))
-
-
-@njit(inline="always", error_model="numpy", boundscheck=False)
-def node_diagnostic_terms(x0, x1, x2, p0, p1, p2, mass, gravity, ref):
-    """One free node's terms of a diagnostics row: kinetic energy, gravity potential −m g·x, p,
-    and (x − ref) × p (shared by the fused closing kick and the stand-alone reduction)."""
-    r0 = x0 - ref[0]
-    r1 = x1 - ref[1]
-    r2 = x2 - ref[2]
-    return (0.5 * (p0 * p0 + p1 * p1 + p2 * p2) / mass,
-            -(mass * (gravity[0] * x0 + gravity[1] * x1 + gravity[2] * x2)),
-            r1 * p2 - r2 * p1, r2 * p0 - r0 * p2, r0 * p1 - r1 * p0)
 
 
 def _spring_pass(x, eta, phi, topology, springs, scratch, steps, run, keep, length):
@@ -267,10 +232,11 @@ def _node_pass(x, x_new, p, topology, nodes, scratch, steps, force_source, want_
     """Per node a: f = Σ s_e (x_b − x_a) (+ m g); p += kick1 f; p += kick2 f; x_new = x + drift p/m,
     with steps = (kick1, kick2, drift, with_force) (fractions of h already multiplied by h).
 
-    x, x_new, p: (n, 3). force_source: 0 gather f; 1 gather f and keep it in f_keep (n, 3) (a
-    call's closing kick, whose drift is 0: x_new is then not written, the positions stay in
-    x); 2 take f from f_keep; 3 (CONDUCTION) kick1 with the forces of s_before (m,) (a kick
-    deferred past the conduction sweeps, which do not touch p), kick2 with those of s.
+    x, x_new, p: (n, 3). force_source (:mod:`thermonet.explicit.codes`): FORCE_GATHER gather f;
+    FORCE_GATHER_KEEP gather f and keep it in f_keep (n, 3) (a call's closing kick, whose drift is
+    0: x_new is then not written, the positions stay in x); FORCE_KEPT take f from f_keep;
+    FORCE_DEFERRED (CONDUCTION) kick1 with the forces of s_before (m,) (a kick deferred past the
+    conduction sweeps, which do not touch p), kick2 with those of s.
     inputs = (s_before, loads): with LOADS, the node's force load (a
     :class:`~thermonet.loads.arrays.LoadArrays`) is added to f and its driven axes zeroed
     (:func:`thermonet.loads.elements.node_load`). Returns, with ``want_sums`` (CLOSING only), the
@@ -297,7 +263,7 @@ def _node_pass(x, x_new, p, topology, nodes, scratch, steps, force_source, want_
         node_drive = loads.node_drive
         load_value = loads.value
         load_free = loads.free
-    move = not (CLOSING and force_source == 1)
+    move = not (CLOSING and force_source == FORCE_GATHER_KEEP)
     sums = CLOSING and want_sums
     kinetic = 0.0
     potential = 0.0
@@ -316,7 +282,7 @@ def _node_pass(x, x_new, p, topology, nodes, scratch, steps, force_source, want_
         p0, p1, p2 = load_row(p, a)
         deferred = False
         if CONDUCTION:
-            deferred = force_source == 3
+            deferred = force_source == FORCE_DEFERRED
         if deferred:  # not CLOSING: no sums, no keep
             if kick2 != 0.0:
                 f0, f1, f2, g0, g1, g2 = gather_two_forces(a, x, s_before, s, inc_ptr, inc_spring, inc_other, masses,
@@ -334,13 +300,13 @@ def _node_pass(x, x_new, p, topology, nodes, scratch, steps, force_source, want_
                 p0, p1, p2 = kick_momentum(p0, p1, p2, g0, g1, g2, 0.0, kick2)
             store_row(p, a, p0, p1, p2)
         elif with_force:
-            if CLOSING and force_source == 2:
+            if CLOSING and force_source == FORCE_KEPT:
                 f0, f1, f2 = load_row(f_keep, a)
             else:
                 f0, f1, f2 = gather_force(a, x, s, inc_ptr, inc_spring, inc_other, masses, gravity, with_gravity)
                 if LOADS:
                     f0, f1, f2 = node_load(a, f0, f1, f2, node_force, node_weight, node_drive, load_value, load_free)
-                if CLOSING and force_source == 1:
+                if CLOSING and force_source == FORCE_GATHER_KEEP:
                     store_row(f_keep, a, f0, f1, f2)
             p0, p1, p2 = kick_momentum(p0, p1, p2, f0, f1, f2, kick1, kick2)
             store_row(p, a, p0, p1, p2)
@@ -361,7 +327,7 @@ def _node_pass(x, x_new, p, topology, nodes, scratch, steps, force_source, want_
 
 def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run, loads):
     """Advance ``state`` (x, p, Φ in place; η too where a sub-flow changes it) by ``run.n_steps``
-    steps of the schedule ``table`` (a :class:`~thermonet.integrators.schedule.StageTable`).
+    steps of the schedule ``table`` (a :class:`~thermonet.explicit.schedule.StageTable`).
 
     The closing kick's forces and temperatures are kept in f_keep and theta_keep; with
     ``run.reuse_boundary`` the first kick takes them from there instead of evaluating them (the
@@ -409,7 +375,7 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run
     resume_sweep = False  # the previous call ended with a reverse half sweep: continue its update
     # a sweep inside the call leaves its entropy update to the spring pass of the kick that row 0
     # starts with (one pass over the springs instead of two): ``unfinished`` until then
-    defer = DEFER_FINISH if THERMAL_WAVES < codes[0] < 0 and table.kick[0] != 0.0 else 0
+    defer = DEFER_FINISH if THERMAL_WAVES < codes[0] < FIRST_FLOW_SLOT and table.kick[0] != 0.0 else 0
     unfinished = False
     if CONDUCTION and heat.theta_ok[0] >= 1.0:  # continue the previous call's sweeps
         _copy_values(heat.theta, scratch.theta_keep)
@@ -434,7 +400,7 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run
             unfinished = defer != 0
             swept_first = swept_first or step == 0
         for r in range(n_rows):
-            if codes[r] >= 0:
+            if codes[r] >= FIRST_FLOW_SLOT:
                 if CONDUCTION and deferred != 0.0:  # a sub-flow may read p: apply the kick first
                     _deferred_kick(cur, nxt, p, topology, nodes, scratch, heat, loads, (deferred * h, deferred_time),
                                    False)
@@ -480,15 +446,16 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run
             elif LOADS and deferred != 0.0:
                 cpu_evaluate_loads(loads, deferred_time)
             if reuse:
-                boundary_node_pass(cur, nxt, p, topology, nodes, scratch, steps, 2, False, (heat.s_before, loads))
+                boundary_node_pass(cur, nxt, p, topology, nodes, scratch, steps, FORCE_KEPT, False,
+                                   (heat.s_before, loads))
             elif CONDUCTION and deferred != 0.0:
-                node_pass(cur, nxt, p, topology, nodes, scratch, (deferred * h, k2 * h, table.drift[r] * h, True), 3,
-                          False, (heat.s_before, loads))
+                node_pass(cur, nxt, p, topology, nodes, scratch, (deferred * h, k2 * h, table.drift[r] * h, True),
+                          FORCE_DEFERRED, False, (heat.s_before, loads))
                 if LOADS:
                     cpu_load_work(cur, heat.s_before, topology, nodes, loads, 0.0, deferred * h)
                 deferred = 0.0
             else:
-                node_pass(cur, nxt, p, topology, nodes, scratch, steps, 0, False, (heat.s_before, loads))
+                node_pass(cur, nxt, p, topology, nodes, scratch, steps, FORCE_GATHER, False, (heat.s_before, loads))
             if LOADS and with_force:
                 cpu_load_work(cur, scratch.s, topology, nodes, loads, k1 * h, k2 * h)
             cur, nxt = nxt, cur
@@ -529,8 +496,8 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run
         # drift 0: the positions stay in cur
         if LOADS:
             cpu_evaluate_loads(loads, stage_time(loads, h, n_steps, 0.0))
-        node_sums = boundary_node_pass(cur, nxt, p, topology, nodes, scratch, (0.0, pending * h, 0.0, True), 1,
-                                       run.want_sums, (heat.s_before, loads))
+        node_sums = boundary_node_pass(cur, nxt, p, topology, nodes, scratch, (0.0, pending * h, 0.0, True),
+                                       FORCE_GATHER_KEEP, run.want_sums, (heat.s_before, loads))
         if LOADS:
             cpu_load_work(cur, scratch.s, topology, nodes, loads, 0.0, pending * h)
         if run.want_sums:
