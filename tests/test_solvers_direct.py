@@ -10,7 +10,7 @@ import thermonet.solvers.direct as direct
 import thermonet.solvers.pattern as pattern_module
 from thermonet.solvers import BlockPattern
 from thermonet.solvers.direct import ReusedLU, SparseLU
-from thermonet.solvers.newton import FLOOR_STALL_FACTOR, _floor_stall
+from thermonet.implicit.core.newton import FLOOR_STALL_FACTOR, _floor_stall
 
 
 def lattice_pattern(cells=4, block=3):

@@ -3,9 +3,9 @@
 from .base import (Integrator, Stepper, StepFailure, available_integrators, explicit_integrators, get_integrator,
                    register_integrator)
 from .splitting import BM4, BM6, BM6A, CO2, CO4, CO6, F10, GTR0, GTR1, NM2, OMF4, Splitting, compose
-from .gtr_alpha import GTR_HALF, GTRAlpha
-from .ho4 import HO4, HO4_INTEGRATOR
-from .em2 import EM2, EM2_INTEGRATOR
+from ..implicit.gtr_alpha.stepper import GTR_HALF, GTRAlpha
+from ..implicit.ho4.stepper import HO4, HO4_INTEGRATOR
+from ..implicit.em2.stepper import EM2, EM2_INTEGRATOR
 
 __all__ = [
     "Integrator", "Stepper", "StepFailure", "Splitting", "compose", "get_integrator", "register_integrator",

@@ -1,6 +1,6 @@
 """The compiled Newton path of an implicit stepper: whole steps, many per call, in one compiled
-driver (:mod:`thermonet.kernels.newton_compiled`); and the choice between it and the sparse path
-(:func:`thermonet.solvers.newton.newton`, one Python call per kernel, SuperLU, GMRES or
+driver (:mod:`thermonet.implicit.core.compiled_newton`); and the choice between it and the sparse path
+(:func:`thermonet.implicit.core.newton.newton`, one Python call per kernel, SuperLU, GMRES or
 matrix-free sweeps).
 
 ``newton_path`` (a stepper option): "compiled", "compiled-dense", "sparse", or "auto" (default):
@@ -28,13 +28,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import InputError
-from ..kernels.implicit_records import NextState, Residuals, plain
-from ..kernels.newton_compiled import NO_CONVERGENCE, REASONS, STALLED, newton_steps_kernel
-from ..solvers import NewtonResult
-from ..solvers.matrix_free import MatrixFree
-from ..solvers.newton import (JACOBI_MAX_STEPS, JACOBI_RANGE, LINEAR_FRACTION, LOCAL_FRACTION, LOCAL_MAX_ROUNDS,
-                              LOCAL_STALL)
+from ...errors import InputError
+from .records import NextState, Residuals, plain
+from .compiled_newton import NO_CONVERGENCE, REASONS, STALLED, newton_steps_kernel
+from ...solvers.matrix_free import MatrixFree
+from .newton import (NewtonResult, JACOBI_MAX_STEPS, JACOBI_RANGE, LINEAR_FRACTION, LOCAL_FRACTION, LOCAL_MAX_ROUNDS,
+                     LOCAL_STALL)
 
 #: a scheme without matrix-free sweeps takes the compiled path (dense LU) up to this many
 #: unknowns (B per free node); the LU's size³/3 multiply-adds cost more than SuperLU above

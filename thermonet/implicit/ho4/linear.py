@@ -1,7 +1,7 @@
 """HO4's Newton matrix (docs/theory.md §2.2) at the last residual's point: its values in the assembled CSR
 matrix, its per-spring coefficients and the matrix-free sweep built on them (see
 :mod:`.gtr_alpha` for the sweep's idea), and the Jacobi step on a few nodes' rows (local steps).
-Numba templates, compiled by :func:`thermonet.kernels.ho4.build`.
+Numba templates, compiled by :func:`thermonet.implicit.ho4.kernels.build`.
 
 Spring e's block (rows R1, R2; columns d^½, d¹), with signs s_c s_g (s_a = +1, s_b = −1):
   ∂R1/∂x^σ = h/6 F_lθ(l⁰, θ⁰) dθ⁰/dl^σ n⁰ n^σᵀ
@@ -15,8 +15,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from .implicit_common import BLOCK, OPTIONS, UNIFORM, scatter_spring_block
-from .specialize import specialize
+from ..core.schemes import BLOCK, OPTIONS, UNIFORM, scatter_spring_block
+from ...kernels.specialize import specialize
 
 # Bound per model by specialize(); listed so the templates read as ordinary code.
 tension = d2F_dl2 = d2F_dl_dtheta = ho4_temperature_derivatives = None

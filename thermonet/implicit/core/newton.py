@@ -12,8 +12,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import InputError
-from .linear import LINEAR_SOLVERS
+from ...errors import InputError
+from ...solvers.linear import LINEAR_SOLVERS
 
 
 @dataclass(frozen=True)
@@ -34,10 +34,10 @@ class NewtonOptions:
         block-Jacobi preconditioner, relative tolerance 1e-10 per solve), or "auto" (default:
         splu up to DIRECT_MAX_UNKNOWNS unknowns, matfree above; see benchmarks/README.md).
     newton_path: "compiled" (whole steps, many per call, in one compiled driver:
-        thermonet.kernels.newton_compiled; matrix-free sweeps), "compiled-dense" (the same with a
+        thermonet.implicit.core.compiled_newton; matrix-free sweeps), "compiled-dense" (the same with a
         dense LU), "sparse" (this module's iteration with ``linear_solver``), or "auto" (default:
         compiled where the scheme offers it and linear_solver is "auto"; see
-        thermonet.integrators.compiled_path).
+        thermonet.implicit.core.compiled_path).
     """
 
     tolerance: float = 1e-12

@@ -7,7 +7,7 @@ The driver template :func:`_newton_steps` calls four kernels by global name, bou
 and model by :func:`newton_steps_kernel`:
 
     scheme_start(step, topo, spring, node, start, coef, u) -> (status, spring)
-        the start kernel of :mod:`.implicit_common` (predictor into u)
+        the start kernel of :mod:`thermonet.implicit.core.schemes` (predictor into u)
     scheme_residual(step, topo, spring, node, work, extra, u, warm, res) -> (status, spring, max |R|, max Rabs)
     scheme_jacobian(topo, spring, node, work, places, extra, h, data)       CSR values into data
     scheme_finish(step, topo, spring, node, work, extra, u, phi, new) -> (status, spring)
@@ -16,7 +16,7 @@ and, where the scheme has them (else no-ops), ``scheme_predict(step, topo, sprin
 extra, u)``, the scheme's own predictor from the start kernel's output in u (in place),
 ``scheme_local(step, topo, spring, node, work, extra, u, res, warm, threshold) -> (done,
 status, spring, max |R|, max Rabs, max |change of u|)``, a local Jacobi step (HO4:
-:func:`.local_update._local_jacobi`; not done where too many nodes are above the threshold), and
+:func:`thermonet.implicit.core.local_jacobi._local_jacobi`; not done where too many nodes are above the threshold), and
 ``scheme_damp(step, topo, spring, node, work, extra, res, (max |R|, max Rabs), (u, du,
 trial)) -> (evaluated, max |R|, max Rabs)``, which shortens a full iteration's correction du in
 place (a damped Newton step; ``res``, the work record and ``trial`` may be overwritten). When it
@@ -28,12 +28,12 @@ empty index lists), made once by the stepper (``ImplicitStepper.compiled_extra``
 offers the compiled path by returning ``compiled_residual``, ``compiled_jacobian`` and
 ``compiled_finish`` (these signatures, serial) from its ``build``.
 
-The iteration is :func:`thermonet.solvers.newton.newton`'s with a direct solver, test for test
+The iteration is :func:`thermonet.implicit.core.newton.newton`'s with a direct solver, test for test
 (scaled residual ≤ tolerance; or a correction at the round-off floor with the scaled residual ≤
 1e3 tolerance; at most ``max_iterations`` linear solves), so both paths converge to the same
 solution within the tolerance. The matrix is the scheme's CSR values scattered into a dense
 (size, size) array, whose LU costs ~ size³/3 multiply-adds: the path pays only for a few
-hundred unknowns (the automatic choice, ``integrators/compiled_path.py``).
+hundred unknowns (the automatic choice, ``implicit/core/compiled_path.py``).
 """
 
 from __future__ import annotations
@@ -43,9 +43,9 @@ import math
 import numpy as np
 from numba import njit
 
-from .implicit_common import INLINE, OPTIONS
-from .schedule_passes import _copy_rows as _copy_rows_template, _copy_values
-from .specialize import function_fingerprint, model_fingerprint, specialize
+from .schemes import INLINE, OPTIONS
+from ...kernels.schedule_passes import _copy_rows as _copy_rows_template, _copy_values
+from ...kernels.specialize import function_fingerprint, model_fingerprint, specialize
 
 # Bound per scheme and model by newton_steps_kernel(); listed so the template reads as ordinary code.
 scheme_start = scheme_residual = scheme_jacobian = scheme_finish = scheme_linearize = scheme_sweep = None
@@ -53,7 +53,7 @@ scheme_predict = scheme_damp = scheme_local = None
 #: the linear solves: inertia-preconditioned matrix-free sweeps (True) or dense LU (False)
 SWEEPS = False
 
-#: why a step failed (``info[1]``), as the Python path words it (ImplicitStepper, solvers.newton)
+#: why a step failed (``info[1]``), as the Python path words it (ImplicitStepper, core.newton)
 CONVERGED, START, NON_PHYSICAL, NOT_FINITE_RESIDUAL, NO_CONVERGENCE, NOT_FINITE_CORRECTION, FINISH, STALLED = range(8)
 REASONS = {
     START: "invalid state at the start of the step",
@@ -216,7 +216,7 @@ def _max_abs(x):
 
 @njit(cache=True, inline="always")
 def _jacobi_pays(rho, contraction, tolerance, jacobi):
-    """solvers.newton._jacobi_pays; jacobi: (JACOBI_RANGE, JACOBI_MAX_STEPS)."""
+    """core.newton._jacobi_pays; jacobi: (JACOBI_RANGE, JACOBI_MAX_STEPS)."""
     return (rho <= jacobi[0] * tolerance and contraction < 1.0
             and rho * contraction ** jacobi[1] <= tolerance)
 
@@ -243,7 +243,7 @@ def _newton_steps(state, records, extra, linear, control, out):
     Returns the number of steps committed (< n_steps: step info[0] failed, the state is at it).
 
     With SWEEPS the linear solves are inertia-preconditioned sweeps and a full iteration may be
-    followed by Jacobi steps, as in solvers.newton with the matrix-free solver (local ones
+    followed by Jacobi steps, as in core.newton with the matrix-free solver (local ones
     where the scheme has them, test for test); sweeps that stall end the call with reason
     STALLED. jacobi: (JACOBI_RANGE, JACOBI_MAX_STEPS, LOCAL_FRACTION, LOCAL_STALL,
     LOCAL_MAX_ROUNDS).
