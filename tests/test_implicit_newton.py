@@ -237,7 +237,7 @@ def test_a_residual_near_the_tolerance_is_finished_by_jacobi_steps(monkeypatch):
     """On the benchmark-like lattice most HO4 steps end one Newton iteration at 1–1000× the
     tolerance; inertia-preconditioned corrections then bring them below it. Same states as
     full Newton iterations, to the tolerance's size, with fewer sweeps."""
-    import thermonet.implicit.core.newton as newton_module
+    import thermonet.implicit.core.newton_policy as policy
 
     def lattice_run():
         net = tn.lattice((10, 10, 10), jitter=0.1, seed=1)
@@ -250,7 +250,7 @@ def test_a_residual_near_the_tolerance_is_finished_by_jacobi_steps(monkeypatch):
         return sim
 
     short = lattice_run()
-    monkeypatch.setattr(newton_module, "JACOBI_RANGE", 0.0)
+    monkeypatch.setattr(policy, "JACOBI_RANGE", 0.0)
     full = lattice_run()
     assert short.stepper.timers.jacobi_steps >= 3 and full.stepper.timers.jacobi_steps == 0
     for sim in (short, full):
