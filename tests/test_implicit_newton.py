@@ -335,9 +335,9 @@ def test_uniform_parameter_kernels_give_the_per_spring_kernels_numbers(integrato
                         momenta=rng.normal(0.0, 1.0, (net.n_nodes, 3)), integrator=integrator, h=0.01,
                         integrator_options=dict(linear_solver="matfree"))
     st, s = sim.stepper, sim._state
-    assert st.springs.parameters.shape[1] == 1
+    assert st.springs.P.shape[1] == 1
     outputs = []
-    for kernels, P in ((st.kernels, st.springs.parameters),
+    for kernels, P in ((st.kernels, st.springs.P),
                        (implicit_kernels(sim.model, st.scheme, sim.parallel, False, st.rate), sim.system.parameters)):
         st.kernels, st.springs = kernels, st.springs._replace(parameters=P)
         st.begin(s.positions, s.momenta, s.entropy, sim.h)

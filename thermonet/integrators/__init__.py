@@ -1,4 +1,6 @@
-"""Time integrators, registered by name. Each declares its ``order`` and whether it is explicit."""
+"""Time integrators, registered by name. Each declares its ``order`` and whether it is explicit.
+The implicit schemes live in :mod:`thermonet.implicit` (a folder each); they are registered here
+with the explicit ones."""
 
 from .base import (Integrator, Stepper, StepFailure, available_integrators, explicit_integrators, get_integrator,
                    register_integrator)

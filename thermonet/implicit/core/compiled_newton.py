@@ -279,7 +279,7 @@ def _newton_steps(state, records, extra, linear, control, out):
     records: (topo, spring, node, work, places) as plain tuples.
     linear: (indptr, indices, data (nnz,), A (size, size), piv (size,) int64, du (size,),
         r (size,), u (size,), res (R, Rabs, peak: Rabs and peak may be empty, the residual
-        kernels then skip them), new (NextState buffers)); with SWEEPS data,
+        kernels then skip them), new (StateArrays buffers)); with SWEEPS data,
         A and piv are not read (may be empty); r is scratch (the damping's trial point).
     control: :class:`Control`.
     out: :class:`DriverOut`; for a failed step info = (step, reason, status, spring, length of

@@ -29,7 +29,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...errors import InputError
-from .records import NextState, Residuals, plain
+from ...kernels.records import StateArrays
+from .records import Residuals, plain
 from .compiled_newton import NO_CONVERGENCE, REASONS, STALLED, Control, DriverOut, SweepLimits, newton_steps_kernel
 from ...solvers.matrix_free import MatrixFree
 from . import newton_policy as policy
@@ -155,7 +156,7 @@ class CompiledNewton:
                                           sweeps, stepper.kernels_parallel)
         n, m = system.n_nodes, system.n_springs
         self.stepper = stepper
-        self._new = NextState(np.empty((n, 3)), np.empty((n, 3)), np.empty(m), np.empty(m))
+        self._new = StateArrays(np.empty((n, 3)), np.empty((n, 3)), np.empty(m), np.empty(m))
         self._linear = None
         dense = 0 if sweeps else size
         self._buffers = (pattern.indptr, pattern.indices, np.zeros(pattern.nnz if dense else 0),
@@ -217,4 +218,4 @@ class CompiledNewton:
         done, iterations, finals, failure = self.run(xs, ps, phis, etas, h, 1)
         if failure is not None:
             return None, failure
-        return (NextState(xs, ps, phis, etas), NewtonResult(True, int(iterations[0]), [float(finals[0])])), None
+        return (StateArrays(xs, ps, phis, etas), NewtonResult(True, int(iterations[0]), [float(finals[0])])), None

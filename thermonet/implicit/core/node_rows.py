@@ -43,7 +43,7 @@ def residual_rows3(step, topo, node, fs, u, gc, R, Rabs, block):
     tuple within a prange body were written to a copy.)"""
     x0, p, eta, h = step
     edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
-    masses, inv_mass, gravity, with_gravity = node
+    masses, inv_mass, anchored, gravity, with_gravity, reference = node
     rmax = 0.0
     smax = 0.0
     magnitudes = Rabs.shape[0] > 0
@@ -98,7 +98,7 @@ def sweep_rows3(topo, node, h, w, du, R, r, block, update, first):
     written); ``first``: du is taken as zero (not read; w neither). Returns max |r| over the
     block's rows (0 without free nodes)."""
     edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
-    masses, inv_mass, gravity, with_gravity = node
+    masses, inv_mass, anchored, gravity, with_gravity, reference = node
     rmax = 0.0
     for a in range(block * NODE_BLOCK, min((block + 1) * NODE_BLOCK, free_index.shape[0])):
         k = free_index[a]

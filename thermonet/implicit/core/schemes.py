@@ -263,12 +263,12 @@ def scatter_spring_block(data, places, e, B, b):
 
 
 def _finish_nodes(step, topo, node, fs, u, stride, offset, new):
-    """The nodes' part of every finish kernel, into ``new`` (NextState): x¹ = x⁰ + u[stride k +
+    """The nodes' part of every finish kernel, into ``new`` (StateArrays): x¹ = x⁰ + u[stride k +
     offset + i] for free node k, p¹ = p⁰ (+ h m g) − Σ± fs over the incident springs (fs: the
     per-spring impulses of the step, (≥ 3, m)). Returns (status, −1)."""
     x0, p, eta, h = step
     edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
-    masses, inv_mass, gravity, with_gravity = node
+    masses, inv_mass, anchored, gravity, with_gravity, reference = node
     x_new, p_new, phi_new, eta_new = new
     n = x0.shape[0]
     bad_node = n

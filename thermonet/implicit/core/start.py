@@ -72,7 +72,7 @@ def _start(step, topo, spring, node, work, coef, pred):
     x0, p, eta, h = step
     edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
     l0, P = spring
-    masses, inv_mass, gravity, with_gravity = node
+    masses, inv_mass, anchored, gravity, with_gravity, reference = node
     len0, dir0, keep, fs, ws, sweep, nodal, guess, code = work
     m = edges.shape[0]
     bad = m

@@ -20,8 +20,8 @@ import numpy as np
 
 from ...errors import InputError
 from .schemes import KEEP_ROWS, STATUS_TEXT, implicit_kernels
-from .records import (BlockPlaces, NextState, NodeData, Residuals, SpringParameters, StartWork,
-                      StepStart, Topology, plain)
+from ...kernels.records import Springs, StateArrays, nodes as node_record
+from .records import BlockPlaces, BlockTopology, Residuals, StartWork, StepStart, plain
 from ...solvers import BlockPattern, make_linear_solver
 from .newton import NewtonOptions, NewtonResult, NewtonTimers, newton
 from ...integrators.base import Stepper, StepFailure
@@ -114,13 +114,12 @@ class ImplicitStepper(Stepper):
         # node passes are memory-bound, and ±1 times a float is exact in any type)
         lay = system.layout
         first_end = system.edges[lay.inc_spring, 0] == np.repeat(np.arange(system.n_nodes), np.diff(lay.inc_ptr))
-        self.topology = Topology(edges=system.edges.view(np.uint32), free_index=free_index,
-                                 ends=np.ascontiguousarray(free_index[system.edges], dtype=np.int32),
-                                 inc_ptr=lay.inc_ptr, inc_spring=lay.inc_spring.view(np.uint32),
-                                 inc_sign=np.where(first_end, 1, -1).astype(np.int8))
-        self.springs = SpringParameters(system.rest_lengths, P)
-        gravity = np.zeros(3) if system.gravity is None else np.asarray(system.gravity, dtype=np.float64)
-        self.nodes = NodeData(system.masses, system.inv_mass, gravity, system.gravity is not None)
+        self.topology = BlockTopology(edges=system.edges.view(np.uint32), free_index=free_index,
+                                      ends=np.ascontiguousarray(free_index[system.edges], dtype=np.int32),
+                                      inc_ptr=lay.inc_ptr, inc_spring=lay.inc_spring.view(np.uint32),
+                                      inc_sign=np.where(first_end, 1, -1).astype(np.int8))
+        self.springs = Springs(system.rest_lengths, P)
+        self.nodes = node_record(system)
         self.places = BlockPlaces(pattern.node_base, pattern.node_stride, pattern.spring_base, pattern.spring_stride,
                                   np.zeros((6, 6)))
         self.solver = make_linear_solver(options.linear_solver, pattern, self)
@@ -139,7 +138,7 @@ class ImplicitStepper(Stepper):
         self.work = self.make_work(StartWork.allocate(n, m, self.block, KEEP_ROWS, self.kernels.keep_start, self.rate))
         self.warm = False
         self.step_start = None
-        self._new = NextState(np.empty((n, 3)), np.empty((n, 3)), np.empty(m), np.empty(m))
+        self._new = StateArrays(np.empty((n, 3)), np.empty((n, 3)), np.empty(m), np.empty(m))
         self._no_index = np.empty(0, dtype=np.int64)
         self._local = None  # index scratch of local_jacobi, made at its first use
         self.timers = NewtonTimers()
@@ -227,7 +226,7 @@ class ImplicitStepper(Stepper):
         """D⁻¹ v for the nodal inertia blocks D (a new array)."""
 
     @abstractmethod
-    def finish(self, phi0: np.ndarray, new: NextState) -> tuple[int, int]:
+    def finish(self, phi0: np.ndarray, new: StateArrays) -> tuple[int, int]:
         """The next state into ``new`` from the converged unknowns and Φ⁰ ``phi0`` (m,);
         (status, spring)."""
 
@@ -397,7 +396,7 @@ class ImplicitStepper(Stepper):
             return
         # the new state's buffers become the state's; the old ones the next step's outputs
         state.positions, state.momenta, state.thermal_displacement, state.entropy = new
-        self._new = NextState(x, p, phi, eta)
+        self._new = StateArrays(x, p, phi, eta)
         history = self.work.start.history
         if history.size:
             history[0] = h  # u: this committed step's solution (the next predictor's)

@@ -161,7 +161,7 @@ def _em2_predict(step, topo, spring, node, work, accel, pred):
     x0, p, eta, h = step
     edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
     l0, P = spring
-    masses, inv_mass, gravity, with_gravity = node
+    masses, inv_mass, anchored, gravity, with_gravity, reference = node
     start, len1, dir1, mean, slope, dslope, energy0, temperature0, tension0, jc, eta_step, quotient, tension1 = work
     len0, dir0, keep, fs, ws, sweep, nodal, stiff, code = start
     m = edges.shape[0]
@@ -201,7 +201,7 @@ def _em2_residual(step, topo, spring, node, work, u, res):
     x0, p, eta, h = step
     edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
     l0, P = spring
-    masses, inv_mass, gravity, with_gravity = node
+    masses, inv_mass, anchored, gravity, with_gravity, reference = node
     start, len1, dir1, mean, slope, dslope, energy0, temperature0, tension0, jc, eta_step, quotient, tension1 = work
     len0, dir0, keep, fs, ws, sweep, nodal, guess, code = start
     R, Rabs, peak = res
@@ -330,7 +330,7 @@ def _em2_jacobian(topo, spring, node, work, places, h, data):
     at the places of ``places`` (BlockPlaces): m_c/h I on the diagonal blocks, and each spring's
     B = (h/2) [(s/2) I + (ds/dl¹) d̄ n¹ᵀ] with sign s_c s_g."""
     edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
-    masses, inv_mass, gravity, with_gravity = node
+    masses, inv_mass, anchored, gravity, with_gravity, reference = node
     start, len1, dir1, mean, slope, dslope, energy0, temperature0, tension0, jc, eta_step, quotient, tension1 = work
     node_base, node_stride, spring_base, spring_stride, B = places
     inertia_blocks3(free_index, masses, h, node_base, node_stride, data)
@@ -346,7 +346,7 @@ def _em2_jacobian(topo, spring, node, work, places, h, data):
 
 
 def _em2_finish(step, topo, spring, node, work, u, phi, new):
-    """The next state from converged unknowns u into ``new`` (NextState; phi (m,) the step's
+    """The next state from converged unknowns u into ``new`` (StateArrays; phi (m,) the step's
     start): x¹ = x⁰ + d; p¹ = p⁰ + h m g + h Σ ±s d̄ (fs, from the last residual, evaluated at u,
     doubled: exact); η¹ = η; Φ¹ = Φ⁰ + h θ(l̄, η). Returns (status, spring)."""
     x0, p, eta, h = step
@@ -384,7 +384,7 @@ def _em2_sweep(topo, node, work, h, du, R, r, update, first):
     written). Returns max |r|. ``first``: du is taken as zero. Spring e's block applied to
     v = du_a − du_b: jc[0] v + jc[1] (n¹·v) d̄."""
     edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
-    masses, inv_mass, gravity, with_gravity = node
+    masses, inv_mass, anchored, gravity, with_gravity, reference = node
     start, len1, dir1, mean, slope, dslope, energy0, temperature0, tension0, jc, eta_step, quotient, tension1 = work
     len0, dir0, keep, fs, ws, w, nodal, guess, code = start
     m = ends.shape[0]

@@ -149,7 +149,7 @@ def _gtr_residual(step, topo, spring, node, work, alpha, u, warm, res):
     x0, p, eta, h = step
     edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
     l0, P = spring
-    masses, inv_mass, gravity, with_gravity = node
+    masses, inv_mass, anchored, gravity, with_gravity, reference = node
     start, len1, dir1, theta, dtheta, jc = work
     len0, dir0, keep, fs, ws, sweep, nodal, guess, code = start
     R, Rabs, peak = res
@@ -272,7 +272,7 @@ def _gtr_jacobian(topo, spring, node, work, places, alpha, h, data):
     ∂R_c/∂d_g = δ_cg m_c/h I + α h s_c s_g F_lθ(l⁰, θ̄) (dθ̄/dl¹) n⁰ n¹ᵀ, s_a = +1, s_b = −1."""
     edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
     l0, P = spring
-    masses, inv_mass, gravity, with_gravity = node
+    masses, inv_mass, anchored, gravity, with_gravity, reference = node
     start, len1, dir1, theta, dtheta, jc = work
     len0, dir0, keep, fs, ws, sweep, nodal, guess, code = start
     node_base, node_stride, spring_base, spring_stride, B = places
@@ -289,7 +289,7 @@ def _gtr_jacobian(topo, spring, node, work, places, alpha, h, data):
 
 
 def _gtr_finish(step, topo, spring, node, work, alpha, u, phi, new):
-    """The next state from converged unknowns u into ``new`` (NextState; phi (m,) the step's
+    """The next state from converged unknowns u into ``new`` (StateArrays; phi (m,) the step's
     start): x¹ = x⁰ + d; Φ¹ = Φ⁰ + h θ̄; η¹ = α Γ(l⁰, θ̄) + (1 − α) Γ(l¹, θ̄) measured (48d); and
     p¹ = p⁰ + h [α f(x⁰, θ̄) + (1 − α) f(x¹, θ̄)], which is (48b) given (48a) and, forces being
     central pairs, conserves linear momentum to round-off whatever the solver residual.
@@ -333,7 +333,7 @@ def _gtr_sweep(topo, node, work, h, du, R, r, update, first):
 
     Spring e's block is jc[e] n⁰ n¹ᵀ: w[e, :3] = n⁰ jc[e] n¹·(du_a − du_b)."""
     edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
-    masses, inv_mass, gravity, with_gravity = node
+    masses, inv_mass, anchored, gravity, with_gravity, reference = node
     start, len1, dir1, theta, dtheta, jc = work
     len0, dir0, keep, fs, ws, w, nodal, guess, code = start
     m = ends.shape[0]

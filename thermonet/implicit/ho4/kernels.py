@@ -130,7 +130,7 @@ def _ho4_residual(step, topo, spring, node, work, u, warm, res, springs, nodes):
     x0, p, eta, h = step
     edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
     l0, P = spring
-    masses, inv_mass, gravity, with_gravity = node
+    masses, inv_mass, anchored, gravity, with_gravity, reference = node
     start, lenh, dirh, len1, dir1, th0, th1, dth, gs, jc = work
     len0, dir0, keep, fs, ws, sweep, nodal, guess, code = start
     R, Rabs, peak = res
@@ -366,7 +366,7 @@ def _ho4_residual(step, topo, spring, node, work, u, warm, res, springs, nodes):
 
 
 def _ho4_finish(step, topo, spring, node, work, u, phi, new):
-    """The next state from converged unknowns u into ``new`` (NextState; phi (m,) the step's
+    """The next state from converged unknowns u into ``new`` (StateArrays; phi (m,) the step's
     start): x¹ = x⁰ + d¹; Φ¹ = Φ⁰ + h (θ⁰ + θ¹)/2; η¹ = (−Γ⁰ + 4Γ^½ + 3Γ¹)/6 measured (58d);
     and p¹ = p⁰ + h (f⁰ + 4 f^½ + f¹)/6, which is (58b) given (58a) and (57a) and conserves
     linear momentum to round-off whatever the solver residual. fs must hold the last residual's

@@ -73,7 +73,7 @@ def _ho4_jacobian(topo, spring, node, work, places, h, data):
       ∂R2/∂x¹  = h/4 F_lθ(l^½, θ^½) dθ^½/dl¹ n^½ n¹ᵀ."""
     edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
     l0, P = spring
-    masses, inv_mass, gravity, with_gravity = node
+    masses, inv_mass, anchored, gravity, with_gravity, reference = node
     start, lenh, dirh, len1, dir1, th0, th1, dth, gs, jc = work
     len0, dir0, keep, fs, ws, sweep, nodal, guess, code = start
     node_base, node_stride, spring_base, spring_stride, B = places
@@ -120,7 +120,7 @@ def _ho4_sweep(topo, node, work, h, du, R, r, update, first):
     Spring e's block applied to the difference (v^½, v¹) = du_a − du_b, into w[e, :] (6,):
     rows R1: n⁰ (a₁ n^½·v^½ + a₂ n¹·v¹); rows R2: n^½ ((k − t) n^½·v^½ + c n¹·v¹) + t v^½."""
     edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
-    masses, inv_mass, gravity, with_gravity = node
+    masses, inv_mass, anchored, gravity, with_gravity, reference = node
     start, lenh, dirh, len1, dir1, th0, th1, dth, gs, jc = work
     len0, dir0, keep, fs, ws, w, nodal, guess, code = start
     m = ends.shape[0]
