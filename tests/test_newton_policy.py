@@ -22,43 +22,41 @@ def _with_plain_helpers(monkeypatch):
 
 def test_convergence_below_the_tolerance_at_the_floor_and_at_the_unknowns_round_off(monkeypatch):
     _with_plain_helpers(monkeypatch)
-    tol = policy.Tolerances(1e-12, 1e-14, 0.0)
-    rule = policy.stall_rule(False)
+    tol = (1e-12, 1e-14, 0.0)  # tolerance, rtol, atol
     u = np.array([1.0, -2.0])
-    assert convergence(3, 1e-13, 1.0, 0.0, 1e-6, 1e-3, math.inf, u, tol, rule)[0] == policy.BELOW_TOLERANCE
+    assert convergence(3, 1e-13, 1.0, 0.0, 1e-6, 1e-3, math.inf, u, *tol)[0] == policy.BELOW_TOLERANCE
     # max |R| at its floor, reduced less than 2× by the last correction: converged there
-    verdict, floored, _ = convergence(2, 1e-9, 1e-20, 1e-19, 1.5e-9, 0.0, 1.0, u, tol, rule)
+    verdict, floored, _ = convergence(2, 1e-9, 1e-20, 1e-19, 1.5e-9, 0.0, 1.0, u, *tol)
     assert verdict == policy.AT_FLOOR and floored
     # at the floor but still falling fast: not yet
-    assert convergence(2, 1e-10, 1e-20, 1e-19, 1e-8, 1e-7, 1.0, u, tol, rule)[:2] == (policy.NOT_YET, True)
+    assert convergence(2, 1e-10, 1e-20, 1e-19, 1e-8, 1e-7, 1.0, u, *tol)[:2] == (policy.NOT_YET, True)
     # a correction at the unknowns' round-off near the tolerance
-    assert convergence(2, 1e-10, 1.0, 0.0, 1e-8, 1e-4, 1e-14, u, tol, rule) == (policy.NOT_YET, False, True)
-    assert not convergence(2, 1e-8, 1.0, 0.0, 1e-6, 1e-4, 1e-14, u, tol, rule)[2]  # ρ above 1e3 × tol
-    assert not convergence(0, 1e-10, 1.0, 0.0, 0.0, 0.0, 0.0, u, tol, rule)[2]  # no correction yet
+    assert convergence(2, 1e-10, 1.0, 0.0, 1e-8, 1e-4, 1e-14, u, *tol) == (policy.NOT_YET, False, True)
+    assert not convergence(2, 1e-8, 1.0, 0.0, 1e-6, 1e-4, 1e-14, u, *tol)[2]  # ρ above 1e3 × tol
+    assert not convergence(0, 1e-10, 1.0, 0.0, 0.0, 0.0, 0.0, u, *tol)[2]  # no correction yet
 
 
 def test_jacobi_steps_follow_the_promised_contraction_and_stop_for_good(monkeypatch):
     _with_plain_helpers(monkeypatch)
-    rule = policy.jacobi_rule()
+    r = policy.jacobi_rule()
+    rule = (r.range, r.max_steps, r.local_stall, r.local_max_rounds)
     tol = 1e-12
     # after a full iteration: taken where two steps at the sweeps' contraction reach the tolerance
-    assert next_jacobi(policy.FULL, 1e-10, 1e-6, 0.05, 0, tol, rule) == (True, True)
-    assert next_jacobi(policy.FULL, 1e-10, 1e-6, 0.5, 0, tol, rule) == (False, True)
-    assert next_jacobi(policy.FULL, 1e-7, 1e-5, 1e-6, 0, tol, rule)[0] is False  # above JACOBI_RANGE × tol
+    assert next_jacobi(policy.FULL, 1e-10, 1e-6, 0.05, 0, tol, *rule) == (True, True)
+    assert next_jacobi(policy.FULL, 1e-10, 1e-6, 0.5, 0, tol, *rule) == (False, True)
+    assert next_jacobi(policy.FULL, 1e-7, 1e-5, 1e-6, 0, tol, *rule)[0] is False  # above JACOBI_RANGE × tol
     # after a Jacobi step, its own contraction decides; once it does not pay, never again
-    assert next_jacobi(policy.JACOBI, 1e-11, 1e-10, math.inf, 0, tol, rule) == (True, True)
-    assert next_jacobi(policy.JACOBI, 9e-11, 1e-10, math.inf, 0, tol, rule) == (False, False)
+    assert next_jacobi(policy.JACOBI, 1e-11, 1e-10, math.inf, 0, tol, *rule) == (True, True)
+    assert next_jacobi(policy.JACOBI, 9e-11, 1e-10, math.inf, 0, tol, *rule) == (False, False)
     # local steps go on while each halves the residual, at most LOCAL_MAX_ROUNDS of them
-    assert next_jacobi(policy.LOCAL, 4e-11, 1e-10, math.inf, 1, tol, rule) == (True, True)
-    assert next_jacobi(policy.LOCAL, 6e-11, 1e-10, math.inf, 1, tol, rule) == (False, False)
-    assert next_jacobi(policy.LOCAL, 4e-11, 1e-10, math.inf, policy.LOCAL_MAX_ROUNDS, tol, rule)[0] is False
+    assert next_jacobi(policy.LOCAL, 4e-11, 1e-10, math.inf, 1, tol, *rule) == (True, True)
+    assert next_jacobi(policy.LOCAL, 6e-11, 1e-10, math.inf, 1, tol, *rule) == (False, False)
+    assert next_jacobi(policy.LOCAL, 4e-11, 1e-10, math.inf, policy.LOCAL_MAX_ROUNDS, tol, *rule)[0] is False
 
 
 def test_the_stall_window_and_the_linear_targets():
-    on, off = policy.stall_rule(True), policy.stall_rule(False)
     w = policy.STALL_WINDOW
-    assert stalled(w + 1, 0.6, 1.0, on) and not stalled(w + 1, 0.4, 1.0, on)
-    assert not stalled(w + 1, 0.6, 1.0, off) and not stalled(w, 0.6, 1.0, on)
-    assert not stalled(w + 1, 1e-4, 1.5e-4, on)  # below STALL_ABOVE: a kept factorization's slow fall
+    assert stalled(w + 1, 0.6, 1.0) and not stalled(w + 1, 0.4, 1.0) and not stalled(w, 0.6, 1.0)
+    assert not stalled(w + 1, 1e-4, 1.5e-4)  # below STALL_ABOVE: a kept factorization's slow fall
     target, settled = linear_targets(0.5, 2.0, 1e-12, policy.LINEAR_FRACTION)
     assert target == policy.LINEAR_FRACTION * 0.25 * 2.0 and settled == policy.LINEAR_FRACTION * 1e-12 * 2.0

@@ -83,7 +83,7 @@ def test_a_factorizations_worth_is_read_once_per_pivot_sequence(monkeypatch):
 
 def _floor_stall(history):
     """newton_policy.floor_stall for a solve's history of scaled residuals (the last one's)."""
-    return floor_stall(history[-2], history[-3] if len(history) >= 3 else 0.0, FLOOR_STALL_FACTOR)
+    return floor_stall(history[-2], history[-3] if len(history) >= 3 else 0.0)
 
 
 def test_a_residual_at_its_floor_is_converged_once_a_correction_contracts_far_less():

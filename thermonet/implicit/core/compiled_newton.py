@@ -28,10 +28,11 @@ empty index lists), made once by the stepper (``ImplicitStepper.compiled_extra``
 offers the compiled path by returning ``compiled_residual``, ``compiled_jacobian`` and
 ``compiled_finish`` (these signatures, serial) from its ``build``.
 
-The iteration is :func:`thermonet.implicit.core.newton.newton`'s with a direct solver, test for test
-(scaled residual ≤ tolerance; or a correction at the round-off floor with the scaled residual ≤
-1e3 tolerance; at most ``max_iterations`` linear solves), so both paths converge to the same
-solution within the tolerance. The matrix is the scheme's CSR values scattered into a dense
+The iteration is :func:`thermonet.implicit.core.newton.newton`'s: both drivers decide by the same
+functions of :mod:`.newton_policy` (scaled residual ≤ tolerance; or a correction at the round-off
+floor with the scaled residual ≤ 1e3 tolerance; Jacobi and local steps; at most
+``max_iterations`` linear solves), so both paths converge to the same solution within the
+tolerance. The matrix is the scheme's CSR values scattered into a dense
 (size, size) array, whose LU costs ~ size³/3 multiply-adds: the path pays only for a few
 hundred unknowns (the automatic choice, ``implicit/core/compiled_path.py``).
 """
@@ -45,8 +46,8 @@ import numpy as np
 from numba import njit
 
 from . import newton_policy as policy
-from .newton_policy import (AT_FLOOR, BELOW_TOLERANCE, FULL, JACOBI, LOCAL, JacobiRule, StallRule, Tolerances,
-                            convergence, linear_targets, next_jacobi, stalled)
+from .newton_policy import (AT_FLOOR, BELOW_TOLERANCE, FULL, JACOBI, LOCAL, STALL_WINDOW, JacobiRule, convergence,
+                            linear_targets, next_jacobi, stalled)
 from .records import StartWork
 from .schemes import INLINE, OPTIONS
 from ...kernels.schedule_passes import _copy_rows as _copy_rows_template, _copy_values
@@ -88,8 +89,8 @@ class Control(NamedTuple):
     """What the driver is told for one call: Newton's ``tolerance`` and ``rtol``; ``rounding``
     (> 0: at each step's start atol becomes rounding × max |x| unless within a factor 2 of that
     already, EM2's atol at the positions' round-off, EM2Stepper.begin); ``max_iterations`` per
-    step; ``n_steps``; the policy's ``linear_fraction``, ``jacobi`` and ``stall`` rules
-    (:mod:`.newton_policy`); the ``sweeps``' limits."""
+    step; ``n_steps``; the policy's ``linear_fraction`` and ``jacobi`` rule (:mod:`.newton_policy`),
+    ``stall`` whether its stall window applies; the ``sweeps``' limits."""
 
     tolerance: float
     rtol: float
@@ -98,7 +99,7 @@ class Control(NamedTuple):
     n_steps: int
     linear_fraction: float
     jacobi: JacobiRule
-    stall: StallRule
+    stall: bool
     sweeps: SweepLimits
 
 
@@ -291,7 +292,7 @@ def _newton_steps(state, records, extra, linear, control, out):
     SWEEPS the linear solves are inertia-preconditioned sweeps and a full iteration may be
     followed by Jacobi steps (local ones where the scheme has them); sweeps that stall end the
     call with reason STALLED. The rounding floor and the stall window are not this driver's
-    (floor 0, no window: ``control.stall.enabled`` is False), so they never decide here.
+    (floor 0, no window: ``control.stall`` is False), so they never decide here.
     """
     x, p, phi, eta, h, coef = state
     topo, spring, node, work, places = records
@@ -323,7 +324,7 @@ def _newton_steps(state, records, extra, linear, control, out):
             floor = rounding * _max_abs(x)
             if not (0.5 * tol[0] <= floor <= 2.0 * tol[0]):
                 tol[0] = floor
-        tolerances = Tolerances(tolerance, rtol, tol[0])
+        atol = tol[0]
         status, bad = scheme_start(step, topo, spring, node, work[0], coef, u)
         if status != 0:
             info[INFO_REASON] = START
@@ -366,19 +367,20 @@ def _newton_steps(state, records, extra, linear, control, out):
             verdict, floored, small = convergence(corrections, rho, rmax, 0.0,
                                                   history[nh - 2] if nh > 1 else 0.0,
                                                   history[nh - 3] if nh > 2 else 0.0,
-                                                  increment, u, tolerances, stall)
+                                                  increment, u, tolerance, rtol, atol)
             if verdict == BELOW_TOLERANCE or verdict == AT_FLOOR or small:
                 break
             if corrections - local_rounds == max_iterations:
                 reason = NO_CONVERGENCE
                 break
-            if stalled(nh, rho, history[nh - 1 - stall.window] if nh > stall.window else 0.0, stall):
+            if stall and stalled(nh, rho, history[nh - 1 - STALL_WINDOW] if nh > STALL_WINDOW else 0.0):
                 reason = NO_CONVERGENCE
                 break
             use_jacobi = False
             if use_jacobi_ever and corrections > 0:
                 use_jacobi, use_jacobi_ever = next_jacobi(last, rho, history[nh - 2], contraction, local_rounds,
-                                                          tolerance, rule)
+                                                          tolerance, rule.range, rule.max_steps, rule.local_stall,
+                                                          rule.local_max_rounds)
             corrections += 1
             if SWEEPS and use_jacobi:
                 done, pending, pending_bad, lmax, lscale, change = scheme_local(

@@ -166,7 +166,7 @@ class CompiledNewton:
         # step goes back to the stepper, whose sparse path has it)
         self._rules = dict(tolerance=float(opts.tolerance), rtol=float(opts.rtol),
                            max_iterations=int(opts.max_iterations), linear_fraction=float(policy.LINEAR_FRACTION),
-                           jacobi=policy.jacobi_rule(), stall=policy.stall_rule(False),
+                           jacobi=policy.jacobi_rule(), stall=False,
                            sweeps=SweepLimits(int(MatrixFree.MAX_SWEEPS), float(MatrixFree.STALL)))
         self._history = np.zeros(int(opts.max_iterations) + 2)
         self._info = np.zeros(5, dtype=np.int64)

@@ -15,7 +15,7 @@ import numpy as np
 from ...errors import InputError
 from ...solvers.linear import LINEAR_SOLVERS
 from . import newton_policy as policy
-from .newton_policy import AT_FLOOR, BELOW_TOLERANCE, FULL, JACOBI, KEPT, LOCAL, Tolerances
+from .newton_policy import AT_FLOOR, BELOW_TOLERANCE, FULL, JACOBI, KEPT, LOCAL, STALL_WINDOW
 
 
 @dataclass(frozen=True)
@@ -154,9 +154,8 @@ def newton(problem, u: np.ndarray, options: NewtonOptions, solver, timers: Newto
     jacobi = getattr(solver, "jacobi", None)
     local = getattr(problem, "local_jacobi", None) if jacobi is not None else None
     last = FULL  # the kind of the last correction: FULL, JACOBI (global), LOCAL or KEPT
-    tol = Tolerances(float(options.tolerance), float(options.rtol), float(options.atol))
+    tolerance, rtol, atol = float(options.tolerance), float(options.rtol), float(options.atol)
     rule = policy.jacobi_rule()
-    stall_rule = policy.stall_rule(stall)
     floor = float(getattr(problem, "residual_floor", 0.0))
     corrections = 0  # of every kind
     local_rounds = 0
@@ -197,7 +196,7 @@ def newton(problem, u: np.ndarray, options: NewtonOptions, solver, timers: Newto
             return NewtonResult(False, it, history, 0, -1, "residual not finite", jacobi_steps, reused)
         verdict, floored, small = policy.convergence(
             it, rho, float(rmax), floor, history[-2] if it > 0 else 0.0, history[-3] if it > 1 else 0.0,
-            increment, u, tol, stall_rule)
+            increment, u, tolerance, rtol, atol)
         if verdict == BELOW_TOLERANCE or verdict == AT_FLOOR:
             # (AT_FLOOR: at the rounding floor of the residual's terms, and no longer falling)
             return NewtonResult(True, it, history, jacobi_steps=jacobi_steps, reused=reused)
@@ -216,9 +215,8 @@ def newton(problem, u: np.ndarray, options: NewtonOptions, solver, timers: Newto
                 solver.stale = True
         if corrections - local_rounds == options.max_iterations:
             break
-        window = stall_rule.window
-        if stall and policy.stalled(len(history), rho, history[-1 - window] if len(history) > window else 0.0,
-                                    stall_rule):
+        window = STALL_WINDOW
+        if stall and policy.stalled(len(history), rho, history[-1 - window] if len(history) > window else 0.0):
             if reuse:
                 solver.stale = True
             return NewtonResult(False, corrections, history, 0, -1,
@@ -227,7 +225,8 @@ def newton(problem, u: np.ndarray, options: NewtonOptions, solver, timers: Newto
         use_jacobi = False
         if jacobi is not None and it > 0:
             promised = float(getattr(solver, "contraction", math.inf))
-            use_jacobi, still = policy.next_jacobi(last, rho, history[-2], promised, local_rounds, tol.tolerance, rule)
+            use_jacobi, still = policy.next_jacobi(last, rho, history[-2], promised, local_rounds, tolerance, rule.range,
+                                                   rule.max_steps, rule.local_stall, rule.local_max_rounds)
             if not still:
                 jacobi = local = None  # they contract too slowly: full iterations from here on
         corrections += 1
@@ -267,8 +266,7 @@ def newton(problem, u: np.ndarray, options: NewtonOptions, solver, timers: Newto
                 problem.linearize()
                 t1 = time.perf_counter()
             t2 = time.perf_counter()
-            du = solver.solve(problem.R, *policy.linear_targets(rho, float(scale), tol.tolerance,
-                                                                policy.LINEAR_FRACTION))
+            du = solver.solve(problem.R, *policy.linear_targets(rho, float(scale), tolerance, policy.LINEAR_FRACTION))
         t3 = time.perf_counter()
         timers.assembly += t1 - t0
         timers.factorization += t2 - t1

@@ -49,7 +49,7 @@ FLOOR_STALL_FACTOR = 10.0
 #: a scaled residual at most this many times the tolerance, with a correction at the unknowns'
 #: round-off (rtol ‖u‖∞ + atol), is converged: the unknowns cannot get closer
 NEAR_TOLERANCE = 1e3
-#: A stalling solve (where the caller asks for the test) gives up once the scaled residual, still
+#: A stalling solve (where the caller asks for the test: ``newton(..., stall=True)``) gives up once the scaled residual, still
 #: above STALL_ABOVE, has fallen less than STALL_FACTOR× over the last STALL_WINDOW iterations (the
 #: caller has a better way on: EM2's continuation in the step)
 STALL_WINDOW = 6
@@ -64,15 +64,6 @@ FULL, JACOBI, LOCAL, KEPT = 0, 1, 2, 3
 NOT_YET, BELOW_TOLERANCE, AT_FLOOR = 0, 1, 2
 
 
-class Tolerances(NamedTuple):
-    """A solve's convergence tolerances (NewtonOptions): the scaled residual's, and the
-    correction's relative and absolute ones."""
-
-    tolerance: float
-    rtol: float
-    atol: float
-
-
 class JacobiRule(NamedTuple):
     """When a Jacobi step replaces a full iteration (the constants above; max_steps a float,
     the exponent both drivers have always used)."""
@@ -84,39 +75,26 @@ class JacobiRule(NamedTuple):
     local_max_rounds: int
 
 
-class StallRule(NamedTuple):
-    """When a solve has stalled: ``enabled`` (the caller asks for the test), over ``window``
-    iterations by less than ``factor``× while above ``above``; a residual at its rounding
-    floor by FLOOR_STALL_FACTOR (``floor_factor``)."""
-
-    enabled: bool
-    window: int
-    factor: float
-    above: float
-    floor_factor: float
-
-
 def jacobi_rule() -> JacobiRule:
     """The rule from this module's constants (read at each call: a test may change them)."""
     return JacobiRule(float(JACOBI_RANGE), float(JACOBI_MAX_STEPS), float(LOCAL_FRACTION), float(LOCAL_STALL),
                       int(LOCAL_MAX_ROUNDS))
 
 
-def stall_rule(enabled: bool) -> StallRule:
-    """The stall rule from this module's constants, the window test on or off."""
-    return StallRule(bool(enabled), int(STALL_WINDOW), float(STALL_FACTOR), float(STALL_ABOVE),
-                     float(FLOOR_STALL_FACTOR))
+# The functions below take scalars (and the unknowns' array), not records: the Python driver
+# calls them at every iteration, and Numba types a record argument in Python at every call
+# (≈ 1–4 µs a record, several times the decision itself).
 
 
 @njit(cache=True)
-def floor_stall(previous, before, factor):
+def floor_stall(previous, before):
     """The reduction of the last correction (ρ / ``previous``) above which a residual at the
-    rounding floor is converged: 0.5, or ``factor`` times the reduction of the correction
-    before (``previous`` / ``before``; ``before`` 0: none) where that is smaller (a linear
-    contraction does not weaken tenfold from one correction to the next with the same matrix;
-    a quadratic one strengthens)."""
+    rounding floor is converged: 0.5, or FLOOR_STALL_FACTOR times the reduction of the
+    correction before (``previous`` / ``before``; ``before`` 0: none) where that is smaller (a
+    linear contraction does not weaken tenfold from one correction to the next with the same
+    matrix; a quadratic one strengthens)."""
     if before > 0.0:
-        return min(0.5, factor * previous / before)
+        return min(0.5, FLOOR_STALL_FACTOR * previous / before)
     return 0.5
 
 
@@ -130,54 +108,56 @@ def _max_abs(u):
 
 
 @njit(cache=True)
-def convergence(it, rho, rmax, floor, previous, before, increment, u, tol, stall):
+def convergence(it, rho, rmax, floor, previous, before, increment, u, tolerance, rtol, atol):
     """Newton's convergence test after ``it`` corrections, at the scaled residual ``rho`` (max
     |R| = ``rmax``; ``previous``, ``before``: the scaled residuals one and two evaluations back, 0
-    where there are none), the last correction's max |du| ``increment``, the unknowns u (size,).
+    where there are none), the last correction's max |du| ``increment``, the unknowns u (size,);
+    the tolerances of NewtonOptions.
 
     Returns (verdict, floored, small): verdict BELOW_TOLERANCE (ρ ≤ tolerance) or AT_FLOOR (max
     |R| at or below ``floor``, the rounding of the residual's own terms, and no longer falling:
     :func:`floor_stall`), else NOT_YET; floored: max |R| at or below the floor after a correction;
     small: a correction at the unknowns' round-off with ρ ≤ NEAR_TOLERANCE × tolerance (converged
     unless the caller's correction converges only linearly)."""
-    if rho <= tol.tolerance:
+    if rho <= tolerance:
         return BELOW_TOLERANCE, False, False
     floored = it > 0 and rmax <= floor
-    if floored and rho > floor_stall(previous, before, stall.floor_factor) * previous:
+    if floored and rho > floor_stall(previous, before) * previous:
         return AT_FLOOR, True, False
-    small = it > 0 and rho <= NEAR_TOLERANCE * tol.tolerance and increment <= tol.rtol * _max_abs(u) + tol.atol
+    small = it > 0 and rho <= NEAR_TOLERANCE * tolerance and increment <= rtol * _max_abs(u) + atol
     return NOT_YET, floored, small
 
 
 @njit(cache=True)
-def stalled(n, rho, window_rho, stall):
+def stalled(n, rho, window_rho):
     """Whether a solve whose history has ``n`` scaled residuals, the last ``rho`` and the one
-    ``stall.window`` before it ``window_rho``, has stalled (where ``stall.enabled``)."""
-    return stall.enabled and n > stall.window and rho > stall.above and rho * stall.factor > window_rho
+    STALL_WINDOW before it ``window_rho``, has stalled (where the caller asks for the test)."""
+    return n > STALL_WINDOW and rho > STALL_ABOVE and rho * STALL_FACTOR > window_rho
 
 
 @njit(cache=True)
-def jacobi_pays(rho, contraction, tolerance, rule):
-    """Whether at most ``rule.max_steps`` Jacobi steps, each reducing the scaled residual
-    ``rho`` by ``contraction``, reach ``tolerance`` (and ρ is within ``rule.range`` of it)."""
-    return (rho <= rule.range * tolerance and contraction < 1.0
-            and rho * contraction ** rule.max_steps <= tolerance)
+def jacobi_pays(rho, contraction, tolerance, jacobi_range, max_steps):
+    """Whether at most ``max_steps`` Jacobi steps, each reducing the scaled residual ``rho`` by
+    ``contraction``, reach ``tolerance`` (and ρ is within ``jacobi_range`` of it)."""
+    return (rho <= jacobi_range * tolerance and contraction < 1.0
+            and rho * contraction ** max_steps <= tolerance)
 
 
 @njit(cache=True)
-def next_jacobi(last, rho, previous, promised, local_rounds, tolerance, rule):
+def next_jacobi(last, rho, previous, promised, local_rounds, tolerance, jacobi_range, max_steps, local_stall,
+                local_max_rounds):
     """Whether the next correction is a Jacobi step, after a correction of kind ``last`` (FULL,
     JACOBI, LOCAL, KEPT) that took the scaled residual from ``previous`` to ``rho``; ``promised``:
-    the contraction per sweep of the last full iteration's linear solve (inf: unknown). Returns
-    (jacobi, still): ``still`` False once Jacobi steps contract too slowly (full iterations from
-    then on)."""
+    the contraction per sweep of the last full iteration's linear solve (inf: unknown); the rest a
+    :class:`JacobiRule`'s fields. Returns (jacobi, still): ``still`` False once Jacobi steps
+    contract too slowly (full iterations from then on)."""
     if last == FULL:  # what the sweeps of that iteration's solve promise
-        return jacobi_pays(rho, promised, tolerance, rule), True
+        return jacobi_pays(rho, promised, tolerance, jacobi_range, max_steps), True
     contraction = rho / previous
     if last == LOCAL:  # each costs a few per cent of a global step
-        use = contraction <= rule.local_stall and local_rounds < rule.local_max_rounds
+        use = contraction <= local_stall and local_rounds < local_max_rounds
     else:
-        use = jacobi_pays(rho, contraction, tolerance, rule)
+        use = jacobi_pays(rho, contraction, tolerance, jacobi_range, max_steps)
     return use, use
 
 
