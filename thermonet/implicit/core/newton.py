@@ -155,7 +155,7 @@ def newton(problem, u: np.ndarray, options: NewtonOptions, solver, timers: Newto
     local = getattr(problem, "local_jacobi", None) if jacobi is not None else None
     last = FULL  # the kind of the last correction: FULL, JACOBI (global), LOCAL or KEPT
     tolerance, rtol, atol = float(options.tolerance), float(options.rtol), float(options.atol)
-    rule = policy.jacobi_rule()
+    rule = policy.jacobi_rule() if jacobi is not None else None  # (read only where Jacobi steps may be taken)
     floor = float(getattr(problem, "residual_floor", 0.0))
     corrections = 0  # of every kind
     local_rounds = 0
