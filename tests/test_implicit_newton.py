@@ -339,7 +339,7 @@ def test_uniform_parameter_kernels_give_the_per_spring_kernels_numbers(integrato
     outputs = []
     for kernels, P in ((st.kernels, st.springs.P),
                        (implicit_kernels(sim.model, st.scheme, sim.parallel, False, st.rate), sim.system.parameters)):
-        st.kernels, st.springs = kernels, st.springs._replace(parameters=P)
+        st.kernels, st.springs = kernels, st.springs._replace(P=P)
         st.begin(s.positions, s.momenta, s.entropy, sim.h)
         st.predict(st.u)
         assert st.residual(st.u) == (0, -1)
