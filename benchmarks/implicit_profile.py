@@ -2,7 +2,7 @@
 (start, predictor, residual, Jacobi finishing step, linearization, linear solve, damping,
 finish), its calls per step and its time in CO2 steps of the same net.
 
-The driver (``kernels/newton_compiled.py``) runs whole steps in one compiled call, so Python's
+The driver (``implicit/core/compiled_newton.py``) runs whole steps in one compiled call, so Python's
 profilers cannot see into it. This script compiles a copy of the driver's template with the
 CPU's cycle counter read around each kernel call (LLVM's ``readcyclecounter``), runs it on the
 benchmark lattice of ``implicit_cost.py`` interleaved with CO2 (``--rounds`` rounds of a few
@@ -16,7 +16,7 @@ naming the line (the template changed; update ``TIMED`` below).
     python benchmarks/implicit_profile.py --quick   # gtr-1/2 (unless --method) on 2³ cells, 2 rounds of 2 steps
 
 ``--generic-quotient`` runs "hencky" without its closed-form ``energy_quotient``: EM2 then takes
-the generic discrete gradient (kernels/em2_gradient.py), as for a user's model without one.
+the generic discrete gradient (implicit/em2/gradient.py), as for a user's model without one.
 """
 
 from __future__ import annotations
@@ -39,9 +39,9 @@ from numba.extending import intrinsic
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # implicit_cost, beside this file
 
 import thermonet as tn  # noqa: E402
-import thermonet.kernels.newton_compiled as nc  # noqa: E402
+import thermonet.implicit.core.compiled_newton as nc  # noqa: E402
 from implicit_cost import lattice_simulation  # noqa: E402
-from thermonet.kernels.implicit_common import OPTIONS  # noqa: E402
+from thermonet.implicit.core.schemes import OPTIONS  # noqa: E402
 from thermonet.kernels.specialize import specialize  # noqa: E402
 
 #: (name, the call's source line in the driver template, or its first line for a call that spans

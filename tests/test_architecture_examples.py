@@ -12,7 +12,7 @@ import sys
 import pytest
 
 from thermonet.integrators import base as integrator_registry
-from thermonet.kernels import implicit_common
+from thermonet.implicit.core import schemes as scheme_registry
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from push_subflow import DOC, example_code  # noqa: E402
@@ -29,7 +29,7 @@ def test_the_architecture_doc_has_one_example_per_kind_of_addition():
 @pytest.mark.parametrize("kind", KINDS)
 def test_a_worked_example_runs_as_written(kind):
     integrators = dict(integrator_registry._REGISTRY)
-    schemes = dict(implicit_common._SCHEMES)
+    schemes = dict(scheme_registry._SCHEMES)
     # the sub-flow under the module name its definitions have in push_subflow: the same kernel
     namespace = {"__name__": "push_subflow" if kind == "subflow" else f"architecture_example_{kind}"}
     try:
@@ -37,5 +37,5 @@ def test_a_worked_example_runs_as_written(kind):
     finally:
         integrator_registry._REGISTRY.clear()
         integrator_registry._REGISTRY.update(integrators)
-        implicit_common._SCHEMES.clear()
-        implicit_common._SCHEMES.update(schemes)
+        scheme_registry._SCHEMES.clear()
+        scheme_registry._SCHEMES.update(schemes)

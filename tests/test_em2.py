@@ -13,8 +13,8 @@ import pytest
 import thermonet as tn
 from numba import njit
 
-from thermonet.kernels import em2 as em2_kernels
-from thermonet.kernels.implicit_common import implicit_kernels
+from thermonet.implicit.em2 import kernels as em2_kernels
+from thermonet.implicit.core.schemes import implicit_kernels
 from thermonet.stability import stable_step
 from thermonet.step_policy import UnstableStepError, check_step
 

@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 import thermonet as tn
-from thermonet.integrators.compiled_path import QUIET_STRAIN, SWEEPS_MAX_HW, choose_by_step
-from thermonet.integrators.large_steps import unrest
+from thermonet.implicit.core.compiled_path import QUIET_STRAIN, SWEEPS_MAX_HW, choose_by_step
+from thermonet.implicit.core.large_steps import unrest
 from thermonet.stability import stable_step
 
 HERE = os.path.dirname(os.path.abspath(__file__))

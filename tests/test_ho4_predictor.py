@@ -1,4 +1,4 @@
-"""HO4's predictor extrapolates from the previous step (kernels/implicit_start.py): the series
+"""HO4's predictor extrapolates from the previous step (implicit/core/start.py): the series
 a + (h/2) ȧ + (h²/8) ä for the stage acceleration gains its next term from the last committed
 step's stage acceleration, read from the unknowns that step converged to. Only after a committed
 step of the same h; it changes the Newton guess, not the solution."""
@@ -8,7 +8,7 @@ import pytest
 
 import thermonet as tn
 from test_implicit_newton import hot_lattice_ho4 as hot_lattice
-from thermonet.integrators.ho4 import HO4Stepper
+from thermonet.implicit.ho4.stepper import HO4Stepper
 
 
 def predicted(sim, extrapolate: bool, h=None):

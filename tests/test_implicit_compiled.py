@@ -1,5 +1,5 @@
-"""The compiled Newton path of the implicit integrators (kernels/newton_compiled.py,
-integrators/compiled_path.py) against the sparse path: the same steps to the Newton tolerance
+"""The compiled Newton path of the implicit integrators (implicit/core/compiled_newton.py,
+implicit/core/compiled_path.py) against the sparse path: the same steps to the Newton tolerance
 (dense LU on small nets, matrix-free sweeps on larger ones), chunking that changes nothing,
 failures reported alike, and the automatic choice."""
 
@@ -9,7 +9,7 @@ import pytest
 import thermonet as tn
 from thermonet.errors import InputError
 from thermonet.integrators.base import StepFailure
-from thermonet.kernels.newton_compiled import lu_factor, lu_solve
+from thermonet.implicit.core.compiled_newton import lu_factor, lu_solve
 
 
 def lattice_simulation(cells, integrator, h=0.01, gravity=(0.0, 0.0, -9.81), threads=None, **options):

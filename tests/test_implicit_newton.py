@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import thermonet as tn
-from thermonet.solvers.newton import NewtonOptions, NewtonTimers, newton
+from thermonet.implicit.core.newton import NewtonOptions, NewtonTimers, newton
 from thermonet.paper import CHAIN_MOMENTA, CHAIN_TEMPERATURES
 
 
@@ -237,7 +237,7 @@ def test_a_residual_near_the_tolerance_is_finished_by_jacobi_steps(monkeypatch):
     """On the benchmark-like lattice most HO4 steps end one Newton iteration at 1–1000× the
     tolerance; inertia-preconditioned corrections then bring them below it. Same states as
     full Newton iterations, to the tolerance's size, with fewer sweeps."""
-    import thermonet.solvers.newton as newton_module
+    import thermonet.implicit.core.newton_policy as policy
 
     def lattice_run():
         net = tn.lattice((10, 10, 10), jitter=0.1, seed=1)
@@ -250,7 +250,7 @@ def test_a_residual_near_the_tolerance_is_finished_by_jacobi_steps(monkeypatch):
         return sim
 
     short = lattice_run()
-    monkeypatch.setattr(newton_module, "JACOBI_RANGE", 0.0)
+    monkeypatch.setattr(policy, "JACOBI_RANGE", 0.0)
     full = lattice_run()
     assert short.stepper.timers.jacobi_steps >= 3 and full.stepper.timers.jacobi_steps == 0
     for sim in (short, full):
@@ -326,7 +326,7 @@ def test_jacobi_steps_are_taken_while_their_contraction_says_two_reach_the_toler
 def test_uniform_parameter_kernels_give_the_per_spring_kernels_numbers(integrator):
     """With every spring's parameters equal the kernels read one shared column (UNIFORM); the
     kernels that stream the (k, m) array must give the same bits."""
-    from thermonet.kernels.implicit_common import implicit_kernels
+    from thermonet.implicit.core.schemes import implicit_kernels
 
     net = tn.lattice((5, 4, 4), jitter=0.1, seed=3)
     rng = np.random.default_rng(2)
@@ -335,11 +335,11 @@ def test_uniform_parameter_kernels_give_the_per_spring_kernels_numbers(integrato
                         momenta=rng.normal(0.0, 1.0, (net.n_nodes, 3)), integrator=integrator, h=0.01,
                         integrator_options=dict(linear_solver="matfree"))
     st, s = sim.stepper, sim._state
-    assert st.springs.parameters.shape[1] == 1
+    assert st.springs.P.shape[1] == 1
     outputs = []
-    for kernels, P in ((st.kernels, st.springs.parameters),
+    for kernels, P in ((st.kernels, st.springs.P),
                        (implicit_kernels(sim.model, st.scheme, sim.parallel, False, st.rate), sim.system.parameters)):
-        st.kernels, st.springs = kernels, st.springs._replace(parameters=P)
+        st.kernels, st.springs = kernels, st.springs._replace(P=P)
         st.begin(s.positions, s.momenta, s.entropy, sim.h)
         st.predict(st.u)
         assert st.residual(st.u) == (0, -1)
@@ -353,10 +353,10 @@ def test_uniform_parameter_kernels_give_the_per_spring_kernels_numbers(integrato
 @pytest.fixture
 def series_predictor(monkeypatch):
     """HO4's predictor without its extrapolation from the previous step (the series alone,
-    kernels/implicit_start.py): on this lattice the extrapolated guess is good enough that one
+    implicit/core/start.py): on this lattice the extrapolated guess is good enough that one
     Newton iteration converges, and these tests are about the finishing Jacobi steps that a
     larger residual needs (a hotter regime, or the first step after a restart)."""
-    from thermonet.integrators.ho4 import HO4Stepper
+    from thermonet.implicit.ho4.stepper import HO4Stepper
 
     coefficients = HO4Stepper.predictor_coefficients
 
@@ -429,7 +429,7 @@ def test_local_jacobi_steps_replace_global_ones_with_the_same_states(monkeypatch
     """In the hot regime the finishing Jacobi steps are local (no full residual, no sweep), and
     the steps end where global Jacobi steps end, to the tolerance's size. Where too many nodes
     are above the threshold, a global step is taken instead."""
-    from thermonet.integrators.implicit import ImplicitStepper
+    from thermonet.implicit.core.stepper import ImplicitStepper
 
     local = hot_lattice_ho4()
     local.stepper.timers.__init__()
@@ -449,7 +449,7 @@ def test_local_jacobi_steps_replace_global_ones_with_the_same_states(monkeypatch
 
 def test_the_compiled_path_takes_the_same_local_jacobi_steps(series_predictor):
     """The compiled Newton driver finishes with HO4's local Jacobi steps as the sparse path does
-    (kernels/local_update._local_jacobi), test for test: the same states bit for bit."""
+    (implicit/core/local_jacobi._local_jacobi), test for test: the same states bit for bit."""
     sparse = hot_lattice_ho4(steps=0)
     compiled = hot_lattice_ho4(steps=0, newton_path="compiled")
     assert compiled.stepper.compiled is not None and sparse.stepper.compiled is None

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import thermonet as tn
-from thermonet.kernels.implicit_common import implicit_kernels
+from thermonet.implicit.core.schemes import implicit_kernels
 from thermonet.models import get_model
 
 PARAMS = {"hencky": dict(c=100.0, beta=2.0, C0=5.0, theta0=300.0),

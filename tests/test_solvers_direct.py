@@ -10,7 +10,7 @@ import thermonet.solvers.direct as direct
 import thermonet.solvers.pattern as pattern_module
 from thermonet.solvers import BlockPattern
 from thermonet.solvers.direct import ReusedLU, SparseLU
-from thermonet.solvers.newton import FLOOR_STALL_FACTOR, _floor_stall
+from thermonet.implicit.core.newton_policy import FLOOR_STALL_FACTOR, floor_stall
 
 
 def lattice_pattern(cells=4, block=3):
@@ -79,6 +79,11 @@ def test_a_factorizations_worth_is_read_once_per_pivot_sequence(monkeypatch):
     lu._worth_of = (lu._worth_of[0][::-1].copy(), -1.0)  # another pivot sequence: read again
     lu.factorize(diagonally_dominant_values(p, 2), 1.0)
     assert len(calls) == 2 and lu.worth == first
+
+
+def _floor_stall(history):
+    """newton_policy.floor_stall for a solve's history of scaled residuals (the last one's)."""
+    return floor_stall(history[-2], history[-3] if len(history) >= 3 else 0.0)
 
 
 def test_a_residual_at_its_floor_is_converged_once_a_correction_contracts_far_less():

@@ -3,7 +3,7 @@ or node does (:mod:`.subflows`), the blocked spring pass's pieces (:mod:`.blocks
 records (:mod:`.records`), per-model specialization and the kernels' parameter array
 (:mod:`.specialize`), vectorizable maths (:mod:`.fastmath`), the diagnostics reductions and
 per-spring fields (:mod:`.reductions`, :mod:`.springs`), the output gathers (:mod:`.gather`) and
-row copies (:mod:`.schedule_passes`). Kernels that belong to one kind of integrator or physics
+row copies (:mod:`.copies`). Kernels that belong to one kind of integrator or physics
 live in its slice (:mod:`thermonet.explicit`, :mod:`thermonet.heat`, :mod:`thermonet.loads`);
 the implicit schemes' kernels are here for now.
 

@@ -16,7 +16,7 @@ from typing import Any, Callable
 from ..builders import CELL_EDGES
 from ..integrators import available_integrators
 from ..models import available_models
-from ..solvers.newton import NEWTON_PATHS
+from ..implicit.core.newton import NEWTON_PATHS
 
 NO_DEFAULT = object()
 

@@ -62,7 +62,7 @@ def factorization_worth(lu) -> float:
 
 class ReusedLU(SparseLU):
     """SuperLU whose factorization is kept across Newton iterations and steps (modified Newton,
-    ``linear_solver="splu-reuse"``): :func:`thermonet.solvers.newton.newton` asks
+    ``linear_solver="splu-reuse"``): :func:`thermonet.implicit.core.newton.newton` asks
     :meth:`usable` before each full iteration and, where it may, solves with the factorization
     of an earlier iterate (of this step, or of an earlier step of the same h: ``carried``)
     instead of assembling and factorizing the Jacobian at the current one. The convergence test

@@ -15,7 +15,7 @@ from .pattern import BlockPattern
 
 class MatrixFree:
     """Inertia-preconditioned Richardson sweeps on matrix-free products (see
-    :mod:`thermonet.kernels.implicit_common`), until the linear residual's max norm is below
+    :mod:`thermonet.implicit.core.schemes`), until the linear residual's max norm is below
     the target; SciPy GMRES on the same product when the sweeps stall (a step so large that
     the springs rival the inertia). Needs from the problem: ``linearize()`` (per-spring
     coefficients at the last residual's point), ``sweep(du, rhs, r, update, first) -> max|r|`` and

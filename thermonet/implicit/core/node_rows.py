@@ -1,11 +1,11 @@
 """The free nodes' rows in the node passes of the schemes with a block of 3 unknowns per node
-(GTR-α, EM2; :mod:`.implicit_common` for the conventions): the residual's rows and the matrix-
+(GTR-α, EM2; :mod:`thermonet.implicit.core.schemes` for the conventions): the residual's rows and the matrix-
 free sweep's, for a block of NODE_BLOCK nodes, a spring's correction difference, and the inertia
 blocks of the assembled Jacobian.
 The row functions are inlined into a scheme's loop over node blocks (``for b in
 prange(node_blocks(n))``), which keeps its reduction of the returned maxima; the arithmetic is the
 schemes' own, in the same order.
-HO4's nodes carry 6 rows with their own inertia blocks (:mod:`.ho4`, :mod:`.ho4_linear`).
+HO4's nodes carry 6 rows with their own inertia blocks (:mod:`thermonet.implicit.ho4.kernels`, :mod:`thermonet.implicit.ho4.linear`).
 Also the 2-norm of a residual for EM2's line search (:func:`norm2`).
 """
 
@@ -43,7 +43,7 @@ def residual_rows3(step, topo, node, fs, u, gc, R, Rabs, block):
     tuple within a prange body were written to a copy.)"""
     x0, p, eta, h = step
     edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
-    masses, inv_mass, gravity, with_gravity = node
+    masses, inv_mass, anchored, gravity, with_gravity, reference = node
     rmax = 0.0
     smax = 0.0
     magnitudes = Rabs.shape[0] > 0
@@ -98,7 +98,7 @@ def sweep_rows3(topo, node, h, w, du, R, r, block, update, first):
     written); ``first``: du is taken as zero (not read; w neither). Returns max |r| over the
     block's rows (0 without free nodes)."""
     edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
-    masses, inv_mass, gravity, with_gravity = node
+    masses, inv_mass, anchored, gravity, with_gravity, reference = node
     rmax = 0.0
     for a in range(block * NODE_BLOCK, min((block + 1) * NODE_BLOCK, free_index.shape[0])):
         k = free_index[a]

@@ -1,7 +1,7 @@
 """GTR-α's kernels (docs/theory.md §2.1, paper (45)–(48)): residual, Jacobian values (assembled, and as
 per-spring coefficients for the matrix-free sweep), the matrix-free sweep and the finish, as Numba
 templates compiled per model by :func:`build` (registered as scheme "gtr"). Conventions (records,
-blocking, status codes): :mod:`.implicit_common`.
+blocking, status codes): :mod:`thermonet.implicit.core.schemes`.
 
 Unknown d = x¹ − x⁰ per free node (block of 3); θ̄ condensed per spring:
 
@@ -16,7 +16,7 @@ dθ̄/dl¹ = (1 − α) F_lθ(l¹) θ̄/C (F_lθ does not depend on θ); T(l⁰,
 
 The work record is :class:`GTRWork`: per spring len1 (m,), dir1 (3, m) at x¹, θ̄ ``theta`` and
 dθ̄/dl¹ ``dtheta`` (m,), the matrix-free coefficient ``jc`` (m,), and the start kernel's
-:class:`~.implicit_records.StartWork` (``start``).
+:class:`~thermonet.implicit.core.records.StartWork` (``start``).
 """
 
 from __future__ import annotations
@@ -27,13 +27,13 @@ from typing import NamedTuple
 import numpy as np
 from numba import prange
 
-from .fastmath import exp as exp_
-from .implicit_common import (BLOCK, INLINE, KEEP_START, LOCAL_ITERATIONS, MAX_LOG_STEP, NO_TEMPERATURE, NOT_FINITE, OK,
-                              OPTIONS, THETA_STOP, UNIFORM, COLLAPSED, _admissible, _first_flagged, _log_step,
-                              _usable, register_scheme, scatter_spring_block)
-from .implicit_records import StartWork
-from .implicit_rows import inertia_blocks3, node_blocks, residual_rows3, spring_difference3, sweep_rows3
-from .specialize import specialize
+from ...kernels.fastmath import exp as exp_
+from ..core.schemes import (BLOCK, INLINE, KEEP_START, LOCAL_ITERATIONS, MAX_LOG_STEP, NO_TEMPERATURE, NOT_FINITE, OK,
+                            OPTIONS, THETA_STOP, UNIFORM, COLLAPSED, _admissible, _first_flagged, _log_step,
+                            _usable, register_scheme, scatter_spring_block)
+from ..core.records import StartWork
+from ..core.node_rows import inertia_blocks3, node_blocks, residual_rows3, spring_difference3, sweep_rows3
+from ...kernels.specialize import specialize
 
 # Bound per model by specialize(); listed so the templates read as ordinary code.
 entropy = temperature = tension = d2F_dl_dtheta = d2F_dtheta2 = None
@@ -58,7 +58,7 @@ class GTRWork(NamedTuple):
 
 
 def build(ns: dict, tag: str, ptag: str, parallel: bool) -> dict:
-    """GTR-α's kernels for the model namespace ``ns`` (see implicit_common.register_scheme)."""
+    """GTR-α's kernels for the model namespace ``ns`` (see core.schemes.register_scheme)."""
     ns["gtr_correct"] = specialize(_gtr_correct, tag, ns, **INLINE)
     ns["gtr_thermal"] = specialize(_gtr_thermal, tag, ns, **OPTIONS)
     ns["gtr_thermal_vector"] = specialize(_gtr_thermal_vector, tag, ns, **INLINE)
@@ -72,7 +72,7 @@ def build(ns: dict, tag: str, ptag: str, parallel: bool) -> dict:
         linearize=linearize,
         jacobian=jacobian,
         finish=finish,
-        # the compiled Newton path's signatures (kernels/newton_compiled.py), extra = (α,)
+        # the compiled Newton path's signatures (implicit/core/compiled_newton.py), extra = (α,)
         compiled_residual=specialize(_gtr_compiled_residual, ptag, calls, **INLINE),
         compiled_jacobian=specialize(_gtr_compiled_jacobian, ptag, calls, **INLINE),
         compiled_finish=specialize(_gtr_compiled_finish, ptag, calls, **INLINE),
@@ -149,7 +149,7 @@ def _gtr_residual(step, topo, spring, node, work, alpha, u, warm, res):
     x0, p, eta, h = step
     edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
     l0, P = spring
-    masses, inv_mass, gravity, with_gravity = node
+    masses, inv_mass, anchored, gravity, with_gravity, reference = node
     start, len1, dir1, theta, dtheta, jc = work
     len0, dir0, keep, fs, ws, sweep, nodal, guess, code = start
     R, Rabs, peak = res
@@ -272,7 +272,7 @@ def _gtr_jacobian(topo, spring, node, work, places, alpha, h, data):
     ∂R_c/∂d_g = δ_cg m_c/h I + α h s_c s_g F_lθ(l⁰, θ̄) (dθ̄/dl¹) n⁰ n¹ᵀ, s_a = +1, s_b = −1."""
     edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
     l0, P = spring
-    masses, inv_mass, gravity, with_gravity = node
+    masses, inv_mass, anchored, gravity, with_gravity, reference = node
     start, len1, dir1, theta, dtheta, jc = work
     len0, dir0, keep, fs, ws, sweep, nodal, guess, code = start
     node_base, node_stride, spring_base, spring_stride, B = places
@@ -289,7 +289,7 @@ def _gtr_jacobian(topo, spring, node, work, places, alpha, h, data):
 
 
 def _gtr_finish(step, topo, spring, node, work, alpha, u, phi, new):
-    """The next state from converged unknowns u into ``new`` (NextState; phi (m,) the step's
+    """The next state from converged unknowns u into ``new`` (StateArrays; phi (m,) the step's
     start): x¹ = x⁰ + d; Φ¹ = Φ⁰ + h θ̄; η¹ = α Γ(l⁰, θ̄) + (1 − α) Γ(l¹, θ̄) measured (48d); and
     p¹ = p⁰ + h [α f(x⁰, θ̄) + (1 − α) f(x¹, θ̄)], which is (48b) given (48a) and, forces being
     central pairs, conserves linear momentum to round-off whatever the solver residual.
@@ -333,7 +333,7 @@ def _gtr_sweep(topo, node, work, h, du, R, r, update, first):
 
     Spring e's block is jc[e] n⁰ n¹ᵀ: w[e, :3] = n⁰ jc[e] n¹·(du_a − du_b)."""
     edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
-    masses, inv_mass, gravity, with_gravity = node
+    masses, inv_mass, anchored, gravity, with_gravity, reference = node
     start, len1, dir1, theta, dtheta, jc = work
     len0, dir0, keep, fs, ws, w, nodal, guess, code = start
     m = ends.shape[0]

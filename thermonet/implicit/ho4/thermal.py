@@ -7,15 +7,15 @@ and their derivatives with respect to l^½ and l¹ (the condensed unknowns' shar
 the scalar solve (iterated to convergence), the vectorized one (a fixed number of corrections),
 and, for an entropy affine in ln θ (``Model.entropy_log_affine``, model "hencky"), the closed
 form (:func:`_ho4_thermal_exact`: no corrections, no seeds). Numba templates, compiled per model
-by :func:`thermonet.kernels.ho4.build`.
+by :func:`thermonet.implicit.ho4.kernels.build`.
 """
 
 from __future__ import annotations
 
 import math
 
-from .fastmath import exp as exp_
-from .implicit_common import LOCAL_ITERATIONS, LOG_AFFINE, MAX_LOG_STEP, SIXTH, THETA_STOP, _admissible, _usable
+from ...kernels.fastmath import exp as exp_
+from ..core.schemes import LOCAL_ITERATIONS, LOG_AFFINE, MAX_LOG_STEP, SIXTH, THETA_STOP, _admissible, _usable
 
 # Bound per model by specialize(); listed so the templates read as ordinary code.
 entropy = temperature = d2F_dl_dtheta = d2F_dtheta2 = None

@@ -1,7 +1,7 @@
 """EM2 far above the explicit limit: the Newton path chosen by the step ("auto" for a stepper
 with ``chooses_by_step``), and continuation in the step, which solves a step's own equations
 where Newton from the predictor stalls (a stepper with ``continuation``). Both act on an
-:class:`~thermonet.integrators.implicit.ImplicitStepper` (its methods of the same names call
+:class:`~thermonet.implicit.core.stepper.ImplicitStepper` (its methods of the same names call
 them).
 """
 
@@ -12,8 +12,8 @@ import math
 
 import numpy as np
 
-from ..solvers import NewtonResult, make_linear_solver
-from ..solvers.newton import newton
+from ...solvers import make_linear_solver
+from .newton import NewtonResult, newton
 from .compiled_path import choose_by_step
 
 
@@ -23,7 +23,7 @@ def choose_path(stepper, state, h: float) -> None:
     kept factorizations), each made once and kept for a later return to its h."""
     if stepper.path_choice is not None and stepper.path_choice.h == h:
         return
-    from ..stability import max_frequency
+    from ...stability import max_frequency
 
     # the path the stepper was made with ("auto" by the size: the sweeps, or on a small net
     # the dense LU) serves the steps near the limit
@@ -53,7 +53,7 @@ def unrest(system, x: np.ndarray, p: np.ndarray, eta: np.ndarray | None, h: floa
     relative displacement of a spring's ends over a step h at their velocities, |v_b − v_a| h / l0_e.
     Force loads are not counted (a part held by them counts as out of balance). inf where a
     stiffness is not finite."""
-    from ..stability import spring_stiffness
+    from ...stability import spring_stiffness
 
     axial, geometric, n_vec = spring_stiffness(system, x, eta)
     edges, l0 = system.edges, system.rest_lengths

@@ -19,10 +19,10 @@ import math
 
 import numpy as np
 
-from ..kernels.ho4 import HO4Work
-from ..kernels.implicit_records import plain
-from .base import Integrator, register_integrator
-from .implicit import ImplicitStepper, newton_options
+from .kernels import HO4Work
+from ..core.records import plain
+from ...integrators.base import Integrator, register_integrator
+from ..core.stepper import ImplicitStepper, newton_options
 
 
 class HO4(Integrator):
@@ -55,7 +55,7 @@ class HO4Stepper(ImplicitStepper):
         the start kernel); the residual is then ≈ h/4 m (error of a^½), (58a)'s rows are exact
         up to θ⁰ ≠ θ(l⁰, η). With the ä term the scaled residual of the benchmark lattices is
         about 10× below the third-order Taylor guess's. Columns 4 and 5 are the start kernel's
-        extrapolation (kernels/implicit_start.py): a change Δ of a^½ moves d^½ by h²/24 Δ and
+        extrapolation (implicit/core/start.py): a change Δ of a^½ moves d^½ by h²/24 Δ and
         d¹ by h²/3 Δ, and the previous step's converged unknowns give its stage acceleration
         a^½ = 4 (d¹ − 2 d^½)/h² ((57a) solved for f^½/m), one order more of a^½ (measured on
         the benchmark lattice at h = 0.01: one Newton correction then suffices in most steps,
@@ -65,7 +65,7 @@ class HO4Stepper(ImplicitStepper):
 
     def compiled_extra(self) -> tuple:
         """The full residual's two empty index lists and the local Jacobi step's scratch
-        (kernels/local_update._local_jacobi)."""
+        (implicit/core/local_jacobi._local_jacobi)."""
         return (self._no_index, self._no_index, self.local_scratch())
 
     def residual(self, u: np.ndarray):

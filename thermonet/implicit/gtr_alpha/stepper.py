@@ -15,11 +15,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import InputError
-from ..kernels.gtr_alpha import GTRWork
-from ..kernels.implicit_records import plain
-from .base import Integrator, register_integrator
-from .implicit import ImplicitStepper, newton_options
+from ...errors import InputError
+from .kernels import GTRWork
+from ..core.records import plain
+from ...integrators.base import Integrator, register_integrator
+from ..core.stepper import ImplicitStepper, newton_options
 
 
 class GTRAlpha(Integrator):

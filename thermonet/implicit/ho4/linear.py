@@ -1,7 +1,7 @@
 """HO4's Newton matrix (docs/theory.md §2.2) at the last residual's point: its values in the assembled CSR
 matrix, its per-spring coefficients and the matrix-free sweep built on them (see
 :mod:`.gtr_alpha` for the sweep's idea), and the Jacobi step on a few nodes' rows (local steps).
-Numba templates, compiled by :func:`thermonet.kernels.ho4.build`.
+Numba templates, compiled by :func:`thermonet.implicit.ho4.kernels.build`.
 
 Spring e's block (rows R1, R2; columns d^½, d¹), with signs s_c s_g (s_a = +1, s_b = −1):
   ∂R1/∂x^σ = h/6 F_lθ(l⁰, θ⁰) dθ⁰/dl^σ n⁰ n^σᵀ
@@ -15,8 +15,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from .implicit_common import BLOCK, OPTIONS, UNIFORM, scatter_spring_block
-from .specialize import specialize
+from ..core.schemes import BLOCK, OPTIONS, UNIFORM, scatter_spring_block
+from ...kernels.specialize import specialize
 
 # Bound per model by specialize(); listed so the templates read as ordinary code.
 tension = d2F_dl2 = d2F_dl_dtheta = ho4_temperature_derivatives = None
@@ -73,7 +73,7 @@ def _ho4_jacobian(topo, spring, node, work, places, h, data):
       ∂R2/∂x¹  = h/4 F_lθ(l^½, θ^½) dθ^½/dl¹ n^½ n¹ᵀ."""
     edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
     l0, P = spring
-    masses, inv_mass, gravity, with_gravity = node
+    masses, inv_mass, anchored, gravity, with_gravity, reference = node
     start, lenh, dirh, len1, dir1, th0, th1, dth, gs, jc = work
     len0, dir0, keep, fs, ws, sweep, nodal, guess, code = start
     node_base, node_stride, spring_base, spring_stride, B = places
@@ -120,7 +120,7 @@ def _ho4_sweep(topo, node, work, h, du, R, r, update, first):
     Spring e's block applied to the difference (v^½, v¹) = du_a − du_b, into w[e, :] (6,):
     rows R1: n⁰ (a₁ n^½·v^½ + a₂ n¹·v¹); rows R2: n^½ ((k − t) n^½·v^½ + c n¹·v¹) + t v^½."""
     edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
-    masses, inv_mass, gravity, with_gravity = node
+    masses, inv_mass, anchored, gravity, with_gravity, reference = node
     start, lenh, dirh, len1, dir1, th0, th1, dth, gs, jc = work
     len0, dir0, keep, fs, ws, w, nodal, guess, code = start
     m = ends.shape[0]

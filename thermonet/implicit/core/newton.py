@@ -12,8 +12,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import InputError
-from .linear import LINEAR_SOLVERS
+from ...errors import InputError
+from ...solvers.linear import LINEAR_SOLVERS
+from . import newton_policy as policy
+from .newton_policy import AT_FLOOR, BELOW_TOLERANCE, FULL, JACOBI, KEPT, LOCAL, STALL_WINDOW
 
 
 @dataclass(frozen=True)
@@ -34,10 +36,10 @@ class NewtonOptions:
         block-Jacobi preconditioner, relative tolerance 1e-10 per solve), or "auto" (default:
         splu up to DIRECT_MAX_UNKNOWNS unknowns, matfree above; see benchmarks/README.md).
     newton_path: "compiled" (whole steps, many per call, in one compiled driver:
-        thermonet.kernels.newton_compiled; matrix-free sweeps), "compiled-dense" (the same with a
+        thermonet.implicit.core.compiled_newton; matrix-free sweeps), "compiled-dense" (the same with a
         dense LU), "sparse" (this module's iteration with ``linear_solver``), or "auto" (default:
         compiled where the scheme offers it and linear_solver is "auto"; see
-        thermonet.integrators.compiled_path).
+        thermonet.implicit.core.compiled_path).
     """
 
     tolerance: float = 1e-12
@@ -69,32 +71,6 @@ class NewtonOptions:
 
 #: the values of NewtonOptions.newton_path
 NEWTON_PATHS = ("auto", "compiled", "compiled-dense", "sparse")
-#: an inexact linear solve leaves a residual below this fraction of max(tolerance, ρ²) (in the
-#: Newton scaling, ρ the current scaled residual): Newton stays quadratic and the last linear
-#: error cannot keep the next Newton residual above the tolerance
-LINEAR_FRACTION = 0.1
-#: After a full Newton iteration, a scaled residual that few inertia-preconditioned (block-Jacobi)
-#: steps u −= D⁻¹ R can bring below the tolerance is finished by them, without linearizing or
-#: sweeping: below the stability limit the inertia dominates the Newton matrix, so each is an
-#: inexact Newton step whose linear residual is a fraction of R, the fraction by which a sweep
-#: of the last linear solve contracted (measured 0.005–0.05 on the benchmark lattices; the
-#: scaled residual then falls 0.006–0.015× per Jacobi step). A Jacobi step costs a residual and
-#: a node-only sweep, about a third of a full iteration (linearization, two or three full
-#: sweeps, residual), so Jacobi steps are taken while that contraction says that at most
-#: JACOBI_MAX_STEPS of them reach the tolerance (after each, by the contraction it achieved),
-#: and never from above JACOBI_RANGE times the tolerance. Each result is checked like any other
-#: iterate (matrix-free solver only).
-JACOBI_RANGE = 1e4
-JACOBI_MAX_STEPS = 2
-#: Where the problem offers local Jacobi steps (HO4), a Jacobi step first updates only the free
-#: nodes whose residual rows exceed LOCAL_FRACTION × the tolerance (after a full iteration, a few
-#: per cent of the nodes at most on the benchmark lattices) and recomputes the residual only at
-#: their springs and the ends of those: the same new residual as a global step's evaluation where
-#: the rest are left, at a few per cent of its cost. Local steps go on while each reduces the
-#: scaled residual at least LOCAL_STALL×, at most LOCAL_MAX_ROUNDS per solve.
-LOCAL_FRACTION = 0.1
-LOCAL_STALL = 0.5
-LOCAL_MAX_ROUNDS = 8
 #: Modified Newton (a solver with ``reuses_factorization``, ``linear_solver="splu-reuse"``): a kept
 #: factorization made in the same step makes the correction only while the scaled residual is at
 #: most REUSE_BELOW (near the root: no line search there, whose halvings a stale matrix's
@@ -104,33 +80,8 @@ LOCAL_MAX_ROUNDS = 8
 #: costs a residual and two triangular solves, a small fraction of an assembly and a
 #: factorization (benchmarks/em2_paths.py), so a linear contraction of 0.2 per such correction
 #: still reaches the tolerance sooner than a quadratic Newton iteration that factorizes.
-REUSE_BELOW = 1e-3
+REUSE_BELOW = policy.STALL_ABOVE
 REUSE_CONTRACTION = 0.2
-
-
-#: At the residual's rounding floor, a correction whose reduction of the scaled residual is this
-#: many times weaker than the reduction of the correction before it has met the floor: a kept
-#: factorization on a slowly loaded part contracts 3e-6 per correction (1e-1 → 3e-7), and the
-#: next correction's 30× (→ 1e-8, under the floor) is the rounding's, which one more correction
-#: would only confirm (a third solve per step at 100× CO2's stable step on the steel part)
-FLOOR_STALL_FACTOR = 10.0
-
-
-def _floor_stall(history: list) -> float:
-    """The reduction of the last correction (history[-1] / history[-2]) above which a residual
-    at the rounding floor is converged: 0.5, or FLOOR_STALL_FACTOR times the reduction of the
-    correction before where that is smaller (a linear contraction does not weaken tenfold from
-    one correction to the next with the same matrix; a quadratic one strengthens)."""
-    if len(history) >= 3 and history[-3] > 0:
-        return min(0.5, FLOOR_STALL_FACTOR * history[-2] / history[-3])
-    return 0.5
-
-
-def _jacobi_pays(rho: float, contraction: float, tolerance: float) -> bool:
-    """Whether at most JACOBI_MAX_STEPS Jacobi steps, each reducing the scaled residual ``rho``
-    by ``contraction``, reach ``tolerance``."""
-    return (rho <= JACOBI_RANGE * tolerance and contraction < 1.0
-            and rho * contraction**JACOBI_MAX_STEPS <= tolerance)
 
 
 @dataclass
@@ -176,13 +127,6 @@ class NewtonResult:
         return self.iterations - self.jacobi_steps
 
 
-#: ``newton(..., stall=True)``: give up once the scaled residual, still above REUSE_BELOW, has
-#: fallen less than STALL_FACTOR× over the last STALL_WINDOW iterations (the caller has a
-#: better way on: EM2's continuation in the step)
-STALL_WINDOW = 6
-STALL_FACTOR = 2.0
-
-
 def newton(problem, u: np.ndarray, options: NewtonOptions, solver, timers: NewtonTimers,
            stall: bool = False) -> NewtonResult:
     """Solve ``problem.residual(u) = 0`` for ``u`` in place, from the predictor in ``u``.
@@ -190,7 +134,7 @@ def newton(problem, u: np.ndarray, options: NewtonOptions, solver, timers: Newto
     problem: ``residual(u) -> (status, spring)`` fills ``problem.R`` and ``problem.Rabs`` (and,
     optionally, ``problem.norms`` = (max |R|, max Rabs)) and whatever the Jacobian needs; an
     optional ``problem.residual_floor``: a max |R| at or below it that the last correction
-    reduced less than 2× (or FLOOR_STALL_FACTOR times less than the one before, _floor_stall)
+    reduced less than 2× (or FLOOR_STALL_FACTOR times less than the one before, newton_policy.floor_stall)
     is converged whatever its scaled value (the rounding of the residual's
     own terms; EM2's: a net at rest in exact equilibrium has a residual of round-off over a
     scale of round-off);
@@ -202,13 +146,17 @@ def newton(problem, u: np.ndarray, options: NewtonOptions, solver, timers: Newto
     returned ``u``.
 
     ``max_iterations`` bounds the full iterations and global Jacobi steps; local Jacobi steps
-    are bounded by LOCAL_MAX_ROUNDS.
+    are bounded by LOCAL_MAX_ROUNDS. The decisions are :mod:`.newton_policy`'s, the compiled
+    driver's too; kept factorizations (modified Newton) are this driver's alone.
     """
     history: list[float] = []
     increment = math.inf
     jacobi = getattr(solver, "jacobi", None)
     local = getattr(problem, "local_jacobi", None) if jacobi is not None else None
-    last = "full"  # the kind of the last correction: "full", "jacobi" (global) or "local"
+    last = FULL  # the kind of the last correction: FULL, JACOBI (global), LOCAL or KEPT
+    tolerance, rtol, atol = float(options.tolerance), float(options.rtol), float(options.atol)
+    rule = policy.jacobi_rule() if jacobi is not None else None  # (read only where Jacobi steps may be taken)
+    floor = float(getattr(problem, "residual_floor", 0.0))
     corrections = 0  # of every kind
     local_rounds = 0
     jacobi_steps = 0
@@ -238,7 +186,7 @@ def newton(problem, u: np.ndarray, options: NewtonOptions, solver, timers: Newto
             rmax = np.abs(problem.R).max() if problem.R.size else 0.0
         rho = float(rmax / scale) if scale > 0 else 0.0
         history.append(rho)
-        kept = last == "kept"
+        kept = last == KEPT
         # a kept factorization worth many solves (solvers.direct: a large 3D net's) is judged
         # by what it costs; a cheap one as ever (REUSE_CONTRACTION, a fresh iteration decides)
         costly = kept and solver.judged_by_cost()
@@ -246,18 +194,18 @@ def newton(problem, u: np.ndarray, options: NewtonOptions, solver, timers: Newto
             solver.stale = True  # the kept factorization no longer pays: factorize at the next iteration
         if not math.isfinite(rho):
             return NewtonResult(False, it, history, 0, -1, "residual not finite", jacobi_steps, reused)
-        if rho <= options.tolerance:
-            return NewtonResult(True, it, history, jacobi_steps=jacobi_steps, reused=reused)
-        floored = it > 0 and rmax <= getattr(problem, "residual_floor", 0.0)
-        if floored and rho > _floor_stall(history) * history[-2]:
-            # at the rounding floor of the residual's terms, and no longer falling
+        verdict, floored, small = policy.convergence(
+            it, rho, float(rmax), floor, history[-2] if it > 0 else 0.0, history[-3] if it > 1 else 0.0,
+            increment, u, tolerance, rtol, atol)
+        if verdict == BELOW_TOLERANCE or verdict == AT_FLOOR:
+            # (AT_FLOOR: at the rounding floor of the residual's terms, and no longer falling)
             return NewtonResult(True, it, history, jacobi_steps=jacobi_steps, reused=reused)
         if costly and not floored and not (
                 rho <= solver.contraction_limit(history[-2], options.tolerance, REUSE_CONTRACTION) * history[-2]):
             # it converges linearly, and more slowly than pays: refactorize (at the rounding
             # floor a contraction says nothing: the test above ends the iteration next time)
             solver.stale = True
-        if it > 0 and rho <= 1e3 * options.tolerance and increment <= options.rtol * np.abs(u).max() + options.atol:
+        if small:
             if not kept:
                 return NewtonResult(True, it, history, jacobi_steps=jacobi_steps, reused=reused)
             # a kept factorization's correction converges linearly: a small one does not say the
@@ -267,29 +215,24 @@ def newton(problem, u: np.ndarray, options: NewtonOptions, solver, timers: Newto
                 solver.stale = True
         if corrections - local_rounds == options.max_iterations:
             break
-        if (stall and len(history) > STALL_WINDOW and rho > REUSE_BELOW
-                and rho * STALL_FACTOR > history[-1 - STALL_WINDOW]):
+        window = STALL_WINDOW
+        if stall and policy.stalled(len(history), rho, history[-1 - window] if len(history) > window else 0.0):
             if reuse:
                 solver.stale = True
             return NewtonResult(False, corrections, history, 0, -1,
-                                f"stalled (scaled residual {rho:.3g}, {history[-1 - STALL_WINDOW]:.3g} "
-                                f"{STALL_WINDOW} iterations before)", jacobi_steps, reused)
+                                f"stalled (scaled residual {rho:.3g}, {history[-1 - window]:.3g} "
+                                f"{window} iterations before)", jacobi_steps, reused)
         use_jacobi = False
         if jacobi is not None and it > 0:
-            if last == "full":  # what the sweeps of that iteration's solve promise
-                use_jacobi = _jacobi_pays(rho, getattr(solver, "contraction", math.inf), options.tolerance)
-            else:
-                contraction = rho / history[-2]
-                if last == "local":  # each costs a few per cent of a global step
-                    use_jacobi = contraction <= LOCAL_STALL and local_rounds < LOCAL_MAX_ROUNDS
-                else:
-                    use_jacobi = _jacobi_pays(rho, contraction, options.tolerance)
-                if not use_jacobi:
-                    jacobi = local = None  # they contract too slowly: full iterations from here on
+            promised = float(getattr(solver, "contraction", math.inf))
+            use_jacobi, still = policy.next_jacobi(last, rho, history[-2], promised, local_rounds, tolerance, rule.range,
+                                                   rule.max_steps, rule.local_stall, rule.local_max_rounds)
+            if not still:
+                jacobi = local = None  # they contract too slowly: full iterations from here on
         corrections += 1
         if use_jacobi and local is not None:
             t0 = time.perf_counter()
-            done = local(u, LOCAL_FRACTION * options.tolerance)
+            done = local(u, rule.local_fraction * options.tolerance)
             if done is not None:
                 evaluated, increment = done[:2], done[2]
                 timers.residual += time.perf_counter() - t0
@@ -297,9 +240,9 @@ def newton(problem, u: np.ndarray, options: NewtonOptions, solver, timers: Newto
                 timers.jacobi_steps += 1
                 jacobi_steps += 1
                 local_rounds += 1
-                last = "local"
+                last = LOCAL
                 continue
-        last = "jacobi" if use_jacobi else "full"
+        last = JACOBI if use_jacobi else FULL
         t0 = t1 = t2 = time.perf_counter()
         if use_jacobi:
             du = jacobi(problem.R)
@@ -307,7 +250,7 @@ def newton(problem, u: np.ndarray, options: NewtonOptions, solver, timers: Newto
             jacobi_steps += 1
         else:
             if reuse and solver.usable(h, rho, REUSE_BELOW):
-                last = "kept"  # modified Newton: the factorization of an earlier iterate
+                last = KEPT  # modified Newton: the factorization of an earlier iterate
                 reused += 1
                 timers.reused_factorizations += 1
             elif reuse:
@@ -323,12 +266,7 @@ def newton(problem, u: np.ndarray, options: NewtonOptions, solver, timers: Newto
                 problem.linearize()
                 t1 = time.perf_counter()
             t2 = time.perf_counter()
-            # forcing term ∝ ρ (Eisenstat–Walker): the linear error stays below Newton's own
-            # quadratic term, so an early, far-from-converged step is not solved to round-off;
-            # and no sweep is spent once the one before leaves a linear error that a converged
-            # step could not tell from zero
-            du = solver.solve(problem.R, LINEAR_FRACTION * max(options.tolerance, rho * rho) * scale,
-                              LINEAR_FRACTION * options.tolerance * scale)
+            du = solver.solve(problem.R, *policy.linear_targets(rho, float(scale), tolerance, policy.LINEAR_FRACTION))
         t3 = time.perf_counter()
         timers.assembly += t1 - t0
         timers.factorization += t2 - t1

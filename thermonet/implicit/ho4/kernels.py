@@ -1,8 +1,8 @@
 """HO4's kernels (docs/theory.md §2.2, paper (53)–(59)): the residual (also as a SUBSET variant over listed
 springs and nodes, for local Jacobi steps) and the finish, as Numba templates compiled per model
 by :func:`build` (registered as scheme "ho4"); the per-spring thermal solve is
-:mod:`.ho4_thermal`, the Newton matrix (assembled, matrix-free, Jacobi rows) :mod:`.ho4_linear`.
-Conventions (records, blocking, status codes): :mod:`.implicit_common`.
+:mod:`thermonet.implicit.ho4.thermal`, the Newton matrix (assembled, matrix-free, Jacobi rows) :mod:`thermonet.implicit.ho4.linear`.
+Conventions (records, blocking, status codes): :mod:`thermonet.implicit.core.schemes`.
 
 Unknowns d^½, d¹ per free node (block of 6); θ⁰, θ¹ condensed per spring (θ^½ = mean):
 
@@ -13,7 +13,7 @@ Unknowns d^½, d¹ per free node (block of 6); θ⁰, θ¹ condensed per spring 
 The work record is :class:`HO4Work`: per spring lenh, len1 (m,) and dirh, dir1 (3, m) at x^½
 and x¹, θ⁰ ``th0`` and θ¹ ``th1`` (m,), ``dth`` (4, m) = dθ⁰/dl^½, dθ⁰/dl¹, dθ¹/dl^½,
 dθ¹/dl¹, ``gs`` (m,) = Γ⁰ = Γ¹ (the next residual's seed), the matrix-free coefficients ``jc``
-(5, m), and the start kernel's :class:`~.implicit_records.StartWork` (``start``).
+(5, m), and the start kernel's :class:`~thermonet.implicit.core.records.StartWork` (``start``).
 """
 
 from __future__ import annotations
@@ -24,13 +24,14 @@ from typing import NamedTuple
 import numpy as np
 from numba import prange
 
-from .implicit_common import (BLOCK, COLLAPSED, INLINE, LOG_AFFINE, NO_TEMPERATURE, NOT_FINITE, OK, OPTIONS,
-                              UNIFORM, _admissible, _all_count, _first_flagged, _first_flagged_entry,
-                              _first_flagged_position, _listed_count, _listed_entry, _listed_position,
-                              register_scheme)
-from .implicit_records import StartWork
-from .specialize import specialize
-from . import ho4_linear as _linear, ho4_thermal as _thermal, local_update as _local
+from ..core.schemes import (BLOCK, COLLAPSED, INLINE, LOG_AFFINE, NO_TEMPERATURE, NOT_FINITE, OK, OPTIONS,
+                            UNIFORM, _admissible, _all_count, _first_flagged, _first_flagged_entry,
+                            _first_flagged_position, _listed_count, _listed_entry, _listed_position,
+                            register_scheme)
+from ..core.records import StartWork
+from ...kernels.specialize import specialize
+from . import linear as _linear, thermal as _thermal
+from ..core import local_jacobi as _local
 
 # Bound per model by specialize(); listed so the templates read as ordinary code.
 entropy = temperature = tension = d2F_dtheta2 = None
@@ -66,7 +67,7 @@ class HO4Work(NamedTuple):
 
 
 def build(ns: dict, tag: str, ptag: str, parallel: bool) -> dict:
-    """HO4's kernels for the model namespace ``ns`` (see implicit_common.register_scheme)."""
+    """HO4's kernels for the model namespace ``ns`` (see core.schemes.register_scheme)."""
     t = _thermal
     ns["ho4_derivatives"] = specialize(t._ho4_derivatives, tag, ns, **INLINE)
     ns["ho4_temperature_derivatives"] = specialize(t._ho4_temperature_derivatives, tag, ns, **INLINE)
@@ -92,7 +93,7 @@ def build(ns: dict, tag: str, ptag: str, parallel: bool) -> dict:
         linearize=linearize,
         jacobian=jacobian,
         finish=finish,
-        # the compiled Newton path's signatures (kernels/newton_compiled.py), extra = (springs,
+        # the compiled Newton path's signatures (implicit/core/compiled_newton.py), extra = (springs,
         # nodes, local): the residual's two empty index lists, the local Jacobi step's scratch
         compiled_residual=specialize(_ho4_compiled_residual, ptag, calls, **INLINE),
         compiled_jacobian=specialize(_ho4_compiled_jacobian, ptag, calls, **INLINE),
@@ -129,7 +130,7 @@ def _ho4_residual(step, topo, spring, node, work, u, warm, res, springs, nodes):
     x0, p, eta, h = step
     edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
     l0, P = spring
-    masses, inv_mass, gravity, with_gravity = node
+    masses, inv_mass, anchored, gravity, with_gravity, reference = node
     start, lenh, dirh, len1, dir1, th0, th1, dth, gs, jc = work
     len0, dir0, keep, fs, ws, sweep, nodal, guess, code = start
     R, Rabs, peak = res
@@ -365,7 +366,7 @@ def _ho4_residual(step, topo, spring, node, work, u, warm, res, springs, nodes):
 
 
 def _ho4_finish(step, topo, spring, node, work, u, phi, new):
-    """The next state from converged unknowns u into ``new`` (NextState; phi (m,) the step's
+    """The next state from converged unknowns u into ``new`` (StateArrays; phi (m,) the step's
     start): x¹ = x⁰ + d¹; Φ¹ = Φ⁰ + h (θ⁰ + θ¹)/2; η¹ = (−Γ⁰ + 4Γ^½ + 3Γ¹)/6 measured (58d);
     and p¹ = p⁰ + h (f⁰ + 4 f^½ + f¹)/6, which is (58b) given (58a) and (57a) and conserves
     linear momentum to round-off whatever the solver residual. fs must hold the last residual's

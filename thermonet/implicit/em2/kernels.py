@@ -1,6 +1,6 @@
 """EM2's kernels (docs/theory.md §3): the discrete-gradient (energy–momentum) midpoint step at fixed
 entropy per spring, as Numba templates compiled per model by :func:`build` (registered as scheme
-"em2"). Conventions (records, blocking, status codes): :mod:`.implicit_common`.
+"em2"). Conventions (records, blocking, status codes): :mod:`thermonet.implicit.core.schemes`.
 
 Unknown d = x¹ − x⁰ per free node (block of 3). With the spring vectors d⁰, d¹ (end minus start
 node), l⁰, l¹ their lengths, d̄ = (d⁰ + d¹)/2, l̄ = (l⁰ + l¹)/2 and δ = l¹ − l⁰:
@@ -13,17 +13,17 @@ the kinetic energy gains exactly what U loses; the forces are central (along d̄
 so linear and angular momentum are kept exactly. η¹ = η; Φ¹ = Φ⁰ + h θ(l̄, η).
 
 Q = ΔU/δ per spring is the model's closed form (``Model.energy_quotient``) or, for a model
-without one, the generic forms of :mod:`.em2_gradient` (the quotient of two U values, a
+without one, the generic forms of :mod:`thermonet.implicit.em2.gradient` (the quotient of two U values, a
 Gauss–Lobatto rule on T where that would cancel).
 
 The Jacobian block of spring e (added with sign s_c s_g to block (c, g), s_a = +1, s_b = −1) is
 
     B_e = (h/2) [ (s/2) I + (ds/dl¹) d̄ n¹ᵀ ],   ds/dl¹ = (dQ/dl¹) / l̄ − s / (2 l̄)
 
-with dQ/dl¹ from the model's closed form, or from the generic forms (:mod:`.em2_gradient`). The
+with dQ/dl¹ from the model's closed form, or from the generic forms (:mod:`thermonet.implicit.em2.gradient`). The
 work record is :class:`EM2Work`.
 
-Kernels (records: plain tuples of arrays, ``implicit_records.plain``): ``residual(step, topo,
+Kernels (records: plain tuples of arrays, ``core.records.plain``): ``residual(step, topo,
 spring, node, work, u, res) -> (status, spring, max|R|, max Rabs)`` (s from Q alone; it keeps Q,
 and T(l¹) for the generic forms), ``linearize(spring, work, h)`` and ``jacobian(topo, spring,
 node, work, places, h, data)`` (ds/dl¹ from the lengths and what the residual kept: a residual
@@ -34,7 +34,7 @@ work, h, du, R, r, update, first) -> max|r|``, ``step_scale(topo, work, du, limi
 (the damped Newton step, both paths) and ``slope(l, l1, eta, l0, P, e, U0, T0) -> (s, ds/dl1,
 θ(l1, η))``. A step: the start kernel with predictor coefficients [[0, 1, 0, 0]] (it writes a),
 ``predict``, then ``residual`` and ``linearize`` or ``jacobian`` per Newton iteration,
-``finish``; the compiled Newton path (:mod:`.newton_compiled`) through the ``compiled_*`` adapters.
+``finish``; the compiled Newton path (:mod:`thermonet.implicit.core.compiled_newton`) through the ``compiled_*`` adapters.
 """
 
 from __future__ import annotations
@@ -45,12 +45,12 @@ from typing import NamedTuple
 import numpy as np
 from numba import prange
 
-from .implicit_common import (BLOCK, COLLAPSED, INLINE, NO_TEMPERATURE, NOT_FINITE, OK, OPTIONS, UNIFORM,
-                              _admissible, _first_flagged, register_scheme, scatter_spring_block)
-from .em2_gradient import SWITCH, bind_gradient
-from .implicit_records import StartWork
-from .implicit_rows import inertia_blocks3, node_blocks, norm2, residual_rows3, spring_difference3, sweep_rows3
-from .specialize import specialize
+from ..core.schemes import (BLOCK, COLLAPSED, INLINE, NO_TEMPERATURE, NOT_FINITE, OK, OPTIONS, UNIFORM,
+                            _admissible, _first_flagged, register_scheme, scatter_spring_block)
+from .gradient import SWITCH, bind_gradient
+from ..core.records import StartWork
+from ..core.node_rows import inertia_blocks3, node_blocks, norm2, residual_rows3, spring_difference3, sweep_rows3
+from ...kernels.specialize import specialize
 
 # Bound per model by specialize(); listed so the templates read as ordinary code.
 temperature = tension = internal_energy = adiabatic_stiffness = energy_quotient = None
@@ -100,7 +100,7 @@ class EM2Work(NamedTuple):
 
 
 def build(ns: dict, tag: str, ptag: str, parallel: bool) -> dict:
-    """EM2's kernels for the model namespace ``ns`` (see implicit_common.register_scheme)."""
+    """EM2's kernels for the model namespace ``ns`` (see core.schemes.register_scheme)."""
     alone = bind_gradient(ns, tag)
     ns["em2_spring_dslope"] = specialize(_em2_spring_dslope, tag, ns, **INLINE)
     kernels = dict(
@@ -116,7 +116,7 @@ def build(ns: dict, tag: str, ptag: str, parallel: bool) -> dict:
     kernels["damp"] = calls["em2_damp"] = specialize(_em2_damp, ptag, calls, **OPTIONS)
     return dict(
         kernels,
-        # the compiled Newton path's signatures (kernels/newton_compiled.py), extra = ()
+        # the compiled Newton path's signatures (implicit/core/compiled_newton.py), extra = ()
         compiled_predict=specialize(_em2_compiled_predict, ptag, calls, **INLINE),
         compiled_residual=specialize(_em2_compiled_residual, ptag, calls, **INLINE),
         compiled_jacobian=specialize(_em2_compiled_jacobian, ptag, calls, **INLINE),
@@ -128,7 +128,7 @@ def build(ns: dict, tag: str, ptag: str, parallel: bool) -> dict:
 
 
 # ---------------------------------------------------------------------------------------------
-# one spring's ds/dl¹ from the work record (the discrete gradient itself: .em2_gradient)
+# one spring's ds/dl¹ from the work record (the discrete gradient itself: ..em2.gradient)
 
 
 def _em2_spring_dslope(spring, work, e, pe):
@@ -161,7 +161,7 @@ def _em2_predict(step, topo, spring, node, work, accel, pred):
     x0, p, eta, h = step
     edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
     l0, P = spring
-    masses, inv_mass, gravity, with_gravity = node
+    masses, inv_mass, anchored, gravity, with_gravity, reference = node
     start, len1, dir1, mean, slope, dslope, energy0, temperature0, tension0, jc, eta_step, quotient, tension1 = work
     len0, dir0, keep, fs, ws, sweep, nodal, stiff, code = start
     m = edges.shape[0]
@@ -201,7 +201,7 @@ def _em2_residual(step, topo, spring, node, work, u, res):
     x0, p, eta, h = step
     edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
     l0, P = spring
-    masses, inv_mass, gravity, with_gravity = node
+    masses, inv_mass, anchored, gravity, with_gravity, reference = node
     start, len1, dir1, mean, slope, dslope, energy0, temperature0, tension0, jc, eta_step, quotient, tension1 = work
     len0, dir0, keep, fs, ws, sweep, nodal, guess, code = start
     R, Rabs, peak = res
@@ -330,7 +330,7 @@ def _em2_jacobian(topo, spring, node, work, places, h, data):
     at the places of ``places`` (BlockPlaces): m_c/h I on the diagonal blocks, and each spring's
     B = (h/2) [(s/2) I + (ds/dl¹) d̄ n¹ᵀ] with sign s_c s_g."""
     edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
-    masses, inv_mass, gravity, with_gravity = node
+    masses, inv_mass, anchored, gravity, with_gravity, reference = node
     start, len1, dir1, mean, slope, dslope, energy0, temperature0, tension0, jc, eta_step, quotient, tension1 = work
     node_base, node_stride, spring_base, spring_stride, B = places
     inertia_blocks3(free_index, masses, h, node_base, node_stride, data)
@@ -346,7 +346,7 @@ def _em2_jacobian(topo, spring, node, work, places, h, data):
 
 
 def _em2_finish(step, topo, spring, node, work, u, phi, new):
-    """The next state from converged unknowns u into ``new`` (NextState; phi (m,) the step's
+    """The next state from converged unknowns u into ``new`` (StateArrays; phi (m,) the step's
     start): x¹ = x⁰ + d; p¹ = p⁰ + h m g + h Σ ±s d̄ (fs, from the last residual, evaluated at u,
     doubled: exact); η¹ = η; Φ¹ = Φ⁰ + h θ(l̄, η). Returns (status, spring)."""
     x0, p, eta, h = step
@@ -384,7 +384,7 @@ def _em2_sweep(topo, node, work, h, du, R, r, update, first):
     written). Returns max |r|. ``first``: du is taken as zero. Spring e's block applied to
     v = du_a − du_b: jc[0] v + jc[1] (n¹·v) d̄."""
     edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
-    masses, inv_mass, gravity, with_gravity = node
+    masses, inv_mass, anchored, gravity, with_gravity, reference = node
     start, len1, dir1, mean, slope, dslope, energy0, temperature0, tension0, jc, eta_step, quotient, tension1 = work
     len0, dir0, keep, fs, ws, w, nodal, guess, code = start
     m = ends.shape[0]
@@ -427,7 +427,7 @@ def _em2_step_scale(topo, work, du, limit):
 
 
 def _em2_damp(step, topo, spring, node, work, res, norms, vectors):
-    """The damped Newton step (integrators/em2.py, LengthLimited). vectors: (u, du, trial)
+    """The damped Newton step (implicit/em2/stepper.py, LengthLimited). vectors: (u, du, trial)
     (size,) each: du, a correction to be applied as u −= du, is scaled in place so that no
     spring's vector changes by more than LENGTH_LIMIT times its length (``step_scale``); while
     the scaled residual rmax/smax (norms, at u) is above LINE_SEARCH_ABOVE, then halved until the

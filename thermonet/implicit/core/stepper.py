@@ -2,7 +2,7 @@
 checks, loud and safe failure, opt-in retry with substeps, and the statistics it reports.
 
 A subclass (GTR-α, HO4) supplies the scheme: the block size, the name its kernels are
-registered under (``kernels.implicit_common.register_scheme``), the predictor, its work record,
+registered under (``implicit.core.schemes.register_scheme``), the predictor, its work record,
 and the calls of its kernels. A new implicit scheme is two files, its kernels
 (``kernels/<scheme>.py``) and its integrator and stepper (``integrators/<scheme>.py``), each
 registered by name. A step is computed from the current state into separate buffers and
@@ -18,13 +18,13 @@ from abc import abstractmethod
 
 import numpy as np
 
-from ..errors import InputError
-from ..kernels.implicit_common import KEEP_ROWS, STATUS_TEXT, implicit_kernels
-from ..kernels.implicit_records import (BlockPlaces, NextState, NodeData, Residuals, SpringParameters, StartWork,
-                                        StepStart, Topology, plain)
-from ..solvers import BlockPattern, NewtonOptions, NewtonResult, NewtonTimers, make_linear_solver
-from ..solvers.newton import newton
-from .base import Stepper, StepFailure
+from ...errors import InputError
+from .schemes import KEEP_ROWS, STATUS_TEXT, implicit_kernels
+from ...kernels.records import Springs, StateArrays, nodes as node_record
+from .records import BlockPlaces, BlockTopology, Residuals, StartWork, StepStart, plain
+from ...solvers import BlockPattern, make_linear_solver
+from .newton import NewtonOptions, NewtonResult, NewtonTimers, newton
+from ...integrators.base import Stepper, StepFailure
 from .compiled_path import CompiledNewton, use_compiled
 from .large_steps import choose_path, continued
 
@@ -41,7 +41,7 @@ class _StepError(Exception):
 
 
 class _KernelRecord:
-    """A stepper attribute holding a record of :mod:`thermonet.kernels.implicit_records`; each
+    """A stepper attribute holding a record of :mod:`thermonet.implicit.core.records`; each
     assignment also keeps, as ``_<name>``, the plain tuple the kernels are called with (made once,
     not at every call: a kernel call then costs what it cost with separate arguments)."""
 
@@ -59,7 +59,7 @@ class _KernelRecord:
 class ImplicitStepper(Stepper):
     """Shared driver of an implicit integrator bound to one system (internal numbering).
 
-    What the kernels read, as records (:mod:`thermonet.kernels.implicit_records`): ``topology``,
+    What the kernels read, as records (:mod:`thermonet.implicit.core.records`): ``topology``,
     ``springs`` (parameters), ``nodes`` (masses, gravity), ``places`` (the Jacobian's block
     places), ``step_start`` (the step's start state and h, set by :meth:`begin`), ``work`` (the
     scheme's per-spring record, made by :meth:`make_work`; ``work.start`` the start kernel's),
@@ -114,13 +114,12 @@ class ImplicitStepper(Stepper):
         # node passes are memory-bound, and ±1 times a float is exact in any type)
         lay = system.layout
         first_end = system.edges[lay.inc_spring, 0] == np.repeat(np.arange(system.n_nodes), np.diff(lay.inc_ptr))
-        self.topology = Topology(edges=system.edges.view(np.uint32), free_index=free_index,
-                                 ends=np.ascontiguousarray(free_index[system.edges], dtype=np.int32),
-                                 inc_ptr=lay.inc_ptr, inc_spring=lay.inc_spring.view(np.uint32),
-                                 inc_sign=np.where(first_end, 1, -1).astype(np.int8))
-        self.springs = SpringParameters(system.rest_lengths, P)
-        gravity = np.zeros(3) if system.gravity is None else np.asarray(system.gravity, dtype=np.float64)
-        self.nodes = NodeData(system.masses, system.inv_mass, gravity, system.gravity is not None)
+        self.topology = BlockTopology(edges=system.edges.view(np.uint32), free_index=free_index,
+                                      ends=np.ascontiguousarray(free_index[system.edges], dtype=np.int32),
+                                      inc_ptr=lay.inc_ptr, inc_spring=lay.inc_spring.view(np.uint32),
+                                      inc_sign=np.where(first_end, 1, -1).astype(np.int8))
+        self.springs = Springs(system.rest_lengths, P)
+        self.nodes = node_record(system)
         self.places = BlockPlaces(pattern.node_base, pattern.node_stride, pattern.spring_base, pattern.spring_stride,
                                   np.zeros((6, 6)))
         self.solver = make_linear_solver(options.linear_solver, pattern, self)
@@ -139,11 +138,11 @@ class ImplicitStepper(Stepper):
         self.work = self.make_work(StartWork.allocate(n, m, self.block, KEEP_ROWS, self.kernels.keep_start, self.rate))
         self.warm = False
         self.step_start = None
-        self._new = NextState(np.empty((n, 3)), np.empty((n, 3)), np.empty(m), np.empty(m))
+        self._new = StateArrays(np.empty((n, 3)), np.empty((n, 3)), np.empty(m), np.empty(m))
         self._no_index = np.empty(0, dtype=np.int64)
         self._local = None  # index scratch of local_jacobi, made at its first use
         self.timers = NewtonTimers()
-        #: the compiled path (integrators/compiled_path.py), or None: the sparse one
+        #: the compiled path (implicit/core/compiled_path.py), or None: the sparse one
         self.compiled = CompiledNewton(self) if use_compiled(options, size, self.kernels, integrator.name) else None
         #: (h, the first solved stage's τ/h) of the last step that continuation found hard, or None
         self._hard = None
@@ -183,7 +182,7 @@ class ImplicitStepper(Stepper):
         """The scheme's work record (per-spring unknowns and scratch) around ``start``."""
 
     def compiled_extra(self) -> tuple:
-        """The ``extra`` tuple the scheme's compiled_* kernels take (kernels/newton_compiled.py)."""
+        """The ``extra`` tuple the scheme's compiled_* kernels take (implicit/core/compiled_newton.py)."""
         return ()
 
     def atol_rounding(self) -> float:
@@ -196,7 +195,7 @@ class ImplicitStepper(Stepper):
         """(B/3, 4): sub-block j of a free node's predicted unknowns is c[j, 0] v + c[j, 1] a
         + c[j, 2] ȧ + c[j, 3] ä (velocity, acceleration and its first two time derivatives at
         the step's start; the derivatives beyond ``rate`` are zero); (B/3, 6) for a scheme whose
-        predictor extrapolates (columns 4, 5: kernels/implicit_start.py)."""
+        predictor extrapolates (columns 4, 5: implicit/core/start.py)."""
 
     def predict(self, u: np.ndarray) -> None:
         """Fill the unknowns u with the explicit guess the start kernel computed (begin), which
@@ -227,13 +226,13 @@ class ImplicitStepper(Stepper):
         """D⁻¹ v for the nodal inertia blocks D (a new array)."""
 
     @abstractmethod
-    def finish(self, phi0: np.ndarray, new: NextState) -> tuple[int, int]:
+    def finish(self, phi0: np.ndarray, new: StateArrays) -> tuple[int, int]:
         """The next state into ``new`` from the converged unknowns and Φ⁰ ``phi0`` (m,);
         (status, spring)."""
 
     def local_scratch(self) -> tuple:
         """The local Jacobi steps' scratch (made at the first use), as
-        kernels/local_update._local_jacobi takes it: (out (LOCAL_MAX_FRACTION n_free + 1,) int64,
+        implicit/core/local_jacobi._local_jacobi takes it: (out (LOCAL_MAX_FRACTION n_free + 1,) int64,
         spring_mark (m,), node_mark (n,) uint8 zeros, springs (m,), nodes (n,) int64,
         node_of_block, block_mass (n_free,))."""
         if self._local is None:
@@ -250,7 +249,7 @@ class ImplicitStepper(Stepper):
         (the springs at those nodes, the rows of the nodes at those springs' ends) with the
         kernel's own arithmetic: the residual a full evaluation at the new u gives, bit for bit
         for models whose thermal solve is closed-form (else within that solve's tolerance, from
-        the last seeds). The scheme's ``local_jacobi`` kernel (kernels/local_update._local_jacobi,
+        the last seeds). The scheme's ``local_jacobi`` kernel (implicit/core/local_jacobi._local_jacobi,
         the compiled Newton path's too); its residuals also write ``residuals.peak`` (2, n_free),
         each free node's largest |R| and Rabs, which the node selection reads. None where the
         scheme has no such kernel or more than LOCAL_MAX_FRACTION of the free nodes are above the
@@ -397,7 +396,7 @@ class ImplicitStepper(Stepper):
             return
         # the new state's buffers become the state's; the old ones the next step's outputs
         state.positions, state.momenta, state.thermal_displacement, state.entropy = new
-        self._new = NextState(x, p, phi, eta)
+        self._new = StateArrays(x, p, phi, eta)
         history = self.work.start.history
         if history.size:
             history[0] = h  # u: this committed step's solution (the next predictor's)

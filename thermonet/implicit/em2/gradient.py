@@ -28,8 +28,8 @@ from __future__ import annotations
 
 import math
 
-from .implicit_common import INLINE, OPTIONS
-from .specialize import specialize
+from ..core.schemes import INLINE, OPTIONS
+from ...kernels.specialize import specialize
 
 # Bound per model by specialize(); listed so the templates read as ordinary code.
 temperature = tension = internal_energy = adiabatic_stiffness = energy_quotient = None

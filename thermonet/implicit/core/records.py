@@ -1,5 +1,10 @@
-"""The records the implicit integrators' kernels take: named tuples of arrays (and a few scalars),
-which Numba passes as heterogeneous tuples and unpacks inside compiled code at no cost.
+"""The records only the implicit integrators' kernels take: named tuples of arrays (and a few
+scalars), which Numba passes as heterogeneous tuples and unpacks inside compiled code at no cost.
+The springs, the nodes and a state's arrays are the explicit kernels' records
+(:class:`~thermonet.kernels.records.Springs`, :class:`~thermonet.kernels.records.Nodes`,
+:class:`~thermonet.kernels.records.StateArrays`): one record per concept. The topology is not:
+the explicit gather reads each incidence's other end, Newton's system each incidence's sign and
+the free nodes' blocks of unknowns (:class:`BlockTopology`).
 
 Shapes: n nodes, m springs, k parameters per spring, n_free free nodes, B unknowns per free node
 (3 for GTR-α, 6 for HO4), size = B n_free. Per-spring arrays are component-major, (k, m).
@@ -26,8 +31,9 @@ def plain(record) -> tuple:
     return tuple(record)
 
 
-class Topology(NamedTuple):
-    """The net's connectivity as the kernels read it (internal numbering).
+class BlockTopology(NamedTuple):
+    """The net's connectivity as Newton's system reads it (internal numbering): the springs'
+    ends, each free node's block of unknowns, the incidence with its signs.
 
     edges: (m, 2) uint32, the springs' end nodes (read as unsigned).
     free_index: (n,) int64, the block of unknowns of each node (−1: anchored).
@@ -44,23 +50,6 @@ class Topology(NamedTuple):
     inc_sign: np.ndarray
 
 
-class SpringParameters(NamedTuple):
-    """rest_length: (m,); parameters: (k, m), or one (k, 1) column shared by every spring
-    (System.kernel_parameters; the kernels compiled with UNIFORM then read column 0)."""
-
-    rest_length: np.ndarray
-    parameters: np.ndarray
-
-
-class NodeData(NamedTuple):
-    """masses, inv_mass: (n,); gravity: (3,) acceleration, applied when ``with_gravity``."""
-
-    masses: np.ndarray
-    inv_mass: np.ndarray
-    gravity: np.ndarray
-    with_gravity: bool
-
-
 class StepStart(NamedTuple):
     """The state a step starts from: positions x0 (n, 3), momenta p (n, 3), entropy eta (m,),
     and the step h."""
@@ -69,15 +58,6 @@ class StepStart(NamedTuple):
     p: np.ndarray
     eta: np.ndarray
     h: float
-
-
-class NextState(NamedTuple):
-    """The finish kernels' outputs: x (n, 3), p (n, 3), phi (m,), eta (m,)."""
-
-    x: np.ndarray
-    p: np.ndarray
-    phi: np.ndarray
-    eta: np.ndarray
 
 
 class Residuals(NamedTuple):

@@ -1,6 +1,6 @@
 """The compiled Newton path of an implicit stepper: whole steps, many per call, in one compiled
-driver (:mod:`thermonet.kernels.newton_compiled`); and the choice between it and the sparse path
-(:func:`thermonet.solvers.newton.newton`, one Python call per kernel, SuperLU, GMRES or
+driver (:mod:`thermonet.implicit.core.compiled_newton`); and the choice between it and the sparse path
+(:func:`thermonet.implicit.core.newton.newton`, one Python call per kernel, SuperLU, GMRES or
 matrix-free sweeps).
 
 ``newton_path`` (a stepper option): "compiled", "compiled-dense", "sparse", or "auto" (default):
@@ -28,13 +28,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import InputError
-from ..kernels.implicit_records import NextState, Residuals, plain
-from ..kernels.newton_compiled import NO_CONVERGENCE, REASONS, STALLED, newton_steps_kernel
-from ..solvers import NewtonResult
-from ..solvers.matrix_free import MatrixFree
-from ..solvers.newton import (JACOBI_MAX_STEPS, JACOBI_RANGE, LINEAR_FRACTION, LOCAL_FRACTION, LOCAL_MAX_ROUNDS,
-                              LOCAL_STALL)
+from ...errors import InputError
+from ...kernels.records import StateArrays
+from .records import Residuals, plain
+from .compiled_newton import NO_CONVERGENCE, REASONS, STALLED, Control, DriverOut, SweepLimits, newton_steps_kernel
+from ...solvers.matrix_free import MatrixFree
+from . import newton_policy as policy
+from .newton import NewtonResult
 
 #: a scheme without matrix-free sweeps takes the compiled path (dense LU) up to this many
 #: unknowns (B per free node); the LU's size³/3 multiply-adds cost more than SuperLU above
@@ -156,17 +156,18 @@ class CompiledNewton:
                                           sweeps, stepper.kernels_parallel)
         n, m = system.n_nodes, system.n_springs
         self.stepper = stepper
-        self._new = NextState(np.empty((n, 3)), np.empty((n, 3)), np.empty(m), np.empty(m))
+        self._new = StateArrays(np.empty((n, 3)), np.empty((n, 3)), np.empty(m), np.empty(m))
         self._linear = None
         dense = 0 if sweeps else size
         self._buffers = (pattern.indptr, pattern.indices, np.zeros(pattern.nnz if dense else 0),
                          np.zeros((dense, dense)), np.zeros(dense, dtype=np.int64), np.zeros(size), np.zeros(size))
         opts = stepper.options
-        self._control = (float(opts.tolerance), float(opts.rtol))
-        self._tail = (int(opts.max_iterations),)
-        self._solves = (float(LINEAR_FRACTION), (float(JACOBI_RANGE), float(JACOBI_MAX_STEPS), float(LOCAL_FRACTION),
-                                                 float(LOCAL_STALL), float(LOCAL_MAX_ROUNDS)),
-                        (int(MatrixFree.MAX_SWEEPS), float(MatrixFree.STALL)))
+        # the policy's rules as the Python driver reads them; no stall window here (a failed
+        # step goes back to the stepper, whose sparse path has it)
+        self._rules = dict(tolerance=float(opts.tolerance), rtol=float(opts.rtol),
+                           max_iterations=int(opts.max_iterations), linear_fraction=float(policy.LINEAR_FRACTION),
+                           jacobi=policy.jacobi_rule(), stall=False,
+                           sweeps=SweepLimits(int(MatrixFree.MAX_SWEEPS), float(MatrixFree.STALL)))
         self._history = np.zeros(int(opts.max_iterations) + 2)
         self._info = np.zeros(5, dtype=np.int64)
         self._atol = np.zeros(1)
@@ -181,8 +182,9 @@ class CompiledNewton:
         s = self.stepper
         if self._coef[0] != h:
             self._coef = (h, s.predictor_coefficients(h))
-        if self._out is None or self._out[0].shape[0] < n_steps:
-            self._out = (np.zeros(n_steps, dtype=np.int64), np.zeros(n_steps), self._history, self._info, self._atol)
+        if self._out is None or self._out.iterations.shape[0] < n_steps:
+            self._out = DriverOut(np.zeros(n_steps, dtype=np.int64), np.zeros(n_steps), self._history, self._info,
+                                  self._atol)
         if self._linear is None:
             # R and the per-node peaks (HO4's local Jacobi steps) shared with the stepper; no
             # Rabs: the driver reads only its maximum, and its stores were 48 bytes per node of
@@ -193,17 +195,17 @@ class CompiledNewton:
         # Newton's atol: the stepper's, or (a scheme with atol_rounding, EM2) the driver's per step
         atol = float(s.options.atol)
         self._atol[0] = atol
-        rounding = float(s.atol_rounding())
+        control = Control(rounding=float(s.atol_rounding()), n_steps=int(n_steps), **self._rules)
         done = self.driver((x, p, phi, eta, float(h), self._coef[1]), records, s.compiled_extra(), self._linear,
-                           self._control + (rounding,) + self._tail + (int(n_steps),) + self._solves, self._out)
+                           control, self._out)
         if self._atol[0] != atol:
             s.options = dataclasses.replace(s.options, atol=float(self._atol[0]))
-        iterations, finals = self._out[0][:done], self._out[1][:done]
+        iterations, finals = self._out.iterations[:done], self._out.finals[:done]
         s.warm = False
         if done == n_steps:
             return done, iterations, finals, None
         _, reason, status, spring, nh = (int(v) for v in self._info)
-        its = int(self._out[0][done]) if nh else 0
+        its = int(self._out.iterations[done]) if nh else 0
         history = [float(r) for r in self._history[:nh]]
         text = f"no convergence in {s.options.max_iterations} iterations" if reason == NO_CONVERGENCE else REASONS[reason]
         result = NewtonResult(False, its, history, status, spring, text) if nh else None
@@ -216,4 +218,4 @@ class CompiledNewton:
         done, iterations, finals, failure = self.run(xs, ps, phis, etas, h, 1)
         if failure is not None:
             return None, failure
-        return (NextState(xs, ps, phis, etas), NewtonResult(True, int(iterations[0]), [float(finals[0])])), None
+        return (StateArrays(xs, ps, phis, etas), NewtonResult(True, int(iterations[0]), [float(finals[0])])), None

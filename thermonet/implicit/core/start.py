@@ -1,9 +1,9 @@
-"""The start kernel of every implicit scheme (:mod:`.implicit_common` for the conventions): the
+"""The start kernel of every implicit scheme (:mod:`thermonet.implicit.core.schemes` for the conventions): the
 geometry and forces at the step's start x⁰ and the explicit predictor of the step's unknowns, a
 Taylor-like series in the acceleration and its time derivatives along the exact (adiabatic) flow;
 for a scheme registered with ``extrapolates`` (HO4), with the previous step's stage acceleration
 extrapolated in. A Numba template compiled per model, scheme and threading by
-:func:`.implicit_common.implicit_kernels`.
+:func:`thermonet.implicit.core.schemes.implicit_kernels`.
 """
 
 from __future__ import annotations
@@ -13,11 +13,11 @@ import math
 import numpy as np
 from numba import prange
 
-from .implicit_base import BLOCK, COLLAPSED, NO_TEMPERATURE, OK, _admissible, _first_flagged
+from .status import BLOCK, COLLAPSED, NO_TEMPERATURE, OK, _admissible, _first_flagged
 
 # Bound per model by specialize(); listed so the template reads as ordinary code.
 temperature = tension = d2F_dl2 = d2F_dl_dtheta = d2F_dtheta2 = adiabatic_stiffness = None
-#: compile-time constants bound per model and scheme (implicit_common.implicit_kernels): the
+#: compile-time constants bound per model and scheme (core.schemes.implicit_kernels): the
 #: acceleration's time derivatives the predictor uses (ImplicitStepper.rate), whether the start
 #: keeps per-spring values for the residuals (``keep``), one shared parameter column, and
 #: whether the predictor extrapolates from the previous step's stage acceleration (RATE 2 only)
@@ -72,7 +72,7 @@ def _start(step, topo, spring, node, work, coef, pred):
     x0, p, eta, h = step
     edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
     l0, P = spring
-    masses, inv_mass, gravity, with_gravity = node
+    masses, inv_mass, anchored, gravity, with_gravity, reference = node
     len0, dir0, keep, fs, ws, sweep, nodal, guess, code = work
     m = edges.shape[0]
     bad = m

@@ -4,7 +4,7 @@ Simo & Tarnow 1992): implicit in x¹ only, second order, symmetric.
     x¹ = x⁰ + h M⁻¹ (p⁰ + p¹)/2,   p¹ = p⁰ + h m g − h Σ_e ∇̄U_e,   η¹ = η,   Φ¹ = Φ⁰ + h θ(l̄, η)
 
 with the discrete gradient ∇̄U_e = ∓s_e d̄_e, s_e = [U(l¹, η) − U(l⁰, η)] / [(l¹ − l⁰) l̄]
-(kernels in :mod:`thermonet.kernels.em2`). Total energy is conserved exactly (to the Newton
+(kernels in :mod:`thermonet.implicit.em2.kernels`). Total energy is conserved exactly (to the Newton
 tolerance) at any step, so EM2 has no stability limit: far above the explicit limit the fast
 modes lose accuracy (their phase), not stability. Linear and angular momentum and every spring's
 entropy are kept exactly. Φ is a diagnostic here (θ at the mean length).
@@ -17,10 +17,10 @@ import math
 
 import numpy as np
 
-from ..kernels.em2 import LENGTH_LIMIT, LINE_SEARCH_ABOVE, LINE_SEARCH_HALVINGS, EM2Work  # noqa: F401
-from ..kernels.implicit_records import plain
-from .base import Integrator, register_integrator
-from .implicit import ImplicitStepper, newton_options
+from .kernels import LENGTH_LIMIT, LINE_SEARCH_ABOVE, LINE_SEARCH_HALVINGS, EM2Work  # noqa: F401
+from ..core.records import plain
+from ...integrators.base import Integrator, register_integrator
+from ..core.stepper import ImplicitStepper, newton_options
 
 
 class EM2(Integrator):
@@ -81,7 +81,7 @@ class LengthLimited:
         du = self.inner.solve(rhs, target, settled)
         st = self.stepper
         rmax, smax = st.norms
-        # the compiled path's damping kernel (kernels/em2.py), so both paths damp alike
+        # the compiled path's damping kernel (implicit/em2/kernels.py), so both paths damp alike
         st.kernels.damp(st._step_start, st._topology, st._springs, st._nodes, st._work, st._residuals,
                         (rmax, smax), (st.u, du, st.trial))
         return du
@@ -97,7 +97,7 @@ class EM2Stepper(ImplicitStepper):
     #: a max |R| at or below this that Newton no longer reduces is converged (set by predict)
     residual_floor = 0.0
 
-    #: "auto" follows h·ω_max (integrators/compiled_path.choose_by_step)
+    #: "auto" follows h·ω_max (implicit/core/compiled_path.choose_by_step)
     chooses_by_step = True
     #: a failed step's equations are solved by continuation in h before substeps (retry)
     continuation = True
@@ -205,7 +205,7 @@ class EM2Stepper(ImplicitStepper):
         return np.array([[0.0, 1.0, 0.0, 0.0]])
 
     def predict(self, u: np.ndarray) -> None:
-        """The midpoint step of each node on its own springs' stiffness (kernels.em2), or, with
+        """The midpoint step of each node on its own springs' stiffness (implicit.em2.kernels), or, with
         kept factorizations and where the step before ended at this step's start with the same
         h, that step's displacement again (constant velocity: a slowly moving part's) if its
         residual is the smaller (max |R|); and the residual's rounding floor (``residual_floor``,

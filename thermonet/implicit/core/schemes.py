@@ -1,7 +1,7 @@
 """The implicit integrators' shared kernels and their registry: the nodes' part of the finish
 kernels, the small helpers of the per-spring thermal solves, and :func:`implicit_kernels`, which
-compiles a registered scheme's kernels for one model (:mod:`.gtr_alpha`, docs/theory.md §2.1; :mod:`.ho4`,
-docs/theory.md §2.2) with the start kernel of :mod:`.implicit_start` (geometry at x⁰, explicit forces, the
+compiles a registered scheme's kernels for one model (:mod:`.gtr_alpha`, docs/theory.md §2.1; :mod:`thermonet.implicit.ho4.kernels`,
+docs/theory.md §2.2) with the start kernel of :mod:`thermonet.implicit.core.start` (geometry at x⁰, explicit forces, the
 predictor).
 
 The unknowns are per free node: the displacement over the step ``d = x¹ − x⁰`` for GTR-α
@@ -27,7 +27,7 @@ flagged and redone by the scalar solve (iterate to convergence, report the failu
 loop over the block. For the shipped models one correction is exact (the second confirms it),
 so the fallback is for custom models and bad states.
 
-Kernels take records (:mod:`.implicit_records`): the topology, the spring parameters, the node
+Kernels take records (:mod:`thermonet.implicit.core.records`): the topology, the spring parameters, the node
 data, the step's start, the scheme's work record (per-spring unknowns and scratch), the
 residual's arrays; each kernel unpacks them by position, in their fields' order, at its top. Per-spring arrays are component-major, (k, m) (``dir0[i, e]``), so that the
 vectorized loop reads and writes unit-stride rows. Indices are read as unsigned in the spring
@@ -51,13 +51,13 @@ at h = 0.01). Its scratch is ``work.start.sweep`` (m, B), spring-major (the node
 spring's B values from one cache line).
 
 Per-spring Jacobian blocks are scattered into a CSR value array at the places of
-:class:`~.implicit_records.BlockPlaces`. Status codes returned by residual and finish kernels:
+:class:`~thermonet.implicit.core.records.BlockPlaces`. Status codes returned by residual and finish kernels:
 0 fine, 1 a spring collapsed (length ≤ 0 or not finite), 2 no positive finite temperature solves
 the spring's thermal equations, 3 a non-finite momentum or entropy; with the spring's index.
 
 Adding a scheme: a module with its templates and a ``build(ns, tag, ptag, parallel)`` that
 specializes them, registered with :func:`register_scheme`; its integrator module holds the
-stepper (see ``integrators/implicit.py``).
+stepper (see ``implicit/core/stepper.py``).
 """
 
 from __future__ import annotations
@@ -67,10 +67,10 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from .implicit_base import (BLOCK, COLLAPSED, NO_TEMPERATURE, NOT_FINITE, OK, STATUS_TEXT,  # noqa: F401 (re-exported)
+from .status import (BLOCK, COLLAPSED, NO_TEMPERATURE, NOT_FINITE, OK, STATUS_TEXT,  # noqa: F401 (re-exported)
                             _admissible, _first_flagged)
-from .implicit_start import _adiabatic_stiffness, _start
-from .specialize import model_fingerprint, model_namespace, specialize
+from .start import _adiabatic_stiffness, _start
+from ...kernels.specialize import model_fingerprint, model_namespace, specialize
 
 # Bound per model by specialize(); listed so the templates read as ordinary code.
 temperature = tension = d2F_dl2 = d2F_dl_dtheta = d2F_dtheta2 = None
@@ -79,7 +79,7 @@ LOG_AFFINE = False
 #: the time derivatives of the acceleration the start kernel's predictor uses (ImplicitStepper.rate)
 RATE = 0
 #: the start kernel keeps, per spring, what a scheme's residual reads of the step's start (a
-#: scheme registered with ``keeps_start`` and a LOG_AFFINE model; see ho4._ho4_thermal_closed)
+#: scheme registered with ``keeps_start`` and a LOG_AFFINE model; see ho4.thermal._ho4_thermal_closed)
 KEEP_START = False
 #: rows of the start kernel's ``keep`` (4, m): θ(l⁰, η), T(l⁰, θ(l⁰, η)), F_lθ(l⁰), C
 KEEP_ROWS = 4
@@ -128,7 +128,7 @@ def register_scheme(name: str, build, keeps_start: bool = False, extrapolates: b
     threading); ``keeps_start``: the start kernel keeps per spring what the scheme's residual
     reads of the step's start (KEEP_START), for LOG_AFFINE models; ``extrapolates``: its
     predictor (rate 2) extrapolates from the previous step's stage acceleration (EXTRAPOLATE,
-    :mod:`.implicit_start`; StartWork.history)."""
+    :mod:`thermonet.implicit.core.start`; StartWork.history)."""
     _SCHEMES[name] = (build, bool(keeps_start), bool(extrapolates))
 
 
@@ -263,12 +263,12 @@ def scatter_spring_block(data, places, e, B, b):
 
 
 def _finish_nodes(step, topo, node, fs, u, stride, offset, new):
-    """The nodes' part of every finish kernel, into ``new`` (NextState): x¹ = x⁰ + u[stride k +
+    """The nodes' part of every finish kernel, into ``new`` (StateArrays): x¹ = x⁰ + u[stride k +
     offset + i] for free node k, p¹ = p⁰ (+ h m g) − Σ± fs over the incident springs (fs: the
     per-spring impulses of the step, (≥ 3, m)). Returns (status, −1)."""
     x0, p, eta, h = step
     edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
-    masses, inv_mass, gravity, with_gravity = node
+    masses, inv_mass, anchored, gravity, with_gravity, reference = node
     x_new, p_new, phi_new, eta_new = new
     n = x0.shape[0]
     bad_node = n

@@ -7,7 +7,7 @@ The driver template :func:`_newton_steps` calls four kernels by global name, bou
 and model by :func:`newton_steps_kernel`:
 
     scheme_start(step, topo, spring, node, start, coef, u) -> (status, spring)
-        the start kernel of :mod:`.implicit_common` (predictor into u)
+        the start kernel of :mod:`thermonet.implicit.core.schemes` (predictor into u)
     scheme_residual(step, topo, spring, node, work, extra, u, warm, res) -> (status, spring, max |R|, max Rabs)
     scheme_jacobian(topo, spring, node, work, places, extra, h, data)       CSR values into data
     scheme_finish(step, topo, spring, node, work, extra, u, phi, new) -> (status, spring)
@@ -16,7 +16,7 @@ and, where the scheme has them (else no-ops), ``scheme_predict(step, topo, sprin
 extra, u)``, the scheme's own predictor from the start kernel's output in u (in place),
 ``scheme_local(step, topo, spring, node, work, extra, u, res, warm, threshold) -> (done,
 status, spring, max |R|, max Rabs, max |change of u|)``, a local Jacobi step (HO4:
-:func:`.local_update._local_jacobi`; not done where too many nodes are above the threshold), and
+:func:`thermonet.implicit.core.local_jacobi._local_jacobi`; not done where too many nodes are above the threshold), and
 ``scheme_damp(step, topo, spring, node, work, extra, res, (max |R|, max Rabs), (u, du,
 trial)) -> (evaluated, max |R|, max Rabs)``, which shortens a full iteration's correction du in
 place (a damped Newton step; ``res``, the work record and ``trial`` may be overwritten). When it
@@ -28,24 +28,30 @@ empty index lists), made once by the stepper (``ImplicitStepper.compiled_extra``
 offers the compiled path by returning ``compiled_residual``, ``compiled_jacobian`` and
 ``compiled_finish`` (these signatures, serial) from its ``build``.
 
-The iteration is :func:`thermonet.solvers.newton.newton`'s with a direct solver, test for test
-(scaled residual ≤ tolerance; or a correction at the round-off floor with the scaled residual ≤
-1e3 tolerance; at most ``max_iterations`` linear solves), so both paths converge to the same
-solution within the tolerance. The matrix is the scheme's CSR values scattered into a dense
+The iteration is :func:`thermonet.implicit.core.newton.newton`'s: both drivers decide by the same
+functions of :mod:`.newton_policy` (scaled residual ≤ tolerance; or a correction at the round-off
+floor with the scaled residual ≤ 1e3 tolerance; Jacobi and local steps; at most
+``max_iterations`` linear solves), so both paths converge to the same solution within the
+tolerance. The matrix is the scheme's CSR values scattered into a dense
 (size, size) array, whose LU costs ~ size³/3 multiply-adds: the path pays only for a few
-hundred unknowns (the automatic choice, ``integrators/compiled_path.py``).
+hundred unknowns (the automatic choice, ``implicit/core/compiled_path.py``).
 """
 
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
 
-from .implicit_common import INLINE, OPTIONS
-from .schedule_passes import _copy_rows as _copy_rows_template, _copy_values
-from .specialize import function_fingerprint, model_fingerprint, specialize
+from . import newton_policy as policy
+from .newton_policy import (AT_FLOOR, BELOW_TOLERANCE, FULL, JACOBI, LOCAL, STALL_WINDOW, JacobiRule, convergence,
+                            linear_targets, next_jacobi, stalled)
+from .records import StartWork
+from .schemes import INLINE, OPTIONS
+from ...kernels.copies import _copy_rows as _copy_rows_template, _copy_values
+from ...kernels.specialize import function_fingerprint, model_fingerprint, specialize
 
 # Bound per scheme and model by newton_steps_kernel(); listed so the template reads as ordinary code.
 scheme_start = scheme_residual = scheme_jacobian = scheme_finish = scheme_linearize = scheme_sweep = None
@@ -53,7 +59,7 @@ scheme_predict = scheme_damp = scheme_local = None
 #: the linear solves: inertia-preconditioned matrix-free sweeps (True) or dense LU (False)
 SWEEPS = False
 
-#: why a step failed (``info[1]``), as the Python path words it (ImplicitStepper, solvers.newton)
+#: why a step failed (``info[1]``), as the Python path words it (ImplicitStepper, core.newton)
 CONVERGED, START, NON_PHYSICAL, NOT_FINITE_RESIDUAL, NO_CONVERGENCE, NOT_FINITE_CORRECTION, FINISH, STALLED = range(8)
 REASONS = {
     START: "invalid state at the start of the step",
@@ -63,6 +69,56 @@ REASONS = {
     FINISH: "non-physical state after the step",
     STALLED: "matrix-free sweeps stalled",
 }
+
+#: the fields of ``out.info`` (int64): the step that failed, why, the kernel's status and spring,
+#: the length of the failed step's scaled-residual history
+INFO_STEP, INFO_REASON, INFO_STATUS, INFO_SPRING, INFO_LENGTH = range(5)
+#: the start work's field whose last row holds the committed step's h (StartWork.history)
+_NODAL = StartWork._fields.index("nodal")
+
+
+class SweepLimits(NamedTuple):
+    """A matrix-free solve's sweeps: at most ``max_sweeps``; stalled where one leaves more than
+    ``stall`` times the linear residual of the one before (MatrixFree.MAX_SWEEPS, STALL)."""
+
+    max_sweeps: int
+    stall: float
+
+
+class Control(NamedTuple):
+    """What the driver is told for one call: Newton's ``tolerance`` and ``rtol``; ``rounding``
+    (> 0: at each step's start atol becomes rounding × max |x| unless within a factor 2 of that
+    already, EM2's atol at the positions' round-off, EM2Stepper.begin); ``max_iterations`` per
+    step; ``n_steps``; the policy's ``linear_fraction`` and ``jacobi`` rule (:mod:`.newton_policy`),
+    ``stall`` whether its stall window applies; the ``sweeps``' limits."""
+
+    tolerance: float
+    rtol: float
+    rounding: float
+    max_iterations: int
+    n_steps: int
+    linear_fraction: float
+    jacobi: JacobiRule
+    stall: bool
+    sweeps: SweepLimits
+
+
+class DriverOut(NamedTuple):
+    """The driver's outputs: iterations (n_steps,) int64 and finals (n_steps,), per committed
+    step its linear solves and last scaled residual; history (max_iterations + 2,) the scaled
+    residuals of a failed step; info (5,) int64 (INFO_*); atol (1,) Newton's absolute increment
+    tolerance, read and (rounding) updated."""
+
+    iterations: np.ndarray
+    finals: np.ndarray
+    history: np.ndarray
+    info: np.ndarray
+    atol: np.ndarray
+
+
+#: the policy's functions, whose code goes into the driver's cache name with the scheme's
+_POLICY = (policy.floor_stall, policy._max_abs, convergence, stalled, policy.jacobi_pays, next_jacobi,
+           linear_targets)
 
 _DRIVERS: dict = {}
 #: the commit's copy of x and p, the explicit kernels' row copy (its prange runs serially here)
@@ -86,7 +142,8 @@ def newton_steps_kernel(model, scheme: str, kernels, uniform: bool, rate: int, s
         # file: the callees' code (the scheme's kernels, recursively) goes into the name
         code = function_fingerprint(*(ns[k] for k in ("scheme_start", "scheme_residual", "scheme_jacobian",
                                                        "scheme_finish", "scheme_linearize", "scheme_sweep",
-                                                       "scheme_predict", "scheme_damp", "scheme_local")))
+                                                       "scheme_predict", "scheme_damp", "scheme_local")),
+                                    *_POLICY)
         tag = (f"{scheme}_{model.name}_{key[1]}_{code}{'_uniform' if uniform else ''}_rate{int(rate)}"
                f"_{'sweeps' if sweeps else 'dense'}_{'par' if parallel else 'ser'}")
         ns["_solve_sweeps"] = specialize(_solve_sweeps, tag, ns, **INLINE)
@@ -185,10 +242,11 @@ def lu_solve(A, piv, b):
 
 def _solve_sweeps(topo, node, work, h, du, R, r, target, settled, sweeps):
     """MatrixFree.solve's sweeps (solvers/matrix_free.py): du with max |R − J du| ≤ target, or
-    until the residual left is estimated below ``settled``. sweeps: (MAX_SWEEPS, STALL).
+    until the residual left is estimated below ``settled``; ``sweeps``: SweepLimits.
     Returns the largest contraction of a sweep (inf: unknown), or −1 when the sweeps stalled
     (the sparse path's GMRES fallback is then needed)."""
-    max_sweeps, stall = sweeps
+    max_sweeps = sweeps.max_sweeps
+    stall = sweeps.stall
     previous = math.inf
     worst = -1.0
     for k in range(max_sweeps):
@@ -214,13 +272,6 @@ def _max_abs(x):
     return big
 
 
-@njit(cache=True, inline="always")
-def _jacobi_pays(rho, contraction, tolerance, jacobi):
-    """solvers.newton._jacobi_pays; jacobi: (JACOBI_RANGE, JACOBI_MAX_STEPS)."""
-    return (rho <= jacobi[0] * tolerance and contraction < 1.0
-            and rho * contraction ** jacobi[1] <= tolerance)
-
-
 def _newton_steps(state, records, extra, linear, control, out):
     """Up to ``n_steps`` steps of h, each committed into the state on success.
 
@@ -229,39 +280,46 @@ def _newton_steps(state, records, extra, linear, control, out):
     records: (topo, spring, node, work, places) as plain tuples.
     linear: (indptr, indices, data (nnz,), A (size, size), piv (size,) int64, du (size,),
         r (size,), u (size,), res (R, Rabs, peak: Rabs and peak may be empty, the residual
-        kernels then skip them), new (NextState buffers)); with SWEEPS data,
+        kernels then skip them), new (StateArrays buffers)); with SWEEPS data,
         A and piv are not read (may be empty); r is scratch (the damping's trial point).
-    control: (tolerance, rtol, rounding, max_iterations, n_steps, linear_fraction, (JACOBI_RANGE,
-        JACOBI_MAX_STEPS), (MAX_SWEEPS, STALL)); rounding > 0: at each step's start atol
-        becomes rounding × max |x| unless it is within a factor 2 of that already (EM2's atol
-        at the positions' round-off, EM2Stepper.begin).
-    out: (iterations (n_steps,) int64, finals (n_steps,), history (max_iterations + 1,),
-        info (5,) int64, atol (1,)): per committed step its linear solves and last scaled
-        residual; for a failed step info = (step, reason, status, spring, length of its scaled
-        residual history), its linear solves in iterations[step]; atol, Newton's absolute
-        increment tolerance, read and (rounding) updated.
-    Returns the number of steps committed (< n_steps: step info[0] failed, the state is at it).
+    control: :class:`Control`.
+    out: :class:`DriverOut`; for a failed step info = (step, reason, status, spring, length of
+        its scaled residual history), its linear solves in iterations[step].
+    Returns the number of steps committed (< n_steps: step info[INFO_STEP] failed, the state is
+    at it).
 
-    With SWEEPS the linear solves are inertia-preconditioned sweeps and a full iteration may be
-    followed by Jacobi steps, as in solvers.newton with the matrix-free solver (local ones
-    where the scheme has them, test for test); sweeps that stall end the call with reason
-    STALLED. jacobi: (JACOBI_RANGE, JACOBI_MAX_STEPS, LOCAL_FRACTION, LOCAL_STALL,
-    LOCAL_MAX_ROUNDS).
+    Every decision of the iteration is :mod:`.newton_policy`'s, as in the Python driver. With
+    SWEEPS the linear solves are inertia-preconditioned sweeps and a full iteration may be
+    followed by Jacobi steps (local ones where the scheme has them); sweeps that stall end the
+    call with reason STALLED. The rounding floor and the stall window are not this driver's
+    (floor 0, no window: ``control.stall`` is False), so they never decide here.
     """
     x, p, phi, eta, h, coef = state
     topo, spring, node, work, places = records
     indptr, indices, data, A, piv, du, r, u, res, new = linear
-    tolerance, rtol, rounding, max_iterations, n_steps, fraction, jacobi, sweeps = control
-    iterations, finals, history, info, tol = out
+    tolerance = control.tolerance
+    rtol = control.rtol
+    rounding = control.rounding
+    max_iterations = control.max_iterations
+    n_steps = control.n_steps
+    fraction = control.linear_fraction
+    rule = control.jacobi
+    stall = control.stall
+    sweeps = control.sweeps
+    iterations = out.iterations
+    finals = out.finals
+    history = out.history
+    info = out.info
+    tol = out.atol
     R = res[0]
     x_new, p_new, phi_new, eta_new = new
     size = u.shape[0]
     for k in range(n_steps):
         step = (x, p, eta, h)
-        info[0] = k
-        info[2] = 0
-        info[3] = -1
-        info[4] = 0
+        info[INFO_STEP] = k
+        info[INFO_STATUS] = 0
+        info[INFO_SPRING] = -1
+        info[INFO_LENGTH] = 0
         if rounding > 0.0:
             floor = rounding * _max_abs(x)
             if not (0.5 * tol[0] <= floor <= 2.0 * tol[0]):
@@ -269,9 +327,9 @@ def _newton_steps(state, records, extra, linear, control, out):
         atol = tol[0]
         status, bad = scheme_start(step, topo, spring, node, work[0], coef, u)
         if status != 0:
-            info[1] = START
-            info[2] = status
-            info[3] = bad
+            info[INFO_REASON] = START
+            info[INFO_STATUS] = status
+            info[INFO_SPRING] = bad
             return k
         scheme_predict(step, topo, spring, node, work, extra, u)
         warm = False
@@ -281,8 +339,7 @@ def _newton_steps(state, records, extra, linear, control, out):
         nh = 0
         reason = CONVERGED
         use_jacobi_ever = SWEEPS
-        last_full = True
-        last_local = False
+        last = FULL  # the kind of the last correction (newton_policy)
         local_rounds = 0
         pending, pending_bad = 0, -1  # the status of a residual brought up to date by a local step
         contraction = math.inf
@@ -298,8 +355,8 @@ def _newton_steps(state, records, extra, linear, control, out):
             warm = status == 0
             if status != 0:
                 reason = NON_PHYSICAL
-                info[2] = status
-                info[3] = bad
+                info[INFO_STATUS] = status
+                info[INFO_SPRING] = bad
                 break
             rho = rmax / scale if scale > 0.0 else 0.0
             history[nh] = rho
@@ -307,32 +364,27 @@ def _newton_steps(state, records, extra, linear, control, out):
             if not (abs(rho) < math.inf):
                 reason = NOT_FINITE_RESIDUAL
                 break
-            if rho <= tolerance:
+            verdict, floored, small = convergence(corrections, rho, rmax, 0.0,
+                                                  history[nh - 2] if nh > 1 else 0.0,
+                                                  history[nh - 3] if nh > 2 else 0.0,
+                                                  increment, u, tolerance, rtol, atol)
+            if verdict == BELOW_TOLERANCE or verdict == AT_FLOOR or small:
                 break
-            if corrections > 0 and rho <= 1e3 * tolerance:
-                umax = 0.0
-                for i in range(size):
-                    umax = max(umax, abs(u[i]))
-                if increment <= rtol * umax + atol:
-                    break
             if corrections - local_rounds == max_iterations:
+                reason = NO_CONVERGENCE
+                break
+            if stall and stalled(nh, rho, history[nh - 1 - STALL_WINDOW] if nh > STALL_WINDOW else 0.0):
                 reason = NO_CONVERGENCE
                 break
             use_jacobi = False
             if use_jacobi_ever and corrections > 0:
-                if last_full:
-                    use_jacobi = _jacobi_pays(rho, contraction, tolerance, jacobi)
-                else:
-                    if last_local:  # each costs a few per cent of a global step
-                        use_jacobi = rho / history[nh - 2] <= jacobi[3] and local_rounds < jacobi[4]
-                    else:
-                        use_jacobi = _jacobi_pays(rho, rho / history[nh - 2], tolerance, jacobi)
-                    if not use_jacobi:
-                        use_jacobi_ever = False
+                use_jacobi, use_jacobi_ever = next_jacobi(last, rho, history[nh - 2], contraction, local_rounds,
+                                                          tolerance, rule.range, rule.max_steps, rule.local_stall,
+                                                          rule.local_max_rounds)
             corrections += 1
             if SWEEPS and use_jacobi:
                 done, pending, pending_bad, lmax, lscale, change = scheme_local(
-                    step, topo, spring, node, work, extra, u, res, warm, jacobi[2] * tolerance * scale)
+                    step, topo, spring, node, work, extra, u, res, warm, rule.local_fraction * tolerance * scale)
                 if done:
                     evaluated = True
                     rmax = lmax
@@ -340,24 +392,21 @@ def _newton_steps(state, records, extra, linear, control, out):
                     increment = change
                     jacobi_steps += 1
                     local_rounds += 1
-                    last_full = False
-                    last_local = True
+                    last = LOCAL
                     continue
             if SWEEPS:
-                last_local = False
                 if use_jacobi:
                     scheme_sweep(topo, node, work, h, du, R, r, True, True)
                     jacobi_steps += 1
-                    last_full = False
+                    last = JACOBI
                 else:
                     scheme_linearize(spring, work, extra, h)
-                    contraction = _solve_sweeps(topo, node, work, h, du, R, r,
-                                                fraction * max(tolerance, rho * rho) * scale,
-                                                fraction * tolerance * scale, sweeps)
+                    target, settled = linear_targets(rho, scale, tolerance, fraction)
+                    contraction = _solve_sweeps(topo, node, work, h, du, R, r, target, settled, sweeps)
                     if contraction < 0.0:
                         reason = STALLED
                         break
-                    last_full = True
+                    last = FULL
             else:
                 scheme_jacobian(topo, spring, node, work, places, extra, h, data)
                 csr_to_dense(indptr, indices, data, A)
@@ -384,22 +433,22 @@ def _newton_steps(state, records, extra, linear, control, out):
                 reason = NOT_FINITE_CORRECTION
                 break
         iterations[k] = corrections - jacobi_steps
-        info[4] = nh
+        info[INFO_LENGTH] = nh
         if reason != CONVERGED:
-            info[1] = reason
+            info[INFO_REASON] = reason
             return k
         status, bad = scheme_finish(step, topo, spring, node, work, extra, u, phi, new)
         if status != 0:
-            info[1] = FINISH
-            info[2] = status
-            info[3] = bad
+            info[INFO_REASON] = FINISH
+            info[INFO_STATUS] = status
+            info[INFO_SPRING] = bad
             return k
         # loops, not slice assignments (those need the runtime for their overlap check)
         _copy_rows(x_new, x)
         _copy_rows(p_new, p)
         _copy_values(phi_new, phi)
         _copy_values(eta_new, eta)
-        nodal = work[0][6]
+        nodal = work[0][_NODAL]
         if nodal.shape[0] > x.shape[0]:  # StartWork.history: u holds this committed step's solution
             nodal[x.shape[0], 0] = h
         finals[k] = history[nh - 1]

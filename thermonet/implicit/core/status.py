@@ -1,5 +1,5 @@
-"""The bottom of the implicit kernels, below both the start kernel (:mod:`.implicit_start`) and
-the kernels' registry and shared helpers (:mod:`.implicit_common`, which re-exports these names):
+"""The bottom of the implicit kernels, below both the start kernel (:mod:`thermonet.implicit.core.start`) and
+the kernels' registry and shared helpers (:mod:`thermonet.implicit.core.schemes`, which re-exports these names):
 the springs per block of a spring pass, the status codes a residual or finish kernel returns, and
 the two branch-free helpers every spring pass uses.
 """

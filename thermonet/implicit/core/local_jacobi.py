@@ -3,7 +3,7 @@
 springs at the free nodes whose residual rows are large and the free nodes at those springs'
 ends (whose residual rows the step changes), and the one pass over the residual's per-node
 maxima that gives its norms (the step's update of the listed nodes is the scheme's:
-``ho4_linear.ho4_jacobi_rows``). Serial: the
+``ho4.linear.ho4_jacobi_rows``). Serial: the
 sets are small (a few per cent of the net at most, else the caller takes a global step), and
 their order does not change any result (each spring and each node row is computed on its own;
 a node sums its springs in incidence order)."""

@@ -1,0 +1,1 @@
+"""The core every implicit scheme shares (see :mod:`thermonet.implicit`)."""
