@@ -80,7 +80,8 @@ from .schedule import FIRST_FLOW_SLOT
 # False the kernel is the purely mechanical one (every spring at its reference temperature,
 # parameter row REFERENCE_TEMPERATURE; no η, θ or Φ is read or written); with UNIFORM, P is
 # (k, 1) and shared. The sub-flows (spring_force, gather_force, ...) are those of
-# thermonet.kernels.subflows; the small passes (thermal_kick, ...) those of .passes, the row copies those of thermonet.kernels.copies;
+# thermonet.kernels.subflows; the small passes (thermal_kick, ...) those of .passes, the row
+# copies those of thermonet.kernels.copies;
 # the loads' functions (node_load, cpu_*) those of thermonet.loads.elements, with LOADS.
 spring_pass = node_pass = boundary_spring_pass = boundary_node_pass = None
 thermal_kick = copy_rows = apply_flow = None
