@@ -7,6 +7,12 @@ the boundary entries: baths, sources), the forward half sweep that starts the ne
 boundary entries, then the colours in order), or both back to back; then one entropy update per
 spring. A colour's blocks run in parallel (they share no spring); each block and each boundary
 spring is computed by one thread in a fixed order, so results do not depend on the thread count.
+With factors shared by all springs the serial kernel takes a colour's blocks two at a time,
+node k of one with node k of the other, their junction sums in one loop (:func:`_star_nodes`: a
+node's sum is a chain of dependent additions, two chains overlap); with no bath or source entries between the
+half sweeps, the reverse sweep's last colour and the forward sweep's first run as one phase,
+each block reverse then forward. Each block's operations, and their order, are those of
+:func:`thermonet.heat.exchange.star_block`: the same bits.
 The forward sweeps of ``K_f(kh/2) ∘ A(h)^k ∘ K_r(kh/2)`` are the exact reverse of the reverse
 ones, which makes the cycle symmetric.
 """
@@ -44,6 +50,8 @@ star_node = star_block = boundary_exchange = finish_spring = wave_exchange = spr
 tension = outside_admissible = advance_thermal_displacement = spring_energy = None
 boundary_node_pass = None
 UNIFORM = False
+#: the serial kernel: a thread takes a colour's blocks two at a time (see _sweep_colour)
+PAIRED = False
 #: springs per block of the temperature pass (see thermonet.kernels.splitting.BLOCK)
 BLOCK = 512
 
@@ -69,6 +77,7 @@ def bind_heat_passes(ns: dict, tag: str, parallel: bool) -> None:
     ns["temperature_pass"] = specialize(_temperature_pass, tag, ns, parallel=parallel, **_OPTIONS)
     ns["refresh_pass"] = specialize(_refresh_pass, tag, ns, parallel=parallel, **_OPTIONS)
     ns["finish_refresh_pass"] = specialize(_finish_refresh_pass, tag, ns, parallel=parallel, **_OPTIONS)
+    ns["PAIRED"] = not parallel
     ns["_star_nodes"] = specialize(_star_nodes, tag, ns, inline="always", **_OPTIONS)
     ns["_star_blocks"] = specialize(_star_blocks, tag, ns, inline="always", **_OPTIONS)
     ns["_sweep_colour"] = specialize(_sweep_colour, tag, ns, parallel=parallel, **_OPTIONS)
@@ -258,11 +267,18 @@ def _star_blocks(b1, b2, heat, reverse, theta):
 
 def _sweep_colour(heat, ptr, colour, directions, theta):
     """The blocks of one colour, in parallel: each reverse (REVERSE), forward (FORWARD), or
-    reverse then forward (both). With shared factors the blocks go in pairs (block k with block
-    k + ⌈B/2⌉ of the colour, :func:`_star_blocks`)."""
+    reverse then forward (both). With shared factors in the serial kernel (PAIRED) the blocks go
+    in pairs (block k with block k + ⌈B/2⌉ of the colour, :func:`_star_blocks`); the pairing
+    changes no result, only the order in which independent blocks interleave."""
     lo = ptr[colour]
     count = ptr[colour + 1] - lo
-    if heat.factor_mask[0] == 0:
+    if heat.factor_mask[0] == 0 and not PAIRED:  # (threads: pairs would unbalance their shares)
+        for b in prange(lo, lo + count):
+            if directions & REVERSE:
+                _star_blocks(b, -1, heat, True, theta)
+            if directions & FORWARD:
+                _star_blocks(b, -1, heat, False, theta)
+    elif heat.factor_mask[0] == 0:
         half = count // 2
         odd = count - 2 * half
         for k in prange(half + odd):
