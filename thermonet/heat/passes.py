@@ -80,7 +80,7 @@ def bind_heat_passes(ns: dict, tag: str, parallel: bool) -> None:
     ns["PAIRED"] = not parallel
     ns["_star_nodes"] = specialize(_star_nodes, tag, ns, inline="always", **_OPTIONS)
     ns["_star_blocks"] = specialize(_star_blocks, tag, ns, inline="always", **_OPTIONS)
-    ns["_sweep_colour"] = specialize(_sweep_colour, tag, ns, parallel=parallel, **_OPTIONS)
+    ns["_sweep_colour"] = specialize(_sweep_colour, tag, ns, inline="always", **_OPTIONS)
     ns["conduction_sweep"] = specialize(_conduction_sweep, tag, ns, parallel=parallel, **_OPTIONS)
     ns["wave_sweep"] = specialize(_wave_sweep, tag, ns, parallel=parallel, **_OPTIONS)
     ns["state_spring_sums"] = specialize(_state_spring_sums, tag, ns, parallel=parallel, **_OPTIONS)
@@ -267,21 +267,16 @@ def _star_blocks(b1, b2, heat, reverse, theta):
 
 def _sweep_colour(heat, ptr, colour, directions, theta):
     """The blocks of one colour, in parallel: each reverse (REVERSE), forward (FORWARD), or
-    reverse then forward (both). With shared factors in the serial kernel (PAIRED) the blocks go
-    in pairs (block k with block k + ⌈B/2⌉ of the colour, :func:`_star_blocks`); the pairing
-    changes no result, only the order in which independent blocks interleave."""
+    reverse then forward (both). In the serial kernel (PAIRED), with shared factors and two
+    blocks or more, the blocks go in pairs (block k with block k + ⌈B/2⌉ of the colour,
+    :func:`_star_blocks`); the pairing changes no result, only the order in which independent
+    blocks interleave. (Not with threads: pairs would unbalance their shares.)"""
     lo = ptr[colour]
     count = ptr[colour + 1] - lo
-    if heat.factor_mask[0] == 0 and not PAIRED:  # (threads: pairs would unbalance their shares)
-        for b in prange(lo, lo + count):
-            if directions & REVERSE:
-                _star_blocks(b, -1, heat, True, theta)
-            if directions & FORWARD:
-                _star_blocks(b, -1, heat, False, theta)
-    elif heat.factor_mask[0] == 0:
+    if PAIRED and count >= 2 and heat.factor_mask[0] == 0:
         half = count // 2
         odd = count - 2 * half
-        for k in prange(half + odd):
+        for k in range(half + odd):
             b1 = lo + k
             b2 = b1 + half + odd if k < half else -1
             if directions & REVERSE:
