@@ -9,9 +9,9 @@ spring. A colour's blocks run in parallel (they share no spring); each block and
 spring is computed by one thread in a fixed order, so results do not depend on the thread count.
 With factors shared by all springs the serial kernel takes a colour's blocks two at a time,
 node k of one with node k of the other, their junction sums in one loop (:func:`_star_nodes`: a
-node's sum is a chain of dependent additions, two chains overlap); with no bath or source entries between the
-half sweeps, the reverse sweep's last colour and the forward sweep's first run as one phase,
-each block reverse then forward. Each block's operations, and their order, are those of
+node's sum is a chain of dependent additions, two chains overlap); with no bath or source
+entries between the half sweeps, the reverse sweep's last colour and the forward sweep's first
+run as one phase, each block reverse then forward. Each block's operations, and their order, are those of
 :func:`thermonet.heat.exchange.star_block`: the same bits.
 The forward sweeps of ``K_f(kh/2) ∘ A(h)^k ∘ K_r(kh/2)`` are the exact reverse of the reverse
 ones, which makes the cycle symmetric.
