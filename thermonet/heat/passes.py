@@ -7,6 +7,12 @@ the boundary entries: baths, sources), the forward half sweep that starts the ne
 boundary entries, then the colours in order), or both back to back; then one entropy update per
 spring. A colour's blocks run in parallel (they share no spring); each block and each boundary
 spring is computed by one thread in a fixed order, so results do not depend on the thread count.
+With factors shared by all springs the serial kernel takes a colour's blocks two at a time,
+node k of one with node k of the other, their junction sums in one loop (:func:`_star_nodes`: a
+node's sum is a chain of dependent additions, two chains overlap); with no bath or source
+entries between the half sweeps, the reverse sweep's last colour and the forward sweep's first
+run as one phase, each block reverse then forward. Each block's operations, and their order, are those of
+:func:`thermonet.heat.exchange.star_block`: the same bits.
 The forward sweeps of ``K_f(kh/2) ∘ A(h)^k ∘ K_r(kh/2)`` are the exact reverse of the reverse
 ones, which makes the cycle symmetric.
 """
@@ -45,6 +51,8 @@ star_node = star_block = boundary_exchange = finish_spring = wave_exchange = spr
 tension = outside_admissible = advance_thermal_displacement = spring_energy = None
 boundary_node_pass = None
 UNIFORM = False
+#: the serial kernel: a thread takes a colour's blocks two at a time (see _sweep_colour)
+PAIRED = False
 #: springs per block of the temperature pass (see thermonet.kernels.blocks.BLOCK)
 BLOCK = 512
 
@@ -70,6 +78,10 @@ def bind_heat_passes(ns: dict, tag: str, parallel: bool) -> None:
     ns["temperature_pass"] = specialize(_temperature_pass, tag, ns, parallel=parallel, **_OPTIONS)
     ns["refresh_pass"] = specialize(_refresh_pass, tag, ns, parallel=parallel, **_OPTIONS)
     ns["finish_refresh_pass"] = specialize(_finish_refresh_pass, tag, ns, parallel=parallel, **_OPTIONS)
+    ns["PAIRED"] = not parallel
+    ns["_star_nodes"] = specialize(_star_nodes, tag, ns, inline="always", **_OPTIONS)
+    ns["_star_blocks"] = specialize(_star_blocks, tag, ns, inline="always", **_OPTIONS)
+    ns["_sweep_colour"] = specialize(_sweep_colour, tag, ns, inline="always", **_OPTIONS)
     ns["conduction_sweep"] = specialize(_conduction_sweep, tag, ns, parallel=parallel, **_OPTIONS)
     ns["wave_sweep"] = specialize(_wave_sweep, tag, ns, parallel=parallel, **_OPTIONS)
     ns["state_spring_sums"] = specialize(_state_spring_sums, tag, ns, parallel=parallel, **_OPTIONS)
@@ -191,6 +203,95 @@ def _finish_refresh_pass(heat, theta, eta, phi, springs, s, steps, run):
     return bad
 
 
+def _star_nodes(i1, i2, inc_ptr, inc_spring, weight, decay, node_scale, theta):
+    """:func:`thermonet.heat.exchange.star_node` of nodes i1 and i2, which share no spring, with
+    shared factors (weight, decay: floats): the two junction sums in one loop, each in its own
+    order (the same bits), so that the processor overlaps their chains of dependent additions.
+    i2 < 0: i1 alone."""
+    lo1 = inc_ptr[i1]
+    n1 = inc_ptr[i1 + 1] - lo1
+    lo2 = lo1
+    n2 = 0
+    if i2 >= 0:
+        lo2 = inc_ptr[i2]
+        n2 = inc_ptr[i2 + 1] - lo2
+    both = min(n1, n2)
+    total1 = 0.0
+    total2 = 0.0
+    for j in range(both):
+        total1 += weight * theta[inc_spring[np.uint64(lo1 + j)]]
+        total2 += weight * theta[inc_spring[np.uint64(lo2 + j)]]
+    for j in range(both, n1):
+        total1 += weight * theta[inc_spring[np.uint64(lo1 + j)]]
+    for j in range(both, n2):
+        total2 += weight * theta[inc_spring[np.uint64(lo2 + j)]]
+    junction1 = total1 * node_scale[i1]
+    for j in range(n1):
+        e = inc_spring[np.uint64(lo1 + j)]
+        theta[e] = junction1 + (theta[e] - junction1) * decay
+    if n2 > 0:
+        junction2 = total2 * node_scale[i2]
+        for j in range(n2):
+            e = inc_spring[np.uint64(lo2 + j)]
+            theta[e] = junction2 + (theta[e] - junction2) * decay
+
+
+def _star_blocks(b1, b2, heat, reverse, theta):
+    """:func:`thermonet.heat.exchange.star_block` of blocks b1 and b2 of one colour (b2 < 0: b1
+    alone) with shared factors (heat.factor_mask[0] == 0), node k of one with node k of the
+    other (:func:`_star_nodes`); each block's nodes in their order, so the same bits."""
+    block_ptr = heat.block_ptr
+    block_node = heat.block_node
+    inc_ptr = heat.inc_ptr
+    inc_spring = heat.inc_spring
+    node_scale = heat.node_scale
+    weight = heat.weight[0]
+    decay = heat.decay[0]
+    lo1 = block_ptr[b1]
+    n1 = block_ptr[b1 + 1] - lo1
+    lo2 = lo1
+    n2 = 0
+    if b2 >= 0:
+        lo2 = block_ptr[b2]
+        n2 = block_ptr[b2 + 1] - lo2
+    for k in range(max(n1, n2)):
+        i1 = -1
+        i2 = -1
+        if k < n1:
+            i1 = block_node[lo1 + n1 - 1 - k if reverse else lo1 + k]
+        if k < n2:
+            i2 = block_node[lo2 + n2 - 1 - k if reverse else lo2 + k]
+        if i1 < 0:
+            i1, i2 = i2, i1
+        _star_nodes(i1, i2, inc_ptr, inc_spring, weight, decay, node_scale, theta)
+
+
+def _sweep_colour(heat, ptr, colour, directions, theta):
+    """The blocks of one colour, in parallel: each reverse (REVERSE), forward (FORWARD), or
+    reverse then forward (both). In the serial kernel (PAIRED), with shared factors and two
+    blocks or more, the blocks go in pairs (block k with block k + ⌈B/2⌉ of the colour,
+    :func:`_star_blocks`); the pairing changes no result, only the order in which independent
+    blocks interleave. (Not with threads: pairs would unbalance their shares.)"""
+    lo = ptr[colour]
+    count = ptr[colour + 1] - lo
+    if PAIRED and count >= 2 and heat.factor_mask[0] == 0:
+        half = count // 2
+        odd = count - 2 * half
+        for k in range(half + odd):
+            b1 = lo + k
+            b2 = b1 + half + odd if k < half else -1
+            if directions & REVERSE:
+                _star_blocks(b1, b2, heat, True, theta)
+            if directions & FORWARD:
+                _star_blocks(b1, b2, heat, False, theta)
+    else:
+        for b in prange(lo, lo + count):
+            if directions & REVERSE:
+                star_block(b, heat, True, theta)
+            if directions & FORWARD:
+                star_block(b, heat, False, theta)
+
+
 def _conduction_sweep(heat, theta, theta_start, eta, tau, t, directions):
     """Conduction half sweeps over τ each at time t (see the module docstring): ``directions``
     REVERSE, FORWARD or both (the reverse one first), with SAVE or CONTINUE. theta must hold the
@@ -216,11 +317,13 @@ def _conduction_sweep(heat, theta, theta_start, eta, tau, t, directions):
     else:
         for e in prange(m):
             theta_start[e] = theta[e]
+    # with no boundary entries between them, the reverse sweep's last colour and the forward
+    # sweep's first (the same colour) run as one phase, each block reverse then forward (a
+    # block's springs meet no other block of its colour: the same operations in the same order)
+    fuse = directions & REVERSE != 0 and directions & FORWARD != 0 and n_bound == 0 and n_colours > 0
     if directions & REVERSE:
-        for i in range(n_colours):
-            colour = n_colours - 1 - i
-            for b in prange(ptr[colour], ptr[colour + 1]):
-                star_block(b, heat, True, theta)
+        for i in range(n_colours - 1 if fuse else n_colours):
+            _sweep_colour(heat, ptr, n_colours - 1 - i, REVERSE, theta)
         if n_bound > 0:  # (a parallel loop costs a barrier even when empty)
             for j in prange(n_bound):
                 boundary_exchange(j, heat, tau, t, True, theta, logs)
@@ -229,8 +332,7 @@ def _conduction_sweep(heat, theta, theta_start, eta, tau, t, directions):
             for j in prange(n_bound):
                 boundary_exchange(j, heat, tau, t, False, theta, logs)
         for colour in range(n_colours):
-            for b in prange(ptr[colour], ptr[colour + 1]):
-                star_block(b, heat, False, theta)
+            _sweep_colour(heat, ptr, colour, REVERSE | FORWARD if fuse and colour == 0 else FORWARD, theta)
     if directions & SAVE:
         for e in prange(m):
             pending_theta[e] = theta_start[e]
