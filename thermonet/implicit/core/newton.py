@@ -81,6 +81,14 @@ NEWTON_PATHS = ("auto", "compiled", "compiled-dense", "sparse")
 #: factorization (benchmarks/em2_paths.py), so a linear contraction of 0.2 per such correction
 #: still reaches the tolerance sooner than a quadratic Newton iteration that factorizes.
 REUSE_BELOW = policy.STALL_ABOVE
+
+# This driver runs the policy's decisions as plain Python: the same source and the same IEEE
+# double arithmetic as the compiled driver's, without the cost of a compiled call from Python
+# (typing its arguments), which is larger than the decision (2–4 % of a step on small nets)
+_convergence = policy.convergence.py_func
+_stalled = policy.stalled.py_func
+_next_jacobi = policy.next_jacobi.py_func
+_linear_targets = policy.linear_targets.py_func
 REUSE_CONTRACTION = 0.2
 
 
@@ -194,7 +202,7 @@ def newton(problem, u: np.ndarray, options: NewtonOptions, solver, timers: Newto
             solver.stale = True  # the kept factorization no longer pays: factorize at the next iteration
         if not math.isfinite(rho):
             return NewtonResult(False, it, history, 0, -1, "residual not finite", jacobi_steps, reused)
-        verdict, floored, small = policy.convergence(
+        verdict, floored, small = _convergence(
             it, rho, float(rmax), floor, history[-2] if it > 0 else 0.0, history[-3] if it > 1 else 0.0,
             increment, u, tolerance, rtol, atol)
         if verdict == BELOW_TOLERANCE or verdict == AT_FLOOR:
@@ -216,7 +224,7 @@ def newton(problem, u: np.ndarray, options: NewtonOptions, solver, timers: Newto
         if corrections - local_rounds == options.max_iterations:
             break
         window = STALL_WINDOW
-        if stall and policy.stalled(len(history), rho, history[-1 - window] if len(history) > window else 0.0):
+        if stall and _stalled(len(history), rho, history[-1 - window] if len(history) > window else 0.0):
             if reuse:
                 solver.stale = True
             return NewtonResult(False, corrections, history, 0, -1,
@@ -225,7 +233,7 @@ def newton(problem, u: np.ndarray, options: NewtonOptions, solver, timers: Newto
         use_jacobi = False
         if jacobi is not None and it > 0:
             promised = float(getattr(solver, "contraction", math.inf))
-            use_jacobi, still = policy.next_jacobi(last, rho, history[-2], promised, local_rounds, tolerance, rule.range,
+            use_jacobi, still = _next_jacobi(last, rho, history[-2], promised, local_rounds, tolerance, rule.range,
                                                    rule.max_steps, rule.local_stall, rule.local_max_rounds)
             if not still:
                 jacobi = local = None  # they contract too slowly: full iterations from here on
@@ -266,7 +274,7 @@ def newton(problem, u: np.ndarray, options: NewtonOptions, solver, timers: Newto
                 problem.linearize()
                 t1 = time.perf_counter()
             t2 = time.perf_counter()
-            du = solver.solve(problem.R, *policy.linear_targets(rho, float(scale), tolerance, policy.LINEAR_FRACTION))
+            du = solver.solve(problem.R, *_linear_targets(rho, float(scale), tolerance, policy.LINEAR_FRACTION))
         t3 = time.perf_counter()
         timers.assembly += t1 - t0
         timers.factorization += t2 - t1
