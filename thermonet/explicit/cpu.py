@@ -68,6 +68,7 @@ from ..kernels import subflows
 from ..kernels.blocks import BLOCK, squared_lengths
 from ..kernels.reductions import node_diagnostic_terms
 from ..kernels.copies import _copy_rows, _copy_values
+from ..kernels.records import KickDrift
 from ..kernels.specialize import function_fingerprint, kernel_namespace, model_fingerprint, rebind, specialize
 from ..kernels.subflows import bind_subflows
 from ..loads.elements import bind_loads
@@ -231,7 +232,7 @@ def _spring_pass(x, eta, phi, topology, springs, scratch, steps, run, keep, leng
 
 def _node_pass(x, x_new, p, topology, nodes, scratch, steps, force_source, want_sums, inputs):
     """Per node a: f = Σ s_e (x_b − x_a) (+ m g); p += kick1 f; p += kick2 f; x_new = x + drift p/m,
-    with steps = (kick1, kick2, drift, with_force) (fractions of h already multiplied by h).
+    with steps a :class:`~thermonet.kernels.records.KickDrift`.
 
     x, x_new, p: (n, 3). force_source (:mod:`thermonet.explicit.codes`): FORCE_GATHER gather f;
     FORCE_GATHER_KEEP gather f and keep it in f_keep (n, 3) (a call's closing kick, whose drift is
@@ -418,7 +419,7 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run
             k1 = pending if r == 0 else 0.0
             k2 = table.kick[r]
             with_force = k1 != 0.0 or k2 != 0.0
-            steps = (k1 * h, k2 * h, table.drift[r] * h, with_force)
+            steps = KickDrift(k1 * h, k2 * h, table.drift[r] * h, with_force)
             reuse = run.reuse_boundary and step == 0 and r == 0 and with_force and not swept_first
             if reuse:  # the previous call's closing kick evaluated these at these positions
                 if THERMAL and run.track_phi:
@@ -450,8 +451,9 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run
                 boundary_node_pass(cur, nxt, p, topology, nodes, scratch, steps, FORCE_KEPT, False,
                                    (heat.s_before, loads))
             elif CONDUCTION and deferred != 0.0:
-                node_pass(cur, nxt, p, topology, nodes, scratch, (deferred * h, k2 * h, table.drift[r] * h, True),
-                          FORCE_DEFERRED, False, (heat.s_before, loads))
+                node_pass(cur, nxt, p, topology, nodes, scratch,
+                          KickDrift(deferred * h, k2 * h, table.drift[r] * h, True), FORCE_DEFERRED, False,
+                          (heat.s_before, loads))
                 if LOADS:
                     cpu_load_work(cur, heat.s_before, topology, nodes, loads, 0.0, deferred * h)
                 deferred = 0.0
@@ -497,7 +499,7 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run
         # drift 0: the positions stay in cur
         if LOADS:
             cpu_evaluate_loads(loads, stage_time(loads, h, n_steps, 0.0))
-        node_sums = boundary_node_pass(cur, nxt, p, topology, nodes, scratch, (0.0, pending * h, 0.0, True),
+        node_sums = boundary_node_pass(cur, nxt, p, topology, nodes, scratch, KickDrift(0.0, pending * h, 0.0, True),
                                        FORCE_GATHER_KEEP, run.want_sums, (heat.s_before, loads))
         if LOADS:
             cpu_load_work(cur, scratch.s, topology, nodes, loads, 0.0, pending * h)

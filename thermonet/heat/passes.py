@@ -25,7 +25,7 @@ import numpy as np
 from numba import njit, prange
 
 from ..explicit.codes import FORCE_DEFERRED
-from ..kernels.records import Scratch
+from ..kernels.records import KickDrift, Scratch
 from ..kernels.specialize import kernel_namespace, model_fingerprint, rebind, specialize
 from . import exchange
 
@@ -373,10 +373,10 @@ def deferred_kick(x, x_new, p, topology, nodes, scratch, heat, loads, when, want
     if LOADS:
         cpu_evaluate_loads(loads, t)
     if want_sums:
-        sums = boundary_node_pass(x, x_new, p, topology, nodes, scratch, (tau, 0.0, 0.0, True), FORCE_DEFERRED, True,
-                                  (heat.s_before, loads))
+        sums = boundary_node_pass(x, x_new, p, topology, nodes, scratch, KickDrift(tau, 0.0, 0.0, True),
+                                  FORCE_DEFERRED, True, (heat.s_before, loads))
     else:
-        sums = node_pass(x, x_new, p, topology, nodes, scratch, (tau, 0.0, 0.0, True), FORCE_DEFERRED, False,
+        sums = node_pass(x, x_new, p, topology, nodes, scratch, KickDrift(tau, 0.0, 0.0, True), FORCE_DEFERRED, False,
                          (heat.s_before, loads))
     if LOADS:
         cpu_load_work(x, heat.s_before, topology, nodes, loads, 0.0, tau)

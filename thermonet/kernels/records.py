@@ -70,6 +70,17 @@ class Scratch(NamedTuple):
     sums: np.ndarray
 
 
+class KickDrift(NamedTuple):
+    """A node pass's work (each a fraction of h already multiplied by h): two kicks of p by the
+    node's force, added one after the other (kick1, then kick2), then the drift of x by p/m;
+    with_force: the stage has a force evaluation (else the spring pass before it is skipped)."""
+
+    kick1: float
+    kick2: float
+    drift: float
+    with_force: bool
+
+
 class Run(NamedTuple):
     """What one call does: n_steps of h from time t0; track_phi (False for NM2); admissible
     stretches (stretch_min, stretch_max); reuse_boundary (the previous call's closing forces

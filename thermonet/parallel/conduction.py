@@ -94,7 +94,7 @@ class DistributedConduction:
             for r, (k2, drift) in enumerate(zip(kicks, drifts)):
                 k1 = pending if r == 0 else 0.0
                 with_force = k1 != 0.0 or k2 != 0.0
-                steps = (k1 * h, k2 * h, drift * h, with_force)
+                steps = records.KickDrift(k1 * h, k2 * h, drift * h, with_force)
                 if with_force:
                     # after a sweep (θ valid): the forces from the swept θ, no θ(l, η); the kernel's
                     # deferred entropy update (finish_refresh_pass) the sweep here made already

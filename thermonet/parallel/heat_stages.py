@@ -11,6 +11,7 @@ from __future__ import annotations
 from numba import prange
 
 from ..explicit.codes import FORCE_DEFERRED, FORCE_GATHER, FORCE_GATHER_KEEP
+from ..kernels.records import KickDrift
 from ..kernels.specialize import function_fingerprint, specialize
 
 # bound per kernel variant by heat_stage_functions() (a conducting variant's passes)
@@ -42,7 +43,7 @@ def _kick_drift(cur, nxt, state, topology, nodes, scratch, steps, s_before, load
     """A stage's node pass into nxt: with the forces of s, or (``deferred`` ≠ 0) first the kick
     deferred past the sweep with those of s_before, then this stage's kick of s."""
     if deferred != 0.0:
-        node_pass(cur, nxt, state.p, topology, nodes, scratch, (deferred * h, kick * h, drift * h, True),
+        node_pass(cur, nxt, state.p, topology, nodes, scratch, KickDrift(deferred * h, kick * h, drift * h, True),
                   FORCE_DEFERRED, False, (s_before, loads))
     else:
         node_pass(cur, nxt, state.p, topology, nodes, scratch, steps, FORCE_GATHER, False, (s_before, loads))
@@ -50,7 +51,7 @@ def _kick_drift(cur, nxt, state, topology, nodes, scratch, steps, s_before, load
 
 def _deferred_alone(cur, nxt, state, topology, nodes, scratch, s_before, loads, tau):
     """The kick deferred past a call's last sweep, by itself (drift 0: the positions stay in cur)."""
-    node_pass(cur, nxt, state.p, topology, nodes, scratch, (tau, 0.0, 0.0, True), FORCE_DEFERRED, False,
+    node_pass(cur, nxt, state.p, topology, nodes, scratch, KickDrift(tau, 0.0, 0.0, True), FORCE_DEFERRED, False,
               (s_before, loads))
 
 
@@ -62,7 +63,7 @@ def _closing(cur, nxt, state, topology, springs, nodes, scratch, length, s_befor
                                length)[0]
     if bad > 0:
         return bad
-    boundary_node_pass(cur, nxt, state.p, topology, nodes, scratch, (0.0, pending * h, 0.0, True),
+    boundary_node_pass(cur, nxt, state.p, topology, nodes, scratch, KickDrift(0.0, pending * h, 0.0, True),
                        FORCE_GATHER_KEEP, run.want_sums, (s_before, loads))
     return 0
 

@@ -8,6 +8,7 @@ filled: the processes of a run then compile only these two small functions (once
 from __future__ import annotations
 
 from ..explicit.codes import FORCE_GATHER, FORCE_GATHER_KEEP
+from ..kernels.records import KickDrift
 from ..kernels.specialize import function_fingerprint, specialize
 
 # bound per kernel variant by stage_functions(), as in thermonet.explicit.cpu
@@ -18,13 +19,13 @@ _CACHE: dict = {}
 
 
 def _stage(cur, nxt, state, topology, springs, nodes, scratch, steps, run, extra):
-    """One stage row: the spring pass at cur (kicks steps[0], steps[1] of Φ) unless steps[3] is
-    False, then, unless a spring left the admissible states, the node pass (kicks, drift
-    steps[2]) into nxt. state: StateArrays (p, Φ, η read); extra: (length, (s_before, loads)).
-    Returns the number of inadmissible springs."""
-    if steps[3]:
-        bad = spring_pass(cur, state.eta, state.phi, topology, springs, scratch, (steps[0], steps[1]), run, False,
-                          extra[0])[0]
+    """One stage row: the spring pass at cur (kicks steps.kick1, steps.kick2 of Φ) unless
+    steps.with_force is False, then, unless a spring left the admissible states, the node pass
+    (kicks, drift) into nxt. steps: KickDrift; state: StateArrays (p, Φ, η read); extra: (length,
+    (s_before, loads)). Returns the number of inadmissible springs."""
+    if steps.with_force:
+        bad = spring_pass(cur, state.eta, state.phi, topology, springs, scratch, (steps.kick1, steps.kick2), run,
+                          False, extra[0])[0]
         if bad > 0:
             return bad
     node_pass(cur, nxt, state.p, topology, nodes, scratch, steps, FORCE_GATHER, False, extra[1])
@@ -38,7 +39,7 @@ def _closing(cur, nxt, state, topology, springs, nodes, scratch, kick, run, extr
                                extra[0])[0]
     if bad > 0:
         return bad
-    boundary_node_pass(cur, nxt, state.p, topology, nodes, scratch, (0.0, kick, 0.0, True), FORCE_GATHER_KEEP,
+    boundary_node_pass(cur, nxt, state.p, topology, nodes, scratch, KickDrift(0.0, kick, 0.0, True), FORCE_GATHER_KEEP,
                        run.want_sums, extra[1])
     return 0
 

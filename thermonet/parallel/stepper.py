@@ -143,14 +143,15 @@ class DistributedStepper(Stepper):
         for step in range(n_steps):
             for r, (k2, drift) in enumerate(zip(self._kicks, self._drifts)):
                 k1 = pending if r == 0 else 0.0
-                steps = (k1 * h, k2 * h, drift * h, k1 != 0.0 or k2 != 0.0)
-                if loads is not None and steps[3]:  # (as the CPU kernel: thermonet.explicit.cpu)
+                steps = records.KickDrift(k1 * h, k2 * h, drift * h, k1 != 0.0 or k2 != 0.0)
+                if loads is not None and steps.with_force:  # (as the CPU kernel: thermonet.explicit.cpu)
                     loads.evaluate(la, _stage_time(la, h, step, la.kick_time[r]))
                 bad = self._stage(cur, nxt, arrays, *local, steps, run, extra)
-                if steps[3] and self._any(bad):  # row 0's positions end the previous step: that one was bad
+                if steps.with_force and self._any(bad):  # row 0's positions end the previous step: that one was bad
                     return self._stopped(state, cur, step - 1 if r == 0 and step > 0 else step)
-                if loads is not None and steps[3]:
-                    loads.add_work(self.comm, cur, self._scratch.s, self._topology, self._nodes, steps[0], steps[1])
+                if loads is not None and steps.with_force:
+                    loads.add_work(self.comm, cur, self._scratch.s, self._topology, self._nodes, steps.kick1,
+                                   steps.kick2)
                 cur, nxt = nxt, cur
                 if drift != 0.0:
                     self.halo.exchange(cur)
