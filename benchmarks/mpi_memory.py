@@ -2,6 +2,7 @@
 
     python benchmarks/mpi_memory.py [--springs 1e6]                       # one process
     NUMBA_NUM_THREADS=1 mpiexec -n 2 python benchmarks/mpi_memory.py      # each of two
+    python benchmarks/mpi_memory.py --quick                               # a tiny net (a smoke run)
 
 A 6-neighbour lattice of about ``--springs`` springs (jitter 0.1) with conduction (g = 4, every 2
 steps) and a bath on one face, 4 steps; each process prints its resident memory after building
@@ -45,7 +46,10 @@ def main(argv=None) -> None:
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--springs", type=float, default=1e6)
+    parser.add_argument("--quick", action="store_true", help="a lattice of about 600 springs (a smoke run)")
     args = parser.parse_args(argv)
+    if args.quick:
+        args.springs = 600
     k = max(1, int(round((args.springs / 3.0) ** (1.0 / 3.0))))
     net = tn.lattice((k, k, k), jitter=0.1, seed=1)
     net.node_groups["hot"] = np.arange(k * k)

@@ -284,6 +284,14 @@ def test_mpi4py_is_needed_only_under_an_mpi_launcher(monkeypatch):
 
 
 @needs_mpi
+def test_mpi_memory_quick_mode_reports_each_process_share():
+    lines = mpirun(2, os.path.join(ROOT, "benchmarks", "mpi_memory.py"), "--quick", module=False).stdout.splitlines()
+    reports = sorted(line for line in lines if line.startswith("process "))
+    assert [r.split(":")[0] for r in reports] == ["process 0", "process 1"]
+    assert all("; share: " in r and " MB" in r for r in reports)
+
+
+@needs_mpi
 def test_mpi_scaling_quick_mode_runs_one_and_two_processes_with_the_same_bits(one_process, capsys):
     spec = importlib.util.spec_from_file_location("benchmark_mpi_scaling", os.path.join(ROOT, "benchmarks",
                                                                                           "mpi_scaling.py"))
