@@ -150,10 +150,13 @@ def make_simulation(k: int, parallel: bool | None, threads: int | None, varied: 
                          parallel=parallel, threads=threads, stability_guard="off", energy_tolerance=None)
 
 
-def kernel_bytes_per_step(sim) -> int:
-    """Compulsory bytes one CO2 step (one force evaluation: spring pass + node pass) moves: each
-    array read once per pass, written arrays once more; with thermal coupling off, Φ and η are
-    not there and count 0."""
+def kernel_traffic(sim) -> dict:
+    """Compulsory bytes one CO2 step (one force evaluation: spring pass + node pass) moves, by
+    pass and array: {(pass, array): bytes}. Each array a pass reads counts its full size once,
+    an array it writes once more (Φ and p are read and written; T/l and the new positions only
+    written by the pass that makes them); gathered arrays (x at the other end, T/l of incident
+    springs) count once, as if a perfect cache served every repeat. With thermal coupling off,
+    Φ and η are not there and count 0."""
     st = sim.stepper
     topo, springs, nodes, s_buf = st._topology, st._springs, st._nodes, st._scratch.s
     s = sim._state
@@ -162,11 +165,50 @@ def kernel_bytes_per_step(sim) -> int:
         return 0 if a is None else a.nbytes
 
     x, p, phi, eta = s.positions, s.momenta, s.thermal_displacement, s.entropy
-    spring_pass = (topo.edges.nbytes + x.nbytes + nb(eta) + springs.rest.nbytes + springs.P.nbytes + s_buf.nbytes
-                   + 2 * nb(phi))
-    node_pass = (topo.inc_ptr.nbytes + topo.inc_spring.nbytes + topo.inc_other.nbytes + s_buf.nbytes + x.nbytes
-                 + 2 * p.nbytes + x.nbytes + nodes.inv_mass.nbytes + nodes.anchored.nbytes)
-    return spring_pass + node_pass
+    return {
+        ("spring", "edges (2 × uint32)"): topo.edges.nbytes,
+        ("spring", "x (gathered)"): x.nbytes,
+        ("spring", "η"): nb(eta),
+        ("spring", "rest length"): springs.rest.nbytes,
+        ("spring", "parameters"): springs.P.nbytes,
+        ("spring", "T/l (written)"): s_buf.nbytes,
+        ("spring", "Φ (read, written)"): 2 * nb(phi),
+        ("node", "inc_ptr (int64)"): topo.inc_ptr.nbytes,
+        ("node", "inc_spring (uint32)"): topo.inc_spring.nbytes,
+        ("node", "inc_other (uint32)"): topo.inc_other.nbytes,
+        ("node", "T/l (gathered)"): s_buf.nbytes,
+        ("node", "x (own and gathered)"): x.nbytes,
+        ("node", "p (read, written)"): 2 * p.nbytes,
+        ("node", "new x (written)"): x.nbytes,
+        ("node", "1/m"): nodes.inv_mass.nbytes,
+        ("node", "anchor flag"): nodes.anchored.nbytes,
+    }
+
+
+def kernel_bytes_per_step(sim) -> int:
+    """The sum of :func:`kernel_traffic`: compulsory bytes of one CO2 step."""
+    return sum(kernel_traffic(sim).values())
+
+
+def traffic_table(sims: dict) -> str:
+    """A markdown table of :func:`kernel_traffic` per spring-step, one column per simulation
+    (``sims``: label -> Simulation of one net), with the passes' subtotals and the total."""
+    labels = list(sims)
+    traffic = {label: kernel_traffic(sim) for label, sim in sims.items()}
+    m = {label: sim.net.n_springs for label, sim in sims.items()}
+    lines = ["| pass | array | " + " | ".join(f"{label} (B/spring-step)" for label in labels) + " |",
+             "|---|---|" + "---:|" * len(labels)]
+    for pass_ in ("spring", "node"):
+        keys = [k for k in traffic[labels[0]] if k[0] == pass_]
+        for key in keys:
+            lines.append(f"| {pass_} | {key[1]} | "
+                         + " | ".join(f"{traffic[label][key] / m[label]:.1f}" for label in labels) + " |")
+        lines.append(f"| {pass_} | **pass total** | " + " | ".join(
+            f"**{sum(v for k, v in traffic[label].items() if k[0] == pass_) / m[label]:.1f}**" for label in labels)
+            + " |")
+    lines.append("| both | **step total** | " + " | ".join(
+        f"**{sum(traffic[label].values()) / m[label]:.1f}**" for label in labels) + " |")
+    return "\n".join(lines)
 
 
 def resident_bytes(sim) -> int:

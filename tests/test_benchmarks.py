@@ -146,7 +146,7 @@ def test_explicit_throughput_quick_mode_times_both_kernels_and_the_numpy_step(ca
 
 def test_lammps_compare_quick_mode_runs_thermonets_side_without_lammps(tmp_path, capsys):
     absent = tmp_path / "lmp"  # LAMMPS is optional: its runs are skipped with the reason, thermonet's still run
-    rows = load("lammps_compare").main(["--quick", "--lmp", str(absent)])
+    rows = load("lammps_compare").main(["--quick", "--passes", "--lmp", str(absent)])
     text = capsys.readouterr().out
     assert f"LAMMPS not found ({absent} does not exist): its runs are skipped." in text
     assert "lattice 6³ cells: 343 nodes, 882 bonds" in text and "(no LAMMPS: thermonet's runs only)" in text
@@ -163,6 +163,11 @@ def test_lammps_compare_quick_mode_runs_thermonets_side_without_lammps(tmp_path,
                             rel_tol=1e-9)
     # thermal coupling adds η and Φ (read, and Φ written) to the compulsory traffic
     assert int(by["thermonet thermal, 1 thread"]["bytes"]) > int(by["thermonet mechanics-only, 1 thread"]["bytes"])
+    # ... and only those: 8 B of η and 16 of Φ per spring-step, all in the spring pass
+    assert "| spring | η | 0.0 | 8.0 |" in text and "| spring | Φ (read, written) | 0.0 | 16.0 |" in text
+    assert "| node | **pass total** | **68.0** | **68.0** |" in text
+    assert "| both | **step total** | **101.3** | **125.3** |" in text  # 882 bonds, 343 nodes
+    assert "| thermal | node | " in text and "| mechanics-only | spring | " in text  # --passes: each pass alone
 
 
 def test_accuracy_cost_quick_mode_runs_the_chains_study_and_long_runs(tmp_path, capsys):
