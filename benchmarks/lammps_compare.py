@@ -30,9 +30,11 @@ thermonet's diagnostics); the largest relative deviation from the first value ov
 reported: LAMMPS' must match thermonet's mechanics-only run (the same dynamics), i.e. stay bounded
 in the configuration timed. For thermonet's runs, the compulsory
 bytes per bond-step of its kernel and the fraction of the STREAM-triad bound reached, counted as
-in ``explicit_throughput.py``, then those bytes by pass and array. ``--passes`` times the kernel's
-two passes alone (spring pass, node pass) on 1 and 2 threads, interleaved: which of them keeps a
-kernel from scaling.
+in ``explicit_throughput.py``, then those bytes by pass and array. The 1-thread runs use the
+serial kernel (as ``Simulation`` picks with ``threads=1``), the 2-thread runs the parallel one.
+``--passes`` times the two passes alone (spring pass, node pass) of the serial kernel and of the
+parallel kernel on 1 and on 2 threads, interleaved: which pass keeps a kernel from scaling, apart
+from what the parallel kernel costs on one thread against the serial one.
 """
 
 from __future__ import annotations
@@ -93,12 +95,19 @@ def _compiled(dispatcher, args):
     return lambda: dispatcher(*args)
 
 
+#: the configurations pass_times() runs: (label, which simulation's kernel, threads)
+PASS_RUNS = (("serial kernel", 1, 1), ("parallel kernel, 1 thread", 2, 1), ("parallel kernel, 2 threads", 2, 2))
+
+
 def pass_times(sims: dict, repeats: int, calls: int = 10) -> dict:
-    """Seconds per call of the CPU kernel's two passes, each alone: {(thermal, threads, pass):
-    [seconds per call, one per round]}. ``sims``: (thermal, threads) -> Simulation; every round
-    times each simulation's spring pass (a kick: T/l, and Φ when thermal) and node pass (gather,
-    kick, drift into the scratch buffer; the state keeps its positions) ``calls`` times, the
-    configurations interleaved."""
+    """Seconds per call of the CPU kernel's two passes, each alone: {(thermal, label, pass):
+    [seconds per call, one per round]}, label from :data:`PASS_RUNS`. ``sims``: (thermal,
+    threads) -> Simulation; the 1-thread one runs the serial kernel, the 2-thread one the
+    parallel kernel (above 16 384 springs; the serial one below), timed here on 1 and on 2
+    threads, so that its scaling is not confused with the two kernels' difference. Every round
+    times each configuration's spring pass (a kick: T/l, and Φ when thermal) and node pass
+    (gather, kick, drift into the scratch buffer; the state keeps its positions) ``calls``
+    times, the configurations interleaved."""
     import numba
 
     from thermonet.explicit import cpu
@@ -107,7 +116,7 @@ def pass_times(sims: dict, repeats: int, calls: int = 10) -> dict:
     from thermonet.loads.elements import NO_LOADS
 
     passes = {}
-    for (thermal, threads), sim in sims.items():
+    for (thermal, kernel_threads), sim in sims.items():
         st = sim.stepper
         ns = next(cpu._PASSES[key] for key, fn in cpu._CACHE.items() if fn is st._advance)
         state, sc, empty = sim._state, st._scratch, np.empty(0)
@@ -118,19 +127,20 @@ def pass_times(sims: dict, repeats: int, calls: int = 10) -> dict:
         spring = (state.positions, eta, phi, st._topology, st._springs, sc, (0.0, 0.5 * H), run, False, empty)
         node = (state.positions, sc.x_buf, state.momenta, st._topology, st._nodes, sc, KickDrift(0.0, 1e-12, H, True),
                 FORCE_GATHER, False, (empty, NO_LOADS))
-        passes[(thermal, threads)] = {"spring": _compiled(ns["spring_pass"], spring),
-                                      "node": _compiled(ns["node_pass"], node)}
+        passes[(thermal, kernel_threads)] = {"spring": _compiled(ns["spring_pass"], spring),
+                                             "node": _compiled(ns["node_pass"], node)}
     before = numba.get_num_threads()
     times: dict = {}
     try:
         for _ in range(repeats + 1):  # a first round to load and touch (not kept)
-            for (thermal, threads), fns in passes.items():
-                numba.set_num_threads(threads)
-                for name, fn in fns.items():
-                    start = time.perf_counter()
-                    for _ in range(calls):
-                        fn()
-                    times.setdefault((thermal, threads, name), []).append((time.perf_counter() - start) / calls)
+            for thermal in (False, True):
+                for label, kernel_threads, threads in PASS_RUNS:
+                    numba.set_num_threads(threads)
+                    for name, fn in passes[(thermal, kernel_threads)].items():
+                        start = time.perf_counter()
+                        for _ in range(calls):
+                            fn()
+                        times.setdefault((thermal, label, name), []).append((time.perf_counter() - start) / calls)
     finally:
         numba.set_num_threads(before)
     return {key: t[1:] for key, t in times.items()}
@@ -328,16 +338,18 @@ def main(argv=None) -> list[dict]:
         if args.passes:
             times = pass_times(sims, args.repeats)
             print(f"\nthe passes alone, {args.repeats} rounds of 10 calls each (µs per call: median, min–max; "
-                  "speed-up: 1-thread median / 2-thread median):\n")
-            print("| kernel | pass | 1 thread (µs) | 2 threads (µs) | speed-up |")
-            print("|---|---|---:|---:|---:|")
+                  "speed-up: the parallel kernel's 1-thread median / its 2-thread median):\n")
+            print("| kernel | pass | " + " | ".join(f"{label} (µs)" for label, _, _ in PASS_RUNS) + " | speed-up |")
+            print("|---|---|" + "---:|" * (len(PASS_RUNS) + 1))
             for thermal in (False, True):
                 for name in ("spring", "node"):
-                    one, two = times[(thermal, 1, name)], times[(thermal, 2, name)]
-                    print(f"| {'thermal' if thermal else 'mechanics-only'} | {name} | "
-                          f"{1e6 * statistics.median(one):.0f} ({1e6 * min(one):.0f}–{1e6 * max(one):.0f}) | "
-                          f"{1e6 * statistics.median(two):.0f} ({1e6 * min(two):.0f}–{1e6 * max(two):.0f}) | "
-                          f"{statistics.median(one) / statistics.median(two):.2f}× |")
+                    cells = []
+                    for label, _, _ in PASS_RUNS:
+                        t = times[(thermal, label, name)]
+                        cells.append(f"{1e6 * statistics.median(t):.0f} ({1e6 * min(t):.0f}–{1e6 * max(t):.0f})")
+                    one, two = (statistics.median(times[(thermal, label, name)]) for label, _, _ in PASS_RUNS[1:])
+                    print(f"| {'thermal' if thermal else 'mechanics-only'} | {name} | " + " | ".join(cells)
+                          + f" | {one / two:.2f}× |")
         print(f"load average at the end {os.getloadavg()[0]:.2f}")
     finally:
         shutil.rmtree(work, ignore_errors=True)
