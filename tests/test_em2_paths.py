@@ -295,6 +295,24 @@ def test_the_benchmark_runs_quick(capsys):
             assert r["summary"]["linear_solver"] == ("compiled, sweeps" if expect == "sweeps" else expect)
 
 
+def test_the_direct_solvers_benchmark_runs_quick(capsys):
+    """benchmarks/direct_solvers.py --quick: EM2's Newton matrix of the small steel part solved
+    by SuperLU in double precision to round-off and in single precision to its precision (and
+    by PARDISO to round-off where pypardiso is installed)."""
+    spec = importlib.util.spec_from_file_location("direct_solvers", os.path.join(ROOT, "benchmarks", "direct_solvers.py"))
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    rows = module.main(["--quick"])
+    assert rows["SuperLU double"]["residual"] <= 1e-13
+    assert 1e-12 < rows["SuperLU single"]["residual"] <= 1e-4
+    assert rows["SuperLU double"]["nnz"] == rows["SuperLU single"]["nnz"] > 0
+    for name, row in rows.items():
+        assert row["factorization_ms"] > 0 and row["solve_ms"] > 0
+        if name.startswith("PARDISO"):
+            assert row["residual"] <= 1e-13
+    assert "| SuperLU double |" in capsys.readouterr().out
+
+
 def test_the_run_summary_says_which_path_ran_why_and_the_substep_fraction():
     from thermonet.cli.report import format_summary
 
