@@ -131,9 +131,10 @@ def test_auto_chooses_the_measured_fastest_path(net):
 # every path: the same root, the energy exact
 
 
-def small_net(factor: float, **options):
+def small_net(factor: float, moving: bool = True, **options):
     """A jittered 18-neighbour 3×2×2 lattice, one node anchored, random masses, pre-stress,
-    temperatures and momenta, gravity; EM2 at ``factor`` × CO2's stable step."""
+    temperatures and momenta (``moving``; else at rest), gravity; EM2 at ``factor`` × CO2's
+    stable step."""
     rng = np.random.default_rng(3)
     base = tn.lattice((3, 2, 2), neighbours=18, jitter=0.2, seed=3)
     anchored = np.zeros(base.n_nodes, dtype=bool)
@@ -142,6 +143,8 @@ def small_net(factor: float, **options):
                  rest_lengths=base.lengths() * rng.uniform(0.95, 1.05, base.n_springs))
     momenta = rng.normal(0.0, 0.3, (net.n_nodes, 3))
     momenta[anchored] = 0.0
+    if not moving:
+        momenta[:] = 0.0
     kw = dict(model="hencky", parameters=dict(c=100.0, beta=0.2, C0=5.0, theta0=300.0),
               temperatures=rng.uniform(290.0, 320.0, net.n_springs), momenta=momenta, gravity=[0.0, 0.0, -1.0],
               stability_guard="off", energy_tolerance=None)
@@ -188,12 +191,25 @@ def test_every_path_reaches_the_same_root_with_the_energy_exact(factor):
 def test_kept_factorizations_are_reused_and_dropped():
     """Modified Newton (splu-reuse) at 30× on the small net: fewer factorizations than Newton
     iterations, the same converged residuals as splu, and a factorization of another h is never
-    used (the inertia blocks are m/h)."""
+    used (the inertia blocks are m/h). Where the predictor took the last step's displacement
+    (the net started at rest), Newton starts from the residual the predictor left there instead
+    of evaluating it again: the same bits, fewer residual evaluations."""
     runs = {}
     for name in ("splu", "splu-reuse"):
         sim = small_net(30, newton_path="sparse", linear_solver=name)
         sim.run(steps=20, diagnostics_every=10**9)
         runs[name] = sim.stepper.summary()
+    quiet = {}
+    for again in (False, True):
+        sim = small_net(30, moving=False, newton_path="sparse", linear_solver="splu-reuse")
+        if again:
+            sim.stepper.take_evaluated = lambda u: None
+        sim.run(steps=20, diagnostics_every=10**9)
+        quiet[again] = sim
+    taken, again = quiet[False], quiet[True]
+    assert np.array_equal(taken.state.positions, again.state.positions)
+    assert np.array_equal(taken.state.entropy, again.state.entropy)
+    assert taken.stepper.timers.residuals < again.stepper.timers.residuals
     a, b = runs["splu"], runs["splu-reuse"]
     assert a["factorizations"] == 0  # (plain splu factorizes at every iteration, uncounted)
     assert b["factorizations"] + b["reused_factorizations"] == b["iterations"]
@@ -277,6 +293,24 @@ def test_the_benchmark_runs_quick(capsys):
         if r["path"] == "auto":
             expect = choose_by_step(r["h"], r["h_omega"] / r["h"], r["summary"]["unknowns"]).linear_solver
             assert r["summary"]["linear_solver"] == ("compiled, sweeps" if expect == "sweeps" else expect)
+
+
+def test_the_direct_solvers_benchmark_runs_quick(capsys):
+    """benchmarks/direct_solvers.py --quick: EM2's Newton matrix of the small steel part solved
+    by SuperLU in double precision to round-off and in single precision to its precision (and
+    by PARDISO to round-off where pypardiso is installed)."""
+    spec = importlib.util.spec_from_file_location("direct_solvers", os.path.join(ROOT, "benchmarks", "direct_solvers.py"))
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    rows = module.main(["--quick"])
+    assert rows["SuperLU double"]["residual"] <= 1e-13
+    assert 1e-12 < rows["SuperLU single"]["residual"] <= 1e-4
+    assert rows["SuperLU double"]["nnz"] == rows["SuperLU single"]["nnz"] > 0
+    for name, row in rows.items():
+        assert row["factorization_ms"] > 0 and row["solve_ms"] > 0
+        if name.startswith("PARDISO"):
+            assert row["residual"] <= 1e-13
+    assert "| SuperLU double |" in capsys.readouterr().out
 
 
 def test_the_run_summary_says_which_path_ran_why_and_the_substep_fraction():

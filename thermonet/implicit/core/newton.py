@@ -153,6 +153,10 @@ def newton(problem, u: np.ndarray, options: NewtonOptions, solver, timers: Newto
     ``norms`` up to date (None where it declines). The residual is always evaluated last at the
     returned ``u``.
 
+    An optional ``problem.take_evaluated(u)``: (status, spring) where the problem's last
+    residual was evaluated at exactly these unknowns (its predictor compared guesses by their
+    residuals), so the first evaluation is skipped; None where it was not.
+
     ``max_iterations`` bounds the full iterations and global Jacobi steps; local Jacobi steps
     are bounded by LOCAL_MAX_ROUNDS. The decisions are :mod:`.newton_policy`'s, the compiled
     driver's too; kept factorizations (modified Newton) are this driver's alone.
@@ -168,7 +172,9 @@ def newton(problem, u: np.ndarray, options: NewtonOptions, solver, timers: Newto
     corrections = 0  # of every kind
     local_rounds = 0
     jacobi_steps = 0
-    evaluated = None  # (status, spring) of the residual a local step brought up to date
+    # (status, spring) of a residual already up to date at u: a local step's, or the predictor's
+    taken = getattr(problem, "take_evaluated", None)
+    evaluated = taken(u) if taken is not None else None
     reuse = getattr(solver, "reuses_factorization", False)
     h = getattr(problem, "h", None)
     reused = 0

@@ -96,6 +96,8 @@ class EM2Stepper(ImplicitStepper):
     rounding_atol = False
     #: a max |R| at or below this that Newton no longer reduces is converged (set by predict)
     residual_floor = 0.0
+    #: (unknowns, status, spring) where predict left the residual evaluated (take_evaluated)
+    _evaluated = None
 
     #: "auto" follows h·ω_max (implicit/core/compiled_path.choose_by_step)
     chooses_by_step = True
@@ -214,6 +216,7 @@ class EM2Stepper(ImplicitStepper):
         Newton correction no longer reduces (less than 2×) is the rounding of the force terms: a
         net at rest in exact equilibrium has a max |R| of a few 1e-16 over a max Rabs of the
         same size, a scaled residual of order 1 that no Newton correction can reduce."""
+        self._evaluated = None
         self.kernels.predict(self._step_start, self._topology, self._springs, self._nodes, self._work,
                              self.accel, u)
         start = self.work.start  # (guess: the predictor's per-spring stiffness κ_e, until the finish)
@@ -225,9 +228,20 @@ class EM2Stepper(ImplicitStepper):
             return
         status, _ = self.residual(u)
         own = self.norms[0] if status == 0 else math.inf
-        status, _ = self.residual(before[1])
+        status, spring = self.residual(before[1])
         if status == 0 and self.norms[0] < own:
             u[:] = before[1]
+            # the residual's buffers now hold its value at u: Newton's first evaluation would
+            # repeat it bit for bit (take_evaluated)
+            self._evaluated = (before[1], status, spring)
+
+    def take_evaluated(self, u: np.ndarray):
+        """(status, spring) of the last residual where predict left it evaluated at exactly u
+        (the last step's displacement chosen as the guess), once; else None."""
+        done, self._evaluated = self._evaluated, None
+        if done is None or not np.array_equal(done[0], u):
+            return None
+        return done[1], done[2]
 
     def finish(self, phi0, new):
         status, spring = self.kernels.finish(self._step_start, self._topology, self._springs, self._nodes,
@@ -237,6 +251,7 @@ class EM2Stepper(ImplicitStepper):
         return status, spring
 
     def residual(self, u: np.ndarray):
+        self._evaluated = None  # (the buffers move to u)
         status, spring, rmax, smax = self.kernels.residual(self._step_start, self._topology, self._springs,
                                                            self._nodes, self._work, u, self._residuals)
         self.norms = (rmax, smax)

@@ -1,0 +1,129 @@
+"""The sparse direct solvers EM2's kept factorizations could use, on EM2's own Newton matrix of
+the steel part (em2_paths.py's ``part``): SciPy's SuperLU in double precision (what
+``splu-reuse`` runs), SuperLU in single precision, and, where pypardiso is installed, MKL
+PARDISO at each ``--threads`` count. Prints each solver's factorization and solve times (the
+median of ``--rounds`` interleaved rounds, three solves a round), the nonzeros of its factors
+where it reports them, and the relative residual max |A x − b| / max |b| of a solve.
+
+    python benchmarks/direct_solvers.py --mesh-size 0.0012 --factor 100 --threads 1 2 --rounds 3
+    python benchmarks/direct_solvers.py --quick      # the 1 954-spring part, one round (the test's)
+
+The matrix: the Jacobian of EM2's step equations at the end of the part's first step at
+h = ``--factor`` × CO2's stable step, in the fill-reducing order the pattern bakes in (METIS's
+nested dissection on large nets); the right-hand side: that step's last residual. SuperLU runs
+with the options of thermonet.solvers.direct (NATURAL order, diagonal pivoting preferred) and is
+single-threaded; PARDISO with its own METIS order, its real unsymmetric type (11), no iterative
+refinement, through pypardiso's ``factorize`` (analysis and numerical factorization) and
+``solve``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import sys
+import time
+import warnings
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, HERE)
+
+
+def part_matrix(size: float, factor: float):
+    """(A as CSC, b) of the part at mesh size ``size`` and step ``factor`` × CO2's stable step."""
+    from em2_paths import part_simulation
+
+    from thermonet.stability import stable_step
+
+    est = stable_step(part_simulation(size, "co2", 1e-7))
+    sim = part_simulation(size, "em2", factor * est["h_max"], newton_path="sparse", linear_solver="splu-reuse")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        sim.run(steps=1, diagnostics_every=10**9)
+    st = sim.stepper
+    p = st.solver.pattern
+    st.jacobian(st.data)
+    A = sp.csc_matrix((st.data[p.transpose], p.indices, p.indptr), shape=(p.size, p.size))
+    return A, st.R.copy(), sim.net.n_springs
+
+
+def superlu(A):
+    return spla.splu(A, permc_spec="NATURAL", diag_pivot_thresh=0.1, options=dict(SymmetricMode=True))
+
+
+def main(argv=None) -> dict:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--mesh-size", type=float, default=0.003, help="the part's gmsh size in m (0.0012: 97 958 springs)")
+    ap.add_argument("--factor", type=float, default=100.0, help="h as a multiple of CO2's stable step")
+    ap.add_argument("--threads", nargs="+", type=int, default=[1, 2], help="PARDISO's thread counts")
+    ap.add_argument("--rounds", type=int, default=3)
+    ap.add_argument("--quick", action="store_true", help="the 1 954-spring part (mesh size 0.006 m), one round")
+    args = ap.parse_args(argv)
+    if args.quick:
+        args.mesh_size, args.rounds = 0.006, 1
+    A, b, springs = part_matrix(args.mesh_size, args.factor)
+    A32, b32 = A.astype(np.float32), b.astype(np.float32)
+    try:
+        import pypardiso
+    except ImportError:
+        pypardiso = None
+    pardiso = {}
+    if pypardiso is not None:
+        csr = A.tocsr()
+        csr.sort_indices()
+        for k in args.threads:
+            solver = pypardiso.PyPardisoSolver(mtype=11)
+            solver.set_iparm(1, 1)  # (our iparm values, the rest MKL's defaults)
+            solver.set_iparm(2, 2)  # METIS's nested dissection
+            solver.set_iparm(8, 0)  # no iterative refinement (Newton's own residual refines)
+            solver.set_iparm(10, 13)
+            solver.set_iparm(11, 1)
+            solver.set_iparm(13, 1)
+            solver.set_iparm(18, -1)  # report the factors' nonzeros
+            pardiso[k] = solver
+    times: dict = {}
+
+    def timed(key, f):
+        t0 = time.perf_counter()
+        out = f()
+        times.setdefault(key, []).append(time.perf_counter() - t0)
+        return out
+
+    x = {}
+    nnz = {}
+    for _ in range(args.rounds):
+        lu = timed("SuperLU double: factorization", lambda: superlu(A))
+        for _ in range(3):
+            x["SuperLU double"] = timed("SuperLU double: solve", lambda: lu.solve(b))
+        lu32 = timed("SuperLU single: factorization", lambda: superlu(A32))
+        for _ in range(3):
+            x["SuperLU single"] = timed("SuperLU single: solve", lambda: lu32.solve(b32).astype(np.float64))
+        nnz["SuperLU double"] = nnz["SuperLU single"] = lu.L.nnz + lu.U.nnz
+        for k, solver in pardiso.items():
+            solver.libmkl.MKL_Set_Num_Threads(k)
+            timed(f"PARDISO, {k} thread(s): factorization", lambda: solver.factorize(csr))
+            for _ in range(3):
+                x[f"PARDISO, {k} thread(s)"] = timed(f"PARDISO, {k} thread(s): solve", lambda: solver.solve(csr, b))
+            nnz[f"PARDISO, {k} thread(s)"] = int(solver.get_iparm(18))
+    print(f"\nEM2's Newton matrix of the part: {springs} springs, {A.shape[0]} unknowns, {A.nnz} nonzeros, "
+          f"h = {args.factor:g} × CO2's stable step; load {os.getloadavg()[0]:.2f} (1-min average), "
+          f"{os.cpu_count()} CPUs{'' if pypardiso else '; pypardiso not installed: no PARDISO rows'}\n")
+    print("| solver | factorization ms | solve ms | nonzeros of the factors | max |A x − b| / max |b| |")
+    print("|---|---:|---:|---:|---:|")
+    rows = {}
+    for name in x:
+        fact = 1e3 * statistics.median(times[f"{name}: factorization"])
+        solve = 1e3 * statistics.median(times[f"{name}: solve"])
+        res = float(np.abs(A @ x[name] - b).max() / np.abs(b).max())
+        rows[name] = dict(factorization_ms=fact, solve_ms=solve, nnz=nnz[name], residual=res)
+        print(f"| {name} | {fact:.0f} | {solve:.1f} | {nnz[name]} | {res:.1e} |")
+    return rows
+
+
+if __name__ == "__main__":
+    main()
