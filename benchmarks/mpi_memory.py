@@ -70,7 +70,9 @@ def main(argv=None) -> None:
         sh = sim.stepper.share
         line += (f"; share: {len(sh.nodes)} nodes ({sh.ghosts} ghosts), {len(sh.springs)} springs, arrays "
                  f"{share_bytes(sim.stepper) / 2**20:.1f} MB")
-    print(line, flush=True)
+    lines = [line] if sim.comm is None else sim.comm.gather(line, root=0)  # printed in rank order by rank 0
+    if rank == 0:
+        print("\n".join(lines), flush=True)
 
 
 if __name__ == "__main__":

@@ -129,7 +129,7 @@ class DistributedConduction:
         more = [(length, logs["length"])] + ([(scratch.theta_keep, logs["theta"])] if theta_valid else [])
         self._sweep.gather(st._eta, state, logs, more)
         logs["theta_ok"][0] = (2.0 if ended_cycle else 1.0) if theta_valid else 0.0
-        st._give(state, cur)
+        st._ended(cur)
         return None
 
     def _failed(self, state, logs, cur, steps_done: int):
