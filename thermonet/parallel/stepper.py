@@ -28,7 +28,7 @@ from ..errors import InputError
 from ..explicit import cpu
 from ..explicit.schedule import STAGE
 from ..integrators.base import Stepper
-from ..state import State, copy_extra
+from ..state import copy_extra
 from ..kernels import records
 from ..kernels.specialize import model_fingerprint
 from ..loads.elements import NO_LOADS
@@ -39,7 +39,7 @@ from .halo import Halo
 from .loads import ShareLoads, load_functions
 from .partition import partition
 from .stages import stage_functions
-from .whole import broadcast, counts_offsets, gather_to_root
+from .whole import IndexGather, broadcast, counts_offsets, gather_to_root
 
 
 def splitting_passes(model, parallel: bool, thermal: bool, uniform: bool, loads: bool = False,
@@ -128,6 +128,12 @@ class DistributedStepper(Stepper):
         #: whole arrays are up to date with the shares: on every process (ALL), on rank 0 (ROOT),
         #: nowhere (NONE); the same on every process, as every process takes the same steps
         self._bound, self._fresh = None, ALL
+        #: the springs this process reports (whole-net numbers), and the gather of per-spring
+        #: values kept at them (a backup's heat logs)
+        self._reported = dec.owned_springs(self.rank)
+        self._log_gather = IndexGather(_root_lists(dec.owned_springs, dec.size, self.rank),
+                                       np.arange(len(self._reported)), np.bincount(dec.spring_owner,
+                                                                                   minlength=dec.size))
         self._conduction = None
         if conducting:  # conduction: its own call (thermonet.parallel.conduction)
             self._conduction = DistributedConduction(self, *conduction_stages(system.model, parallel, uniform))
@@ -243,28 +249,42 @@ class DistributedStepper(Stepper):
         return self.comm.bcast(measure(system, state, self.parallel) if self.rank == 0 else None, root=0)
 
     def backup_state(self, state, into=None, entropy: bool = True):
-        """A copy of the shares (a :class:`ShareBackup`) and of the state's ``extra`` (the heat
-        logs, the loads' work: whole on every process); a copy of the whole state where the
-        shares do not hold it."""
-        if state is not self._bound:
-            return super().backup_state(state, into if isinstance(into, State) else None, entropy)
+        """A :class:`ShareBackup` of ``state`` (its share taken first where the shares do not
+        hold it): the share's x, p, Φ, η, each per-spring heat log at the springs this process
+        reports, the rest of the state's ``extra`` (the bath and source logs, the loads' work)."""
+        self._bind(state)
         b = into if isinstance(into, ShareBackup) else ShareBackup.like(self)
         for source, target in zip(self._share_arrays(), b.arrays()):
             np.copyto(target, source)
-        copy_extra(state.extra, b.extra)
+        logs = self._spring_logs(state)
+        for k, whole in logs.items():
+            part = b.logs.get(k)
+            if part is None:
+                part = b.logs[k] = np.empty(len(self._reported))
+            np.take(whole, self._reported, out=part)
+        copy_extra(_without(state.extra, logs), b.extra)
         return b
 
     def restore_state(self, backup, state, entropy: bool = True) -> None:
-        """Put a :meth:`backup_state` copy back: into the shares (the whole arrays then behind
-        them), or a whole copy into the whole state (the shares taken again at the next call)."""
-        if not isinstance(backup, ShareBackup):
-            super().restore_state(backup, state, entropy)
-            self._bound = None
-            return
+        """Put a :meth:`backup_state` copy back: the shares (the whole arrays then behind them),
+        the per-spring heat logs put together on every process (every process must call it), the
+        rest of ``extra``."""
         for source, target in zip(backup.arrays(), self._share_arrays()):
             np.copyto(target, source)
+        logs = self._spring_logs(state)
         copy_extra(backup.extra, state.extra)
+        if logs:
+            self._log_gather.gather(self.comm, [(backup.logs[k], whole) for k, whole in logs.items()])
         self._bound, self._fresh = state, NONE
+
+    def _spring_logs(self, state) -> dict:
+        """The per-spring heat logs of ``state`` (whole, the same on every process), or {}."""
+        if self._conduction is None:
+            return {}
+        from ..simulation import PER_SPRING_LOGS
+
+        logs = state.extra.get("heat") or {}
+        return {k: logs[k] for k in PER_SPRING_LOGS if k in logs}
 
     def _share_arrays(self) -> tuple:
         return self._x, self._p, self._phi, self._eta
@@ -283,16 +303,23 @@ def _stage_time(loads, h: float, step: int, tau: float) -> float:
     return loads.clock[0] + ((loads.clock[1] + step) + tau) * h
 
 
+def _root_lists(of, size: int, rank: int) -> list | None:
+    """[of(q) for every process q] on rank 0 (what it places), None elsewhere."""
+    return [of(q) for q in range(size)] if rank == 0 else None
+
+
 #: how far the whole arrays are up to date with the shares (DistributedStepper._fresh)
 ALL, ROOT, NONE = "all", "root", "none"
 
 
 class ShareBackup:
-    """A copy of a process's share: x, p (nl, 3), Φ, η (ml,), the state's ``extra``, and the
-    ``step`` and ``time`` the runner sets."""
+    """A copy of a process's share: x, p (nl, 3), Φ, η (ml,); logs: each per-spring heat log at
+    the springs the process reports; extra: the rest of the state's ``extra``; the ``step`` and
+    ``time`` the runner sets."""
 
     def __init__(self, x, p, phi, eta):
         self.x, self.p, self.phi, self.eta = x, p, phi, eta
+        self.logs: dict = {}
         self.extra: dict = {}
         self.step, self.time = 0, 0.0
 
@@ -319,8 +346,8 @@ class _OwnedGather:
         self.counts, self.offsets = counts_offsets(6 * node_counts + k * spring_counts)
         self.send = np.empty(int(self.counts[rank]))
         self.root = rank == 0
-        self.nodes = [dec.owned_nodes(q) for q in range(dec.size)] if self.root else []
-        self.springs = [dec.owned_springs(q) for q in range(dec.size)] if self.root else []
+        self.nodes = _root_lists(dec.owned_nodes, dec.size, rank) or []
+        self.springs = _root_lists(dec.owned_springs, dec.size, rank) or []
         self.recv = np.empty(int(self.counts.sum())) if self.root else None
 
     def whole_arrays(self, state) -> list:
@@ -355,6 +382,14 @@ class _OwnedGather:
                 state.thermal_displacement[springs] = chunk[6 * k:6 * k + j]
             if self.conducting:
                 state.entropy[springs] = chunk[6 * k + j:]
+
+
+def _without(extra: dict, logs: dict) -> dict:
+    """``extra`` without the heat logs in ``logs`` (a shallow copy; nothing copied where none)."""
+    if not logs:
+        return extra
+    heat = {k: v for k, v in extra["heat"].items() if k not in logs}
+    return {**extra, "heat": heat}
 
 
 def threads_per_process(comm) -> int:

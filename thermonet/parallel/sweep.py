@@ -94,8 +94,9 @@ class DistributedSweep:
         self.entry_heat = np.empty(len(hs.entries))
         self.entry_flux = np.empty(len(hs.entries))
         self._record = None
-        reported = [dec.owned_springs(q) for q in range(size)]
-        self._springs_gather = IndexGather(reported, np.searchsorted(sh.springs, reported[rank]))
+        reported = [dec.owned_springs(q) for q in range(size)] if rank == 0 else None  # (placed by rank 0)
+        self._springs_gather = IndexGather(reported, np.searchsorted(sh.springs, dec.owned_springs(rank)),
+                                           np.bincount(dec.spring_owner, minlength=size))
         entries = [_entries_of(bound_spring, bound_ptr, dec.spring_owner == q) for q in range(size)]
         assert np.array_equal(entries[rank], hs.entries)
         self._entries_gather = IndexGather(entries, np.arange(len(hs.entries)))

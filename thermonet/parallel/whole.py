@@ -50,13 +50,14 @@ class IndexGather:
     """Whole-net arrays from each process's part: process q gives the values at whole indices
     ``parts[q]``, taking them from positions ``local`` of its own arrays; several arrays per call.
 
-    parts: one (k_q,) int64 array per process; local: (k_r,) int64 positions in this process's
-    arrays of the values it gives.
+    parts: one (k_q,) int64 array per process, needed on rank 0 only (None elsewhere); local:
+    (k_r,) int64 positions in this process's arrays of the values it gives; counts: (P,) the k_q
+    (default: from parts).
     """
 
-    def __init__(self, parts: list, local: np.ndarray):
+    def __init__(self, parts: list | None, local: np.ndarray, counts=None):
         self.parts, self.local = parts, np.asarray(local, dtype=np.int64)
-        self.counts = np.array([len(p) for p in parts], dtype=np.int64)
+        self.counts = np.asarray([len(p) for p in parts] if counts is None else counts, dtype=np.int64)
 
     def to_root(self, comm, pairs: list) -> None:
         """For each (local array, whole array) of ``pairs``: on rank 0, whole[parts[q]] ← q's values."""
