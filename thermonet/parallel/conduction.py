@@ -45,7 +45,7 @@ class DistributedConduction:
     def advance(self, state, n_steps: int, h: float) -> None:
         """``n_steps`` steps of the share (taken from ``state`` by the stepper), as the CPU
         kernel's ``advance`` with conduction; the whole net's η and heat logs updated in place on
-        every process, the share's x, p, Φ given back by the stepper."""
+        every process; the share's x, p, Φ stay in the shares (the stepper puts them together when read)."""
         st = self.stepper
         sh = st.share
         logs = heat_logs(state, self.heat)

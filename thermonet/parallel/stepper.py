@@ -27,12 +27,13 @@ from ..blowup import blowup_failure
 from ..errors import InputError
 from ..explicit import cpu
 from ..explicit.schedule import STAGE
+from ..heat.logs import PER_SPRING_LOGS
 from ..integrators.base import Stepper
-from ..state import copy_extra
 from ..kernels import records
 from ..kernels.specialize import model_fingerprint
 from ..loads.elements import NO_LOADS
 from ..loads.stepping import StepperLoads
+from ..state import copy_extra
 from .conduction import DistributedConduction
 from .domain import decomposition, share
 from .halo import Halo
@@ -131,7 +132,7 @@ class DistributedStepper(Stepper):
         #: the springs this process reports (whole-net numbers), and the gather of per-spring
         #: values kept at them (a backup's heat logs)
         self._reported = dec.owned_springs(self.rank)
-        self._log_gather = IndexGather(_root_lists(dec.owned_springs, dec.size, self.rank),
+        self._log_gather = IndexGather(self._gather.springs if self.rank == 0 else None,
                                        np.arange(len(self._reported)), np.bincount(dec.spring_owner,
                                                                                    minlength=dec.size))
         self._conduction = None
@@ -281,8 +282,6 @@ class DistributedStepper(Stepper):
         """The per-spring heat logs of ``state`` (whole, the same on every process), or {}."""
         if self._conduction is None:
             return {}
-        from ..simulation import PER_SPRING_LOGS
-
         logs = state.extra.get("heat") or {}
         return {k: logs[k] for k in PER_SPRING_LOGS if k in logs}
 
