@@ -126,8 +126,8 @@ class DistributedStepper(Stepper):
         self._bad = np.zeros(1, dtype=np.int64)
         self._gather = _OwnedGather(dec, sh, thermal, conducting, self.rank)
         #: the State whose arrays the shares were taken from (None: none yet), and how far its
-        #: whole arrays are up to date with the shares: on every process (ALL), on rank 0 (ROOT),
-        #: nowhere (NONE); the same on every process, as every process takes the same steps
+        #: whole arrays are up to date with the shares: on every process (ALL), on rank 0 (ROOT; ROW:
+        #: but for Φ), nowhere (NONE); the same on every process, as every process takes the same steps
         self._bound, self._fresh = None, ALL
         #: the springs this process reports (whole-net numbers), and the gather of per-spring
         #: values kept at them (a backup's heat logs)
@@ -224,11 +224,12 @@ class DistributedStepper(Stepper):
             self._scratch = self._scratch._replace(x_buf=x_buf)
         self._fresh = NONE
 
-    def _to_root(self, state) -> None:
-        """The owned values of every process into ``state``'s whole arrays on rank 0."""
-        if self._fresh == NONE:
-            self._gather.to_root(self.comm, state, self._x, self._p, self._phi, self._eta)
-            self._fresh = ROOT
+    def _to_root(self, state, whole: bool = True) -> None:
+        """The owned values of every process into ``state``'s whole arrays on rank 0: all of
+        them, or (not ``whole``) those a diagnostics row reads, all but Φ."""
+        if self._fresh == NONE or (whole and self._fresh == ROW):
+            self._gather.to_root(self.comm, state, self._x, self._p, self._phi, self._eta, whole)
+            self._fresh = ROOT if whole else ROW
 
     def sync(self, state) -> None:
         """The shares into ``state``'s whole arrays on every process (every process must call it)."""
@@ -246,7 +247,7 @@ class DistributedStepper(Stepper):
             return None
         from ..diagnostics import measure
 
-        self._to_root(state)
+        self._to_root(state, whole=False)
         return self.comm.bcast(measure(system, state, self.parallel) if self.rank == 0 else None, root=0)
 
     def backup_state(self, state, into=None, entropy: bool = True):
@@ -307,8 +308,9 @@ def _root_lists(of, size: int, rank: int) -> list | None:
     return [of(q) for q in range(size)] if rank == 0 else None
 
 
-#: how far the whole arrays are up to date with the shares (DistributedStepper._fresh)
-ALL, ROOT, NONE = "all", "root", "none"
+#: how far the whole arrays are up to date with the shares (DistributedStepper._fresh): on every
+#: process, on rank 0, on rank 0 but for Φ (a diagnostics row's), nowhere
+ALL, ROOT, ROW, NONE = "all", "root", "row", "none"
 
 
 class ShareBackup:
@@ -332,55 +334,64 @@ class ShareBackup:
 
 class _OwnedGather:
     """Where each process's owned nodes and reported springs go in the whole state: one
-    ``Gatherv`` to rank 0 of [x (3 n_q), p (3 n_q), Φ (m_q), η (m_q, with conduction)] per
-    process q. Rank 0 alone holds the whole-net index lists and the receive buffer."""
+    ``Gatherv`` to rank 0 of [x (3 n_q), p (3 n_q), η (m_q, with conduction), Φ (m_q)] per
+    process q, or, for a diagnostics row (which does not read Φ), of all but Φ. Rank 0 alone
+    holds the whole-net index lists and the receive buffer."""
 
     def __init__(self, dec, sh, thermal: bool, conducting: bool, rank: int):
         self.thermal, self.conducting = thermal, conducting
         self.local_nodes = np.flatnonzero(sh.owned)
         self.local_springs = np.searchsorted(sh.springs, dec.owned_springs(rank))
-        k = (1 if thermal else 0) + (1 if conducting else 0)
         node_counts = np.bincount(dec.owner, minlength=dec.size)
         spring_counts = np.bincount(dec.spring_owner, minlength=dec.size)
-        self.counts, self.offsets = counts_offsets(6 * node_counts + k * spring_counts)
-        self.send = np.empty(int(self.counts[rank]))
+        row = 6 * node_counts + (spring_counts if conducting else 0)
+        #: (counts, offsets) of a whole gather (True) and of a row's (False)
+        self.layout = {True: counts_offsets(row + (spring_counts if thermal else 0)), False: counts_offsets(row)}
+        self.send = np.empty(int(self.layout[True][0][rank]))
         self.root = rank == 0
         self.nodes = _root_lists(dec.owned_nodes, dec.size, rank) or []
         self.springs = _root_lists(dec.owned_springs, dec.size, rank) or []
-        self.recv = np.empty(int(self.counts.sum())) if self.root else None
+        self.recv = np.empty(int(self.layout[True][0].sum())) if self.root else None
 
     def whole_arrays(self, state) -> list:
-        """The whole arrays a gather fills."""
+        """The whole arrays a whole gather fills."""
         arrays = [state.positions, state.momenta]
-        if self.thermal:
-            arrays.append(state.thermal_displacement)
         if self.conducting:
             arrays.append(state.entropy)
+        if self.thermal:
+            arrays.append(state.thermal_displacement)
         return arrays
 
-    def to_root(self, comm, state, x, p, phi, eta) -> None:
-        """The owned rows of x, p (nl, 3) and reported springs of Φ, η (ml,) of every process
-        into ``state``'s whole arrays on rank 0."""
+    def to_root(self, comm, state, x, p, phi, eta, whole: bool = True) -> None:
+        """The owned rows of x, p (nl, 3) and reported springs of η (with conduction) and, where
+        ``whole``, Φ (ml,) of every process into ``state``'s whole arrays on rank 0."""
         n, m = len(self.local_nodes), len(self.local_springs)
         send = self.send
         send[:3 * n] = x[self.local_nodes].ravel()
         send[3 * n:6 * n] = p[self.local_nodes].ravel()
-        if self.thermal:
-            send[6 * n:6 * n + m] = phi[self.local_springs]
+        at = 6 * n
         if self.conducting:
-            send[6 * n + m:] = eta[self.local_springs]
-        recv = gather_to_root(comm, send, self.counts, self.offsets, self.recv)
+            send[at:at + m] = eta[self.local_springs]
+            at += m
+        with_phi = whole and self.thermal
+        if with_phi:
+            send[at:at + m] = phi[self.local_springs]
+            at += m
+        counts, offsets = self.layout[whole]
+        recv = gather_to_root(comm, send[:at], counts, offsets, self.recv)
         if recv is None:
             return
         for q, (nodes, springs) in enumerate(zip(self.nodes, self.springs)):
-            chunk = recv[self.offsets[q]:self.offsets[q] + self.counts[q]]
             k, j = len(nodes), len(springs)
-            state.positions[nodes] = chunk[:3 * k].reshape(k, 3)
-            state.momenta[nodes] = chunk[3 * k:6 * k].reshape(k, 3)
-            if self.thermal:
-                state.thermal_displacement[springs] = chunk[6 * k:6 * k + j]
+            at = offsets[q]
+            state.positions[nodes] = recv[at:at + 3 * k].reshape(k, 3)
+            state.momenta[nodes] = recv[at + 3 * k:at + 6 * k].reshape(k, 3)
+            at += 6 * k
             if self.conducting:
-                state.entropy[springs] = chunk[6 * k + j:]
+                state.entropy[springs] = recv[at:at + j]
+                at += j
+            if with_phi:
+                state.thermal_displacement[springs] = recv[at:at + j]
 
 
 def _without(extra: dict, logs: dict) -> dict:
