@@ -17,6 +17,8 @@ conduction) to rank 0, which measures it as one process does and sends the row t
 :meth:`~DistributedStepper.sync` (``Simulation.internal_state``: frames, probes, checkpoints,
 ``sim.state``) gives them to every process, so reading them is a step every process takes. The
 runner's backup for blow-up replays is a copy of the shares (:meth:`~DistributedStepper.backup_state`).
+Between a call's end and the next read, processes other than rank 0 hold no whole x, p, Φ (empty
+arrays stand in for them, so a read that skipped ``sync`` fails instead of seeing old values).
 """
 
 from __future__ import annotations
@@ -223,6 +225,11 @@ class DistributedStepper(Stepper):
             self._x, x_buf = cur, self._x
             self._scratch = self._scratch._replace(x_buf=x_buf)
         self._fresh = NONE
+        if self.rank != 0:  # until something reads them, the whole x, p, Φ are rank 0's alone
+            state = self._bound
+            state.positions = state.momenta = _RELEASED_NODES
+            if self.system.thermal:
+                state.thermal_displacement = _RELEASED_SPRINGS
 
     def _to_root(self, state, whole: bool = True) -> None:
         """The owned values of every process into ``state``'s whole arrays on rank 0: all of
@@ -236,6 +243,11 @@ class DistributedStepper(Stepper):
         if state is not self._bound or self._fresh == ALL:
             return
         self._to_root(state)
+        if state.positions is _RELEASED_NODES:  # (ranks > 0)
+            n, m = self.system.n_nodes, self.system.n_springs
+            state.positions, state.momenta = np.empty((n, 3)), np.empty((n, 3))
+            if self.system.thermal:
+                state.thermal_displacement = np.empty(m)
         broadcast(self.comm, self._gather.whole_arrays(state))
         self._fresh = ALL
 
@@ -307,6 +319,11 @@ def _root_lists(of, size: int, rank: int) -> list | None:
     """[of(q) for every process q] on rank 0 (what it places), None elsewhere."""
     return [of(q) for q in range(size)] if rank == 0 else None
 
+
+#: what the whole x, p (and Φ) of a state are on ranks > 0 while only the shares are up to date
+#: (empty: a read that skipped DistributedStepper.sync fails instead of seeing old values)
+_RELEASED_NODES, _RELEASED_SPRINGS = np.empty((0, 3)), np.empty(0)
+_RELEASED_NODES.flags.writeable = _RELEASED_SPRINGS.flags.writeable = False
 
 #: how far the whole arrays are up to date with the shares (DistributedStepper._fresh): on every
 #: process, on rank 0, on rank 0 but for Φ (a diagnostics row's), nowhere
