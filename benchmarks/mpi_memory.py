@@ -59,18 +59,21 @@ def main(argv=None) -> None:
                         energy_tolerance=None, baths={"hot": Bath("hot", 900.0)})
     built, after_build = time.perf_counter() - start, resident_mb()
     sim.run(steps=4, diagnostics_every=4)
+    after_steps = resident_mb()  # (before reading the state: over processes, a read puts it together)
     state = sim.internal_state()
     whole = sum(a.nbytes for a in (state.positions, state.momenta, state.thermal_displacement, state.entropy))
     whole += sum(v.nbytes for v in state.extra["heat"].values())
     rank = 0 if sim.comm is None else sim.comm.Get_rank()
     line = (f"process {rank}: {net.n_springs} springs, {net.n_nodes} nodes; whole state and heat logs "
             f"{whole / 2**20:.1f} MB; resident after building {after_build:.0f} MB (built in {built:.1f} s), after 4 "
-            f"steps {resident_mb():.0f} MB, peak {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MB")
+            f"steps {after_steps:.0f} MB, peak {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MB")
     if sim.comm is not None:
         sh = sim.stepper.share
         line += (f"; share: {len(sh.nodes)} nodes ({sh.ghosts} ghosts), {len(sh.springs)} springs, arrays "
                  f"{share_bytes(sim.stepper) / 2**20:.1f} MB")
-    print(line, flush=True)
+    lines = [line] if sim.comm is None else sim.comm.gather(line, root=0)  # printed in rank order by rank 0
+    if rank == 0:
+        print("\n".join(lines), flush=True)
 
 
 if __name__ == "__main__":

@@ -78,9 +78,9 @@ def worker(args) -> None:
             "bytes": 0 if halo is None else halo.bytes_per_exchange * stages,
             "ghosts": 0 if halo is None else sim.stepper.share.ghosts}
     every = [mine] if comm is None else comm.gather(mine, root=0)
+    s = sim.state  # (over processes, a step every process takes: the whole state put together)
     if comm is not None and comm.Get_rank() != 0:
         return
-    s = sim.state
     np.save(args.worker, np.concatenate([s.positions.ravel(), s.momenta.ravel()]))
     print(json.dumps({"seconds_per_step": float(np.median(times)), "springs": sim.net.n_springs,
                       "nodes": sim.net.n_nodes, "stages": stages, "ranks": every}))

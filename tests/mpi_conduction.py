@@ -35,6 +35,7 @@ def run(every: int, alone: bool) -> dict:
     heat_logs(state, sim.system.heat)["cycle"][:] = (every, 0)
     for n in CALLS:
         sim.runner.advance(n)
+    state = sim.internal_state()  # (over processes: put together from the shares)
     out = {k: getattr(state, k) for k in ("positions", "momenta", "thermal_displacement", "entropy")}
     out.update({f"heat_{k}": v for k, v in state.extra["heat"].items()})
     return out

@@ -4,6 +4,8 @@ and state); rank 0 prints one line per integrator.
 
     mpiexec -n P python tests/mpi_integrators.py SCENE STEPS NAME ... [-- ARGS]
 
+NAME@H: the integrator run STEPS steps, then at step size H until the run stops (a blow-up
+replayed from the runner's backup, or a guard's rewind): the message is compared too.
 ARGS: a ``thermonet`` command run first over the same processes (one launch instead of two)."""
 
 import os
@@ -12,6 +14,7 @@ import sys
 import numpy as np
 from mpi4py import MPI
 
+from thermonet.errors import SimulationError
 from thermonet.parallel.world import LAUNCHER_VARIABLES
 from thermonet.scenes import load_scene
 
@@ -19,8 +22,10 @@ ARGS = sys.argv[1:sys.argv.index("--")] if "--" in sys.argv else sys.argv[1:]
 SCENE, STEPS, NAMES = ARGS[0], int(ARGS[1]), ARGS[2:]
 
 
-def run(integrator: str, alone: bool):
-    """(rows, x, p, Φ, η) of STEPS steps; ``alone``: as if not started by mpiexec (one process)."""
+def run(name: str, alone: bool):
+    """(rows, x, p, Φ, η, the message that stopped the run) of STEPS steps (NAME@H: then more at
+    H, see above); ``alone``: as if not started by mpiexec (one process)."""
+    integrator, _, h = name.partition("@")
     saved = {k: os.environ.pop(k) for k in LAUNCHER_VARIABLES if k in os.environ} if alone else {}
     try:
         sim = load_scene(SCENE, [f'integrator.name="{integrator}"']).build().simulation
@@ -28,8 +33,16 @@ def run(integrator: str, alone: bool):
         os.environ.update(saved)
     assert (sim.comm is None) == alone
     diag = sim.run(steps=STEPS, diagnostics_every=STEPS // 2)
+    message = None
+    if h:
+        sim.h = float(h)
+        try:
+            sim.run(steps=100 * STEPS, diagnostics_every=STEPS // 2)
+        except SimulationError as exc:
+            message = str(exc)
+        assert message is not None, "the run was meant to stop"
     s = sim.state
-    return [diag.rows, s.positions, s.momenta, s.thermal_displacement, s.entropy]
+    return [diag.rows, s.positions, s.momenta, s.thermal_displacement, s.entropy, message]
 
 
 if "--" in sys.argv:
@@ -38,6 +51,6 @@ if "--" in sys.argv:
     assert main(sys.argv[sys.argv.index("--") + 1:]) == 0
 for name in NAMES:
     many, one = run(name, False), run(name, True)
-    same = many[0] == one[0] and all(np.array_equal(a, b) for a, b in zip(many[1:], one[1:]))
+    same = many[0] == one[0] and many[-1] == one[-1] and all(np.array_equal(a, b) for a, b in zip(many[1:-1], one[1:-1]))
     if MPI.COMM_WORLD.Get_rank() == 0:
         print(name, "same" if same else "DIFFERENT", flush=True)

@@ -183,9 +183,11 @@ def one_process(tmp_path_factory):
 def test_two_processes_cut_in_two_and_resumed_on_three_are_one_process_bit_for_bit(one_process, tmp_path):
     """The checkpoint holds the whole state: a run cut on 2 processes continues on 3. In the same
     launch of 2 processes, every kind of splitting over them and alone: drift first (F10, BM6A), a
-    kick of 0 (GTR-0, GTR-1), no Φ (NM2), a composition (CO4)."""
+    kick of 0 (GTR-0, GTR-1), no Φ (NM2), a composition (CO4); then CO2 continued at a step that
+    blows up (the good steps replayed from the runner's backup of the shares) and at one the
+    energy guard stops (the state rewound to the stop before)."""
     out = tmp_path / "run"
-    names = ["f10", "gtr-0", "gtr-1", "nm2", "bm6a", "co4"]
+    names = ["f10", "gtr-0", "gtr-1", "nm2", "bm6a", "co4", "co2@8e-4", "co2@5e-4"]
     done = mpirun(2, os.path.join(ROOT, "tests", "mpi_integrators.py"), DEFAULT, "20", *names, "--", "run", DEFAULT,
                   "--out", str(out), "--set", "integrator.t_end=0.02", *RUN, module=False)
     assert done.stdout.split() == [w for n in names for w in (n, "same")], done.stdout

@@ -216,16 +216,8 @@ class Runner:
         b = self.backup
         if self._backup_usable() and s.step - b.step < self.BACKUP_SPAN:
             return b
-        if b is None:
-            b = self.backup = s.copy()
-        else:
-            np.copyto(b.positions, s.positions)
-            np.copyto(b.momenta, s.momenta)
-            if s.thermal_displacement is not None:
-                np.copyto(b.thermal_displacement, s.thermal_displacement)
-            if sim.system.heat is not None:  # heat flow changes η
-                np.copyto(b.entropy, s.entropy)
-            _copy_extra(s.extra, b.extra)  # the heat-flow logs, the loads' work
+        # (heat flow changes η; without it η stays as it was)
+        b = self.backup = sim.stepper.backup_state(s, b, entropy=sim.system.heat is not None)
         b.step, b.time = s.step, s.time
         self.backup_of = (s, sim._h)  # a loaded state or a new h makes the copy useless for replays
         return b
@@ -244,13 +236,7 @@ class Runner:
         state, bit for bit (runs do not depend on how they are chunked)."""
         sim = self.sim
         s = sim._state
-        np.copyto(s.positions, backup.positions)
-        np.copyto(s.momenta, backup.momenta)
-        if s.thermal_displacement is not None:
-            np.copyto(s.thermal_displacement, backup.thermal_displacement)
-        if sim.system.heat is not None:
-            np.copyto(s.entropy, backup.entropy)
-        _copy_extra(backup.extra, s.extra)
+        sim.stepper.restore_state(backup, s, entropy=sim.system.heat is not None)
         self._set_step(backup.step)
         if steps > 0:
             sim.stepper.advance(s, steps, sim._h)
@@ -359,20 +345,6 @@ class Runner:
                     f"{sim.model.name!r}, where θ must stay > 0, or h = {sim.h} is too large"
                 )
         raise SimulationError(f"the energy is not finite {where}{unstable}")
-
-
-def _copy_extra(source: dict, target: dict) -> None:
-    """Copy the arrays of a state's ``extra`` (the heat-flow logs, the loads' work) into another's,
-    in place where it has them (a stepper may hold those arrays)."""
-    for k, v in source.items():
-        if isinstance(v, dict):
-            _copy_extra(v, target.setdefault(k, {}))
-        elif isinstance(v, np.ndarray):
-            t = target.get(k)
-            if isinstance(t, np.ndarray) and t.shape == v.shape:
-                np.copyto(t, v)
-            else:
-                target[k] = v.copy()
 
 
 def _flushes(observers) -> list:

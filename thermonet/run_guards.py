@@ -154,7 +154,11 @@ class StabilityGuard:
         now = time.perf_counter()
         if self._since is None:
             self._since = now
-        if self.seconds > GUARD_TIME_BUDGET * (now - self._since) + GUARD_TIME_ALLOWANCE:
+        skip = self.seconds > GUARD_TIME_BUDGET * (now - self._since) + GUARD_TIME_ALLOWANCE
+        comm = getattr(sim, "comm", None)
+        if comm is not None:  # over MPI processes: rank 0's clock decides for all (the check reads
+            skip = comm.bcast(skip, root=0)  # the state, which the processes put together jointly)
+        if skip:
             self.skipped += 1
             return
         self.checked += 1

@@ -22,7 +22,7 @@ from .blowup import STRETCH_BOUNDS
 from .diagnostics import Diagnostics, spring_fields
 from .driver import Runner
 from .errors import InputError, SimulationError
-from .heat.logs import heat_logs
+from .heat.logs import PER_SPRING_LOGS, heat_logs
 from .heat.multirate import check_conduction_every
 from .heat.parameters import split_parameters
 from .heat.setup import build_heat
@@ -39,9 +39,6 @@ from .output_fields import OutputFields
 from .probes import Probes
 from .run_guards import DEFAULT_ENERGY_TOLERANCE, StabilityGuard
 from .state import State
-
-#: heat-flow logs with one value per spring (stored in the user's numbering outside the engine)
-PER_SPRING_LOGS = ("produced", "theta", "length", "pending_eta", "pending_produced", "pending_theta")
 
 #: nets with at least this many springs use the multi-threaded kernels
 PARALLEL_MIN_SPRINGS = 16384

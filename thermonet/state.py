@@ -52,3 +52,17 @@ def _copied(value):
     if isinstance(value, dict):
         return {k: _copied(v) for k, v in value.items()}
     return value
+
+
+def copy_extra(source: dict, target: dict) -> None:
+    """Copy the arrays of a state's ``extra`` (the heat-flow logs, the loads' work) into another's,
+    in place where it has them (a stepper may hold those arrays)."""
+    for k, v in source.items():
+        if isinstance(v, dict):
+            copy_extra(v, target.setdefault(k, {}))
+        elif isinstance(v, np.ndarray):
+            t = target.get(k)
+            if isinstance(t, np.ndarray) and t.shape == v.shape:
+                np.copyto(t, v)
+            else:
+                target[k] = v.copy()

@@ -17,6 +17,9 @@ from __future__ import annotations
 
 import numpy as np
 
+#: heat-flow logs with one value per spring (stored in the user's numbering outside the engine)
+PER_SPRING_LOGS = ("produced", "theta", "length", "pending_eta", "pending_produced", "pending_theta")
+
 
 def heat_columns(heat, state) -> dict:
     """The logged columns of ``state`` (see the module docstring; the balances are added by

@@ -10,7 +10,10 @@ from __future__ import annotations
 from abc import ABC, abstractmethod
 from typing import Any
 
+import numpy as np
+
 from ..errors import SimulationError, UnknownNameError
+from ..state import copy_extra
 
 
 class Stepper(ABC):
@@ -45,6 +48,31 @@ class Stepper(ABC):
 
     def sync(self, state) -> None:
         """Bring ``state``'s host arrays up to date (a device-resident stepper copies back)."""
+
+    def backup_state(self, state, into=None, entropy: bool = True):
+        """A copy of ``state`` to restore after a blow-up (:meth:`restore_state`), into ``into``
+        (an earlier copy of this stepper's) where given; η copied only with ``entropy`` (heat
+        flow changes it). The caller sets the copy's ``step`` and ``time``."""
+        if into is None:
+            return state.copy()
+        np.copyto(into.positions, state.positions)
+        np.copyto(into.momenta, state.momenta)
+        if state.thermal_displacement is not None:
+            np.copyto(into.thermal_displacement, state.thermal_displacement)
+        if entropy and state.entropy is not None:
+            np.copyto(into.entropy, state.entropy)
+        copy_extra(state.extra, into.extra)  # the heat-flow logs, the loads' work
+        return into
+
+    def restore_state(self, backup, state, entropy: bool = True) -> None:
+        """Put a :meth:`backup_state` copy back into ``state`` (in place)."""
+        np.copyto(state.positions, backup.positions)
+        np.copyto(state.momenta, backup.momenta)
+        if state.thermal_displacement is not None:
+            np.copyto(state.thermal_displacement, backup.thermal_displacement)
+        if entropy and state.entropy is not None:
+            np.copyto(state.entropy, backup.entropy)
+        copy_extra(backup.extra, state.extra)
 
     def summary(self) -> dict | None:
         """Totals over the run to report (e.g. Newton iterations), or None."""

@@ -322,7 +322,10 @@ class RunOutput:
             "wall_time_s": sim.wall_time,
             "steps_run": sim.steps_run,
         }
-        if self.root:  # (every process holds the whole state: one checkpoint resumes on any count)
+        # over MPI processes the whole state is put together from their shares, a step every
+        # process takes; rank 0 writes it (one checkpoint resumes on any count)
+        sim.internal_state()
+        if self.root:
             save_checkpoint(self.checkpoint_path, sim.state, meta)
         self.checkpoint_step = sim.step
         self.write_csv()

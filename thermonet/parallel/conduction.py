@@ -45,7 +45,7 @@ class DistributedConduction:
     def advance(self, state, n_steps: int, h: float) -> None:
         """``n_steps`` steps of the share (taken from ``state`` by the stepper), as the CPU
         kernel's ``advance`` with conduction; the whole net's η and heat logs updated in place on
-        every process, the share's x, p, Φ given back by the stepper."""
+        every process; the share's x, p, Φ stay in the shares (the stepper puts them together when read)."""
         st = self.stepper
         sh = st.share
         logs = heat_logs(state, self.heat)
@@ -129,7 +129,7 @@ class DistributedConduction:
         more = [(length, logs["length"])] + ([(scratch.theta_keep, logs["theta"])] if theta_valid else [])
         self._sweep.gather(st._eta, state, logs, more)
         logs["theta_ok"][0] = (2.0 if ended_cycle else 1.0) if theta_valid else 0.0
-        st._give(state, cur)
+        st._ended(cur)
         return None
 
     def _failed(self, state, logs, cur, steps_done: int):

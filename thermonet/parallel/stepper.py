@@ -9,10 +9,16 @@ then the halo. Two kicks meeting at a step boundary stay two additions and a cal
 closing kick, exactly as in one process, so every owned node and spring gets the same bits as in
 one process.
 
-The Simulation's state stays the whole net's on every process: a call takes its share from it
-and gives the owned values back to every process at its end (one ``Allgatherv``), so the
-diagnostics rows, guards, rewinds, probes and checkpoints of the runner work on it unchanged and
-give the same numbers as one process.
+Between calls the state stays in the shares: a call starts from the share's arrays where the
+Simulation's state is the one they were taken from (:meth:`DistributedStepper._bind`; a state
+loaded or replaced is taken again) and leaves its result there. The whole net's arrays are put
+together only when something reads them: a diagnostics row gathers x, p, Φ (and η, with
+conduction) to rank 0, which measures it as one process does and sends the row to the others;
+:meth:`~DistributedStepper.sync` (``Simulation.internal_state``: frames, probes, checkpoints,
+``sim.state``) gives them to every process, so reading them is a step every process takes. The
+runner's backup for blow-up replays is a copy of the shares (:meth:`~DistributedStepper.backup_state`).
+Between a call's end and the next read, processes other than rank 0 hold no whole x, p, Φ (empty
+arrays stand in for them, so a read that skipped ``sync`` fails instead of seeing old values).
 """
 
 from __future__ import annotations
@@ -23,17 +29,20 @@ from ..blowup import blowup_failure
 from ..errors import InputError
 from ..explicit import cpu
 from ..explicit.schedule import STAGE
+from ..heat.logs import PER_SPRING_LOGS
 from ..integrators.base import Stepper
 from ..kernels import records
 from ..kernels.specialize import model_fingerprint
 from ..loads.elements import NO_LOADS
 from ..loads.stepping import StepperLoads
+from ..state import copy_extra
 from .conduction import DistributedConduction
 from .domain import decomposition, share
 from .halo import Halo
 from .loads import ShareLoads, load_functions
 from .partition import partition
 from .stages import stage_functions
+from .whole import IndexGather, broadcast, counts_offsets, gather_to_root
 
 
 def splitting_passes(model, parallel: bool, thermal: bool, uniform: bool, loads: bool = False,
@@ -79,7 +88,7 @@ class DistributedStepper(Stepper):
     measures = False
 
     def __init__(self, integrator, system, comm, points, parallel: bool = False, method: str | None = None):
-        self.integrator, self.system, self.comm = integrator, system, comm
+        self.integrator, self.system, self.comm, self.parallel = integrator, system, comm, bool(parallel)
         self.size, self.rank = comm.Get_size(), comm.Get_rank()
         table = integrator.table_between_sweeps
         if (np.asarray(table.code) != STAGE).any():
@@ -117,7 +126,17 @@ class DistributedStepper(Stepper):
                                         np.empty(ml if thermal else 0), np.empty(ml), np.empty(11))
         self._no_heat = records.no_heat_cpu()
         self._bad = np.zeros(1, dtype=np.int64)
-        self._gather = _GatherPlan(dec, sh, thermal, self.rank)
+        self._gather = _OwnedGather(dec, sh, thermal, conducting, self.rank)
+        #: the State whose arrays the shares were taken from (None: none yet), and how far its
+        #: whole arrays are up to date with the shares: on every process (ALL), on rank 0 (ROOT; ROW:
+        #: but for Φ), nowhere (NONE); the same on every process, as every process takes the same steps
+        self._bound, self._fresh = None, ALL
+        #: the springs this process reports (whole-net numbers), and the gather of per-spring
+        #: values kept at them (a backup's heat logs)
+        self._reported = dec.owned_springs(self.rank)
+        self._log_gather = IndexGather(self._gather.springs if self.rank == 0 else None,
+                                       np.arange(len(self._reported)), np.bincount(dec.spring_owner,
+                                                                                   minlength=dec.size))
         self._conduction = None
         if conducting:  # conduction: its own call (thermonet.parallel.conduction)
             self._conduction = DistributedConduction(self, *conduction_stages(system.model, parallel, uniform))
@@ -127,7 +146,7 @@ class DistributedStepper(Stepper):
         """``n_steps`` steps of h of the whole net's ``state`` (in place, on every process)."""
         if n_steps <= 0:
             return None
-        self._take(state)
+        self._bind(state)
         if self._conduction is not None:
             return self._conduction.advance(state, n_steps, h)
         lo, hi = self.system.stretch_bounds
@@ -166,7 +185,7 @@ class DistributedStepper(Stepper):
                 return self._stopped(state, cur, n_steps - 1)
             if loads is not None:
                 loads.add_work(self.comm, cur, self._scratch.s, self._topology, self._nodes, 0.0, pending * h)
-        self._give(state, cur)
+        self._ended(cur)
         return None
 
     def _any(self, bad: int) -> bool:
@@ -179,23 +198,108 @@ class DistributedStepper(Stepper):
 
     def _stopped(self, state, cur, steps_done: int):
         """A spring left the admissible states: the positions where it was found into the whole
-        state (the runner rewinds and replays), and the failure naming the spring."""
-        self._give(state, cur)
+        state on every process (the runner rewinds and replays), and the failure naming the spring."""
+        self._ended(cur)
+        self.sync(state)
         raise blowup_failure(self.system, state.positions, state.entropy, max(steps_done, 0))
 
     # ------------------------------------------------------------------------------------------
-    def _take(self, state) -> None:
-        """This process's share of the whole state (the runner may have replaced or rewound it)."""
+    # the shares and the whole state
+
+    def _bind(self, state) -> None:
+        """Take this process's share of ``state`` unless the shares hold it already."""
+        if state is self._bound:
+            return
         sh = self.share
         np.take(state.positions, sh.nodes, axis=0, out=self._x)
         np.take(state.momenta, sh.nodes, axis=0, out=self._p)
         if self.system.thermal:
             np.take(state.thermal_displacement, sh.springs, out=self._phi)
             np.take(state.entropy, sh.springs, out=self._eta)
+        self._bound, self._fresh = state, ALL
 
-    def _give(self, state, x: np.ndarray) -> None:
-        """Every process's owned values into the whole state on every process."""
-        self._gather.allgather(self.comm, state, x, self._p, self._phi)
+    def _ended(self, cur: np.ndarray) -> None:
+        """A call ended with the positions in ``cur``: they become the share's (the two position
+        buffers trade places), and the whole arrays are behind the shares."""
+        if cur is not self._x:
+            self._x, x_buf = cur, self._x
+            self._scratch = self._scratch._replace(x_buf=x_buf)
+        self._fresh = NONE
+        if self.rank != 0:  # until something reads them, the whole x, p, Φ are rank 0's alone
+            state = self._bound
+            state.positions = state.momenta = _RELEASED_NODES
+            if self.system.thermal:
+                state.thermal_displacement = _RELEASED_SPRINGS
+
+    def _to_root(self, state, whole: bool = True) -> None:
+        """The owned values of every process into ``state``'s whole arrays on rank 0: all of
+        them, or (not ``whole``) those a diagnostics row reads, all but Φ."""
+        if self._fresh == NONE or (whole and self._fresh == ROW):
+            self._gather.to_root(self.comm, state, self._x, self._p, self._phi, self._eta, whole)
+            self._fresh = ROOT if whole else ROW
+
+    def sync(self, state) -> None:
+        """The shares into ``state``'s whole arrays on every process (every process must call it)."""
+        if state is not self._bound or self._fresh == ALL:
+            return
+        self._to_root(state)
+        if state.positions is _RELEASED_NODES:  # (ranks > 0)
+            n, m = self.system.n_nodes, self.system.n_springs
+            state.positions, state.momenta = np.empty((n, 3)), np.empty((n, 3))
+            if self.system.thermal:
+                state.thermal_displacement = np.empty(m)
+        broadcast(self.comm, self._gather.whole_arrays(state))
+        self._fresh = ALL
+
+    def diagnostics_row(self, system, state) -> dict | None:
+        """The diagnostics row of the shares' state: gathered to rank 0 and measured there as one
+        process measures it (the same reductions in the same order), the row sent to every
+        process. None where the whole arrays are up to date everywhere (each process measures)."""
+        if state is not self._bound or self._fresh == ALL:
+            return None
+        from ..diagnostics import measure
+
+        self._to_root(state, whole=False)
+        return self.comm.bcast(measure(system, state, self.parallel) if self.rank == 0 else None, root=0)
+
+    def backup_state(self, state, into=None, entropy: bool = True):
+        """A :class:`ShareBackup` of ``state`` (its share taken first where the shares do not
+        hold it): the share's x, p, Φ, η, each per-spring heat log at the springs this process
+        reports, the rest of the state's ``extra`` (the bath and source logs, the loads' work)."""
+        self._bind(state)
+        b = into if isinstance(into, ShareBackup) else ShareBackup.like(self)
+        for source, target in zip(self._share_arrays(), b.arrays()):
+            np.copyto(target, source)
+        logs = self._spring_logs(state)
+        for k, whole in logs.items():
+            part = b.logs.get(k)
+            if part is None:
+                part = b.logs[k] = np.empty(len(self._reported))
+            np.take(whole, self._reported, out=part)
+        copy_extra(_without(state.extra, logs), b.extra)
+        return b
+
+    def restore_state(self, backup, state, entropy: bool = True) -> None:
+        """Put a :meth:`backup_state` copy back: the shares (the whole arrays then behind them),
+        the per-spring heat logs put together on every process (every process must call it), the
+        rest of ``extra``."""
+        for source, target in zip(backup.arrays(), self._share_arrays()):
+            np.copyto(target, source)
+        logs = self._spring_logs(state)
+        copy_extra(backup.extra, state.extra)
+        if logs:
+            self._log_gather.gather(self.comm, [(backup.logs[k], whole) for k, whole in logs.items()])
+        self._bound, self._fresh = state, NONE
+
+    def _spring_logs(self, state) -> dict:
+        """The per-spring heat logs of ``state`` (whole, the same on every process), or {}."""
+        if self._conduction is None:
+            return {}
+        logs = state.extra.get("heat") or {}
+        return {k: logs[k] for k in PER_SPRING_LOGS if k in logs}
+
+    def _share_arrays(self) -> tuple:
+        return self._x, self._p, self._phi, self._eta
 
     def summary(self) -> dict | None:
         return None
@@ -211,39 +315,108 @@ def _stage_time(loads, h: float, step: int, tau: float) -> float:
     return loads.clock[0] + ((loads.clock[1] + step) + tau) * h
 
 
-class _GatherPlan:
+def _root_lists(of, size: int, rank: int) -> list | None:
+    """[of(q) for every process q] on rank 0 (what it places), None elsewhere."""
+    return [of(q) for q in range(size)] if rank == 0 else None
+
+
+#: what the whole x, p (and Φ) of a state are on ranks > 0 while only the shares are up to date
+#: (empty: a read that skipped DistributedStepper.sync fails instead of seeing old values)
+_RELEASED_NODES, _RELEASED_SPRINGS = np.empty((0, 3)), np.empty(0)
+_RELEASED_NODES.flags.writeable = _RELEASED_SPRINGS.flags.writeable = False
+
+#: how far the whole arrays are up to date with the shares (DistributedStepper._fresh): on every
+#: process, on rank 0, on rank 0 but for Φ (a diagnostics row's), nowhere
+ALL, ROOT, ROW, NONE = "all", "root", "row", "none"
+
+
+class ShareBackup:
+    """A copy of a process's share: x, p (nl, 3), Φ, η (ml,); logs: each per-spring heat log at
+    the springs the process reports; extra: the rest of the state's ``extra``; the ``step`` and
+    ``time`` the runner sets."""
+
+    def __init__(self, x, p, phi, eta):
+        self.x, self.p, self.phi, self.eta = x, p, phi, eta
+        self.logs: dict = {}
+        self.extra: dict = {}
+        self.step, self.time = 0, 0.0
+
+    @classmethod
+    def like(cls, stepper) -> "ShareBackup":
+        return cls(*(np.empty_like(a) for a in stepper._share_arrays()))
+
+    def arrays(self) -> tuple:
+        return self.x, self.p, self.phi, self.eta
+
+
+class _OwnedGather:
     """Where each process's owned nodes and reported springs go in the whole state: one
-    ``Allgatherv`` of [x (3 n_q), p (3 n_q), Φ (m_q)] per process q."""
+    ``Gatherv`` to rank 0 of [x (3 n_q), p (3 n_q), η (m_q, with conduction), Φ (m_q)] per
+    process q, or, for a diagnostics row (which does not read Φ), of all but Φ. Rank 0 alone
+    holds the whole-net index lists and the receive buffer."""
 
-    def __init__(self, dec, sh, thermal: bool, rank: int):
-        self.nodes = [dec.owned_nodes(q) for q in range(dec.size)]
-        self.springs = [dec.owned_springs(q) for q in range(dec.size)]
-        self.thermal = thermal
+    def __init__(self, dec, sh, thermal: bool, conducting: bool, rank: int):
+        self.thermal, self.conducting = thermal, conducting
         self.local_nodes = np.flatnonzero(sh.owned)
-        self.local_springs = np.searchsorted(sh.springs, self.springs[rank])
-        k = 1 if thermal else 0
-        self.counts = np.array([6 * len(a) + k * len(b) for a, b in zip(self.nodes, self.springs)], dtype=np.int64)
-        self.offsets = np.concatenate([[0], np.cumsum(self.counts)[:-1]])
-        self.recv = np.empty(int(self.counts.sum()))
-        self.send = np.empty(int(self.counts[rank]))
+        self.local_springs = np.searchsorted(sh.springs, dec.owned_springs(rank))
+        node_counts = np.bincount(dec.owner, minlength=dec.size)
+        spring_counts = np.bincount(dec.spring_owner, minlength=dec.size)
+        row = 6 * node_counts + (spring_counts if conducting else 0)
+        #: (counts, offsets) of a whole gather (True) and of a row's (False)
+        self.layout = {True: counts_offsets(row + (spring_counts if thermal else 0)), False: counts_offsets(row)}
+        self.send = np.empty(int(self.layout[True][0][rank]))
+        self.root = rank == 0
+        self.nodes = _root_lists(dec.owned_nodes, dec.size, rank) or []
+        self.springs = _root_lists(dec.owned_springs, dec.size, rank) or []
+        self.recv = np.empty(int(self.layout[True][0].sum())) if self.root else None
 
-    def allgather(self, comm, state, x, p, phi) -> None:
-        from mpi4py import MPI
+    def whole_arrays(self, state) -> list:
+        """The whole arrays a whole gather fills."""
+        arrays = [state.positions, state.momenta]
+        if self.conducting:
+            arrays.append(state.entropy)
+        if self.thermal:
+            arrays.append(state.thermal_displacement)
+        return arrays
 
-        n = len(self.local_nodes)
+    def to_root(self, comm, state, x, p, phi, eta, whole: bool = True) -> None:
+        """The owned rows of x, p (nl, 3) and reported springs of η (with conduction) and, where
+        ``whole``, Φ (ml,) of every process into ``state``'s whole arrays on rank 0."""
+        n, m = len(self.local_nodes), len(self.local_springs)
         send = self.send
         send[:3 * n] = x[self.local_nodes].ravel()
         send[3 * n:6 * n] = p[self.local_nodes].ravel()
-        if self.thermal:
-            send[6 * n:] = phi[self.local_springs]
-        comm.Allgatherv(send, [self.recv, self.counts, self.offsets, MPI.DOUBLE])
+        at = 6 * n
+        if self.conducting:
+            send[at:at + m] = eta[self.local_springs]
+            at += m
+        with_phi = whole and self.thermal
+        if with_phi:
+            send[at:at + m] = phi[self.local_springs]
+            at += m
+        counts, offsets = self.layout[whole]
+        recv = gather_to_root(comm, send[:at], counts, offsets, self.recv)
+        if recv is None:
+            return
         for q, (nodes, springs) in enumerate(zip(self.nodes, self.springs)):
-            chunk = self.recv[self.offsets[q]:self.offsets[q] + self.counts[q]]
-            k = len(nodes)
-            state.positions[nodes] = chunk[:3 * k].reshape(k, 3)
-            state.momenta[nodes] = chunk[3 * k:6 * k].reshape(k, 3)
-            if self.thermal:
-                state.thermal_displacement[springs] = chunk[6 * k:]
+            k, j = len(nodes), len(springs)
+            at = offsets[q]
+            state.positions[nodes] = recv[at:at + 3 * k].reshape(k, 3)
+            state.momenta[nodes] = recv[at + 3 * k:at + 6 * k].reshape(k, 3)
+            at += 6 * k
+            if self.conducting:
+                state.entropy[springs] = recv[at:at + j]
+                at += j
+            if with_phi:
+                state.thermal_displacement[springs] = recv[at:at + j]
+
+
+def _without(extra: dict, logs: dict) -> dict:
+    """``extra`` without the heat logs in ``logs`` (a shallow copy; nothing copied where none)."""
+    if not logs:
+        return extra
+    heat = {k: v for k, v in extra["heat"].items() if k not in logs}
+    return {**extra, "heat": heat}
 
 
 def threads_per_process(comm) -> int:

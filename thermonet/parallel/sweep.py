@@ -17,6 +17,7 @@ import numpy as np
 from ..heat.passes import CONTINUE, FORWARD, REVERSE, SAVE
 from ..kernels import records
 from .heat_share import heat_shares, ranges
+from .whole import IndexGather
 
 #: message tag of the temperatures exchanged between a sweep's phases
 TAG = 34
@@ -42,35 +43,6 @@ class ValueExchange:
         MPI.Request.Waitall(requests)
         for _, idx, buf in self._recv:
             values[idx] = buf
-
-
-class IndexGather:
-    """Whole-net arrays from each process's part: process q gives the values at whole indices
-    ``parts[q]``, rank r takes them from positions ``local`` of its arrays. One ``Allgatherv``
-    for several arrays at once."""
-
-    def __init__(self, parts: list, local: np.ndarray, rank: int):
-        self.parts, self.local = parts, local
-        self.counts = np.array([len(p) for p in parts], dtype=np.int64)
-        self.order = np.concatenate(parts).astype(np.int64) if parts else np.zeros(0, dtype=np.int64)
-        self.rank = rank
-
-    def gather(self, comm, pairs: list) -> None:
-        """For each (local array, whole array) of ``pairs``: whole[parts[q]] ← q's local values."""
-        from mpi4py import MPI
-
-        k = len(pairs)
-        if k == 0:
-            return
-        send = np.concatenate([np.take(local, self.local) for local, _ in pairs])
-        counts = k * self.counts
-        offsets = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
-        recv = np.empty(int(counts.sum()))
-        comm.Allgatherv(send, [recv, counts, offsets, MPI.DOUBLE])
-        for q, (count, offset) in enumerate(zip(self.counts, offsets)):
-            chunk = recv[offset:offset + k * count].reshape(k, count)
-            for j, (_, whole) in enumerate(pairs):
-                whole[self.parts[q]] = chunk[j]
 
 
 def _entries_of(bound_spring, bound_ptr, reports) -> np.ndarray:
@@ -122,11 +94,12 @@ class DistributedSweep:
         self.entry_heat = np.empty(len(hs.entries))
         self.entry_flux = np.empty(len(hs.entries))
         self._record = None
-        reported = [dec.owned_springs(q) for q in range(size)]
-        self._springs_gather = IndexGather(reported, np.searchsorted(sh.springs, reported[rank]), rank)
+        reported = [dec.owned_springs(q) for q in range(size)] if rank == 0 else None  # (placed by rank 0)
+        self._springs_gather = IndexGather(reported, np.searchsorted(sh.springs, dec.owned_springs(rank)),
+                                           np.bincount(dec.spring_owner, minlength=size))
         entries = [_entries_of(bound_spring, bound_ptr, dec.spring_owner == q) for q in range(size)]
         assert np.array_equal(entries[rank], hs.entries)
-        self._entries_gather = IndexGather(entries, np.arange(len(hs.entries)), rank)
+        self._entries_gather = IndexGather(entries, np.arange(len(hs.entries)))
 
     def begin(self, logs: dict) -> None:
         """A call starts: this process's part of the whole logs (the same on every process)."""
