@@ -49,6 +49,7 @@ cpu_evaluate_loads = cpu_load_work = None
 LOADS = False
 star_node = star_block = boundary_exchange = finish_spring = wave_exchange = spring_temperature = squared_length = None
 tension = outside_admissible = advance_thermal_displacement = spring_energy = None
+model_strain = tension_at_strain = None
 boundary_node_pass = None
 UNIFORM = False
 #: the serial kernel: a thread takes a colour's blocks two at a time (see _sweep_colour)
@@ -69,6 +70,20 @@ def bind_heat_flow(ns: dict, tag: str, compile_) -> None:
     ns["log"] = log
     for name in exchange.SHARED:
         ns[name] = compile_(rebind(getattr(exchange, name), tag, ns))
+    if ns.get("model_strain") is None or ns.get("tension_at_strain") is None:
+        # T from the length itself (the "strain" kept is the length)
+        ns["model_strain"] = compile_(_length_as_strain)
+        ns["tension_at_strain"] = compile_(rebind(_tension_of_length, tag, ns))
+
+
+def _length_as_strain(l, l0):
+    """Stands in for ``Model.strain`` where a model has none."""
+    return l
+
+
+def _tension_of_length(L, l, theta, l0, P, e):
+    """Stands in for ``Model.tension_at_strain`` where a model has none: T(l, θ)."""
+    return tension(l, theta, l0, P, e)
 
 
 def bind_heat_passes(ns: dict, tag: str, parallel: bool) -> None:
@@ -76,6 +91,8 @@ def bind_heat_passes(ns: dict, tag: str, parallel: bool) -> None:
     bindings)."""
     ns["gather_two_forces"] = specialize(_gather_two_forces, tag, ns, inline="always", **_OPTIONS)
     ns["temperature_pass"] = specialize(_temperature_pass, tag, ns, parallel=parallel, **_OPTIONS)
+    ns["_refresh_spring"] = specialize(_refresh_spring, tag, ns, inline="always", **_OPTIONS)
+    ns["_refresh_block"] = specialize(_refresh_block, tag, ns, inline="always", **_OPTIONS)
     ns["refresh_pass"] = specialize(_refresh_pass, tag, ns, parallel=parallel, **_OPTIONS)
     ns["finish_refresh_pass"] = specialize(_finish_refresh_pass, tag, ns, parallel=parallel, **_OPTIONS)
     ns["PAIRED"] = not parallel
@@ -144,62 +161,70 @@ def _gather_two_forces(a, x, s1, s2, inc_ptr, inc_spring, inc_other, masses, gra
     return f0, f1, f2, g0, g1, g2
 
 
-def _refresh_pass(theta, length, phi, springs, s, steps, run):
-    """The spring pass of a kick at the positions of the last full one, after conduction sweeps
-    changed θ: per spring T/l from the stored length and the swept θ into s, Φ += steps[0] θ,
-    += steps[1] θ. No gather, no square root, no θ(l, η): a stream over contiguous arrays.
-    Returns the number of springs outside the admissible states."""
-    P = springs.P
-    rest = springs.rest
-    phi_h1, phi_h2 = steps
-    track_phi = run.track_phi
-    stretch_min = run.stretch_min
-    stretch_max = run.stretch_max
+def _refresh_spring(e, L, theta, length, phi, springs, s, steps, run):
+    """Spring e's part of :func:`_refresh_pass` with its strain L (``Model.strain`` of its
+    length): T/l into s[e], Φ[e] += steps[0] θ, += steps[1] θ. Returns whether it is outside
+    the admissible states."""
+    rest = springs.rest[e]
+    c = np.uint64(0) if UNIFORM else e
+    l = length[e]
+    th = theta[e]
+    force = tension_at_strain(L, l, th, rest, springs.P, c) / l
+    s[e] = force
+    if run.track_phi:
+        advance_thermal_displacement(phi, e, th, steps[0], steps[1])
+    return outside_admissible(l, rest, force, th, run.stretch_min, run.stretch_max)
+
+
+def _refresh_block(lo, n, theta, length, strain, strain_ok, phi, springs, s, steps, run):
+    """:func:`_refresh_spring` of springs lo … lo + n − 1, their strains from ``strain`` when
+    ``strain_ok`` (kept by the spring pass that kept the lengths: no logarithm), else from the
+    lengths (the same bits). Returns the number outside the admissible states."""
     bad = 0
-    for e in prange(theta.shape[0]):
-        eu = np.uint64(e)
-        c = np.uint64(0) if UNIFORM else eu
-        l = length[e]
-        th = theta[e]
-        force = tension(l, th, rest[eu], P, c) / l
-        s[e] = force
-        bad += outside_admissible(l, rest[eu], force, th, stretch_min, stretch_max)
-        if track_phi:
-            advance_thermal_displacement(phi, eu, th, phi_h1, phi_h2)
+    if strain_ok:
+        for i in range(n):
+            e = np.uint64(lo + i)
+            bad += _refresh_spring(e, strain[e], theta, length, phi, springs, s, steps, run)
+    else:
+        for i in range(n):
+            e = np.uint64(lo + i)
+            bad += _refresh_spring(e, model_strain(length[e], springs.rest[e]), theta, length, phi, springs, s, steps,
+                                   run)
     return bad
 
 
-def _finish_refresh_pass(heat, theta, eta, phi, springs, s, steps, run):
+def _refresh_pass(theta, length, strain, strain_ok, phi, springs, s, steps, run):
+    """The spring pass of a kick at the positions of the last full one, after conduction sweeps
+    changed θ: per spring T/l from the stored length (and its strain, see :func:`_refresh_block`)
+    and the swept θ into s, Φ += steps[0] θ, += steps[1] θ. No gather, no square root, no
+    θ(l, η): a stream over contiguous arrays. theta, length, strain, phi, s: (m,). Returns the
+    number of springs outside the admissible states."""
+    m = theta.shape[0]
+    bad = 0
+    for blk in prange((m + BLOCK - 1) // BLOCK):
+        lo = blk * BLOCK
+        bad += _refresh_block(lo, min(BLOCK, m - lo), theta, length, strain, strain_ok, phi, springs, s, steps, run)
+    return bad
+
+
+def _finish_refresh_pass(heat, theta, eta, phi, springs, s, steps, run, strain_ok):
     """The sweeps' entropy update left to the caller (DEFER_FINISH: :func:`finish_spring` from
-    heat.theta_start, heat.capacity into eta and heat.produced) and :func:`_refresh_pass` (same
-    arguments) in one pass over the springs: the same operations per spring, the same bits.
-    Returns the number of springs outside the admissible states."""
+    heat.theta_start, heat.capacity into eta and heat.produced) and :func:`_refresh_pass` (the
+    lengths and strains heat.length, heat.strain) in one pass over the springs: the same
+    operations per spring, the same bits. Returns the number of springs outside the admissible
+    states."""
     theta_start = heat.theta_start
     capacity = heat.capacity
     produced = heat.produced
     length = heat.length
-    P = springs.P
-    rest = springs.rest
-    phi_h1, phi_h2 = steps
-    track_phi = run.track_phi
-    stretch_min = run.stretch_min
-    stretch_max = run.stretch_max
+    strain = heat.strain
     bad = 0
     m = theta.shape[0]
     for blk in prange((m + BLOCK - 1) // BLOCK):
         lo = blk * BLOCK
         for i in range(min(BLOCK, m - lo)):  # (two loops over a block: each vectorizes, one would not)
             finish_spring(np.uint64(lo + i), theta, theta_start, eta, capacity, produced)
-        for i in range(min(BLOCK, m - lo)):
-            eu = np.uint64(lo + i)
-            c = np.uint64(0) if UNIFORM else eu
-            l = length[eu]
-            th = theta[eu]
-            force = tension(l, th, rest[eu], P, c) / l
-            s[eu] = force
-            bad += outside_admissible(l, rest[eu], force, th, stretch_min, stretch_max)
-            if track_phi:
-                advance_thermal_displacement(phi, eu, th, phi_h1, phi_h2)
+        bad += _refresh_block(lo, min(BLOCK, m - lo), theta, length, strain, strain_ok, phi, springs, s, steps, run)
     return bad
 
 
@@ -355,7 +380,7 @@ def conduction_boundary(state, cur, topology, springs, scratch, heat, run, pendi
         before = Scratch(scratch.x_buf, heat.s_before, scratch.f_keep, scratch.theta_keep, scratch.energy_buf,
                          scratch.sums)
         bad = spring_pass(cur, state.eta, state.phi, topology, springs, before, (0.0, pending * run.h), run, True,
-                          heat.length)[0]
+                          heat.length, heat.strain)[0]
         if bad > 0:
             return bad
     conduction_sweep(heat, scratch.theta_keep, heat.theta_start, state.eta, 0.5 * run.conduction_every * run.h,
