@@ -102,8 +102,9 @@ def test_the_threaded_kernel_with_loads_and_heat_does_not_depend_on_the_thread_c
     """One threaded kernel carries both effects (each alone would be a threaded variant of its own
     to compile): one and two threads give the same bits, in chunks that cut conduction cycles, and
     the serial kernel's bits for everything but the loads' reductions' round-off. In the GPU's
-    sweep order (one junction per block, 4 blocks per colour) the serial kernel and one thread
-    take a colour's blocks in pairs, two threads one by one: the same bits."""
+    sweep order (one junction per block, 4 blocks per colour) the serial kernel takes a colour's
+    blocks in pairs, and so does the threaded one with a pool of two threads (one block at a time
+    with more): the same bits."""
     def make(**kw):
         sim = loaded_hot_strip(0.004, conduction_every=every, **kw)
         sim.system.heat.use_order_of(order)

@@ -8,7 +8,7 @@ boundary entries, then the colours in order), or both back to back; then one ent
 spring. A colour's blocks run in parallel (they share no spring); each block and each boundary
 spring is computed by one thread in a fixed order, so results do not depend on the thread count.
 With factors shared by all springs a thread takes a colour's blocks two at a time (the serial
-kernel always, the threaded one where a colour has two pairs per thread or more), node k of one
+kernel always, the threaded one where a colour has a pair for every thread or more), node k of one
 with node k of the other, their junction sums in one loop (:func:`_star_nodes`: a
 node's sum is a chain of dependent additions, two chains overlap); with no bath or source
 entries between the half sweeps, the reverse sweep's last colour and the forward sweep's first
@@ -23,7 +23,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import get_num_threads, njit, prange
+import numba
+from numba import njit, prange
 
 from ..explicit.codes import FORCE_DEFERRED
 from ..kernels.records import KickDrift, Scratch
@@ -54,8 +55,11 @@ model_strain = tension_at_strain = None
 boundary_node_pass = None
 UNIFORM = False
 #: the serial kernel (a thread takes a colour's blocks two at a time from two blocks on; with
-#: threads, from two pairs per thread on: see _sweep_colour)
+#: threads, from PAIRS_FROM blocks on, a pair per thread of Numba's thread pool: see _sweep_colour)
 PAIRED = False
+#: (a compile-time constant, part of the kernels' cache names through source_digest: Numba cannot
+#: cache a kernel that asks for the thread count as it runs)
+PAIRS_FROM = 2 * max(1, numba.config.NUMBA_NUM_THREADS)
 #: springs per block of the temperature pass (see thermonet.kernels.blocks.BLOCK)
 BLOCK = 512
 
@@ -98,7 +102,6 @@ def bind_heat_passes(ns: dict, tag: str, parallel: bool) -> None:
     ns["refresh_pass"] = specialize(_refresh_pass, tag, ns, parallel=parallel, **_OPTIONS)
     ns["finish_refresh_pass"] = specialize(_finish_refresh_pass, tag, ns, parallel=parallel, **_OPTIONS)
     ns["PAIRED"] = not parallel
-    ns["get_num_threads"] = get_num_threads
     ns["_star_nodes"] = specialize(_star_nodes, tag, ns, inline="always", **_OPTIONS)
     ns["_star_blocks"] = specialize(_star_blocks, tag, ns, inline="always", **_OPTIONS)
     ns["_sweep_colour"] = specialize(_sweep_colour, tag, ns, inline="always", **_OPTIONS)
@@ -296,15 +299,15 @@ def _star_blocks(b1, b2, heat, reverse, theta):
 
 def _sweep_colour(heat, ptr, colour, directions, theta):
     """The blocks of one colour, in parallel: each reverse (REVERSE), forward (FORWARD), or
-    reverse then forward (both). With shared factors and two blocks or more (with threads: two
-    or more pairs per thread), the blocks go in pairs (block k with block k + ⌈B/2⌉ of the
-    colour, :func:`_star_blocks`), the pairs in parallel; the pairing changes no result, only
+    reverse then forward (both). With shared factors and two blocks or more (with threads:
+    PAIRS_FROM or more, a pair for every thread of the pool), the blocks go in pairs (block k
+    with block k + ⌈B/2⌉ of the colour, :func:`_star_blocks`), the pairs in parallel; the pairing changes no result, only
     the order in which independent blocks interleave. (Unpaired, a thread's junction sums are
     one chain of dependent additions at a time: two threads on single blocks were no faster
     than one thread on pairs.)"""
     lo = ptr[colour]
     count = ptr[colour + 1] - lo
-    if count >= (2 if PAIRED else 4 * get_num_threads()) and heat.factor_mask[0] == 0:
+    if count >= (2 if PAIRED else PAIRS_FROM) and heat.factor_mask[0] == 0:
         half = count // 2
         odd = count - 2 * half
         for k in prange(half + odd):
@@ -471,7 +474,7 @@ def source_digest() -> str:
     import inspect
     import sys
 
-    text = inspect.getsource(sys.modules[__name__]) + exchange.source_digest()
+    text = inspect.getsource(sys.modules[__name__]) + exchange.source_digest() + f"pairs from {PAIRS_FROM}"
     return hashlib.sha256(text.encode()).hexdigest()[:8]
 
 
