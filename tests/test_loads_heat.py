@@ -97,16 +97,24 @@ def same_bits(a, b):
         assert np.array_equal(a.state.extra["heat"][k], b.state.extra["heat"][k]), k
 
 
-@pytest.mark.parametrize("every", [1, 4])
-def test_the_threaded_kernel_with_loads_and_heat_does_not_depend_on_the_thread_count(every):
+@pytest.mark.parametrize("every, order", [(1, "cpu"), (4, "cpu"), (1, "cuda")])
+def test_the_threaded_kernel_with_loads_and_heat_does_not_depend_on_the_thread_count(every, order):
     """One threaded kernel carries both effects (each alone would be a threaded variant of its own
     to compile): one and two threads give the same bits, in chunks that cut conduction cycles, and
-    the serial kernel's bits for everything but the loads' reductions' round-off."""
-    serial = loaded_hot_strip(0.004, conduction_every=every)
+    the serial kernel's bits for everything but the loads' reductions' round-off. In the GPU's
+    sweep order (one junction per block, 4 blocks per colour) the serial kernel takes a colour's
+    blocks in pairs, and so does the threaded one with a pool of two threads (one block at a time
+    with more): the same bits."""
+    def make(**kw):
+        sim = loaded_hot_strip(0.004, conduction_every=every, **kw)
+        sim.system.heat.use_order_of(order)
+        return sim
+
+    serial = make()
     serial.run(steps=240, diagnostics_every=240)
     runs = {}
     for threads in (1, 2):
-        sim = loaded_hot_strip(0.004, conduction_every=every, parallel=True, threads=threads)
+        sim = make(parallel=True, threads=threads)
         for n in (3, 37, 200):
             sim.runner.advance(n)
         runs[threads] = sim

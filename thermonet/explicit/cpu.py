@@ -89,6 +89,7 @@ thermal_kick = copy_rows = apply_flow = None
 spring_force = spring_energy = spring_temperature = outside_admissible = advance_thermal_displacement = None
 gather_force = kick_momentum = drift_position = load_row = store_row = None
 temperature_pass = refresh_pass = finish_refresh_pass = conduction_sweep = wave_sweep = gather_two_forces = None
+model_strain = None
 _deferred_kick = state_spring_sums = None
 node_load = cpu_evaluate_loads = cpu_load_work = cpu_drive_positions = stage_time = None
 LOADS = False
@@ -162,7 +163,7 @@ def splitting_kernels(model, parallel: bool, thermal: bool = True, uniform: bool
     return _CACHE[key]
 
 
-def _spring_pass(x, eta, phi, topology, springs, scratch, steps, run, keep, length):
+def _spring_pass(x, eta, phi, topology, springs, scratch, steps, run, keep, length, strain):
     """Per spring e: s[e] = T/l at x; Φ[e] += steps[0] θ, += steps[1] θ (two additions); θ into
     theta_keep[e] when ``keep`` (THERMAL only); with ``run.want_sums`` (CLOSING only) the
     spring's internal energy (free energy at θ0 when not THERMAL) into energy_buf[e] and the
@@ -172,8 +173,9 @@ def _spring_pass(x, eta, phi, topology, springs, scratch, steps, run, keep, leng
     outside the admissible states, Σ energy, min θ, max θ); the sums are 0, inf, −inf unless
     summed. Compiled twice: with CLOSING for the calls' first and last kicks, and without (keep
     and sums compiled out) for every other. With CONDUCTION and ``keep`` each spring's length
-    goes to length (m,) and its θ to theta_keep, where the conduction sweeps and
-    :func:`_refresh_pass` take them (a kick followed by no drift: θ and l stay valid).
+    goes to length (m,), its strain (``Model.strain``) to strain (m,) and its θ to theta_keep,
+    where the conduction sweeps and the refresh pass take them (a kick followed by no drift: θ,
+    l and the strain stay valid).
     """
     edges = topology.edges
     l0 = springs.rest
@@ -206,6 +208,7 @@ def _spring_pass(x, eta, phi, topology, springs, scratch, steps, run, keep, leng
             if CONDUCTION and keep:  # the conduction sweeps and the refresh pass start from θ and l
                 theta_keep[e] = theta
                 length[e] = l
+                strain[e] = model_strain(l, rest)
             if CLOSING:
                 if THERMAL and keep:
                     theta_keep[e] = theta
@@ -370,6 +373,7 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run
     # a closing kick pending at a cycle boundary is deferred past the sweeps and applied with the
     # next kick in one node pass: ``deferred`` its coefficient, its forces in heat.s_before
     theta_valid = False
+    strain_ok = False  # heat.strain holds the strains of heat.length (a spring pass of this call kept both)
     deferred = 0.0
     deferred_time = 0.0
     swept_first = ended_cycle = False  # a sweep ran before the first kick / after the last step
@@ -390,14 +394,16 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run
             directions = defer | (FORWARD | REVERSE if step > 0 else (FORWARD | CONTINUE if resume_sweep else FORWARD))
             if pending == 0.0 and not theta_valid:
                 temperature_pass(cur, eta, topology, springs, scratch.theta_keep, heat.length)
+                strain_ok = False
             bad = conduction_boundary(state, cur, topology, springs, scratch, heat, run, pending, directions, step)
             if bad > 0:  # the pending kick's positions end the previous step: that step was the bad one
                 return _stopped(x, x_buf, swaps, heat, step - 1)
-            if pending != 0.0:
+            if pending != 0.0:  # (its spring pass kept θ, l and the strains)
                 deferred = pending
                 if LOADS:
                     deferred_time = stage_time(loads, h, step, 0.0)
                 pending = 0.0
+                strain_ok = True
             theta_valid = True
             unfinished = defer != 0
             swept_first = swept_first or step == 0
@@ -427,13 +433,15 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run
             elif with_force:
                 if CONDUCTION and unfinished:
                     bad = finish_refresh_pass(heat, scratch.theta_keep, eta, phi, springs, scratch.s, (k1 * h, k2 * h),
-                                              run)
+                                              run, strain_ok)
                     unfinished = False
                 elif CONDUCTION and theta_valid:
-                    bad = refresh_pass(scratch.theta_keep, heat.length, phi, springs, scratch.s, (k1 * h, k2 * h), run)
+                    bad = refresh_pass(scratch.theta_keep, heat.length, heat.strain, strain_ok, phi, springs, scratch.s,
+                                       (k1 * h, k2 * h), run)
                 else:
                     bad = spring_pass(cur, eta, phi, topology, springs, scratch, (k1 * h, k2 * h), run,
-                                      table.drift[r] == 0.0, heat.length)[0]
+                                      table.drift[r] == 0.0, heat.length, heat.strain)[0]
+                    strain_ok = True  # (kept with l when no drift follows; else θ is not valid either)
                 if bad > 0:
                     if CONDUCTION and deferred != 0.0:  # p still misses it: the step is replayed anyway
                         deferred = 0.0
@@ -492,7 +500,8 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run
             summed = True
     if pending != 0.0:
         bad, energy, theta_min, theta_max = boundary_spring_pass(cur, eta, phi, topology, springs, scratch,
-                                                                 (0.0, pending * h), run, True, heat.length)
+                                                                 (0.0, pending * h), run, True, heat.length,
+                                                                 heat.strain)
         if bad > 0:
             return _stopped(x, x_buf, swaps, heat, n_steps - 1)
         theta_valid = True  # (the closing spring pass keeps θ and l)

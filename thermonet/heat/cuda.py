@@ -56,7 +56,7 @@ UNIFORM = False
 LOGS = ("produced", "entry_heat", "entry_flux", "theta", "theta_ok", "length")
 #: logs only the CPU's explicit kernel uses (empty on the device)
 CPU_LOGS = ("pending_eta", "pending_produced", "pending_theta")
-WORK = ("s_before", "theta_start")
+WORK = ("s_before", "theta_start", "strain")
 #: what a phase runs over (see _phase_span)
 PAIRS, BLOCKS, BOUNDARY, START, FINISH = range(5)
 
@@ -279,4 +279,4 @@ def sample_heat():
     """A :class:`Heat` record of one-element arrays of the kernels' types (for compiling)."""
     v, i, i32 = np.empty(1), np.empty(1, np.int64), np.empty(1, np.int32)
     return Heat(i, i, i, i, np.empty(1, np.uint32), v, v, np.zeros(1, np.uint64), v, i32, i32, v, i, v, v, i, i, i, i, v, i, np.empty((1, 4)), i,
-                v, v, v, v, v, v, v, v, v, v, v, v, v)
+                v, v, v, v, v, v, v, v, v, v, v, v, v, v)

@@ -7,8 +7,9 @@ the boundary entries: baths, sources), the forward half sweep that starts the ne
 boundary entries, then the colours in order), or both back to back; then one entropy update per
 spring. A colour's blocks run in parallel (they share no spring); each block and each boundary
 spring is computed by one thread in a fixed order, so results do not depend on the thread count.
-With factors shared by all springs the serial kernel takes a colour's blocks two at a time,
-node k of one with node k of the other, their junction sums in one loop (:func:`_star_nodes`: a
+With factors shared by all springs a thread takes a colour's blocks two at a time (the serial
+kernel always, the threaded one where a colour has a pair for every thread or more), node k of one
+with node k of the other, their junction sums in one loop (:func:`_star_nodes`: a
 node's sum is a chain of dependent additions, two chains overlap); with no bath or source
 entries between the half sweeps, the reverse sweep's last colour and the forward sweep's first
 run as one phase, each block reverse then forward. Each block's operations, and their order, are those of
@@ -22,6 +23,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import numba
 from numba import njit, prange
 
 from ..explicit.codes import FORCE_DEFERRED
@@ -49,10 +51,15 @@ cpu_evaluate_loads = cpu_load_work = None
 LOADS = False
 star_node = star_block = boundary_exchange = finish_spring = wave_exchange = spring_temperature = squared_length = None
 tension = outside_admissible = advance_thermal_displacement = spring_energy = None
+model_strain = tension_at_strain = None
 boundary_node_pass = None
 UNIFORM = False
-#: the serial kernel: a thread takes a colour's blocks two at a time (see _sweep_colour)
+#: the serial kernel (a thread takes a colour's blocks two at a time from two blocks on; with
+#: threads, from PAIRS_FROM blocks on, a pair per thread of Numba's thread pool: see _sweep_colour)
 PAIRED = False
+#: (a compile-time constant, part of the kernels' cache names through source_digest: Numba cannot
+#: cache a kernel that asks for the thread count as it runs)
+PAIRS_FROM = 2 * max(1, numba.config.NUMBA_NUM_THREADS)
 #: springs per block of the temperature pass (see thermonet.kernels.blocks.BLOCK)
 BLOCK = 512
 
@@ -69,6 +76,20 @@ def bind_heat_flow(ns: dict, tag: str, compile_) -> None:
     ns["log"] = log
     for name in exchange.SHARED:
         ns[name] = compile_(rebind(getattr(exchange, name), tag, ns))
+    if ns.get("model_strain") is None or ns.get("tension_at_strain") is None:
+        # T from the length itself (the "strain" kept is the length)
+        ns["model_strain"] = compile_(_length_as_strain)
+        ns["tension_at_strain"] = compile_(rebind(_tension_of_length, tag, ns))
+
+
+def _length_as_strain(l, l0):
+    """Stands in for ``Model.strain`` where a model has none."""
+    return l
+
+
+def _tension_of_length(L, l, theta, l0, P, e):
+    """Stands in for ``Model.tension_at_strain`` where a model has none: T(l, θ)."""
+    return tension(l, theta, l0, P, e)
 
 
 def bind_heat_passes(ns: dict, tag: str, parallel: bool) -> None:
@@ -76,6 +97,8 @@ def bind_heat_passes(ns: dict, tag: str, parallel: bool) -> None:
     bindings)."""
     ns["gather_two_forces"] = specialize(_gather_two_forces, tag, ns, inline="always", **_OPTIONS)
     ns["temperature_pass"] = specialize(_temperature_pass, tag, ns, parallel=parallel, **_OPTIONS)
+    ns["_refresh_spring"] = specialize(_refresh_spring, tag, ns, inline="always", **_OPTIONS)
+    ns["_refresh_block"] = specialize(_refresh_block, tag, ns, inline="always", **_OPTIONS)
     ns["refresh_pass"] = specialize(_refresh_pass, tag, ns, parallel=parallel, **_OPTIONS)
     ns["finish_refresh_pass"] = specialize(_finish_refresh_pass, tag, ns, parallel=parallel, **_OPTIONS)
     ns["PAIRED"] = not parallel
@@ -144,62 +167,70 @@ def _gather_two_forces(a, x, s1, s2, inc_ptr, inc_spring, inc_other, masses, gra
     return f0, f1, f2, g0, g1, g2
 
 
-def _refresh_pass(theta, length, phi, springs, s, steps, run):
-    """The spring pass of a kick at the positions of the last full one, after conduction sweeps
-    changed θ: per spring T/l from the stored length and the swept θ into s, Φ += steps[0] θ,
-    += steps[1] θ. No gather, no square root, no θ(l, η): a stream over contiguous arrays.
-    Returns the number of springs outside the admissible states."""
-    P = springs.P
-    rest = springs.rest
-    phi_h1, phi_h2 = steps
-    track_phi = run.track_phi
-    stretch_min = run.stretch_min
-    stretch_max = run.stretch_max
+def _refresh_spring(e, L, theta, length, phi, springs, s, steps, run):
+    """Spring e's part of :func:`_refresh_pass` with its strain L (``Model.strain`` of its
+    length): T/l into s[e], Φ[e] += steps[0] θ, += steps[1] θ. Returns whether it is outside
+    the admissible states."""
+    rest = springs.rest[e]
+    c = np.uint64(0) if UNIFORM else e
+    l = length[e]
+    th = theta[e]
+    force = tension_at_strain(L, l, th, rest, springs.P, c) / l
+    s[e] = force
+    if run.track_phi:
+        advance_thermal_displacement(phi, e, th, steps[0], steps[1])
+    return outside_admissible(l, rest, force, th, run.stretch_min, run.stretch_max)
+
+
+def _refresh_block(lo, n, theta, length, strain, strain_ok, phi, springs, s, steps, run):
+    """:func:`_refresh_spring` of springs lo … lo + n − 1, their strains from ``strain`` when
+    ``strain_ok`` (kept by the spring pass that kept the lengths: no logarithm), else from the
+    lengths (the same bits). Returns the number outside the admissible states."""
     bad = 0
-    for e in prange(theta.shape[0]):
-        eu = np.uint64(e)
-        c = np.uint64(0) if UNIFORM else eu
-        l = length[e]
-        th = theta[e]
-        force = tension(l, th, rest[eu], P, c) / l
-        s[e] = force
-        bad += outside_admissible(l, rest[eu], force, th, stretch_min, stretch_max)
-        if track_phi:
-            advance_thermal_displacement(phi, eu, th, phi_h1, phi_h2)
+    if strain_ok:
+        for i in range(n):
+            e = np.uint64(lo + i)
+            bad += _refresh_spring(e, strain[e], theta, length, phi, springs, s, steps, run)
+    else:
+        for i in range(n):
+            e = np.uint64(lo + i)
+            bad += _refresh_spring(e, model_strain(length[e], springs.rest[e]), theta, length, phi, springs, s, steps,
+                                   run)
     return bad
 
 
-def _finish_refresh_pass(heat, theta, eta, phi, springs, s, steps, run):
+def _refresh_pass(theta, length, strain, strain_ok, phi, springs, s, steps, run):
+    """The spring pass of a kick at the positions of the last full one, after conduction sweeps
+    changed θ: per spring T/l from the stored length (and its strain, see :func:`_refresh_block`)
+    and the swept θ into s, Φ += steps[0] θ, += steps[1] θ. No gather, no square root, no
+    θ(l, η): a stream over contiguous arrays. theta, length, strain, phi, s: (m,). Returns the
+    number of springs outside the admissible states."""
+    m = theta.shape[0]
+    bad = 0
+    for blk in prange((m + BLOCK - 1) // BLOCK):
+        lo = blk * BLOCK
+        bad += _refresh_block(lo, min(BLOCK, m - lo), theta, length, strain, strain_ok, phi, springs, s, steps, run)
+    return bad
+
+
+def _finish_refresh_pass(heat, theta, eta, phi, springs, s, steps, run, strain_ok):
     """The sweeps' entropy update left to the caller (DEFER_FINISH: :func:`finish_spring` from
-    heat.theta_start, heat.capacity into eta and heat.produced) and :func:`_refresh_pass` (same
-    arguments) in one pass over the springs: the same operations per spring, the same bits.
-    Returns the number of springs outside the admissible states."""
+    heat.theta_start, heat.capacity into eta and heat.produced) and :func:`_refresh_pass` (the
+    lengths and strains heat.length, heat.strain) in one pass over the springs: the same
+    operations per spring, the same bits. Returns the number of springs outside the admissible
+    states."""
     theta_start = heat.theta_start
     capacity = heat.capacity
     produced = heat.produced
     length = heat.length
-    P = springs.P
-    rest = springs.rest
-    phi_h1, phi_h2 = steps
-    track_phi = run.track_phi
-    stretch_min = run.stretch_min
-    stretch_max = run.stretch_max
+    strain = heat.strain
     bad = 0
     m = theta.shape[0]
     for blk in prange((m + BLOCK - 1) // BLOCK):
         lo = blk * BLOCK
         for i in range(min(BLOCK, m - lo)):  # (two loops over a block: each vectorizes, one would not)
             finish_spring(np.uint64(lo + i), theta, theta_start, eta, capacity, produced)
-        for i in range(min(BLOCK, m - lo)):
-            eu = np.uint64(lo + i)
-            c = np.uint64(0) if UNIFORM else eu
-            l = length[eu]
-            th = theta[eu]
-            force = tension(l, th, rest[eu], P, c) / l
-            s[eu] = force
-            bad += outside_admissible(l, rest[eu], force, th, stretch_min, stretch_max)
-            if track_phi:
-                advance_thermal_displacement(phi, eu, th, phi_h1, phi_h2)
+        bad += _refresh_block(lo, min(BLOCK, m - lo), theta, length, strain, strain_ok, phi, springs, s, steps, run)
     return bad
 
 
@@ -268,16 +299,18 @@ def _star_blocks(b1, b2, heat, reverse, theta):
 
 def _sweep_colour(heat, ptr, colour, directions, theta):
     """The blocks of one colour, in parallel: each reverse (REVERSE), forward (FORWARD), or
-    reverse then forward (both). In the serial kernel (PAIRED), with shared factors and two
-    blocks or more, the blocks go in pairs (block k with block k + ⌈B/2⌉ of the colour,
-    :func:`_star_blocks`); the pairing changes no result, only the order in which independent
-    blocks interleave. (Not with threads: pairs would unbalance their shares.)"""
+    reverse then forward (both). With shared factors and two blocks or more (with threads:
+    PAIRS_FROM or more, a pair for every thread of the pool), the blocks go in pairs (block k
+    with block k + ⌈B/2⌉ of the colour, :func:`_star_blocks`), the pairs in parallel; the pairing changes no result, only
+    the order in which independent blocks interleave. (Unpaired, a thread's junction sums are
+    one chain of dependent additions at a time: two threads on single blocks were no faster
+    than one thread on pairs.)"""
     lo = ptr[colour]
     count = ptr[colour + 1] - lo
-    if PAIRED and count >= 2 and heat.factor_mask[0] == 0:
+    if count >= (2 if PAIRED else PAIRS_FROM) and heat.factor_mask[0] == 0:
         half = count // 2
         odd = count - 2 * half
-        for k in range(half + odd):
+        for k in prange(half + odd):
             b1 = lo + k
             b2 = b1 + half + odd if k < half else -1
             if directions & REVERSE:
@@ -355,7 +388,7 @@ def conduction_boundary(state, cur, topology, springs, scratch, heat, run, pendi
         before = Scratch(scratch.x_buf, heat.s_before, scratch.f_keep, scratch.theta_keep, scratch.energy_buf,
                          scratch.sums)
         bad = spring_pass(cur, state.eta, state.phi, topology, springs, before, (0.0, pending * run.h), run, True,
-                          heat.length)[0]
+                          heat.length, heat.strain)[0]
         if bad > 0:
             return bad
     conduction_sweep(heat, scratch.theta_keep, heat.theta_start, state.eta, 0.5 * run.conduction_every * run.h,
@@ -441,7 +474,7 @@ def source_digest() -> str:
     import inspect
     import sys
 
-    text = inspect.getsource(sys.modules[__name__]) + exchange.source_digest()
+    text = inspect.getsource(sys.modules[__name__]) + exchange.source_digest() + f"pairs from {PAIRS_FROM}"
     return hashlib.sha256(text.encode()).hexdigest()[:8]
 
 

@@ -175,11 +175,11 @@ class HeatSetup:
                     *self._work())
 
     def _work(self) -> tuple:
-        """The working arrays s_before, theta_start (m,) of the kernels (allocated once)."""
+        """The working arrays s_before, theta_start, strain (m,) of the kernels (allocated once)."""
         work = self.__dict__.get("_work_arrays")
         if work is None:
             m = len(self.capacity)
-            work = self.__dict__["_work_arrays"] = (np.empty(m), np.empty(m))
+            work = self.__dict__["_work_arrays"] = (np.empty(m), np.empty(m), np.empty(m))
         return work
 
 

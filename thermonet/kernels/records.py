@@ -125,9 +125,10 @@ class Heat(NamedTuple):
     sweeps bit for bit); pending_eta, pending_produced, pending_theta: (m,) when theta_ok[0] == 2,
     the entropies, production log and temperatures before the reverse half sweep that ended the
     last call (the CPU's explicit kernel: the next call's forward half sweep continues from them,
-    so that the entropy update covers both half sweeps as in one call); s_before, theta_start:
-    (m,) working arrays (the forces of a kick deferred past the sweeps; the temperatures the
-    sweeps started from).
+    so that the entropy update covers both half sweeps as in one call); s_before, theta_start,
+    strain: (m,) working arrays (the forces of a kick deferred past the sweeps; the temperatures
+    the sweeps started from; the model's strain of each kept length, ``Model.strain``, valid
+    where the CPU kernel's last spring pass of the call kept it).
     """
 
     star_colour_ptr: np.ndarray
@@ -166,6 +167,7 @@ class Heat(NamedTuple):
     pending_theta: np.ndarray
     s_before: np.ndarray
     theta_start: np.ndarray
+    strain: np.ndarray
 
 
 def no_heat() -> Heat:
@@ -176,24 +178,25 @@ def no_heat() -> Heat:
     ptr = np.zeros(1, dtype=np.int64)
     return Heat(ptr, ptr, i, ptr, np.empty(0, dtype=np.uint32), f, f, np.zeros(1, dtype=np.uint64), f,
                 i32, i32, f, ptr, f, f, i, ptr, i, i, f,
-                i, np.empty((0, 4)), ptr, f, f, f, f, f, f, np.zeros(1), f, f, f, f, f, f)
+                i, np.empty((0, 4)), ptr, f, f, f, f, f, f, np.zeros(1), f, f, f, f, f, f, f)
 
 
 class NoHeat(NamedTuple):
     """What the CPU step reads of a :class:`Heat` record when heat does not flow (its heat-flow
-    code compiled out): four empty arrays instead of the whole record's 31, each of which the
+    code compiled out): five empty arrays instead of the whole record's 37, each of which the
     dispatcher would otherwise unbox at every call."""
 
     s_before: np.ndarray
     length: np.ndarray
     theta_ok: np.ndarray
     theta: np.ndarray
+    strain: np.ndarray
 
 
 def no_heat_cpu() -> NoHeat:
     """The CPU step's heat argument without heat flow."""
     f = np.empty(0)
-    return NoHeat(f, f, np.zeros(1), f)
+    return NoHeat(f, f, np.zeros(1), f, f)
 
 
 def topology(layout) -> Topology:

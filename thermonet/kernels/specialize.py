@@ -24,7 +24,7 @@ from numba import njit
 MODEL_FUNCTIONS = ("free_energy", "tension", "entropy", "temperature", "internal_energy",
                    "d2F_dl2", "d2F_dl_dtheta", "d2F_dtheta2")
 #: a model's optional functions (None where it has none), fingerprinted with the others
-OPTIONAL_MODEL_FUNCTIONS = ("energy_quotient",)
+OPTIONAL_MODEL_FUNCTIONS = ("energy_quotient", "strain", "tension_at_strain")
 
 
 def _code_digest(code: types.CodeType, h) -> None:
@@ -105,6 +105,9 @@ def kernel_namespace(model, thermal: bool = True, uniform: bool = False) -> dict
     temperature, parameter row REFERENCE_TEMPERATURE) and UNIFORM (one (k, 1) parameter column
     shared by all springs)."""
     ns = model_namespace(model)
+    # (the optional pair, None where the model has none: thermonet.heat.passes binds stand-ins)
+    ns["model_strain"] = getattr(model, "strain", None)
+    ns["tension_at_strain"] = getattr(model, "tension_at_strain", None)
     ns["THERMAL"] = bool(thermal)
     ns["REFERENCE_TEMPERATURE"] = model.parameter_index(model.reference_temperature)
     ns["UNIFORM"] = bool(uniform)

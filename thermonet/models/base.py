@@ -52,6 +52,12 @@ class Model:
         cancelling as l1 → l (where Q → T and ∂Q/∂l1 → half the adiabatic stiffness). Without
         it EM2 takes the quotient of two U values where l1 and l differ by more than 3 %, and a
         5-point Gauss–Lobatto rule on T within (four tension evaluations per spring and residual).
+    strain, tension_at_strain: optional pair, ``strain(l, l0)`` the part of T(l, θ) that depends
+        on the length alone and costs most (Hencky: L = ln(l/l0)), and
+        ``tension_at_strain(L, l, θ, l0, P, e)`` T from it, equal bit for bit to
+        ``tension(l, θ, l0, P, e)`` when ``L = strain(l, l0)``. With conduction the explicit
+        kernel keeps L from the spring pass and, after the sweeps changed θ at fixed lengths,
+        evaluates T without computing L again. Without them T is evaluated from l.
     """
 
     name: str
@@ -71,6 +77,8 @@ class Model:
     reference_temperature: str = "theta0"
     description: str = ""
     energy_quotient: Callable | None = None
+    strain: Callable | None = None
+    tension_at_strain: Callable | None = None
 
     def parameter_array(self, values: Mapping[str, object], n_springs: int) -> np.ndarray:
         """Per-spring parameters as a ``(k, m)`` float64 array (scalars are broadcast).

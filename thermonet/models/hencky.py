@@ -33,6 +33,17 @@ def tension(l, theta, l0, P, e):
 
 
 @njit(inline="always", error_model="numpy")
+def strain(l, l0):
+    return log(l / l0)
+
+
+@njit(inline="always", error_model="numpy")
+def tension_at_strain(L, l, theta, l0, P, e):
+    """:func:`tension` with its L = :func:`strain` (l, l0) given: the same operations."""
+    return (P[C, e] * L - P[BETA, e] * (theta - P[THETA0, e])) / l
+
+
+@njit(inline="always", error_model="numpy")
 def entropy(l, theta, l0, P, e):
     return P[BETA, e] * log(l / l0) + P[C0, e] * log(theta / P[THETA0, e])
 
@@ -104,6 +115,8 @@ HENCKY = register_model(
         d2F_dl_dtheta=d2F_dl_dtheta,
         d2F_dtheta2=d2F_dtheta2,
         energy_quotient=energy_quotient,
+        strain=strain,
+        tension_at_strain=tension_at_strain,
         defaults={"c": 100.0, "beta": 0.2, "C0": 5.0, "theta0": 300.0},
         positive=("c", "C0", "theta0"),
         temperature_can_vanish=False,

@@ -39,6 +39,7 @@ class DistributedConduction:
         sh = stepper.share
         ml = len(sh.springs)
         self._length = np.empty(ml)  # the share's spring lengths kept with θ (the whole net's heat.length)
+        self._strain = np.empty(ml)  # their strains (Model.strain), valid where a spring pass kept them
         self._s_before = np.empty(ml)  # the forces of a kick deferred past a sweep
         self._sweep = DistributedSweep(self.heat, stepper.decomposition, sh, stepper.comm, phases)
 
@@ -59,13 +60,14 @@ class DistributedConduction:
         before = records.Scratch(scratch.x_buf, self._s_before, scratch.f_keep, scratch.theta_keep,
                                  scratch.energy_buf, scratch.sums)
         topology, springs, nodes = st._topology, st._springs, st._nodes
-        length, s_before = self._length, self._s_before
+        length, strain, s_before = self._length, self._strain, self._s_before
         np.take(logs["length"], sh.springs, out=length)
         self._sweep.begin(logs)
         cur, nxt = st._x, scratch.x_buf
         kicks, drifts, carry = st._kicks, st._drifts, st._carry
         pending = deferred = 0.0
         theta_valid = ended_cycle = resume_sweep = False
+        strain_ok = False  # as the kernel's: the strains are those of the lengths
         if logs["theta_ok"][0] >= 1.0:  # continue the previous call's sweeps
             np.take(logs["theta"], sh.springs, out=scratch.theta_keep)
             theta_valid = True
@@ -74,11 +76,14 @@ class DistributedConduction:
         def boundary(directions: int, step: int) -> bool:
             """The sweeps at the start of step ``step``; False when the pending kick's spring pass
             found an inadmissible spring (on any process)."""
+            nonlocal strain_ok
             if pending == 0.0 and not theta_valid:
                 self._temperature(cur, arrays.eta, topology, springs, scratch.theta_keep, length)
-            if pending != 0.0 and st._any(self._before_sweep(cur, arrays, topology, springs, before, length, pending,
-                                                            run)):
-                return False
+                strain_ok = False
+            if pending != 0.0:
+                if st._any(self._before_sweep(cur, arrays, topology, springs, before, (length, strain), pending, run)):
+                    return False
+                strain_ok = True
             self._sweep.sweep(record, scratch.theta_keep, arrays.eta, 0.5 * run.conduction_every * run.h,
                               run.t0 + step * run.h, directions)
             return True
@@ -98,8 +103,9 @@ class DistributedConduction:
                 if with_force:
                     # after a sweep (θ valid): the forces from the swept θ, no θ(l, η); the kernel's
                     # deferred entropy update (finish_refresh_pass) the sweep here made already
-                    bad = self._forces(cur, arrays, topology, springs, scratch, length, (k1 * h, k2 * h), run,
-                                       drift == 0.0, theta_valid)
+                    bad = self._forces(cur, arrays, topology, springs, scratch, (length, strain, strain_ok),
+                                       (k1 * h, k2 * h), run, drift == 0.0, theta_valid)
+                    strain_ok = strain_ok or not theta_valid  # (a spring pass keeps them with l)
                     if st._any(bad):  # row 0's positions end the previous step: that one was bad
                         return self._failed(state, logs, cur, step - 1 if r == 0 and step > 0 else step)
                     theta_valid = True
@@ -122,8 +128,8 @@ class DistributedConduction:
         if deferred != 0.0:  # drift 0: the positions stay in cur
             self._deferred_alone(cur, nxt, arrays, topology, nodes, scratch, s_before, NO_LOADS, deferred * h)
         if pending != 0.0:
-            if st._any(self._closing(cur, nxt, arrays, topology, springs, nodes, scratch, length, s_before, NO_LOADS,
-                                     pending, run)):
+            if st._any(self._closing(cur, nxt, arrays, topology, springs, nodes, scratch, (length, strain), s_before,
+                                     NO_LOADS, pending, run)):
                 return self._failed(state, logs, cur, n_steps - 1)
             theta_valid = True
         more = [(length, logs["length"])] + ([(scratch.theta_keep, logs["theta"])] if theta_valid else [])

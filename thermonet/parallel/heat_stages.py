@@ -22,21 +22,26 @@ _CACHE: dict = {}
 _NAMES = ("spring_pass", "node_pass", "boundary_spring_pass", "boundary_node_pass", "refresh_pass")
 
 
-def _forces(cur, state, topology, springs, scratch, length, kicks, run, keep, refresh):
+def _forces(cur, state, topology, springs, scratch, kept, kicks, run, keep, refresh):
     """A kick's spring pass at cur: from the kept θ and lengths after a sweep (``refresh``: no
-    θ(l, η), as the kernel's refresh pass) or from the positions (keeping θ and l when ``keep``:
-    a kick not followed by a drift). kicks: (k1 h, k2 h) of Φ. Returns the inadmissible springs."""
+    θ(l, η), as the kernel's refresh pass) or from the positions (keeping θ, l and the strain
+    when ``keep``: a kick not followed by a drift). kept: (lengths, strains (m,), whether the
+    strains are those of the lengths); kicks: (k1 h, k2 h) of Φ. Returns the inadmissible
+    springs."""
+    length, strain, strain_ok = kept
     if refresh:
-        return refresh_pass(scratch.theta_keep, length, state.phi, springs, scratch.s, (kicks[0], kicks[1]), run)
+        return refresh_pass(scratch.theta_keep, length, strain, strain_ok, state.phi, springs, scratch.s,
+                            (kicks[0], kicks[1]), run)
     return spring_pass(cur, state.eta, state.phi, topology, springs, scratch, (kicks[0], kicks[1]), run, keep,
-                       length)[0]
+                       length, strain)[0]
 
 
-def _before_sweep(cur, state, topology, springs, before, length, pending, run):
+def _before_sweep(cur, state, topology, springs, before, kept, pending, run):
     """The spring pass of a closing kick left pending at a conduction boundary (its T/l into
-    before.s, the kick deferred past the sweep; θ and l kept). Returns the inadmissible springs."""
+    before.s, the kick deferred past the sweep; θ, l and the strain kept into kept = (lengths,
+    strains)). Returns the inadmissible springs."""
     return spring_pass(cur, state.eta, state.phi, topology, springs, before, (0.0, pending * run.h), run, True,
-                       length)[0]
+                       kept[0], kept[1])[0]
 
 
 def _kick_drift(cur, nxt, state, topology, nodes, scratch, steps, s_before, loads, deferred, kick, drift, h):
@@ -55,12 +60,12 @@ def _deferred_alone(cur, nxt, state, topology, nodes, scratch, s_before, loads, 
               (s_before, loads))
 
 
-def _closing(cur, nxt, state, topology, springs, nodes, scratch, length, s_before, loads, pending, run):
-    """A call's closing kick of ``pending`` (a fraction of h) at cur, drift 0, keeping θ and l.
-    Returns the inadmissible springs."""
+def _closing(cur, nxt, state, topology, springs, nodes, scratch, kept, s_before, loads, pending, run):
+    """A call's closing kick of ``pending`` (a fraction of h) at cur, drift 0, keeping θ, l and
+    the strain (kept = (lengths, strains)). Returns the inadmissible springs."""
     h = run.h
     bad = boundary_spring_pass(cur, state.eta, state.phi, topology, springs, scratch, (0.0, pending * h), run, True,
-                               length)[0]
+                               kept[0], kept[1])[0]
     if bad > 0:
         return bad
     boundary_node_pass(cur, nxt, state.p, topology, nodes, scratch, KickDrift(0.0, pending * h, 0.0, True),

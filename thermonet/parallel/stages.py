@@ -22,10 +22,11 @@ def _stage(cur, nxt, state, topology, springs, nodes, scratch, steps, run, extra
     """One stage row: the spring pass at cur (kicks steps.kick1, steps.kick2 of Φ) unless
     steps.with_force is False, then, unless a spring left the admissible states, the node pass
     (kicks, drift) into nxt. steps: KickDrift; state: StateArrays (p, Φ, η read); extra: (length,
-    (s_before, loads)). Returns the number of inadmissible springs."""
+    (s_before, loads)) (a variant without conduction: length, also passed as the strains, is
+    not written). Returns the number of inadmissible springs."""
     if steps.with_force:
         bad = spring_pass(cur, state.eta, state.phi, topology, springs, scratch, (steps.kick1, steps.kick2), run,
-                          False, extra[0])[0]
+                          False, extra[0], extra[0])[0]
         if bad > 0:
             return bad
     node_pass(cur, nxt, state.p, topology, nodes, scratch, steps, FORCE_GATHER, False, extra[1])
@@ -36,7 +37,7 @@ def _closing(cur, nxt, state, topology, springs, nodes, scratch, kick, run, extr
     """A call's closing kick of ``kick`` (a fraction of h times h) at cur, drift 0, keeping its
     forces and temperatures as the CPU kernel's does. Returns the number of inadmissible springs."""
     bad = boundary_spring_pass(cur, state.eta, state.phi, topology, springs, scratch, (0.0, kick), run, True,
-                               extra[0])[0]
+                               extra[0], extra[0])[0]
     if bad > 0:
         return bad
     boundary_node_pass(cur, nxt, state.p, topology, nodes, scratch, KickDrift(0.0, kick, 0.0, True), FORCE_GATHER_KEEP,

@@ -137,7 +137,8 @@ class DistributedSweep:
                              np.ascontiguousarray(record.entry_rate[hs.entries]), record.fn_kind, record.fn_params,
                              record.fn_ptr, record.fn_times, record.fn_values, self.produced, self.entry_heat,
                              self.entry_flux, empty, record.theta_ok, empty, self.pending["pending_eta"],
-                             self.pending["pending_produced"], self.pending["pending_theta"], empty, self.theta_start)
+                             self.pending["pending_produced"], self.pending["pending_theta"], empty, self.theta_start,
+                             empty)
         self._record = (record.weight, local)
         return local
 
