@@ -208,7 +208,6 @@ def _spring_pass(x, eta, phi, topology, springs, scratch, steps, run, keep, leng
             if CONDUCTION and keep:  # the conduction sweeps and the refresh pass start from θ and l
                 theta_keep[e] = theta
                 length[e] = l
-                strain[e] = model_strain(l, rest)
             if CLOSING:
                 if THERMAL and keep:
                     theta_keep[e] = theta
@@ -216,6 +215,10 @@ def _spring_pass(x, eta, phi, topology, springs, scratch, steps, run, keep, leng
                     energy_buf[e] = spring_energy(l, eta[e] if THERMAL else 0.0, theta, rest, P, c)
             if THERMAL and track_phi:
                 advance_thermal_displacement(phi, e, theta, phi_h1, phi_h2)
+        if CONDUCTION and keep:  # after the loop: in it, the strain's log would be taken on every pass
+            for i in range(n):
+                e = np.uint64(lo + i)
+                strain[e] = model_strain(length[e], l0[e])
         if CLOSING:
             if want_sums:  # in order, after the vectorized loop (a sum inside it would keep it scalar)
                 block_sum = 0.0
