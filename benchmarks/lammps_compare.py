@@ -124,7 +124,7 @@ def pass_times(sims: dict, repeats: int, calls: int = 10) -> dict:
         eta = state.entropy if thermal else st._no_thermal
         lo, hi = sim.system.stretch_bounds
         run = Run(H, 0.0, 1, True, float(lo), float(hi), False, False)
-        spring = (state.positions, eta, phi, st._topology, st._springs, sc, (0.0, 0.5 * H), run, False, empty)
+        spring = (state.positions, eta, phi, st._topology, st._springs, sc, (0.0, 0.5 * H), run, False, empty, empty)
         node = (state.positions, sc.x_buf, state.momenta, st._topology, st._nodes, sc, KickDrift(0.0, 1e-12, H, True),
                 FORCE_GATHER, False, (empty, NO_LOADS))
         passes[(thermal, kernel_threads)] = {"spring": _compiled(ns["spring_pass"], spring),
