@@ -55,24 +55,12 @@ class Stepper(ABC):
         flow changes it). The caller sets the copy's ``step`` and ``time``."""
         if into is None:
             return state.copy()
-        np.copyto(into.positions, state.positions)
-        np.copyto(into.momenta, state.momenta)
-        if state.thermal_displacement is not None:
-            np.copyto(into.thermal_displacement, state.thermal_displacement)
-        if entropy and state.entropy is not None:
-            np.copyto(into.entropy, state.entropy)
-        copy_extra(state.extra, into.extra)  # the heat-flow logs, the loads' work
+        _copy_state(state, into, entropy)
         return into
 
     def restore_state(self, backup, state, entropy: bool = True) -> None:
         """Put a :meth:`backup_state` copy back into ``state`` (in place)."""
-        np.copyto(state.positions, backup.positions)
-        np.copyto(state.momenta, backup.momenta)
-        if state.thermal_displacement is not None:
-            np.copyto(state.thermal_displacement, backup.thermal_displacement)
-        if entropy and state.entropy is not None:
-            np.copyto(state.entropy, backup.entropy)
-        copy_extra(backup.extra, state.extra)
+        _copy_state(backup, state, entropy)
 
     def summary(self) -> dict | None:
         """Totals over the run to report (e.g. Newton iterations), or None."""
@@ -135,3 +123,15 @@ def available_integrators() -> list[str]:
 def explicit_integrators() -> list[str]:
     """The registered names of explicit integrators (aliases included)."""
     return sorted(k for k, v in _REGISTRY.items() if isinstance(v, Integrator) and v.explicit)
+
+
+def _copy_state(source, target, entropy: bool) -> None:
+    """Copy ``source``'s stepping arrays into ``target``'s, in place: x, p, Φ, η (with
+    ``entropy``) and the arrays of ``extra`` (the heat-flow logs, the loads' work)."""
+    np.copyto(target.positions, source.positions)
+    np.copyto(target.momenta, source.momenta)
+    if source.thermal_displacement is not None:
+        np.copyto(target.thermal_displacement, source.thermal_displacement)
+    if entropy and source.entropy is not None:
+        np.copyto(target.entropy, source.entropy)
+    copy_extra(source.extra, target.extra)
