@@ -207,6 +207,10 @@ class Simulation:
         #: seconds ``run`` spent compiling kernels (first runs of a model and integrator)
         self.compile_time = 0.0
         self.runner = Runner(self)
+        if self.comm is not None:  # the processes other than rank 0 keep their shares only
+            from .parallel.held import let_go
+
+            let_go(self)
 
     # ------------------------------------------------------------------------------------------
     # time
@@ -339,11 +343,25 @@ class Simulation:
         self.stepper.sync(self._state)
         return self._state
 
+    def on_root(self, fn, whole: bool = True):
+        """``fn()`` with the whole state at hand: in one process, simply called; over MPI processes
+        (a step every process takes), run by rank 0 with the state put together there (x, p, η,
+        and Φ where ``whole``), its result or its error given to every process. For what needs
+        the whole net (diagnostics rows, frames, checkpoints, guards): the other processes hold
+        their shares only (docs/parallel.md)."""
+        if self.comm is None or self.stepper.local:  # (rank 0 already inside one)
+            return fn()
+        return self.stepper.on_root(self._state, fn, whole)
+
     def internal_spring_fields(self):
         """Length, temperature, tension and internal energy of every spring now, each (m,), in
-        the internal numbering (one threaded pass; for output writers)."""
-        s = self.internal_state()
-        return spring_fields(self.system, s.positions, s.entropy, self.parallel)
+        the internal numbering (one threaded pass; for output writers; over MPI processes
+        computed by rank 0 and given to every process)."""
+        def fields():
+            s = self.internal_state()
+            return spring_fields(self.system, s.positions, s.entropy, self.parallel)
+
+        return self.on_root(fields)
 
     def spring_fields(self):
         """Length, temperature, tension and internal energy of every spring now, each (m,),

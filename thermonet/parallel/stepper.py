@@ -43,6 +43,7 @@ from .loads import ShareLoads, load_functions
 from .partition import partition
 from .stages import stage_functions
 from .whole import IndexGather, broadcast, counts_offsets, gather_to_root
+from .world import on_root
 
 
 def splitting_passes(model, parallel: bool, thermal: bool, uniform: bool, loads: bool = False,
@@ -131,6 +132,8 @@ class DistributedStepper(Stepper):
         #: whole arrays are up to date with the shares: on every process (ALL), on rank 0 (ROOT; ROW:
         #: but for Φ), nowhere (NONE); the same on every process, as every process takes the same steps
         self._bound, self._fresh = None, ALL
+        #: rank 0 inside :meth:`on_root`: its reads of the whole state are its own
+        self.local = False
         #: the springs this process reports (whole-net numbers), and the gather of per-spring
         #: values kept at them (a backup's heat logs)
         self._reported = dec.owned_springs(self.rank)
@@ -200,8 +203,8 @@ class DistributedStepper(Stepper):
         """A spring left the admissible states: the positions where it was found into the whole
         state on every process (the runner rewinds and replays), and the failure naming the spring."""
         self._ended(cur)
-        self.sync(state)
-        raise blowup_failure(self.system, state.positions, state.entropy, max(steps_done, 0))
+        raise self.on_root(state, lambda: blowup_failure(self.system, state.positions, state.entropy,
+                                                         max(steps_done, 0)))
 
     # ------------------------------------------------------------------------------------------
     # the shares and the whole state
@@ -225,6 +228,16 @@ class DistributedStepper(Stepper):
             self._x, x_buf = cur, self._x
             self._scratch = self._scratch._replace(x_buf=x_buf)
         self._fresh = NONE
+        self._release_whole()
+
+    def keep_share(self, state) -> None:
+        """Take this process's share of ``state`` (every process, together) and let go of its
+        whole x, p, Φ on ranks > 0: rank 0's hold the same values."""
+        self._bind(state)
+        self._fresh = ROOT
+        self._release_whole()
+
+    def _release_whole(self) -> None:
         if self.rank != 0:  # until something reads them, the whole x, p, Φ are rank 0's alone
             state = self._bound
             state.positions = state.momenta = _RELEASED_NODES
@@ -240,7 +253,7 @@ class DistributedStepper(Stepper):
 
     def sync(self, state) -> None:
         """The shares into ``state``'s whole arrays on every process (every process must call it)."""
-        if state is not self._bound or self._fresh == ALL:
+        if state is not self._bound or self._fresh == ALL or self.local:
             return
         self._to_root(state)
         if state.positions is _RELEASED_NODES:  # (ranks > 0)
@@ -251,16 +264,18 @@ class DistributedStepper(Stepper):
         broadcast(self.comm, self._gather.whole_arrays(state))
         self._fresh = ALL
 
-    def diagnostics_row(self, system, state) -> dict | None:
-        """The diagnostics row of the shares' state: gathered to rank 0 and measured there as one
-        process measures it (the same reductions in the same order), the row sent to every
-        process. None where the whole arrays are up to date everywhere (each process measures)."""
-        if state is not self._bound or self._fresh == ALL:
-            return None
-        from ..diagnostics import measure
-
-        self._to_root(state, whole=False)
-        return self.comm.bcast(measure(system, state, self.parallel) if self.rank == 0 else None, root=0)
+    def on_root(self, state, fn, whole: bool = True):
+        """``fn()`` run by rank 0 with the whole arrays of ``state`` put together there (x, p, η,
+        and Φ where ``whole``), its result or its error on every process (every process must call
+        it). Inside, rank 0's reads of the state (``Simulation.internal_state``) are its own and
+        send nothing; the other processes hold no whole x, p, Φ then."""
+        if state is self._bound and self._fresh != ALL:
+            self._to_root(state, whole)
+        self.local = True
+        try:
+            return on_root(self.comm, fn)
+        finally:
+            self.local = False
 
     def backup_state(self, state, into=None, entropy: bool = True):
         """A :class:`ShareBackup` of ``state`` (its share taken first where the shares do not
