@@ -59,14 +59,15 @@ def holds_its_share_only() -> bool:
     if sim.comm.Get_rank() > 0:
         ok = ok and sim._state.positions.size == 0 and sim.stepper.decomposition is None
         for read in (lambda: sim.net.positions.sum(), lambda: np.asarray(sim.system.parameters),
-                     lambda: sim.layout.edges[0], lambda: sim.velocities()):
+                     lambda: sim.layout.edges[0], lambda: sim.net.masses[0]):
             try:
                 read()
                 ok = False
             except NotHeldError:
                 pass
-    state = sim.state
-    return all(sim.comm.allgather(ok and state.positions.shape == (n, 3) and state.entropy.shape == (m,)))
+    state, v, strains = sim.state, sim.velocities(), sim.strains()  # (read together, whole on every process)
+    ok = ok and state.positions.shape == v.shape == (n, 3) and state.entropy.shape == strains.shape == (m,)
+    return all(sim.comm.allgather(ok))
 
 
 if "--" in sys.argv:

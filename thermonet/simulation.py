@@ -379,13 +379,13 @@ class Simulation:
     def strains(self) -> np.ndarray:
         """(m,) logarithmic strains ln(l / l0) (the log of output frames: equal to theirs bit for
         bit, within about an ulp of NumPy's)."""
-        return log_strain(self.lengths(), self.net.rest_lengths)
+        return self.on_root(lambda: log_strain(self.lengths(), self.net.rest_lengths))  # (rank 0 holds l0)
 
     def tensions(self) -> np.ndarray:
         return self.layout.springs_to_user(self.internal_spring_fields().tension)
 
     def velocities(self) -> np.ndarray:
-        return self.state.momenta / self.net.masses[:, None]
+        return self.on_root(lambda: self.state.momenta / self.net.masses[:, None])  # (rank 0 holds the masses)
 
     def to_meshio(self):
         """The current state as a ``meshio.Mesh`` in the user's numbering: springs as "line"
