@@ -271,7 +271,11 @@ class Simulation:
 
     @property
     def state(self) -> State:
-        """A copy of the current state in the user's numbering."""
+        """A copy of the current state in the user's numbering (over MPI processes: put together
+        by rank 0 and given to every process; read it on every process)."""
+        return self.on_root(self._user_state, arrays=True)
+
+    def _user_state(self) -> State:
         s, lay = self.internal_state(), self.layout
         return State(
             positions=lay.nodes_to_user(s.positions),
@@ -343,15 +347,16 @@ class Simulation:
         self.stepper.sync(self._state)
         return self._state
 
-    def on_root(self, fn, whole: bool = True):
+    def on_root(self, fn, whole: bool = True, arrays: bool = False):
         """``fn()`` with the whole state at hand: in one process, simply called; over MPI processes
         (a step every process takes), run by rank 0 with the state put together there (x, p, η,
         and Φ where ``whole``), its result or its error given to every process. For what needs
         the whole net (diagnostics rows, frames, checkpoints, guards): the other processes hold
-        their shares only (docs/parallel.md)."""
+        their shares only (docs/parallel.md). ``arrays``: a result holding large arrays (sent
+        as buffers rather than pickled)."""
         if self.comm is None or self.stepper.local:  # (rank 0 already inside one)
             return fn()
-        return self.stepper.on_root(self._state, fn, whole)
+        return self.stepper.on_root(self._state, fn, whole, arrays)
 
     def internal_spring_fields(self):
         """Length, temperature, tension and internal energy of every spring now, each (m,), in
@@ -361,7 +366,7 @@ class Simulation:
             s = self.internal_state()
             return spring_fields(self.system, s.positions, s.entropy, self.parallel)
 
-        return self.on_root(fields)
+        return self.on_root(fields, arrays=True)
 
     def spring_fields(self):
         """Length, temperature, tension and internal energy of every spring now, each (m,),
@@ -379,13 +384,13 @@ class Simulation:
     def strains(self) -> np.ndarray:
         """(m,) logarithmic strains ln(l / l0) (the log of output frames: equal to theirs bit for
         bit, within about an ulp of NumPy's)."""
-        return self.on_root(lambda: log_strain(self.lengths(), self.net.rest_lengths))  # (rank 0 holds l0)
+        return self.on_root(lambda: log_strain(self.lengths(), self.net.rest_lengths), arrays=True)  # (l0: rank 0's)
 
     def tensions(self) -> np.ndarray:
         return self.layout.springs_to_user(self.internal_spring_fields().tension)
 
     def velocities(self) -> np.ndarray:
-        return self.on_root(lambda: self.state.momenta / self.net.masses[:, None])  # (rank 0 holds the masses)
+        return self.on_root(lambda: self.state.momenta / self.net.masses[:, None], arrays=True)  # (masses: rank 0's)
 
     def to_meshio(self):
         """The current state as a ``meshio.Mesh`` in the user's numbering: springs as "line"

@@ -71,9 +71,10 @@ LAYOUT_INCIDENCE = ("inc_ptr", "inc_spring")  # (kept with conduction: its whole
 
 
 def let_go(sim) -> None:
-    """Every process of a distributed ``sim`` (its stepper built, its state made), together:
-    the stepper keeps the share of the state; then a process other than rank 0 replaces the whole-net arrays only rank 0 reads by :class:`NotHeld` (module doc), keep
-    the share of the state in the stepper, and give the freed memory back to the system."""
+    """Every process of a distributed ``sim`` (its stepper built, its state made), together: the
+    stepper keeps its share of the state; then a process other than rank 0 replaces the whole-net
+    arrays only rank 0 reads by :class:`NotHeld` (module doc) and gives the freed memory back to
+    the system."""
     stepper = sim.stepper
     stepper.keep_share(sim._state)
     if stepper.rank == 0:

@@ -42,7 +42,7 @@ from .halo import Halo
 from .loads import ShareLoads, load_functions
 from .partition import partition
 from .stages import stage_functions
-from .whole import IndexGather, broadcast, counts_offsets, gather_to_root
+from .whole import IndexGather, broadcast, broadcast_value, counts_offsets, gather_to_root
 from .world import on_root
 
 
@@ -264,18 +264,23 @@ class DistributedStepper(Stepper):
         broadcast(self.comm, self._gather.whole_arrays(state))
         self._fresh = ALL
 
-    def on_root(self, state, fn, whole: bool = True):
+    def on_root(self, state, fn, whole: bool = True, arrays: bool = False):
         """``fn()`` run by rank 0 with the whole arrays of ``state`` put together there (x, p, η,
         and Φ where ``whole``), its result or its error on every process (every process must call
-        it). Inside, rank 0's reads of the state (``Simulation.internal_state``) are its own and
-        send nothing; the other processes hold no whole x, p, Φ then."""
+        it; ``arrays``: a result holding large arrays, sent as buffers). Inside, rank 0's reads of
+        the state (``Simulation.internal_state``) are its own and send nothing; the other
+        processes hold no whole x, p, Φ then."""
         if state is self._bound and self._fresh != ALL:
             self._to_root(state, whole)
         self.local = True
         try:
-            return on_root(self.comm, fn)
+            if not arrays:
+                return on_root(self.comm, fn)
+            result = []
+            on_root(self.comm, lambda: result.append(fn()))  # (its error raised on every process)
         finally:
             self.local = False
+        return broadcast_value(self.comm, result[0] if result else None)
 
     def backup_state(self, state, into=None, entropy: bool = True):
         """A :class:`ShareBackup` of ``state`` (its share taken first where the shares do not
