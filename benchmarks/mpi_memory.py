@@ -6,9 +6,11 @@
 
 A 6-neighbour lattice of about ``--springs`` springs (jitter 0.1) with conduction (g = 4, every 2
 steps) and a bath on one face, 4 steps; each process prints its resident memory after building
-the Simulation, after the steps and at its peak, the bytes of the whole state with its heat logs
-(held by every process) and, over several processes, those of its share's arrays (the stepping
-state and buffers, the incidence lists, the conduction sweep's arrays: the share plus the halo).
+the Simulation, after the steps and at its peak (that of building the whole Simulation), the bytes
+of the whole state with its heat logs (as ``internal_state()`` puts it together, after the
+measurements) and, over several processes, those of its share's arrays (the stepping state and
+buffers, the incidence lists, the conduction sweep's arrays: the share plus the halo). What each
+process holds whole and what per share: docs/parallel.md, "Memory".
 """
 
 from __future__ import annotations
