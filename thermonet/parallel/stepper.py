@@ -137,9 +137,8 @@ class DistributedStepper(Stepper):
         #: the springs this process reports (whole-net numbers), and the gather of per-spring
         #: values kept at them (a backup's heat logs)
         self._reported = dec.owned_springs(self.rank)
-        self._log_gather = IndexGather(self._gather.springs if self.rank == 0 else None,
-                                       np.arange(len(self._reported)), np.bincount(dec.spring_owner,
-                                                                                   minlength=dec.size))
+        self._log_gather = IndexGather(self._gather.springs if self.rank == 0 else None, None,
+                                       np.bincount(dec.spring_owner, minlength=dec.size))
         self._conduction = None
         if conducting:  # conduction: its own call (thermonet.parallel.conduction)
             self._conduction = DistributedConduction(self, *conduction_stages(system.model, parallel, uniform))
@@ -384,7 +383,7 @@ class _OwnedGather:
         row = 6 * node_counts + (spring_counts if conducting else 0)
         #: (counts, offsets) of a whole gather (True) and of a row's (False)
         self.layout = {True: counts_offsets(row + (spring_counts if thermal else 0)), False: counts_offsets(row)}
-        self.send = np.empty(int(self.layout[True][0][rank]))
+        self.rank = rank
         self.root = rank == 0
         self.nodes = _root_lists(dec.owned_nodes, dec.size, rank) or []
         self.springs = _root_lists(dec.owned_springs, dec.size, rank) or []
@@ -403,7 +402,7 @@ class _OwnedGather:
         """The owned rows of x, p (nl, 3) and reported springs of η (with conduction) and, where
         ``whole``, Φ (ml,) of every process into ``state``'s whole arrays on rank 0."""
         n, m = len(self.local_nodes), len(self.local_springs)
-        send = self.send
+        send = np.empty(int(self.layout[whole][0][self.rank]))  # (only while gathering: a share's x, p, η, Φ)
         send[:3 * n] = x[self.local_nodes].ravel()
         send[3 * n:6 * n] = p[self.local_nodes].ravel()
         at = 6 * n

@@ -51,12 +51,12 @@ class IndexGather:
     ``parts[q]``, taking them from positions ``local`` of its own arrays; several arrays per call.
 
     parts: one (k_q,) int64 array per process, needed on rank 0 only (None elsewhere); local:
-    (k_r,) int64 positions in this process's arrays of the values it gives; counts: (P,) the k_q
-    (default: from parts).
+    (k_r,) int64 positions in this process's arrays of the values it gives, or None: all of them,
+    in order; counts: (P,) the k_q (default: from parts).
     """
 
-    def __init__(self, parts: list | None, local: np.ndarray, counts=None):
-        self.parts, self.local = parts, np.asarray(local, dtype=np.int64)
+    def __init__(self, parts: list | None, local: np.ndarray | None, counts=None):
+        self.parts, self.local = parts, None if local is None else np.asarray(local, dtype=np.int64)
         self.counts = np.asarray([len(p) for p in parts] if counts is None else counts, dtype=np.int64)
 
     def to_root(self, comm, pairs: list) -> None:
@@ -64,7 +64,7 @@ class IndexGather:
         k = len(pairs)
         if k == 0:
             return
-        send = np.concatenate([np.take(local, self.local) for local, _ in pairs])
+        send = np.concatenate([local if self.local is None else np.take(local, self.local) for local, _ in pairs])
         counts, offsets = counts_offsets(k * self.counts)
         recv = gather_to_root(comm, send, counts, offsets)
         if recv is None:
