@@ -17,7 +17,7 @@ conduction) to rank 0, which measures it as one process does and sends the row t
 :meth:`~DistributedStepper.sync` (``Simulation.internal_state``: frames, probes, checkpoints,
 ``sim.state``) gives them to every process, so reading them is a step every process takes. The
 runner's backup for blow-up replays is a copy of the shares (:meth:`~DistributedStepper.backup_state`).
-Between a call's end and the next read, processes other than rank 0 hold no whole x, p, Φ (empty
+Between a call's end and the next read, processes other than rank 0 hold no whole x, p, Φ, η (empty
 arrays stand in for them, so a read that skipped ``sync`` fails instead of seeing old values).
 """
 
@@ -237,11 +237,11 @@ class DistributedStepper(Stepper):
         self._release_whole()
 
     def _release_whole(self) -> None:
-        if self.rank != 0:  # until something reads them, the whole x, p, Φ are rank 0's alone
+        if self.rank != 0:  # until something reads them, the whole x, p, Φ, η are rank 0's alone
             state = self._bound
             state.positions = state.momenta = _RELEASED_NODES
             if self.system.thermal:
-                state.thermal_displacement = _RELEASED_SPRINGS
+                state.thermal_displacement = state.entropy = _RELEASED_SPRINGS
 
     def _to_root(self, state, whole: bool = True) -> None:
         """The owned values of every process into ``state``'s whole arrays on rank 0: all of
@@ -259,8 +259,9 @@ class DistributedStepper(Stepper):
             n, m = self.system.n_nodes, self.system.n_springs
             state.positions, state.momenta = np.empty((n, 3)), np.empty((n, 3))
             if self.system.thermal:
-                state.thermal_displacement = np.empty(m)
-        broadcast(self.comm, self._gather.whole_arrays(state))
+                state.thermal_displacement, state.entropy = np.empty(m), np.empty(m)
+        thermal = [state.entropy, state.thermal_displacement] if self.system.thermal else []
+        broadcast(self.comm, [state.positions, state.momenta] + thermal)
         self._fresh = ALL
 
     def on_root(self, state, fn, whole: bool = True, arrays: bool = False):
