@@ -56,16 +56,16 @@ def holds_its_share_only() -> bool:
     n, m = sim.net.n_nodes, sim.net.n_springs
     sh = sim.stepper.share
     ok = len(sh.nodes) < n and len(sh.springs) < m and sim.stepper._x.shape == (len(sh.nodes), 3)
+    state, v, strains = sim.state, sim.velocities(), sim.strains()  # (read together, whole on every process)
     if sim.comm.Get_rank() > 0:
-        ok = ok and sim._state.positions.size == 0 and sim.stepper.decomposition is None
+        ok = ok and sim._state.positions.size == sim._state.entropy.size == 0 and sim.stepper.decomposition is None
         for read in (lambda: sim.net.positions.sum(), lambda: np.asarray(sim.system.parameters),
-                     lambda: sim.layout.edges[0], lambda: sim.net.masses[0]):
+                     lambda: sim.layout.edges[0], lambda: sim.net.masses[0], lambda: sim.layout.nodes_to_user(v)):
             try:
                 read()
                 ok = False
             except NotHeldError:
                 pass
-    state, v, strains = sim.state, sim.velocities(), sim.strains()  # (read together, whole on every process)
     ok = ok and state.positions.shape == v.shape == (n, 3) and state.entropy.shape == strains.shape == (m,)
     return all(sim.comm.allgather(ok))
 

@@ -3,14 +3,14 @@
 Every process builds the same :class:`~thermonet.simulation.Simulation` from the whole net; once
 its stepper holds its share (:mod:`.stepper`), a process other than rank 0 lets go of the whole
 net's arrays that only rank 0 reads from then on (it measures the diagnostics rows, writes the
-frames and checkpoints, runs the guards: ``Simulation.on_root``): the net's arrays, the system's
-per-spring parameters, rest lengths and masses, the layout's incidence lists, the decomposition,
-and the whole x, p, Φ. A read of one of them there fails with a :class:`NotHeldError` naming it;
-``sim.state`` stays a read every process makes together.
+frames and checkpoints, runs the guards, reads ``sim.state`` for every process and loads states:
+``Simulation.on_root``): the net's arrays, the system's per-spring parameters, rest lengths and
+masses, the layout's orders, spring ends and incidence lists, the decomposition, and the whole
+x, p, Φ, η. A read of one of them there fails with a :class:`NotHeldError` naming it.
 
-Still whole on every process (docs/parallel.md): the layout's orders (a read of ``sim.state``
-turns the whole state into the user's numbering on every process), η and, with conduction, the
-heat logs and the conduction setup (its record of the whole net is cut to the share at each call).
+Still whole on every process (docs/parallel.md): with conduction, the heat logs, the conduction
+setup and the incidence lists it reads (its record of the whole net is cut to the share at each
+call).
 """
 
 from __future__ import annotations
@@ -29,14 +29,20 @@ class NotHeld:
     """Stands in for a whole-net array a process let go of: any use of it raises a
     :class:`NotHeldError` naming it (what: e.g. "the net's positions")."""
 
-    def __init__(self, what: str):
-        self._what = what
+    def __init__(self, what: str, length: int | None = None):
+        self._what, self._length = what, length
+
+    def __len__(self) -> int:
+        """The array's length where it is known (a size every process keeps)."""
+        if self._length is None:
+            self._refuse()
+        return self._length
 
     def _refuse(self, *args, **kwargs):
         raise NotHeldError(f"{self._what}: over MPI processes only rank 0 holds the whole net; read it there "
                            f"(sim.comm.Get_rank() == 0), or read sim.state, which every process reads together")
 
-    __array__ = __getitem__ = __setitem__ = __len__ = __iter__ = __float__ = _refuse
+    __array__ = __getitem__ = __setitem__ = __iter__ = __float__ = _refuse
 
     def __getattr__(self, name: str):
         if name.startswith("__"):
@@ -68,6 +74,7 @@ class RankNet:
 SYSTEM_ARRAYS = ("rest_lengths", "parameters", "masses", "inv_mass", "anchored")
 LAYOUT_ARRAYS = ("edges", "inc_other")
 LAYOUT_INCIDENCE = ("inc_ptr", "inc_spring")  # (kept with conduction: its whole record reads them)
+LAYOUT_ORDERS = ("node_order", "node_rank", "spring_order", "spring_rank")
 
 
 def let_go(sim) -> None:
@@ -88,6 +95,8 @@ def let_go(sim) -> None:
         system.heat.fastest_rate()
     for name in LAYOUT_ARRAYS + (() if conducting else LAYOUT_INCIDENCE):
         object.__setattr__(layout, name, NotHeld(f"the layout's {name}"))
+    for name in LAYOUT_ORDERS:  # (their lengths are the net's counts, which every process keeps)
+        object.__setattr__(layout, name, NotHeld(f"the layout's {name}", len(getattr(layout, name))))
     sim.net = RankNet(sim.net)
     stepper.decomposition = None
     give_back_freed_memory()
