@@ -51,12 +51,12 @@ class IndexGather:
     ``parts[q]``, taking them from positions ``local`` of its own arrays; several arrays per call.
 
     parts: one (k_q,) int64 array per process, needed on rank 0 only (None elsewhere); local:
-    (k_r,) int64 positions in this process's arrays of the values it gives; counts: (P,) the k_q
-    (default: from parts).
+    (k_r,) int64 positions in this process's arrays of the values it gives, or None: all of them,
+    in order; counts: (P,) the k_q (default: from parts).
     """
 
-    def __init__(self, parts: list | None, local: np.ndarray, counts=None):
-        self.parts, self.local = parts, np.asarray(local, dtype=np.int64)
+    def __init__(self, parts: list | None, local: np.ndarray | None, counts=None):
+        self.parts, self.local = parts, None if local is None else np.asarray(local, dtype=np.int64)
         self.counts = np.asarray([len(p) for p in parts] if counts is None else counts, dtype=np.int64)
 
     def to_root(self, comm, pairs: list) -> None:
@@ -64,7 +64,7 @@ class IndexGather:
         k = len(pairs)
         if k == 0:
             return
-        send = np.concatenate([np.take(local, self.local) for local, _ in pairs])
+        send = np.concatenate([local if self.local is None else np.take(local, self.local) for local, _ in pairs])
         counts, offsets = counts_offsets(k * self.counts)
         recv = gather_to_root(comm, send, counts, offsets)
         if recv is None:
@@ -78,3 +78,68 @@ class IndexGather:
         """As :meth:`to_root`, then the whole arrays broadcast to every process."""
         self.to_root(comm, pairs)
         broadcast(comm, [whole for _, whole in pairs])
+
+
+def broadcast_value(comm, value):
+    """Rank 0's ``value`` (ignored elsewhere) on every process: its NumPy arrays, wherever they
+    sit in dicts, lists, tuples or a dataclass's fields, sent as buffers (``Bcast``, no pickling
+    of their bytes), the rest pickled once with the arrays' shapes and types."""
+    root = comm.Get_rank() == 0
+    arrays: list = []
+    skeleton = comm.bcast(_skeleton(value, arrays) if root else None, root=0)
+    if root:
+        for a in arrays:
+            comm.Bcast(a, root=0)
+        return value
+    received: list = []
+    out = _fill(skeleton, received)
+    for a in received:
+        comm.Bcast(a, root=0)
+    return out
+
+
+class _ArraySlot:
+    """Where an array goes in a broadcast value: its shape and type."""
+
+    def __init__(self, a: np.ndarray):
+        self.shape, self.dtype = a.shape, a.dtype
+
+
+def _skeleton(value, arrays: list):
+    """``value`` with each array replaced by its :class:`_ArraySlot` (the arrays, contiguous,
+    appended to ``arrays`` in the order met)."""
+    import dataclasses
+
+    if isinstance(value, np.ndarray):
+        arrays.append(np.ascontiguousarray(value))
+        return _ArraySlot(value)
+    if isinstance(value, dict):
+        return {k: _skeleton(v, arrays) for k, v in value.items()}
+    if isinstance(value, tuple) and hasattr(value, "_fields"):  # (a named tuple)
+        return type(value)(*(_skeleton(v, arrays) for v in value))
+    if isinstance(value, (list, tuple)) and type(value) in (list, tuple):
+        return type(value)(_skeleton(v, arrays) for v in value)
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return dataclasses.replace(value, **{f.name: _skeleton(getattr(value, f.name), arrays)
+                                             for f in dataclasses.fields(value) if f.init})
+    return value
+
+
+def _fill(skeleton, received: list):
+    """The value of ``skeleton`` with an empty array in each slot (appended to ``received``)."""
+    import dataclasses
+
+    if isinstance(skeleton, _ArraySlot):
+        a = np.empty(skeleton.shape, skeleton.dtype)
+        received.append(a)
+        return a
+    if isinstance(skeleton, dict):
+        return {k: _fill(v, received) for k, v in skeleton.items()}
+    if isinstance(skeleton, tuple) and hasattr(skeleton, "_fields"):
+        return type(skeleton)(*(_fill(v, received) for v in skeleton))
+    if isinstance(skeleton, (list, tuple)) and type(skeleton) in (list, tuple):
+        return type(skeleton)(_fill(v, received) for v in skeleton)
+    if dataclasses.is_dataclass(skeleton) and not isinstance(skeleton, type):
+        return dataclasses.replace(skeleton, **{f.name: _fill(getattr(skeleton, f.name), received)
+                                                for f in dataclasses.fields(skeleton) if f.init})
+    return skeleton
