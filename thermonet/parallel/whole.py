@@ -105,41 +105,41 @@ class _ArraySlot:
         self.shape, self.dtype = a.shape, a.dtype
 
 
-def _skeleton(value, arrays: list):
-    """``value`` with each array replaced by its :class:`_ArraySlot` (the arrays, contiguous,
-    appended to ``arrays`` in the order met)."""
+def _map_leaves(value, is_leaf, leaf):
+    """``value`` with each part for which ``is_leaf`` holds replaced by ``leaf(part)``, found
+    through dicts, lists, tuples (named ones too) and a dataclass's fields, in that order."""
     import dataclasses
 
-    if isinstance(value, np.ndarray):
-        arrays.append(np.ascontiguousarray(value))
-        return _ArraySlot(value)
-    if isinstance(value, dict):
-        return {k: _skeleton(v, arrays) for k, v in value.items()}
-    if isinstance(value, tuple) and hasattr(value, "_fields"):  # (a named tuple)
-        return type(value)(*(_skeleton(v, arrays) for v in value))
-    if isinstance(value, (list, tuple)) and type(value) in (list, tuple):
-        return type(value)(_skeleton(v, arrays) for v in value)
-    if dataclasses.is_dataclass(value) and not isinstance(value, type):
-        return dataclasses.replace(value, **{f.name: _skeleton(getattr(value, f.name), arrays)
-                                             for f in dataclasses.fields(value) if f.init})
-    return value
+    def walk(v):
+        if is_leaf(v):
+            return leaf(v)
+        if isinstance(v, dict):
+            return {k: walk(w) for k, w in v.items()}
+        if isinstance(v, tuple) and hasattr(v, "_fields"):  # (a named tuple)
+            return type(v)(*(walk(w) for w in v))
+        if isinstance(v, (list, tuple)) and type(v) in (list, tuple):
+            return type(v)(walk(w) for w in v)
+        if dataclasses.is_dataclass(v) and not isinstance(v, type):
+            return dataclasses.replace(v, **{f.name: walk(getattr(v, f.name)) for f in dataclasses.fields(v) if f.init})
+        return v
+
+    return walk(value)
+
+
+def _skeleton(value, arrays: list):
+    """``value`` with an :class:`_ArraySlot` in place of each NumPy array (the arrays, contiguous,
+    appended to ``arrays`` in the order met)."""
+    def slot(a):
+        arrays.append(np.ascontiguousarray(a))
+        return _ArraySlot(a)
+
+    return _map_leaves(value, lambda v: isinstance(v, np.ndarray), slot)
 
 
 def _fill(skeleton, received: list):
     """The value of ``skeleton`` with an empty array in each slot (appended to ``received``)."""
-    import dataclasses
+    def empty(s):
+        received.append(np.empty(s.shape, s.dtype))
+        return received[-1]
 
-    if isinstance(skeleton, _ArraySlot):
-        a = np.empty(skeleton.shape, skeleton.dtype)
-        received.append(a)
-        return a
-    if isinstance(skeleton, dict):
-        return {k: _fill(v, received) for k, v in skeleton.items()}
-    if isinstance(skeleton, tuple) and hasattr(skeleton, "_fields"):
-        return type(skeleton)(*(_fill(v, received) for v in skeleton))
-    if isinstance(skeleton, (list, tuple)) and type(skeleton) in (list, tuple):
-        return type(skeleton)(_fill(v, received) for v in skeleton)
-    if dataclasses.is_dataclass(skeleton) and not isinstance(skeleton, type):
-        return dataclasses.replace(skeleton, **{f.name: _fill(getattr(skeleton, f.name), received)
-                                                for f in dataclasses.fields(skeleton) if f.init})
-    return skeleton
+    return _map_leaves(skeleton, lambda v: isinstance(v, _ArraySlot), empty)
