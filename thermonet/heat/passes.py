@@ -472,7 +472,7 @@ def _wave_sweep(heat, phi, eta, tau):
 _CACHE: dict = {}
 
 
-def source_digest(parallel: bool = True) -> str:
+def source_digest(parallel: bool) -> str:
     """A short hash of this module's and :mod:`thermonet.heat.exchange`'s sources, part of the
     cache names of the kernels that compile them in (Numba's disk cache checks only the file of
     the function it caches, not the passes that file's kernel calls); for the threaded kernels,
