@@ -9,7 +9,10 @@ kernel's own scaling, the reference) and over two MPI processes of one thread ea
 (``mpiexec -n 2``), and prints a markdown table: wall time per step (the median of the repeats,
 after a warm-up call that loads or compiles the kernels), speed-up over one thread, the halo
 each process sends per step (messages, bytes), the peak resident memory of each process, and
-whether the two-process state is bit for bit the one-process one. Memory per process: the
+whether the two-process state and last diagnostics row are bit for bit the one-process ones.
+Each repeat times a call of ``--steps`` steps and one of a fifth of them (one diagnostics row at
+each call's end): s/step is the first's time per step; from the two, what a step costs alone and
+what a call costs besides its steps (its row, the runner's bookkeeping). Memory per process: the
 arrays the stepping works on (a process's share, or the whole net in one process), the resident
 memory after the run and its peak (which includes compiling, where a kernel was compiled).
 
@@ -64,11 +67,18 @@ def worker(args) -> None:
     rank 0 prints one JSON line."""
     sim = make_simulation(args.springs, args.quick, args.threads)
     sim.run(steps=2, diagnostics_every=2)  # kernels loaded or compiled, not timed
-    times = []
+    times, steps, calls = [], [], []
+    short = max(1, args.steps // 5)
     for _ in range(args.repeats):
         t0 = time.perf_counter()
         sim.run(steps=args.steps, diagnostics_every=args.steps)
-        times.append((time.perf_counter() - t0) / args.steps)
+        t1 = time.perf_counter()
+        sim.run(steps=short, diagnostics_every=short)
+        t2 = time.perf_counter()
+        times.append((t1 - t0) / args.steps)
+        step = ((t1 - t0) - (t2 - t1)) / (args.steps - short) if args.steps > short else float("nan")
+        steps.append(step)
+        calls.append((t1 - t0) - args.steps * step)
     comm = sim.comm
     halo = getattr(sim.stepper, "halo", None)
     stages = sum(1 for d in sim.integrator.drifts if d != 0.0)
@@ -81,8 +91,10 @@ def worker(args) -> None:
     s = sim.state  # (over processes, a step every process takes: the whole state put together)
     if comm is not None and comm.Get_rank() != 0:
         return
-    np.save(args.worker, np.concatenate([s.positions.ravel(), s.momenta.ravel()]))
-    print(json.dumps({"seconds_per_step": float(np.median(times)), "springs": sim.net.n_springs,
+    row = sim.diagnostics.rows[-1]
+    np.save(args.worker, np.concatenate([s.positions.ravel(), s.momenta.ravel(), [row[k] for k in sorted(row)]]))
+    print(json.dumps({"seconds_per_step": float(np.median(times)), "step_seconds": float(np.median(steps)),
+                      "call_seconds": float(np.median(calls)), "springs": sim.net.n_springs,
                       "nodes": sim.net.n_nodes, "stages": stages, "ranks": every}))
 
 
@@ -178,9 +190,10 @@ def main(argv=None) -> list:
         row["identical"] = bool(np.array_equal(state, states[0]))
     print(f"\n{base['springs']} springs, {base['nodes']} nodes; load average {os.getloadavg()[0]:.2f} "
           f"on {os.cpu_count()} cores\n")
-    print("| run | s/step | speed-up | halo msgs/step/process | halo bytes/step/process | ghosts/process "
-          "| stepping arrays MB/process | resident MB/process (peak) | same bits as 1 process |")
-    print("|---|---|---|---|---|---|---|---|---|")
+    print("| run | s/step | speed-up | a step alone (s) | a call besides (s) | halo msgs/step/process "
+          "| halo bytes/step/process | ghosts/process | stepping arrays MB/process | resident MB/process (peak) "
+          "| same bits as 1 process |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     for row in rows:
         ranks = row["ranks"]
 
@@ -188,7 +201,7 @@ def main(argv=None) -> list:
             return " / ".join(form % r[key] for r in ranks)
 
         print(f"| {row['label']} | {row['seconds_per_step']:.3e} | {row['speedup']:.2f} | "
-              f"{max(r['messages'] for r in ranks)} | {max(r['bytes'] for r in ranks)} | {each('ghosts', '%d')} | "
+              f"{row['step_seconds']:.3e} | {row['call_seconds']:.3f} | {max(r['messages'] for r in ranks)} | {max(r['bytes'] for r in ranks)} | {each('ghosts', '%d')} | "
               f"{each('stepping_mb', '%.1f')} | {each('rss_mb')} ({each('peak_mb')}) | "
               f"{'yes' if row['identical'] else 'NO'} |")
     bandwidths = (10e9 / 8, 100e9 / 8)

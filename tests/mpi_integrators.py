@@ -1,7 +1,8 @@
 """Run by tests/test_mpi.py under ``mpiexec``: each explicit integrator named on the command line,
 on a scene, over all processes and in each process alone, compared bit for bit (diagnostics rows
 and state); rank 0 prints one line per integrator, then "share only" where every process steps
-its share only and those other than rank 0 hold no whole-net arrays (thermonet.parallel.held).
+its share only, make their diagnostics rows without putting the whole state together, and those
+other than rank 0 hold no whole-net arrays (thermonet.parallel.held).
 
     mpiexec -n P python tests/mpi_integrators.py SCENE STEPS NAME ... [-- ARGS]
 
@@ -49,13 +50,20 @@ def run(name: str, alone: bool):
 
 def holds_its_share_only() -> bool:
     """Whether, on every process, the stepping arrays are the share's (owned nodes and one layer
-    of ghosts, fewer than the net's) and, on processes other than rank 0, the whole net's arrays
-    are let go of (a read raises NotHeldError) while ``sim.state`` is still read whole."""
+    of ghosts, fewer than the net's), the diagnostics rows are reduced on the shares (no state
+    gathered for them: the stability guard, which reads the whole state, is off here), and, on
+    processes other than rank 0, the whole net's arrays are let go of (a read raises
+    NotHeldError) while ``sim.state`` is still read whole."""
     sim = load_scene(SCENE).build().simulation
+    sim.stability_guard.active = False
+    gathers = []
+    to_root = sim.stepper._gather.to_root
+    sim.stepper._gather.to_root = lambda *args, **kwargs: (gathers.append(args), to_root(*args, **kwargs))
     sim.run(steps=2, diagnostics_every=1)
     n, m = sim.net.n_nodes, sim.net.n_springs
     sh = sim.stepper.share
-    ok = len(sh.nodes) < n and len(sh.springs) < m and sim.stepper._x.shape == (len(sh.nodes), 3)
+    ok = len(sim.diagnostics.rows) == 3 and not gathers
+    ok = ok and len(sh.nodes) < n and len(sh.springs) < m and sim.stepper._x.shape == (len(sh.nodes), 3)
     state, v, strains = sim.state, sim.velocities(), sim.strains()  # (read together, whole on every process)
     if sim.comm.Get_rank() > 0:
         ok = ok and sim._state.positions.size == sim._state.entropy.size == 0 and sim.stepper.decomposition is None

@@ -3,6 +3,11 @@
 Measured at a chosen cadence, outside the time-stepping loop, from the state alone (nothing
 is assigned): H = Σ|p|²/2m + Σ U(l, η) (+ gravity's potential −Σ m g·x), S = Σ η,
 P = Σ p, L = Σ (x − x_ref) × p over free nodes.
+
+Each sum is exactly rounded (:mod:`thermonet.kernels.exact`): reduced into an accumulator without
+rounding, rounded once at the end. A row therefore has the same bits whatever the number of
+threads, and a run over several processes, each reducing its own springs and nodes into
+accumulators that are then added, has the rows of one process (:func:`row_sums`).
 """
 
 from __future__ import annotations
@@ -12,7 +17,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .kernels.reductions import diagnostic_sums_kernel
+from .kernels import exact, records
+from .kernels.reductions import EVERY, NODE_SUMS, diagnostic_sums_kernel, node_sums_kernel, values_sum_kernel
 from .kernels.springs import spring_field_kernel
 
 CONSERVED = ("energy", "entropy", "px", "py", "pz", "Lx", "Ly", "Lz")
@@ -41,19 +47,57 @@ def spring_fields(system, positions: np.ndarray, entropy: np.ndarray, parallel: 
     return out
 
 
+#: the rows of a diagnostics row's accumulators (one (SUMS, WIDTH) int64 array): Σ U, Σ η, then
+#: the node sums in NODE_SUMS order
+INTERNAL, ENTROPY, NODES = 0, 1, 2
+SUMS = NODES + len(NODE_SUMS)
+
+
+def row_sums(system, x, p, eta, edges, springs, nodes, uniform: bool, counted=EVERY, parallel: bool = False,
+             closing=None) -> tuple[np.ndarray, float, float]:
+    """The accumulators (SUMS, WIDTH) int64 of a row's sums over a net or a process's share of
+    one, and the range (θ_min, θ_max) of the springs' temperatures.
+
+    x, p: (n, 3); eta: (m,) (empty without thermal coupling); edges: (m, 2) uint32; springs: a
+    :class:`~thermonet.kernels.records.Springs` (rest lengths, parameters as the kernels read
+    them; ``uniform``: a shared (k, 1) column, :func:`~thermonet.kernels.specialize.kernel_parameters`); nodes: a :class:`~thermonet.kernels.records.Nodes` (a node it marks anchored counts for
+    nothing: a share's ghosts); counted: (m,) uint8, the springs whose U and η count (a share's
+    own), or empty: all; closing: (energy (m,), θ_min, θ_max) a closing kick left for these
+    springs at this state, taken instead of a pass over the springs.
+    """
+    acc = exact.new(SUMS)
+    values_sum = values_sum_kernel(parallel)
+    if closing is None:
+        spring_sums = diagnostic_sums_kernel(system.model, system.thermal, parallel, uniform)
+        acc[INTERNAL], theta_min, theta_max = spring_sums(x, eta, springs.rest, springs.P, edges, counted)
+    else:
+        energy, theta_min, theta_max = closing
+        acc[INTERNAL] = values_sum(energy, counted)
+    if system.thermal:
+        acc[ENTROPY] = values_sum(eta, counted)
+    acc[NODES:] = node_sums_kernel(parallel)(x, p, nodes.masses, nodes.anchored, nodes.reference, nodes.gravity)
+    return acc, float(theta_min), float(theta_max)
+
+
+def sums_of(acc: np.ndarray, theta_min: float, theta_max: float, thermal: bool) -> dict:
+    """The rounded sums of the accumulators of :func:`row_sums` (of the whole net: added over the
+    processes' shares where there are several), keyed as :func:`diagnostics_row`'s arguments."""
+    v = [exact.value(a) for a in acc]
+    kinetic, potential, px, py, pz, Lx, Ly, Lz = v[NODES:]
+    return dict(kinetic=kinetic, internal=v[INTERNAL], potential=potential,
+                entropy=v[ENTROPY] if thermal else None, momentum=(px, py, pz), angular_momentum=(Lx, Ly, Lz),
+                theta_min=theta_min, theta_max=theta_max)
+
+
 def measure(system, state, parallel: bool = False) -> dict[str, float]:
-    """One diagnostics row for ``state`` (internal numbering): two fused passes, no temporaries."""
-    P, uniform = system.kernel_parameters
-    spring_sums, node_sums = diagnostic_sums_kernel(system.model, system.thermal, parallel, uniform)
+    """One diagnostics row for ``state`` (internal numbering): a pass over the springs and one
+    over the nodes, no per-spring temporaries."""
     eta = state.entropy if system.thermal else _EMPTY
-    internal, theta_min, theta_max = spring_sums(state.positions, eta, system.rest_lengths, P,
-                                                 system.edges.view(np.uint32))
-    gravity = _ZERO3 if system.gravity is None else system.gravity
-    kinetic, potential, px, py, pz, Lx, Ly, Lz = node_sums(
-        state.positions, state.momenta, system.masses, system.anchored, system.reference_point, gravity)
-    entropy = float(np.sum(state.entropy)) if system.thermal else None
-    return diagnostics_row(system, state, kinetic, internal, potential, entropy, (px, py, pz), (Lx, Ly, Lz),
-                           theta_min, theta_max)
+    P, uniform = system.kernel_parameters
+    acc, theta_min, theta_max = row_sums(system, state.positions, state.momenta, eta, system.edges.view(np.uint32),
+                                         records.Springs(system.rest_lengths, P), records.nodes(system), uniform,
+                                         parallel=parallel)
+    return diagnostics_row(system, state, **sums_of(acc, theta_min, theta_max, system.thermal))
 
 
 def diagnostics_row(system, state, kinetic, internal, potential, entropy, momentum, angular_momentum,
@@ -79,7 +123,6 @@ def diagnostics_row(system, state, kinetic, internal, potential, entropy, moment
 
 
 _EMPTY = np.empty(0)
-_ZERO3 = np.zeros(3)
 
 
 @dataclass

@@ -298,23 +298,27 @@ class Runner:
 
     def _record(self) -> None:
         sim = self.sim
-        # (over MPI processes: the row measured by rank 0 from the state put together there)
-        row = sim.on_root(self._row, whole=False)
+        if sim.comm is not None and sim.loads is None:
+            # over MPI processes: each process reduces its share, the exact sums are added over
+            # the processes, and every process makes the same row (no whole state gathered)
+            row = self._row(sim.stepper.row_sums(sim._state))
+        else:  # (the loads' columns read the loaded nodes: the row is made by rank 0 from the state put together there)
+            row = sim.on_root(self._row, whole=False)
         sim.diagnostics.append(row)
         self._check_physical(row)
 
-    def _row(self) -> dict:
-        """The diagnostics row of the current state (with the heat flow's and the loads' columns)."""
+    def _row(self, sums: dict | None = None) -> dict:
+        """The diagnostics row of the current state (with the heat flow's and the loads' columns);
+        sums: its sums reduced already (keyed as :func:`diagnostics_row`'s arguments), or None."""
         sim = self.sim
-        row = sim.stepper.diagnostics_row(sim.system, sim._state)  # a device-resident state
+        row = None
+        if sums is None:
+            row = sim.stepper.diagnostics_row(sim.system, sim._state)  # a device-resident state
+            if row is None:
+                sums = sim.stepper.closing_sums(sim._state)  # reduced by the last advance
         if row is None:
-            sums = sim.stepper.closing_sums(sim._state)  # reduced by the last advance
-            if sums is not None:
-                s = sim._state
-                entropy = float(np.sum(s.entropy)) if sim.system.thermal else None
-                row = diagnostics_row(sim.system, s, entropy=entropy, **sums)
-            else:
-                row = measure(sim.system, sim._state, sim.parallel)
+            row = (diagnostics_row(sim.system, sim._state, **sums) if sums is not None
+                   else measure(sim.system, sim._state, sim.parallel))
         heat = sim.system.heat
         if heat is not None:
             if heat.waves:

@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..blowup import blowup_failure
+from ..diagnostics import row_sums, sums_of
 from ..errors import InputError
 from ..heat.logs import cycle_position, heat_logs
 from ..integrators.base import Stepper
@@ -36,6 +37,7 @@ class SplittingStepper(Stepper):
     def __init__(self, integrator: Splitting, system, parallel: bool = False):
         self.integrator = integrator
         self.system = system
+        self.parallel = bool(parallel)
         P, uniform = kernel_parameters(system.parameters)
         flows = integrator.subflows
         conduction, waves = integrator.heat_rows
@@ -46,6 +48,7 @@ class SplittingStepper(Stepper):
         self._conduction = conduction
         self._table = integrator.table_between_sweeps
         self.loads = StepperLoads.of(system, self._table)
+        self._uniform = uniform
         self._advance = splitting_kernels(system.model, parallel, system.thermal, uniform, flows, conduction, waves,
                                           self.loads is not None)
         n, m = system.n_nodes, system.n_springs
@@ -99,12 +102,17 @@ class SplittingStepper(Stepper):
         return self._heat.record(0.5 * every * h, heat_logs(state, self._heat))
 
     def closing_sums(self, state) -> dict | None:
-        """See :meth:`Stepper.closing_sums`."""
+        """See :meth:`Stepper.closing_sums`: Σ U from the springs' energies the closing kick left
+        (scratch.energy_buf) and its θ range, the node sums and Σ η in a pass each, all exactly
+        rounded (:func:`thermonet.diagnostics.row_sums`)."""
         if self._measured is None:
             return None
         kept, step, sums = self._measured
         if kept is not state or step != state.step:
             return None
-        U, tmin, tmax, K, V, px, py, pz, lx, ly, lz = (float(v) for v in sums)
-        return dict(kinetic=K, internal=U, potential=V, momentum=(px, py, pz), angular_momentum=(lx, ly, lz),
-                    theta_min=tmin, theta_max=tmax)
+        system = self.system
+        eta = state.entropy if system.thermal else self._no_thermal
+        acc, tmin, tmax = row_sums(system, state.positions, state.momenta, eta, self._topology.edges, self._springs,
+                                   self._nodes, self._uniform, parallel=self.parallel,
+                                   closing=(self._scratch.energy_buf, sums[1], sums[2]))
+        return sums_of(acc, tmin, tmax, system.thermal)

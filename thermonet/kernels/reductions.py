@@ -1,6 +1,13 @@
-"""Fused reductions for one diagnostics row: one pass over springs, one over nodes, no
-per-spring temporaries. Multi-threaded for large nets (sums then depend on the thread count in
-their last bits; the state never does)."""
+"""The reductions of one diagnostics row, as exactly rounded sums (:mod:`.exact`): each sum is
+accumulated without rounding and rounded once, so its bits do not depend on how the springs and
+nodes are split among threads or processes, nor on the order they come in. A process of a
+distributed run reduces its own springs and nodes, the processes' accumulators are added as
+integers, and the row is the one process's to the last bit.
+
+Each kernel works in at most ``CHUNKS`` chunks of whole blocks of ``BLOCK`` terms (parallel over
+chunks when compiled so), each chunk into its own accumulator, added up at the end; the chunks
+only split the work (an accumulator holds up to 2^30 terms: nets of up to 6e10 springs).
+"""
 
 from __future__ import annotations
 
@@ -12,7 +19,8 @@ from numba import njit, prange
 from . import subflows
 from .subflows import bind_subflows
 from .blocks import BLOCK, squared_lengths
-from .specialize import kernel_namespace, model_fingerprint, specialize
+from .exact import WIDTH, add_bits, normalize
+from .specialize import function_fingerprint, kernel_namespace, model_fingerprint, specialize
 
 # Bound per model by specialize(); see thermonet.explicit.cpu for THERMAL / REFERENCE_TEMPERATURE /
 # UNIFORM.
@@ -21,7 +29,22 @@ THERMAL = True
 REFERENCE_TEMPERATURE = 0
 UNIFORM = False
 
+#: the most chunks a reduction is cut into (each with its own accumulator of 552 bytes)
+CHUNKS = 64
+#: the node sums, in the order of their accumulators: kinetic energy, gravity potential, p, L
+NODE_SUMS = ("kinetic", "potential", "px", "py", "pz", "Lx", "Ly", "Lz")
+
 _CACHE: dict = {}
+#: in every kernel's name: a change to the exact accumulation is a new kernel (Numba's disk cache
+#: watches this module's file, not the functions it inlines from another)
+_EXACT = function_fingerprint(add_bits.py_func, normalize.py_func)
+
+
+@njit(inline="always")
+def chunk_length(k):
+    """Terms per chunk of a reduction over k terms: whole blocks, at most CHUNKS chunks."""
+    blocks = (k + BLOCK - 1) // BLOCK
+    return max(1, (blocks + CHUNKS - 1) // CHUNKS) * BLOCK
 
 
 @njit(inline="always", error_model="numpy", boundscheck=False)
@@ -37,81 +60,155 @@ def node_diagnostic_terms(x0, x1, x2, p0, p1, p2, mass, gravity, ref):
 
 
 def diagnostic_sums_kernel(model, thermal: bool, parallel: bool, uniform: bool = False):
-    """``spring_sums(x, eta, l0, P, edges_uint32) -> (Σ U, θ_min, θ_max)`` and
-    ``node_sums(x, p, masses, anchored, ref, gravity) -> (K, V, px, py, pz, Lx, Ly, Lz)``;
-    P a shared (k, 1) column when ``uniform`` (as the stepping kernels read it)."""
+    """``spring_sums(x, eta, l0, P, edges_uint32, counted) -> (acc, θ_min, θ_max)``: the
+    accumulator (WIDTH,) int64 of Σ U over the springs where ``counted`` (m,) uint8 is nonzero
+    (all of them where it is empty), the range of θ over all springs; P a shared (k, 1) column
+    when ``uniform`` (as the stepping kernels read it)."""
     key = (model_fingerprint(model), bool(thermal), bool(parallel), bool(uniform))
     if key not in _CACHE:
         ns = kernel_namespace(model, thermal, uniform)
         tag = (f"{model.name}_{key[0]}_{'thermal' if thermal else 'mech'}_{'par' if parallel else 'ser'}"
-               f"{'_uniform' if uniform else ''}_s{subflows.source_digest()}")
+               f"{'_uniform' if uniform else ''}_s{subflows.source_digest()}_x{_EXACT}")
         bind_subflows(ns, tag, njit(inline="always", error_model="numpy", boundscheck=False))
-        opts = dict(cache=True, error_model="numpy", parallel=bool(parallel))
-        _CACHE[key] = (specialize(_spring_sums, tag, ns, **opts), specialize(_node_sums, tag, ns, **opts))
+        _CACHE[key] = specialize(_spring_sums, tag, ns, cache=True, error_model="numpy", parallel=bool(parallel))
     return _CACHE[key]
 
 
-def _spring_sums(x, eta, l0, P, edges):
-    """Σ_e U(l_e, η_e) (Σ F(l_e, θ0) when not THERMAL), min and max of θ_e.
+def _spring_sums(x, eta, l0, P, edges, counted):
+    """Σ_e U(l_e, η_e) (Σ F(l_e, θ0) when not THERMAL) over the counted springs, exactly (an
+    accumulator), and min and max of θ_e over all.
 
-    edges: (m, 2) uint32. Blocked like the stepping kernel's spring pass: gather the squared
-    lengths of a block, evaluate θ and U in a loop over contiguous arrays (which vectorizes),
-    then sum the block in order (a float sum inside the vectorized loop would keep it scalar).
+    edges: (m, 2) uint32; counted: (m,) uint8, or (0,): every spring. Blocked like the stepping
+    kernel's spring pass: gather the squared lengths of a block, evaluate θ and U in a loop over
+    contiguous arrays (which vectorizes), then accumulate the block.
     """
     m = edges.shape[0]
-    energy = 0.0
-    theta_min = math.inf
-    theta_max = -math.inf
-    for blk in prange((m + BLOCK - 1) // BLOCK):
-        lo = blk * BLOCK
-        n = min(BLOCK, m - lo)
+    every = counted.shape[0] == 0
+    per = chunk_length(m)
+    chunks = (m + per - 1) // per
+    accs = np.zeros((chunks, WIDTH), dtype=np.int64)
+    mins = np.full(chunks, math.inf)
+    maxs = np.full(chunks, -math.inf)
+    for c in prange(chunks):
+        acc = accs[c]
         length = np.empty(BLOCK)
         theta = np.empty(BLOCK)
-        energy_block = np.empty(BLOCK)
-        squared_lengths(x, edges, lo, n, length, 0)
-        for i in range(n):
-            e = np.uint64(lo + i)
-            c = np.uint64(0) if UNIFORM else e
-            l = math.sqrt(length[i])
-            eta_e = eta[e] if THERMAL else 0.0
-            th = spring_temperature(l, eta_e, l0[e], P, c)
-            theta[i] = th
-            energy_block[i] = spring_energy(l, eta_e, th, l0[e], P, c)
-        block_sum = 0.0
-        block_min = math.inf
-        block_max = -math.inf
-        for i in range(n):
-            block_sum += energy_block[i]
-            block_min = min(block_min, theta[i])
-            block_max = max(block_max, theta[i])
-        energy += block_sum
-        theta_min = min(theta_min, block_min)
-        theta_max = max(theta_max, block_max)
-    return energy, theta_min, theta_max
+        energy = np.empty(BLOCK)
+        bits = energy.view(np.uint64)
+        theta_min = math.inf
+        theta_max = -math.inf
+        for lo in range(c * per, min(m, (c + 1) * per), BLOCK):
+            n = min(BLOCK, m - lo)
+            squared_lengths(x, edges, lo, n, length, 0)
+            for i in range(n):
+                e = np.uint64(lo + i)
+                k = np.uint64(0) if UNIFORM else e
+                l = math.sqrt(length[i])
+                eta_e = eta[e] if THERMAL else 0.0
+                th = spring_temperature(l, eta_e, l0[e], P, k)
+                theta[i] = th
+                energy[i] = spring_energy(l, eta_e, th, l0[e], P, k)
+            for i in range(n):
+                if every or counted[lo + i]:
+                    add_bits(acc, bits[i])
+                theta_min = min(theta_min, theta[i])
+                theta_max = max(theta_max, theta[i])
+        normalize(acc)
+        mins[c] = theta_min
+        maxs[c] = theta_max
+    total = np.zeros(WIDTH, dtype=np.int64)
+    theta_min = math.inf
+    theta_max = -math.inf
+    for c in range(chunks):
+        total += accs[c]
+        theta_min = min(theta_min, mins[c])
+        theta_max = max(theta_max, maxs[c])
+    return total, theta_min, theta_max
 
 
 def _node_sums(x, p, masses, anchored, ref, gravity):
-    """Kinetic energy, gravity potential −Σ m g·x, Σ p and Σ (x − ref) × p over free nodes."""
-    kinetic = 0.0
-    potential = 0.0
-    px = 0.0
-    py = 0.0
-    pz = 0.0
-    lx = 0.0
-    ly = 0.0
-    lz = 0.0
-    for a in prange(x.shape[0]):
-        if not anchored[a]:
-            p0 = p[a, 0]
-            p1 = p[a, 1]
-            p2 = p[a, 2]
-            k, v, l0_, l1_, l2_ = node_diagnostic_terms(x[a, 0], x[a, 1], x[a, 2], p0, p1, p2, masses[a], gravity, ref)
-            kinetic += k
-            potential += v
-            px += p0
-            py += p1
-            pz += p2
-            lx += l0_
-            ly += l1_
-            lz += l2_
-    return kinetic, potential, px, py, pz, lx, ly, lz
+    """Accumulators (8, WIDTH) int64 of the kinetic energy, the gravity potential −Σ m g·x, Σ p
+    and Σ (x − ref) × p over the free nodes (NODE_SUMS order). x, p: (n, 3); masses: (n,);
+    anchored: (n,) bool (a node held still counts for nothing)."""
+    n = x.shape[0]
+    per = chunk_length(n)
+    chunks = (n + per - 1) // per
+    accs = np.zeros((chunks, 8, WIDTH), dtype=np.int64)
+    for c in prange(chunks):
+        terms = np.empty(8 * BLOCK)
+        bits = terms.view(np.uint64)
+        for lo in range(c * per, min(n, (c + 1) * per), BLOCK):
+            k = 0
+            for a in range(lo, min(n, lo + BLOCK)):
+                if anchored[a]:
+                    continue
+                p0 = p[a, 0]
+                p1 = p[a, 1]
+                p2 = p[a, 2]
+                kin, pot, l0_, l1_, l2_ = node_diagnostic_terms(x[a, 0], x[a, 1], x[a, 2], p0, p1, p2, masses[a],
+                                                                gravity, ref)
+                terms[k] = kin
+                terms[BLOCK + k] = pot
+                terms[2 * BLOCK + k] = p0
+                terms[3 * BLOCK + k] = p1
+                terms[4 * BLOCK + k] = p2
+                terms[5 * BLOCK + k] = l0_
+                terms[6 * BLOCK + k] = l1_
+                terms[7 * BLOCK + k] = l2_
+                k += 1
+            for q in range(8):
+                acc = accs[c, q]
+                for i in range(k):
+                    add_bits(acc, bits[q * BLOCK + i])
+        for q in range(8):
+            normalize(accs[c, q])
+    total = np.zeros((8, WIDTH), dtype=np.int64)
+    for c in range(chunks):
+        total += accs[c]
+    return total
+
+
+def _values_sum(values, counted):
+    """The accumulator (WIDTH,) int64 of Σ values[i] over the i where ``counted`` (k,) uint8 is
+    nonzero (all of them where it is empty)."""
+    k = values.shape[0]
+    every = counted.shape[0] == 0
+    bits = values.view(np.uint64)
+    per = chunk_length(k)
+    chunks = (k + per - 1) // per
+    accs = np.zeros((chunks, WIDTH), dtype=np.int64)
+    for c in prange(chunks):
+        acc = accs[c]
+        for i in range(c * per, min(k, (c + 1) * per)):
+            if every or counted[i]:
+                add_bits(acc, bits[i])
+        normalize(acc)
+    total = np.zeros(WIDTH, dtype=np.int64)
+    for c in range(chunks):
+        total += accs[c]
+    return total
+
+
+_OPTIONS = dict(cache=True, error_model="numpy", boundscheck=False)
+
+
+def node_sums_kernel(parallel: bool):
+    """The compiled :func:`_node_sums` (model-independent), multi-threaded where ``parallel``."""
+    key = ("nodes", bool(parallel))
+    if key not in _CACHE:
+        tag = f"{'par' if parallel else 'ser'}_x{_EXACT}"
+        _CACHE[key] = specialize(_node_sums, tag, {}, parallel=bool(parallel), **_OPTIONS)
+    return _CACHE[key]
+
+
+def values_sum_kernel(parallel: bool):
+    """The compiled :func:`_values_sum` (model-independent), multi-threaded where ``parallel``."""
+    key = ("values", bool(parallel))
+    if key not in _CACHE:
+        tag = f"{'par' if parallel else 'ser'}_x{_EXACT}"
+        _CACHE[key] = specialize(_values_sum, tag, {}, parallel=bool(parallel), **_OPTIONS)
+    return _CACHE[key]
+
+
+#: ``counted`` for a reduction over every entry
+EVERY = np.zeros(0, dtype=np.uint8)

@@ -12,8 +12,8 @@ one process.
 Between calls the state stays in the shares: a call starts from the share's arrays where the
 Simulation's state is the one they were taken from (:meth:`DistributedStepper._bind`; a state
 loaded or replaced is taken again) and leaves its result there. The whole net's arrays are put
-together only when something reads them: a diagnostics row gathers x, p, Φ (and η, with
-conduction) to rank 0, which measures it as one process does and sends the row to the others;
+together only when something reads them (a diagnostics row does not: each process reduces its
+share into exact sums, added over the processes, :meth:`~DistributedStepper.row_sums`);
 :meth:`~DistributedStepper.sync` (``Simulation.internal_state``: frames, probes, checkpoints,
 ``sim.state``) gives them to every process, so reading them is a step every process takes. The
 runner's backup for blow-up replays is a copy of the shares (:meth:`~DistributedStepper.backup_state`).
@@ -26,6 +26,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..blowup import blowup_failure
+from ..diagnostics import row_sums, sums_of
 from ..errors import InputError
 from ..explicit import cpu
 from ..explicit.schedule import STAGE
@@ -105,6 +106,7 @@ class DistributedStepper(Stepper):
         self.halo = Halo(comm, sh.send, sh.recv)
         thermal = system.thermal
         P, uniform = system.kernel_parameters
+        self._uniform = uniform
         with_loads = system.loads is not None
         (self._stage, self._closing), functions = splitting_stages(system.model, parallel, thermal, uniform,
                                                                    with_loads)
@@ -128,6 +130,10 @@ class DistributedStepper(Stepper):
         self._no_heat = records.no_heat_cpu()
         self._bad = np.zeros(1, dtype=np.int64)
         self._gather = _OwnedGather(dec, sh, thermal, conducting, self.rank)
+        #: (ml,) uint8: the share's springs this process reports, whose U and η its diagnostics
+        #: sums count (a spring between two parts is in both shares, counted by one)
+        self._counted = np.zeros(ml, dtype=np.uint8)
+        self._counted[self._gather.local_springs] = 1
         #: the State whose arrays the shares were taken from (None: none yet), and how far its
         #: whole arrays are up to date with the shares: on every process (ALL), on rank 0 (ROOT; ROW:
         #: but for Φ), nowhere (NONE); the same on every process, as every process takes the same steps
@@ -228,6 +234,25 @@ class DistributedStepper(Stepper):
             self._scratch = self._scratch._replace(x_buf=x_buf)
         self._fresh = NONE
         self._release_whole()
+
+    def row_sums(self, state) -> dict:
+        """The sums of a diagnostics row of ``state``, keyed as
+        :func:`thermonet.diagnostics.diagnostics_row`'s arguments, the same on every process (every
+        process must call it): each process reduces its share (its own nodes, the springs it
+        reports) into exact accumulators, which are added over the processes (one ``Allreduce``
+        of integers, whose order cannot change the sum) and rounded once, as one process rounds
+        its own; the temperature range is a minimum and a maximum over the processes. No whole
+        array is put together."""
+        from mpi4py import MPI
+
+        self._bind(state)
+        acc, theta_min, theta_max = row_sums(self.system, self._x, self._p, self._eta, self._topology.edges,
+                                             self._springs, self._nodes, self._uniform, self._counted,
+                                             self.parallel)
+        self.comm.Allreduce(MPI.IN_PLACE, acc, op=MPI.SUM)
+        theta = np.array([theta_min, -theta_max])
+        self.comm.Allreduce(MPI.IN_PLACE, theta, op=MPI.MIN)
+        return sums_of(acc, float(theta[0]), -float(theta[1]), self.system.thermal)
 
     def keep_share(self, state) -> None:
         """Take this process's share of ``state`` (every process, together) and let go of its

@@ -1,0 +1,56 @@
+"""The exactly rounded sums of the diagnostics rows (thermonet.kernels.exact): the sum of any
+split or reordering of the terms has the same bits, and they are math.fsum's."""
+
+import math
+
+import numpy as np
+import pytest
+
+from thermonet.kernels import exact
+
+
+def terms(seed: int) -> np.ndarray:
+    """A few hundred terms over the whole float64 range, both signs, subnormals and
+    cancellations among them."""
+    rng = np.random.default_rng(seed)
+    n = 300
+    wide = rng.normal(size=n) * 10.0 ** rng.integers(-300, 300, n)
+    tiny = rng.normal(size=n) * 1e-310
+    big = rng.normal(size=n) * 1e300
+    return np.concatenate([wide, tiny, big, -big, rng.normal(size=n), [5e-324, -0.0, 0.0]])
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_the_sum_of_any_split_and_order_is_fsum_bit_for_bit(seed):
+    v = terms(seed)
+    want = math.fsum(v)
+    assert exact.exact_sum(v) == want
+    rng = np.random.default_rng(100 + seed)
+    for parts in (2, 3, 7):  # shuffled, cut into uneven parts, each reduced apart, then combined
+        shuffled = rng.permutation(v)
+        cuts = np.sort(rng.integers(0, len(v) + 1, parts - 1))
+        accumulators = []
+        for part in np.split(shuffled, cuts):
+            acc = exact.new()
+            exact.add_array(acc, np.ascontiguousarray(part))
+            accumulators.append(acc)
+        assert exact.value(exact.combine(accumulators)).hex() == want.hex()
+
+
+def test_special_values_are_those_of_an_ieee_sum_in_any_order():
+    assert math.copysign(1.0, exact.exact_sum([-0.0, -0.0])) == 1.0  # +0.0, as math.fsum gives
+    assert exact.exact_sum([]) == 0.0
+    assert exact.exact_sum([1.0, math.inf, -5.0]) == math.inf
+    assert math.isnan(exact.exact_sum([math.inf, 1.0, -math.inf]))
+    assert math.isnan(exact.exact_sum([2.0, math.nan]))
+    assert exact.exact_sum([1.7e308, 1.7e308]) == math.inf  # beyond the range: the IEEE rounding
+    assert exact.exact_sum([-1.7e308, -1.7e308, 1e-300]) == -math.inf
+    assert exact.exact_sum([1.7e308, 1.7e308, -1.7e308]) == 1.7e308  # exact: no overflow inside
+    assert exact.exact_sum([5e-324, 5e-324, 5e-324]) == 1.5e-323  # subnormals exactly
+
+
+def test_a_normalized_accumulator_keeps_its_digits_in_range():
+    acc = exact.new()
+    exact.add_array(acc, -np.abs(terms(9)))
+    digits = acc[:exact.CHUNKS]
+    assert (digits[:-1] >= 0).all() and (digits[:-1] < 2 ** exact.DIGIT).all() and digits[-1] < 0
