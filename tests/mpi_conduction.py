@@ -1,6 +1,7 @@
 """Run by tests/test_mpi.py under ``mpiexec``: a conducting scene advanced in calls of uneven
 lengths that end inside conduction cycles (as a replay after a blow-up does), over all processes
-and in each process alone, compared bit for bit (the state and every heat log).
+and in each process alone, compared bit for bit (the state, every heat log, and the diagnostics
+row every process makes from its share).
 
     mpiexec -n P python tests/mpi_conduction.py SCENE CALLS EVERY:PARTS ... [-- ARGS]
 
@@ -35,8 +36,11 @@ def run(every: int, alone: bool) -> dict:
     heat_logs(state, sim.system.heat)["cycle"][:] = (every, 0)
     for n in CALLS:
         sim.runner.advance(n)
+    sim.record_diagnostics()  # (over processes: from the shares, the heat columns from the logs; on every process)
+    row = sim.diagnostics.rows[-1]
     state = sim.internal_state()  # (over processes: put together from the shares)
     out = {k: getattr(state, k) for k in ("positions", "momenta", "thermal_displacement", "entropy")}
+    out["row"] = np.array([row[k] for k in sorted(row)])
     out.update({f"heat_{k}": v for k, v in state.extra["heat"].items()})
     return out
 
@@ -50,5 +54,6 @@ for spec in SPECS:
     os.environ[PARTITION_VARIABLE] = parts
     many, one = run(int(every), False), run(int(every), True)
     different = [k for k in one if not np.array_equal(one[k], many[k])]
+    different = sorted(set(sum(MPI.COMM_WORLD.allgather(different), [])))  # (every process's row too)
     if MPI.COMM_WORLD.Get_rank() == 0:
         print("same" if not different else f"DIFFERENT: {' '.join(different)}", flush=True)

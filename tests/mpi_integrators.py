@@ -85,6 +85,7 @@ if "--" in sys.argv:
 for name in NAMES:
     many, one = run(name, False), run(name, True)
     same = many[0] == one[0] and many[-1] == one[-1] and all(np.array_equal(a, b) for a, b in zip(many[1:-1], one[1:-1]))
+    same = all(MPI.COMM_WORLD.allgather(same))  # (the rows every process made, not only rank 0's)
     if MPI.COMM_WORLD.Get_rank() == 0:
         print(name, "same" if same else "DIFFERENT", flush=True)
 held = holds_its_share_only()
