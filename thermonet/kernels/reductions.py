@@ -19,7 +19,7 @@ from numba import njit, prange
 from . import subflows
 from .subflows import bind_subflows
 from .blocks import BLOCK, squared_lengths
-from .exact import WIDTH, add_bits, normalize
+from .exact import WIDTH, add_terms, normalize
 from .specialize import function_fingerprint, kernel_namespace, model_fingerprint, specialize
 
 # Bound per model by specialize(); see thermonet.explicit.cpu for THERMAL / REFERENCE_TEMPERATURE /
@@ -37,7 +37,7 @@ NODE_SUMS = ("kinetic", "potential", "px", "py", "pz", "Lx", "Ly", "Lz")
 _CACHE: dict = {}
 #: in every kernel's name: a change to the exact accumulation is a new kernel (Numba's disk cache
 #: watches this module's file, not the functions it inlines from another)
-_EXACT = function_fingerprint(add_bits.py_func, normalize.py_func)
+_EXACT = function_fingerprint(add_terms.py_func, normalize.py_func)
 
 
 @njit(inline="always")
@@ -94,7 +94,7 @@ def _spring_sums(x, eta, l0, P, edges, counted):
         length = np.empty(BLOCK)
         theta = np.empty(BLOCK)
         energy = np.empty(BLOCK)
-        bits = energy.view(np.uint64)
+        one = np.empty(1)
         theta_min = math.inf
         theta_max = -math.inf
         for lo in range(c * per, min(m, (c + 1) * per), BLOCK):
@@ -109,10 +109,13 @@ def _spring_sums(x, eta, l0, P, edges, counted):
                 theta[i] = th
                 energy[i] = spring_energy(l, eta_e, th, l0[e], P, k)
             for i in range(n):
-                if every or counted[lo + i]:
-                    add_bits(acc, bits[i])
                 theta_min = min(theta_min, theta[i])
                 theta_max = max(theta_max, theta[i])
+            if not every:
+                for i in range(n):
+                    if not counted[lo + i]:
+                        energy[i] = 0.0
+            add_terms(acc, energy, n, one)
         normalize(acc)
         mins[c] = theta_min
         maxs[c] = theta_max
@@ -135,8 +138,8 @@ def _node_sums(x, p, masses, anchored, ref, gravity):
     chunks = (n + per - 1) // per
     accs = np.zeros((chunks, 8, WIDTH), dtype=np.int64)
     for c in prange(chunks):
-        terms = np.empty(8 * BLOCK)
-        bits = terms.view(np.uint64)
+        terms = np.empty((8, BLOCK))
+        one = np.empty(1)
         for lo in range(c * per, min(n, (c + 1) * per), BLOCK):
             k = 0
             for a in range(lo, min(n, lo + BLOCK)):
@@ -147,19 +150,17 @@ def _node_sums(x, p, masses, anchored, ref, gravity):
                 p2 = p[a, 2]
                 kin, pot, l0_, l1_, l2_ = node_diagnostic_terms(x[a, 0], x[a, 1], x[a, 2], p0, p1, p2, masses[a],
                                                                 gravity, ref)
-                terms[k] = kin
-                terms[BLOCK + k] = pot
-                terms[2 * BLOCK + k] = p0
-                terms[3 * BLOCK + k] = p1
-                terms[4 * BLOCK + k] = p2
-                terms[5 * BLOCK + k] = l0_
-                terms[6 * BLOCK + k] = l1_
-                terms[7 * BLOCK + k] = l2_
+                terms[0, k] = kin
+                terms[1, k] = pot
+                terms[2, k] = p0
+                terms[3, k] = p1
+                terms[4, k] = p2
+                terms[5, k] = l0_
+                terms[6, k] = l1_
+                terms[7, k] = l2_
                 k += 1
             for q in range(8):
-                acc = accs[c, q]
-                for i in range(k):
-                    add_bits(acc, bits[q * BLOCK + i])
+                add_terms(accs[c, q], terms[q], k, one)
         for q in range(8):
             normalize(accs[c, q])
     total = np.zeros((8, WIDTH), dtype=np.int64)
@@ -173,15 +174,22 @@ def _values_sum(values, counted):
     nonzero (all of them where it is empty)."""
     k = values.shape[0]
     every = counted.shape[0] == 0
-    bits = values.view(np.uint64)
     per = chunk_length(k)
     chunks = (k + per - 1) // per
     accs = np.zeros((chunks, WIDTH), dtype=np.int64)
     for c in prange(chunks):
         acc = accs[c]
-        for i in range(c * per, min(k, (c + 1) * per)):
-            if every or counted[i]:
-                add_bits(acc, bits[i])
+        x = np.empty(BLOCK)
+        one = np.empty(1)
+        for lo in range(c * per, min(k, (c + 1) * per), BLOCK):
+            n = min(BLOCK, k - lo)
+            for i in range(n):  # (unsigned indices: the copy vectorizes)
+                x[np.uint64(i)] = values[np.uint64(lo + i)]
+            if not every:
+                for i in range(n):
+                    if not counted[lo + i]:
+                        x[i] = 0.0
+            add_terms(acc, x, n, one)
         normalize(acc)
     total = np.zeros(WIDTH, dtype=np.int64)
     for c in range(chunks):
