@@ -220,3 +220,14 @@ def values_sum_kernel(parallel: bool):
 
 #: ``counted`` for a reduction over every entry
 EVERY = np.zeros(0, dtype=np.uint8)
+
+
+@njit(cache=True, error_model="numpy", boundscheck=False)
+def value_range(values):
+    """(min, max) of ``values`` (k,) as the reductions above take them ((inf, −inf) when empty)."""
+    lo = math.inf
+    hi = -math.inf
+    for i in range(values.shape[0]):
+        lo = min(lo, values[i])
+        hi = max(hi, values[i])
+    return lo, hi

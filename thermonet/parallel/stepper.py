@@ -23,10 +23,13 @@ arrays stand in for them, so a read that skipped ``sync`` fails instead of seein
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ..blowup import blowup_failure
 from ..diagnostics import row_sums, sums_of
+from ..kernels.reductions import value_range
 from ..errors import InputError
 from ..explicit import cpu
 from ..explicit.schedule import STAGE
@@ -87,7 +90,8 @@ class DistributedStepper(Stepper):
     (:mod:`thermonet.parallel.partition`), default "blocks" with conduction, else "rcb".
     """
 
-    measures = False
+    #: advance(..., measure=True) keeps the closing kick's spring energies for :meth:`row_sums`
+    measures = True
 
     def __init__(self, integrator, system, comm, points, parallel: bool = False, method: str | None = None):
         self.integrator, self.system, self.comm, self.parallel = integrator, system, comm, bool(parallel)
@@ -130,6 +134,8 @@ class DistributedStepper(Stepper):
         self._no_heat = records.no_heat_cpu()
         self._bad = np.zeros(1, dtype=np.int64)
         self._gather = _OwnedGather(dec, sh, thermal, conducting, self.rank)
+        #: (state, step) whose closing kick left the share's spring energies (advance(..., measure))
+        self._measured = None
         #: (ml,) uint8: the share's springs this process reports, whose U and η its diagnostics
         #: sums count (a spring between two parts is in both shares, counted by one)
         self._counted = np.zeros(ml, dtype=np.uint8)
@@ -152,14 +158,16 @@ class DistributedStepper(Stepper):
     # ------------------------------------------------------------------------------------------
     def advance(self, state, n_steps: int, h: float, measure: bool = False):
         """``n_steps`` steps of h of the whole net's ``state`` (in place, on every process)."""
+        self._measured = None
         if n_steps <= 0:
             return None
         self._bind(state)
         if self._conduction is not None:
             return self._conduction.advance(state, n_steps, h)
         lo, hi = self.system.stretch_bounds
+        # (with measure, the closing kick's spring pass keeps each spring's energy in energy_buf)
         run = records.Run(float(h), float(state.time), int(n_steps), bool(self.integrator.track_phi), float(lo),
-                          float(hi), False, False, 1, 0)
+                          float(hi), False, bool(measure), 1, 0)
         arrays = records.StateArrays(self._x, self._p, self._phi, self._eta)
         cur, nxt = self._x, self._scratch.x_buf
         local = (self._topology, self._springs, self._nodes, self._scratch)
@@ -193,6 +201,8 @@ class DistributedStepper(Stepper):
                 return self._stopped(state, cur, n_steps - 1)
             if loads is not None:
                 loads.add_work(self.comm, cur, self._scratch.s, self._topology, self._nodes, 0.0, pending * h)
+            if measure:
+                self._measured = (state, state.step + int(n_steps))
         self._ended(cur)
         return None
 
@@ -246,9 +256,14 @@ class DistributedStepper(Stepper):
         from mpi4py import MPI
 
         self._bind(state)
+        closing = None
+        if self._measured is not None and self._measured[0] is state and self._measured[1] == state.step:
+            # the closing kick of the call that ended here left U and θ of the share's springs
+            theta = value_range(self._scratch.theta_keep) if self.system.thermal else (math.inf, -math.inf)
+            closing = (self._scratch.energy_buf, *theta)
         acc, theta_min, theta_max = row_sums(self.system, self._x, self._p, self._eta, self._topology.edges,
                                              self._springs, self._nodes, self._uniform, self._counted,
-                                             self.parallel)
+                                             self.parallel, closing)
         self.comm.Allreduce(MPI.IN_PLACE, acc, op=MPI.SUM)
         theta = np.array([theta_min, -theta_max])
         self.comm.Allreduce(MPI.IN_PLACE, theta, op=MPI.MIN)
