@@ -141,24 +141,24 @@ def _node_sums(x, p, masses, anchored, ref, gravity):
         terms = np.empty((8, BLOCK))
         one = np.empty(1)
         for lo in range(c * per, min(n, (c + 1) * per), BLOCK):
-            k = 0
-            for a in range(lo, min(n, lo + BLOCK)):
-                if anchored[a]:
-                    continue
+            k = min(BLOCK, n - lo)
+            for i in range(k):  # (an anchor's terms are zeros, which add nothing: no branch in the loop)
+                a = np.uint64(lo + i)
                 p0 = p[a, 0]
                 p1 = p[a, 1]
                 p2 = p[a, 2]
                 kin, pot, l0_, l1_, l2_ = node_diagnostic_terms(x[a, 0], x[a, 1], x[a, 2], p0, p1, p2, masses[a],
                                                                 gravity, ref)
-                terms[0, k] = kin
-                terms[1, k] = pot
-                terms[2, k] = p0
-                terms[3, k] = p1
-                terms[4, k] = p2
-                terms[5, k] = l0_
-                terms[6, k] = l1_
-                terms[7, k] = l2_
-                k += 1
+                held = anchored[a]
+                j = np.uint64(i)
+                terms[0, j] = 0.0 if held else kin
+                terms[1, j] = 0.0 if held else pot
+                terms[2, j] = 0.0 if held else p0
+                terms[3, j] = 0.0 if held else p1
+                terms[4, j] = 0.0 if held else p2
+                terms[5, j] = 0.0 if held else l0_
+                terms[6, j] = 0.0 if held else l1_
+                terms[7, j] = 0.0 if held else l2_
             for q in range(8):
                 add_terms(accs[c, q], terms[q], k, one)
         for q in range(8):
