@@ -54,7 +54,7 @@ SUMS = NODES + len(NODE_SUMS)
 
 
 def row_sums(system, x, p, eta, edges, springs, nodes, uniform: bool, counted=EVERY, parallel: bool = False,
-             closing=None) -> tuple[np.ndarray, float, float]:
+             closing=None, energy=None) -> tuple[np.ndarray, float, float]:
     """The accumulators (SUMS, WIDTH) int64 of a row's sums over a net or a process's share of
     one, and the range (θ_min, θ_max) of the springs' temperatures.
 
@@ -63,16 +63,18 @@ def row_sums(system, x, p, eta, edges, springs, nodes, uniform: bool, counted=EV
     them; ``uniform``: a shared (k, 1) column, :func:`~thermonet.kernels.specialize.kernel_parameters`); nodes: a :class:`~thermonet.kernels.records.Nodes` (a node it marks anchored counts for
     nothing: a share's ghosts); counted: (m,) uint8, the springs whose U and η count (a share's
     own), or empty: all; closing: (energy (m,), θ_min, θ_max) a closing kick left for these
-    springs at this state, taken instead of a pass over the springs.
+    springs at this state, taken instead of a pass over the springs; energy: (m,) scratch for the
+    springs' energies where there is no ``closing`` (default: a new array).
     """
     acc = exact.new(SUMS)
     values_sum = values_sum_kernel(parallel)
     if closing is None:
-        spring_sums = diagnostic_sums_kernel(system.model, system.thermal, parallel, uniform)
-        acc[INTERNAL], theta_min, theta_max = spring_sums(x, eta, springs.rest, springs.P, edges, counted)
+        spring_energies = diagnostic_sums_kernel(system.model, system.thermal, parallel, uniform)
+        energy = np.empty(edges.shape[0]) if energy is None else energy
+        theta_min, theta_max = spring_energies(x, eta, springs.rest, springs.P, edges, energy)
     else:
         energy, theta_min, theta_max = closing
-        acc[INTERNAL] = values_sum(energy, counted)
+    acc[INTERNAL] = values_sum(energy, counted)
     if system.thermal:
         acc[ENTROPY] = values_sum(eta, counted)
     acc[NODES:] = node_sums_kernel(parallel)(x, p, nodes.masses, nodes.anchored, nodes.reference, nodes.gravity)

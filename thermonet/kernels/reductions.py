@@ -4,7 +4,9 @@ nodes are split among threads or processes, nor on the order they come in. A pro
 distributed run reduces its own springs and nodes, the processes' accumulators are added as
 integers, and the row is the one process's to the last bit.
 
-Each kernel works in at most ``CHUNKS`` chunks of whole blocks of ``BLOCK`` terms (parallel over
+The springs' energies are evaluated per model (:func:`diagnostic_sums_kernel`) into an array
+that the exact sum then reads, so that the exact accumulation is compiled once for every model.
+Each exact sum works in at most ``CHUNKS`` chunks of whole blocks of ``BLOCK`` terms (parallel over
 chunks when compiled so), each chunk into its own accumulator, added up at the end; the chunks
 only split the work (an accumulator holds up to 2^30 terms: nets of up to 6e10 springs).
 """
@@ -35,8 +37,8 @@ CHUNKS = 64
 NODE_SUMS = ("kinetic", "potential", "px", "py", "pz", "Lx", "Ly", "Lz")
 
 _CACHE: dict = {}
-#: in every kernel's name: a change to the exact accumulation is a new kernel (Numba's disk cache
-#: watches this module's file, not the functions it inlines from another)
+#: in the exact sums' names: a change to the exact accumulation is a new kernel (Numba's disk
+#: cache watches this module's file, not the functions it inlines from another)
 _EXACT = function_fingerprint(add_terms.py_func, normalize.py_func)
 
 
@@ -60,73 +62,52 @@ def node_diagnostic_terms(x0, x1, x2, p0, p1, p2, mass, gravity, ref):
 
 
 def diagnostic_sums_kernel(model, thermal: bool, parallel: bool, uniform: bool = False):
-    """``spring_sums(x, eta, l0, P, edges_uint32, counted) -> (acc, θ_min, θ_max)``: the
-    accumulator (WIDTH,) int64 of Σ U over the springs where ``counted`` (m,) uint8 is nonzero
-    (all of them where it is empty), the range of θ over all springs; P a shared (k, 1) column
-    when ``uniform`` (as the stepping kernels read it)."""
+    """``spring_energies(x, eta, l0, P, edges_uint32, energy) -> (θ_min, θ_max)``: each spring's
+    U into energy (m,) (what :func:`values_sum_kernel`'s sum then takes), the range of θ; P a
+    shared (k, 1) column when ``uniform`` (as the stepping kernels read it). The one reduction
+    compiled per model: the exact sums are compiled once, apart."""
     key = (model_fingerprint(model), bool(thermal), bool(parallel), bool(uniform))
     if key not in _CACHE:
         ns = kernel_namespace(model, thermal, uniform)
         tag = (f"{model.name}_{key[0]}_{'thermal' if thermal else 'mech'}_{'par' if parallel else 'ser'}"
-               f"{'_uniform' if uniform else ''}_s{subflows.source_digest()}_x{_EXACT}")
+               f"{'_uniform' if uniform else ''}_s{subflows.source_digest()}")
         bind_subflows(ns, tag, njit(inline="always", error_model="numpy", boundscheck=False))
-        _CACHE[key] = specialize(_spring_sums, tag, ns, cache=True, error_model="numpy", parallel=bool(parallel))
+        _CACHE[key] = specialize(_spring_energies, tag, ns, cache=True, error_model="numpy", parallel=bool(parallel))
     return _CACHE[key]
 
 
-def _spring_sums(x, eta, l0, P, edges, counted):
-    """Σ_e U(l_e, η_e) (Σ F(l_e, θ0) when not THERMAL) over the counted springs, exactly (an
-    accumulator), and min and max of θ_e over all.
+def _spring_energies(x, eta, l0, P, edges, energy):
+    """energy[e] = U(l_e, η_e) (F(l_e, θ0) when not THERMAL); returns min and max of θ_e.
 
-    edges: (m, 2) uint32; counted: (m,) uint8, or (0,): every spring. Blocked like the stepping
-    kernel's spring pass: gather the squared lengths of a block, evaluate θ and U in a loop over
-    contiguous arrays (which vectorizes), then accumulate the block.
+    edges: (m, 2) uint32; energy: (m,). Blocked like the stepping kernel's spring pass: gather the
+    squared lengths of a block, evaluate θ and U in a loop over contiguous arrays (which
+    vectorizes), then the block's range.
     """
     m = edges.shape[0]
-    every = counted.shape[0] == 0
-    per = chunk_length(m)
-    chunks = (m + per - 1) // per
-    accs = np.zeros((chunks, WIDTH), dtype=np.int64)
-    mins = np.full(chunks, math.inf)
-    maxs = np.full(chunks, -math.inf)
-    for c in prange(chunks):
-        acc = accs[c]
-        length = np.empty(BLOCK)
-        theta = np.empty(BLOCK)
-        energy = np.empty(BLOCK)
-        one = np.empty(1)
-        theta_min = math.inf
-        theta_max = -math.inf
-        for lo in range(c * per, min(m, (c + 1) * per), BLOCK):
-            n = min(BLOCK, m - lo)
-            squared_lengths(x, edges, lo, n, length, 0)
-            for i in range(n):
-                e = np.uint64(lo + i)
-                k = np.uint64(0) if UNIFORM else e
-                l = math.sqrt(length[i])
-                eta_e = eta[e] if THERMAL else 0.0
-                th = spring_temperature(l, eta_e, l0[e], P, k)
-                theta[i] = th
-                energy[i] = spring_energy(l, eta_e, th, l0[e], P, k)
-            for i in range(n):
-                theta_min = min(theta_min, theta[i])
-                theta_max = max(theta_max, theta[i])
-            if not every:
-                for i in range(n):
-                    if not counted[lo + i]:
-                        energy[i] = 0.0
-            add_terms(acc, energy, n, one)
-        normalize(acc)
-        mins[c] = theta_min
-        maxs[c] = theta_max
-    total = np.zeros(WIDTH, dtype=np.int64)
     theta_min = math.inf
     theta_max = -math.inf
-    for c in range(chunks):
-        total += accs[c]
-        theta_min = min(theta_min, mins[c])
-        theta_max = max(theta_max, maxs[c])
-    return total, theta_min, theta_max
+    for blk in prange((m + BLOCK - 1) // BLOCK):
+        lo = blk * BLOCK
+        n = min(BLOCK, m - lo)
+        length = np.empty(BLOCK)
+        theta = np.empty(BLOCK)
+        squared_lengths(x, edges, lo, n, length, 0)
+        for i in range(n):
+            e = np.uint64(lo + i)
+            k = np.uint64(0) if UNIFORM else e
+            l = math.sqrt(length[i])
+            eta_e = eta[e] if THERMAL else 0.0
+            th = spring_temperature(l, eta_e, l0[e], P, k)
+            theta[i] = th
+            energy[e] = spring_energy(l, eta_e, th, l0[e], P, k)
+        block_min = math.inf
+        block_max = -math.inf
+        for i in range(n):
+            block_min = min(block_min, theta[i])
+            block_max = max(block_max, theta[i])
+        theta_min = min(theta_min, block_min)
+        theta_max = max(theta_max, block_max)
+    return theta_min, theta_max
 
 
 def _node_sums(x, p, masses, anchored, ref, gravity):

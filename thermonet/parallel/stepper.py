@@ -263,7 +263,7 @@ class DistributedStepper(Stepper):
             closing = (self._scratch.energy_buf, *theta)
         acc, theta_min, theta_max = row_sums(self.system, self._x, self._p, self._eta, self._topology.edges,
                                              self._springs, self._nodes, self._uniform, self._counted,
-                                             self.parallel, closing)
+                                             self.parallel, closing, self._scratch.energy_buf)
         self.comm.Allreduce(MPI.IN_PLACE, acc, op=MPI.SUM)
         theta = np.array([theta_min, -theta_max])
         self.comm.Allreduce(MPI.IN_PLACE, theta, op=MPI.MIN)
