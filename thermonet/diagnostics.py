@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .kernels import exact, records
-from .kernels.reductions import EVERY, NODE_SUMS, diagnostic_sums_kernel, node_sums_kernel, values_sum_kernel
+from .kernels.reductions import EVERY, ROW_SUMS, diagnostic_sums_kernel, row_sums_kernel
 from .kernels.springs import spring_field_kernel
 
 CONSERVED = ("energy", "entropy", "px", "py", "pz", "Lx", "Ly", "Lz")
@@ -48,9 +48,9 @@ def spring_fields(system, positions: np.ndarray, entropy: np.ndarray, parallel: 
 
 
 #: the rows of a diagnostics row's accumulators (one (SUMS, WIDTH) int64 array): Σ U, Σ η, then
-#: the node sums in NODE_SUMS order
+#: the node sums (thermonet.kernels.reductions.NODE_SUMS order)
 INTERNAL, ENTROPY, NODES = 0, 1, 2
-SUMS = NODES + len(NODE_SUMS)
+SUMS = ROW_SUMS
 
 
 def row_sums(system, x, p, eta, edges, springs, nodes, uniform: bool, counted=EVERY, parallel: bool = False,
@@ -60,24 +60,22 @@ def row_sums(system, x, p, eta, edges, springs, nodes, uniform: bool, counted=EV
 
     x, p: (n, 3); eta: (m,) (empty without thermal coupling); edges: (m, 2) uint32; springs: a
     :class:`~thermonet.kernels.records.Springs` (rest lengths, parameters as the kernels read
-    them; ``uniform``: a shared (k, 1) column, :func:`~thermonet.kernels.specialize.kernel_parameters`); nodes: a :class:`~thermonet.kernels.records.Nodes` (a node it marks anchored counts for
-    nothing: a share's ghosts); counted: (m,) uint8, the springs whose U and η count (a share's
+    them; ``uniform``: a shared (k, 1) column, see
+    :func:`~thermonet.kernels.specialize.kernel_parameters`); nodes: a
+    :class:`~thermonet.kernels.records.Nodes` (a node it marks anchored counts for nothing: a
+    share's ghosts); counted: (m,) uint8, the springs whose U and η count (a share's
     own), or empty: all; closing: (energy (m,), θ_min, θ_max) a closing kick left for these
     springs at this state, taken instead of a pass over the springs; energy: (m,) scratch for the
     springs' energies where there is no ``closing`` (default: a new array).
     """
-    acc = exact.new(SUMS)
-    values_sum = values_sum_kernel(parallel)
     if closing is None:
         spring_energies = diagnostic_sums_kernel(system.model, system.thermal, parallel, uniform)
         energy = np.empty(edges.shape[0]) if energy is None else energy
         theta_min, theta_max = spring_energies(x, eta, springs.rest, springs.P, edges, energy)
     else:
         energy, theta_min, theta_max = closing
-    acc[INTERNAL] = values_sum(energy, counted)
-    if system.thermal:
-        acc[ENTROPY] = values_sum(eta, counted)
-    acc[NODES:] = node_sums_kernel(parallel)(x, p, nodes.masses, nodes.anchored, nodes.reference, nodes.gravity)
+    acc = row_sums_kernel(parallel)(x, p, nodes.masses, nodes.anchored, nodes.reference, nodes.gravity, energy,
+                                    eta if system.thermal else _EMPTY, counted)
     return acc, float(theta_min), float(theta_max)
 
 
@@ -92,8 +90,8 @@ def sums_of(acc: np.ndarray, theta_min: float, theta_max: float, thermal: bool) 
 
 
 def measure(system, state, parallel: bool = False) -> dict[str, float]:
-    """One diagnostics row for ``state`` (internal numbering): a pass over the springs and one
-    over the nodes, no per-spring temporaries."""
+    """One diagnostics row for ``state`` (internal numbering): a pass over the springs (their
+    energies into one (m,) array) and one exact reduction of those, η and the nodes' terms."""
     eta = state.entropy if system.thermal else _EMPTY
     P, uniform = system.kernel_parameters
     acc, theta_min, theta_max = row_sums(system, state.positions, state.momenta, eta, system.edges.view(np.uint32),

@@ -35,6 +35,8 @@ UNIFORM = False
 CHUNKS = 64
 #: the node sums, in the order of their accumulators: kinetic energy, gravity potential, p, L
 NODE_SUMS = ("kinetic", "potential", "px", "py", "pz", "Lx", "Ly", "Lz")
+#: a row's accumulators: Σ U, Σ η, then the node sums
+ROW_SUMS = 2 + len(NODE_SUMS)
 
 _CACHE: dict = {}
 #: in the exact sums' names: a change to the exact accumulation is a new kernel (Numba's disk
@@ -63,7 +65,7 @@ def node_diagnostic_terms(x0, x1, x2, p0, p1, p2, mass, gravity, ref):
 
 def diagnostic_sums_kernel(model, thermal: bool, parallel: bool, uniform: bool = False):
     """``spring_energies(x, eta, l0, P, edges_uint32, energy) -> (θ_min, θ_max)``: each spring's
-    U into energy (m,) (what :func:`values_sum_kernel`'s sum then takes), the range of θ; P a
+    U into energy (m,) (what :func:`row_sums_kernel`'s sums then take), the range of θ; P a
     shared (k, 1) column when ``uniform`` (as the stepping kernels read it). The one reduction
     compiled per model: the exact sums are compiled once, apart."""
     key = (model_fingerprint(model), bool(thermal), bool(parallel), bool(uniform))
@@ -110,69 +112,66 @@ def _spring_energies(x, eta, l0, P, edges, energy):
     return theta_min, theta_max
 
 
-def _node_sums(x, p, masses, anchored, ref, gravity):
-    """Accumulators (8, WIDTH) int64 of the kinetic energy, the gravity potential −Σ m g·x, Σ p
-    and Σ (x − ref) × p over the free nodes (NODE_SUMS order). x, p: (n, 3); masses: (n,);
-    anchored: (n,) bool (a node held still counts for nothing)."""
+def _row_sums(x, p, masses, anchored, ref, gravity, energy, eta, counted):
+    """Accumulators (ROW_SUMS, WIDTH) int64 of a row: Σ energy and Σ η over the counted springs
+    (``counted`` (m,) uint8, or (0,): every spring; η (0,) without thermal coupling: no sum),
+    then over the free nodes the kinetic energy, the gravity potential −Σ m g·x, Σ p and
+    Σ (x − ref) × p (NODE_SUMS order). x, p: (n, 3); masses: (n,); anchored: (n,) bool (a node
+    held still counts for nothing); energy: (m,). One parallel loop over the springs' chunks and
+    then the nodes' (one loop compiles once)."""
+    m = energy.shape[0]
     n = x.shape[0]
-    per = chunk_length(n)
-    chunks = (n + per - 1) // per
-    accs = np.zeros((chunks, 8, WIDTH), dtype=np.int64)
+    every = counted.shape[0] == 0
+    thermal = eta.shape[0] > 0
+    per_spring = chunk_length(m)
+    per_node = chunk_length(n)
+    spring_chunks = (m + per_spring - 1) // per_spring
+    chunks = spring_chunks + (n + per_node - 1) // per_node
+    accs = np.zeros((chunks, ROW_SUMS, WIDTH), dtype=np.int64)
     for c in prange(chunks):
         terms = np.empty((8, BLOCK))
         one = np.empty(1)
-        for lo in range(c * per, min(n, (c + 1) * per), BLOCK):
-            k = min(BLOCK, n - lo)
-            for i in range(k):  # (an anchor's terms are zeros, which add nothing: no branch in the loop)
-                a = np.uint64(lo + i)
-                p0 = p[a, 0]
-                p1 = p[a, 1]
-                p2 = p[a, 2]
-                kin, pot, l0_, l1_, l2_ = node_diagnostic_terms(x[a, 0], x[a, 1], x[a, 2], p0, p1, p2, masses[a],
-                                                                gravity, ref)
-                held = anchored[a]
-                j = np.uint64(i)
-                terms[0, j] = 0.0 if held else kin
-                terms[1, j] = 0.0 if held else pot
-                terms[2, j] = 0.0 if held else p0
-                terms[3, j] = 0.0 if held else p1
-                terms[4, j] = 0.0 if held else p2
-                terms[5, j] = 0.0 if held else l0_
-                terms[6, j] = 0.0 if held else l1_
-                terms[7, j] = 0.0 if held else l2_
-            for q in range(8):
-                add_terms(accs[c, q], terms[q], k, one)
-        for q in range(8):
+        if c < spring_chunks:
+            for lo in range(c * per_spring, min(m, (c + 1) * per_spring), BLOCK):
+                k = min(BLOCK, m - lo)
+                for i in range(k):  # (unsigned indices: the copies vectorize)
+                    terms[0, np.uint64(i)] = energy[np.uint64(lo + i)]
+                if thermal:
+                    for i in range(k):
+                        terms[1, np.uint64(i)] = eta[np.uint64(lo + i)]
+                if not every:
+                    for i in range(k):
+                        if not counted[lo + i]:
+                            terms[0, i] = 0.0
+                            terms[1, i] = 0.0
+                for q in range(2 if thermal else 1):
+                    add_terms(accs[c, q], terms[q], k, one)
+        else:
+            b = c - spring_chunks
+            for lo in range(b * per_node, min(n, (b + 1) * per_node), BLOCK):
+                k = min(BLOCK, n - lo)
+                for i in range(k):  # (an anchor's terms are zeros, which add nothing: no branch in the loop)
+                    a = np.uint64(lo + i)
+                    p0 = p[a, 0]
+                    p1 = p[a, 1]
+                    p2 = p[a, 2]
+                    kin, pot, l0_, l1_, l2_ = node_diagnostic_terms(x[a, 0], x[a, 1], x[a, 2], p0, p1, p2,
+                                                                    masses[a], gravity, ref)
+                    held = anchored[a]
+                    j = np.uint64(i)
+                    terms[0, j] = 0.0 if held else kin
+                    terms[1, j] = 0.0 if held else pot
+                    terms[2, j] = 0.0 if held else p0
+                    terms[3, j] = 0.0 if held else p1
+                    terms[4, j] = 0.0 if held else p2
+                    terms[5, j] = 0.0 if held else l0_
+                    terms[6, j] = 0.0 if held else l1_
+                    terms[7, j] = 0.0 if held else l2_
+                for q in range(8):
+                    add_terms(accs[c, 2 + q], terms[q], k, one)
+        for q in range(ROW_SUMS):
             normalize(accs[c, q])
-    total = np.zeros((8, WIDTH), dtype=np.int64)
-    for c in range(chunks):
-        total += accs[c]
-    return total
-
-
-def _values_sum(values, counted):
-    """The accumulator (WIDTH,) int64 of Σ values[i] over the i where ``counted`` (k,) uint8 is
-    nonzero (all of them where it is empty)."""
-    k = values.shape[0]
-    every = counted.shape[0] == 0
-    per = chunk_length(k)
-    chunks = (k + per - 1) // per
-    accs = np.zeros((chunks, WIDTH), dtype=np.int64)
-    for c in prange(chunks):
-        acc = accs[c]
-        x = np.empty(BLOCK)
-        one = np.empty(1)
-        for lo in range(c * per, min(k, (c + 1) * per), BLOCK):
-            n = min(BLOCK, k - lo)
-            for i in range(n):  # (unsigned indices: the copy vectorizes)
-                x[np.uint64(i)] = values[np.uint64(lo + i)]
-            if not every:
-                for i in range(n):
-                    if not counted[lo + i]:
-                        x[i] = 0.0
-            add_terms(acc, x, n, one)
-        normalize(acc)
-    total = np.zeros(WIDTH, dtype=np.int64)
+    total = np.zeros((ROW_SUMS, WIDTH), dtype=np.int64)
     for c in range(chunks):
         total += accs[c]
     return total
@@ -181,26 +180,13 @@ def _values_sum(values, counted):
 _OPTIONS = dict(cache=True, error_model="numpy", boundscheck=False)
 
 
-def node_sums_kernel(parallel: bool):
-    """The compiled :func:`_node_sums` (model-independent), multi-threaded where ``parallel``."""
-    key = ("nodes", bool(parallel))
+def row_sums_kernel(parallel: bool):
+    """The compiled :func:`_row_sums` (model-independent), multi-threaded where ``parallel``."""
+    key = ("row", bool(parallel))
     if key not in _CACHE:
         tag = f"{'par' if parallel else 'ser'}_x{_EXACT}"
-        _CACHE[key] = specialize(_node_sums, tag, {}, parallel=bool(parallel), **_OPTIONS)
+        _CACHE[key] = specialize(_row_sums, tag, {}, parallel=bool(parallel), **_OPTIONS)
     return _CACHE[key]
-
-
-def values_sum_kernel(parallel: bool):
-    """The compiled :func:`_values_sum` (model-independent), multi-threaded where ``parallel``."""
-    key = ("values", bool(parallel))
-    if key not in _CACHE:
-        tag = f"{'par' if parallel else 'ser'}_x{_EXACT}"
-        _CACHE[key] = specialize(_values_sum, tag, {}, parallel=bool(parallel), **_OPTIONS)
-    return _CACHE[key]
-
-
-#: ``counted`` for a reduction over every entry
-EVERY = np.zeros(0, dtype=np.uint8)
 
 
 @njit(cache=True, error_model="numpy", boundscheck=False)
@@ -212,3 +198,7 @@ def value_range(values):
         lo = min(lo, values[i])
         hi = max(hi, values[i])
     return lo, hi
+
+
+#: ``counted`` for a reduction over every spring
+EVERY = np.zeros(0, dtype=np.uint8)
