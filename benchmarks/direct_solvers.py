@@ -1,9 +1,13 @@
 """The sparse direct solvers EM2's kept factorizations could use, on EM2's own Newton matrix of
 the steel part (em2_paths.py's ``part``): SciPy's SuperLU in double precision (what
-``splu-reuse`` runs), SuperLU in single precision, and, where pypardiso is installed, MKL
-PARDISO at each ``--threads`` count. Prints each solver's factorization and solve times (the
+``splu-reuse`` runs), SuperLU's factors solved on their elimination tree
+(thermonet.solvers.tree_solve, what ``splu-reuse`` switches to once a factorization has lasted)
+at each ``--threads`` count, SuperLU in single precision, and, where pypardiso is installed,
+MKL PARDISO at each ``--threads`` count. Prints each solver's factorization and solve times (the
 median of ``--rounds`` interleaved rounds, three solves a round), the nonzeros of its factors
-where it reports them, and the relative residual max |A x − b| / max |b| of a solve.
+where it reports them, and the relative residual max |A x − b| / max |b| of a solve. The tree
+solve's "factorization" is the copy of SuperLU's factors onto the tree (SuperLU's own factors
+handed out, then laid out by the tree), made after SuperLU's factorization.
 
     python benchmarks/direct_solvers.py --mesh-size 0.0012 --factor 100 --threads 1 2 --rounds 3
     python benchmarks/direct_solvers.py --quick      # the 1 954-spring part, one round (the test's)
@@ -94,12 +98,29 @@ def main(argv=None) -> dict:
         times.setdefault(key, []).append(time.perf_counter() - t0)
         return out
 
+    import numba
+
+    from thermonet.solvers.tree_solve import tree_factors, tree_solve
+
+    threads_before = numba.get_num_threads()
     x = {}
     nnz = {}
     for _ in range(args.rounds):
         lu = timed("SuperLU double: factorization", lambda: superlu(A))
         for _ in range(3):
             x["SuperLU double"] = timed("SuperLU double: solve", lambda: lu.solve(b))
+        tree = timed("tree: copy", lambda: tree_factors(lu, max(args.threads)))
+        for k in args.threads if tree is not None else ():
+            numba.set_num_threads(min(k, numba.config.NUMBA_NUM_THREADS))
+            name = f"SuperLU's factors on the tree, {k} thread(s)"
+            times.setdefault(f"{name}: factorization", []).append(times["tree: copy"][-1])
+            for _ in range(3):
+                x[name] = timed(f"{name}: solve", lambda: tree_solve(tree, b, parallel=k > 1))
+            nnz[name] = len(tree.lower_vals) + len(tree.upper_vals) + tree.size
+            for _ in range(3):  # SuperLU's solve again, interleaved
+                x["SuperLU double"] = timed("SuperLU double: solve", lambda: lu.solve(b))
+        numba.set_num_threads(threads_before)
+        del tree
         lu32 = timed("SuperLU single: factorization", lambda: superlu(A32))
         for _ in range(3):
             x["SuperLU single"] = timed("SuperLU single: solve", lambda: lu32.solve(b32).astype(np.float64))

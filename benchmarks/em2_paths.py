@@ -20,7 +20,7 @@ force ramping to 2 kN over a second), with conduction: the quasi-static use EM2 
 c = 100, θ0 = 300), its bottom face clamped, at rest and 50 K above θ0 (thermal stress, a slow
 expansion; with 6 neighbours the cubic cells would be mechanisms, held only by the springs'
 tension); ``bracket``, scenes/bracket.toml (a gmsh tetrahedral aluminium part, SI units, hot
-flange, conduction). The paths of one net and step run interleaved: one untimed step each
+flange, conduction). The paths of one net and step run interleaved: `--warmup` untimed steps each (default one)
 (compilation, first factorization), then ``--rounds`` rounds of ``--steps`` steps of each path
 in turn, ms/step the median over the rounds; a path that fails a step is reported as failed.
 
@@ -236,9 +236,10 @@ def make(net: str, cells: int, integrator: str, h: float, **options) -> tn.Simul
     return bracket_simulation(integrator, h, **options)
 
 
-def run_paths(net: str, cells: int, h: float, paths, steps: int, rounds: int, co2=None, co2_steps: int = 0) -> list[dict]:
+def run_paths(net: str, cells: int, h: float, paths, steps: int, rounds: int, co2=None, co2_steps: int = 0,
+              warmup: int = 1) -> list[dict]:
     """The paths at one step, interleaved (a drift of a shared machine hits all alike): each
-    simulation takes one untimed step (compilation, first factorization), then ``rounds``
+    simulation takes ``warmup`` untimed steps (compilation, first factorization), then ``rounds``
     rounds each time ``steps`` steps of every path in turn, and ``co2_steps`` of the CO2
     simulation ``co2`` where given; ms/step is the median over the rounds. Returns a row per
     path: ms/step, CO2's ms/step in the same rounds (``co2_ms``) and the stepper's summary (or
@@ -255,7 +256,7 @@ def run_paths(net: str, cells: int, h: float, paths, steps: int, rounds: int, co
                     continue
                 try:
                     t0 = time.perf_counter()
-                    sim.run(steps=1 if r == 0 else steps, diagnostics_every=10**9)
+                    sim.run(steps=warmup if r == 0 else steps, diagnostics_every=10**9)
                     if r:
                         times[path].append((time.perf_counter() - t0) / steps)
                 except tn.SimulationError as exc:
@@ -271,7 +272,7 @@ def run_paths(net: str, cells: int, h: float, paths, steps: int, rounds: int, co
 
 
 def measure(nets, cells: int, factors, steps: int, paths=tuple(PATHS), out=print,
-            sweeps_max_factor: float = math.inf, rounds: int = 3) -> list[dict]:
+            sweeps_max_factor: float = math.inf, rounds: int = 3, warmup: int = 1) -> list[dict]:
     """The table's rows: per net and factor, each path's row (``run_paths``) with net, factor,
     springs, h and h·ω_max added; prints them as a markdown table."""
     rows = []
@@ -289,7 +290,7 @@ def measure(nets, cells: int, factors, steps: int, paths=tuple(PATHS), out=print
                 out(f"| {net} | | {factor:g} | {h * est['omega_max']:.3g} | sweeps | not run (above "
                     f"--sweeps-max-factor {sweeps_max_factor:g}) | | | | | | |")
             done = run_paths(net, cells, h, [p for p in paths if p != "sweeps" or factor <= sweeps_max_factor],
-                             steps, rounds, co2, n_co2)
+                             steps, rounds, co2, n_co2, warmup)
             co2_ms = done[0]["co2_ms"]
             co2_rate = co2_ms / (CO2_FRACTION * est["h_max"])  # ms per unit of simulated time
             out(f"| {net} | {co2.net.n_springs} | {CO2_FRACTION:g} | {2 * CO2_FRACTION:.3g} | co2 | {co2_ms:.3f} | | | "
@@ -309,7 +310,9 @@ def measure(nets, cells: int, factors, steps: int, paths=tuple(PATHS), out=print
                     continue
                 out(f"| {net} | {row['springs']} | {factor:g} | {row['h_omega']:.3g} | {path} | {row['ms']:.2f} | "
                     f"{s['iterations_mean']:.2f} | {s['retried_steps']}/{s['steps']} | {s['continued_steps']} | "
-                    f"{s['factorizations']} ({s['reused_factorizations']}) | {chose} | {row['speedup']:.3g} |")
+                    f"{s['factorizations']} ({s['reused_factorizations']}"
+                    + (f"; {s['tree_solves']} solves on the tree" if s.get("tree_solves") else "")
+                    + f") | {chose} | {row['speedup']:.3g} |")
     return rows
 
 
@@ -345,6 +348,9 @@ def main(argv=None) -> list[dict]:
                     help="steps as multiples of CO2's stable step")
     ap.add_argument("--steps", type=int, default=4, help="steps per round")
     ap.add_argument("--rounds", type=int, default=3, help="interleaved rounds (ms/step: their median)")
+    ap.add_argument("--warmup", type=int, default=1,
+                    help="untimed steps of each path before the rounds (a kept factorization switches to "
+                         "solves on its elimination tree after 50 solves: 30 steps at 100× on the part)")
     ap.add_argument("--paths", nargs="+", default=list(PATHS), choices=list(PATHS))
     ap.add_argument("--sweeps-max-factor", type=float, default=1000.0,
                     help="skip the sweeps above this factor (at 1e4× on the bracket a step did not converge "
@@ -371,7 +377,7 @@ def main(argv=None) -> list[dict]:
                   + (f", the part at mesh size {size:g} m" if "part" in args.nets else "")
                   + f"; load: {os.getloadavg()[0]:.2f} (1-min average), {os.cpu_count()} CPUs\n")
             part = measure(args.nets, args.cells, args.factors, args.steps, args.paths,
-                           sweeps_max_factor=args.sweeps_max_factor, rounds=args.rounds)
+                           sweeps_max_factor=args.sweeps_max_factor, rounds=args.rounds, warmup=args.warmup)
             for r in part:
                 r.update(threads=threads, mesh_size=size)
             rows += part

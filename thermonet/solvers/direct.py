@@ -9,11 +9,13 @@ from __future__ import annotations
 
 import math
 
+import numba
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from .pattern import BlockPattern
+from .tree_solve import tree_factors, tree_solve
 
 
 class SparseLU:
@@ -48,6 +50,16 @@ KEPT_MAX_CONTRACTION = 0.9
 #: a factorization worth at least this many solves is tried at any scaled residual, in the step
 #: that made it too (a few line-search residuals wasted cost less than refactorizing)
 KEPT_ANYWHERE_WORTH = 50.0
+#: A kept factorization that has made TREE_AFTER_SOLVES solves, on a net of TREE_MIN_UNKNOWNS
+#: unknowns or more, solves from then on with its factors copied into the elimination tree's
+#: arrays (:mod:`.tree_solve`: compiled, on all threads; serial it is 0.7–0.9× SuperLU's own
+#: solve at 5 172–47 637 unknowns). The copy costs about TREE_AFTER_SOLVES SuperLU solves
+#: (SuperLU hands its factors out slowly: 1.1–1.3 s at 47 637 unknowns, then 0.8 s to lay them
+#: out), so it is made only once the factorization has lasted that long: a factorization that
+#: lasts no longer (far above the limit, where one lasts a few steps) never pays it, and one
+#: that does has paid at most as much again as it saves from then on.
+TREE_AFTER_SOLVES = 50
+TREE_MIN_UNKNOWNS = 2000
 
 
 def factorization_worth(lu) -> float:
@@ -95,9 +107,15 @@ class ReusedLU(SparseLU):
         self._worth_of = None  # (row permutation, worth) of the last factors whose worth was read
         self.factorizations = 0
         self.reuses = 0
+        self.solves = 0  # made with the kept factorization (saved with the state: kept_solves)
+        self._tree = None  # its factors on the elimination tree (TREE_AFTER_SOLVES), or False
+        self.tree_solves = 0  # made by tree_solve, and the factorizations copied for it
+        self.tree_copies = 0
 
     def factorize(self, data: np.ndarray, h: float | None = None) -> None:
         super().factorize(data)
+        self.solves = 0
+        self._tree = None
         # the factors' structure follows from the pattern and the row pivots alone: where
         # those are the last ones', so is the worth (reading it copies the factors out of
         # SuperLU: 2 s at 47 637 unknowns, about what the factorization itself costs)
@@ -111,6 +129,24 @@ class ReusedLU(SparseLU):
         point = getattr(self.problem, "jacobian_point", None)
         self.point = point() if point is not None else None
         self.factorizations += 1
+
+    def solve(self, rhs: np.ndarray, target: float = 0.0, settled: float = 0.0) -> np.ndarray:
+        """SuperLU's solve, or, once the factorization has made TREE_AFTER_SOLVES solves on a
+        large enough net, the compiled one on its elimination tree (the same bits at any thread
+        count; where SuperLU pivoted off the diagonal, SuperLU's solve throughout)."""
+        if self._tree is None and self.solves >= TREE_AFTER_SOLVES and self.pattern.size >= TREE_MIN_UNKNOWNS:
+            self._tree = tree_factors(self._lu, numba.get_num_threads()) or False
+            self.tree_copies += self._tree is not False
+        self.solves += 1
+        if self._tree:
+            self.tree_solves += 1
+            return tree_solve(self._tree, rhs, numba.get_num_threads() > 1)
+        return self._lu.solve(rhs)
+
+    def restore_solves(self, solves: int) -> None:
+        """The kept factorization rebuilt on resume has made ``solves`` solves (so it solves on
+        as it did in the run that saved it)."""
+        self.solves = int(solves)
 
     @property
     def carries_factorization(self) -> bool:
