@@ -20,7 +20,7 @@ force ramping to 2 kN over a second), with conduction: the quasi-static use EM2 
 c = 100, θ0 = 300), its bottom face clamped, at rest and 50 K above θ0 (thermal stress, a slow
 expansion; with 6 neighbours the cubic cells would be mechanisms, held only by the springs'
 tension); ``bracket``, scenes/bracket.toml (a gmsh tetrahedral aluminium part, SI units, hot
-flange, conduction). The paths of one net and step run interleaved: `--warmup` untimed steps each (default one)
+flange, conduction). The paths of one net and step run interleaved: ``--warmup`` untimed steps each (default 1)
 (compilation, first factorization), then ``--rounds`` rounds of ``--steps`` steps of each path
 in turn, ms/step the median over the rounds; a path that fails a step is reported as failed.
 

@@ -190,6 +190,10 @@ def test_every_path_reaches_the_same_root_with_the_energy_exact(factor, monkeypa
         if name.startswith("splu-reuse"):
             assert s["reused_factorizations"] > 0 and s["factorizations"] < s["iterations"]
             assert (s["tree_solves"] > 0) == tree
+            if tree:  # the run summary says so
+                from thermonet.cli.report import format_summary
+
+                assert "solves with kept factors compiled on their elimination tree" in format_summary(sim, name)
     scale = np.abs(first["splu"]).max()
     for name, x in first.items():
         # the roots agree to the tolerance's reach in the unknowns (1e-15 of the largest
