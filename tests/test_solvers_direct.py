@@ -114,7 +114,7 @@ def test_the_tree_solve_gives_superlus_and_a_dense_solution(monkeypatch):
     b = rng.uniform(-1.0, 1.0, p.size)
     lu = SparseLU(p)
     lu.factorize(data)
-    f = tree_factors(lu._lu, 2)
+    f, _ = tree_factors(lu._lu, 2)
     assert f is not None and f.separator.sum() >= 3 and (~f.separator).sum() >= 4
     x = tree_solve(f, b, parallel=False)
     dense = np.linalg.solve(A.toarray(), b)
@@ -136,13 +136,21 @@ def test_the_tree_solve_gives_superlus_and_a_dense_solution(monkeypatch):
     assert kept.tree_solves == 2 and kept.tree_copies == 1
     assert np.array_equal(xs[0], xs[1]) and np.array_equal(xs[2], xs[3])
     assert np.abs(xs[3] - xs[0]).max() <= 1e-13 * scale
-    kept.factorize(data, 1.0)  # a new factorization starts on SuperLU's solve again
-    kept.solve(b)
-    assert kept.tree_solves == 2
+    layout = kept._layout
+    other = diagonally_dominant_values(p, seed=5)  # a new factorization starts on SuperLU's solve again,
+    kept.factorize(other, 1.0)  # and its copy onto the tree reuses the layout of the same pattern
+    xs = [kept.solve(b) for _ in range(3)]
+    assert kept.tree_solves == 3 and kept.tree_copies == 2 and kept._layout is layout
+    direct_x = np.linalg.solve(p.matrix(other).toarray(), b)
+    assert np.abs(xs[2] - direct_x).max() <= 1e-13 * np.abs(direct_x).max()
+    fresh, _ = tree_factors(kept._lu, 2)  # (the same arrays as a copy made from scratch)
+    assert np.array_equal(fresh.lower_vals, kept._tree.lower_vals)
+    assert np.array_equal(fresh.upper_vals, kept._tree.upper_vals)
+    assert np.array_equal(fresh.diagonal, kept._tree.diagonal)
 
     swapped = data.copy()  # a zero diagonal entry: SuperLU swaps rows, the tree solve steps aside
     swapped[p.node_base[0]] = 0.0
     pivoted = SparseLU(p)
     pivoted.factorize(swapped)
     assert not np.array_equal(pivoted._lu.perm_r, np.arange(p.size))
-    assert tree_factors(pivoted._lu, 2) is None
+    assert tree_factors(pivoted._lu, 2) == (None, None)

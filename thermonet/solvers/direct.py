@@ -51,13 +51,13 @@ KEPT_MAX_CONTRACTION = 0.9
 #: that made it too (a few line-search residuals wasted cost less than refactorizing)
 KEPT_ANYWHERE_WORTH = 50.0
 #: A kept factorization that has made TREE_AFTER_SOLVES solves, on a net of TREE_MIN_UNKNOWNS
-#: unknowns or more, solves from then on with its factors copied into the elimination tree's
-#: arrays (:mod:`.tree_solve`: compiled, on all threads; serial it is 0.7–0.9× SuperLU's own
-#: solve at 5 172–47 637 unknowns). The copy costs about TREE_AFTER_SOLVES SuperLU solves
-#: (SuperLU hands its factors out slowly: 1.1–1.3 s at 47 637 unknowns, then 0.8 s to lay them
-#: out), so it is made only once the factorization has lasted that long: a factorization that
-#: lasts no longer (far above the limit, where one lasts a few steps) never pays it, and one
-#: that does has paid at most as much again as it saves from then on.
+#: unknowns or more, solves from then on with its factors copied onto their elimination tree
+#: (:mod:`.tree_solve`: compiled, on all threads; serial it is 0.7–0.9× SuperLU's own solve at
+#: 5 172–47 637 unknowns). The copy costs tens of SuperLU solves (SuperLU hands its factors out
+#: slowly: 0.8–1.5 s at 47 637 unknowns; the first copy of a pattern of factors also lays them
+#: out, 0.8–1.6 s, and keeps the layout for the next factorizations, which gather by it), so it
+#: is made only once the factorization has lasted that long: one that lasts no longer (far above
+#: the limit, where one lasts a few steps) never pays it.
 TREE_AFTER_SOLVES = 50
 TREE_MIN_UNKNOWNS = 2000
 
@@ -109,6 +109,7 @@ class ReusedLU(SparseLU):
         self.reuses = 0
         self.solves = 0  # made with the kept factorization (saved with the state: kept_solves)
         self._tree = None  # its factors on the elimination tree (TREE_AFTER_SOLVES), or False
+        self._layout = None  # where the last factors went on the tree (kept for the next ones)
         self.tree_solves = 0  # made by tree_solve, and the factorizations copied for it
         self.tree_copies = 0
 
@@ -135,8 +136,9 @@ class ReusedLU(SparseLU):
         large enough net, the compiled one on its elimination tree (the same bits at any thread
         count; where SuperLU pivoted off the diagonal, SuperLU's solve throughout)."""
         if self._tree is None and self.solves >= TREE_AFTER_SOLVES and self.pattern.size >= TREE_MIN_UNKNOWNS:
-            self._tree = tree_factors(self._lu, numba.get_num_threads()) or False
-            self.tree_copies += self._tree is not False
+            tree, self._layout = tree_factors(self._lu, numba.get_num_threads(), self._layout)
+            self._tree = tree if tree is not None else False
+            self.tree_copies += tree is not None
         self.solves += 1
         if self._tree:
             self.tree_solves += 1

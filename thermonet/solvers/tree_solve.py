@@ -22,9 +22,11 @@ by entry), :func:`tree_factors` returns None and the caller keeps SuperLU's solv
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.sparse as sp
 from numba import njit, prange
 
 from ..kernels.specialize import specialize
@@ -437,15 +439,76 @@ def _bins(groups, work: np.ndarray, threads: int):
     return order, bin_start, phase_bins
 
 
-def tree_factors(lu, threads: int) -> TreeFactors | None:
-    """SuperLU's factors of ``lu`` (scipy.sparse.linalg.splu) as :class:`TreeFactors` for
-    ``threads`` threads, or None where SuperLU permuted rows or columns or the tree does not
-    split into independent groups."""
+@dataclass(frozen=True, eq=False)
+class TreeLayout:
+    """Where a factorization's entries go in :class:`TreeFactors`, kept for the next
+    factorization whose factors have the same pattern (the same matrix pattern and pivots:
+    the same L and U index arrays): copying its values is then one gather per array.
+
+    l_indptr, l_indices, u_indptr, u_indices: the CSC index arrays of the L and U it was made
+    for. lower_from, upper_from (nnz,) int64, diagonal_from (n,) int64: the entry of L.data,
+    U.data, U.data each value comes from (−1: none, the value 0). arrays: the TreeFactors whose
+    structure the copies share (its values are placeholders).
+    """
+
+    l_indptr: np.ndarray
+    l_indices: np.ndarray
+    u_indptr: np.ndarray
+    u_indices: np.ndarray
+    lower_from: np.ndarray
+    upper_from: np.ndarray
+    diagonal_from: np.ndarray
+    arrays: TreeFactors
+
+    def fits(self, L, U) -> bool:
+        return (np.array_equal(self.l_indptr, L.indptr) and np.array_equal(self.u_indptr, U.indptr)
+                and np.array_equal(self.l_indices, L.indices) and np.array_equal(self.u_indices, U.indices))
+
+    def factors(self, L, U) -> TreeFactors:
+        """The TreeFactors of factors L and U (CSC) that this layout :meth:`fits`."""
+        return dataclasses.replace(self.arrays, lower_vals=_gather(L.data, self.lower_from),
+                                   upper_vals=_gather(U.data, self.upper_from),
+                                   diagonal=_gather(U.data, self.diagonal_from))
+
+
+@njit(**_OPTIONS)
+def _gather(data, source):
+    """(len(source),) data[source], 0 where source is −1."""
+    out = np.empty(len(source))
+    for k in range(len(source)):
+        out[k] = data[source[k]] if source[k] >= 0 else 0.0
+    return out
+
+
+def tree_factors(lu, threads: int, layout: TreeLayout | None = None):
+    """(TreeFactors, TreeLayout) of SuperLU's factors of ``lu`` (scipy.sparse.linalg.splu) for
+    ``threads`` threads, by the given ``layout`` where it fits (no new one made), or
+    (None, None) where SuperLU permuted rows or columns or the tree does not split into
+    independent groups."""
     n = lu.shape[0]
     ident = np.arange(n)
     if not (np.array_equal(lu.perm_r, ident) and np.array_equal(lu.perm_c, ident)):
-        return None
+        return None, None
     L, U = lu.L, lu.U
+    if layout is not None and layout.fits(L, U):
+        return layout.factors(L, U), layout
+    # the arrays of the entries' numbers + 1 (exact in float64; 0: none): where each came from
+    numbered = _tree_arrays(n, _numbered(L), _numbered(U), threads)
+    if numbered is None:
+        return None, None
+    layout = TreeLayout(L.indptr.copy(), L.indices.copy(), U.indptr.copy(), U.indices.copy(),
+                        numbered.lower_vals.astype(np.int64) - 1, numbered.upper_vals.astype(np.int64) - 1,
+                        numbered.diagonal.astype(np.int64) - 1, numbered)
+    return layout.factors(L, U), layout
+
+
+def _numbered(M):
+    """M (CSC) with its entries' numbers + 1 as values."""
+    return sp.csc_matrix((np.arange(1.0, M.nnz + 1.0), M.indices, M.indptr), shape=M.shape)
+
+
+def _tree_arrays(n: int, L, U, threads: int) -> TreeFactors | None:
+    """TreeFactors of L and U (CSC, no pivoting), or None (see :func:`tree_factors`)."""
     order, first = _postorder(_parents(n, L.indptr, L.indices, U.indptr, U.indices))
     new = np.empty(n, dtype=np.int64)
     new[order] = np.arange(n)
