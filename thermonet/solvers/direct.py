@@ -110,6 +110,7 @@ class ReusedLU(SparseLU):
         self.solves = 0  # made with the kept factorization (saved with the state: kept_solves)
         self._tree = None  # its factors on the elimination tree (TREE_AFTER_SOLVES), or False
         self._layout = None  # where the last factors went on the tree (kept for the next ones)
+        self.tree_after = TREE_AFTER_SOLVES  # (a benchmark may set it per solver: inf, never)
         self.tree_solves = 0  # made by tree_solve, and the factorizations copied for it
         self.tree_copies = 0
 
@@ -135,7 +136,7 @@ class ReusedLU(SparseLU):
         """SuperLU's solve, or, once the factorization has made TREE_AFTER_SOLVES solves on a
         large enough net, the compiled one on its elimination tree (the same bits at any thread
         count; where SuperLU pivoted off the diagonal, SuperLU's solve throughout)."""
-        if self._tree is None and self.solves >= TREE_AFTER_SOLVES and self.pattern.size >= TREE_MIN_UNKNOWNS:
+        if self._tree is None and self.solves >= self.tree_after and self.pattern.size >= TREE_MIN_UNKNOWNS:
             tree, self._layout = tree_factors(self._lu, numba.get_num_threads(), self._layout)
             self._tree = tree if tree is not None else False
             self.tree_copies += tree is not None

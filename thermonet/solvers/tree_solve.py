@@ -446,9 +446,10 @@ class TreeLayout:
     the same L and U index arrays): copying its values is then one gather per array.
 
     l_indptr, l_indices, u_indptr, u_indices: the CSC index arrays of the L and U it was made
-    for. lower_from, upper_from (nnz,) int64, diagonal_from (n,) int64: the entry of L.data,
-    U.data, U.data each value comes from (−1: none, the value 0). arrays: the TreeFactors whose
-    structure the copies share (its values are placeholders).
+    for. lower_from, upper_from (nnz,), diagonal_from (n,): the entry of L.data,
+    U.data, U.data each value comes from (−1: none, the value 0; int32 where the factors hold
+    fewer than 2³¹ entries). arrays: the TreeFactors whose structure the copies share (its
+    values are placeholders).
     """
 
     l_indptr: np.ndarray
@@ -496,9 +497,10 @@ def tree_factors(lu, threads: int, layout: TreeLayout | None = None):
     numbered = _tree_arrays(n, _numbered(L), _numbered(U), threads)
     if numbered is None:
         return None, None
+    kind = np.int32 if max(L.nnz, U.nnz) < 2**31 - 1 else np.int64
     layout = TreeLayout(L.indptr.copy(), L.indices.copy(), U.indptr.copy(), U.indices.copy(),
-                        numbered.lower_vals.astype(np.int64) - 1, numbered.upper_vals.astype(np.int64) - 1,
-                        numbered.diagonal.astype(np.int64) - 1, numbered)
+                        (numbered.lower_vals - 1).astype(kind), (numbered.upper_vals - 1).astype(kind),
+                        (numbered.diagonal - 1).astype(kind), numbered)
     return layout.factors(L, U), layout
 
 
