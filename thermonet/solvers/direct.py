@@ -51,14 +51,16 @@ KEPT_MAX_CONTRACTION = 0.9
 #: that made it too (a few line-search residuals wasted cost less than refactorizing)
 KEPT_ANYWHERE_WORTH = 50.0
 #: A kept factorization that has made TREE_AFTER_SOLVES solves, on a net of TREE_MIN_UNKNOWNS
-#: unknowns or more, solves from then on with its factors copied onto their elimination tree
-#: (:mod:`.tree_solve`: compiled, on all threads; serial it is 0.7–0.9× SuperLU's own solve at
-#: 5 172–47 637 unknowns). The copy costs tens of SuperLU solves (SuperLU hands its factors out
-#: slowly: 0.8–1.5 s at 47 637 unknowns; the first copy of a pattern of factors also lays them
-#: out, 0.8–1.6 s, and keeps the layout for the next factorizations, which gather by it), so it
-#: is made only once the factorization has lasted that long: one that lasts no longer (far above
-#: the limit, where one lasts a few steps) never pays it.
-TREE_AFTER_SOLVES = 50
+#: unknowns or more, may solve from then on with its factors copied onto their elimination tree
+#: (:mod:`.tree_solve`: compiled, its subtrees on separate threads, the same bits at any thread
+#: count). Off by default (never): on the shared 2-vCPU development machine it did not pay; EM2
+#: at 100× CO2's stable step on 97 958 springs took 120 ms per step with it against 83 ms with
+#: SuperLU's solves on two threads (load 3: a parallel region waits for a thread that has no
+#: core) and 119 against 102 ms on one, and it costs a copy after each factorization (0.3 s at
+#: 47 637 unknowns by a kept layout, 2.6 s the first time). A benchmark path turns it on
+#: (benchmarks/em2_paths.py, ``splu-reuse-tree``); where it runs, it is made only once a
+#: factorization has lasted TREE_AFTER_SOLVES solves, so one that lasts a few steps never pays it.
+TREE_AFTER_SOLVES = math.inf
 TREE_MIN_UNKNOWNS = 2000
 
 
@@ -110,7 +112,7 @@ class ReusedLU(SparseLU):
         self.solves = 0  # made with the kept factorization (saved with the state: kept_solves)
         self._tree = None  # its factors on the elimination tree (TREE_AFTER_SOLVES), or False
         self._layout = None  # where the last factors went on the tree (kept for the next ones)
-        self.tree_after = TREE_AFTER_SOLVES  # (a benchmark may set it per solver: inf, never)
+        self.tree_after = TREE_AFTER_SOLVES  # (a benchmark may set it per solver)
         self.tree_solves = 0  # made by tree_solve, and the factorizations copied for it
         self.tree_copies = 0
 
@@ -133,9 +135,10 @@ class ReusedLU(SparseLU):
         self.factorizations += 1
 
     def solve(self, rhs: np.ndarray, target: float = 0.0, settled: float = 0.0) -> np.ndarray:
-        """SuperLU's solve, or, once the factorization has made TREE_AFTER_SOLVES solves on a
-        large enough net, the compiled one on its elimination tree (the same bits at any thread
-        count; where SuperLU pivoted off the diagonal, SuperLU's solve throughout)."""
+        """SuperLU's solve, or, once the factorization has made ``tree_after`` solves on a large
+        enough net (never, by default: TREE_AFTER_SOLVES), the compiled one on its elimination
+        tree (the same bits at any thread count; where SuperLU pivoted off the diagonal,
+        SuperLU's solve throughout)."""
         if self._tree is None and self.solves >= self.tree_after and self.pattern.size >= TREE_MIN_UNKNOWNS:
             tree, self._layout = tree_factors(self._lu, numba.get_num_threads(), self._layout)
             self._tree = tree if tree is not None else False
