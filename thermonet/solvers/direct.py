@@ -109,7 +109,7 @@ class ReusedLU(SparseLU):
         self._worth_of = None  # (row permutation, worth) of the last factors whose worth was read
         self.factorizations = 0
         self.reuses = 0
-        self.solves = 0  # made with the kept factorization (saved with the state: kept_solves)
+        self.solves = 0  # made with the kept factorization (saved with a carried one's state)
         self._tree = None  # its factors on the elimination tree (TREE_AFTER_SOLVES), or False
         self._layout = None  # where the last factors went on the tree (kept for the next ones)
         self.tree_after = TREE_AFTER_SOLVES  # (a benchmark may set it per solver)
