@@ -6,9 +6,11 @@
 
 A 6-neighbour lattice of about ``--springs`` springs (jitter 0.1) with conduction (g = 4, every 2
 steps) and a bath on one face, 4 steps; each process prints its resident memory after building
-the Simulation, after the steps and at its peak, the bytes of the whole state with its heat logs
-(held by every process) and, over several processes, those of its share's arrays (the stepping
-state and buffers, the incidence lists, the conduction sweep's arrays: the share plus the halo).
+the Simulation, after the steps and at its peak (that of building the whole Simulation), the bytes
+of the whole state with its heat logs (as ``internal_state()`` puts it together, after the
+measurements) and, over several processes, those of its share's arrays (the stepping state and
+buffers, the incidence lists, the conduction sweep's arrays: the share plus the halo). What each
+process holds whole and what per share: docs/parallel.md, "Memory".
 """
 
 from __future__ import annotations
@@ -57,6 +59,7 @@ def main(argv=None) -> None:
     sim = tn.Simulation(net, parameters=dict(c=100.0, beta=0.002, C0=1.0, theta0=300.0, g=4.0), h=0.01, threads=1,
                         parallel=False, conduction=True, conduction_every=2, stability_guard="off",
                         energy_tolerance=None, baths={"hot": Bath("hot", 900.0)})
+    del net  # (the Simulation's own: on processes other than rank 0 only its size and groups)
     built, after_build = time.perf_counter() - start, resident_mb()
     sim.run(steps=4, diagnostics_every=4)
     after_steps = resident_mb()  # (before reading the state: over processes, a read puts it together)
@@ -64,7 +67,7 @@ def main(argv=None) -> None:
     whole = sum(a.nbytes for a in (state.positions, state.momenta, state.thermal_displacement, state.entropy))
     whole += sum(v.nbytes for v in state.extra["heat"].values())
     rank = 0 if sim.comm is None else sim.comm.Get_rank()
-    line = (f"process {rank}: {net.n_springs} springs, {net.n_nodes} nodes; whole state and heat logs "
+    line = (f"process {rank}: {sim.net.n_springs} springs, {sim.net.n_nodes} nodes; whole state and heat logs "
             f"{whole / 2**20:.1f} MB; resident after building {after_build:.0f} MB (built in {built:.1f} s), after 4 "
             f"steps {after_steps:.0f} MB, peak {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MB")
     if sim.comm is not None:

@@ -1,6 +1,7 @@
 """Run by tests/test_mpi.py under ``mpiexec``: each explicit integrator named on the command line,
 on a scene, over all processes and in each process alone, compared bit for bit (diagnostics rows
-and state); rank 0 prints one line per integrator.
+and state); rank 0 prints one line per integrator, then "share only" where every process steps
+its share only and those other than rank 0 hold no whole-net arrays (thermonet.parallel.held).
 
     mpiexec -n P python tests/mpi_integrators.py SCENE STEPS NAME ... [-- ARGS]
 
@@ -15,6 +16,7 @@ import numpy as np
 from mpi4py import MPI
 
 from thermonet.errors import SimulationError
+from thermonet.parallel.held import NotHeldError
 from thermonet.parallel.world import LAUNCHER_VARIABLES
 from thermonet.scenes import load_scene
 
@@ -45,6 +47,29 @@ def run(name: str, alone: bool):
     return [diag.rows, s.positions, s.momenta, s.thermal_displacement, s.entropy, message]
 
 
+def holds_its_share_only() -> bool:
+    """Whether, on every process, the stepping arrays are the share's (owned nodes and one layer
+    of ghosts, fewer than the net's) and, on processes other than rank 0, the whole net's arrays
+    are let go of (a read raises NotHeldError) while ``sim.state`` is still read whole."""
+    sim = load_scene(SCENE).build().simulation
+    sim.run(steps=2, diagnostics_every=1)
+    n, m = sim.net.n_nodes, sim.net.n_springs
+    sh = sim.stepper.share
+    ok = len(sh.nodes) < n and len(sh.springs) < m and sim.stepper._x.shape == (len(sh.nodes), 3)
+    state, v, strains = sim.state, sim.velocities(), sim.strains()  # (read together, whole on every process)
+    if sim.comm.Get_rank() > 0:
+        ok = ok and sim._state.positions.size == sim._state.entropy.size == 0 and sim.stepper.decomposition is None
+        for read in (lambda: sim.net.positions.sum(), lambda: np.asarray(sim.system.parameters),
+                     lambda: sim.layout.edges[0], lambda: sim.net.masses[0], lambda: sim.layout.nodes_to_user(v)):
+            try:
+                read()
+                ok = False
+            except NotHeldError:
+                pass
+    ok = ok and state.positions.shape == v.shape == (n, 3) and state.entropy.shape == strains.shape == (m,)
+    return all(sim.comm.allgather(ok))
+
+
 if "--" in sys.argv:
     from thermonet.cli.main import main
 
@@ -54,3 +79,6 @@ for name in NAMES:
     same = many[0] == one[0] and many[-1] == one[-1] and all(np.array_equal(a, b) for a, b in zip(many[1:-1], one[1:-1]))
     if MPI.COMM_WORLD.Get_rank() == 0:
         print(name, "same" if same else "DIFFERENT", flush=True)
+held = holds_its_share_only()
+if MPI.COMM_WORLD.Get_rank() == 0:
+    print("share", "only" if held else "WHOLE", flush=True)

@@ -24,16 +24,17 @@ def _benchmark(name):
     return module
 
 
-def heated_pulled_bar(h):
-    """A 2 × 2 × 5 jittered 18-neighbour bar: its x = 0 face a bath ramping 300 → 400 over
-    t = 2, its x = 4 face pushed by a force ramping in over the same time; EM2."""
+def heated_pulled_bar(h, conduction_every=1):
+    """A 2 × 2 × 5 jittered 18-neighbour bar (285 springs): its x = 0 face a bath ramping
+    300 → 400 over t = 2, its x = 4 face pushed by a force ramping in over the same time; EM2."""
     net = tn.lattice((5, 2, 2), neighbours=18, jitter=0.1, seed=3)
     x = net.positions[:, 0]
     net = tn.Net(net.positions, net.edges, net.masses, node_groups={"hot": np.flatnonzero(x < 0.5),
                                                                      "end": np.flatnonzero(x > x.max() - 0.5)})
     return tn.Simulation(net, model="hencky", parameters=dict(c=100.0, beta=0.2, C0=5.0, theta0=300.0, g=0.5),
                          temperatures=300.0, integrator="em2", h=h, stability_guard="off", energy_tolerance=None,
-                         conduction_every=1, baths={"hot": Bath("hot", {"start": 300.0, "end": 400.0, "duration": 2.0})},
+                         conduction_every=conduction_every,
+                         baths={"hot": Bath("hot", {"start": 300.0, "end": 400.0, "duration": 2.0})},
                          loads={"push": Force("end", {"start": 0.0, "end": 0.5, "duration": 2.0}, direction=[1, 0, 0],
                                               total=True)})
 
@@ -53,6 +54,40 @@ def test_heat_flow_inside_the_loads_splitting_reads_each_steps_time():
     for name in ("positions", "momenta", "entropy"):
         assert np.array_equal(getattr(one.state, name), getattr(single.state, name)), name
     assert one.temperatures().max() > 310.0  # (measured 317: the bath reached 400 at t = 2; 300 before the fix)
+
+
+def test_resumed_runs_with_auto_conduction_cycles_follow_the_calls_cadences(tmp_path):
+    """With conduction_every = "auto" each call's length and output cadences are among the
+    numbers the cycle k must divide (an output inside a cycle is only first order), so calls
+    cut differently may conduct differently. The bar at h = 0.1 (λ h = 0.02: "auto" allows up
+    to k = 10): 20 steps in one call and 10 + a checkpoint + 10 resumed, all with diagnostics
+    every 10, take k = 10 and give the same bits; two calls of 10 with diagnostics every 5 take
+    k = 5, other bits, and exactly those of one call of 20 with k = 5: the cycle is the whole
+    difference. (So do 4 + 4 steps of benchmarks/em2_paths.py's steel part at 100× against 8:
+    k = 4 against 8, 3e-12 m apart; with the cadences or k the same, the same bits.)"""
+    from thermonet.io.checkpoint import load_checkpoint, save_checkpoint
+
+    one = heated_pulled_bar(0.1, "auto")
+    one.run(steps=20, diagnostics_every=10)
+    first = heated_pulled_bar(0.1, "auto")
+    first.run(steps=10, diagnostics_every=10)
+    save_checkpoint(tmp_path / "c.npz", first.state, {})
+    state, _ = load_checkpoint(tmp_path / "c.npz")
+    resumed = heated_pulled_bar(0.1, "auto")
+    resumed.load_state(state)
+    resumed.run(steps=10, diagnostics_every=10)
+    halves = heated_pulled_bar(0.1, "auto")
+    for _ in range(2):
+        halves.run(steps=10, diagnostics_every=5)
+    fixed = heated_pulled_bar(0.1, 5)
+    fixed.run(steps=20, diagnostics_every=10)
+    assert one.conduction_cycle[0] == first.conduction_cycle[0] == resumed.conduction_cycle[0] == 10
+    assert halves.conduction_cycle[0] == fixed.conduction_cycle[0] == 5
+    assert one.step == resumed.step == halves.step == fixed.step == 20
+    for name in ("positions", "momenta", "entropy"):
+        assert np.array_equal(getattr(one.state, name), getattr(resumed.state, name)), name
+        assert np.array_equal(getattr(halves.state, name), getattr(fixed.state, name)), name
+    assert not np.array_equal(one.state.entropy, halves.state.entropy)
 
 
 def test_a_slowly_heated_and_loaded_part_at_100x_the_explicit_limit_is_within_1_percent():

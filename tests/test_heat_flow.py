@@ -105,6 +105,19 @@ def test_multirate_conduction_is_second_order_in_k_h():
     assert 1.8 < slope < 2.2, (errors, slope)
 
 
+def test_auto_picks_the_cycle_from_the_rate_the_step_and_the_cadences():
+    from thermonet.heat.multirate import choose_cycle
+
+    # λ h = 0.02: up to 15 steps within λ k h ≤ 0.3, so 10 of the series 1, 2, 5, 10, …
+    assert choose_cycle("auto", 0.2, 0.1, [20, 40])[0] == 10
+    # the largest divisor of 10 that divides the cadences and the run's length (8 steps: 2)
+    k, why = choose_cycle("auto", 0.2, 0.1, [8, 8])
+    assert k == 2 and "divides the output cadences and the run's length, 8" in why
+    # λ h = 2.5 > 0.3: every step, and the reason says that no k meets the tolerance
+    k, why = choose_cycle("auto", 25.0, 0.1, [10])
+    assert k == 1 and "λ h = 2.5 > 0.3" in why and "≤" not in why
+
+
 def hot_jittered_net(seed: int = 3) -> tuple[tn.Net, np.ndarray]:
     net = tn.lattice((3, 3, 2), neighbours=18, jitter=0.2, seed=seed)
     rng = np.random.default_rng(seed)

@@ -27,11 +27,11 @@ def strip(n=6):
                   node_groups={"left": [k(0, 0), k(0, 1)], "right": [k(n, 0), k(n, 1)]})
 
 
-def loaded_hot_strip(h, integrator="co2", **kw):
+def loaded_hot_strip(h, integrator="co2", parameters=PARAMETERS, **kw):
     net = strip()
     rng = np.random.default_rng(5)
     theta = 300 + 150 * rng.random(net.n_springs)
-    return tn.Simulation(net, parameters=PARAMETERS, temperatures=theta, h=h, integrator=integrator,
+    return tn.Simulation(net, parameters=parameters, temperatures=theta, h=h, integrator=integrator,
                          baths={"cold": Bath("left", 250.0)},
                          sources={"s": Source([0, 1], {"amplitude": 5.0, "frequency": 0.5, "offset": 2.0})},
                          loads={"shake": Drive("right", {"x": {"amplitude": 0.05, "frequency": 0.7}}),
@@ -104,9 +104,17 @@ def test_the_threaded_kernel_with_loads_and_heat_does_not_depend_on_the_thread_c
     the serial kernel's bits for everything but the loads' reductions' round-off. In the GPU's
     sweep order (one junction per block, 4 blocks per colour) the serial kernel takes a colour's
     blocks in pairs, and so does the threaded one with a pool of two threads (one block at a time
-    with more): the same bits."""
+    with more): the same bits. Per-spring parameters (stiffness and coupling varied, g and C
+    shared, so the blocks still pair): this is also the suite's threaded kernel for that
+    parameter layout, and the serial one is the continuum parts' (tests/test_em2_quasi_static.py)."""
+    m = strip().n_springs
+    rng = np.random.default_rng(9)
+    varied = {k: np.full(m, float(v)) for k, v in PARAMETERS.items()}
+    varied["c"] *= rng.uniform(0.9, 1.1, m)
+    varied["beta"] *= rng.uniform(0.9, 1.1, m)
+
     def make(**kw):
-        sim = loaded_hot_strip(0.004, conduction_every=every, **kw)
+        sim = loaded_hot_strip(0.004, conduction_every=every, parameters=varied, **kw)
         sim.system.heat.use_order_of(order)
         return sim
 

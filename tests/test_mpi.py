@@ -190,7 +190,7 @@ def test_two_processes_cut_in_two_and_resumed_on_three_are_one_process_bit_for_b
     names = ["f10", "gtr-0", "gtr-1", "nm2", "bm6a", "co4", "co2@8e-4", "co2@5e-4"]
     done = mpirun(2, os.path.join(ROOT, "tests", "mpi_integrators.py"), DEFAULT, "20", *names, "--", "run", DEFAULT,
                   "--out", str(out), "--set", "integrator.t_end=0.02", *RUN, module=False)
-    assert done.stdout.split() == [w for n in names for w in (n, "same")], done.stdout
+    assert done.stdout.split() == [w for n in names for w in (n, "same")] + ["share", "only"], done.stdout
     assert checkpoint(out)["step"] == 100
     mpirun(3, "run", "--resume", str(out), *SHORT, "--quiet")
     assert_same_run(one_process, out)

@@ -298,6 +298,14 @@ class Runner:
 
     def _record(self) -> None:
         sim = self.sim
+        # (over MPI processes: the row measured by rank 0 from the state put together there)
+        row = sim.on_root(self._row, whole=False)
+        sim.diagnostics.append(row)
+        self._check_physical(row)
+
+    def _row(self) -> dict:
+        """The diagnostics row of the current state (with the heat flow's and the loads' columns)."""
+        sim = self.sim
         row = sim.stepper.diagnostics_row(sim.system, sim._state)  # a device-resident state
         if row is None:
             sums = sim.stepper.closing_sums(sim._state)  # reduced by the last advance
@@ -317,34 +325,35 @@ class Runner:
         row.update(self.last_stats)
         if sim.loads is not None:  # loads: displacement, reaction, work, balance
             row.update(sim.loads.columns(sim, row))
-        sim.diagnostics.append(row)
-        self._check_physical(row)
+        return row
 
     def _check_physical(self, row: dict) -> None:
         """Stop with a :class:`SimulationError` naming the node or spring once the state is no
         longer physical: a non-finite value (typically h above the stability limit) or a
         temperature θ ≤ 0 (possible in models such as "quadratic"). Checked at the diagnostics
         cadence and at the end of every run, so a run never silently returns such a state."""
-        sim = self.sim
         if math.isfinite(row["energy"]) and row.get("theta_min", 1.0) > 0:
             return
+        raise SimulationError(self.sim.on_root(self._what_is_not_physical))
+
+    def _what_is_not_physical(self) -> str:
+        """The message of :meth:`_check_physical`: the first node or spring at fault."""
+        sim = self.sim
         s, lay = sim.internal_state(), sim.layout
         where = f"at step {s.step} (t = {s.time:.6g})"
         unstable = f"; h = {sim.h} may be above the stability limit"
         bad = ~(np.isfinite(s.positions).all(axis=1) & np.isfinite(s.momenta).all(axis=1))
         if bad.any():
             a = int(lay.node_order[np.flatnonzero(bad)[0]])
-            raise SimulationError(f"node {a} has a non-finite position or momentum {where}{unstable}")
+            return f"node {a} has a non-finite position or momentum {where}{unstable}"
         if sim.system.thermal:
             theta = sim.temperatures()
             bad = ~(np.isfinite(theta) & (theta > 0))
             if bad.any():
                 e = int(np.flatnonzero(bad)[0])
-                raise SimulationError(
-                    f"spring {e} has temperature {theta[e]:.6g} {where}: the state left the range of model "
-                    f"{sim.model.name!r}, where θ must stay > 0, or h = {sim.h} is too large"
-                )
-        raise SimulationError(f"the energy is not finite {where}{unstable}")
+                return (f"spring {e} has temperature {theta[e]:.6g} {where}: the state left the range of model "
+                        f"{sim.model.name!r}, where θ must stay > 0, or h = {sim.h} is too large")
+        return f"the energy is not finite {where}{unstable}"
 
 
 def _flushes(observers) -> list:

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import InputError
+from .parallel.world import on_root
 
 SPRING_QUANTITIES = ("temperature", "strain", "tension")
 QUANTITIES = SPRING_QUANTITIES + ("displacement",)
@@ -40,8 +41,13 @@ class Probes:
         self.index = {}
         self.series = {name: [] for name in self.probes}
         self._cache = (None, None)
-        for name, probe in self.probes.items():
-            self.index[name] = _indices(sim.net, probe, f"probes.{name}")
+
+        def indices():
+            for name, probe in self.probes.items():
+                self.index[name] = _indices(sim.net, probe, f"probes.{name}")
+
+        # over MPI processes rank 0 alone holds the net and records the rows (its error raised everywhere)
+        on_root(getattr(sim, "comm", None), indices)
 
     def observers(self, default_every: int) -> list:
         cadences: dict[int, list] = {}
@@ -50,13 +56,18 @@ class Probes:
         return [(k, (lambda sim, names=tuple(names): self.record(sim, names))) for k, names in cadences.items()]
 
     def record(self, sim, names=None) -> None:
-        """A row of each probe in ``names`` (default all) at the current state (once per step)."""
-        for name in names or self.probes:
-            rows = self.series[name]
-            if rows and rows[-1][0] == sim.step:
-                continue
-            v = self._values(sim, self.probes[name].quantity)[self.index[name]]
-            rows.append((sim.step, sim.time, float(v.mean()), float(v.min()), float(v.max())))
+        """A row of each probe in ``names`` (default all) at the current state (once per step;
+        over MPI processes measured by rank 0, the rows given to every process)."""
+        names = [name for name in names or self.probes
+                 if not (self.series[name] and self.series[name][-1][0] == sim.step)]
+        if not names:
+            return
+        for name, row in zip(names, sim.on_root(lambda: [self._row(sim, name) for name in names])):
+            self.series[name].append(row)
+
+    def _row(self, sim, name: str) -> tuple:
+        v = self._values(sim, self.probes[name].quantity)[self.index[name]]
+        return (sim.step, sim.time, float(v.mean()), float(v.min()), float(v.max()))
 
     def _values(self, sim, quantity: str) -> np.ndarray:
         step, fields = self._cache

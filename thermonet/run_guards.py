@@ -164,7 +164,7 @@ class StabilityGuard:
         self.checked += 1
         with CompileWatch() as compiling:  # a first run's compilation is not the guard's running cost
             try:
-                self._check(sim)
+                sim.on_root(lambda: self._check(sim))  # (over MPI processes: by rank 0, on the whole state)
             finally:
                 self.seconds += time.perf_counter() - now - compiling.seconds
 

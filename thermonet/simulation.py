@@ -207,6 +207,10 @@ class Simulation:
         #: seconds ``run`` spent compiling kernels (first runs of a model and integrator)
         self.compile_time = 0.0
         self.runner = Runner(self)
+        if self.comm is not None:  # the processes other than rank 0 keep their shares only
+            from .parallel.held import let_go
+
+            let_go(self)
 
     # ------------------------------------------------------------------------------------------
     # time
@@ -267,7 +271,11 @@ class Simulation:
 
     @property
     def state(self) -> State:
-        """A copy of the current state in the user's numbering."""
+        """A copy of the current state in the user's numbering (over MPI processes: put together
+        by rank 0 and given to every process; read it on every process)."""
+        return self.on_root(self._user_state, arrays=True)
+
+    def _user_state(self) -> State:
         s, lay = self.internal_state(), self.layout
         return State(
             positions=lay.nodes_to_user(s.positions),
@@ -291,7 +299,19 @@ class Simulation:
         return {"heat": out}
 
     def load_state(self, state: State) -> None:
-        """Replace the current state by ``state`` (user numbering), e.g. from a checkpoint."""
+        """Replace the current state by ``state`` (user numbering), e.g. from a checkpoint (over
+        MPI processes every process loads it: rank 0 puts it into the internal numbering and gives
+        it to the others)."""
+        self._state = self.on_root(lambda: self._internal_of(state), arrays=True)
+        step, time = self._state.step, self._state.time
+        # a state of a run that started at t = 0 with this h keeps time = step·h exactly (resume is
+        # then bit-identical); any other state starts a new time origin
+        on_grid = abs(time - step * self._h) <= 1e-12 * max(1.0, abs(time))
+        self._time_origin = (0, 0.0) if on_grid else (step, time)
+
+    def _internal_of(self, state: State) -> State:
+        """``state`` (user numbering) as a new State in the internal numbering, with this run's
+        heat logs (those ``state`` gives, the others at their defaults)."""
         lay = self.layout
 
         def nodes(a):
@@ -302,7 +322,7 @@ class Simulation:
                 return None
             return np.ascontiguousarray(lay.springs_to_internal(np.asarray(a, dtype=np.float64)))
 
-        self._state = State(
+        out = State(
             positions=nodes(state.positions),
             momenta=nodes(state.momenta),
             thermal_displacement=springs(state.thermal_displacement),
@@ -324,12 +344,8 @@ class Simulation:
                     if a.shape != v.shape:
                         raise InputError(f"the state's heat log {k!r} has shape {a.shape}, this run's has {v.shape}")
                     v[:] = springs(a) if k in PER_SPRING_LOGS else a
-            self._state.extra["heat"] = logs
-        step, time = self._state.step, self._state.time
-        # a state of a run that started at t = 0 with this h keeps time = step·h exactly (resume is
-        # then bit-identical); any other state starts a new time origin
-        on_grid = abs(time - step * self._h) <= 1e-12 * max(1.0, abs(time))
-        self._time_origin = (0, 0.0) if on_grid else (step, time)
+            out.extra["heat"] = logs
+        return out
 
     def internal_state(self) -> State:
         """The current state itself, in the engine's internal numbering (``self.layout`` maps it
@@ -339,35 +355,53 @@ class Simulation:
         self.stepper.sync(self._state)
         return self._state
 
+    def on_root(self, fn, whole: bool = True, arrays: bool = False):
+        """``fn()`` with the whole state at hand: in one process, simply called; over MPI processes
+        (a step every process takes), run by rank 0 with the state put together there (x, p, η,
+        and Φ where ``whole``), its result or its error given to every process. For what needs
+        the whole net (diagnostics rows, frames, checkpoints, guards): the other processes hold
+        their shares only (docs/parallel.md). ``arrays``: a result holding large arrays (sent
+        as buffers rather than pickled)."""
+        if self.comm is None or self.stepper.local:  # (rank 0 already inside one)
+            return fn()
+        return self.stepper.on_root(self._state, fn, whole, arrays)
+
     def internal_spring_fields(self):
         """Length, temperature, tension and internal energy of every spring now, each (m,), in
-        the internal numbering (one threaded pass; for output writers)."""
-        s = self.internal_state()
-        return spring_fields(self.system, s.positions, s.entropy, self.parallel)
+        the internal numbering (one threaded pass; for output writers; over MPI processes
+        computed by rank 0 and given to every process)."""
+        def fields():
+            s = self.internal_state()
+            return spring_fields(self.system, s.positions, s.entropy, self.parallel)
+
+        return self.on_root(fields, arrays=True)
 
     def spring_fields(self):
         """Length, temperature, tension and internal energy of every spring now, each (m,),
         user numbering (one pass over the springs)."""
-        f, lay = self.internal_spring_fields(), self.layout
-        return type(f)(*(lay.springs_to_user(a) for a in (f.length, f.temperature, f.tension, f.internal_energy)))
+        def user():
+            f, lay = self.internal_spring_fields(), self.layout
+            return type(f)(*(lay.springs_to_user(a) for a in (f.length, f.temperature, f.tension, f.internal_energy)))
+
+        return self.on_root(user, arrays=True)  # (over MPI processes rank 0 alone holds the numbering)
 
     def temperatures(self) -> np.ndarray:
         """(m,) spring temperatures θ(l, η) now (Mata & Lew 2011, (12) and (18b))."""
-        return self.layout.springs_to_user(self.internal_spring_fields().temperature)
+        return self.on_root(lambda: self.layout.springs_to_user(self.internal_spring_fields().temperature), arrays=True)
 
     def lengths(self) -> np.ndarray:
-        return self.layout.springs_to_user(self.internal_spring_fields().length)
+        return self.on_root(lambda: self.layout.springs_to_user(self.internal_spring_fields().length), arrays=True)
 
     def strains(self) -> np.ndarray:
         """(m,) logarithmic strains ln(l / l0) (the log of output frames: equal to theirs bit for
         bit, within about an ulp of NumPy's)."""
-        return log_strain(self.lengths(), self.net.rest_lengths)
+        return self.on_root(lambda: log_strain(self.lengths(), self.net.rest_lengths), arrays=True)  # (l0: rank 0's)
 
     def tensions(self) -> np.ndarray:
-        return self.layout.springs_to_user(self.internal_spring_fields().tension)
+        return self.on_root(lambda: self.layout.springs_to_user(self.internal_spring_fields().tension), arrays=True)
 
     def velocities(self) -> np.ndarray:
-        return self.state.momenta / self.net.masses[:, None]
+        return self.on_root(lambda: self.state.momenta / self.net.masses[:, None], arrays=True)  # (masses: rank 0's)
 
     def to_meshio(self):
         """The current state as a ``meshio.Mesh`` in the user's numbering: springs as "line"

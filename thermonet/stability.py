@@ -308,9 +308,13 @@ def stable_step(sim, integrator=None) -> dict:
     (:func:`wave_frequency`, 0 without them) and limit: which of the two sets h_max.
     """
     integ = sim.integrator if integrator is None else get_integrator(integrator)
-    s = sim.internal_state()
-    est = max_frequency(sim.system, s.positions, s.entropy)
-    omega_w = wave_frequency(sim)
+
+    def estimate():
+        s = sim.internal_state()
+        return max_frequency(sim.system, s.positions, s.entropy), wave_frequency(sim)
+
+    # (over MPI processes estimated by rank 0 on the whole state, given to every process)
+    est, omega_w = sim.on_root(estimate) if hasattr(sim, "on_root") else estimate()
     c = stability_interval(integ)
     omega = max(est.omega_max, omega_w)
     h_max = float(c / omega) if omega > 0 else float("inf")

@@ -240,7 +240,7 @@ def _run(args, progress, record=None) -> int:
         sim.stability_guard.mode = "warn"
     if state is None:
         _check_step(sim, scene, args)
-        note = sim.net.pieces_note()
+        note = on_root(sim.comm, lambda: sim.net.pieces_note())  # (rank 0 alone holds the net)
         if note and not args.quiet:
             print(f"thermonet: warning: {note}", file=sys.stderr)
     total = scene.total_steps()

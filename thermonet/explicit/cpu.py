@@ -122,7 +122,7 @@ def splitting_kernels(model, parallel: bool, thermal: bool = True, uniform: bool
         tag = (f"{model.name}_{key[0]}_{'par' if parallel else 'ser'}_{'thermal' if thermal else 'mech'}"
                f"{'_uniform' if uniform else ''}_s{subflows.source_digest()}{flows_tag}")
         if conduction or waves:
-            tag += f"_{'k' if conduction else ''}{'w' if waves else ''}{heat_source_digest()}"
+            tag += f"_{'k' if conduction else ''}{'w' if waves else ''}{heat_source_digest(parallel)}"
         ns = kernel_namespace(model, thermal, uniform)
         ns["CLOSING"] = False
         ns["CONDUCTION"] = bool(conduction)

@@ -70,6 +70,9 @@ def choose_cycle(requested, rate: float, h: float, cadences, where: str = "condu
     limit = auto_limit(rate, h)
     series = round_below(limit)
     k = math.gcd(common, series) if common else series
+    if rate * h > AUTO_TOLERANCE:  # (k = 1 cannot meet the tolerance: say so rather than claim it)
+        return k, (f"auto: fastest conduction rate λ = {rate:.4g}/time, λ h = {rate * h:.3g} > {AUTO_TOLERANCE:g}: "
+                   "conduction every step")
     why = (f"auto: fastest conduction rate λ = {rate:.4g}/time, λ k h = {rate * k * h:.3g} ≤ {AUTO_TOLERANCE:g}"
            + (f" (k divides the output cadences and the run's length, {common})" if k < series else ""))
     return k, why

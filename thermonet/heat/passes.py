@@ -104,7 +104,10 @@ def bind_heat_passes(ns: dict, tag: str, parallel: bool) -> None:
     ns["PAIRED"] = not parallel
     ns["_star_nodes"] = specialize(_star_nodes, tag, ns, inline="always", **_OPTIONS)
     ns["_star_blocks"] = specialize(_star_blocks, tag, ns, inline="always", **_OPTIONS)
-    ns["_sweep_colour"] = specialize(_sweep_colour, tag, ns, inline="always", **_OPTIONS)
+    # a function of its own, not inlined: its two call sites in the sweep would otherwise each
+    # carry four copies of the block exchange (inlined, a cold serial conducting kernel took 50 s
+    # of CPU to compile, 40 s without; one call per colour costs nothing at run time)
+    ns["_sweep_colour"] = specialize(_sweep_colour, tag, ns, parallel=parallel, **_OPTIONS)
     ns["conduction_sweep"] = specialize(_conduction_sweep, tag, ns, parallel=parallel, **_OPTIONS)
     ns["wave_sweep"] = specialize(_wave_sweep, tag, ns, parallel=parallel, **_OPTIONS)
     ns["state_spring_sums"] = specialize(_state_spring_sums, tag, ns, parallel=parallel, **_OPTIONS)
@@ -356,7 +359,8 @@ def _conduction_sweep(heat, theta, theta_start, eta, tau, t, directions):
     fuse = directions & REVERSE != 0 and directions & FORWARD != 0 and n_bound == 0 and n_colours > 0
     if directions & REVERSE:
         for i in range(n_colours - 1 if fuse else n_colours):
-            _sweep_colour(heat, ptr, n_colours - 1 - i, REVERSE, theta)
+            # (np.int64: with the literal, the call below would compile a second _sweep_colour)
+            _sweep_colour(heat, ptr, n_colours - 1 - i, np.int64(REVERSE), theta)
         if n_bound > 0:  # (a parallel loop costs a barrier even when empty)
             for j in prange(n_bound):
                 boundary_exchange(j, heat, tau, t, True, theta, logs)
@@ -387,8 +391,10 @@ def conduction_boundary(state, cur, topology, springs, scratch, heat, run, pendi
     if pending != 0.0:  # (its T/l straight into heat.s_before)
         before = Scratch(scratch.x_buf, heat.s_before, scratch.f_keep, scratch.theta_keep, scratch.energy_buf,
                          scratch.sums)
-        bad = spring_pass(cur, state.eta, state.phi, topology, springs, before, (0.0, pending * run.h), run, True,
-                          heat.length, heat.strain)[0]
+        # keep = (pending != 0.0), True here, as a run-time bool: the literal True would compile
+        # a second spring pass, differing from the step's only in a branch outside its loops
+        bad = spring_pass(cur, state.eta, state.phi, topology, springs, before, (0.0, pending * run.h), run,
+                          pending != 0.0, heat.length, heat.strain)[0]
         if bad > 0:
             return bad
     conduction_sweep(heat, scratch.theta_keep, heat.theta_start, state.eta, 0.5 * run.conduction_every * run.h,
@@ -466,15 +472,19 @@ def _wave_sweep(heat, phi, eta, tau):
 _CACHE: dict = {}
 
 
-def source_digest() -> str:
+def source_digest(parallel: bool) -> str:
     """A short hash of this module's and :mod:`thermonet.heat.exchange`'s sources, part of the
     cache names of the kernels that compile them in (Numba's disk cache checks only the file of
-    the function it caches, not the passes that file's kernel calls)."""
+    the function it caches, not the passes that file's kernel calls); for the threaded kernels,
+    with PAIRS_FROM (the serial ones do not read it, so a process with another thread count,
+    such as an MPI rank or a Dask worker, loads them from the cache)."""
     import hashlib
     import inspect
     import sys
 
-    text = inspect.getsource(sys.modules[__name__]) + exchange.source_digest() + f"pairs from {PAIRS_FROM}"
+    text = inspect.getsource(sys.modules[__name__]) + exchange.source_digest()
+    if parallel:
+        text += f"pairs from {PAIRS_FROM}"
     return hashlib.sha256(text.encode()).hexdigest()[:8]
 
 
@@ -487,7 +497,7 @@ def heat_kernels(model, parallel: bool, uniform: bool):
     key = (model_fingerprint(model), bool(parallel), bool(uniform))
     if key not in _CACHE:
         tag = (f"{model.name}_{key[0]}_{'par' if parallel else 'ser'}{'_uniform' if uniform else ''}"
-               f"_h{source_digest()}")
+               f"_h{source_digest(parallel)}")
         ns = kernel_namespace(model, True, uniform)
         inline = njit(inline="always", error_model="numpy", boundscheck=False)
         bind_subflows(ns, tag, inline)

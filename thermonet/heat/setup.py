@@ -174,6 +174,11 @@ class HeatSetup:
                     logs["length"], logs["pending_eta"], logs["pending_produced"], logs["pending_theta"],
                     *self._work())
 
+    def without_work_arrays(self) -> None:
+        """Records built from now on carry empty working arrays: for a caller whose sweeps use
+        their own (the distributed sweep's, per share), so that no process holds whole-net ones."""
+        self.__dict__["_work_arrays"] = (np.empty(0), np.empty(0), np.empty(0))
+
     def _work(self) -> tuple:
         """The working arrays s_before, theta_start, strain (m,) of the kernels (allocated once)."""
         work = self.__dict__.get("_work_arrays")

@@ -141,16 +141,16 @@ class RunOutput:
         self.csv_path = os.path.join(self.folder, "diagnostics.csv")
         self.checkpoint_path = os.path.join(self.folder, f"{name}.checkpoint.npz")
         self.summary_path = os.path.join(self.folder, "summary.json")
-        self._frame = (FrameFiller(sim, VTUWriter(sim.net.edges, sim.net.n_nodes), self.fields, self.material_id)
-                       if self.frames_every else None)
-        #: a run over MPI processes (docs/parallel.md): each writes its piece of a frame, rank 0
-        #: the rest
+        #: a run over MPI processes (docs/parallel.md): rank 0 puts each frame together and writes
+        #: its pieces, the diagnostics and the checkpoints; the other processes hold no frame
         comm = getattr(sim, "comm", None)
         self.root = comm is None or comm.Get_rank() == 0
+        self._frame = (FrameFiller(sim, VTUWriter(sim.net.edges, sim.net.n_nodes), self.fields, self.material_id)
+                       if self.frames_every and self.root else None)
         self._pieces = None
-        if comm is not None and self._frame is not None:
-            self._pieces = PieceWriter(sim, self._frame.image)
-            background = False  # a piece's write ends in a barrier: on the calling thread
+        if comm is not None and self.frames_every:
+            self._pieces = PieceWriter(sim) if self.root else False
+            background = False  # every process waits for the frame: on the calling thread
         self._csv_written = -np.inf
         #: step of the last checkpoint written (or restored), None before the first
         self.checkpoint_step = None
@@ -259,12 +259,13 @@ class RunOutput:
             filename = self.pvd.frames[step][1]
         else:
             filename = f"{self.name}_{len(self.pvd.frames):06d}.vtu"
-        image = self._frame.fill()
         if self._pieces is not None:
-            filename = self._pieces.write(image, self.folder, filename.rsplit(".", 1)[0], self.direct)
+            stem = filename.rsplit(".", 1)[0]
+            filename = sim.on_root(lambda: self._pieces.write(self._frame.fill(), self.folder, stem, self.direct))
             self.pvd.add(step, sim.time, filename, write=self.root)
             self.frame_seconds += _time.perf_counter() - t0
             return
+        image = self._frame.fill()
         args = (image, os.path.join(self.folder, filename), step, sim.time, filename)
         if self.background:
             self._pending = _writer().submit(self._store_frame, *args)
@@ -322,11 +323,9 @@ class RunOutput:
             "wall_time_s": sim.wall_time,
             "steps_run": sim.steps_run,
         }
-        # over MPI processes the whole state is put together from their shares, a step every
-        # process takes; rank 0 writes it (one checkpoint resumes on any count)
-        sim.internal_state()
-        if self.root:
-            save_checkpoint(self.checkpoint_path, sim.state, meta)
+        # over MPI processes the whole state is put together on rank 0 from the shares, and rank 0
+        # writes it (one checkpoint resumes on any count)
+        sim.on_root(lambda: save_checkpoint(self.checkpoint_path, sim.state, meta))
         self.checkpoint_step = sim.step
         self.write_csv()
 

@@ -34,6 +34,7 @@ class DistributedConduction:
     def __init__(self, stepper, functions, temperature_pass, phases):
         self.stepper = stepper
         self.heat = stepper.system.heat
+        self.heat.without_work_arrays()  # (the whole net's record only lends factors; the share sweeps with its own)
         self._forces, self._before_sweep, self._kick_drift, self._deferred_alone, self._closing = functions
         self._temperature = temperature_pass
         sh = stepper.share

@@ -1,10 +1,12 @@
-"""Frames of a distributed run in ParaView's parallel format: per frame, every process writes its
-piece (``<name>_NNNNNN_p<rank>.vtu``: its springs and their nodes) and rank 0 the ``.pvtu`` that
+"""Frames of a distributed run in ParaView's parallel format: per frame, one piece per process
+(``<name>_NNNNNN_p<rank>.vtu``: the springs it reports and their nodes) and the ``.pvtu`` that
 lists the pieces; the run's ``.pvd`` indexes the ``.pvtu`` files.
 
-Each spring is in exactly one piece (that of the process reporting it,
-:class:`~thermonet.parallel.domain.Decomposition`); a node at a spring between pieces is a point
-of both. Everything is in the user's numbering, as in a frame of one process.
+Rank 0 puts the frame together from the shares and writes every piece and the ``.pvtu``: the
+other processes hold only their shares (no frame, no net). Each spring is in exactly one piece
+(that of the process reporting it, :class:`~thermonet.parallel.domain.Decomposition`); a node at
+a spring between pieces is a point of both. Everything is in the user's numbering, as in a frame
+of one process.
 """
 
 from __future__ import annotations
@@ -21,51 +23,51 @@ NODE_ID, SPRING_ID = "node_id", "spring_id"
 
 
 class PieceWriter:
-    """This process's piece of every frame, cut from the whole frame's image.
+    """The pieces of every frame, cut on rank 0 from the whole frame's image (rank 0 only).
 
-    sim: the distributed Simulation (``sim.stepper.decomposition``); whole: the whole frame's
-    :class:`~thermonet.io.vtu.FrameImage` (its fields are the piece's).
+    sim: the distributed Simulation (``sim.stepper.decomposition``, ``sim.layout``, ``sim.net``).
+    Each piece q keeps its points' user numbers (k_q,) and its springs' (m_q,), ascending; its
+    image is filled and written one piece at a time, so that rank 0 holds one piece's more.
     """
 
-    def __init__(self, sim, whole: FrameImage):
-        point_fields, cell_fields = (_spec(whole.point), _spec(whole.cell))
-        comm = sim.comm
-        self.comm, self.rank, self.size = comm, comm.Get_rank(), comm.Get_size()
+    def __init__(self, sim):
+        self.size = sim.comm.Get_size()
         dec, layout = sim.stepper.decomposition, sim.layout
-        springs = np.sort(layout.spring_order[dec.owned_springs(self.rank)])  # user numbering
-        edges = np.asarray(sim.net.edges, dtype=np.int64)[springs]
-        owned = layout.node_order[dec.owned_nodes(self.rank)]
-        self.nodes = np.union1d(owned, edges.ravel())  # (k,) user node numbers of the piece's points
-        self.springs = springs
-        local = np.searchsorted(self.nodes, edges)
-        # each point's and cell's number in the whole net: a reader joins the pieces by them
-        point_fields = {**point_fields, NODE_ID: (np.dtype(np.int64), 0)}
-        cell_fields = {**cell_fields, SPRING_ID: (np.dtype(np.int64), 0)}
-        self.image = FrameImage(len(self.nodes), local, point_fields, cell_fields)
-        self.image.point[NODE_ID][:] = self.nodes
-        self.image.cell[SPRING_ID][:] = self.springs
-        self.point_fields, self.cell_fields = point_fields, cell_fields
+        edges = np.asarray(sim.net.edges, dtype=np.int64)
+        self.nodes, self.springs, self._local = [], [], []
+        for q in range(self.size):
+            springs = np.sort(layout.spring_order[dec.owned_springs(q)])  # user numbering
+            nodes = np.union1d(layout.node_order[dec.owned_nodes(q)], edges[springs].ravel())
+            self.nodes.append(nodes)
+            self.springs.append(springs)
+            self._local.append(np.searchsorted(nodes, edges[springs]))
+        self.point_fields = self.cell_fields = None
 
     def piece_name(self, stem: str, rank: int) -> str:
         return f"{stem}_p{rank}.vtu"
 
     def write(self, whole: FrameImage, folder: str, stem: str, direct: bool) -> str:
-        """Write this process's piece of the filled frame ``whole``; rank 0 also writes
-        ``<stem>.pvtu`` once every piece is on disk. Returns the .pvtu's file name."""
-        piece = self.image
-        np.take(whole.points, self.nodes, axis=0, out=piece.points)
-        for name, view in piece.point.items():
-            if name != NODE_ID:
-                np.take(whole.point[name], self.nodes, axis=0, out=view)
-        for name, view in piece.cell.items():
-            if name != SPRING_ID:
-                np.take(whole.cell[name], self.springs, axis=0, out=view)
-        piece.write(os.path.join(folder, self.piece_name(stem, self.rank)), direct)
-        self.comm.Barrier()  # the index lists complete pieces only
-        name = f"{stem}.pvtu"
-        if self.rank == 0:
-            with atomic_write(os.path.join(folder, name), "w") as f:
-                f.write(self.pvtu([self.piece_name(stem, q) for q in range(self.size)]))
+        """Write every piece of the filled frame ``whole``, then ``<stem>.pvtu`` listing them.
+        Returns the .pvtu's file name."""
+        # each point's and cell's number in the whole net: a reader joins the pieces by them
+        self.point_fields = {**_spec(whole.point), NODE_ID: (np.dtype(np.int64), 0)}
+        self.cell_fields = {**_spec(whole.cell), SPRING_ID: (np.dtype(np.int64), 0)}
+        for q in range(self.size):
+            nodes, springs = self.nodes[q], self.springs[q]
+            piece = FrameImage(len(nodes), self._local[q], self.point_fields, self.cell_fields)
+            piece.point[NODE_ID][:] = nodes
+            piece.cell[SPRING_ID][:] = springs
+            np.take(whole.points, nodes, axis=0, out=piece.points)
+            for name, view in piece.point.items():
+                if name != NODE_ID:
+                    np.take(whole.point[name], nodes, axis=0, out=view)
+            for name, view in piece.cell.items():
+                if name != SPRING_ID:
+                    np.take(whole.cell[name], springs, axis=0, out=view)
+            piece.write(os.path.join(folder, self.piece_name(stem, q)), direct)
+        name = f"{stem}.pvtu"  # (listed once its pieces are on disk)
+        with atomic_write(os.path.join(folder, name), "w") as f:
+            f.write(self.pvtu([self.piece_name(stem, q) for q in range(self.size)]))
         return name
 
     def pvtu(self, pieces: list[str]) -> str:

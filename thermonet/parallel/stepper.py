@@ -17,7 +17,7 @@ conduction) to rank 0, which measures it as one process does and sends the row t
 :meth:`~DistributedStepper.sync` (``Simulation.internal_state``: frames, probes, checkpoints,
 ``sim.state``) gives them to every process, so reading them is a step every process takes. The
 runner's backup for blow-up replays is a copy of the shares (:meth:`~DistributedStepper.backup_state`).
-Between a call's end and the next read, processes other than rank 0 hold no whole x, p, Φ (empty
+Between a call's end and the next read, processes other than rank 0 hold no whole x, p, Φ, η (empty
 arrays stand in for them, so a read that skipped ``sync`` fails instead of seeing old values).
 """
 
@@ -42,7 +42,8 @@ from .halo import Halo
 from .loads import ShareLoads, load_functions
 from .partition import partition
 from .stages import stage_functions
-from .whole import IndexGather, broadcast, counts_offsets, gather_to_root
+from .whole import IndexGather, broadcast, broadcast_value, counts_offsets, gather_to_root
+from .world import on_root
 
 
 def splitting_passes(model, parallel: bool, thermal: bool, uniform: bool, loads: bool = False,
@@ -131,12 +132,13 @@ class DistributedStepper(Stepper):
         #: whole arrays are up to date with the shares: on every process (ALL), on rank 0 (ROOT; ROW:
         #: but for Φ), nowhere (NONE); the same on every process, as every process takes the same steps
         self._bound, self._fresh = None, ALL
+        #: rank 0 inside :meth:`on_root`: its reads of the whole state are its own
+        self.local = False
         #: the springs this process reports (whole-net numbers), and the gather of per-spring
         #: values kept at them (a backup's heat logs)
         self._reported = dec.owned_springs(self.rank)
-        self._log_gather = IndexGather(self._gather.springs if self.rank == 0 else None,
-                                       np.arange(len(self._reported)), np.bincount(dec.spring_owner,
-                                                                                   minlength=dec.size))
+        self._log_gather = IndexGather(self._gather.springs if self.rank == 0 else None, None,
+                                       np.bincount(dec.spring_owner, minlength=dec.size))
         self._conduction = None
         if conducting:  # conduction: its own call (thermonet.parallel.conduction)
             self._conduction = DistributedConduction(self, *conduction_stages(system.model, parallel, uniform))
@@ -200,8 +202,8 @@ class DistributedStepper(Stepper):
         """A spring left the admissible states: the positions where it was found into the whole
         state on every process (the runner rewinds and replays), and the failure naming the spring."""
         self._ended(cur)
-        self.sync(state)
-        raise blowup_failure(self.system, state.positions, state.entropy, max(steps_done, 0))
+        raise self.on_root(state, lambda: blowup_failure(self.system, state.positions, state.entropy,
+                                                         max(steps_done, 0)))
 
     # ------------------------------------------------------------------------------------------
     # the shares and the whole state
@@ -225,11 +227,21 @@ class DistributedStepper(Stepper):
             self._x, x_buf = cur, self._x
             self._scratch = self._scratch._replace(x_buf=x_buf)
         self._fresh = NONE
-        if self.rank != 0:  # until something reads them, the whole x, p, Φ are rank 0's alone
+        self._release_whole()
+
+    def keep_share(self, state) -> None:
+        """Take this process's share of ``state`` (every process, together) and let go of its
+        whole x, p, Φ on ranks > 0: rank 0's hold the same values."""
+        self._bind(state)
+        self._fresh = ROOT
+        self._release_whole()
+
+    def _release_whole(self) -> None:
+        if self.rank != 0:  # until something reads them, the whole x, p, Φ, η are rank 0's alone
             state = self._bound
             state.positions = state.momenta = _RELEASED_NODES
             if self.system.thermal:
-                state.thermal_displacement = _RELEASED_SPRINGS
+                state.thermal_displacement = state.entropy = _RELEASED_SPRINGS
 
     def _to_root(self, state, whole: bool = True) -> None:
         """The owned values of every process into ``state``'s whole arrays on rank 0: all of
@@ -240,27 +252,35 @@ class DistributedStepper(Stepper):
 
     def sync(self, state) -> None:
         """The shares into ``state``'s whole arrays on every process (every process must call it)."""
-        if state is not self._bound or self._fresh == ALL:
+        if state is not self._bound or self._fresh == ALL or self.local:
             return
         self._to_root(state)
         if state.positions is _RELEASED_NODES:  # (ranks > 0)
             n, m = self.system.n_nodes, self.system.n_springs
             state.positions, state.momenta = np.empty((n, 3)), np.empty((n, 3))
             if self.system.thermal:
-                state.thermal_displacement = np.empty(m)
-        broadcast(self.comm, self._gather.whole_arrays(state))
+                state.thermal_displacement, state.entropy = np.empty(m), np.empty(m)
+        thermal = [state.entropy, state.thermal_displacement] if self.system.thermal else []
+        broadcast(self.comm, [state.positions, state.momenta] + thermal)
         self._fresh = ALL
 
-    def diagnostics_row(self, system, state) -> dict | None:
-        """The diagnostics row of the shares' state: gathered to rank 0 and measured there as one
-        process measures it (the same reductions in the same order), the row sent to every
-        process. None where the whole arrays are up to date everywhere (each process measures)."""
-        if state is not self._bound or self._fresh == ALL:
-            return None
-        from ..diagnostics import measure
-
-        self._to_root(state, whole=False)
-        return self.comm.bcast(measure(system, state, self.parallel) if self.rank == 0 else None, root=0)
+    def on_root(self, state, fn, whole: bool = True, arrays: bool = False):
+        """``fn()`` run by rank 0 with the whole arrays of ``state`` put together there (x, p, η,
+        and Φ where ``whole``), its result or its error on every process (every process must call
+        it; ``arrays``: a result holding large arrays, sent as buffers). Inside, rank 0's reads of
+        the state (``Simulation.internal_state``) are its own and send nothing; the other
+        processes hold no whole x, p, Φ then."""
+        if state is self._bound and self._fresh != ALL:
+            self._to_root(state, whole)
+        self.local = True
+        try:
+            if not arrays:
+                return on_root(self.comm, fn)
+            result = []
+            on_root(self.comm, lambda: result.append(fn()))  # (its error raised on every process)
+        finally:
+            self.local = False
+        return broadcast_value(self.comm, result[0] if result else None)
 
     def backup_state(self, state, into=None, entropy: bool = True):
         """A :class:`ShareBackup` of ``state`` (its share taken first where the shares do not
@@ -364,7 +384,7 @@ class _OwnedGather:
         row = 6 * node_counts + (spring_counts if conducting else 0)
         #: (counts, offsets) of a whole gather (True) and of a row's (False)
         self.layout = {True: counts_offsets(row + (spring_counts if thermal else 0)), False: counts_offsets(row)}
-        self.send = np.empty(int(self.layout[True][0][rank]))
+        self.rank = rank
         self.root = rank == 0
         self.nodes = _root_lists(dec.owned_nodes, dec.size, rank) or []
         self.springs = _root_lists(dec.owned_springs, dec.size, rank) or []
@@ -383,7 +403,7 @@ class _OwnedGather:
         """The owned rows of x, p (nl, 3) and reported springs of η (with conduction) and, where
         ``whole``, Φ (ml,) of every process into ``state``'s whole arrays on rank 0."""
         n, m = len(self.local_nodes), len(self.local_springs)
-        send = self.send
+        send = np.empty(int(self.layout[whole][0][self.rank]))  # (only while gathering: a share's x, p, η, Φ)
         send[:3 * n] = x[self.local_nodes].ravel()
         send[3 * n:6 * n] = p[self.local_nodes].ravel()
         at = 6 * n

@@ -17,7 +17,7 @@ import numpy as np
 from ..heat.passes import CONTINUE, FORWARD, REVERSE, SAVE
 from ..kernels import records
 from .heat_share import heat_shares, ranges
-from .whole import IndexGather
+from .whole import IndexGather, broadcast
 
 #: message tag of the temperatures exchanged between a sweep's phases
 TAG = 34
@@ -111,11 +111,14 @@ class DistributedSweep:
         np.take(logs["entry_flux"], hs.entries, out=self.entry_flux)
 
     def gather(self, eta: np.ndarray, state, logs: dict, more: list) -> None:
-        """A call ends: the share's η (ml,) and this process's logs into the whole state's η
-        and logs on every process, each spring from the process that reports it; with them the
-        (share array (ml,), whole array) pairs ``more``."""
-        self._springs_gather.gather(self.comm, [(eta, state.entropy), (self.produced[:self.ml], logs["produced"])]
-                                    + [(v, logs[k]) for k, v in self.pending.items()] + list(more))
+        """A call ends: the share's η (ml,) into the whole state's η on rank 0, and this
+        process's logs into the whole logs on every process, each spring from the process that
+        reports it; with them the (share array (ml,), whole array) pairs ``more``."""
+        pairs = [(self.produced[:self.ml], logs["produced"])] + [(v, logs[k]) for k, v in self.pending.items()]
+        pairs += list(more)
+        # η to rank 0 only (the others hold their shares of it), the logs to every process
+        self._springs_gather.to_root(self.comm, [(eta, state.entropy)] + pairs)
+        broadcast(self.comm, [whole for _, whole in pairs])
         self._entries_gather.gather(self.comm, [(self.entry_heat, logs["entry_heat"]),
                                                 (self.entry_flux, logs["entry_flux"])])
 
