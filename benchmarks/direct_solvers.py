@@ -2,7 +2,7 @@
 the steel part (em2_paths.py's ``part``): SciPy's SuperLU in double precision (what
 ``splu-reuse`` runs), SuperLU's factors solved on their elimination tree
 (thermonet.solvers.tree_solve, what ``splu-reuse`` switches to once a factorization has lasted)
-compiled serial and threaded at each ``--threads`` count, SuperLU in single precision, and, where pypardiso is installed,
+at each ``--threads`` count, SuperLU in single precision, and, where pypardiso is installed,
 MKL PARDISO at each ``--threads`` count. Prints each solver's factorization and solve times (the
 median of ``--rounds`` interleaved rounds, three solves a round), the nonzeros of its factors
 where it reports them, and the relative residual max |A x − b| / max |b| of a solve. The tree
@@ -114,12 +114,12 @@ def main(argv=None) -> dict:
             x["SuperLU double"] = timed("SuperLU double: solve", lambda: lu.solve(b))
         copy = "tree: copy" if layout is not None else "tree: copy, first"
         tree, layout = timed(copy, lambda: tree_factors(lu, max(args.threads), layout))
-        for k in [0, *args.threads] if tree is not None else ():  # (0: the variant compiled serial)
-            numba.set_num_threads(min(max(k, 1), numba.config.NUMBA_NUM_THREADS))
-            name = f"SuperLU's factors on the tree, {k} thread(s)" if k else "SuperLU's factors on the tree, compiled serial"
+        for k in args.threads if tree is not None else ():
+            numba.set_num_threads(min(k, numba.config.NUMBA_NUM_THREADS))
+            name = f"SuperLU's factors on the tree, {k} thread(s)"
             times.setdefault(f"{name}: factorization", []).append(times[copy][-1])
             for _ in range(3):
-                x[name] = timed(f"{name}: solve", lambda: tree_solve(tree, b, parallel=k > 0))
+                x[name] = timed(f"{name}: solve", lambda: tree_solve(tree, b))
             nnz[name] = len(tree.lower_vals) + len(tree.upper_vals) + tree.size
             for _ in range(3):  # SuperLU's solve again, interleaved
                 x["SuperLU double"] = timed("SuperLU double: solve", lambda: lu.solve(b))

@@ -116,17 +116,21 @@ def test_the_tree_solve_gives_superlus_and_a_dense_solution(monkeypatch):
     lu.factorize(data)
     f, _ = tree_factors(lu._lu, 2)
     assert f is not None and f.separator.sum() >= 3 and (~f.separator).sum() >= 4
-    x = tree_solve(f, b, parallel=False)
+    threads = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        x = tree_solve(f, b)
+        numba.set_num_threads(min(2, numba.config.NUMBA_NUM_THREADS))
+        two = tree_solve(f, b)
+        binned_for_one, _ = tree_factors(lu._lu, 1)  # (its groups spread for one thread)
+        other_bins = tree_solve(binned_for_one, b)
+    finally:
+        numba.set_num_threads(threads)
+    assert np.array_equal(two, x) and np.array_equal(other_bins, x)
     dense = np.linalg.solve(A.toarray(), b)
     scale = np.abs(dense).max()
     assert np.abs(x - lu.solve(b)).max() <= 1e-13 * scale
     assert np.abs(x - dense).max() <= 1e-13 * scale
-    threads = numba.get_num_threads()
-    try:
-        numba.set_num_threads(min(2, numba.config.NUMBA_NUM_THREADS))
-        assert np.array_equal(tree_solve(f, b, parallel=True), x)
-    finally:
-        numba.set_num_threads(threads)
 
     monkeypatch.setattr(direct, "TREE_AFTER_SOLVES", 2)
     monkeypatch.setattr(direct, "TREE_MIN_UNKNOWNS", 0)

@@ -51,16 +51,12 @@ KEPT_MAX_CONTRACTION = 0.9
 #: that made it too (a few line-search residuals wasted cost less than refactorizing)
 KEPT_ANYWHERE_WORTH = 50.0
 #: A kept factorization that has made TREE_AFTER_SOLVES solves, on a net of TREE_MIN_UNKNOWNS
-#: unknowns or more, may solve from then on with its factors copied onto their elimination tree
-#: (:mod:`.tree_solve`: compiled, its subtrees on separate threads, the same bits at any thread
-#: count). Off by default (never): on the shared 2-vCPU development machine it did not pay; EM2
-#: at 100× CO2's stable step on 97 958 springs took 120 ms per step with it against 83 ms with
-#: SuperLU's solves on two threads (load 3: a parallel region waits for a thread that has no
-#: core) and 119 against 102 ms on one, and it costs a copy after each factorization (0.3 s at
-#: 47 637 unknowns by a kept layout, 2.6 s the first time). A benchmark path turns it on
-#: (benchmarks/em2_paths.py, ``splu-reuse-tree``); where it runs, it is made only once a
-#: factorization has lasted TREE_AFTER_SOLVES solves, so one that lasts a few steps never pays it.
-TREE_AFTER_SOLVES = math.inf
+#: unknowns or more, solves from then on with its factors copied onto their elimination tree
+#: (:mod:`.tree_solve`: compiled threaded, its subtrees on separate threads, the same bits at any
+#: thread count, so a run gives the same numbers on one thread or two). The copy costs what some
+#: tens of solves save (0.3 s at 47 637 unknowns by a kept layout, 2.6 s the first time), so it
+#: is made only once a factorization has lasted that long: one that lasts a few steps never pays it.
+TREE_AFTER_SOLVES = 50
 TREE_MIN_UNKNOWNS = 2000
 
 
@@ -136,7 +132,7 @@ class ReusedLU(SparseLU):
 
     def solve(self, rhs: np.ndarray, target: float = 0.0, settled: float = 0.0) -> np.ndarray:
         """SuperLU's solve, or, once the factorization has made ``tree_after`` solves on a large
-        enough net (never, by default: TREE_AFTER_SOLVES), the compiled one on its elimination
+        enough net (TREE_AFTER_SOLVES, TREE_MIN_UNKNOWNS), the compiled one on its elimination
         tree (the same bits at any thread count; where SuperLU pivoted off the diagonal,
         SuperLU's solve throughout)."""
         if self._tree is None and self.solves >= self.tree_after and self.pattern.size >= TREE_MIN_UNKNOWNS:
@@ -146,7 +142,7 @@ class ReusedLU(SparseLU):
         self.solves += 1
         if self._tree:
             self.tree_solves += 1
-            return tree_solve(self._tree, rhs, numba.get_num_threads() > 1)
+            return tree_solve(self._tree, rhs)
         return self._lu.solve(rhs)
 
     def restore_solves(self, solves: int) -> None:

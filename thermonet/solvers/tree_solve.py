@@ -562,6 +562,18 @@ def _lower_product(x, vals, lp, run_col, run_off, s, e, r0, r1):
         x[s + 1] -= a1
         x[s + 2] -= a2
         return
+    if width == 2:
+        a0 = a1 = 0.0
+        for r in range(r0, r1):
+            shift = run_col[r] - run_off[r]
+            for k in range(run_off[r], run_off[r + 1]):
+                base = lp[s] + (k - lp[s]) * 2
+                v = x[shift + k]
+                a0 += vals[base] * v
+                a1 += vals[base + 1] * v
+        x[s] -= a0
+        x[s + 1] -= a1
+        return
     for c in range(width):
         acc = 0.0
         for r in range(r0, r1):
@@ -596,6 +608,14 @@ def _upper_product(x, vals, lp, run_col, run_off, s, e, r0, r1):
                 base = lp[s] + (k - lp[s]) * 3
                 x[shift + k] -= (vals[base] * w0 + vals[base + 1] * w1) + vals[base + 2] * w2
         return
+    if width == 2:
+        w0, w1 = x[s], x[s + 1]
+        for r in range(r0, r1):
+            shift = run_col[r] - run_off[r]
+            for k in range(run_off[r], run_off[r + 1]):
+                base = lp[s] + (k - lp[s]) * 2
+                x[shift + k] -= vals[base] * w0 + vals[base + 1] * w1
+        return
     for r in range(r0, r1):
         shift = run_col[r] - run_off[r]
         for k in range(run_off[r], run_off[r + 1]):
@@ -620,50 +640,69 @@ def _upper_triangle(x, vals, diagonal, lp, s, e):
 
 def _solve(x, lv, uv, diagonal, lp, run_ptr, run_col, run_off, run_cut, run_lo, block_start, gb_lo, gb_hi,
            glo, ghi, sep, bin_start, phase_bins):
-    """x ← U⁻¹ L⁻¹ x in place (the arrays of :class:`TreeFactors`)."""
+    """x ← U⁻¹ L⁻¹ x in place (the arrays of :class:`TreeFactors`). One parallel region per
+    phase and direction (a region waits for every thread to wake: on a loaded machine that can
+    be a scheduler's time slice, so their number counts): a phase of several groups runs its
+    thread bins, each group whole on one thread; a phase of one separator (the top) spreads its
+    products with the subtrees below over the threads, block by block forward and by child
+    subtree backward, and runs its own triangle on one."""
     phases = len(phase_bins) - 1
     for phase in range(phases):  # forward, by blocks of L's rows: leaves first
         b0, b1 = phase_bins[phase], phase_bins[phase + 1]
-        for g in range(bin_start[b0], bin_start[b1]):
-            if sep[g]:  # its blocks' products with the groups below, over the threads
-                for q in prange(gb_lo[g], gb_hi[g]):
-                    s, e = block_start[q], block_start[q + 1]
-                    _lower_product(x, lv, lp, run_col, run_off, s, e, run_ptr[s], run_lo[s])
+        g0 = bin_start[b0]
+        if bin_start[b1] - g0 == 1 and sep[g0]:
+            for q in prange(gb_lo[g0], gb_hi[g0]):
+                s, e = block_start[q], block_start[q + 1]
+                _lower_product(x, lv, lp, run_col, run_off, s, e, run_ptr[s], run_lo[s])
+            for q in range(gb_lo[g0], gb_hi[g0]):
+                s, e = block_start[q], block_start[q + 1]
+                _lower_product(x, lv, lp, run_col, run_off, s, e, run_lo[s], run_ptr[s + 1])
+                _lower_triangle(x, lv, lp, s, e)
+            continue
         for b in prange(b0, b1):
             for g in range(bin_start[b], bin_start[b + 1]):
                 for q in range(gb_lo[g], gb_hi[g]):
                     s, e = block_start[q], block_start[q + 1]
+                    if sep[g]:  # (the products with the subtrees below, then its own: one order)
+                        _lower_product(x, lv, lp, run_col, run_off, s, e, run_ptr[s], run_lo[s])
                     _lower_product(x, lv, lp, run_col, run_off, s, e, run_lo[s], run_ptr[s + 1])
                     _lower_triangle(x, lv, lp, s, e)
     for phase in range(phases - 1, -1, -1):  # backward, by blocks of U's columns: the top first
         b0, b1 = phase_bins[phase], phase_bins[phase + 1]
+        g0 = bin_start[b0]
+        if bin_start[b1] - g0 == 1 and sep[g0]:
+            for q in range(gb_hi[g0] - 1, gb_lo[g0] - 1, -1):
+                s, e = block_start[q], block_start[q + 1]
+                _upper_triangle(x, uv, diagonal, lp, s, e)
+                _upper_product(x, uv, lp, run_col, run_off, s, e, run_lo[s], run_ptr[s + 1])
+            for half in prange(2):  # its two child subtrees, one thread each
+                for q in range(gb_hi[g0] - 1, gb_lo[g0] - 1, -1):
+                    s, e = block_start[q], block_start[q + 1]
+                    if half == 0:
+                        _upper_product(x, uv, lp, run_col, run_off, s, e, run_ptr[s], run_cut[s])
+                    else:
+                        _upper_product(x, uv, lp, run_col, run_off, s, e, run_cut[s], run_lo[s])
+            continue
         for b in prange(b0, b1):
             for g in range(bin_start[b], bin_start[b + 1]):
                 for q in range(gb_hi[g] - 1, gb_lo[g] - 1, -1):
                     s, e = block_start[q], block_start[q + 1]
                     _upper_triangle(x, uv, diagonal, lp, s, e)
-                    _upper_product(x, uv, lp, run_col, run_off, s, e, run_lo[s], run_ptr[s + 1])
-        for g in range(bin_start[b0], bin_start[b1]):
-            if sep[g]:  # its blocks' products with its two child subtrees, one thread each
-                for half in prange(2):
-                    for q in range(gb_hi[g] - 1, gb_lo[g] - 1, -1):
-                        s, e = block_start[q], block_start[q + 1]
-                        if half == 0:
-                            _upper_product(x, uv, lp, run_col, run_off, s, e, run_ptr[s], run_cut[s])
-                        else:
-                            _upper_product(x, uv, lp, run_col, run_off, s, e, run_cut[s], run_lo[s])
+                    # (each row of x takes its updates from the blocks in descending order
+                    # however its runs are split: the same bits as the spread phase's)
+                    _upper_product(x, uv, lp, run_col, run_off, s, e, run_ptr[s], run_ptr[s + 1])
 
 
-# (distinct names: Numba's disk cache keys a function by its name, not by its options)
-_serial_solve = specialize(_solve, "serial", {}, **_OPTIONS)
+# (a distinct name: Numba's disk cache keys a function by its name, not by its options; compiled
+# threaded only: on one thread its regions run on the calling thread)
 _parallel_solve = specialize(_solve, "parallel", {}, parallel=True, **_OPTIONS)
 
 
-def tree_solve(factors: TreeFactors, rhs: np.ndarray, parallel: bool) -> np.ndarray:
-    """(n,) the solution of L U x = rhs with :class:`TreeFactors` (threaded where ``parallel``)."""
+def tree_solve(factors: TreeFactors, rhs: np.ndarray) -> np.ndarray:
+    """(n,) the solution of L U x = rhs with :class:`TreeFactors`, on Numba's threads."""
     f = factors
     x = np.asarray(rhs, dtype=np.float64)[f.order]
-    (_parallel_solve if parallel else _serial_solve)(
+    _parallel_solve(
         x, f.lower_vals, f.upper_vals, f.diagonal, f.lower_ptr, f.run_ptr, f.run_col, f.run_off, f.run_cut,
         f.run_lo, f.block_start, f.group_block_lo, f.group_block_hi, f.group_lo, f.group_hi, f.separator,
         f.bin_start, f.phase_bins)
