@@ -8,14 +8,15 @@ factors are copied once per factorization, relabelled in a postorder of the tree
 a contiguous range of rows), into blocks of rows that share their columns (a node's three
 unknowns: one pass over the shared columns serves the block's rows), and the tree is cut into
 groups (2**TREE_DEPTH leaf subtrees at most and the separators above them). A solve runs the
-groups phase by phase, each phase's groups spread over the threads: forward the leaves first,
-a separator's products with the subtrees below it spread over the threads block by block before
-its own triangle; backward the top separator first, its products with its two subtrees one
-thread each.
+groups phase by phase, one parallel region per phase and direction: forward the leaves first,
+then each level of separators, a phase's groups in thread bins, each group whole on one thread;
+the top separator (a phase of one group) spreads its products with the subtrees below over the
+threads, block by block forward and one child subtree per thread backward.
 
 Every unknown's sums are taken in one fixed order whichever thread takes them, so the solution
-is the same bit for bit at any thread count and compiled serial or parallel (it differs from
-SuperLU's own solve in the last bits: another order of the same sums). Where SuperLU pivoted off
+is the same bit for bit at any thread count (it differs from SuperLU's own solve in the last
+bits: another order of the same sums). It is compiled threaded only: on one thread its regions
+run on the calling thread, and that compile ran faster than one without ``parallel=True``. Where SuperLU pivoted off
 the diagonal or reordered columns, or a group's rows would refer to a sibling's (checked entry
 by entry), :func:`tree_factors` returns None and the caller keeps SuperLU's solve.
 """
