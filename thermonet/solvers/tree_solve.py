@@ -152,10 +152,16 @@ def _with_upper(lp, lc, lv, u_indptr, u_indices, order, new):
                 stamp[j] = i
                 cols[q] = j
                 q += 1
-        if extra[i + 1] > extra[i]:  # (rare) the row's columns in order again
-            rank = np.argsort(cols[ptr[i]:ptr[i + 1]], kind="mergesort")
-            cols[ptr[i]:ptr[i + 1]] = cols[ptr[i]:ptr[i + 1]][rank]
-            vals[ptr[i]:ptr[i + 1]] = vals[ptr[i]:ptr[i + 1]][rank]
+        if extra[i + 1] > extra[i]:  # (rare) the row's columns in order again: the few added
+            for a in range(ptr[i] + 1, ptr[i + 1]):  # ones inserted (no np.argsort: compiling it
+                c, v = cols[a], vals[a]  # costs seconds)
+                b = a - 1
+                while b >= ptr[i] and cols[b] > c:
+                    cols[b + 1] = cols[b]
+                    vals[b + 1] = vals[b]
+                    b -= 1
+                cols[b + 1] = c
+                vals[b + 1] = v
     return ptr, cols, vals, ok
 
 
@@ -543,22 +549,25 @@ def _tree_arrays(n: int, L, U, threads: int) -> TreeFactors | None:
                        np.array(phase_bins, dtype=np.int64))
 
 
-@njit(inline="always", **_OPTIONS)
+@njit(**_OPTIONS)
 def _lower_product(x, vals, lp, run_col, run_off, s, e, r0, r1):
     """x[s + c] −= Σ_k L[s + c, col k] x[col k] for the block's rows s … e − 1 over the shared
     columns in the runs r0 … r1 − 1 of row s (each one sum in column order; a block of three
     rows, a node's, in one pass)."""
     width = e - s
+    first = lp[s]
     if width == 3:
         a0 = a1 = a2 = 0.0
         for r in range(r0, r1):
-            shift = run_col[r] - run_off[r]
-            for k in range(run_off[r], run_off[r + 1]):
-                base = lp[s] + (k - lp[s]) * 3
+            k0 = run_off[r]
+            shift = run_col[r] - k0
+            base = first + (k0 - first) * 3
+            for k in range(k0, run_off[r + 1]):
                 v = x[shift + k]
                 a0 += vals[base] * v
                 a1 += vals[base + 1] * v
                 a2 += vals[base + 2] * v
+                base += 3
         x[s] -= a0
         x[s + 1] -= a1
         x[s + 2] -= a2
@@ -566,12 +575,14 @@ def _lower_product(x, vals, lp, run_col, run_off, s, e, r0, r1):
     if width == 2:
         a0 = a1 = 0.0
         for r in range(r0, r1):
-            shift = run_col[r] - run_off[r]
-            for k in range(run_off[r], run_off[r + 1]):
-                base = lp[s] + (k - lp[s]) * 2
+            k0 = run_off[r]
+            shift = run_col[r] - k0
+            base = first + (k0 - first) * 2
+            for k in range(k0, run_off[r + 1]):
                 v = x[shift + k]
                 a0 += vals[base] * v
                 a1 += vals[base + 1] * v
+                base += 2
         x[s] -= a0
         x[s + 1] -= a1
         return
@@ -580,11 +591,11 @@ def _lower_product(x, vals, lp, run_col, run_off, s, e, r0, r1):
         for r in range(r0, r1):
             shift = run_col[r] - run_off[r]
             for k in range(run_off[r], run_off[r + 1]):
-                acc += vals[lp[s] + (k - lp[s]) * width + c] * x[shift + k]
+                acc += vals[first + (k - first) * width + c] * x[shift + k]
         x[s + c] -= acc
 
 
-@njit(inline="always", **_OPTIONS)
+@njit(**_OPTIONS)
 def _lower_triangle(x, vals, lp, s, e):
     """The block's rows s … e − 1 in turn: x[j] −= Σ_{s ≤ c < j} L[j, c] x[c]."""
     tri = lp[s] + (lp[s + 1] - lp[s]) * (e - s)
@@ -596,38 +607,43 @@ def _lower_triangle(x, vals, lp, s, e):
         x[j] -= acc
 
 
-@njit(inline="always", **_OPTIONS)
+@njit(**_OPTIONS)
 def _upper_product(x, vals, lp, run_col, run_off, s, e, r0, r1):
     """x[r] −= Σ_c U[r, c] x[c] over a block's columns s … e − 1 and its shared rows r in the
     runs r0 … r1 − 1 of row s (the columns in order; a block of three, a node's, read once)."""
     width = e - s
+    first = lp[s]
     if width == 3:
         w0, w1, w2 = x[s], x[s + 1], x[s + 2]
         for r in range(r0, r1):
-            shift = run_col[r] - run_off[r]
-            for k in range(run_off[r], run_off[r + 1]):
-                base = lp[s] + (k - lp[s]) * 3
+            k0 = run_off[r]
+            shift = run_col[r] - k0
+            base = first + (k0 - first) * 3
+            for k in range(k0, run_off[r + 1]):
                 x[shift + k] -= (vals[base] * w0 + vals[base + 1] * w1) + vals[base + 2] * w2
+                base += 3
         return
     if width == 2:
         w0, w1 = x[s], x[s + 1]
         for r in range(r0, r1):
-            shift = run_col[r] - run_off[r]
-            for k in range(run_off[r], run_off[r + 1]):
-                base = lp[s] + (k - lp[s]) * 2
+            k0 = run_off[r]
+            shift = run_col[r] - k0
+            base = first + (k0 - first) * 2
+            for k in range(k0, run_off[r + 1]):
                 x[shift + k] -= vals[base] * w0 + vals[base + 1] * w1
+                base += 2
         return
     for r in range(r0, r1):
         shift = run_col[r] - run_off[r]
         for k in range(run_off[r], run_off[r + 1]):
-            base = lp[s] + (k - lp[s]) * width
+            base = first + (k - first) * width
             acc = 0.0
             for c in range(width):
                 acc += vals[base + c] * x[s + c]
             x[shift + k] -= acc
 
 
-@njit(inline="always", **_OPTIONS)
+@njit(**_OPTIONS)
 def _upper_triangle(x, vals, diagonal, lp, s, e):
     """The block's columns e − 1 … s: x[j] ← x[j] / U[j, j], then its column's rows s … j − 1."""
     tri = lp[s] + (lp[s + 1] - lp[s]) * (e - s)
@@ -639,59 +655,72 @@ def _upper_triangle(x, vals, diagonal, lp, s, e):
             x[s + t] -= vals[base + t] * w
 
 
+@njit(**_OPTIONS)
+def _forward_group(x, lv, lp, run_ptr, run_col, run_off, run_lo, block_start, q0, q1, below):
+    """Forward substitution through a group's blocks q0 … q1 − 1: each block's products (with
+    the subtrees below where ``below``, else only with the group's own rows) and its triangle."""
+    for q in range(q0, q1):
+        s, e = block_start[q], block_start[q + 1]
+        _lower_product(x, lv, lp, run_col, run_off, s, e, run_ptr[s] if below else run_lo[s], run_ptr[s + 1])
+        _lower_triangle(x, lv, lp, s, e)
+
+
+@njit(**_OPTIONS)
+def _backward_group(x, uv, diagonal, lp, run_ptr, run_col, run_off, run_lo, block_start, q0, q1, below):
+    """Backward substitution through a group's blocks q1 − 1 … q0: each block's triangle and its
+    products (with the subtrees below where ``below``, else only with the group's own rows)."""
+    for q in range(q1 - 1, q0 - 1, -1):
+        s, e = block_start[q], block_start[q + 1]
+        _upper_triangle(x, uv, diagonal, lp, s, e)
+        _upper_product(x, uv, lp, run_col, run_off, s, e, run_ptr[s] if below else run_lo[s], run_ptr[s + 1])
+
+
 def _solve(x, lv, uv, diagonal, lp, run_ptr, run_col, run_off, run_cut, run_lo, block_start, gb_lo, gb_hi,
            glo, ghi, sep, bin_start, phase_bins):
     """x ← U⁻¹ L⁻¹ x in place (the arrays of :class:`TreeFactors`). One parallel region per
     phase and direction (a region waits for every thread to wake: on a loaded machine that can
     be a scheduler's time slice, so their number counts): a phase of several groups runs its
     thread bins, each group whole on one thread; a phase of one separator (the top) spreads its
-    products with the subtrees below over the threads, block by block forward and by child
-    subtree backward, and runs its own triangle on one."""
+    products with the subtrees below over the threads, block by block forward and one child
+    subtree per thread backward, and runs its own rows on one. Which phases spread follows from
+    the tree alone, so each group's sums are the same at any thread count."""
     phases = len(phase_bins) - 1
     for phase in range(phases):  # forward, by blocks of L's rows: leaves first
         b0, b1 = phase_bins[phase], phase_bins[phase + 1]
         g0 = bin_start[b0]
-        if bin_start[b1] - g0 == 1 and sep[g0]:
-            for q in prange(gb_lo[g0], gb_hi[g0]):
-                s, e = block_start[q], block_start[q + 1]
+        spread = bin_start[b1] - g0 == 1 and sep[g0]
+        t0, t1 = b0, b1  # (one loop for both kinds of phase: each prange costs its own compile)
+        if spread:
+            t0, t1 = gb_lo[g0], gb_hi[g0]
+        for t in prange(t0, t1):
+            if spread:  # block t's products with the subtrees below
+                s, e = block_start[t], block_start[t + 1]
                 _lower_product(x, lv, lp, run_col, run_off, s, e, run_ptr[s], run_lo[s])
-            for q in range(gb_lo[g0], gb_hi[g0]):
-                s, e = block_start[q], block_start[q + 1]
-                _lower_product(x, lv, lp, run_col, run_off, s, e, run_lo[s], run_ptr[s + 1])
-                _lower_triangle(x, lv, lp, s, e)
-            continue
-        for b in prange(b0, b1):
-            for g in range(bin_start[b], bin_start[b + 1]):
-                for q in range(gb_lo[g], gb_hi[g]):
-                    s, e = block_start[q], block_start[q + 1]
-                    if sep[g]:  # (the products with the subtrees below, then its own: one order)
-                        _lower_product(x, lv, lp, run_col, run_off, s, e, run_ptr[s], run_lo[s])
-                    _lower_product(x, lv, lp, run_col, run_off, s, e, run_lo[s], run_ptr[s + 1])
-                    _lower_triangle(x, lv, lp, s, e)
+            else:
+                for g in range(bin_start[t], bin_start[t + 1]):
+                    _forward_group(x, lv, lp, run_ptr, run_col, run_off, run_lo, block_start, gb_lo[g], gb_hi[g], True)
+        if spread:
+            _forward_group(x, lv, lp, run_ptr, run_col, run_off, run_lo, block_start, gb_lo[g0], gb_hi[g0], False)
     for phase in range(phases - 1, -1, -1):  # backward, by blocks of U's columns: the top first
         b0, b1 = phase_bins[phase], phase_bins[phase + 1]
         g0 = bin_start[b0]
-        if bin_start[b1] - g0 == 1 and sep[g0]:
-            for q in range(gb_hi[g0] - 1, gb_lo[g0] - 1, -1):
-                s, e = block_start[q], block_start[q + 1]
-                _upper_triangle(x, uv, diagonal, lp, s, e)
-                _upper_product(x, uv, lp, run_col, run_off, s, e, run_lo[s], run_ptr[s + 1])
-            for half in prange(2):  # its two child subtrees, one thread each
+        spread = bin_start[b1] - g0 == 1 and sep[g0]
+        if spread:
+            _backward_group(x, uv, diagonal, lp, run_ptr, run_col, run_off, run_lo, block_start, gb_lo[g0], gb_hi[g0],
+                            False)
+        t0, t1 = b0, b1
+        if spread:
+            t0, t1 = 0, 2
+        for t in prange(t0, t1):
+            if spread:  # its child subtree t's rows
                 for q in range(gb_hi[g0] - 1, gb_lo[g0] - 1, -1):
                     s, e = block_start[q], block_start[q + 1]
-                    if half == 0:
-                        _upper_product(x, uv, lp, run_col, run_off, s, e, run_ptr[s], run_cut[s])
-                    else:
-                        _upper_product(x, uv, lp, run_col, run_off, s, e, run_cut[s], run_lo[s])
-            continue
-        for b in prange(b0, b1):
-            for g in range(bin_start[b], bin_start[b + 1]):
-                for q in range(gb_hi[g] - 1, gb_lo[g] - 1, -1):
-                    s, e = block_start[q], block_start[q + 1]
-                    _upper_triangle(x, uv, diagonal, lp, s, e)
-                    # (each row of x takes its updates from the blocks in descending order
-                    # however its runs are split: the same bits as the spread phase's)
-                    _upper_product(x, uv, lp, run_col, run_off, s, e, run_ptr[s], run_ptr[s + 1])
+                    _upper_product(x, uv, lp, run_col, run_off, s, e, run_ptr[s] if t == 0 else run_cut[s],
+                                   run_cut[s] if t == 0 else run_lo[s])
+            else:
+                for g in range(bin_start[t], bin_start[t + 1]):
+                    _backward_group(x, uv, diagonal, lp, run_ptr, run_col, run_off, run_lo, block_start, gb_lo[g],
+                                    gb_hi[g], True)
 
 
 # (a distinct name: Numba's disk cache keys a function by its name, not by its options; compiled
