@@ -56,8 +56,11 @@ KEPT_ANYWHERE_WORTH = 50.0
 #: thread count, so a run gives the same numbers on one thread or two). The copy costs what some
 #: tens of solves save (0.3 s at 47 637 unknowns by a kept layout, 2.6 s the first time), so it
 #: is made only once a factorization has lasted that long: one that lasts a few steps never pays it.
+#: On the steel part at 9 270 springs (5 172 unknowns) EM2's steps at 100× ran no faster on the
+#: tree (1.04–1.07× the time with SuperLU's solves, one and two threads, loaded machine), at
+#: 97 958 springs (47 637 unknowns) faster: hence the threshold between them.
 TREE_AFTER_SOLVES = 50
-TREE_MIN_UNKNOWNS = 2000
+TREE_MIN_UNKNOWNS = 20_000
 
 
 def factorization_worth(lu) -> float:
