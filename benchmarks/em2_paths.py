@@ -58,6 +58,8 @@ PATHS = {
     # (the kept factors never solved on their elimination tree, thermonet.solvers.tree_solve,
     # always SuperLU's own solve: the A/B against splu-reuse, which switches after 50 solves)
     "splu-reuse-superlu": dict(newton_path="sparse", linear_solver="splu-reuse"),
+    # (the same switch after 50 solves on a net of any size: the A/B below TREE_MIN_UNKNOWNS)
+    "splu-reuse-tree": dict(newton_path="sparse", linear_solver="splu-reuse"),
     "auto": {},
 }
 #: the paths measured unless --paths names others
@@ -252,6 +254,8 @@ def run_paths(net: str, cells: int, h: float, paths, steps: int, rounds: int, co
     sims = {path: make(net, cells, "em2", h, **PATHS[path]) for path in paths}
     if "splu-reuse-superlu" in sims:
         sims["splu-reuse-superlu"].stepper.solver.tree_after = math.inf
+    if "splu-reuse-tree" in sims:
+        sims["splu-reuse-tree"].stepper.solver.tree_min_unknowns = 0
     times = {path: [] for path in paths}
     co2_times = []
     failed = {}
@@ -359,7 +363,8 @@ def main(argv=None) -> list[dict]:
     ap.add_argument("--paths", nargs="+", default=list(DEFAULT_PATHS), choices=list(PATHS),
                     help="splu-reuse-superlu: splu-reuse whose kept factors are never solved on their "
                          "elimination tree (an A/B against splu-reuse; give --warmup 30 so that "
-                         "splu-reuse's rounds run on the tree)")
+                         "splu-reuse's rounds run on the tree); splu-reuse-tree: switches to it on a net "
+                         "of any size")
     ap.add_argument("--sweeps-max-factor", type=float, default=1000.0,
                     help="skip the sweeps above this factor (at 1e4× on the bracket a step did not converge "
                          "in 30 iterations of up to 40 sweeps and GMRES each, minutes per step)")

@@ -111,7 +111,8 @@ class ReusedLU(SparseLU):
         self.solves = 0  # made with the kept factorization (saved with a carried one's state)
         self._tree = None  # its factors on the elimination tree (TREE_AFTER_SOLVES), or False
         self._layout = None  # where the last factors went on the tree (kept for the next ones)
-        self.tree_after = TREE_AFTER_SOLVES  # (a benchmark may set it per solver)
+        self.tree_after = TREE_AFTER_SOLVES  # (a benchmark may set these per solver)
+        self.tree_min_unknowns = TREE_MIN_UNKNOWNS
         self.tree_solves = 0  # made by tree_solve, and the factorizations copied for it
         self.tree_copies = 0
 
@@ -138,7 +139,7 @@ class ReusedLU(SparseLU):
         enough net (TREE_AFTER_SOLVES, TREE_MIN_UNKNOWNS), the compiled one on its elimination
         tree (the same bits at any thread count; where SuperLU pivoted off the diagonal,
         SuperLU's solve throughout)."""
-        if self._tree is None and self.solves >= self.tree_after and self.pattern.size >= TREE_MIN_UNKNOWNS:
+        if self._tree is None and self.solves >= self.tree_after and self.pattern.size >= self.tree_min_unknowns:
             tree, self._layout = tree_factors(self._lu, numba.get_num_threads(), self._layout)
             self._tree = tree if tree is not None else False
             self.tree_copies += tree is not None
