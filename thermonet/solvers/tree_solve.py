@@ -723,8 +723,9 @@ def _solve(x, lv, uv, diagonal, lp, run_ptr, run_col, run_off, run_cut, run_lo, 
                                     gb_hi[g], True)
 
 
-# (a distinct name: Numba's disk cache keys a function by its name, not by its options; compiled
-# threaded only: on one thread its regions run on the calling thread)
+# (compiled threaded only: on one thread its regions run on the calling thread, and a compile
+# without parallel=True ran slower there: benchmarks/README.md, "Kept factors solved on their
+# elimination tree")
 _parallel_solve = specialize(_solve, "parallel", {}, parallel=True, **_OPTIONS)
 
 
