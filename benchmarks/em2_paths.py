@@ -56,9 +56,9 @@ PATHS = {
     "splu": dict(newton_path="sparse", linear_solver="splu"),
     "splu-reuse": dict(newton_path="sparse", linear_solver="splu-reuse"),
     # (the kept factors never solved on their elimination tree, thermonet.solvers.tree_solve,
-    # always SuperLU's own solve: the A/B against splu-reuse, which switches after 50 solves)
+    # always SuperLU's own solve: the A/B against splu-reuse, which switches after 200 solves)
     "splu-reuse-superlu": dict(newton_path="sparse", linear_solver="splu-reuse"),
-    # (the same switch after 50 solves on a net of any size: the A/B below TREE_MIN_UNKNOWNS)
+    # (the same switch after 200 solves on a net of any size: the A/B below TREE_MIN_UNKNOWNS)
     "splu-reuse-tree": dict(newton_path="sparse", linear_solver="splu-reuse"),
     "auto": {},
 }
@@ -362,7 +362,7 @@ def main(argv=None) -> list[dict]:
     ap.add_argument("--warmup", type=int, default=1, help="untimed steps of each path before the rounds")
     ap.add_argument("--paths", nargs="+", default=list(DEFAULT_PATHS), choices=list(PATHS),
                     help="splu-reuse-superlu: splu-reuse whose kept factors are never solved on their "
-                         "elimination tree (an A/B against splu-reuse; give --warmup 30 so that "
+                         "elimination tree (an A/B against splu-reuse; give --warmup 110 so that "
                          "splu-reuse's rounds run on the tree); splu-reuse-tree: switches to it on a net "
                          "of any size")
     ap.add_argument("--sweeps-max-factor", type=float, default=1000.0,

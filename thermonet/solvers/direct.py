@@ -53,13 +53,15 @@ KEPT_ANYWHERE_WORTH = 50.0
 #: A kept factorization that has made TREE_AFTER_SOLVES solves, on a net of TREE_MIN_UNKNOWNS
 #: unknowns or more, solves from then on with its factors copied onto their elimination tree
 #: (:mod:`.tree_solve`: compiled threaded, its subtrees on separate threads, the same bits at any
-#: thread count, so a run gives the same numbers on one thread or two). The copy costs what some
-#: tens of solves save (0.3 s at 47 637 unknowns by a kept layout, 2.6 s the first time), so it
-#: is made only once a factorization has lasted that long: one that lasts a few steps never pays it.
+#: thread count, so a run gives the same numbers on one thread or two). The copy costs what tens
+#: to hundreds of solves save (at 47 637 unknowns 0.4 s by a kept layout, 2.8 s the first time,
+#: against 35 ms a solve), so it waits for a factorization that has lasted: at 100× CO2's stable
+#: step on the steel part one lasts the whole run, at 1e4× about 45 solves (the first copy, in a
+#: 45-step run there, made EM2 2.1–2.5× slower per step with the switch at 50 solves).
 #: On the steel part at 9 270 springs (5 172 unknowns) EM2's steps at 100× ran no faster on the
 #: tree (1.04–1.07× the time with SuperLU's solves, one and two threads, loaded machine), at
 #: 97 958 springs (47 637 unknowns) faster: hence the threshold between them.
-TREE_AFTER_SOLVES = 50
+TREE_AFTER_SOLVES = 200
 TREE_MIN_UNKNOWNS = 20_000
 
 
