@@ -9,7 +9,10 @@ gets through simulated time faster):
 
 - ``sweeps``: ``newton_path = "compiled"`` (inertia-preconditioned matrix-free sweeps);
 - ``splu``: ``newton_path = "sparse"``, ``linear_solver = "splu"`` (a factorization per iteration);
-- ``splu-reuse``: ``newton_path = "sparse"``, ``linear_solver = "splu-reuse"`` (kept factorizations);
+- ``splu-reuse``: ``newton_path = "sparse"``, ``linear_solver = "splu-reuse"`` (kept factorizations;
+  on large nets solved on their elimination tree once one has made 200 solves);
+- ``splu-reuse-superlu``, ``splu-reuse-tree`` (not run unless named): ``splu-reuse`` always with
+  SuperLU's own solves, and switching to the tree on a net of any size (the tree solve's A/B);
 - ``auto``: the default.
 
 Nets: ``part``, the steel L-bracket of examples/steel_bracket.py meshed by gmsh at ``--mesh-size``

@@ -122,7 +122,7 @@ def test_the_tree_solve_gives_superlus_and_a_dense_solution(monkeypatch):
         x = tree_solve(f, b)
         numba.set_num_threads(min(2, numba.config.NUMBA_NUM_THREADS))
         two = tree_solve(f, b)
-        binned_for_one, _ = tree_factors(lu._lu, 1)  # (its groups spread for one thread)
+        binned_for_one, _ = tree_factors(lu._lu, 1)  # (its thread bins made for one thread)
         other_bins = tree_solve(binned_for_one, b)
     finally:
         numba.set_num_threads(threads)
