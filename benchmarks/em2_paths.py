@@ -23,8 +23,8 @@ force ramping to 2 kN over a second), with conduction: the quasi-static use EM2 
 c = 100, θ0 = 300), its bottom face clamped, at rest and 50 K above θ0 (thermal stress, a slow
 expansion; with 6 neighbours the cubic cells would be mechanisms, held only by the springs'
 tension); ``bracket``, scenes/bracket.toml (a gmsh tetrahedral aluminium part, SI units, hot
-flange, conduction). The paths of one net and step run interleaved: ``--warmup`` untimed steps each (default 1)
-(compilation, first factorization), then ``--rounds`` rounds of ``--steps`` steps of each path
+flange, conduction). The paths of one net and step run interleaved: ``--warmup`` untimed steps each (default: one
+round's ``--steps``; compilation, first factorization), then ``--rounds`` rounds of ``--steps`` steps of each path
 in turn, ms/step the median over the rounds; a path that fails a step is reported as failed.
 
     python benchmarks/em2_paths.py                        # both nets, factors 1 3 10 100 1e4
@@ -247,9 +247,11 @@ def make(net: str, cells: int, integrator: str, h: float, **options) -> tn.Simul
 
 
 def run_paths(net: str, cells: int, h: float, paths, steps: int, rounds: int, co2=None, co2_steps: int = 0,
-              warmup: int = 1) -> list[dict]:
+              warmup: int | None = None) -> list[dict]:
     """The paths at one step, interleaved (a drift of a shared machine hits all alike): each
-    simulation takes ``warmup`` untimed steps (compilation, first factorization), then ``rounds``
+    simulation takes ``warmup`` untimed steps (None: ``steps``, so that every timed call starts on a
+    multiple of ``steps`` and "auto" conduction may take a cycle dividing it; compilation, first
+    factorization), then ``rounds``
     rounds each time ``steps`` steps of every path in turn, and ``co2_steps`` of the CO2
     simulation ``co2`` where given; ms/step is the median over the rounds. Returns a row per
     path: ms/step, CO2's ms/step in the same rounds (``co2_ms``) and the stepper's summary (or
@@ -270,7 +272,7 @@ def run_paths(net: str, cells: int, h: float, paths, steps: int, rounds: int, co
                     continue
                 try:
                     t0 = time.perf_counter()
-                    sim.run(steps=warmup if r == 0 else steps, diagnostics_every=10**9)
+                    sim.run(steps=(warmup or steps) if r == 0 else steps, diagnostics_every=10**9)
                     if r:
                         times[path].append((time.perf_counter() - t0) / steps)
                 except tn.SimulationError as exc:
@@ -286,7 +288,7 @@ def run_paths(net: str, cells: int, h: float, paths, steps: int, rounds: int, co
 
 
 def measure(nets, cells: int, factors, steps: int, paths=DEFAULT_PATHS, out=print,
-            sweeps_max_factor: float = math.inf, rounds: int = 3, warmup: int = 1) -> list[dict]:
+            sweeps_max_factor: float = math.inf, rounds: int = 3, warmup: int | None = None) -> list[dict]:
     """The table's rows: per net and factor, each path's row (``run_paths``) with net, factor,
     springs, h and h·ω_max added; prints them as a markdown table."""
     rows = []
@@ -296,8 +298,11 @@ def measure(nets, cells: int, factors, steps: int, paths=DEFAULT_PATHS, out=prin
     for net in nets:
         est = stable_step(make(net, cells, "co2", 1.0 if net == "lattice" else 1e-7))
         co2 = make(net, cells, "co2", CO2_FRACTION * est["h_max"])
-        co2.run(steps=1, diagnostics_every=10**9)
         n_co2 = max(20, 20 * steps)
+        # warmed up by a whole round: its calls then start on multiples of n_co2, so that "auto"
+        # conduction may take a cycle k dividing n_co2, as a run's would divide its output
+        # cadences (after a 1-step warm-up every call started on an odd step: k = 1)
+        co2.run(steps=n_co2, diagnostics_every=10**9)
         for factor in factors:
             h = factor * est["h_max"]
             if "sweeps" in paths and factor > sweeps_max_factor:
@@ -307,9 +312,10 @@ def measure(nets, cells: int, factors, steps: int, paths=DEFAULT_PATHS, out=prin
                              steps, rounds, co2, n_co2, warmup)
             co2_ms = done[0]["co2_ms"]
             co2_rate = co2_ms / (CO2_FRACTION * est["h_max"])  # ms per unit of simulated time
+            k = co2.conduction_cycle[0] if co2.conduction_cycle else "–"
             out(f"| {net} | {co2.net.n_springs} | {CO2_FRACTION:g} | {2 * CO2_FRACTION:.3g} | co2 | {co2_ms:.3f} | | | "
-                f"| | (CO2 at {CO2_FRACTION:g}× its stable step, in the same rounds: the speed-up column's "
-                f"reference) | 1 |")
+                f"| | (CO2 at {CO2_FRACTION:g}× its stable step, conduction every {k} steps, in the same rounds: "
+                f"the speed-up column's reference) | 1 |")
             for row in done:
                 path = row["path"]
                 s = row["summary"]
@@ -362,7 +368,8 @@ def main(argv=None) -> list[dict]:
                     help="steps as multiples of CO2's stable step")
     ap.add_argument("--steps", type=int, default=4, help="steps per round")
     ap.add_argument("--rounds", type=int, default=3, help="interleaved rounds (ms/step: their median)")
-    ap.add_argument("--warmup", type=int, default=1, help="untimed steps of each path before the rounds")
+    ap.add_argument("--warmup", type=int, default=None,
+                    help="untimed steps of each path before the rounds (default: a round's --steps)")
     ap.add_argument("--paths", nargs="+", default=list(DEFAULT_PATHS), choices=list(PATHS),
                     help="splu-reuse-superlu: splu-reuse whose kept factors are never solved on their "
                          "elimination tree (an A/B against splu-reuse; give --warmup 110 so that "
