@@ -54,9 +54,8 @@ class TreeFactors:
         run_cut, run_lo (n,) int64: row i's first run in the second child subtree of its group
         and in its group itself (the runs before: the subtrees below).
     block_start (q+1,) int64: block q is rows block_start[q] … block_start[q+1] − 1;
-        group_block_lo, group_block_hi (g,): group k's blocks.
-    group_lo, group_hi (g,) int64: the groups' rows [lo, hi), by phase (leaves first, then the
-        separators level by level), each phase's by thread bin.
+        group_block_lo, group_block_hi (g,): group k's blocks; the groups by phase (leaves first,
+        then the separators level by level), each phase's by thread bin.
     separator (g,) bool: whether a group is a separator (its rows refer to subtrees below it).
     bin_start (b+1,) int64: bin k holds groups bin_start[k] … bin_start[k+1] − 1, run in order
         by one thread; phase_bins (p+1,) int64: phase k's bins, phase_bins[k] … phase_bins[k+1] − 1.
@@ -75,8 +74,6 @@ class TreeFactors:
     block_start: np.ndarray
     group_block_lo: np.ndarray
     group_block_hi: np.ndarray
-    group_lo: np.ndarray
-    group_hi: np.ndarray
     separator: np.ndarray
     bin_start: np.ndarray
     phase_bins: np.ndarray
@@ -543,9 +540,9 @@ def _tree_arrays(n: int, L, U, threads: int) -> TreeFactors | None:
     if not upper_ok:
         return None
     run_ptr, run_col, run_off, run_cut, run_lo = _runs(lp, lc, lo[group_of], mid[group_of])
-    return TreeFactors(order, _lower_blocked(lp, lv, block_start), uv, diagonal, lp, run_ptr, run_col, run_off, run_cut, run_lo, block_start,
-                       np.searchsorted(block_start, lo), np.searchsorted(block_start, hi),
-                       lo, hi, sep.astype(np.bool_), np.array(bin_start, dtype=np.int64),
+    return TreeFactors(order, _lower_blocked(lp, lv, block_start), uv, diagonal, lp, run_ptr, run_col, run_off,
+                       run_cut, run_lo, block_start, np.searchsorted(block_start, lo),
+                       np.searchsorted(block_start, hi), sep.astype(np.bool_), np.array(bin_start, dtype=np.int64),
                        np.array(phase_bins, dtype=np.int64))
 
 
@@ -675,8 +672,8 @@ def _backward_group(x, uv, diagonal, lp, run_ptr, run_col, run_off, run_lo, bloc
         _upper_product(x, uv, lp, run_col, run_off, s, e, run_ptr[s] if below else run_lo[s], run_ptr[s + 1])
 
 
-def _solve(x, lv, uv, diagonal, lp, run_ptr, run_col, run_off, run_cut, run_lo, block_start, gb_lo, gb_hi,
-           glo, ghi, sep, bin_start, phase_bins):
+def _solve(x, lv, uv, diagonal, lp, run_ptr, run_col, run_off, run_cut, run_lo, block_start, gb_lo, gb_hi, sep,
+           bin_start, phase_bins):
     """x ← U⁻¹ L⁻¹ x in place (the arrays of :class:`TreeFactors`). One parallel region per
     phase and direction (a region waits for every thread to wake: on a loaded machine that can
     be a scheduler's time slice, so their number counts): a phase of several groups runs its
@@ -735,8 +732,7 @@ def tree_solve(factors: TreeFactors, rhs: np.ndarray) -> np.ndarray:
     x = np.asarray(rhs, dtype=np.float64)[f.order]
     _parallel_solve(
         x, f.lower_vals, f.upper_vals, f.diagonal, f.lower_ptr, f.run_ptr, f.run_col, f.run_off, f.run_cut,
-        f.run_lo, f.block_start, f.group_block_lo, f.group_block_hi, f.group_lo, f.group_hi, f.separator,
-        f.bin_start, f.phase_bins)
+        f.run_lo, f.block_start, f.group_block_lo, f.group_block_hi, f.separator, f.bin_start, f.phase_bins)
     out = np.empty_like(x)
     out[f.order] = x
     return out
