@@ -655,7 +655,8 @@ def _upper_triangle(x, vals, diagonal, lp, s, e):
 @njit(**_OPTIONS)
 def _forward_group(x, lv, lp, run_ptr, run_col, run_off, run_lo, block_start, q0, q1, below):
     """Forward substitution through a group's blocks q0 … q1 − 1: each block's products (with
-    the subtrees below where ``below``, else only with the group's own rows) and its triangle."""
+    the subtrees below where ``below``, else only with the group's own rows) and its triangle.
+    (``below`` is passed as ``np.bool_``: a literal would compile a copy per value.)"""
     for q in range(q0, q1):
         s, e = block_start[q], block_start[q + 1]
         _lower_product(x, lv, lp, run_col, run_off, s, e, run_ptr[s] if below else run_lo[s], run_ptr[s + 1])
@@ -695,16 +696,18 @@ def _solve(x, lv, uv, diagonal, lp, run_ptr, run_col, run_off, run_cut, run_lo, 
                 _lower_product(x, lv, lp, run_col, run_off, s, e, run_ptr[s], run_lo[s])
             else:
                 for g in range(bin_start[t], bin_start[t + 1]):
-                    _forward_group(x, lv, lp, run_ptr, run_col, run_off, run_lo, block_start, gb_lo[g], gb_hi[g], True)
+                    _forward_group(x, lv, lp, run_ptr, run_col, run_off, run_lo, block_start, gb_lo[g], gb_hi[g],
+                                   np.bool_(True))
         if spread:
-            _forward_group(x, lv, lp, run_ptr, run_col, run_off, run_lo, block_start, gb_lo[g0], gb_hi[g0], False)
+            _forward_group(x, lv, lp, run_ptr, run_col, run_off, run_lo, block_start, gb_lo[g0], gb_hi[g0],
+                           np.bool_(False))
     for phase in range(phases - 1, -1, -1):  # backward, by blocks of U's columns: the top first
         b0, b1 = phase_bins[phase], phase_bins[phase + 1]
         g0 = bin_start[b0]
         spread = bin_start[b1] - g0 == 1 and sep[g0]
         if spread:
             _backward_group(x, uv, diagonal, lp, run_ptr, run_col, run_off, run_lo, block_start, gb_lo[g0], gb_hi[g0],
-                            False)
+                            np.bool_(False))
         t0, t1 = b0, b1
         if spread:
             t0, t1 = 0, 2
@@ -717,7 +720,7 @@ def _solve(x, lv, uv, diagonal, lp, run_ptr, run_col, run_off, run_cut, run_lo, 
             else:
                 for g in range(bin_start[t], bin_start[t + 1]):
                     _backward_group(x, uv, diagonal, lp, run_ptr, run_col, run_off, run_lo, block_start, gb_lo[g],
-                                    gb_hi[g], True)
+                                    gb_hi[g], np.bool_(True))
 
 
 # (compiled threaded only: on one thread its regions run on the calling thread, and a compile
