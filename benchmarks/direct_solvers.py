@@ -1,9 +1,15 @@
 """The sparse direct solvers EM2's kept factorizations could use, on EM2's own Newton matrix of
 the steel part (em2_paths.py's ``part``): SciPy's SuperLU in double precision (what
-``splu-reuse`` runs), SuperLU in single precision, and, where pypardiso is installed, MKL
-PARDISO at each ``--threads`` count. Prints each solver's factorization and solve times (the
+``splu-reuse`` runs), SuperLU's factors solved on their elimination tree
+(thermonet.solvers.tree_solve, what ``splu-reuse`` switches to once a factorization has lasted)
+at each ``--threads`` count, SuperLU in single precision, and, where pypardiso is installed,
+MKL PARDISO at each ``--threads`` count. Prints each solver's factorization and solve times (the
 median of ``--rounds`` interleaved rounds, three solves a round), the nonzeros of its factors
-where it reports them, and the relative residual max |A x − b| / max |b| of a solve.
+where it reports them, and the relative residual max |A x − b| / max |b| of a solve. The tree
+solve's "factorization" is the copy of SuperLU's factors onto the tree after SuperLU's
+factorization: SuperLU handing its factors out, then, the first round, laying them out on the
+tree (the layout, kept), the later rounds a gather per array by the kept layout (both printed
+above the table).
 
     python benchmarks/direct_solvers.py --mesh-size 0.0012 --factor 100 --threads 1 2 --rounds 3
     python benchmarks/direct_solvers.py --quick      # the 1 954-spring part, one round (the test's)
@@ -94,12 +100,31 @@ def main(argv=None) -> dict:
         times.setdefault(key, []).append(time.perf_counter() - t0)
         return out
 
+    import numba
+
+    from thermonet.solvers.tree_solve import tree_factors, tree_solve
+
+    threads_before = numba.get_num_threads()
+    layout = None
     x = {}
     nnz = {}
     for _ in range(args.rounds):
         lu = timed("SuperLU double: factorization", lambda: superlu(A))
         for _ in range(3):
             x["SuperLU double"] = timed("SuperLU double: solve", lambda: lu.solve(b))
+        copy = "tree: copy" if layout is not None else "tree: copy, first"
+        tree, layout = timed(copy, lambda: tree_factors(lu, max(args.threads), layout))
+        for k in args.threads if tree is not None else ():
+            numba.set_num_threads(min(k, numba.config.NUMBA_NUM_THREADS))
+            name = f"SuperLU's factors on the tree, {k} thread(s)"
+            times.setdefault(f"{name}: factorization", []).append(times[copy][-1])
+            for _ in range(3):
+                x[name] = timed(f"{name}: solve", lambda: tree_solve(tree, b))
+            nnz[name] = len(tree.lower_vals) + len(tree.upper_vals) + tree.size
+            for _ in range(3):  # SuperLU's solve again, interleaved
+                x["SuperLU double"] = timed("SuperLU double: solve", lambda: lu.solve(b))
+        numba.set_num_threads(threads_before)
+        del tree
         lu32 = timed("SuperLU single: factorization", lambda: superlu(A32))
         for _ in range(3):
             x["SuperLU single"] = timed("SuperLU single: solve", lambda: lu32.solve(b32).astype(np.float64))
@@ -113,6 +138,11 @@ def main(argv=None) -> dict:
     print(f"\nEM2's Newton matrix of the part: {springs} springs, {A.shape[0]} unknowns, {A.nnz} nonzeros, "
           f"h = {args.factor:g} × CO2's stable step; load {os.getloadavg()[0]:.2f} (1-min average), "
           f"{os.cpu_count()} CPUs{'' if pypardiso else '; pypardiso not installed: no PARDISO rows'}\n")
+    if "tree: copy, first" in times:
+        kept = f"{1e3 * statistics.median(times['tree: copy']):.0f} ms" if "tree: copy" in times else "not measured (one round)"
+        print(f"SuperLU's factors copied onto the tree (after each factorization, SuperLU handing them out included): "
+              f"{1e3 * times['tree: copy, first'][0]:.0f} ms the first time (the layout made), then {kept} by the kept "
+              f"layout (the tree rows' factorization column: the median over the rounds)\n")
     print("| solver | factorization ms | solve ms | nonzeros of the factors | max |A x − b| / max |b| |")
     print("|---|---:|---:|---:|---:|")
     rows = {}

@@ -9,7 +9,10 @@ gets through simulated time faster):
 
 - ``sweeps``: ``newton_path = "compiled"`` (inertia-preconditioned matrix-free sweeps);
 - ``splu``: ``newton_path = "sparse"``, ``linear_solver = "splu"`` (a factorization per iteration);
-- ``splu-reuse``: ``newton_path = "sparse"``, ``linear_solver = "splu-reuse"`` (kept factorizations);
+- ``splu-reuse``: ``newton_path = "sparse"``, ``linear_solver = "splu-reuse"`` (kept factorizations;
+  on large nets solved on their elimination tree once one has made 200 solves);
+- ``splu-reuse-superlu``, ``splu-reuse-tree`` (not run unless named): ``splu-reuse`` always with
+  SuperLU's own solves, and switching to the tree on a net of any size (the tree solve's A/B);
 - ``auto``: the default.
 
 Nets: ``part``, the steel L-bracket of examples/steel_bracket.py meshed by gmsh at ``--mesh-size``
@@ -20,8 +23,8 @@ force ramping to 2 kN over a second), with conduction: the quasi-static use EM2 
 c = 100, θ0 = 300), its bottom face clamped, at rest and 50 K above θ0 (thermal stress, a slow
 expansion; with 6 neighbours the cubic cells would be mechanisms, held only by the springs'
 tension); ``bracket``, scenes/bracket.toml (a gmsh tetrahedral aluminium part, SI units, hot
-flange, conduction). The paths of one net and step run interleaved: one untimed step each
-(compilation, first factorization), then ``--rounds`` rounds of ``--steps`` steps of each path
+flange, conduction). The paths of one net and step run interleaved: ``--warmup`` untimed steps each (default: one
+round's ``--steps``; compilation, first factorization), then ``--rounds`` rounds of ``--steps`` steps of each path
 in turn, ms/step the median over the rounds; a path that fails a step is reported as failed.
 
     python benchmarks/em2_paths.py                        # both nets, factors 1 3 10 100 1e4
@@ -55,8 +58,15 @@ PATHS = {
     "sweeps": dict(newton_path="compiled"),
     "splu": dict(newton_path="sparse", linear_solver="splu"),
     "splu-reuse": dict(newton_path="sparse", linear_solver="splu-reuse"),
+    # (the kept factors never solved on their elimination tree, thermonet.solvers.tree_solve,
+    # always SuperLU's own solve: the A/B against splu-reuse, which switches after 200 solves)
+    "splu-reuse-superlu": dict(newton_path="sparse", linear_solver="splu-reuse"),
+    # (the same switch after 200 solves on a net of any size: the A/B below TREE_MIN_UNKNOWNS)
+    "splu-reuse-tree": dict(newton_path="sparse", linear_solver="splu-reuse"),
     "auto": {},
 }
+#: the paths measured unless --paths names others
+DEFAULT_PATHS = ("sweeps", "splu", "splu-reuse", "auto")
 
 
 def lattice_simulation(cells: int, integrator: str, h: float, **options) -> tn.Simulation:
@@ -236,14 +246,21 @@ def make(net: str, cells: int, integrator: str, h: float, **options) -> tn.Simul
     return bracket_simulation(integrator, h, **options)
 
 
-def run_paths(net: str, cells: int, h: float, paths, steps: int, rounds: int, co2=None, co2_steps: int = 0) -> list[dict]:
+def run_paths(net: str, cells: int, h: float, paths, steps: int, rounds: int, co2=None, co2_steps: int = 0,
+              warmup: int | None = None) -> list[dict]:
     """The paths at one step, interleaved (a drift of a shared machine hits all alike): each
-    simulation takes one untimed step (compilation, first factorization), then ``rounds``
+    simulation takes ``warmup`` untimed steps (None: ``steps``, so that every timed call starts on a
+    multiple of ``steps`` and "auto" conduction may take a cycle dividing it; compilation, first
+    factorization), then ``rounds``
     rounds each time ``steps`` steps of every path in turn, and ``co2_steps`` of the CO2
     simulation ``co2`` where given; ms/step is the median over the rounds. Returns a row per
     path: ms/step, CO2's ms/step in the same rounds (``co2_ms``) and the stepper's summary (or
     the failure)."""
     sims = {path: make(net, cells, "em2", h, **PATHS[path]) for path in paths}
+    if "splu-reuse-superlu" in sims:
+        sims["splu-reuse-superlu"].stepper.solver.tree_after = math.inf
+    if "splu-reuse-tree" in sims:
+        sims["splu-reuse-tree"].stepper.solver.tree_min_unknowns = 0
     times = {path: [] for path in paths}
     co2_times = []
     failed = {}
@@ -255,7 +272,7 @@ def run_paths(net: str, cells: int, h: float, paths, steps: int, rounds: int, co
                     continue
                 try:
                     t0 = time.perf_counter()
-                    sim.run(steps=1 if r == 0 else steps, diagnostics_every=10**9)
+                    sim.run(steps=(warmup or steps) if r == 0 else steps, diagnostics_every=10**9)
                     if r:
                         times[path].append((time.perf_counter() - t0) / steps)
                 except tn.SimulationError as exc:
@@ -270,8 +287,8 @@ def run_paths(net: str, cells: int, h: float, paths, steps: int, rounds: int, co
                  summary=sim.stepper.summary(), springs=sim.net.n_springs) for path, sim in sims.items()]
 
 
-def measure(nets, cells: int, factors, steps: int, paths=tuple(PATHS), out=print,
-            sweeps_max_factor: float = math.inf, rounds: int = 3) -> list[dict]:
+def measure(nets, cells: int, factors, steps: int, paths=DEFAULT_PATHS, out=print,
+            sweeps_max_factor: float = math.inf, rounds: int = 3, warmup: int | None = None) -> list[dict]:
     """The table's rows: per net and factor, each path's row (``run_paths``) with net, factor,
     springs, h and h·ω_max added; prints them as a markdown table."""
     rows = []
@@ -281,20 +298,24 @@ def measure(nets, cells: int, factors, steps: int, paths=tuple(PATHS), out=print
     for net in nets:
         est = stable_step(make(net, cells, "co2", 1.0 if net == "lattice" else 1e-7))
         co2 = make(net, cells, "co2", CO2_FRACTION * est["h_max"])
-        co2.run(steps=1, diagnostics_every=10**9)
         n_co2 = max(20, 20 * steps)
+        # warmed up by a whole round: its calls then start on multiples of n_co2, so that "auto"
+        # conduction may take a cycle k dividing n_co2, as a run's would divide its output
+        # cadences (after a 1-step warm-up every call started on an odd step: k = 1)
+        co2.run(steps=n_co2, diagnostics_every=10**9)
         for factor in factors:
             h = factor * est["h_max"]
             if "sweeps" in paths and factor > sweeps_max_factor:
                 out(f"| {net} | | {factor:g} | {h * est['omega_max']:.3g} | sweeps | not run (above "
                     f"--sweeps-max-factor {sweeps_max_factor:g}) | | | | | | |")
             done = run_paths(net, cells, h, [p for p in paths if p != "sweeps" or factor <= sweeps_max_factor],
-                             steps, rounds, co2, n_co2)
+                             steps, rounds, co2, n_co2, warmup)
             co2_ms = done[0]["co2_ms"]
             co2_rate = co2_ms / (CO2_FRACTION * est["h_max"])  # ms per unit of simulated time
+            k = co2.conduction_cycle[0] if co2.conduction_cycle else "–"
             out(f"| {net} | {co2.net.n_springs} | {CO2_FRACTION:g} | {2 * CO2_FRACTION:.3g} | co2 | {co2_ms:.3f} | | | "
-                f"| | (CO2 at {CO2_FRACTION:g}× its stable step, in the same rounds: the speed-up column's "
-                f"reference) | 1 |")
+                f"| | (CO2 at {CO2_FRACTION:g}× its stable step, conduction every {k} steps, in the same rounds: "
+                f"the speed-up column's reference) | 1 |")
             for row in done:
                 path = row["path"]
                 s = row["summary"]
@@ -309,7 +330,9 @@ def measure(nets, cells: int, factors, steps: int, paths=tuple(PATHS), out=print
                     continue
                 out(f"| {net} | {row['springs']} | {factor:g} | {row['h_omega']:.3g} | {path} | {row['ms']:.2f} | "
                     f"{s['iterations_mean']:.2f} | {s['retried_steps']}/{s['steps']} | {s['continued_steps']} | "
-                    f"{s['factorizations']} ({s['reused_factorizations']}) | {chose} | {row['speedup']:.3g} |")
+                    f"{s['factorizations']} ({s['reused_factorizations']}"
+                    + (f"; {s['tree_solves']} solves on the tree" if s.get("tree_solves") else "")
+                    + f") | {chose} | {row['speedup']:.3g} |")
     return rows
 
 
@@ -345,7 +368,13 @@ def main(argv=None) -> list[dict]:
                     help="steps as multiples of CO2's stable step")
     ap.add_argument("--steps", type=int, default=4, help="steps per round")
     ap.add_argument("--rounds", type=int, default=3, help="interleaved rounds (ms/step: their median)")
-    ap.add_argument("--paths", nargs="+", default=list(PATHS), choices=list(PATHS))
+    ap.add_argument("--warmup", type=int, default=None,
+                    help="untimed steps of each path before the rounds (default: a round's --steps)")
+    ap.add_argument("--paths", nargs="+", default=list(DEFAULT_PATHS), choices=list(PATHS),
+                    help="splu-reuse-superlu: splu-reuse whose kept factors are never solved on their "
+                         "elimination tree (an A/B against splu-reuse; give --warmup 110 so that "
+                         "splu-reuse's rounds run on the tree); splu-reuse-tree: switches to it on a net "
+                         "of any size")
     ap.add_argument("--sweeps-max-factor", type=float, default=1000.0,
                     help="skip the sweeps above this factor (at 1e4× on the bracket a step did not converge "
                          "in 30 iterations of up to 40 sweeps and GMRES each, minutes per step)")
@@ -371,7 +400,7 @@ def main(argv=None) -> list[dict]:
                   + (f", the part at mesh size {size:g} m" if "part" in args.nets else "")
                   + f"; load: {os.getloadavg()[0]:.2f} (1-min average), {os.cpu_count()} CPUs\n")
             part = measure(args.nets, args.cells, args.factors, args.steps, args.paths,
-                           sweeps_max_factor=args.sweeps_max_factor, rounds=args.rounds)
+                           sweeps_max_factor=args.sweeps_max_factor, rounds=args.rounds, warmup=args.warmup)
             for r in part:
                 r.update(threads=threads, mesh_size=size)
             rows += part

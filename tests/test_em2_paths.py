@@ -157,18 +157,28 @@ PATHS = {
     "dense": dict(newton_path="compiled-dense"),
     "splu": dict(newton_path="sparse", linear_solver="splu"),
     "splu-reuse": dict(newton_path="sparse", linear_solver="splu-reuse"),
+    # (kept factors solved on their elimination tree from the first solve: the test sets
+    # TREE_AFTER_SOLVES and TREE_MIN_UNKNOWNS to 0)
+    "splu-reuse, tree": dict(newton_path="sparse", linear_solver="splu-reuse"),
     "auto": {},
 }
 
 
 @pytest.mark.parametrize("factor", [1, 30])
-def test_every_path_reaches_the_same_root_with_the_energy_exact(factor):
+def test_every_path_reaches_the_same_root_with_the_energy_exact(factor, monkeypatch):
     """At 1× and 30× CO2's stable step: one step from the same state on each path gives the
     same positions to the Newton tolerance; 40 steps keep the energy to the round-off of the
     tightened Newton tolerance on each path, the kept factorizations' (modified Newton, reused
-    across a step's iterations) included, and "auto" needs no substeps."""
+    across a step's iterations) included, solved by SuperLU or on their elimination tree, and
+    "auto" needs no substeps."""
+    import thermonet.solvers.direct as direct
+
     first, drift = {}, {}
+    after, least = direct.TREE_AFTER_SOLVES, direct.TREE_MIN_UNKNOWNS
     for name, options in PATHS.items():
+        tree = name.endswith("tree")
+        monkeypatch.setattr(direct, "TREE_AFTER_SOLVES", 0 if tree else after)
+        monkeypatch.setattr(direct, "TREE_MIN_UNKNOWNS", 0 if tree else least)
         sim = small_net(factor, **options, **TIGHT)
         sim.run(steps=1, diagnostics_every=1)
         first[name] = sim.state.positions.copy()
@@ -177,8 +187,13 @@ def test_every_path_reaches_the_same_root_with_the_energy_exact(factor):
         s = sim.stepper.summary()
         if name == "auto":  # (the compiled paths at 30×: some steps as substeps, energy exact all the same)
             assert s["retried_steps"] == 0
-        if name == "splu-reuse":
+        if name.startswith("splu-reuse"):
             assert s["reused_factorizations"] > 0 and s["factorizations"] < s["iterations"]
+            assert (s["tree_solves"] > 0) == tree
+            if tree:  # the run summary says so
+                from thermonet.cli.report import format_summary
+
+                assert "solves with kept factors compiled on their elimination tree" in format_summary(sim, name)
     scale = np.abs(first["splu"]).max()
     for name, x in first.items():
         # the roots agree to the tolerance's reach in the unknowns (1e-15 of the largest
@@ -297,8 +312,9 @@ def test_the_benchmark_runs_quick(capsys):
 
 def test_the_direct_solvers_benchmark_runs_quick(capsys):
     """benchmarks/direct_solvers.py --quick: EM2's Newton matrix of the small steel part solved
-    by SuperLU in double precision to round-off and in single precision to its precision (and
-    by PARDISO to round-off where pypardiso is installed)."""
+    by SuperLU in double precision to round-off, with SuperLU's factors on their elimination
+    tree to round-off at one and two threads, in single precision to its precision (and by
+    PARDISO to round-off where pypardiso is installed)."""
     spec = importlib.util.spec_from_file_location("direct_solvers", os.path.join(ROOT, "benchmarks", "direct_solvers.py"))
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
@@ -306,9 +322,10 @@ def test_the_direct_solvers_benchmark_runs_quick(capsys):
     assert rows["SuperLU double"]["residual"] <= 1e-13
     assert 1e-12 < rows["SuperLU single"]["residual"] <= 1e-4
     assert rows["SuperLU double"]["nnz"] == rows["SuperLU single"]["nnz"] > 0
+    assert {"SuperLU's factors on the tree, 1 thread(s)", "SuperLU's factors on the tree, 2 thread(s)"} <= set(rows)
     for name, row in rows.items():
         assert row["factorization_ms"] > 0 and row["solve_ms"] > 0
-        if name.startswith("PARDISO"):
+        if name.startswith(("PARDISO", "SuperLU's factors on the tree")):
             assert row["residual"] <= 1e-13
     assert "| SuperLU double |" in capsys.readouterr().out
 
@@ -389,6 +406,32 @@ def test_a_resumed_run_continues_bit_for_bit(tmp_path):
     resumed, _ = scene_simulation("lattice2d", 10, 12)
     resumed.load_state(state)
     resumed.run(steps=6, diagnostics_every=6)
+    assert one.step == resumed.step == 12
+    for name in ("positions", "momenta", "entropy", "thermal_displacement"):
+        assert np.array_equal(getattr(one.state, name), getattr(resumed.state, name)), name
+
+
+def test_a_resumed_run_solving_on_the_elimination_tree_continues_bit_for_bit(tmp_path, monkeypatch):
+    """scenes/lattice2d.toml at 10×, its factorizations carried from step to step and solved on
+    their elimination tree after 3 solves: 12 steps in one run, and 6 + a checkpoint + 6
+    resumed (the factorization rebuilt, with its count of solves), give the same bits."""
+    import thermonet.solvers.direct as direct
+    from thermonet.io.checkpoint import load_checkpoint, save_checkpoint
+
+    monkeypatch.setattr(direct, "KEPT_ANYWHERE_WORTH", 1.0)  # (carried at this size too)
+    monkeypatch.setattr(direct, "TREE_AFTER_SOLVES", 3)
+    monkeypatch.setattr(direct, "TREE_MIN_UNKNOWNS", 0)
+    one, _ = scene_simulation("lattice2d", 10, 12)
+    one.run(steps=12, diagnostics_every=6)
+    first, _ = scene_simulation("lattice2d", 10, 12)
+    first.run(steps=6, diagnostics_every=6)
+    save_checkpoint(tmp_path / "c.npz", first.state, {})
+    state, _ = load_checkpoint(tmp_path / "c.npz")
+    assert state.extra["factorization_solves"][0] >= 3
+    resumed, _ = scene_simulation("lattice2d", 10, 12)
+    resumed.load_state(state)
+    resumed.run(steps=6, diagnostics_every=6)
+    assert first.stepper.summary()["tree_solves"] > 0 and resumed.stepper.summary()["tree_solves"] > 0
     assert one.step == resumed.step == 12
     for name in ("positions", "momenta", "entropy", "thermal_displacement"):
         assert np.array_equal(getattr(one.state, name), getattr(resumed.state, name)), name

@@ -94,3 +94,67 @@ def test_a_residual_at_its_floor_is_converged_once_a_correction_contracts_far_le
     assert limit == FLOOR_STALL_FACTOR * 3e-6 and 1e-8 > limit * 3e-7
     # a slow contraction before: no more permissive than 2×
     assert _floor_stall([1e-6, 5e-7, 4e-7]) == 0.5
+
+
+def test_the_tree_solve_gives_superlus_and_a_dense_solution(monkeypatch):
+    """On a lattice's matrix in nested-dissection order (nonsymmetric, diagonally dominant: no
+    pivoting), the factors cut into leaf subtrees and separators solve as SuperLU and NumPy's
+    dense solve do, to round-off; serial and on two threads bit for bit the same. A kept
+    factorization (splu-reuse) switches to it after TREE_AFTER_SOLVES solves; where SuperLU
+    pivoted off the diagonal, it keeps SuperLU's solve."""
+    import numba
+
+    from thermonet.solvers.tree_solve import tree_factors, tree_solve
+
+    monkeypatch.setattr(pattern_module, "METIS_MIN_NODES", 10)
+    p = lattice_pattern(6)  # 1 080 unknowns
+    data = diagonally_dominant_values(p)
+    A = p.matrix(data)
+    rng = np.random.default_rng(1)
+    b = rng.uniform(-1.0, 1.0, p.size)
+    lu = SparseLU(p)
+    lu.factorize(data)
+    f, _ = tree_factors(lu._lu, 2)
+    assert f is not None and f.separator.sum() >= 3 and (~f.separator).sum() >= 4
+    threads = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        x = tree_solve(f, b)
+        numba.set_num_threads(min(2, numba.config.NUMBA_NUM_THREADS))
+        two = tree_solve(f, b)
+        binned_for_one, _ = tree_factors(lu._lu, 1)  # (its thread bins made for one thread)
+        other_bins = tree_solve(binned_for_one, b)
+    finally:
+        numba.set_num_threads(threads)
+    assert np.array_equal(two, x) and np.array_equal(other_bins, x)
+    dense = np.linalg.solve(A.toarray(), b)
+    scale = np.abs(dense).max()
+    assert np.abs(x - lu.solve(b)).max() <= 1e-13 * scale
+    assert np.abs(x - dense).max() <= 1e-13 * scale
+
+    monkeypatch.setattr(direct, "TREE_AFTER_SOLVES", 2)
+    monkeypatch.setattr(direct, "TREE_MIN_UNKNOWNS", 0)
+    kept = ReusedLU(p)
+    kept.factorize(data, 1.0)
+    xs = [kept.solve(b) for _ in range(4)]
+    assert kept.tree_solves == 2 and kept.tree_copies == 1
+    assert np.array_equal(xs[0], xs[1]) and np.array_equal(xs[2], xs[3])
+    assert np.abs(xs[3] - xs[0]).max() <= 1e-13 * scale
+    layout = kept._layout
+    other = diagonally_dominant_values(p, seed=5)  # a new factorization starts on SuperLU's solve again,
+    kept.factorize(other, 1.0)  # and its copy onto the tree reuses the layout of the same pattern
+    xs = [kept.solve(b) for _ in range(3)]
+    assert kept.tree_solves == 3 and kept.tree_copies == 2 and kept._layout is layout
+    direct_x = np.linalg.solve(p.matrix(other).toarray(), b)
+    assert np.abs(xs[2] - direct_x).max() <= 1e-13 * np.abs(direct_x).max()
+    fresh, _ = tree_factors(kept._lu, 2)  # (the same arrays as a copy made from scratch)
+    assert np.array_equal(fresh.lower_vals, kept._tree.lower_vals)
+    assert np.array_equal(fresh.upper_vals, kept._tree.upper_vals)
+    assert np.array_equal(fresh.diagonal, kept._tree.diagonal)
+
+    swapped = data.copy()  # a zero diagonal entry: SuperLU swaps rows, the tree solve steps aside
+    swapped[p.node_base[0]] = 0.0
+    pivoted = SparseLU(p)
+    pivoted.factorize(swapped)
+    assert not np.array_equal(pivoted._lu.perm_r, np.arange(p.size))
+    assert tree_factors(pivoted._lu, 2) == (None, None)

@@ -42,7 +42,9 @@ def newton_path_line(nw: dict | None) -> str:
         return ""
     path = nw["linear_solver"] if nw["newton_path"] == "compiled" else f"sparse, {nw['linear_solver']}"
     return (f"  Newton path: {path} ({nw['path_reason']}); substepped steps {100 * nw['substep_fraction']:.3g} %"
-            + (f", {nw['continued_steps']} steps solved by continuation in h" if nw.get("continued_steps") else ""))
+            + (f", {nw['continued_steps']} steps solved by continuation in h" if nw.get("continued_steps") else "")
+            + (f", {nw['tree_solves']} solves with kept factors compiled on their elimination tree"
+               if nw.get("tree_solves") else ""))
 
 
 def conserved_quantities(sim) -> set[str]:

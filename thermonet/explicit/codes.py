@@ -1,8 +1,10 @@
 """Where the explicit CPU kernel's node pass takes each node's force from: its ``force_source``
 argument, named here so that every caller (the kernel's step, the heat passes' deferred kick,
 the distributed stages) passes it by name. Module-level integers, which Numba compiles as
-constants: the branches they select are decided at compile time where the argument is a
-literal, as before they were named.
+constants: the per-step node pass takes them as literals (its branches decided at compile
+time); the closing node pass, which runs a few times per call, takes them as ``np.int64(...)``
+(with ``want_sums`` as ``np.bool_``) so that one compiled variant serves every source (each
+literal would compile one more, 8 s of CPU for a threaded one).
 """
 
 #: gather f from the springs' T/l in ``s`` (every kick inside a call)

@@ -459,8 +459,8 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run
             elif LOADS and deferred != 0.0:
                 cpu_evaluate_loads(loads, deferred_time)
             if reuse:
-                boundary_node_pass(cur, nxt, p, topology, nodes, scratch, steps, FORCE_KEPT, False,
-                                   (heat.s_before, loads))
+                boundary_node_pass(cur, nxt, p, topology, nodes, scratch, steps, np.int64(FORCE_KEPT),
+                                   np.bool_(False), (heat.s_before, loads))
             elif CONDUCTION and deferred != 0.0:
                 node_pass(cur, nxt, p, topology, nodes, scratch,
                           KickDrift(deferred * h, k2 * h, table.drift[r] * h, True), FORCE_DEFERRED, False,
@@ -512,7 +512,7 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run
         if LOADS:
             cpu_evaluate_loads(loads, stage_time(loads, h, n_steps, 0.0))
         node_sums = boundary_node_pass(cur, nxt, p, topology, nodes, scratch, KickDrift(0.0, pending * h, 0.0, True),
-                                       FORCE_GATHER_KEEP, run.want_sums, (heat.s_before, loads))
+                                       np.int64(FORCE_GATHER_KEEP), run.want_sums, (heat.s_before, loads))
         if LOADS:
             cpu_load_work(cur, scratch.s, topology, nodes, loads, 0.0, pending * h)
         if run.want_sums:

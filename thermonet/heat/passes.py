@@ -413,7 +413,7 @@ def deferred_kick(x, x_new, p, topology, nodes, scratch, heat, loads, when, want
         cpu_evaluate_loads(loads, t)
     if want_sums:
         sums = boundary_node_pass(x, x_new, p, topology, nodes, scratch, KickDrift(tau, 0.0, 0.0, True),
-                                  FORCE_DEFERRED, True, (heat.s_before, loads))
+                                  np.int64(FORCE_DEFERRED), np.bool_(True), (heat.s_before, loads))
     else:
         sums = node_pass(x, x_new, p, topology, nodes, scratch, KickDrift(tau, 0.0, 0.0, True), FORCE_DEFERRED, False,
                          (heat.s_before, loads))

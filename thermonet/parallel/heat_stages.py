@@ -8,6 +8,7 @@ functions call that kernel variant's passes with the argument expressions its ``
 
 from __future__ import annotations
 
+import numpy as np
 from numba import prange
 
 from ..explicit.codes import FORCE_DEFERRED, FORCE_GATHER, FORCE_GATHER_KEEP
@@ -69,7 +70,7 @@ def _closing(cur, nxt, state, topology, springs, nodes, scratch, kept, s_before,
     if bad > 0:
         return bad
     boundary_node_pass(cur, nxt, state.p, topology, nodes, scratch, KickDrift(0.0, pending * h, 0.0, True),
-                       FORCE_GATHER_KEEP, run.want_sums, (s_before, loads))
+                       np.int64(FORCE_GATHER_KEEP), run.want_sums, (s_before, loads))
     return 0
 
 

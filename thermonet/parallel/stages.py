@@ -7,6 +7,8 @@ filled: the processes of a run then compile only these two small functions (once
 
 from __future__ import annotations
 
+import numpy as np
+
 from ..explicit.codes import FORCE_GATHER, FORCE_GATHER_KEEP
 from ..kernels.records import KickDrift
 from ..kernels.specialize import function_fingerprint, specialize
@@ -40,8 +42,8 @@ def _closing(cur, nxt, state, topology, springs, nodes, scratch, kick, run, extr
                                extra[0], extra[0])[0]
     if bad > 0:
         return bad
-    boundary_node_pass(cur, nxt, state.p, topology, nodes, scratch, KickDrift(0.0, kick, 0.0, True), FORCE_GATHER_KEEP,
-                       run.want_sums, extra[1])
+    boundary_node_pass(cur, nxt, state.p, topology, nodes, scratch, KickDrift(0.0, kick, 0.0, True),
+                       np.int64(FORCE_GATHER_KEEP), run.want_sums, extra[1])
     return 0
 
 

@@ -9,11 +9,13 @@ from __future__ import annotations
 
 import math
 
+import numba
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from .pattern import BlockPattern
+from .tree_solve import tree_factors, tree_solve
 
 
 class SparseLU:
@@ -48,6 +50,19 @@ KEPT_MAX_CONTRACTION = 0.9
 #: a factorization worth at least this many solves is tried at any scaled residual, in the step
 #: that made it too (a few line-search residuals wasted cost less than refactorizing)
 KEPT_ANYWHERE_WORTH = 50.0
+#: A kept factorization that has made TREE_AFTER_SOLVES solves, on a net of TREE_MIN_UNKNOWNS
+#: unknowns or more, solves from then on with its factors copied onto their elimination tree
+#: (:mod:`.tree_solve`: compiled threaded, its subtrees on separate threads, the same bits at any
+#: thread count, so a run gives the same numbers on one thread or two). The copy costs what tens
+#: to hundreds of solves save (at 47 637 unknowns 0.4 s by a kept layout, 2.8 s the first time,
+#: against 35 ms a solve), so it waits for a factorization that has lasted: at 100× CO2's stable
+#: step on the steel part one lasts the whole run, at 1e4× about 45 solves (the first copy, in a
+#: 45-step run there, made EM2 2.1–2.5× slower per step with the switch at 50 solves).
+#: On the steel part at 9 270 springs (5 172 unknowns) EM2's steps at 100× ran no faster on the
+#: tree (1.04–1.07× the time with SuperLU's solves, one and two threads, loaded machine), at
+#: 97 958 springs (47 637 unknowns) faster: hence the threshold between them.
+TREE_AFTER_SOLVES = 200
+TREE_MIN_UNKNOWNS = 20_000
 
 
 def factorization_worth(lu) -> float:
@@ -95,9 +110,18 @@ class ReusedLU(SparseLU):
         self._worth_of = None  # (row permutation, worth) of the last factors whose worth was read
         self.factorizations = 0
         self.reuses = 0
+        self.solves = 0  # made with the kept factorization (saved with a carried one's state)
+        self._tree = None  # its factors on the elimination tree (TREE_AFTER_SOLVES), or False
+        self._layout = None  # where the last factors went on the tree (kept for the next ones)
+        self.tree_after = TREE_AFTER_SOLVES  # (a benchmark may set these per solver)
+        self.tree_min_unknowns = TREE_MIN_UNKNOWNS
+        self.tree_solves = 0  # made by tree_solve, and the factorizations copied for it
+        self.tree_copies = 0
 
     def factorize(self, data: np.ndarray, h: float | None = None) -> None:
         super().factorize(data)
+        self.solves = 0
+        self._tree = None
         # the factors' structure follows from the pattern and the row pivots alone: where
         # those are the last ones', so is the worth (reading it copies the factors out of
         # SuperLU: 2 s at 47 637 unknowns, about what the factorization itself costs)
@@ -111,6 +135,26 @@ class ReusedLU(SparseLU):
         point = getattr(self.problem, "jacobian_point", None)
         self.point = point() if point is not None else None
         self.factorizations += 1
+
+    def solve(self, rhs: np.ndarray, target: float = 0.0, settled: float = 0.0) -> np.ndarray:
+        """SuperLU's solve, or, once the factorization has made ``tree_after`` solves on a large
+        enough net (TREE_AFTER_SOLVES, TREE_MIN_UNKNOWNS), the compiled one on its elimination
+        tree (the same bits at any thread count; where SuperLU pivoted off the diagonal,
+        SuperLU's solve throughout)."""
+        if self._tree is None and self.solves >= self.tree_after and self.pattern.size >= self.tree_min_unknowns:
+            tree, self._layout = tree_factors(self._lu, numba.get_num_threads(), self._layout)
+            self._tree = tree if tree is not None else False
+            self.tree_copies += tree is not None
+        self.solves += 1
+        if self._tree:
+            self.tree_solves += 1
+            return tree_solve(self._tree, rhs)
+        return self._lu.solve(rhs)
+
+    def restore_solves(self, solves: int) -> None:
+        """The kept factorization rebuilt on resume has made ``solves`` solves (so it solves on
+        as it did in the run that saved it)."""
+        self.solves = int(solves)
 
     @property
     def carries_factorization(self) -> bool:

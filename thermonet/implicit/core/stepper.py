@@ -510,6 +510,8 @@ class ImplicitStepper(Stepper):
         t["substep_fraction"] = t["retried_steps"] / t["steps"] if t["steps"] else 0.0
         t["factorizations"] = self.timers.factorizations  # (splu-reuse) made, and iterations that kept one
         t["reused_factorizations"] = self.timers.reused_factorizations
+        # (splu-reuse) solves with kept factors copied onto their elimination tree (solvers.tree_solve)
+        t["tree_solves"] = getattr(self.solver, "tree_solves", 0)
         t["unknowns"] = self.pattern.size
         t["jacobian_nnz"] = self.pattern.nnz
         t["jacobi_steps"] = self.timers.jacobi_steps  # finishing steps u −= D⁻¹ R, not counted as iterations

@@ -136,6 +136,8 @@ class EM2Stepper(ImplicitStepper):
     #: the key in ``state.extra`` of the point where the kept factorization was made (solvers.
     #: direct.ReusedLU): (h, x⁰, p⁰, η, u) flattened; absent where none is kept
     FACTORIZATION_KEY = "factorization_point"
+    #: the key of the number of solves it had made ((1,) float: which solver solves the next)
+    SOLVES_KEY = "factorization_solves"
 
     def jacobian_point(self) -> np.ndarray:
         """Where the Jacobian is being made: the step (h, x⁰, p⁰, η) and the unknowns u of the
@@ -188,6 +190,9 @@ class EM2Stepper(ImplicitStepper):
         elif saved is not solver.point and not (
                 not solver.stale and solver.point is not None and np.array_equal(saved, solver.point)):
             self.refactorize_at(saved)  # resumed, or rewound: the factorization this state was left with
+            solves = state.extra.get(self.SOLVES_KEY)
+            if isinstance(solves, np.ndarray) and solves.size == 1:
+                solver.restore_solves(int(solves[0]))
 
     def _history_to(self, state) -> None:
         super()._history_to(state)
@@ -199,8 +204,10 @@ class EM2Stepper(ImplicitStepper):
         solver = self.solver
         if getattr(solver, "carries_factorization", False) and not solver.stale and solver.point is not None:
             state.extra[self.FACTORIZATION_KEY] = solver.point
+            state.extra[self.SOLVES_KEY] = np.array([float(solver.solves)])
         else:
             state.extra.pop(self.FACTORIZATION_KEY, None)
+            state.extra.pop(self.SOLVES_KEY, None)
 
     def predictor_coefficients(self, h: float) -> np.ndarray:
         """The start kernel's output is the acceleration a (the predictor is EM2's own)."""
