@@ -54,3 +54,13 @@ def test_a_normalized_accumulator_keeps_its_digits_in_range():
     exact.add_array(acc, -np.abs(terms(9)))
     digits = acc[:exact.CHUNKS]
     assert (digits[:-1] >= 0).all() and (digits[:-1] < 2 ** exact.DIGIT).all() and digits[-1] < 0
+
+
+@pytest.mark.parametrize("span", [0, 20, 52, 53, 54, 60, 106, 107, 200])
+def test_blocks_whose_magnitudes_span_up_to_and_beyond_both_grids(span):
+    """Blocks of terms whose magnitudes spread over ``span`` binary orders: below 2^53 the two
+    grids take every bit, beyond it the remainders go term by term; either way fsum's bits."""
+    rng = np.random.default_rng(span)
+    v = rng.normal(size=3000) * 2.0 ** rng.integers(-span, 1, 3000) * 1e5
+    v[::7] = -v[::7]
+    assert exact.exact_sum(v).hex() == math.fsum(v).hex()

@@ -15,21 +15,19 @@ sum of zero is +0.0 (as a float sum started from 0.0, and ``math.fsum``), even o
 Finite terms whose exact sum lies beyond the float64 range give ±inf (the IEEE rounding of the
 overflow; ``math.fsum`` raises instead).
 
-Capacity: an addition (:func:`add_bits`) adds less than 2^33 to each of the three digits it
-touches, so one accumulator takes up to 2^30 of them before a digit can overflow; :func:`normalize` carries the
-digits back into [0, 2^DIGIT) (the top one signed), after which accumulators of up to 2^30
-terms each can be combined by the 2^30.
+Capacity: an addition (:func:`add_bits`, :func:`add_scaled`) adds less than 2^33 to each of the
+three digits it touches, so one accumulator takes up to 2^30 of them before a digit can
+overflow; :func:`normalize` carries the digits back into [0, 2^DIGIT) (the top one signed), after
+which accumulators of up to 2^30 additions each can be combined by the 2^30.
 
-Blocks of terms (:func:`add_terms`, what the reductions use) go faster than term by term: the
-block's terms are split exactly on a grid fitted to its largest magnitude (``q = (σ + x) − σ``,
-``x − q``, with σ a power of two above the block's sum: Rump, Ogita and Oishi's extraction), the
-grid parts summed in float64 without rounding and their sum added to the accumulator, and the
-same done for the remainders on grids 2^43 times finer each until none is left: a few vectorized
-passes over a block of BLOCK terms (two, where the block's magnitudes span less than 2^33).
-The terms of blocks the grids do not take (largest magnitude below 2^-900 or above 2^1000, inf,
-NaN) and whatever is left after LEVELS passes are added term by term (:func:`add_bits`: a few
-integer operations and three additions to the digits). A block of n terms thus makes at most
-n + LEVELS additions to the accumulator: capacity counts these.
+Blocks of terms (:func:`add_terms`, what the reductions use) go faster than term by term: each
+term is cut exactly into its integer multiples of two grids fitted to the block's largest
+magnitude (2^53 and 2^106 times finer than it) and a remainder; the block's multiples are summed
+as int64 (exact, in any order: the loop vectorizes) and the two sums added to the accumulator.
+One pass over the block after the one finding its largest magnitude. The remainders are zero
+unless the block's magnitudes span more than 2^53; those, and blocks the grids do not take
+(largest magnitude below 2^-900 or above 2^1000, inf, NaN), are added term by term. A block of n
+terms thus makes at most n + 2 additions to the accumulator: capacity counts these.
 """
 
 from __future__ import annotations
@@ -103,80 +101,79 @@ def normalize(acc):
     acc[CHUNKS - 1] += carry
 
 
-# terms per block of add_terms: the reductions' blocks (the grids' bound below needs at most 2^9)
+@njit(inline="always", error_model="numpy", boundscheck=False)
+def add_scaled(acc, s, g):
+    """Add s·2^g to ``acc`` (WIDTH,) int64, exactly: s int64 with |s| < 2^63, −1074 ≤ g ≤ 1074."""
+    negative = s < 0
+    magnitude = np.uint64(-s) if negative else np.uint64(s)
+    at = np.uint64(g + 1074)
+    digit = np.int64(at >> np.uint64(5))
+    shift = at & np.uint64(31)
+    low = (magnitude & _MASK) << shift  # < 2^63
+    high = (magnitude >> np.uint64(32)) << shift  # < 2^62
+    d0 = np.int64(low & _MASK)
+    d1 = np.int64((low >> np.uint64(32)) + (high & _MASK))
+    d2 = np.int64(high >> np.uint64(32))
+    sign = np.int64(-1) if negative else np.int64(1)
+    acc[digit] += sign * d0
+    acc[digit + 1] += sign * d1
+    acc[digit + 2] += sign * d2
+
+
+# terms per block of add_terms: the reductions' blocks (the grids' integer sums below need at most 2^9)
 assert BLOCK <= 512
-#: grid passes per block before the rest goes term by term
-LEVELS = 6
 _ABS = np.uint64(0x7FFFFFFFFFFFFFFF)
 #: the grids work for blocks whose largest magnitude lies strictly between these (bit patterns)
 _HUGE = np.uint64(np.float64(2.0 ** 1000).view(np.uint64))
 _TINY = np.uint64(np.float64(2.0 ** -900).view(np.uint64))
-#: the finest σ a grid pass takes (its grid, σ/2^53, still a normal number)
-_FINEST = 2.0 ** -960
 
 
 @njit(inline="always", error_model="numpy", boundscheck=False)
-def _largest(u):
-    """The largest magnitude's bit pattern among the float64s whose bits are ``u`` (a NaN's
-    pattern exceeds inf's)."""
+def add_terms(acc, terms, n, rest):
+    """Add terms[0 … n−1] to ``acc`` (WIDTH,) int64, exactly. terms: (≥ n,) float64, read only;
+    rest: (BLOCK,) float64 scratch."""
+    u = terms.view(np.uint64)
     big = np.uint64(0)
-    for i in range(u.shape[0]):
+    for i in range(n):
         big = max(big, u[np.uint64(i)] & _ABS)
-    return big
-
-
-@njit(inline="always", error_model="numpy", boundscheck=False)
-def _any(u):
-    """Whether any of the float64s whose bits are ``u`` is not zero."""
-    seen = np.uint64(0)
-    for i in range(u.shape[0]):
-        seen |= u[np.uint64(i)] & _ABS
-    return seen != np.uint64(0)
-
-
-@njit(inline="always", error_model="numpy", boundscheck=False)
-def add_terms(acc, x, n, one):
-    """Add x[0 … n−1] to ``acc`` (WIDTH,) int64, exactly. x: (BLOCK,) float64 scratch holding
-    the terms (overwritten: x[n:] zeroed, then the remainders); one: (1,) float64 scratch."""
-    for i in range(n, BLOCK):
-        x[np.uint64(i)] = 0.0
-    u = x.view(np.uint64)
-    grid_sum = one.view(np.uint64)
-    big = _largest(u)
     if big == np.uint64(0):
         return
     if big < _HUGE and big > _TINY:
-        # σ = 2^(e + 10) with every |x| < 2^e: each grid part is at most 2^e = σ/2^10 and a multiple
-        # of σ/2^53, so with BLOCK ≤ 2^9 terms every partial sum is below σ/2 on that grid: exact.
-        # The remainders are at most σ/2^53: the next grid is 2^43 times finer.
-        sigma = math.ldexp(1.0, np.int64(big >> np.uint64(52)) - 1022 + 10)
-        for _ in range(LEVELS):
-            s0 = 0.0
-            s1 = 0.0
-            s2 = 0.0
-            s3 = 0.0
-            for k in range(BLOCK // 4):
-                j = np.uint64(4 * k)
-                q0 = (sigma + x[j]) - sigma
-                q1 = (sigma + x[j + np.uint64(1)]) - sigma
-                q2 = (sigma + x[j + np.uint64(2)]) - sigma
-                q3 = (sigma + x[j + np.uint64(3)]) - sigma
-                x[j] -= q0
-                x[j + np.uint64(1)] -= q1
-                x[j + np.uint64(2)] -= q2
-                x[j + np.uint64(3)] -= q3
-                s0 += q0
-                s1 += q1
-                s2 += q2
-                s3 += q3
-            one[0] = (s0 + s1) + (s2 + s3)
-            add_bits(acc, grid_sum[0])
-            if not _any(u):
-                return
-            sigma *= 2.0 ** -43
-            if sigma < _FINEST:  # (grids in the normal range only)
-                break
-    for i in range(BLOCK):  # what the grids did not take
+        # Every |x| < 2^top. On the grid 2^g1, g1 = top − 53, each term's truncation q1 is an
+        # integer below 2^53 in magnitude and its remainder r = x − q1·2^g1 (exact) is below 2^g1;
+        # on the grid g2 = g1 − 53 likewise. n ≤ 2^9 integers below 2^53 add up in int64 without
+        # overflow, in any order (so the loop vectorizes). Scalings by powers of two in the normal
+        # range are exact, and a product that underflows was below 1 anyway (q = 0).
+        top = np.int64(big >> np.uint64(52)) - 1022
+        g1 = top - 53
+        g2 = g1 - 53
+        to1 = math.ldexp(1.0, -g1)
+        grid1 = math.ldexp(1.0, g1)
+        to2 = math.ldexp(1.0, -g2)
+        grid2 = math.ldexp(1.0, g2)
+        s1 = np.int64(0)
+        s2 = np.int64(0)
+        left = np.int64(0)
+        for i in range(n):
+            x = terms[np.uint64(i)]
+            q1 = np.int64(x * to1)
+            r = x - np.float64(q1) * grid1
+            q2 = np.int64(r * to2)
+            s1 += q1
+            s2 += q2
+            left += (r - np.float64(q2) * grid2) != 0.0
+        add_scaled(acc, s1, g1)
+        add_scaled(acc, s2, g2)
+        if left == 0:
+            return
+        # terms more than 2^53 below the block's largest keep bits below both grids: the rest
+        # term by term (rare: only blocks whose magnitudes span that much)
+        for i in range(n):
+            x = terms[np.uint64(i)]
+            r = x - np.float64(np.int64(x * to1)) * grid1
+            rest[np.uint64(i)] = r - np.float64(np.int64(r * to2)) * grid2
+        u = rest.view(np.uint64)
+    for i in range(n):  # (also blocks the grids do not take: an inf, a NaN, magnitudes beyond them)
         if u[np.uint64(i)] & _ABS:
             add_bits(acc, u[np.uint64(i)])
 
@@ -184,14 +181,10 @@ def add_terms(acc, x, n, one):
 @njit(cache=True, error_model="numpy", boundscheck=False)
 def add_array(acc, values):
     """Add every entry of ``values`` (k,) float64 to ``acc`` (WIDTH,) int64 (normalized after)."""
-    x = np.empty(BLOCK)
-    one = np.empty(1)
+    rest = np.empty(BLOCK)
     k = values.shape[0]
     for lo in range(0, k, BLOCK):
-        n = min(BLOCK, k - lo)
-        for i in range(n):
-            x[np.uint64(i)] = values[np.uint64(lo + i)]
-        add_terms(acc, x, n, one)
+        add_terms(acc, values[lo:], min(BLOCK, k - lo), rest)
     normalize(acc)
 
 

@@ -130,22 +130,21 @@ def _row_sums(x, p, masses, anchored, ref, gravity, energy, eta, counted):
     accs = np.zeros((chunks, ROW_SUMS, WIDTH), dtype=np.int64)
     for c in prange(chunks):
         terms = np.empty((8, BLOCK))
-        one = np.empty(1)
+        rest = np.empty(BLOCK)
         if c < spring_chunks:
             for lo in range(c * per_spring, min(m, (c + 1) * per_spring), BLOCK):
                 k = min(BLOCK, m - lo)
-                for i in range(k):  # (unsigned indices: the copies vectorize)
-                    terms[0, np.uint64(i)] = energy[np.uint64(lo + i)]
-                if thermal:
+                if every:  # (read in place)
+                    add_terms(accs[c, 0], energy[lo:], k, rest)
+                    if thermal:
+                        add_terms(accs[c, 1], eta[lo:], k, rest)
+                else:
                     for i in range(k):
-                        terms[1, np.uint64(i)] = eta[np.uint64(lo + i)]
-                if not every:
-                    for i in range(k):
-                        if not counted[lo + i]:
-                            terms[0, i] = 0.0
-                            terms[1, i] = 0.0
-                for q in range(2 if thermal else 1):
-                    add_terms(accs[c, q], terms[q], k, one)
+                        skipped = not counted[lo + i]
+                        terms[0, i] = 0.0 if skipped else energy[lo + i]
+                        terms[1, i] = 0.0 if skipped or not thermal else eta[lo + i]
+                    for q in range(2 if thermal else 1):
+                        add_terms(accs[c, q], terms[q], k, rest)
         else:
             b = c - spring_chunks
             for lo in range(b * per_node, min(n, (b + 1) * per_node), BLOCK):
@@ -168,7 +167,7 @@ def _row_sums(x, p, masses, anchored, ref, gravity, energy, eta, counted):
                     terms[6, j] = 0.0 if held else l1_
                     terms[7, j] = 0.0 if held else l2_
                 for q in range(8):
-                    add_terms(accs[c, 2 + q], terms[q], k, one)
+                    add_terms(accs[c, 2 + q], terms[q], k, rest)
         for q in range(ROW_SUMS):
             normalize(accs[c, q])
     total = np.zeros((ROW_SUMS, WIDTH), dtype=np.int64)
