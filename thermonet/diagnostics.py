@@ -64,18 +64,24 @@ def row_sums(system, x, p, eta, edges, springs, nodes, uniform: bool, counted=EV
     :func:`~thermonet.kernels.specialize.kernel_parameters`); nodes: a
     :class:`~thermonet.kernels.records.Nodes` (a node it marks anchored counts for nothing: a
     share's ghosts); counted: (m,) uint8, the springs whose U and η count (a share's
-    own), or empty: all; closing: (energy (m,), θ_min, θ_max) a closing kick left for these
-    springs at this state, taken instead of a pass over the springs; energy: (m,) scratch for the
-    springs' energies where there is no ``closing`` (default: a new array).
+    own), or empty: all; closing: (energy (m,), θ_min, θ_max, node accumulators (C, 8, WIDTH)
+    or None) that a closing kick left for this state, taken instead of a pass over the springs
+    (and over the nodes, with node accumulators); energy: (m,) scratch for the springs' energies
+    where there is no ``closing`` (default: a new array).
     """
+    node_accs = None
     if closing is None:
         spring_energies = diagnostic_sums_kernel(system.model, system.thermal, parallel, uniform)
         energy = np.empty(edges.shape[0]) if energy is None else energy
         theta_min, theta_max = spring_energies(x, eta, springs.rest, springs.P, edges, energy)
     else:
-        energy, theta_min, theta_max = closing
+        energy, theta_min, theta_max, node_accs = closing
+    if node_accs is not None:  # the nodes' terms were reduced by the closing kick: springs only
+        x = p = _NO_NODES
     acc = row_sums_kernel(parallel)(x, p, nodes.masses, nodes.anchored, nodes.reference, nodes.gravity, energy,
                                     eta if system.thermal else _EMPTY, counted)
+    if node_accs is not None:
+        acc[NODES:] += node_accs.sum(axis=0)
     return acc, float(theta_min), float(theta_max)
 
 
@@ -123,6 +129,7 @@ def diagnostics_row(system, state, kinetic, internal, potential, entropy, moment
 
 
 _EMPTY = np.empty(0)
+_NO_NODES = np.empty((0, 3))
 
 
 @dataclass

@@ -66,7 +66,8 @@ from ..heat.passes import (CONTINUE, DEFER_FINISH, FORWARD, REVERSE, SAVE, bind_
 from ..heat.rows import THERMAL_WAVES
 from ..kernels import subflows
 from ..kernels.blocks import BLOCK, squared_lengths
-from ..kernels.reductions import node_diagnostic_terms
+from ..kernels.exact import add_terms, normalize
+from ..kernels.reductions import NODE_SUMS, chunk_length, node_diagnostic_terms
 from ..kernels.copies import _copy_rows, _copy_values
 from ..kernels.records import KickDrift
 from ..kernels.specialize import function_fingerprint, kernel_namespace, model_fingerprint, rebind, specialize
@@ -84,7 +85,7 @@ from .schedule import FIRST_FLOW_SLOT
 # thermonet.kernels.subflows; the small passes (thermal_kick, ...) those of .passes, the row
 # copies those of thermonet.kernels.copies;
 # the loads' functions (node_load, cpu_*) those of thermonet.loads.elements, with LOADS.
-spring_pass = node_pass = boundary_spring_pass = boundary_node_pass = None
+spring_pass = node_pass = boundary_spring_pass = boundary_node_pass = closing_node_kick = None
 thermal_kick = copy_rows = apply_flow = None
 spring_force = spring_energy = spring_temperature = outside_admissible = advance_thermal_displacement = None
 gather_force = kick_momentum = drift_position = load_row = store_row = None
@@ -138,6 +139,8 @@ def splitting_kernels(model, parallel: bool, thermal: bool = True, uniform: bool
         ns["spring_pass"] = specialize(_spring_pass, tag, ns, parallel=parallel, **_OPTIONS)
         ns["node_pass"] = specialize(_node_pass, tag, ns, parallel=parallel, **_OPTIONS)
         boundary = dict(ns, CLOSING=True)
+        boundary["closing_node_kick"] = specialize(_closing_node_kick, tag + "_boundary", boundary, inline="always",
+                                                   **_OPTIONS)
         ns["boundary_spring_pass"] = specialize(_spring_pass, tag + "_boundary", boundary, parallel=parallel,
                                                 **_OPTIONS)
         ns["boundary_node_pass"] = specialize(_node_pass, tag + "_boundary", boundary, parallel=parallel,
@@ -247,9 +250,14 @@ def _node_pass(x, x_new, p, topology, nodes, scratch, steps, force_source, want_
     conduction sweeps, which do not touch p), kick2 with those of s.
     inputs = (s_before, loads): with LOADS, the node's force load (a
     :class:`~thermonet.loads.arrays.LoadArrays`) is added to f and its driven axes zeroed
-    (:func:`thermonet.loads.elements.node_load`). Returns, with ``want_sums`` (CLOSING only), the
-    sums over free nodes at (x, the new p) of kinetic energy, gravity potential −Σ m g·x, p and
-    (x − ref) × p (else 0).
+    (:func:`thermonet.loads.elements.node_load`).
+
+    Parallel over nodes; with CLOSING over at most ``reductions.CHUNKS`` chunks of whole blocks
+    of BLOCK nodes, each reducing, with ``want_sums``, the sums over its free nodes at (x, the new
+    p) of kinetic energy, gravity potential −Σ m g·x, p and (x − ref) × p exactly into
+    scratch.node_accs[chunk] (:data:`~thermonet.kernels.reductions.NODE_SUMS` order; the chunks'
+    accumulators add up to the row's, whatever the threads; scratch.node_terms holds each
+    chunk's terms of a block).
     """
     inc_ptr = topology.inc_ptr
     inc_spring = topology.inc_spring
@@ -265,33 +273,66 @@ def _node_pass(x, x_new, p, topology, nodes, scratch, steps, force_source, want_
     kick1, kick2, drift, with_force = steps
     s_before = inputs[0]
     loads = inputs[1]
-    if LOADS:  # unpacked once: a record handed to a per-node call would be copied at every call
+    # Arrays are taken out of their records here, before the loops: an array read from a record
+    # inside a parallel loop is reference-counted at every read (the pass ran 1.8× slower), and
+    # writes to one so read were lost.
+    if LOADS:
         node_force = loads.node_force
         node_weight = loads.node_weight
         node_drive = loads.node_drive
         load_value = loads.value
         load_free = loads.free
-    move = not (CLOSING and force_source == FORCE_GATHER_KEEP)
-    sums = CLOSING and want_sums
-    kinetic = 0.0
-    potential = 0.0
-    px = 0.0
-    py = 0.0
-    pz = 0.0
-    lx = 0.0
-    ly = 0.0
-    lz = 0.0
-    for a in prange(x.shape[0]):
+    else:  # (placeholders, unread)
+        node_force = node_weight = node_drive = load_value = load_free = s
+    n_nodes = x.shape[0]
+    if CLOSING:
+        move = force_source != FORCE_GATHER_KEEP
+        node_accs = scratch.node_accs
+        node_terms = scratch.node_terms
+        per_chunk = chunk_length(n_nodes)
+        for c in prange((n_nodes + per_chunk - 1) // per_chunk):
+            terms = node_terms[c]
+            rest = terms[len(NODE_SUMS)]
+            if want_sums:
+                node_accs[c] = 0
+            for lo in range(c * per_chunk, min(n_nodes, (c + 1) * per_chunk), BLOCK):
+                k = min(BLOCK, n_nodes - lo)
+                for i in range(k):
+                    a = np.uint64(lo + i)  # (unsigned, as a prange index: no wraparound test per access)
+                    free, xa0, xa1, xa2, p0, p1, p2 = closing_node_kick(
+                        a, x, x_new, p, s, s_before, f_keep, inc_ptr, inc_spring, inc_other, masses, inv_mass,
+                        anchored, gravity, with_gravity, kick1, kick2, drift, with_force, force_source, move,
+                        node_force, node_weight, node_drive, load_value, load_free)
+                    if want_sums:  # (a node held still counts for nothing)
+                        kinetic, potential, l0_, l1_, l2_ = node_diagnostic_terms(xa0, xa1, xa2, p0, p1, p2,
+                                                                                  masses[a], gravity, ref)
+                        terms[0, i] = kinetic if free else 0.0
+                        terms[1, i] = potential if free else 0.0
+                        terms[2, i] = p0 if free else 0.0
+                        terms[3, i] = p1 if free else 0.0
+                        terms[4, i] = p2 if free else 0.0
+                        terms[5, i] = l0_ if free else 0.0
+                        terms[6, i] = l1_ if free else 0.0
+                        terms[7, i] = l2_ if free else 0.0
+                if want_sums:
+                    for q in range(len(NODE_SUMS)):
+                        add_terms(node_accs[c, q], terms[q], k, rest)
+            if want_sums:
+                for q in range(len(NODE_SUMS)):
+                    normalize(node_accs[c, q])
+        return
+    # (the node's work written out here rather than called like the closing kick's: as an inlined
+    # call the stepping passes ran 6–8 % slower)
+    for a in prange(n_nodes):
         xa0, xa1, xa2 = load_row(x, a)
         if anchored[a]:
-            if move:
-                store_row(x_new, a, xa0, xa1, xa2)
+            store_row(x_new, a, xa0, xa1, xa2)
             continue
         p0, p1, p2 = load_row(p, a)
         deferred = False
         if CONDUCTION:
             deferred = force_source == FORCE_DEFERRED
-        if deferred:  # not CLOSING: no sums, no keep
+        if deferred:
             if kick2 != 0.0:
                 f0, f1, f2, g0, g1, g2 = gather_two_forces(a, x, s_before, s, inc_ptr, inc_spring, inc_other, masses,
                                                            gravity, with_gravity)
@@ -308,29 +349,59 @@ def _node_pass(x, x_new, p, topology, nodes, scratch, steps, force_source, want_
                 p0, p1, p2 = kick_momentum(p0, p1, p2, g0, g1, g2, 0.0, kick2)
             store_row(p, a, p0, p1, p2)
         elif with_force:
-            if CLOSING and force_source == FORCE_KEPT:
-                f0, f1, f2 = load_row(f_keep, a)
-            else:
-                f0, f1, f2 = gather_force(a, x, s, inc_ptr, inc_spring, inc_other, masses, gravity, with_gravity)
-                if LOADS:
-                    f0, f1, f2 = node_load(a, f0, f1, f2, node_force, node_weight, node_drive, load_value, load_free)
-                if CLOSING and force_source == FORCE_GATHER_KEEP:
-                    store_row(f_keep, a, f0, f1, f2)
+            f0, f1, f2 = gather_force(a, x, s, inc_ptr, inc_spring, inc_other, masses, gravity, with_gravity)
+            if LOADS:
+                f0, f1, f2 = node_load(a, f0, f1, f2, node_force, node_weight, node_drive, load_value, load_free)
             p0, p1, p2 = kick_momentum(p0, p1, p2, f0, f1, f2, kick1, kick2)
             store_row(p, a, p0, p1, p2)
+        drift_position(x_new, a, xa0, xa1, xa2, p0, p1, p2, drift * inv_mass[a])
+
+
+def _closing_node_kick(a, x, x_new, p, s, s_before, f_keep, inc_ptr, inc_spring, inc_other, masses, inv_mass,
+                       anchored, gravity, with_gravity, kick1, kick2, drift, with_force, force_source, move, node_force,
+                       node_weight, node_drive, load_value, load_free):
+    """Node a's work in a closing :func:`_node_pass`, whose arrays it takes one by one (x_new
+    written where ``move``). Returns (whether the node is free, its x, its new p); an anchored
+    node's p is returned as zeros, unread."""
+    xa0, xa1, xa2 = load_row(x, a)
+    if anchored[a]:
         if move:
-            drift_position(x_new, a, xa0, xa1, xa2, p0, p1, p2, drift * inv_mass[a])
-        if sums:
-            k, v, l0_, l1_, l2_ = node_diagnostic_terms(xa0, xa1, xa2, p0, p1, p2, masses[a], gravity, ref)
-            kinetic += k
-            potential += v
-            px += p0
-            py += p1
-            pz += p2
-            lx += l0_
-            ly += l1_
-            lz += l2_
-    return kinetic, potential, px, py, pz, lx, ly, lz
+            store_row(x_new, a, xa0, xa1, xa2)
+        return False, xa0, xa1, xa2, 0.0, 0.0, 0.0
+    p0, p1, p2 = load_row(p, a)
+    deferred = False
+    if CONDUCTION:
+        deferred = force_source == FORCE_DEFERRED
+    if deferred:  # no keep
+        if kick2 != 0.0:
+            f0, f1, f2, g0, g1, g2 = gather_two_forces(a, x, s_before, s, inc_ptr, inc_spring, inc_other, masses,
+                                                       gravity, with_gravity)
+        else:
+            f0, f1, f2 = gather_force(a, x, s_before, inc_ptr, inc_spring, inc_other, masses, gravity,
+                                      with_gravity)
+            g0 = g1 = g2 = 0.0
+        if LOADS:
+            f0, f1, f2 = node_load(a, f0, f1, f2, node_force, node_weight, node_drive, load_value, load_free)
+        p0, p1, p2 = kick_momentum(p0, p1, p2, f0, f1, f2, 0.0, kick1)
+        if kick2 != 0.0:
+            if LOADS:
+                g0, g1, g2 = node_load(a, g0, g1, g2, node_force, node_weight, node_drive, load_value, load_free)
+            p0, p1, p2 = kick_momentum(p0, p1, p2, g0, g1, g2, 0.0, kick2)
+        store_row(p, a, p0, p1, p2)
+    elif with_force:
+        if force_source == FORCE_KEPT:
+            f0, f1, f2 = load_row(f_keep, a)
+        else:
+            f0, f1, f2 = gather_force(a, x, s, inc_ptr, inc_spring, inc_other, masses, gravity, with_gravity)
+            if LOADS:
+                f0, f1, f2 = node_load(a, f0, f1, f2, node_force, node_weight, node_drive, load_value, load_free)
+            if force_source == FORCE_GATHER_KEEP:
+                store_row(f_keep, a, f0, f1, f2)
+        p0, p1, p2 = kick_momentum(p0, p1, p2, f0, f1, f2, kick1, kick2)
+        store_row(p, a, p0, p1, p2)
+    if move:
+        drift_position(x_new, a, xa0, xa1, xa2, p0, p1, p2, drift * inv_mass[a])
+    return True, xa0, xa1, xa2, p0, p1, p2
 
 
 def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run, loads):
@@ -495,11 +566,11 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run
         ended_cycle = True
     summed = False
     if CONDUCTION and deferred != 0.0:  # drift 0: the positions stay; a cycle's end: the call's closing kick
-        node_sums = _deferred_kick(cur, nxt, p, topology, nodes, scratch, heat, loads, (deferred * h, deferred_time),
-                                   ended_cycle and run.want_sums)
+        _deferred_kick(cur, nxt, p, topology, nodes, scratch, heat, loads, (deferred * h, deferred_time),
+                       ended_cycle and run.want_sums)
         if ended_cycle and run.want_sums:
             store_sums(scratch.sums, state_spring_sums(cur, eta, topology, springs, scratch.energy_buf,
-                                                       heat.theta_start), node_sums)
+                                                       heat.theta_start))
             summed = True
     if pending != 0.0:
         bad, energy, theta_min, theta_max = boundary_spring_pass(cur, eta, phi, topology, springs, scratch,
@@ -511,12 +582,12 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run
         # drift 0: the positions stay in cur
         if LOADS:
             cpu_evaluate_loads(loads, stage_time(loads, h, n_steps, 0.0))
-        node_sums = boundary_node_pass(cur, nxt, p, topology, nodes, scratch, KickDrift(0.0, pending * h, 0.0, True),
-                                       np.int64(FORCE_GATHER_KEEP), run.want_sums, (heat.s_before, loads))
+        boundary_node_pass(cur, nxt, p, topology, nodes, scratch, KickDrift(0.0, pending * h, 0.0, True),
+                           np.int64(FORCE_GATHER_KEEP), run.want_sums, (heat.s_before, loads))
         if LOADS:
             cpu_load_work(cur, scratch.s, topology, nodes, loads, 0.0, pending * h)
         if run.want_sums:
-            store_sums(scratch.sums, (energy, theta_min, theta_max), node_sums)
+            store_sums(scratch.sums, (energy, theta_min, theta_max))
             summed = True
     if CONDUCTION:
         if theta_valid:

@@ -44,12 +44,11 @@ def _apply_flow(slot, effects, tau, t, x, p, phi, eta):
 
 
 @njit(inline="always", error_model="numpy", boundscheck=False)
-def store_sums(sums, spring_sums, node_sums):
-    """A diagnostics row's sums (11,): Σ U, min θ, max θ (spring_sums), then node_sums (8)."""
+def store_sums(sums, spring_sums):
+    """A diagnostics row's spring sums (3,): Σ U, min θ, max θ (the node sums are exact, in
+    scratch.node_accs)."""
     for q in range(3):
         sums[q] = spring_sums[q]
-    for q in range(8):
-        sums[3 + q] = node_sums[q]
 
 
 def _stopped(x, x_buf, swaps, heat, steps_done):

@@ -52,8 +52,7 @@ class SplittingStepper(Stepper):
         self._advance = splitting_kernels(system.model, parallel, system.thermal, uniform, flows, conduction, waves,
                                           self.loads is not None)
         n, m = system.n_nodes, system.n_springs
-        self._scratch = records.Scratch(np.empty((n, 3)), np.empty(m), np.empty((n, 3)),
-                                        np.empty(m if system.thermal else 0), np.empty(m), np.empty(11))
+        self._scratch = records.scratch(n, m, system.thermal)
         self._measured = None  # (state, step, sums) of the last call asked to measure its end
         # (state, step) whose forces and temperatures the last call's closing kick left in the
         # keep buffers: a call continuing from exactly there starts from them
@@ -103,8 +102,8 @@ class SplittingStepper(Stepper):
 
     def closing_sums(self, state) -> dict | None:
         """See :meth:`Stepper.closing_sums`: Σ U from the springs' energies the closing kick left
-        (scratch.energy_buf) and its θ range, the node sums and Σ η in a pass each, all exactly
-        rounded (:func:`thermonet.diagnostics.row_sums`)."""
+        (scratch.energy_buf) and its θ range, Σ η in a pass, the node sums the closing kick
+        reduced (scratch.node_accs), all exactly rounded (:func:`thermonet.diagnostics.row_sums`)."""
         if self._measured is None:
             return None
         kept, step, sums = self._measured
@@ -114,5 +113,5 @@ class SplittingStepper(Stepper):
         eta = state.entropy if system.thermal else self._no_thermal
         acc, tmin, tmax = row_sums(system, state.positions, state.momenta, eta, self._topology.edges, self._springs,
                                    self._nodes, self._uniform, parallel=self.parallel,
-                                   closing=(self._scratch.energy_buf, sums[1], sums[2]))
+                                   closing=(self._scratch.energy_buf, sums[1], sums[2], self._scratch.node_accs))
         return sums_of(acc, tmin, tmax, system.thermal)

@@ -390,7 +390,7 @@ def conduction_boundary(state, cur, topology, springs, scratch, heat, run, pendi
     inadmissible springs that spring pass found (0: swept)."""
     if pending != 0.0:  # (its T/l straight into heat.s_before)
         before = Scratch(scratch.x_buf, heat.s_before, scratch.f_keep, scratch.theta_keep, scratch.energy_buf,
-                         scratch.sums)
+                         scratch.sums, scratch.node_accs, scratch.node_terms)
         # keep = (pending != 0.0), True here, as a run-time bool: the literal True would compile
         # a second spring pass, differing from the step's only in a branch outside its loops
         bad = spring_pass(cur, state.eta, state.phi, topology, springs, before, (0.0, pending * run.h), run,
@@ -405,21 +405,20 @@ def conduction_boundary(state, cur, topology, springs, scratch, heat, run, pendi
 def deferred_kick(x, x_new, p, topology, nodes, scratch, heat, loads, when, want_sums):
     """The kick deferred past the sweeps by itself, with the forces in heat.s_before at x and,
     with LOADS, the loads at time t (and their work); when = (τ, already times h; t). With
-    ``want_sums`` (a call's end) it is the call's closing node pass: returns the node sums of a
-    diagnostics row at (x, the new p) as :func:`thermonet.explicit.cpu._node_pass` reduces
-    them (else zeros)."""
+    ``want_sums`` (a call's end) it is the call's closing node pass: it reduces the node sums of a
+    diagnostics row at (x, the new p) into scratch.node_accs as
+    :func:`thermonet.explicit.cpu._node_pass` does."""
     tau, t = when
     if LOADS:
         cpu_evaluate_loads(loads, t)
     if want_sums:
-        sums = boundary_node_pass(x, x_new, p, topology, nodes, scratch, KickDrift(tau, 0.0, 0.0, True),
-                                  np.int64(FORCE_DEFERRED), np.bool_(True), (heat.s_before, loads))
+        boundary_node_pass(x, x_new, p, topology, nodes, scratch, KickDrift(tau, 0.0, 0.0, True),
+                           np.int64(FORCE_DEFERRED), np.bool_(True), (heat.s_before, loads))
     else:
-        sums = node_pass(x, x_new, p, topology, nodes, scratch, KickDrift(tau, 0.0, 0.0, True), FORCE_DEFERRED, False,
-                         (heat.s_before, loads))
+        node_pass(x, x_new, p, topology, nodes, scratch, KickDrift(tau, 0.0, 0.0, True), FORCE_DEFERRED, False,
+                  (heat.s_before, loads))
     if LOADS:
         cpu_load_work(x, heat.s_before, topology, nodes, loads, 0.0, tau)
-    return sums
 
 
 def _state_spring_sums(x, eta, topology, springs, length, theta):

@@ -193,6 +193,10 @@ def combine(accumulators) -> np.ndarray:
     return np.sum(np.asarray(accumulators, dtype=np.int64), axis=0)
 
 
+#: Σ_{i < CHUNKS} 2^(32 i)
+_ONES = ((1 << (DIGIT * CHUNKS)) - 1) // ((1 << DIGIT) - 1)
+
+
 def value(acc) -> float:
     """The exact sum held by ``acc`` (WIDTH,), rounded once to the nearest float64."""
     acc = np.asarray(acc)
@@ -202,9 +206,13 @@ def value(acc) -> float:
         return math.inf
     if acc[NEG_INF]:
         return -math.inf
-    total = 0
-    for i in range(CHUNKS - 1, -1, -1):
-        total = (total << DIGIT) + int(acc[i])
+    # Σ d_i 2^(32 i) over signed int64 digits, read as bytes: d = low + 2^32 high with
+    # low = d mod 2^32 and high = d >> 32 in [−2^31, 2^31), stored shifted by 2^31 as unsigned
+    digits = acc[:CHUNKS].astype(np.int64)
+    low = (digits & 0xFFFFFFFF).astype("<u4")
+    high = ((digits >> 32) + 2 ** 31).astype("<u4")
+    total = (int.from_bytes(low.tobytes(), "little")
+             + ((int.from_bytes(high.tobytes(), "little") - 2 ** 31 * _ONES) << DIGIT))
     try:
         return total / (1 << 1074)  # (Python's int division rounds correctly, subnormals too)
     except OverflowError:

@@ -13,6 +13,10 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .blocks import BLOCK
+from .exact import WIDTH
+from .reductions import NODE_SUMS, closing_chunks
+
 
 class Topology(NamedTuple):
     """Which springs join which nodes.
@@ -59,8 +63,10 @@ class StateArrays(NamedTuple):
 
 class Scratch(NamedTuple):
     """A stepper's buffers: x_buf (n, 3) the other position buffer; s (m,) T/l per spring;
-    f_keep (n, 3) and theta_keep (m,) a call's closing forces and temperatures; energy_buf (m,);
-    sums (11,) a diagnostics row's sums."""
+    f_keep (n, 3) and theta_keep (m,) a call's closing forces and temperatures; energy_buf (m,)
+    each spring's internal energy at a call's end; sums (3,) the closing spring pass's Σ U, min θ,
+    max θ; node_accs (C, len(NODE_SUMS), WIDTH) int64 the closing node pass's exact node sums per
+    chunk and node_terms (C, len(NODE_SUMS) + 1, BLOCK) its terms per chunk (C: :func:`scratch`)."""
 
     x_buf: np.ndarray
     s: np.ndarray
@@ -68,6 +74,16 @@ class Scratch(NamedTuple):
     theta_keep: np.ndarray
     energy_buf: np.ndarray
     sums: np.ndarray
+    node_accs: np.ndarray
+    node_terms: np.ndarray
+
+
+def scratch(n: int, m: int, thermal: bool) -> Scratch:
+    """A stepper's buffers for n nodes and m springs (see :class:`Scratch`)."""
+    chunks = closing_chunks(n)
+    return Scratch(np.empty((n, 3)), np.empty(m), np.empty((n, 3)), np.empty(m if thermal else 0), np.empty(m),
+                   np.empty(3), np.zeros((chunks, len(NODE_SUMS), WIDTH), dtype=np.int64),
+                   np.empty((chunks, len(NODE_SUMS) + 1, BLOCK)))
 
 
 class KickDrift(NamedTuple):

@@ -51,6 +51,12 @@ def chunk_length(k):
     return max(1, (blocks + CHUNKS - 1) // CHUNKS) * BLOCK
 
 
+def closing_chunks(n: int) -> int:
+    """The chunks of a reduction over n terms (at least 1): a closing node pass's accumulators."""
+    per_chunk = max(1, -(-(-(-n // BLOCK)) // CHUNKS)) * BLOCK  # chunk_length(n)
+    return max(1, -(-n // per_chunk))
+
+
 @njit(inline="always", error_model="numpy", boundscheck=False)
 def node_diagnostic_terms(x0, x1, x2, p0, p1, p2, mass, gravity, ref):
     """One free node's terms of a diagnostics row: kinetic energy, gravity potential −m g·x, p,

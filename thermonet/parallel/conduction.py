@@ -58,8 +58,7 @@ class DistributedConduction:
                           float(hi), False, False, int(every), int(cycle_step))
         arrays = records.StateArrays(st._x, st._p, st._phi, st._eta)
         scratch = st._scratch
-        before = records.Scratch(scratch.x_buf, self._s_before, scratch.f_keep, scratch.theta_keep,
-                                 scratch.energy_buf, scratch.sums)
+        before = scratch._replace(s=self._s_before)
         topology, springs, nodes = st._topology, st._springs, st._nodes
         length, strain, s_before = self._length, self._strain, self._s_before
         np.take(logs["length"], sh.springs, out=length)

@@ -129,8 +129,7 @@ class DistributedStepper(Stepper):
         self._x, self._p = np.empty((nl, 3)), np.empty((nl, 3))
         self._phi = np.empty(ml if thermal else 0)
         self._eta = np.empty(ml if thermal else 0)
-        self._scratch = records.Scratch(np.empty((nl, 3)), np.empty(ml), np.empty((nl, 3)),
-                                        np.empty(ml if thermal else 0), np.empty(ml), np.empty(11))
+        self._scratch = records.scratch(nl, ml, thermal)
         self._no_heat = records.no_heat_cpu()
         self._bad = np.zeros(1, dtype=np.int64)
         self._gather = _OwnedGather(dec, sh, thermal, conducting, self.rank)
@@ -258,9 +257,10 @@ class DistributedStepper(Stepper):
         self._bind(state)
         closing = None
         if self._measured is not None and self._measured[0] is state and self._measured[1] == state.step:
-            # the closing kick of the call that ended here left U and θ of the share's springs
+            # the closing kick of the call that ended here left U and θ of the share's springs and
+            # the exact sums over its own nodes (ghosts are anchored in the share: they count nothing)
             theta = value_range(self._scratch.theta_keep) if self.system.thermal else (math.inf, -math.inf)
-            closing = (self._scratch.energy_buf, *theta)
+            closing = (self._scratch.energy_buf, *theta, self._scratch.node_accs)
         acc, theta_min, theta_max = row_sums(self.system, self._x, self._p, self._eta, self._topology.edges,
                                              self._springs, self._nodes, self._uniform, self._counted,
                                              self.parallel, closing, self._scratch.energy_buf)
