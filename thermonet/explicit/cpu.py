@@ -40,11 +40,13 @@ closing kick of its last step; it keeps that kick's forces and temperatures (``f
 ``theta_keep``), and a following call from the same state (``reuse_boundary``, the caller's
 promise) starts from them instead of evaluating them again: without that, every observer stop of a
 run (a diagnostics row every 10 steps, say) would cost one more force evaluation, a whole CO2 step.
-With ``want_sums`` the closing kick also reduces a diagnostics row's sums (internal energy and
-the temperature range in its spring pass, kinetic and gravity energy and the momenta in its node
-pass, at the synchronized state the call ends in) into ``sums``, so a row costs a few flops per
-spring instead of two more passes over memory (:func:`thermonet.kernels.reductions` is the
-stand-alone version, for states no call ends in). Every spring and every
+With ``want_sums`` the closing kick also does a diagnostics row's work at the synchronized state
+the call ends in: its spring pass leaves each spring's internal energy in ``energy_buf`` and the
+temperature range in ``sums``; its node pass reduces kinetic and gravity energy, the momenta and
+the angular momenta exactly (:mod:`thermonet.kernels.exact`) into ``node_accs``, one
+accumulator per chunk of nodes. A row then costs an exact sum over two per-spring arrays
+(U, η) instead of passes over the state (:mod:`thermonet.kernels.reductions` is the stand-alone
+version, for states no call ends in). Every spring and every
 node is computed by one thread with a fixed summation order, so results do not depend on the
 number of threads.
 
@@ -67,7 +69,7 @@ from ..heat.rows import THERMAL_WAVES
 from ..kernels import subflows
 from ..kernels.blocks import BLOCK, squared_lengths
 from ..kernels.exact import add_terms, normalize
-from ..kernels.reductions import NODE_SUMS, chunk_length, node_diagnostic_terms
+from ..kernels.reductions import NODE_SUMS, chunk_length, node_diagnostic_terms, rows_digest
 from ..kernels.copies import _copy_rows, _copy_values
 from ..kernels.records import KickDrift
 from ..kernels.specialize import function_fingerprint, kernel_namespace, model_fingerprint, rebind, specialize
@@ -121,7 +123,7 @@ def splitting_kernels(model, parallel: bool, thermal: bool = True, uniform: bool
     if key not in _CACHE:
         flows_tag = f"_f{function_fingerprint(*(f.update for f in flows))}" if flows else ""
         tag = (f"{model.name}_{key[0]}_{'par' if parallel else 'ser'}_{'thermal' if thermal else 'mech'}"
-               f"{'_uniform' if uniform else ''}_s{subflows.source_digest()}{flows_tag}")
+               f"{'_uniform' if uniform else ''}_s{subflows.source_digest()}_r{rows_digest()}{flows_tag}")
         if conduction or waves:
             tag += f"_{'k' if conduction else ''}{'w' if waves else ''}{heat_source_digest(parallel)}"
         ns = kernel_namespace(model, thermal, uniform)

@@ -13,12 +13,15 @@ only split the work (an accumulator holds up to 2^30 terms: nets of up to 6e10 s
 
 from __future__ import annotations
 
+import hashlib
+import inspect
 import math
+import sys
 
 import numpy as np
 from numba import njit, prange
 
-from . import subflows
+from . import exact, subflows
 from .subflows import bind_subflows
 from .blocks import BLOCK, squared_lengths
 from .exact import WIDTH, add_terms, normalize
@@ -44,16 +47,31 @@ _CACHE: dict = {}
 _EXACT = function_fingerprint(add_terms.py_func, normalize.py_func)
 
 
+#: the fewest blocks of a chunk (fewer, larger chunks for small nets: each costs an accumulator
+#: zeroed, normalized and added)
+CHUNK_BLOCKS = 8
+
+
 @njit(inline="always")
 def chunk_length(k):
-    """Terms per chunk of a reduction over k terms: whole blocks, at most CHUNKS chunks."""
+    """Terms per chunk of a reduction over k terms: whole blocks, at least CHUNK_BLOCKS of them
+    and at most CHUNKS chunks."""
     blocks = (k + BLOCK - 1) // BLOCK
-    return max(1, (blocks + CHUNKS - 1) // CHUNKS) * BLOCK
+    return max(CHUNK_BLOCKS, (blocks + CHUNKS - 1) // CHUNKS) * BLOCK
+
+
+def rows_digest() -> str:
+    """A short hash of the exact sums' and this module's sources: part of the cache names of the
+    stepping kernels, which inline their chunking and accumulation (Numba's disk cache watches
+    the kernel's own file only, and a chunking constant changed here must not meet scratch sized
+    by the old one)."""
+    text = inspect.getsource(exact) + inspect.getsource(sys.modules[__name__])
+    return hashlib.sha256(text.encode()).hexdigest()[:8]
 
 
 def closing_chunks(n: int) -> int:
     """The chunks of a reduction over n terms (at least 1): a closing node pass's accumulators."""
-    per_chunk = max(1, -(-(-(-n // BLOCK)) // CHUNKS)) * BLOCK  # chunk_length(n)
+    per_chunk = max(CHUNK_BLOCKS, -(-(-(-n // BLOCK)) // CHUNKS)) * BLOCK  # chunk_length(n)
     return max(1, -(-n // per_chunk))
 
 
@@ -174,7 +192,8 @@ def _row_sums(x, p, masses, anchored, ref, gravity, energy, eta, counted):
                     terms[7, j] = 0.0 if held else l2_
                 for q in range(8):
                     add_terms(accs[c, 2 + q], terms[q], k, rest)
-        for q in range(ROW_SUMS):
+        first, stop = (0, 2) if c < spring_chunks else (2, ROW_SUMS)  # (the accumulators it filled)
+        for q in range(first, stop):
             normalize(accs[c, q])
     total = np.zeros((ROW_SUMS, WIDTH), dtype=np.int64)
     for c in range(chunks):

@@ -29,7 +29,7 @@ import numpy as np
 
 from ..blowup import blowup_failure
 from ..diagnostics import row_sums, sums_of
-from ..kernels.reductions import value_range
+from ..kernels.reductions import rows_digest, value_range
 from ..errors import InputError
 from ..explicit import cpu
 from ..explicit.schedule import STAGE
@@ -58,7 +58,7 @@ def splitting_passes(model, parallel: bool, thermal: bool, uniform: bool, loads:
     ns = next(cpu._PASSES[k] for k, v in cpu._CACHE.items() if v is advance)  # that variant's passes
     variant = (f"{model.name}_{model_fingerprint(model)}_{'par' if parallel else 'ser'}"
                f"_{'thermal' if thermal else 'mech'}{'_uniform' if uniform else ''}{'_loads' if loads else ''}"
-               f"{'_conduction' if conduction else ''}")
+               f"{'_conduction' if conduction else ''}_r{rows_digest()}")
     return ns, variant
 
 
