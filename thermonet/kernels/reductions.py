@@ -13,6 +13,7 @@ only split the work (an accumulator holds up to 2^30 terms: nets of up to 6e10 s
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import inspect
 import math
@@ -60,6 +61,7 @@ def chunk_length(k):
     return max(CHUNK_BLOCKS, (blocks + CHUNKS - 1) // CHUNKS) * BLOCK
 
 
+@functools.lru_cache(maxsize=1)
 def rows_digest() -> str:
     """A short hash of the exact sums' and this module's sources: part of the cache names of the
     stepping kernels, which inline their chunking and accumulation (Numba's disk cache watches
