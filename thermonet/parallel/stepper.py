@@ -32,6 +32,7 @@ from ..diagnostics import row_sums, sums_of
 from ..kernels.reductions import rows_digest, value_range
 from ..errors import InputError
 from ..explicit import cpu
+from ..explicit.codes import FORCE_KEPT
 from ..explicit.schedule import STAGE
 from ..heat.logs import PER_SPRING_LOGS
 from ..integrators.base import Stepper
@@ -114,6 +115,13 @@ class DistributedStepper(Stepper):
         with_loads = system.loads is not None
         (self._stage, self._closing), functions = splitting_stages(system.model, parallel, thermal, uniform,
                                                                    with_loads)
+        # a call continuing from the state the last call ended in starts from its closing kick's
+        # forces and temperatures, as one process does (thermonet.explicit.cpu, "reuse")
+        passes, _ = splitting_passes(system.model, parallel, thermal, uniform, with_loads)
+        self._kept_node_pass, self._thermal_kick = passes["boundary_node_pass"], passes["thermal_kick"]
+        #: (state, step) whose forces and temperatures the last call's closing kick left in the
+        #: share's f_keep and theta_keep
+        self._boundary = None
         self._topology = sh.topology
         self._springs = records.Springs(np.ascontiguousarray(system.rest_lengths[sh.springs]),
                                         P if uniform else np.ascontiguousarray(P[:, sh.springs]))
@@ -158,6 +166,8 @@ class DistributedStepper(Stepper):
     def advance(self, state, n_steps: int, h: float, measure: bool = False):
         """``n_steps`` steps of h of the whole net's ``state`` (in place, on every process)."""
         self._measured = None
+        reuse = self._boundary is not None and self._boundary[0] is state and self._boundary[1] == state.step
+        self._boundary = None
         if n_steps <= 0:
             return None
         self._bind(state)
@@ -180,7 +190,10 @@ class DistributedStepper(Stepper):
                 steps = records.KickDrift(k1 * h, k2 * h, drift * h, k1 != 0.0 or k2 != 0.0)
                 if loads is not None and steps.with_force:  # (as the CPU kernel: thermonet.explicit.cpu)
                     loads.evaluate(la, _stage_time(la, h, step, la.kick_time[r]))
-                bad = self._stage(cur, nxt, arrays, *local, steps, run, extra)
+                if reuse and step == 0 and r == 0 and steps.with_force:
+                    bad = self._kept_kick(cur, nxt, arrays, steps, extra)
+                else:
+                    bad = self._stage(cur, nxt, arrays, *local, steps, run, extra)
                 if steps.with_force and self._any(bad):  # row 0's positions end the previous step: that one was bad
                     return self._stopped(state, cur, step - 1 if r == 0 and step > 0 else step)
                 if loads is not None and steps.with_force:
@@ -202,8 +215,19 @@ class DistributedStepper(Stepper):
                 loads.add_work(self.comm, cur, self._scratch.s, self._topology, self._nodes, 0.0, pending * h)
             if measure:
                 self._measured = (state, state.step + int(n_steps))
+            self._boundary = (state, state.step + int(n_steps))
         self._ended(cur)
         return None
+
+    def _kept_kick(self, cur, nxt, arrays, steps, extra) -> int:
+        """A call's first stage at the positions the last call's closing kick evaluated: its
+        forces (f_keep) and temperatures (theta_keep) taken instead of a spring pass. Returns 0
+        (no spring is evaluated)."""
+        if self.system.thermal and self.integrator.track_phi:
+            self._thermal_kick(arrays.phi, self._scratch.theta_keep, steps.kick2)
+        self._kept_node_pass(cur, nxt, arrays.p, self._topology, self._nodes, self._scratch, steps,
+                             np.int64(FORCE_KEPT), np.bool_(False), extra[1])
+        return 0
 
     def _any(self, bad: int) -> bool:
         """Whether a spring left the admissible states on any process (all learn it together)."""
