@@ -60,6 +60,23 @@ def new(k: int = 0) -> np.ndarray:
 
 
 @njit(inline="always", error_model="numpy", boundscheck=False)
+def _add_magnitude(acc, magnitude, at, sign):
+    """Add sign·magnitude·2^(at − 1074) to ``acc``: magnitude uint64 below 2^63, at uint64 (its
+    lowest bit's position on the accumulator's grid), sign int64 ±1; less than 2^33 added to
+    each of the three digits it touches."""
+    digit = np.int64(at >> np.uint64(5))
+    shift = at & np.uint64(31)
+    low = (magnitude & _MASK) << shift  # < 2^63
+    high = (magnitude >> np.uint64(32)) << shift  # < 2^62
+    d0 = np.int64(low & _MASK)
+    d1 = np.int64((low >> np.uint64(32)) + (high & _MASK))
+    d2 = np.int64(high >> np.uint64(32))
+    acc[digit] += sign * d0
+    acc[digit + 1] += sign * d1
+    acc[digit + 2] += sign * d2
+
+
+@njit(inline="always", error_model="numpy", boundscheck=False)
 def add_bits(acc, u):
     """Add the float64 whose bit pattern is ``u`` (uint64) to ``acc`` (WIDTH,) int64, exactly."""
     biased = (u >> np.uint64(52)) & np.uint64(0x7FF)
@@ -76,18 +93,9 @@ def add_bits(acc, u):
         biased = np.uint64(1)
     else:
         significand |= _HIDDEN
-    at = biased - np.uint64(1)  # the significand's lowest bit weighs 2^(at − 1074)
-    digit = np.int64(at >> np.uint64(5))
-    shift = at & np.uint64(31)
-    low = (significand & _MASK) << shift  # < 2^63
-    high = (significand >> np.uint64(32)) << shift  # < 2^52
-    d0 = np.int64(low & _MASK)
-    d1 = np.int64((low >> np.uint64(32)) + (high & _MASK))
-    d2 = np.int64(high >> np.uint64(32))
     sign = np.int64(1) - (np.int64(u >> np.uint64(63)) << np.int64(1))  # (a multiplier: signs are not predictable)
-    acc[digit] += sign * d0
-    acc[digit + 1] += sign * d1
-    acc[digit + 2] += sign * d2
+    # the significand's lowest bit weighs 2^(biased − 1 − 1074)
+    _add_magnitude(acc, significand, biased - np.uint64(1), sign)
 
 
 @njit(inline="always", error_model="numpy", boundscheck=False)
@@ -105,19 +113,8 @@ def normalize(acc):
 def add_scaled(acc, s, g):
     """Add s·2^g to ``acc`` (WIDTH,) int64, exactly: s int64 with |s| < 2^63, −1074 ≤ g ≤ 1074."""
     negative = s < 0
-    magnitude = np.uint64(-s) if negative else np.uint64(s)
-    at = np.uint64(g + 1074)
-    digit = np.int64(at >> np.uint64(5))
-    shift = at & np.uint64(31)
-    low = (magnitude & _MASK) << shift  # < 2^63
-    high = (magnitude >> np.uint64(32)) << shift  # < 2^62
-    d0 = np.int64(low & _MASK)
-    d1 = np.int64((low >> np.uint64(32)) + (high & _MASK))
-    d2 = np.int64(high >> np.uint64(32))
-    sign = np.int64(-1) if negative else np.int64(1)
-    acc[digit] += sign * d0
-    acc[digit + 1] += sign * d1
-    acc[digit + 2] += sign * d2
+    _add_magnitude(acc, np.uint64(-s) if negative else np.uint64(s), np.uint64(g + 1074),
+                   np.int64(-1) if negative else np.int64(1))
 
 
 # terms per block of add_terms: the reductions' blocks (the grids' integer sums below need at most 2^9)
