@@ -171,12 +171,11 @@ def splitting_kernels(model, parallel: bool, thermal: bool = True, uniform: bool
 def _spring_pass(x, eta, phi, topology, springs, scratch, steps, run, keep, length, strain):
     """Per spring e: s[e] = T/l at x; Φ[e] += steps[0] θ, += steps[1] θ (two additions); θ into
     theta_keep[e] when ``keep`` (THERMAL only); with ``run.want_sums`` (CLOSING only) the
-    spring's internal energy (free energy at θ0 when not THERMAL) into energy_buf[e] and the
-    block sums below.
+    spring's internal energy (free energy at θ0 when not THERMAL) into energy_buf[e], which a
+    diagnostics row sums exactly, and the range of θ.
 
     x: (n, 3); eta, phi: (m,); steps: (2,) tuple of floats. Returns (the number of springs
-    outside the admissible states, Σ energy, min θ, max θ); the sums are 0, inf, −inf unless
-    summed. Compiled twice: with CLOSING for the calls' first and last kicks, and without (keep
+    outside the admissible states, min θ, max θ); the range is inf, −inf unless summed. Compiled twice: with CLOSING for the calls' first and last kicks, and without (keep
     and sums compiled out) for every other. With CONDUCTION and ``keep`` each spring's length
     goes to length (m,), its strain (``Model.strain``) to strain (m,) and its θ to theta_keep,
     where the conduction sweeps and the refresh pass take them (a kick followed by no drift: θ,
@@ -195,7 +194,6 @@ def _spring_pass(x, eta, phi, topology, springs, scratch, steps, run, keep, leng
     want_sums = CLOSING and run.want_sums
     m = edges.shape[0]
     bad = 0
-    energy = 0.0
     theta_min = math.inf
     theta_max = -math.inf
     for blk in prange((m + BLOCK - 1) // BLOCK):
@@ -225,20 +223,17 @@ def _spring_pass(x, eta, phi, topology, springs, scratch, steps, run, keep, leng
                 e = np.uint64(lo + i)
                 strain[e] = model_strain(length[e], l0[e])
         if CLOSING:
-            if want_sums:  # in order, after the vectorized loop (a sum inside it would keep it scalar)
-                block_sum = 0.0
+            if want_sums:  # after the vectorized loop (a reduction inside it would keep it scalar)
                 block_min = math.inf
                 block_max = -math.inf
                 for i in range(n):
                     e = np.uint64(lo + i)
-                    block_sum += energy_buf[e]
                     th = theta_keep[e] if THERMAL else P[REFERENCE_TEMPERATURE, np.uint64(0) if UNIFORM else e]
                     block_min = min(block_min, th)
                     block_max = max(block_max, th)
-                energy += block_sum
                 theta_min = min(theta_min, block_min)
                 theta_max = max(theta_max, block_max)
-    return bad, energy, theta_min, theta_max
+    return bad, theta_min, theta_max
 
 
 def _node_pass(x, x_new, p, topology, nodes, scratch, steps, force_source, want_sums, inputs):
@@ -575,9 +570,9 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run
                                                        heat.theta_start))
             summed = True
     if pending != 0.0:
-        bad, energy, theta_min, theta_max = boundary_spring_pass(cur, eta, phi, topology, springs, scratch,
-                                                                 (0.0, pending * h), run, True, heat.length,
-                                                                 heat.strain)
+        bad, theta_min, theta_max = boundary_spring_pass(cur, eta, phi, topology, springs, scratch,
+                                                         (0.0, pending * h), run, True, heat.length,
+                                                         heat.strain)
         if bad > 0:
             return _stopped(x, x_buf, swaps, heat, n_steps - 1)
         theta_valid = True  # (the closing spring pass keeps θ and l)
@@ -589,7 +584,7 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run
         if LOADS:
             cpu_load_work(cur, scratch.s, topology, nodes, loads, 0.0, pending * h)
         if run.want_sums:
-            store_sums(scratch.sums, (energy, theta_min, theta_max))
+            store_sums(scratch.sums, (theta_min, theta_max))
             summed = True
     if CONDUCTION:
         if theta_valid:

@@ -44,11 +44,11 @@ def _apply_flow(slot, effects, tau, t, x, p, phi, eta):
 
 
 @njit(inline="always", error_model="numpy", boundscheck=False)
-def store_sums(sums, spring_sums):
-    """A diagnostics row's spring sums (3,): Σ U, min θ, max θ (the node sums are exact, in
-    scratch.node_accs)."""
-    for q in range(3):
-        sums[q] = spring_sums[q]
+def store_sums(sums, theta_range):
+    """A diagnostics row's temperature range (min θ, max θ) into sums (2,) (its sums are exact:
+    the springs' energies in scratch.energy_buf, the node sums in scratch.node_accs)."""
+    sums[0] = theta_range[0]
+    sums[1] = theta_range[1]
 
 
 def _stopped(x, x_buf, swaps, heat, steps_done):

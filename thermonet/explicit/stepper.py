@@ -113,5 +113,5 @@ class SplittingStepper(Stepper):
         eta = state.entropy if system.thermal else self._no_thermal
         acc, tmin, tmax = row_sums(system, state.positions, state.momenta, eta, self._topology.edges, self._springs,
                                    self._nodes, self._uniform, parallel=self.parallel,
-                                   closing=(self._scratch.energy_buf, sums[1], sums[2], self._scratch.node_accs))
+                                   closing=(self._scratch.energy_buf, sums[0], sums[1], self._scratch.node_accs))
         return sums_of(acc, tmin, tmax, system.thermal)

@@ -421,16 +421,15 @@ def deferred_kick(x, x_new, p, topology, nodes, scratch, heat, loads, when, want
         cpu_load_work(x, heat.s_before, topology, nodes, loads, 0.0, tau)
 
 
-def _state_spring_sums(x, eta, topology, springs, length, theta):
-    """(Σ U(l, η), min θ, max θ) over the springs at (x (n, 3), η (m,)), with the arithmetic and
-    order of :func:`thermonet.kernels.reductions._spring_sums` (the same bits): the spring sums
-    of a call that ends on a conduction sweep, whose last spring pass ran before the sweep
-    changed η. length, theta: (m,) scratch."""
+def _state_spring_sums(x, eta, topology, springs, energy, theta):
+    """Each spring's U(l, η) at (x (n, 3), η (m,)) into energy (m,), with the arithmetic of
+    :func:`thermonet.kernels.reductions._spring_energies` (the same bits), and (min θ, max θ):
+    a diagnostics row's spring terms for a call that ends on a conduction sweep, whose last
+    spring pass ran before the sweep changed η. theta: (m,) scratch."""
     edges = topology.edges
     l0 = springs.rest
     P = springs.P
     m = edges.shape[0]
-    energy = 0.0
     theta_min = math.inf
     theta_max = -math.inf
     for blk in prange((m + BLOCK - 1) // BLOCK):
@@ -444,19 +443,16 @@ def _state_spring_sums(x, eta, topology, springs, length, theta):
             l = math.sqrt(theta[e])
             th = spring_temperature(l, eta[e], l0[e], P, c)
             theta[e] = th
-            length[e] = spring_energy(l, eta[e], th, l0[e], P, c)
-        block_sum = 0.0
+            energy[e] = spring_energy(l, eta[e], th, l0[e], P, c)
         block_min = math.inf
         block_max = -math.inf
         for i in range(n):
             e = np.uint64(lo + i)
-            block_sum += length[e]
             block_min = min(block_min, theta[e])
             block_max = max(block_max, theta[e])
-        energy += block_sum
         theta_min = min(theta_min, block_min)
         theta_max = max(theta_max, block_max)
-    return energy, theta_min, theta_max
+    return theta_min, theta_max
 
 
 def _wave_sweep(heat, phi, eta, tau):

@@ -64,7 +64,7 @@ class StateArrays(NamedTuple):
 class Scratch(NamedTuple):
     """A stepper's buffers: x_buf (n, 3) the other position buffer; s (m,) T/l per spring;
     f_keep (n, 3) and theta_keep (m,) a call's closing forces and temperatures; energy_buf (m,)
-    each spring's internal energy at a call's end; sums (3,) the closing spring pass's Σ U, min θ,
+    each spring's internal energy at a call's end; sums (2,) the closing spring pass's min θ and
     max θ; node_accs (C, len(NODE_SUMS), WIDTH) int64 the closing node pass's exact node sums per
     chunk and node_terms (C, len(NODE_SUMS) + 1, BLOCK) its terms per chunk (C: :func:`scratch`)."""
 
@@ -82,7 +82,7 @@ def scratch(n: int, m: int, thermal: bool) -> Scratch:
     """A stepper's buffers for n nodes and m springs (see :class:`Scratch`)."""
     chunks = closing_chunks(n)
     return Scratch(np.empty((n, 3)), np.empty(m), np.empty((n, 3)), np.empty(m if thermal else 0), np.empty(m),
-                   np.empty(3), np.zeros((chunks, len(NODE_SUMS), WIDTH), dtype=np.int64),
+                   np.empty(2), np.zeros((chunks, len(NODE_SUMS), WIDTH), dtype=np.int64),
                    np.empty((chunks, len(NODE_SUMS) + 1, BLOCK)))
 
 

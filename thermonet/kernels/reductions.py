@@ -215,16 +215,5 @@ def row_sums_kernel(parallel: bool):
     return _CACHE[key]
 
 
-@njit(cache=True, error_model="numpy", boundscheck=False)
-def value_range(values):
-    """(min, max) of ``values`` (k,) as the reductions above take them ((inf, −inf) when empty)."""
-    lo = math.inf
-    hi = -math.inf
-    for i in range(values.shape[0]):
-        lo = min(lo, values[i])
-        hi = max(hi, values[i])
-    return lo, hi
-
-
 #: ``counted`` for a reduction over every spring
 EVERY = np.zeros(0, dtype=np.uint8)

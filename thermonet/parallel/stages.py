@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..explicit.codes import FORCE_GATHER, FORCE_GATHER_KEEP
+from ..explicit.passes import store_sums
 from ..kernels.records import KickDrift
 from ..kernels.specialize import function_fingerprint, specialize
 
@@ -37,11 +38,14 @@ def _stage(cur, nxt, state, topology, springs, nodes, scratch, steps, run, extra
 
 def _closing(cur, nxt, state, topology, springs, nodes, scratch, kick, run, extra):
     """A call's closing kick of ``kick`` (a fraction of h times h) at cur, drift 0, keeping its
-    forces and temperatures as the CPU kernel's does. Returns the number of inadmissible springs."""
-    bad = boundary_spring_pass(cur, state.eta, state.phi, topology, springs, scratch, (0.0, kick), run, True,
-                               extra[0], extra[0])[0]
+    forces and temperatures as the CPU kernel's does (with ``run.want_sums``, the θ range of the
+    share's springs into scratch.sums). Returns the number of inadmissible springs."""
+    bad, theta_min, theta_max = boundary_spring_pass(cur, state.eta, state.phi, topology, springs, scratch,
+                                                     (0.0, kick), run, True, extra[0], extra[0])
     if bad > 0:
         return bad
+    if run.want_sums:
+        store_sums(scratch.sums, (theta_min, theta_max))
     boundary_node_pass(cur, nxt, state.p, topology, nodes, scratch, KickDrift(0.0, kick, 0.0, True),
                        np.int64(FORCE_GATHER_KEEP), run.want_sums, extra[1])
     return 0

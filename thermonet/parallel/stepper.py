@@ -23,13 +23,12 @@ arrays stand in for them, so a read that skipped ``sync`` fails instead of seein
 
 from __future__ import annotations
 
-import math
 
 import numpy as np
 
 from ..blowup import blowup_failure
 from ..diagnostics import row_sums, sums_of
-from ..kernels.reductions import rows_digest, value_range
+from ..kernels.reductions import rows_digest
 from ..errors import InputError
 from ..explicit import cpu
 from ..explicit.codes import FORCE_KEPT
@@ -281,10 +280,10 @@ class DistributedStepper(Stepper):
         self._bind(state)
         closing = None
         if self._measured is not None and self._measured[0] is state and self._measured[1] == state.step:
-            # the closing kick of the call that ended here left U and θ of the share's springs and
-            # the exact sums over its own nodes (ghosts are anchored in the share: they count nothing)
-            theta = value_range(self._scratch.theta_keep) if self.system.thermal else (math.inf, -math.inf)
-            closing = (self._scratch.energy_buf, *theta, self._scratch.node_accs)
+            # the closing kick of the call that ended here left U and the θ range of the share's
+            # springs and the exact sums over its own nodes (ghosts are anchored in the share: they
+            # count nothing)
+            closing = (self._scratch.energy_buf, *self._scratch.sums, self._scratch.node_accs)
         acc, theta_min, theta_max = row_sums(self.system, self._x, self._p, self._eta, self._topology.edges,
                                              self._springs, self._nodes, self._uniform, self._counted,
                                              self.parallel, closing, self._scratch.energy_buf)
