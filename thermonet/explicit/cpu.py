@@ -408,9 +408,9 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run
     The closing kick's forces and temperatures are kept in f_keep and theta_keep; with
     ``run.reuse_boundary`` the first kick takes them from there instead of evaluating them (the
     caller vouches that x, η are those of the previous call's end). With ``run.want_sums`` the
-    closing kick writes the end state's diagnostics sums into sums (11,): Σ U (Σ F(l, θ0) when
-    not THERMAL), min θ, max θ, kinetic, gravity potential, p (3), angular momentum about the
-    reference point (3).
+    closing kick leaves the end state's diagnostics terms: each spring's U (F(l, θ0) when not
+    THERMAL) in energy_buf, min θ and max θ in sums (2,), and the exact node sums (kinetic,
+    gravity potential, p, angular momentum about the reference point) in node_accs.
 
     Returns (steps completed, detected, summed): ``detected`` when a spring left the admissible
     states (see the module docstring); then ``x`` holds the positions where it was found and only
