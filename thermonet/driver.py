@@ -324,7 +324,10 @@ class Runner:
             if heat.waves:
                 row["wave_energy"] = wave_energy(heat, sim._state.thermal_displacement)
                 row["energy"] += row["wave_energy"]
-            row.update(heat_columns(heat, sim._state))
+            if sim.comm is not None and not sim.stepper.local:  # (each process sums its share's logs)
+                row.update(sim.stepper.heat_columns(sim._state))
+            else:
+                row.update(heat_columns(heat, sim._state))
             row.update(balances(row, sim.diagnostics.rows[0] if sim.diagnostics.rows else row))
         row.update(self.last_stats)
         if sim.loads is not None:  # loads: displacement, reaction, work, balance

@@ -17,22 +17,43 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..kernels import exact
+
 #: heat-flow logs with one value per spring (stored in the user's numbering outside the engine)
 PER_SPRING_LOGS = ("produced", "theta", "length", "pending_eta", "pending_produced", "pending_theta")
 
 
 def heat_columns(heat, state) -> dict:
     """The logged columns of ``state`` (see the module docstring; the balances are added by
-    :func:`balances`)."""
+    :func:`balances`), each sum correctly rounded (:func:`heat_sums`)."""
     logs = state.extra["heat"]
-    # (bincount adds the entries in order from 0, as np.add.at would, at a fraction of its cost)
-    per_name = np.bincount(heat.entry_fn, weights=logs["entry_heat"], minlength=len(heat.names))
-    flux = float(np.sum(logs["entry_flux"]))
-    row = {"entropy_produced": float(np.sum(logs["produced"]))}
-    for name, q in zip(heat.names, per_name):
-        row[f"heat_{name}"] = float(q)
-    row["heat_in"] = float(np.sum(per_name))
-    row["entropy_in"] = flux
+    return heat_columns_of(heat, heat_sums(logs["produced"], logs["entry_heat"], logs["entry_flux"],
+                                           heat.entry_fn, len(heat.names)))
+
+
+def heat_sums(produced: np.ndarray, entry_heat: np.ndarray, entry_flux: np.ndarray, entry_fn: np.ndarray,
+              n_names: int) -> np.ndarray:
+    """(3 + n_names, WIDTH) int64 exact accumulators (:mod:`thermonet.kernels.exact`) of the
+    heat-flow sums of a row: Σ produced (k,), Σ entry_flux, Σ entry_heat (E,), then Σ entry_heat
+    of the entries of each bath or source (``entry_fn`` (E,): their numbers). Exact: the
+    accumulators of parts of the logs (a process's springs and entries) add up to the whole's."""
+    acc = np.zeros((3 + n_names, exact.WIDTH), dtype=np.int64)
+    exact.add_array(acc[0], np.ascontiguousarray(produced, dtype=np.float64))
+    exact.add_array(acc[1], np.ascontiguousarray(entry_flux, dtype=np.float64))
+    exact.add_array(acc[2], np.ascontiguousarray(entry_heat, dtype=np.float64))
+    for i in range(n_names):
+        exact.add_array(acc[3 + i], np.ascontiguousarray(entry_heat[entry_fn == i], dtype=np.float64))
+    return acc
+
+
+def heat_columns_of(heat, acc: np.ndarray) -> dict:
+    """The logged columns from the accumulators of :func:`heat_sums` (of the whole net: added
+    over the processes' shares where there are several)."""
+    row = {"entropy_produced": exact.value(acc[0])}
+    for i, name in enumerate(heat.names):
+        row[f"heat_{name}"] = exact.value(acc[3 + i])
+    row["heat_in"] = exact.value(acc[2])
+    row["entropy_in"] = exact.value(acc[1])
     return row
 
 

@@ -7,8 +7,9 @@ forces from the swept temperatures, the closing kick, the sweeps' continuation a
 
 The conduction sweeps are divided among the processes (:mod:`thermonet.parallel.sweep`): each
 sweeps its blocks of junctions colour by colour and sends the temperatures it changed to the
-processes holding them between the colours; a call gathers the share's entropies and heat logs
-into the whole state at its end, with the temperatures and lengths the next call continues from.
+processes holding them between the colours. The share's heat logs, with the temperatures and
+lengths the next call continues from, stay in the process from call to call (as its positions);
+they are put together on rank 0 when the whole state is read (:meth:`DistributedConduction.to_root`).
 """
 
 from __future__ import annotations
@@ -42,14 +43,45 @@ class DistributedConduction:
         self._length = np.empty(ml)  # the share's spring lengths kept with θ (the whole net's heat.length)
         self._strain = np.empty(ml)  # their strains (Model.strain), valid where a spring pass kept them
         self._s_before = np.empty(ml)  # the forces of a kick deferred past a sweep
+        self._theta_log = np.empty(ml)  # the share's part of the whole heat log "theta"
         self._sweep = DistributedSweep(self.heat, stepper.decomposition, sh, stepper.comm, phases)
+
+    def take(self, state) -> None:
+        """This process's part of ``state``'s heat logs (a state it has not stepped yet): the
+        lengths and temperatures the next call continues from, the sweep's logs."""
+        sh = self.stepper.share
+        logs = heat_logs(state, self.heat)
+        np.take(logs["length"], sh.springs, out=self._length)
+        np.take(logs["theta"], sh.springs, out=self._theta_log)
+        self._sweep.take(logs)
+        self.continue_from_logs(state)
+
+    def continue_from_logs(self, state) -> None:
+        """The next call continues from the share's logs (taken, or put back from a backup): the
+        kept temperatures, where the logs say they are valid."""
+        if heat_logs(state, self.heat)["theta_ok"][0] >= 1.0:
+            self.stepper._scratch.theta_keep[:] = self._theta_log
+
+    def share_logs(self) -> dict:
+        """The per-spring and per-entry heat logs this process keeps for its share (arrays it
+        steps in place), keyed as the whole ones."""
+        return {"length": self._length, "theta": self._theta_log, **self._sweep.share_logs()}
+
+    def to_root(self, state) -> None:
+        """The shares' heat logs into ``state``'s whole ones on rank 0 (every process must call it)."""
+        self._sweep.to_root(state.extra["heat"], [(self._length, state.extra["heat"]["length"]),
+                                                  (self._theta_log, state.extra["heat"]["theta"])])
+
+    def heat_sums(self) -> np.ndarray:
+        """This process's exact accumulators of a row's heat-flow sums (:meth:`DistributedSweep.heat_sums`)."""
+        return self._sweep.heat_sums(self.stepper._counted)
 
     def advance(self, state, n_steps: int, h: float) -> None:
         """``n_steps`` steps of the share (taken from ``state`` by the stepper), as the CPU
-        kernel's ``advance`` with conduction; the whole net's η and heat logs updated in place on
-        every process; the share's x, p, Φ stay in the shares (the stepper puts them together when read)."""
+        kernel's ``advance`` with conduction: the share's x, p, Φ, η and heat logs stay in the
+        shares (the stepper puts them together when read); the logs' cycle and theta_ok, the same
+        on every process, are updated in the whole logs of every process."""
         st = self.stepper
-        sh = st.share
         logs = heat_logs(state, self.heat)
         every, cycle_step = cycle_position(state, self.heat)
         record = self.heat.record(0.5 * every * h, logs)
@@ -61,15 +93,12 @@ class DistributedConduction:
         before = scratch._replace(s=self._s_before)
         topology, springs, nodes = st._topology, st._springs, st._nodes
         length, strain, s_before = self._length, self._strain, self._s_before
-        np.take(logs["length"], sh.springs, out=length)
-        self._sweep.begin(logs)
         cur, nxt = st._x, scratch.x_buf
         kicks, drifts, carry = st._kicks, st._drifts, st._carry
         pending = deferred = 0.0
         theta_valid = ended_cycle = resume_sweep = False
         strain_ok = False  # as the kernel's: the strains are those of the lengths
-        if logs["theta_ok"][0] >= 1.0:  # continue the previous call's sweeps
-            np.take(logs["theta"], sh.springs, out=scratch.theta_keep)
+        if logs["theta_ok"][0] >= 1.0:  # continue the previous call's sweeps (theta_keep holds them)
             theta_valid = True
             resume_sweep = logs["theta_ok"][0] == 2.0
 
@@ -132,16 +161,14 @@ class DistributedConduction:
                                      NO_LOADS, pending, run)):
                 return self._failed(state, logs, cur, n_steps - 1)
             theta_valid = True
-        more = [(length, logs["length"])] + ([(scratch.theta_keep, logs["theta"])] if theta_valid else [])
-        self._sweep.gather(st._eta, state, logs, more)
+        if theta_valid:
+            self._theta_log[:] = scratch.theta_keep
         logs["theta_ok"][0] = (2.0 if ended_cycle else 1.0) if theta_valid else 0.0
         st._ended(cur)
         return None
 
     def _failed(self, state, logs, cur, steps_done: int):
-        """A spring left the admissible states: the state as far as it got (η and the logs
-        gathered), the sweeps' kept temperatures no longer valid (as the kernel's), then the
-        stepper's stop."""
-        self._sweep.gather(self.stepper._eta, state, logs, [])
+        """A spring left the admissible states: the state as far as it got, the sweeps' kept
+        temperatures no longer valid (as the kernel's), then the stepper's stop."""
         logs["theta_ok"][0] = 0.0
         return self.stepper._stopped(state, cur, steps_done)

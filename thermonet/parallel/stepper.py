@@ -33,7 +33,7 @@ from ..errors import InputError
 from ..explicit import cpu
 from ..explicit.codes import FORCE_KEPT
 from ..explicit.schedule import STAGE
-from ..heat.logs import PER_SPRING_LOGS
+from ..heat.logs import PER_SPRING_LOGS, heat_columns_of
 from ..integrators.base import Stepper
 from ..kernels import records
 from ..kernels.specialize import model_fingerprint
@@ -46,7 +46,7 @@ from .halo import Halo
 from .loads import ShareLoads, load_functions
 from .partition import partition
 from .stages import stage_functions
-from .whole import IndexGather, broadcast, broadcast_value, counts_offsets, gather_to_root
+from .whole import broadcast, broadcast_value, counts_offsets, gather_to_root
 from .world import on_root
 
 
@@ -152,12 +152,9 @@ class DistributedStepper(Stepper):
         self._bound, self._fresh = None, ALL
         #: rank 0 inside :meth:`on_root`: its reads of the whole state are its own
         self.local = False
-        #: the springs this process reports (whole-net numbers), and the gather of per-spring
-        #: values kept at them (a backup's heat logs)
-        self._reported = dec.owned_springs(self.rank)
-        self._log_gather = IndexGather(self._gather.springs if self.rank == 0 else None, None,
-                                       np.bincount(dec.spring_owner, minlength=dec.size))
         self._conduction = None
+        #: the number of the whole net's bath and source entries (its entry logs' length)
+        self._entries = len(system.heat.entry_spring) if conducting else 0
         if conducting:  # conduction: its own call (thermonet.parallel.conduction)
             self._conduction = DistributedConduction(self, *conduction_stages(system.model, parallel, uniform))
 
@@ -256,6 +253,8 @@ class DistributedStepper(Stepper):
         if self.system.thermal:
             np.take(state.thermal_displacement, sh.springs, out=self._phi)
             np.take(state.entropy, sh.springs, out=self._eta)
+        if self._conduction is not None:
+            self._conduction.take(state)
         self._bound, self._fresh = state, ALL
 
     def _ended(self, cur: np.ndarray) -> None:
@@ -300,17 +299,29 @@ class DistributedStepper(Stepper):
         self._release_whole()
 
     def _release_whole(self) -> None:
-        if self.rank != 0:  # until something reads them, the whole x, p, Φ, η are rank 0's alone
+        if self.rank != 0:  # until something reads them, the whole x, p, Φ, η and heat logs are rank 0's alone
             state = self._bound
             state.positions = state.momenta = _RELEASED_NODES
             if self.system.thermal:
                 state.thermal_displacement = state.entropy = _RELEASED_SPRINGS
+            logs = self._share_logs(state)
+            for k in logs:
+                logs[k] = _RELEASED_SPRINGS
+
+    def _share_logs(self, state) -> dict:
+        """``state``'s heat-log dict restricted to the logs each process keeps per share
+        (:meth:`DistributedConduction.share_logs`), as a view: {} without conduction."""
+        if self._conduction is None:
+            return {}
+        return _LogView(state.extra["heat"], SHARE_LOGS)
 
     def _to_root(self, state, whole: bool = True) -> None:
         """The owned values of every process into ``state``'s whole arrays on rank 0: all of
         them, or (not ``whole``) those a diagnostics row reads, all but Φ."""
         if self._fresh == NONE or (whole and self._fresh == ROW):
             self._gather.to_root(self.comm, state, self._x, self._p, self._phi, self._eta, whole)
+            if self._conduction is not None:
+                self._conduction.to_root(state)
             self._fresh = ROOT if whole else ROW
 
     def sync(self, state) -> None:
@@ -323,8 +334,11 @@ class DistributedStepper(Stepper):
             state.positions, state.momenta = np.empty((n, 3)), np.empty((n, 3))
             if self.system.thermal:
                 state.thermal_displacement, state.entropy = np.empty(m), np.empty(m)
+            logs = self._share_logs(state)
+            for k in logs:
+                logs[k] = np.empty(self._entries if k in ENTRY_LOGS else m)
         thermal = [state.entropy, state.thermal_displacement] if self.system.thermal else []
-        broadcast(self.comm, [state.positions, state.momenta] + thermal)
+        broadcast(self.comm, [state.positions, state.momenta] + thermal + list(self._share_logs(state).values()))
         self._fresh = ALL
 
     def on_root(self, state, fn, whole: bool = True, arrays: bool = False):
@@ -347,39 +361,45 @@ class DistributedStepper(Stepper):
 
     def backup_state(self, state, into=None, entropy: bool = True):
         """A :class:`ShareBackup` of ``state`` (its share taken first where the shares do not
-        hold it): the share's x, p, Φ, η, each per-spring heat log at the springs this process
-        reports, the rest of the state's ``extra`` (the bath and source logs, the loads' work)."""
+        hold it): the share's x, p, Φ, η and heat logs, the rest of the state's ``extra`` (the
+        logs' cycle and theta_ok, the loads' work)."""
         self._bind(state)
         b = into if isinstance(into, ShareBackup) else ShareBackup.like(self)
         for source, target in zip(self._share_arrays(), b.arrays()):
             np.copyto(target, source)
-        logs = self._spring_logs(state)
-        for k, whole in logs.items():
-            part = b.logs.get(k)
-            if part is None:
-                part = b.logs[k] = np.empty(len(self._reported))
-            np.take(whole, self._reported, out=part)
-        copy_extra(_without(state.extra, logs), b.extra)
+        if self._conduction is not None:
+            for k, part in self._conduction.share_logs().items():
+                kept = b.logs.get(k)
+                if kept is None:
+                    kept = b.logs[k] = np.empty_like(part)
+                np.copyto(kept, part)
+        copy_extra(_without(state.extra, self._share_logs(state)), b.extra)
         return b
 
     def restore_state(self, backup, state, entropy: bool = True) -> None:
-        """Put a :meth:`backup_state` copy back: the shares (the whole arrays then behind them),
-        the per-spring heat logs put together on every process (every process must call it), the
-        rest of ``extra``."""
+        """Put a :meth:`backup_state` copy back: the shares and their heat logs (the whole arrays
+        then behind them), the rest of ``extra``."""
         for source, target in zip(backup.arrays(), self._share_arrays()):
             np.copyto(target, source)
-        logs = self._spring_logs(state)
         copy_extra(backup.extra, state.extra)
-        if logs:
-            self._log_gather.gather(self.comm, [(backup.logs[k], whole) for k, whole in logs.items()])
+        if self._conduction is not None:
+            for k, part in self._conduction.share_logs().items():
+                np.copyto(part, backup.logs[k])
+            self._conduction.continue_from_logs(state)
         self._bound, self._fresh = state, NONE
+        self._release_whole()
 
-    def _spring_logs(self, state) -> dict:
-        """The per-spring heat logs of ``state`` (whole, the same on every process), or {}."""
-        if self._conduction is None:
-            return {}
-        logs = state.extra.get("heat") or {}
-        return {k: logs[k] for k in PER_SPRING_LOGS if k in logs}
+    def heat_columns(self, state) -> dict:
+        """The heat-flow columns of a diagnostics row of ``state``
+        (:func:`thermonet.heat.logs.heat_columns`), the same on every process (every process must
+        call it): each process's exact sums of the springs it reports and its entries, added over
+        the processes (one ``Allreduce``) and rounded once. Nothing whole is put together."""
+        from mpi4py import MPI
+
+        self._bind(state)
+        acc = self._conduction.heat_sums()
+        self.comm.Allreduce(MPI.IN_PLACE, acc, op=MPI.SUM)
+        return heat_columns_of(self.system.heat, acc)
 
     def _share_arrays(self) -> tuple:
         return self._x, self._p, self._phi, self._eta
@@ -492,6 +512,24 @@ class _OwnedGather:
                 at += j
             if with_phi:
                 state.thermal_displacement[springs] = recv[at:at + j]
+
+
+class _LogView(dict):
+    """The entries ``keys`` of a heat-log dict: reads as a dict of them; setting one sets it in
+    the logs."""
+
+    def __init__(self, logs: dict, keys: tuple):
+        super().__init__((k, logs[k]) for k in keys if k in logs)
+        self._logs = logs
+
+    def __setitem__(self, key, value):
+        super().__setitem__(key, value)
+        self._logs[key] = value
+
+
+#: the heat logs each process keeps per share (DistributedConduction.share_logs), per entry the last two
+ENTRY_LOGS = ("entry_heat", "entry_flux")
+SHARE_LOGS = PER_SPRING_LOGS + ENTRY_LOGS
 
 
 def _without(extra: dict, logs: dict) -> dict:

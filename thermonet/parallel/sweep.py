@@ -6,18 +6,21 @@ CPU kernel's own star exchange, and after each colour, and after the baths and s
 the temperatures it changed to the processes that hold them (non-blocking point-to-point
 messages, as the position halo). Every spring's temperature thus goes through the same
 exchanges, in the same order, with the same operands as in one process. The entropy update and
-the logs are kept per process for its share's springs and its boundary entries; the call that
-runs the sweeps gathers them into the whole state at its end (:meth:`DistributedSweep.gather`).
+the logs are kept per process for its share's springs and its boundary entries, from call to
+call; they are put together on rank 0 only when the whole state is read
+(:meth:`DistributedSweep.to_root`), and a diagnostics row adds up exact sums of each process's
+part (:meth:`DistributedSweep.heat_sums`).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from ..heat.logs import heat_sums
 from ..heat.passes import CONTINUE, FORWARD, REVERSE, SAVE
 from ..kernels import records
 from .heat_share import heat_shares, ranges
-from .whole import IndexGather, broadcast
+from .whole import IndexGather
 
 #: message tag of the temperatures exchanged between a sweep's phases
 TAG = 34
@@ -100,9 +103,11 @@ class DistributedSweep:
         entries = [_entries_of(bound_spring, bound_ptr, dec.spring_owner == q) for q in range(size)]
         assert np.array_equal(entries[rank], hs.entries)
         self._entries_gather = IndexGather(entries, np.arange(len(hs.entries)))
+        self._entry_fn = np.ascontiguousarray(heat.entry_fn[hs.entries])  # (its entries' bath or source)
+        self._n_names = len(heat.names)
 
-    def begin(self, logs: dict) -> None:
-        """A call starts: this process's part of the whole logs (the same on every process)."""
+    def take(self, logs: dict) -> None:
+        """This process's part of the whole ``logs`` (a state it has not stepped yet)."""
         hs = self.part
         np.take(logs["produced"], hs.springs, out=self.produced)
         for k, v in self.pending.items():
@@ -110,17 +115,28 @@ class DistributedSweep:
         np.take(logs["entry_heat"], hs.entries, out=self.entry_heat)
         np.take(logs["entry_flux"], hs.entries, out=self.entry_flux)
 
-    def gather(self, eta: np.ndarray, state, logs: dict, more: list) -> None:
-        """A call ends: the share's η (ml,) into the whole state's η on rank 0, and this
-        process's logs into the whole logs on every process, each spring from the process that
-        reports it; with them the (share array (ml,), whole array) pairs ``more``."""
-        pairs = [(self.produced[:self.ml], logs["produced"])] + [(v, logs[k]) for k, v in self.pending.items()]
-        pairs += list(more)
-        # η to rank 0 only (the others hold their shares of it), the logs to every process
-        self._springs_gather.to_root(self.comm, [(eta, state.entropy)] + pairs)
-        broadcast(self.comm, [whole for _, whole in pairs])
-        self._entries_gather.gather(self.comm, [(self.entry_heat, logs["entry_heat"]),
-                                                (self.entry_flux, logs["entry_flux"])])
+    def share_logs(self) -> dict:
+        """The logs this process keeps for its share, keyed as the whole ones: produced and the
+        pending ones (ml,) at the share's springs, entry_heat and entry_flux at its entries."""
+        return {"produced": self.produced[:self.ml], **self.pending, "entry_heat": self.entry_heat,
+                "entry_flux": self.entry_flux}
+
+    def to_root(self, logs: dict, more: list) -> None:
+        """This process's logs into the whole ``logs`` on rank 0, each spring's and entry's from
+        the process that reports it (every process must call it); with them the (share array
+        (ml,), whole array) pairs ``more``."""
+        mine = self.share_logs()
+        pairs = [(mine[k], logs[k]) for k in ("produced", *self.pending)] + list(more)
+        self._springs_gather.to_root(self.comm, pairs)
+        self._entries_gather.to_root(self.comm, [(self.entry_heat, logs["entry_heat"]),
+                                                 (self.entry_flux, logs["entry_flux"])])
+
+    def heat_sums(self, counted: np.ndarray) -> np.ndarray:
+        """The exact accumulators of this process's part of a row's heat-flow sums
+        (:func:`thermonet.heat.logs.heat_sums`): the produced entropy of the springs it reports
+        (``counted`` (ml,) uint8), its entries' heat and entropy."""
+        return heat_sums(self.produced[:self.ml][counted.view(bool)], self.entry_heat, self.entry_flux,
+                         self._entry_fn, self._n_names)
 
     def _local_record(self, record):
         """This process's :class:`~thermonet.kernels.records.Heat` for the sweep factors of
