@@ -6,11 +6,14 @@ row every process makes from its share).
     mpiexec -n P python tests/mpi_conduction.py SCENE CALLS EVERY:PARTS ... [-- ARGS]
 
 CALLS: the calls' lengths, comma-separated; per EVERY:PARTS (the cycle's steps, the
-partitioner) rank 0 prints "same" or "DIFFERENT: <what>". ARGS: a ``thermonet`` command run
+partitioner) rank 0 prints "same" or "DIFFERENT: <what>", then "share only" where the processes
+other than rank 0 hold nothing of the whole net's size after conducting calls and diagnostics
+rows, and no whole state or heat log was put together for the rows ("WHOLE: <what>" else). ARGS: a ``thermonet`` command run
 first over the same processes (the test's resumed run: one launch instead of two)."""
 
 import os
 import sys
+from dataclasses import fields, is_dataclass
 
 import numpy as np
 from mpi4py import MPI
@@ -45,6 +48,55 @@ def run(every: int, alone: bool) -> dict:
     return out
 
 
+def whole_sized(root, sizes: set) -> list:
+    """The paths from ``root`` (through thermonet's objects, dicts, lists, tuples and dataclass
+    fields) to NumPy arrays with a length in ``sizes``; but for the net's groups (the index lists
+    the user named, which every process keeps)."""
+    found, seen = [], set()
+
+    def walk(value, path):
+        if id(value) in seen:
+            return
+        seen.add(id(value))
+        if isinstance(value, np.ndarray):
+            if value.ndim and value.shape[0] in sizes:
+                found.append(f"{path} {value.shape}")
+        elif isinstance(value, dict):
+            for k, v in value.items():
+                if not path.endswith("_groups"):
+                    walk(v, f"{path}[{k!r}]")
+        elif isinstance(value, (list, tuple)):
+            for i, v in enumerate(value):
+                walk(v, f"{path}[{i}]")
+        elif type(value).__module__.startswith("thermonet"):
+            names = [f.name for f in fields(value)] if is_dataclass(value) else []
+            for k in dict.fromkeys(names + list(getattr(value, "__dict__", {}))):
+                walk(object.__getattribute__(value, k), f"{path}.{k}")
+
+    walk(root, "sim")
+    return found
+
+
+def holds_its_share_only() -> str:
+    """"only" where, after conducting calls with diagnostics rows, no process other than rank 0
+    holds an array of the whole net's length (n, n + 1, 3n, m or 2m: nodes, incidence pointers,
+    springs, incidences) and no whole state or heat log was put together for the rows; else
+    what was found."""
+    sim = load_scene(SCENE).build().simulation
+    sim.stability_guard.active = False
+    gathers = []
+    for holder in (sim.stepper._gather, sim.stepper._conduction):
+        to_root = holder.to_root
+        holder.to_root = lambda *args, _f=to_root, **kwargs: (gathers.append(1), _f(*args, **kwargs))
+    sim.run(steps=4, diagnostics_every=2)
+    n, m = sim.net.n_nodes, sim.net.n_springs
+    found = [f"{len(gathers)} gathers"] if gathers else []
+    if sim.comm.Get_rank() > 0:
+        found += whole_sized(sim, {n, n + 1, 3 * n, m, 2 * m})
+    found = sum(sim.comm.allgather(found), [])
+    return "only" if not found else "WHOLE: " + "; ".join(found)
+
+
 if "--" in sys.argv:
     from thermonet.cli.main import main
 
@@ -57,3 +109,6 @@ for spec in SPECS:
     different = sorted(set(sum(MPI.COMM_WORLD.allgather(different), [])))  # (every process's row too)
     if MPI.COMM_WORLD.Get_rank() == 0:
         print("same" if not different else f"DIFFERENT: {' '.join(different)}", flush=True)
+held = holds_its_share_only()
+if MPI.COMM_WORLD.Get_rank() == 0:
+    print("share", held, flush=True)

@@ -231,7 +231,7 @@ def test_the_thermal_shock_on_two_processes_resumed_on_three_is_one_process_bit_
     # (the resumed run and the calls in one launch)
     done = mpirun(3, os.path.join(ROOT, "tests", "mpi_conduction.py"), SHOCK, "3,1,4,1", "3:rcb", "--",
                   "run", "--resume", str(tmp_path / "cut"), "--set", "integrator.t_end=0.2", "--quiet", module=False)
-    assert done.stdout.split() == ["same"], done.stdout
+    assert done.stdout.splitlines() == ["same", "share only"], done.stdout
     assert_same_run(tmp_path / "one", tmp_path / "cut", "thermal_shock")
     assert {"heat_produced", "heat_entry_heat", "heat_theta", "heat_pending_eta"} <= set(
         checkpoint(tmp_path / "cut", "thermal_shock"))

@@ -122,21 +122,19 @@ class HeatSetup:
         cached = self.__dict__.setdefault("_factors", {})
         if tau not in cached:
             g = self.conductance if self.conduction else np.zeros_like(self.conductance)
-            x = -g * tau / self.capacity
-            spring = np.asarray(self.layout.inc_spring, dtype=np.int64)
-            weight = np.ascontiguousarray((-self.capacity * np.expm1(x))[spring])
-            ptr = np.asarray(self.layout.inc_ptr, dtype=np.int64)
-            total = np.bincount(np.repeat(np.arange(len(ptr) - 1), np.diff(ptr)), weights=weight,
-                                minlength=len(ptr) - 1)
-            scale = np.divide(1.0, total, out=np.zeros_like(total), where=total > 0.0)
-            decay = np.ascontiguousarray(np.exp(x)[spring])
-            shared = len(weight) > 0 and bool(np.all(g == g[0]) and np.all(self.capacity == self.capacity[0]))
-            mask = np.array([0 if shared else np.iinfo(np.uint64).max], dtype=np.uint64)
-            if shared:
-                weight, decay = weight[:1].copy(), decay[:1].copy()
             cached.clear()
-            cached[tau] = (weight, decay, mask, np.ascontiguousarray(scale))
+            cached[tau] = incidence_factors(g, self.capacity, tau, self.layout.inc_ptr, self.layout.inc_spring,
+                                            self.uniform_exchange())
         return cached[tau]
+
+    def uniform_exchange(self) -> bool:
+        """Whether every spring has the same g and C (the sweep's factors are then one value each)."""
+        g = self.conductance if self.conduction else np.zeros_like(self.conductance)
+        return len(g) > 0 and bool(np.all(g == g[0]) and np.all(self.capacity == self.capacity[0]))
+
+    def packed_functions(self) -> tuple:
+        """The baths' and sources' time functions packed for the kernels (:func:`thermonet.timefunctions.pack`)."""
+        return pack(self.functions) if self.functions else pack([TimeFunction.constant(0.0)])
 
     def record(self, tau: float, logs: dict, backend: str = "cpu") -> Heat:
         """The kernels' :class:`~thermonet.kernels.records.Heat` for conduction sweeps over τ in
@@ -158,7 +156,7 @@ class HeatSetup:
             spring = self.entry_spring
             bound, starts = np.unique(spring, return_index=True)
             ptr = np.append(starts, len(spring)).astype(np.int64)
-            packed = pack(self.functions) if self.functions else pack([TimeFunction.constant(0.0)])
+            packed = self.packed_functions()
             cached = (bound.astype(np.int64), ptr, packed, 1.0 / self.capacity)
             self.__dict__["_static"] = cached
         bound, ptr, packed, inv_capacity = cached
@@ -174,11 +172,6 @@ class HeatSetup:
                     logs["length"], logs["pending_eta"], logs["pending_produced"], logs["pending_theta"],
                     *self._work())
 
-    def without_work_arrays(self) -> None:
-        """Records built from now on carry empty working arrays: for a caller whose sweeps use
-        their own (the distributed sweep's, per share), so that no process holds whole-net ones."""
-        self.__dict__["_work_arrays"] = (np.empty(0), np.empty(0), np.empty(0))
-
     def _work(self) -> tuple:
         """The working arrays s_before, theta_start, strain (m,) of the kernels (allocated once)."""
         work = self.__dict__.get("_work_arrays")
@@ -186,6 +179,27 @@ class HeatSetup:
             m = len(self.capacity)
             work = self.__dict__["_work_arrays"] = (np.empty(m), np.empty(m), np.empty(m))
         return work
+
+
+def incidence_factors(conductance: np.ndarray, capacity: np.ndarray, tau: float, inc_ptr: np.ndarray,
+                      inc_spring: np.ndarray, uniform: bool) -> tuple:
+    """(weight, decay, factor_mask, node_scale) of :meth:`HeatSetup.factors` for the springs of
+    conductances and capacities (k,) over τ, at incidence lists ``inc_ptr`` (n+1,) and
+    ``inc_spring`` (2m,) into those springs (a whole net's, or a process's part of one: the same
+    operations on the same operands, so the same bits); ``uniform``: every spring of the net has
+    the same g and C (weight and decay cut to one value)."""
+    x = -conductance * tau / capacity
+    spring = np.asarray(inc_spring, dtype=np.int64)
+    weight = np.ascontiguousarray((-capacity * np.expm1(x))[spring])
+    ptr = np.asarray(inc_ptr, dtype=np.int64)
+    # (bincount adds each node's incidences in order, from 0)
+    total = np.bincount(np.repeat(np.arange(len(ptr) - 1), np.diff(ptr)), weights=weight, minlength=len(ptr) - 1)
+    scale = np.divide(1.0, total, out=np.zeros_like(total), where=total > 0.0)
+    decay = np.ascontiguousarray(np.exp(x)[spring])
+    mask = np.array([0 if uniform else np.iinfo(np.uint64).max], dtype=np.uint64)
+    if uniform:
+        weight, decay = weight[:1].copy(), decay[:1].copy()
+    return weight, decay, mask, np.ascontiguousarray(scale)
 
 
 def _named(spec, where: str, kind):

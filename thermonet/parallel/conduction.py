@@ -35,7 +35,6 @@ class DistributedConduction:
     def __init__(self, stepper, functions, temperature_pass, phases):
         self.stepper = stepper
         self.heat = stepper.system.heat
-        self.heat.without_work_arrays()  # (the whole net's record only lends factors; the share sweeps with its own)
         self._forces, self._before_sweep, self._kick_drift, self._deferred_alone, self._closing = functions
         self._temperature = temperature_pass
         sh = stepper.share
@@ -84,7 +83,6 @@ class DistributedConduction:
         st = self.stepper
         logs = heat_logs(state, self.heat)
         every, cycle_step = cycle_position(state, self.heat)
-        record = self.heat.record(0.5 * every * h, logs)
         lo, hi = st.system.stretch_bounds
         run = records.Run(float(h), float(state.time), int(n_steps), bool(st.integrator.track_phi), float(lo),
                           float(hi), False, False, int(every), int(cycle_step))
@@ -113,7 +111,7 @@ class DistributedConduction:
                 if st._any(self._before_sweep(cur, arrays, topology, springs, before, (length, strain), pending, run)):
                     return False
                 strain_ok = True
-            self._sweep.sweep(record, scratch.theta_keep, arrays.eta, 0.5 * run.conduction_every * run.h,
+            self._sweep.sweep(logs["theta_ok"], scratch.theta_keep, arrays.eta, 0.5 * run.conduction_every * run.h,
                               run.t0 + step * run.h, directions)
             return True
 

@@ -5,12 +5,12 @@ its stepper holds its share (:mod:`.stepper`), a process other than rank 0 lets 
 net's arrays that only rank 0 reads from then on (it measures the diagnostics rows, writes the
 frames and checkpoints, runs the guards, reads ``sim.state`` for every process and loads states:
 ``Simulation.on_root``): the net's arrays, the system's per-spring parameters, rest lengths and
-masses, the layout's orders, spring ends and incidence lists, the decomposition, and the whole
-x, p, Φ, η. A read of one of them there fails with a :class:`NotHeldError` naming it.
+masses, the layout's orders, spring ends and incidence lists, the heat setup's per-spring and
+per-entry arrays, the decomposition, and the whole x, p, Φ, η and heat logs. A read of one of them there fails with a :class:`NotHeldError` naming it.
 
-Still whole on every process (docs/parallel.md): with conduction, the heat logs, the conduction
-setup and the incidence lists it reads (its record of the whole net is cut to the share at each
-call).
+The share's heat logs and its part of the conduction setup are the distributed sweep's
+(:mod:`.sweep`, :mod:`.conduction`); what stays whole on every process is the net's size, its
+groups and the baths' and sources' names and time functions.
 """
 
 from __future__ import annotations
@@ -72,8 +72,11 @@ class RankNet:
 
 #: the System's and Layout's whole-net arrays a process other than rank 0 lets go of
 SYSTEM_ARRAYS = ("rest_lengths", "parameters", "masses", "inv_mass", "anchored")
-LAYOUT_ARRAYS = ("edges", "inc_other")
-LAYOUT_INCIDENCE = ("inc_ptr", "inc_spring")  # (kept with conduction: its whole record reads them)
+LAYOUT_ARRAYS = ("edges", "inc_other", "inc_ptr", "inc_spring")
+#: the HeatSetup's whole-net arrays (the distributed sweep keeps its part of them) and caches
+HEAT_ARRAYS = ("capacity", "conductance", "wave_conductance", "bath_nodes", "entry_spring", "entry_kind", "entry_fn",
+               "entry_rate")
+HEAT_CACHES = ("_orders", "_factors", "_static", "_incidence", "_last_record", "_work_arrays")
 LAYOUT_ORDERS = ("node_order", "node_rank", "spring_order", "spring_rank")
 
 
@@ -90,10 +93,14 @@ def let_go(sim) -> None:
     for name in SYSTEM_ARRAYS:
         object.__setattr__(system, name, NotHeld(f"the system's {name}"))
     system.__dict__.pop("_kernel_parameters", None)  # (its cached parameters)
-    conducting = system.heat is not None and system.heat.conduction
-    if conducting:  # (cached: a run choosing its conduction cycle reads it on every process)
-        system.heat.fastest_rate()
-    for name in LAYOUT_ARRAYS + (() if conducting else LAYOUT_INCIDENCE):
+    heat = system.heat
+    if heat is not None:
+        heat.fastest_rate()  # (cached: a run choosing its conduction cycle reads it on every process)
+        for name in HEAT_ARRAYS:
+            object.__setattr__(heat, name, NotHeld(f"the heat setup's {name}", len(getattr(heat, name))))
+        for name in HEAT_CACHES:
+            heat.__dict__.pop(name, None)
+    for name in LAYOUT_ARRAYS:
         object.__setattr__(layout, name, NotHeld(f"the layout's {name}"))
     for name in LAYOUT_ORDERS:  # (their lengths are the net's counts, which every process keeps)
         object.__setattr__(layout, name, NotHeld(f"the layout's {name}", len(getattr(layout, name))))

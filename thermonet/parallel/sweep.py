@@ -18,6 +18,7 @@ import numpy as np
 
 from ..heat.logs import heat_sums
 from ..heat.passes import CONTINUE, FORWARD, REVERSE, SAVE
+from ..heat.setup import incidence_factors
 from ..kernels import records
 from .heat_share import heat_shares, ranges
 from .whole import IndexGather
@@ -58,7 +59,8 @@ def _entries_of(bound_spring, bound_ptr, reports) -> np.ndarray:
 class DistributedSweep:
     """The conduction sweeps of one process's share (see the module docstring).
 
-    heat: the whole net's :class:`~thermonet.heat.setup.HeatSetup`; dec, sh: the decomposition
+    heat: the whole net's :class:`~thermonet.heat.setup.HeatSetup` (read while this is built:
+    the sweep's plan and the process's part of the setup are cut from it); dec, sh: the decomposition
     and this process's share; comm: the communicator; phases: (colour_phase, boundary_phase,
     finish) of :func:`~thermonet.parallel.heat_stages.sweep_phase_functions`.
     """
@@ -87,8 +89,16 @@ class DistributedSweep:
         self._bound_spring = np.ascontiguousarray(local[bound_spring[hs.bound]])
         sizes = bound_ptr[hs.bound + 1] - bound_ptr[hs.bound]
         self._bound_ptr = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+        # the process's part of the conduction setup, cut once from the whole net's
         self._capacity = np.ascontiguousarray(heat.capacity[hs.springs])
         self._inv_capacity = 1.0 / self._capacity
+        self._conductance = np.ascontiguousarray(heat.conductance[hs.springs])
+        self._uniform = heat.uniform_exchange()
+        self._entry_kind = np.ascontiguousarray(heat.entry_kind[hs.entries])
+        self._entry_rate = np.ascontiguousarray(heat.entry_rate[hs.entries])
+        self._functions = heat.packed_functions()
+        g = heat.graph  # (thermal waves are not distributed: their pairs are empty here)
+        self._waves = (g.first, g.second, np.ascontiguousarray(g.kappa[:, 1]), g.colour_ptr)
         self._block_node = np.arange(len(hs.node), dtype=np.int64)
         self.theta = np.empty(ls)
         self.theta_start = np.empty(ls)
@@ -138,33 +148,33 @@ class DistributedSweep:
         return heat_sums(self.produced[:self.ml][counted.view(bool)], self.entry_heat, self.entry_flux,
                          self._entry_fn, self._n_names)
 
-    def _local_record(self, record):
-        """This process's :class:`~thermonet.kernels.records.Heat` for the sweep factors of
-        ``record`` (the whole net's, rebuilt when τ changes)."""
-        if self._record is not None and self._record[0] is record.weight:
-            return self._record[1]
+    def _local_record(self, tau: float, theta_ok: np.ndarray):
+        """This process's :class:`~thermonet.kernels.records.Heat` for sweeps over τ (its
+        factors made from its part of the setup, as the whole net's are:
+        :func:`thermonet.heat.setup.incidence_factors`); theta_ok: the logs' flag (1,)."""
+        if self._record is not None and self._record[0] == tau and self._record[1] is theta_ok:
+            return self._record[2]
         hs = self.part
-        shared = record.factor_mask[0] == 0
-        weight = record.weight if shared else np.ascontiguousarray(record.weight[hs.incidence])
-        decay = record.decay if shared else np.ascontiguousarray(record.decay[hs.incidence])
+        weight, decay, mask, node_scale = incidence_factors(self._conductance, self._capacity, tau, hs.inc_ptr,
+                                                            hs.inc_spring, self._uniform)
+        if len(weight) == 0:  # (no blocks here: nothing reads them)
+            weight, decay = np.zeros(1), np.zeros(1)
         empty = np.zeros(0)
         local = records.Heat(hs.colour_ptr, hs.block_ptr, self._block_node, hs.inc_ptr, hs.inc_spring, weight, decay,
-                             record.factor_mask, np.ascontiguousarray(record.node_scale[hs.node]), record.first,
-                             record.second, record.wave, record.colour_ptr, self._capacity, self._inv_capacity,
-                             self._bound_spring, self._bound_ptr, np.ascontiguousarray(record.entry_kind[hs.entries]),
-                             np.ascontiguousarray(record.entry_fn[hs.entries]),
-                             np.ascontiguousarray(record.entry_rate[hs.entries]), record.fn_kind, record.fn_params,
-                             record.fn_ptr, record.fn_times, record.fn_values, self.produced, self.entry_heat,
-                             self.entry_flux, empty, record.theta_ok, empty, self.pending["pending_eta"],
-                             self.pending["pending_produced"], self.pending["pending_theta"], empty, self.theta_start,
-                             empty)
-        self._record = (record.weight, local)
+                             mask, node_scale, *self._waves, self._capacity, self._inv_capacity,
+                             self._bound_spring, self._bound_ptr, self._entry_kind, self._entry_fn, self._entry_rate,
+                             *self._functions, self.produced, self.entry_heat, self.entry_flux, empty, theta_ok, empty,
+                             self.pending["pending_eta"], self.pending["pending_produced"],
+                             self.pending["pending_theta"], empty, self.theta_start, empty)
+        self._record = (tau, theta_ok, local)
         return local
 
-    def sweep(self, record, theta_keep: np.ndarray, eta: np.ndarray, tau: float, t: float, directions: int) -> None:
+    def sweep(self, theta_ok: np.ndarray, theta_keep: np.ndarray, eta: np.ndarray, tau: float, t: float,
+              directions: int) -> None:
         """The half sweeps ``directions`` (REVERSE, FORWARD, both; SAVE, CONTINUE) over τ at t
-        from the share's θ (ml,) (updated in place) and η (ml,) (its entropy update made)."""
-        heat = self._local_record(record)
+        from the share's θ (ml,) (updated in place) and η (ml,) (its entropy update made);
+        theta_ok: the heat logs' flag (1,)."""
+        heat = self._local_record(tau, theta_ok)
         ml, theta, start = self.ml, self.theta, self.theta_start
         theta[:ml] = theta_keep
         self._start.exchange(theta)
