@@ -13,10 +13,10 @@ first over the same processes (the test's resumed run: one launch instead of two
 
 import os
 import sys
-from dataclasses import fields, is_dataclass
 
 import numpy as np
 from mpi4py import MPI
+from mpi_held import whole_net_arrays
 
 from thermonet.heat.logs import heat_logs
 from thermonet.parallel.stepper import PARTITION_VARIABLE
@@ -48,35 +48,6 @@ def run(every: int, alone: bool) -> dict:
     return out
 
 
-def whole_sized(root, sizes: set) -> list:
-    """The paths from ``root`` (through thermonet's objects, dicts, lists, tuples and dataclass
-    fields) to NumPy arrays with a length in ``sizes``; but for the net's groups (the index lists
-    the user named, which every process keeps)."""
-    found, seen = [], set()
-
-    def walk(value, path):
-        if id(value) in seen:
-            return
-        seen.add(id(value))
-        if isinstance(value, np.ndarray):
-            if value.ndim and value.shape[0] in sizes:
-                found.append(f"{path} {value.shape}")
-        elif isinstance(value, dict):
-            for k, v in value.items():
-                if not path.endswith("_groups"):
-                    walk(v, f"{path}[{k!r}]")
-        elif isinstance(value, (list, tuple)):
-            for i, v in enumerate(value):
-                walk(v, f"{path}[{i}]")
-        elif type(value).__module__.startswith("thermonet"):
-            names = [f.name for f in fields(value)] if is_dataclass(value) else []
-            for k in dict.fromkeys(names + list(getattr(value, "__dict__", {}))):
-                walk(object.__getattribute__(value, k), f"{path}.{k}")
-
-    walk(root, "sim")
-    return found
-
-
 def holds_its_share_only() -> str:
     """"only" where, after conducting calls with diagnostics rows, no process other than rank 0
     holds an array of the whole net's length (n, n + 1, 3n, m or 2m: nodes, incidence pointers,
@@ -89,10 +60,7 @@ def holds_its_share_only() -> str:
         to_root = holder.to_root
         holder.to_root = lambda *args, _f=to_root, **kwargs: (gathers.append(1), _f(*args, **kwargs))
     sim.run(steps=4, diagnostics_every=2)
-    n, m = sim.net.n_nodes, sim.net.n_springs
-    found = [f"{len(gathers)} gathers"] if gathers else []
-    if sim.comm.Get_rank() > 0:
-        found += whole_sized(sim, {n, n + 1, 3 * n, m, 2 * m})
+    found = ([f"{len(gathers)} gathers"] if gathers else []) + whole_net_arrays(sim)
     found = sum(sim.comm.allgather(found), [])
     return "only" if not found else "WHOLE: " + "; ".join(found)
 

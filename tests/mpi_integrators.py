@@ -15,6 +15,7 @@ import sys
 
 import numpy as np
 from mpi4py import MPI
+from mpi_held import whole_net_arrays
 
 from thermonet.errors import SimulationError
 from thermonet.parallel.held import NotHeldError
@@ -51,9 +52,11 @@ def run(name: str, alone: bool):
 def holds_its_share_only() -> bool:
     """Whether, on every process, the stepping arrays are the share's (owned nodes and one layer
     of ghosts, fewer than the net's), the diagnostics rows are reduced on the shares (no state
-    gathered for them: the stability guard, which reads the whole state, is off here), and, on
+    gathered for them: the stability guard, which reads the whole state, is off here; but with
+    loads, whose rows rank 0 makes from the state gathered there), and, on
     processes other than rank 0, the whole net's arrays are let go of (a read raises
-    NotHeldError) while ``sim.state`` is still read whole."""
+    NotHeldError; nothing of the whole net's length is held) while ``sim.state`` is still read
+    whole."""
     sim = load_scene(SCENE).build().simulation
     sim.stability_guard.active = False
     gathers = []
@@ -62,11 +65,12 @@ def holds_its_share_only() -> bool:
     sim.run(steps=2, diagnostics_every=1)
     n, m = sim.net.n_nodes, sim.net.n_springs
     sh = sim.stepper.share
-    ok = len(sim.diagnostics.rows) == 3 and not gathers
+    ok = len(sim.diagnostics.rows) == 3 and (not gathers or sim.loads is not None)  # (loads: rank 0 makes the rows)
     ok = ok and len(sh.nodes) < n and len(sh.springs) < m and sim.stepper._x.shape == (len(sh.nodes), 3)
     state, v, strains = sim.state, sim.velocities(), sim.strains()  # (read together, whole on every process)
     if sim.comm.Get_rank() > 0:
         ok = ok and sim._state.positions.size == sim._state.entropy.size == 0 and sim.stepper.decomposition is None
+        ok = ok and not whole_net_arrays(sim)  # (nothing of the whole net's length)
         for read in (lambda: sim.net.positions.sum(), lambda: np.asarray(sim.system.parameters),
                      lambda: sim.layout.edges[0], lambda: sim.net.masses[0], lambda: sim.layout.nodes_to_user(v)):
             try:

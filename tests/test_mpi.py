@@ -205,12 +205,16 @@ def test_two_processes_cut_in_two_and_resumed_on_three_are_one_process_bit_for_b
 @needs_mpi
 def test_three_processes_pulling_the_tensile_bar_with_omf4_are_one_process_bit_for_bit(tmp_path):
     """The tensile scene (a drive: its reaction and work summed over the grip's nodes in order;
-    probes) with OMF4 (five kicks and four drifts per step, a halo exchange after each drift)."""
+    probes) with OMF4 (five kicks and four drifts per step, a halo exchange after each drift);
+    processes other than rank 0 hold none of the loads' whole-net arrays."""
     args = ["--set", 'integrator.name="omf4"', "--set", "integrator.t_end=0.2", "--set", "output.frames_every=50",
             "--set", "output.diagnostics_every=10", "--set", "output.checkpoint_every=100", "--quiet"]
     assert main(["run", TENSILE, "--out", str(tmp_path / "one"), *args]) == 0
     compile_here(TENSILE)
-    mpirun(3, "run", TENSILE, "--out", str(tmp_path / "three"), *args)
+    # (the run, then what the processes hold with a drive: one launch)
+    done = mpirun(3, os.path.join(ROOT, "tests", "mpi_integrators.py"), TENSILE, "20", "--", "run", TENSILE, "--out",
+                  str(tmp_path / "three"), *args, module=False)
+    assert done.stdout.split() == ["share", "only"], done.stdout
     assert_same_run(tmp_path / "one", tmp_path / "three", "tensile")
     assert "extra.load_work" in checkpoint(tmp_path / "three", "tensile")
     assert_same_frames(tmp_path / "one", tmp_path / "three", 3, "tensile")

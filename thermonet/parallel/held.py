@@ -6,7 +6,8 @@ net's arrays that only rank 0 reads from then on (it measures the diagnostics ro
 frames and checkpoints, runs the guards, reads ``sim.state`` for every process and loads states:
 ``Simulation.on_root``): the net's arrays, the system's per-spring parameters, rest lengths and
 masses, the layout's orders, spring ends and incidence lists, the heat setup's per-spring and
-per-entry arrays, the decomposition, and the whole x, p, Φ, η and heat logs. A read of one of them there fails with a :class:`NotHeldError` naming it.
+per-entry arrays, the loads' per-node arrays, the decomposition, and the whole x, p, Φ, η and
+heat logs. A read of one of them there fails with a :class:`NotHeldError` naming it.
 
 The share's heat logs and its part of the conduction setup are the distributed sweep's
 (:mod:`.sweep`, :mod:`.conduction`); what stays whole on every process is the net's size, its
@@ -104,6 +105,10 @@ def let_go(sim) -> None:
         object.__setattr__(layout, name, NotHeld(f"the layout's {name}"))
     for name in LAYOUT_ORDERS:  # (their lengths are the net's counts, which every process keeps)
         object.__setattr__(layout, name, NotHeld(f"the layout's {name}", len(getattr(layout, name))))
+    if system.loads is not None:  # (the share's load arrays are cut from these)
+        for name in ("fully_driven", "positions", "masses"):
+            object.__setattr__(system.loads, name, NotHeld(f"the loads' {name}", len(getattr(system.loads, name))))
+        stepper._loads.let_go()
     sim.net = RankNet(sim.net)
     stepper.decomposition = None
     give_back_freed_memory()

@@ -62,12 +62,13 @@ class ShareLoads:
     """The loads of one process's share.
 
     loads: the whole net's :class:`~thermonet.loads.stepping.StepperLoads` (its clock is the
-    run's); share, dec: :mod:`thermonet.parallel.domain`; base: the whole net's Nodes record
-    (masses, anchored, gravity of the power's gravity terms); functions: :func:`load_functions`.
+    run's; its per-member arrays are read, its per-node ones only while this is built); share,
+    dec: :mod:`thermonet.parallel.domain`; base: the whole net's Nodes record (masses, anchored,
+    gravity of the power's gravity terms: kept at the members); functions: :func:`load_functions`.
     """
 
     def __init__(self, loads, share, dec, base, functions):
-        self.loads, self.base = loads, base
+        self.loads = loads
         self.evaluate, self.drive, self._terms = functions
         A = loads.arrays
         n_loads = len(A.work)
@@ -93,6 +94,19 @@ class ShareLoads:
         self._offsets = np.concatenate([[0], np.cumsum(self._counts)[:-1]])
         self._gathered = np.empty(3 * len(A.member))
         self.terms = np.empty((len(A.member), 3))
+        # what the drives' power reads of the member nodes (the whole Nodes record is not kept)
+        self._member_mass = np.ascontiguousarray(base.masses[A.member])
+        self._member_anchored = np.ascontiguousarray(base.anchored[A.member])
+        self._gravity, self._with_gravity = base.gravity, bool(base.with_gravity)
+
+    def let_go(self) -> None:
+        """Give up the whole net's per-node load arrays (a process other than rank 0: the share's
+        are cut from them already)."""
+        from .held import NotHeld
+
+        A = self.loads.arrays
+        self.loads.arrays = A._replace(**{k: NotHeld(f"the loads' {k}", len(getattr(A, k)))
+                                          for k in ("node_force", "node_drive", "node_weight")})
 
     def arrays_for(self, state, h: float):
         """The share's LoadArrays for a call from ``state`` (the run's clock and work)."""
@@ -109,8 +123,8 @@ class ShareLoads:
         self._terms(x, s, topology, nodes, self._members, self._is_drive, self._mine)
         comm.Allgatherv(self._mine.ravel(), [self._gathered, self._counts, self._offsets, MPI.DOUBLE])
         self.terms[self._order] = self._gathered.reshape(-1, 3)
-        A, base, terms = self._local, self.base, self.terms
-        member = self.loads.arrays.member
+        A, terms = self._local, self.terms
+        mass, anchored, gravity, with_gravity = self._member_mass, self._member_anchored, self._gravity, self._with_gravity
         whole_weight = self.loads.arrays.member_weight
         for i in range(len(A.work)):
             r0 = r1 = r2 = g0 = g1 = g2 = 0.0
@@ -120,11 +134,10 @@ class ShareLoads:
                     r0 += terms[k, 0]
                     r1 += terms[k, 1]
                     r2 += terms[k, 2]
-                    a = member[k]
-                    if base.with_gravity and not base.anchored[a]:
-                        g0 += base.masses[a] * base.gravity[0]
-                        g1 += base.masses[a] * base.gravity[1]
-                        g2 += base.masses[a] * base.gravity[2]
+                    if with_gravity and not anchored[k]:
+                        g0 += mass[k] * gravity[0]
+                        g1 += mass[k] * gravity[1]
+                        g2 += mass[k] * gravity[2]
                 else:
                     w = whole_weight[k]
                     r0 += w * terms[k, 0]
