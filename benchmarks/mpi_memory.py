@@ -37,8 +37,9 @@ def share_bytes(stepper) -> int:
     arrays = [stepper._x, stepper._p, stepper._phi, stepper._eta, *stepper._scratch, *sh.topology]
     if conduction is not None:
         sweep = conduction._sweep
-        arrays += [conduction._length, conduction._s_before, sweep.theta, sweep.theta_start, sweep.produced,
-                   *sweep.pending.values(), sweep.part.inc_ptr, sweep.part.inc_spring]
+        arrays += [conduction._length, conduction._s_before, conduction._theta_log, sweep.theta, sweep.theta_start,
+                   sweep.produced, *sweep.pending.values(), sweep.part.inc_ptr, sweep.part.inc_spring,
+                   sweep._capacity, sweep._inv_capacity, sweep._conductance]
     return sum(a.nbytes for a in arrays)
 
 

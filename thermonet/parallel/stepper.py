@@ -17,8 +17,9 @@ share into exact sums, added over the processes, :meth:`~DistributedStepper.row_
 :meth:`~DistributedStepper.sync` (``Simulation.internal_state``: frames, probes, checkpoints,
 ``sim.state``) gives them to every process, so reading them is a step every process takes. The
 runner's backup for blow-up replays is a copy of the shares (:meth:`~DistributedStepper.backup_state`).
-Between a call's end and the next read, processes other than rank 0 hold no whole x, p, Φ, η (empty
-arrays stand in for them, so a read that skipped ``sync`` fails instead of seeing old values).
+Between a call's end and the next read, processes other than rank 0 hold no whole x, p, Φ, η or heat
+logs (empty arrays stand in for them, so a read that skipped ``sync`` fails instead of seeing old
+values); the share's heat logs are the conduction's (:mod:`thermonet.parallel.conduction`).
 """
 
 from __future__ import annotations
