@@ -364,3 +364,94 @@ def test_blocks_parts_keep_every_conduction_block_in_one_process():
     counts = np.bincount(owner, minlength=3)
     assert counts.min() > 0 and counts.max() - counts.min() <= 2 * 16
     assert np.all(np.diff(owner) >= 0)  # ranges of the numbering
+
+
+def _reference_heat_share(order, inc_ptr, inc_spring, bound_spring, bound_ptr, dec, share_springs, rank):
+    """The plan of :func:`thermonet.parallel.heat_share.heat_shares` made the plain way: every
+    process's holdings and every colour's writers as whole-net masks (P arrays of m entries)."""
+    from thermonet.parallel.heat_share import Plan, _touched, ranges
+
+    inc_ptr, inc_spring = np.asarray(inc_ptr, dtype=np.int64), np.asarray(inc_spring, dtype=np.int64)
+    m, size = len(dec.spring_owner), dec.size
+    block_owner = dec.owner[order.node[order.block_ptr[:-1]]]
+    holds, further, parts = [], [], []
+    for q in range(size):
+        blocks = np.flatnonzero(block_owner == q)
+        nodes, incidence = _touched(order, inc_ptr, inc_spring, blocks)
+        in_share, touched = np.zeros(m, dtype=bool), np.zeros(m, dtype=bool)
+        in_share[share_springs[q]] = True
+        touched[inc_spring[incidence]] = True
+        further.append(touched & ~in_share)
+        holds.append(touched | in_share)
+        parts.append((blocks, nodes, incidence))
+    springs = np.concatenate([share_springs[rank], np.flatnonzero(further[rank])])
+    local = np.full(m, -1, dtype=np.int64)
+    local[springs] = np.arange(len(springs))
+
+    def plan(source, wants):
+        send, recv = {}, {}
+        for q in range(size):
+            if q != rank and np.any((source == rank) & wants[q]):
+                send[q] = local[np.flatnonzero((source == rank) & wants[q])]
+            if q != rank and np.any((source == q) & wants[rank]):
+                recv[q] = local[np.flatnonzero((source == q) & wants[rank])]
+        return Plan(send, recv)
+
+    colours = []
+    for c in range(len(order.colour_ptr) - 1):
+        source = np.full(m, -1, dtype=np.int64)
+        in_colour = np.arange(order.colour_ptr[c], order.colour_ptr[c + 1])
+        for q in range(size):
+            source[inc_spring[_touched(order, inc_ptr, inc_spring, in_colour[block_owner[in_colour] == q])[1]]] = q
+        colours.append(plan(source, holds))
+    bound_source = np.full(m, -1, dtype=np.int64)
+    bound_source[bound_spring] = dec.spring_owner[bound_spring]
+    start_source = np.where(np.logical_or.reduce(further), dec.spring_owner, -1)
+    bound = np.flatnonzero(dec.spring_owner[bound_spring] == rank)
+    sizes = bound_ptr[bound + 1] - bound_ptr[bound]
+    blocks, nodes, incidence = parts[rank]
+    return dict(springs=springs, node=nodes, incidence=incidence, bound=bound,
+                entries=np.repeat(bound_ptr[bound], sizes) + ranges(sizes),
+                inc_spring=local[inc_spring[incidence]], start=plan(start_source, further), colours=colours,
+                boundary=plan(bound_source, holds))
+
+
+@pytest.mark.parametrize("size", [2, 3, 5])
+def test_each_process_plans_its_conduction_exchanges_as_the_plain_whole_net_masks_do(size):
+    """A process's part of the conduction sweep (the springs it holds, its blocks, and what it
+    sends to and receives from each process before a sweep, after each colour and after the
+    baths) is built visiting the other processes one at a time, in memory of the order of m; it
+    is the plan made from every process's holdings as whole-net masks, for parts that cut the
+    sweep's blocks (random owners) and for the `blocks` parts."""
+    from thermonet.heat.graph import star_order
+    from thermonet.layout import build_layout
+    from thermonet.parallel.domain import decomposition, share
+    from thermonet.parallel.heat_share import heat_shares
+    from thermonet.parallel.partition import partition
+    from thermonet.parallel.stepper import _block_spans
+
+    net = tn.lattice((9, 5, 4), neighbours=18, jitter=0.1, seed=2)
+    layout = build_layout(net)
+    rng = np.random.default_rng(size)
+    not_bath = rng.random(net.n_nodes) > 0.1
+    order = star_order(layout, np.ones(net.n_springs), not_bath, 16)
+    bound_spring = np.unique(rng.choice(net.n_springs, 40, replace=False))
+    bound_ptr = np.concatenate([[0], np.cumsum(rng.integers(1, 3, len(bound_spring)))]).astype(np.int64)
+    owners = [rng.integers(0, size, net.n_nodes),
+              partition(layout.nodes_to_internal(net.positions), layout.edges, size, "blocks", _block_spans(order))]
+    for owner in owners:
+        dec = decomposition(owner, layout.edges, size)
+        shares = [share(dec, layout.edges, q).springs for q in range(size)]
+        for rank in range(size):
+            got = heat_shares(order, layout.inc_ptr, layout.inc_spring, bound_spring, bound_ptr, dec, shares, rank)
+            want = _reference_heat_share(order, layout.inc_ptr, layout.inc_spring, bound_spring, bound_ptr, dec,
+                                         shares, rank)
+            for k in ("springs", "node", "incidence", "bound", "entries", "inc_spring"):
+                assert np.array_equal(getattr(got, k), want[k]), k
+            for a, b in zip([got.start, got.boundary, *got.colours], [want["start"], want["boundary"],
+                                                                       *want["colours"]]):
+                for side in ("send", "recv"):
+                    x, y = getattr(a, side), getattr(b, side)
+                    assert sorted(x) == sorted(y) and all(np.array_equal(x[q], y[q]) for q in x), side
+            assert len(got.colours) == len(want["colours"])
+    assert any(len(p.send) for p in got.colours)  # (the plans are not all empty)

@@ -76,68 +76,92 @@ def ranges(sizes: np.ndarray) -> np.ndarray:
     return np.arange(total, dtype=np.int64) - starts
 
 
-def _plan(source: np.ndarray, wants: list, rank: int, local: np.ndarray) -> Plan:
-    """The exchange where spring e's value goes from process source[e] (−1: none) to every other
-    process q with wants[q][e]; local: (m,) this process's local index of each spring."""
-    send, recv = {}, {}
-    mine = source == rank
-    for q, want in enumerate(wants):
-        if q == rank:
-            continue
-        out = np.flatnonzero(mine & want)
-        if len(out):
-            send[q] = local[out]
-        come = np.flatnonzero((source == q) & wants[rank])
-        if len(come):
-            recv[q] = local[come]
-    return Plan(send, recv)
+def _within(values: np.ndarray, sorted_set: np.ndarray) -> np.ndarray:
+    """(k,) bool: which of ``values`` are in the ascending array ``sorted_set``."""
+    if len(sorted_set) == 0:
+        return np.zeros(len(values), dtype=bool)
+    at = np.minimum(np.searchsorted(sorted_set, values), len(sorted_set) - 1)
+    return sorted_set[at] == values
+
+
+def _springs_of(order, inc_ptr, inc_spring, blocks) -> np.ndarray:
+    """(k,) int64 the springs ``blocks`` touch, ascending."""
+    return np.unique(inc_spring[_touched(order, inc_ptr, inc_spring, blocks)[1]])
 
 
 def heat_shares(order, inc_ptr, inc_spring, bound_spring, bound_ptr, dec, share_springs: list, rank: int):
     """Rank ``rank``'s :class:`HeatShare`, for the whole net's sweep ``order``
     (:class:`~thermonet.heat.graph.StarOrder`), incidence lists ``inc_ptr`` (n+1,),
-    ``inc_spring`` (2m,), boundary springs ``bound_spring`` (S,) with entries ``bound_ptr``
-    (S+1,); dec: the decomposition; share_springs: every process's share springs (ascending)."""
+    ``inc_spring`` (2m,), boundary springs ``bound_spring`` (S,) ascending with entries
+    ``bound_ptr`` (S+1,); dec: the decomposition; share_springs: every process's share springs
+    (ascending).
+
+    Process q *holds* a spring's θ when it is in q's share or one of q's blocks touches it; it
+    *changes* it in colour c when one of q's blocks of colour c touches it (one process at most:
+    a colour's blocks share no spring). The other processes are visited one at a time, each
+    through the springs its blocks touch and its share: memory of the order of m, whatever the
+    number of processes.
+    """
     inc_ptr = np.asarray(inc_ptr, dtype=np.int64)
     inc_spring = np.asarray(inc_spring, dtype=np.int64)
     m, size = len(dec.spring_owner), dec.size
+    spring_owner = dec.spring_owner
     n_blocks = len(order.block_ptr) - 1
+    n_colours = len(order.colour_ptr) - 1
     block_owner = dec.owner[order.node[order.block_ptr[:-1]]] if n_blocks else np.zeros(0, dtype=np.int64)
-    holds, further, parts = [], [], []  # per process: the springs it holds θ of; of those, beyond its share
-    for q in range(size):
-        blocks = np.flatnonzero(block_owner == q)
-        nodes, incidence = _touched(order, inc_ptr, inc_spring, blocks)
-        in_share = np.zeros(m, dtype=bool)
-        in_share[share_springs[q]] = True
-        touched = np.zeros(m, dtype=bool)
-        touched[inc_spring[incidence]] = True
-        further.append(touched & ~in_share)
-        holds.append(touched | in_share)
-        parts.append((blocks, nodes, incidence))
-    blocks, nodes, incidence = parts[rank]
-    springs = np.concatenate([share_springs[rank], np.flatnonzero(further[rank])])
+    block_colour = np.repeat(np.arange(n_colours), np.diff(order.colour_ptr))
+
+    def blocks_of(q, colour=None):
+        mask = block_owner == q
+        if colour is not None:
+            mask &= block_colour == colour
+        return np.flatnonzero(mask)
+
+    blocks = blocks_of(rank)
+    nodes, incidence = _touched(order, inc_ptr, inc_spring, blocks)
+    share_me = np.asarray(share_springs[rank], dtype=np.int64)
+    further_me = np.setdiff1d(np.unique(inc_spring[incidence]), share_me, assume_unique=True)
+    springs = np.concatenate([share_me, further_me])
     local = np.full(m, -1, dtype=np.int64)
     local[springs] = np.arange(len(springs))
-    deg = inc_ptr[nodes + 1] - inc_ptr[nodes]
-    block_sizes = order.block_ptr[blocks + 1] - order.block_ptr[blocks]
-    colours = []
-    spring_owner = dec.spring_owner
-    for c in range(len(order.colour_ptr) - 1):  # who changes each spring in colour c
-        source = np.full(m, -1, dtype=np.int64)
-        in_colour = np.arange(order.colour_ptr[c], order.colour_ptr[c + 1])
-        for q in range(size):
-            _, inc_q = _touched(order, inc_ptr, inc_spring, in_colour[block_owner[in_colour] == q])
-            source[inc_spring[inc_q]] = q
-        colours.append(_plan(source, holds, rank, local))
-    bound_source = np.full(m, -1, dtype=np.int64)
-    bound_source[bound_spring] = spring_owner[bound_spring]
-    start_source = np.where(np.logical_or.reduce(further), spring_owner, -1) if size else np.full(m, -1)
-    bound = np.flatnonzero(spring_owner[bound_spring] == rank) if len(bound_spring) else np.zeros(0, dtype=np.int64)
+    held_me = local >= 0
+    changed = [_springs_of(order, inc_ptr, inc_spring, blocks_of(rank, c)) for c in range(n_colours)]
+    has_bound = len(bound_spring) > 0
+    bound_spring = np.asarray(bound_spring, dtype=np.int64)
+    bound_owner = spring_owner[bound_spring] if has_bound else np.zeros(0, dtype=np.int64)
+    bound_me = bound_spring[bound_owner == rank]
+    colours = [Plan({}, {}) for _ in range(n_colours)]
+    start, boundary = Plan({}, {}), Plan({}, {})
+
+    def add(into: dict, q: int, whole: np.ndarray) -> None:
+        if len(whole):
+            into[q] = local[whole]
+
+    for q in range(size):
+        if q == rank:
+            continue
+        share_q = np.asarray(share_springs[q], dtype=np.int64)
+        touched_q = _springs_of(order, inc_ptr, inc_spring, blocks_of(q))
+        for c in range(n_colours):  # what I change and q holds; what q changes and I hold
+            mine = changed[c]
+            add(colours[c].send, q, mine[_within(mine, touched_q) | _within(mine, share_q)])
+            theirs = _springs_of(order, inc_ptr, inc_spring, blocks_of(q, c))
+            add(colours[c].recv, q, theirs[held_me[theirs]])
+        if has_bound:  # the boundary springs each process reports, to the others holding them
+            add(boundary.send, q, bound_me[_within(bound_me, touched_q) | _within(bound_me, share_q)])
+            theirs = bound_spring[bound_owner == q]
+            add(boundary.recv, q, theirs[held_me[theirs]])
+        # before a sweep: the further springs' θ from the processes reporting them
+        further_q = np.setdiff1d(touched_q, share_q, assume_unique=True)
+        add(start.send, q, further_q[spring_owner[further_q] == rank])
+        add(start.recv, q, further_me[spring_owner[further_me] == q])
+    bound = np.flatnonzero(bound_owner == rank) if has_bound else np.zeros(0, dtype=np.int64)
     entry_sizes = bound_ptr[bound + 1] - bound_ptr[bound]
     entries = np.repeat(bound_ptr[bound], entry_sizes) + ranges(entry_sizes)
+    deg = inc_ptr[nodes + 1] - inc_ptr[nodes]
+    block_sizes = order.block_ptr[blocks + 1] - order.block_ptr[blocks]
     return HeatShare(springs, np.searchsorted(blocks, order.colour_ptr).astype(np.int64),
                      np.concatenate([[0], np.cumsum(block_sizes)]).astype(np.int64), nodes, incidence,
                      np.concatenate([[0], np.cumsum(deg)]).astype(np.int64),
                      np.ascontiguousarray(local[inc_spring[incidence]], dtype=np.uint32),
-                     bound, entries, _plan(start_source, further, rank, local), colours,
-                     _plan(bound_source, holds, rank, local))
+                     bound, entries, start, colours, boundary)
