@@ -429,6 +429,7 @@ def test_each_process_plans_its_conduction_exchanges_as_the_plain_whole_net_mask
     from thermonet.parallel.heat_share import heat_shares
     from thermonet.parallel.partition import partition
     from thermonet.parallel.stepper import _block_spans
+    from thermonet.parallel.sweep import _share_springs
 
     net = tn.lattice((9, 5, 4), neighbours=18, jitter=0.1, seed=2)
     layout = build_layout(net)
@@ -442,6 +443,7 @@ def test_each_process_plans_its_conduction_exchanges_as_the_plain_whole_net_mask
     for owner in owners:
         dec = decomposition(owner, layout.edges, size)
         shares = [share(dec, layout.edges, q).springs for q in range(size)]
+        assert all(np.array_equal(a, b) for a, b in zip(_share_springs(dec, layout.edges), shares))
         for rank in range(size):
             got = heat_shares(order, layout.inc_ptr, layout.inc_spring, bound_spring, bound_ptr, dec, shares, rank)
             want = _reference_heat_share(order, layout.inc_ptr, layout.inc_spring, bound_spring, bound_ptr, dec,

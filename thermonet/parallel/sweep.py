@@ -49,11 +49,25 @@ class ValueExchange:
             values[idx] = buf
 
 
-def _entries_of(bound_spring, bound_ptr, reports) -> np.ndarray:
-    """(E_q,) int64 the entries of the boundary springs a process reports (reports: (m,) bool)."""
-    bound = np.flatnonzero(reports[bound_spring])
+def _entries_of(bound_ptr, reported) -> np.ndarray:
+    """(E_q,) int64 the entries of the boundary springs a process reports (reported: (S,) bool,
+    which of the boundary springs it reports)."""
+    bound = np.flatnonzero(reported)
     sizes = bound_ptr[bound + 1] - bound_ptr[bound]
     return np.repeat(bound_ptr[bound], sizes) + ranges(sizes)
+
+
+def _share_springs(dec, edges) -> list:
+    """Every process's share springs (those with an end it owns), ascending: one sort of the
+    springs by each end's owner."""
+    edges = np.asarray(edges, dtype=np.int64)
+    parts = []
+    for end in (0, 1):
+        owner = dec.owner[edges[:, end]]
+        by_owner = np.argsort(owner, kind="stable")
+        ptr = np.concatenate([[0], np.cumsum(np.bincount(owner, minlength=dec.size))])
+        parts.append([by_owner[ptr[q]:ptr[q + 1]] for q in range(dec.size)])
+    return [np.union1d(a, b) for a, b in zip(*parts)]
 
 
 class DistributedSweep:
@@ -73,8 +87,7 @@ class DistributedSweep:
         bound_spring, starts = np.unique(heat.entry_spring, return_index=True)  # as HeatSetup.record's
         bound_spring = bound_spring.astype(np.int64)
         bound_ptr = np.append(starts, len(heat.entry_spring)).astype(np.int64)
-        edges = np.asarray(layout.edges, dtype=np.int64)
-        shares = [np.flatnonzero((dec.owner[edges[:, 0]] == q) | (dec.owner[edges[:, 1]] == q)) for q in range(size)]
+        shares = _share_springs(dec, layout.edges)
         self.part = hs = heat_shares(heat.star_order("cpu"), layout.inc_ptr, layout.inc_spring, bound_spring,
                                      bound_ptr, dec, shares, rank)
         self.ml = ml = len(sh.springs)
@@ -110,7 +123,8 @@ class DistributedSweep:
         reported = [dec.owned_springs(q) for q in range(size)] if rank == 0 else None  # (placed by rank 0)
         self._springs_gather = IndexGather(reported, np.searchsorted(sh.springs, dec.owned_springs(rank)),
                                            np.bincount(dec.spring_owner, minlength=size))
-        entries = [_entries_of(bound_spring, bound_ptr, dec.spring_owner == q) for q in range(size)]
+        bound_owner = dec.spring_owner[bound_spring]
+        entries = [_entries_of(bound_ptr, bound_owner == q) for q in range(size)]
         assert np.array_equal(entries[rank], hs.entries)
         self._entries_gather = IndexGather(entries, np.arange(len(hs.entries)))
         self._entry_fn = np.ascontiguousarray(heat.entry_fn[hs.entries])  # (its entries' bath or source)
