@@ -140,6 +140,53 @@ class Simulation:
         anchors=None,
         comm=None,
     ):
+        arguments = {name: value for name, value in locals().items() if name != "self"}
+        from .parallel import world
+
+        mpi = world(comm)
+        if mpi is None:
+            self._build(**arguments, mpi=None)
+            return
+        # over MPI processes rank 0 builds the whole net and every other process's part of it
+        from .parallel.ship import build_and_send, receive_simulation
+
+        if mpi.Get_rank() > 0:
+            receive_simulation(self, mpi, model, threads)
+        else:
+            build_and_send(self, mpi, lambda: self._build(**arguments, mpi=mpi))
+
+    def _build(
+        self,
+        net: Net,
+        model="hencky",
+        parameters: Mapping | None = None,
+        temperatures=None,
+        momenta=None,
+        velocities=None,
+        integrator="co2",
+        h: float = 1e-3,
+        gravity=None,
+        thermal: bool = True,
+        threads: int | None = None,
+        parallel: bool | None = None,
+        renumber: bool = True,
+        integrator_options: Mapping | None = None,
+        backend: str = "cpu",
+        stretch_bounds=STRETCH_BOUNDS,
+        energy_tolerance: float | None = DEFAULT_ENERGY_TOLERANCE,
+        stability_guard="stop",
+        conduction: bool | None = None,
+        conduction_every="auto",
+        thermal_waves: bool | None = None,
+        baths: Mapping | None = None,
+        sources: Mapping | None = None,
+        loads=None,
+        anchors=None,
+        comm=None,
+        mpi=None,
+    ):
+        """The Simulation of the arguments of :meth:`__init__` (over MPI processes, rank 0's:
+        the whole net, and its stepper distributed over ``mpi``)."""
         if not isinstance(net, Net):
             raise InputError(f"net must be a thermonet.Net, got {type(net).__name__}")
         if anchors is not None:
@@ -177,10 +224,8 @@ class Simulation:
         self.integrator, self.stepper = assemble(self.integrator, self.system, parallel=self.parallel,
                                                  backend=self.backend, options=stepper_options,
                                                  time_origin=self.time_origin)
-        from .parallel import world
-
         #: the MPI communicator the net is distributed over (None: one process)
-        self.comm = world(comm)
+        self.comm = mpi
         if self.comm is not None:
             from .parallel.stepper import distribute
 
@@ -207,10 +252,6 @@ class Simulation:
         #: seconds ``run`` spent compiling kernels (first runs of a model and integrator)
         self.compile_time = 0.0
         self.runner = Runner(self)
-        if self.comm is not None:  # the processes other than rank 0 keep their shares only
-            from .parallel.held import let_go
-
-            let_go(self)
 
     # ------------------------------------------------------------------------------------------
     # time

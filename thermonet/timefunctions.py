@@ -136,6 +136,9 @@ class PackedFunctions(tuple):
     def __new__(cls, kind, params, ptr, times, values):
         return super().__new__(cls, (kind, params, ptr, times, values))
 
+    def __getnewargs__(self):  # (pickled as its five arrays: a distributed run sends it)
+        return tuple(self)
+
     kind = property(lambda self: self[0])
     params = property(lambda self: self[1])
     ptr = property(lambda self: self[2])

@@ -43,7 +43,7 @@ class DistributedConduction:
         self._strain = np.empty(ml)  # their strains (Model.strain), valid where a spring pass kept them
         self._s_before = np.empty(ml)  # the forces of a kick deferred past a sweep
         self._theta_log = np.empty(ml)  # the share's part of the whole heat log "theta"
-        self._sweep = DistributedSweep(self.heat, stepper.decomposition, sh, stepper.comm, phases)
+        self._sweep = DistributedSweep(self.heat, stepper.decomposition, sh, stepper.comm, phases, stepper.rank)
 
     def take(self, state) -> None:
         """This process's part of ``state``'s heat logs (a state it has not stepped yet): the

@@ -81,6 +81,19 @@ def conduction_stages(model, parallel: bool, uniform: bool) -> tuple[tuple, obje
             sweep_phase_functions(ns, variant, parallel))
 
 
+def compiled_parts(model, parallel: bool, thermal: bool, uniform: bool, loads: bool, conduction: bool) -> list:
+    """Every compiled function a :class:`DistributedStepper` of these options holds, in a fixed
+    order (what :mod:`thermonet.parallel.ship` names instead of sending: each process gets the
+    same ones from its disk cache)."""
+    (stage, closing), load_fns = splitting_stages(model, parallel, thermal, uniform, loads)
+    passes, _ = splitting_passes(model, parallel, thermal, uniform, loads)
+    parts = [stage, closing, *(load_fns or ()), passes["boundary_node_pass"], passes["thermal_kick"]]
+    if conduction:
+        functions, temperature_pass, phases = conduction_stages(model, parallel, uniform)
+        parts += [*functions, temperature_pass, *phases]
+    return parts
+
+
 class DistributedStepper(Stepper):
     """An explicit :class:`~thermonet.explicit.splitting.Splitting` over the processes of
     ``comm``: see the module docstring.
@@ -95,18 +108,37 @@ class DistributedStepper(Stepper):
     measures = True
 
     def __init__(self, integrator, system, comm, points, parallel: bool = False, method: str | None = None):
-        self.integrator, self.system, self.comm, self.parallel = integrator, system, comm, bool(parallel)
-        self.size, self.rank = comm.Get_size(), comm.Get_rank()
         table = integrator.table_between_sweeps
         if (np.asarray(table.code) != STAGE).any():
             raise InputError(f"{integrator.name}: a run over MPI processes runs kick/drift stages only")
-        self._kicks, self._drifts, self._carry = list(table.kick), list(table.drift), float(table.carry)
-        edges = system.edges
+        size, edges = comm.Get_size(), system.edges
         conducting = integrator.heat_rows[0]
         method = method or ("blocks" if conducting else "rcb")
         spans = _block_spans(system.heat.star_order("cpu")) if method == "blocks" and conducting else None
-        owner = partition(points, edges, self.size, method, spans) if self.rank == 0 else None
-        self.decomposition = dec = decomposition(comm.bcast(owner, root=0), edges, self.size)
+        dec = decomposition(partition(points, edges, size, method, spans), edges, size)
+        self._build(integrator, system, comm, dec, comm.Get_rank(), parallel)
+
+    def for_rank(self, rank: int, state) -> "DistributedStepper":
+        """The stepper of process ``rank``, built here from the whole net (rank 0 builds every
+        process's: :mod:`thermonet.parallel.ship`), holding its share of ``state``; it keeps no
+        decomposition (rank 0's alone)."""
+        other = DistributedStepper.__new__(DistributedStepper)
+        other._build(self.integrator, self.system, self.comm, self.decomposition, rank, self.parallel, self.loads)
+        other._bind(state)
+        other._fresh = ROOT
+        other.decomposition = None
+        return other
+
+    def _build(self, integrator, system, comm, dec, rank: int, parallel: bool, loads=None) -> None:
+        """Process ``rank``'s stepper for the decomposition ``dec`` of the whole ``system``;
+        loads: the whole net's StepperLoads where built already (they are made from ``system``)."""
+        self.integrator, self.system, self.comm, self.parallel = integrator, system, comm, bool(parallel)
+        self.size, self.rank = dec.size, int(rank)
+        table = integrator.table_between_sweeps
+        self._kicks, self._drifts, self._carry = list(table.kick), list(table.drift), float(table.carry)
+        edges = system.edges
+        conducting = integrator.heat_rows[0]
+        self.decomposition = dec
         self.share = sh = share(dec, edges, self.rank)
         self.halo = Halo(comm, sh.send, sh.recv)
         thermal = system.thermal
@@ -127,7 +159,7 @@ class DistributedStepper(Stepper):
                                         P if uniform else np.ascontiguousarray(P[:, sh.springs]))
         base = records.nodes(system)
         #: the loads' clock and arrays (the Simulation points ``loads.time_origin`` at its clock)
-        self.loads = StepperLoads.of(system, table) if with_loads else None
+        self.loads = (loads or StepperLoads.of(system, table)) if with_loads else None
         self._loads = ShareLoads(self.loads, sh, dec, base, functions) if with_loads else None
         self._nodes = records.Nodes(np.ascontiguousarray(base.masses[sh.nodes]),
                                     np.ascontiguousarray(base.inv_mass[sh.nodes]),
@@ -563,16 +595,16 @@ PARTITION_VARIABLE = "THERMONET_PARTITION"
 
 
 def distribute(sim, comm, method: str | None = None) -> DistributedStepper:
-    """The stepper of ``sim`` over the processes of ``comm`` (its effects checked first);
-    method: the partitioner, default ``$THERMONET_PARTITION`` or "blocks" with conduction, else "rcb"."""
+    """The stepper of ``sim`` (rank 0's, built whole) over the processes of ``comm`` (its effects
+    checked first); method: the partitioner, default ``$THERMONET_PARTITION`` or "blocks" with
+    conduction, else "rcb". No message is exchanged (rank 0 alone builds:
+    :mod:`thermonet.parallel.ship`)."""
     import os
 
     from .support import check_support
 
     method = method or os.environ.get(PARTITION_VARIABLE) or None
     check_support(sim, comm.Get_size())
-    if sim.threads is None:  # the machine's cores shared among its processes, not each taking all
-        sim.threads = threads_per_process(comm)
     points = sim.layout.nodes_to_internal(np.asarray(sim.net.positions, dtype=np.float64))
     stepper = DistributedStepper(sim.integrator, sim.system, comm, points, sim.parallel, method)
     if stepper.loads is not None:

@@ -20,7 +20,7 @@ from ..heat.logs import heat_sums
 from ..heat.passes import CONTINUE, FORWARD, REVERSE, SAVE
 from ..heat.setup import incidence_factors
 from ..kernels import records
-from .heat_share import heat_shares, ranges
+from .heat_share import ascending_set, heat_shares, ranges
 from .whole import IndexGather
 
 #: message tag of the temperatures exchanged between a sweep's phases
@@ -67,7 +67,8 @@ def _share_springs(dec, edges) -> list:
         by_owner = np.argsort(owner, kind="stable")
         ptr = np.concatenate([[0], np.cumsum(np.bincount(owner, minlength=dec.size))])
         parts.append([by_owner[ptr[q]:ptr[q + 1]] for q in range(dec.size)])
-    return [np.union1d(a, b) for a, b in zip(*parts)]
+    m = len(edges)
+    return [ascending_set(np.concatenate([a, b]), m) for a, b in zip(*parts)]
 
 
 class DistributedSweep:
@@ -75,12 +76,12 @@ class DistributedSweep:
 
     heat: the whole net's :class:`~thermonet.heat.setup.HeatSetup` (read while this is built:
     the sweep's plan and the process's part of the setup are cut from it); dec, sh: the decomposition
-    and this process's share; comm: the communicator; phases: (colour_phase, boundary_phase,
+    and process ``rank``'s share; comm: the communicator; phases: (colour_phase, boundary_phase,
     finish) of :func:`~thermonet.parallel.heat_stages.sweep_phase_functions`.
     """
 
-    def __init__(self, heat, dec, sh, comm, phases):
-        rank, size = comm.Get_rank(), comm.Get_size()
+    def __init__(self, heat, dec, sh, comm, phases, rank: int):
+        size = dec.size
         self.comm, self.heat = comm, heat
         self._colour_phase, self._boundary_phase, self._finish = phases
         layout = heat.layout
