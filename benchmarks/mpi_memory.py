@@ -4,6 +4,10 @@
     NUMBA_NUM_THREADS=1 mpiexec -n 2 python benchmarks/mpi_memory.py      # each of two
     python benchmarks/mpi_memory.py --quick                               # a tiny net (a smoke run)
 
+Over several processes the script builds the net on rank 0 only and passes None elsewhere (rank 0
+alone builds the Simulation and sends each process its part); ``--net-everywhere`` builds it on
+every process, as a script written for one process does.
+
 A 6-neighbour lattice of about ``--springs`` springs (jitter 0.1) with conduction (g = 4, every 2
 steps) and a bath on one face, 4 steps; each process prints its resident memory after building
 the Simulation, after the steps and at its peak (that of building the whole Simulation), the bytes
@@ -50,12 +54,23 @@ def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--springs", type=float, default=1e6)
     parser.add_argument("--quick", action="store_true", help="a lattice of about 600 springs (a smoke run)")
+    parser.add_argument("--net-everywhere", action="store_true",
+                        help="build the net on every process (default: on rank 0 only)")
     args = parser.parse_args(argv)
     if args.quick:
         args.springs = 600
     k = max(1, int(round((args.springs / 3.0) ** (1.0 / 3.0))))
-    net = tn.lattice((k, k, k), jitter=0.1, seed=1)
-    net.node_groups["hot"] = np.arange(k * k)
+    from thermonet.parallel.world import launched_by_mpi
+
+    rank = 0
+    if launched_by_mpi():
+        from mpi4py import MPI
+
+        rank = MPI.COMM_WORLD.Get_rank()
+    net = None
+    if rank == 0 or args.net_everywhere:
+        net = tn.lattice((k, k, k), jitter=0.1, seed=1)
+        net.node_groups["hot"] = np.arange(k * k)
     start = time.perf_counter()
     sim = tn.Simulation(net, parameters=dict(c=100.0, beta=0.002, C0=1.0, theta0=300.0, g=4.0), h=0.01, threads=1,
                         parallel=False, conduction=True, conduction_every=2, stability_guard="off",
@@ -67,7 +82,6 @@ def main(argv=None) -> None:
     state = sim.internal_state()
     whole = sum(a.nbytes for a in (state.positions, state.momenta, state.thermal_displacement, state.entropy))
     whole += sum(v.nbytes for v in state.extra["heat"].values())
-    rank = 0 if sim.comm is None else sim.comm.Get_rank()
     line = (f"process {rank}: {sim.net.n_springs} springs, {sim.net.n_nodes} nodes; whole state and heat logs "
             f"{whole / 2**20:.1f} MB; resident after building {after_build:.0f} MB (built in {built:.1f} s), after 4 "
             f"steps {after_steps:.0f} MB, peak {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MB")

@@ -1,17 +1,13 @@
-"""What a process other than rank 0 keeps of the whole net once its share is built.
+"""What a process other than rank 0 holds of the whole net: stand-ins that name what it is not.
 
-Every process builds the same :class:`~thermonet.simulation.Simulation` from the whole net; once
-its stepper holds its share (:mod:`.stepper`), a process other than rank 0 lets go of the whole
-net's arrays that only rank 0 reads from then on (it measures the diagnostics rows, writes the
-frames and checkpoints, runs the guards, reads ``sim.state`` for every process and loads states:
-``Simulation.on_root``): the net's arrays, the system's per-spring parameters, rest lengths and
-masses, the layout's orders, spring ends and incidence lists, the heat setup's per-spring and
-per-entry arrays, the loads' per-node arrays, the decomposition, and the whole x, p, Φ, η and
-heat logs. A read of one of them there fails with a :class:`NotHeldError` naming it.
-
-The share's heat logs and its part of the conduction setup are the distributed sweep's
-(:mod:`.sweep`, :mod:`.conduction`); what stays whole on every process is the net's size, its
-groups and the baths' and sources' names and time functions.
+Rank 0 alone builds the whole :class:`~thermonet.simulation.Simulation`; every other process
+receives its own part of it (:mod:`.ship`), in which each whole-net array is a :class:`NotHeld`
+stand-in (the net's arrays, the system's per-spring parameters, rest lengths and masses, the
+layout's orders, spring ends and incidence lists, the heat setup's per-spring and per-entry
+arrays, the loads' per-node arrays) and the net a :class:`RankNet` (its size and groups). Work
+that reads them runs on rank 0 (``Simulation.on_root``: the diagnostics rows with loads, frames,
+checkpoints, guards, reads of ``sim.state`` for every process, loaded states); a read of one
+elsewhere fails with a :class:`NotHeldError` naming it. The lists of those arrays are here.
 """
 
 from __future__ import annotations
@@ -27,7 +23,7 @@ class NotHeldError(SimulationError):
 
 
 class NotHeld:
-    """Stands in for a whole-net array a process let go of: any use of it raises a
+    """Stands in for a whole-net array a process does not hold: any use of it raises a
     :class:`NotHeldError` naming it (what: e.g. "the net's positions")."""
 
     def __init__(self, what: str, length: int | None = None):
@@ -81,39 +77,6 @@ HEAT_CACHES = ("_orders", "_factors", "_static", "_incidence", "_last_record", "
 LAYOUT_ORDERS = ("node_order", "node_rank", "spring_order", "spring_rank")
 
 
-def let_go(sim) -> None:
-    """Every process of a distributed ``sim`` (its stepper built, its state made), together: the
-    stepper keeps its share of the state; then a process other than rank 0 replaces the whole-net
-    arrays only rank 0 reads by :class:`NotHeld` (module doc) and gives the freed memory back to
-    the system."""
-    stepper = sim.stepper
-    stepper.keep_share(sim._state)
-    if stepper.rank == 0:
-        return
-    system, layout = sim.system, sim.layout
-    for name in SYSTEM_ARRAYS:
-        object.__setattr__(system, name, NotHeld(f"the system's {name}"))
-    system.__dict__.pop("_kernel_parameters", None)  # (its cached parameters)
-    heat = system.heat
-    if heat is not None:
-        heat.fastest_rate()  # (cached: a run choosing its conduction cycle reads it on every process)
-        for name in HEAT_ARRAYS:
-            object.__setattr__(heat, name, NotHeld(f"the heat setup's {name}", len(getattr(heat, name))))
-        for name in HEAT_CACHES:
-            heat.__dict__.pop(name, None)
-    for name in LAYOUT_ARRAYS:
-        object.__setattr__(layout, name, NotHeld(f"the layout's {name}"))
-    for name in LAYOUT_ORDERS:  # (their lengths are the net's counts, which every process keeps)
-        object.__setattr__(layout, name, NotHeld(f"the layout's {name}", len(getattr(layout, name))))
-    if system.loads is not None:  # (the share's load arrays are cut from these)
-        for name in ("fully_driven", "positions", "masses"):
-            object.__setattr__(system.loads, name, NotHeld(f"the loads' {name}", len(getattr(system.loads, name))))
-        stepper._loads.let_go()
-    sim.net = RankNet(sim.net)
-    stepper.decomposition = None
-    give_back_freed_memory()
-
-
 def give_back_freed_memory() -> None:
     """Return the C heap's free pages to the system (glibc's ``malloc_trim``): arrays freed
     inside the heap otherwise stay in the process's resident memory. Nothing elsewhere."""
@@ -126,4 +89,4 @@ def give_back_freed_memory() -> None:
         trim(0)
 
 
-__all__ = ["NotHeld", "NotHeldError", "RankNet", "let_go", "give_back_freed_memory"]
+__all__ = ["NotHeld", "NotHeldError", "RankNet", "give_back_freed_memory"]

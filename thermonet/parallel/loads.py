@@ -99,15 +99,6 @@ class ShareLoads:
         self._member_anchored = np.ascontiguousarray(base.anchored[A.member])
         self._gravity, self._with_gravity = base.gravity, bool(base.with_gravity)
 
-    def let_go(self) -> None:
-        """Give up the whole net's per-node load arrays (a process other than rank 0: the share's
-        are cut from them already)."""
-        from .held import NotHeld
-
-        A = self.loads.arrays
-        self.loads.arrays = A._replace(**{k: NotHeld(f"the loads' {k}", len(getattr(A, k)))
-                                          for k in ("node_force", "node_drive", "node_weight")})
-
     def arrays_for(self, state, h: float):
         """The share's LoadArrays for a call from ``state`` (the run's clock and work)."""
         whole = self.loads.arrays_for(state, h)

@@ -139,7 +139,6 @@ def build_and_send(sim, comm, build) -> None:
     """Rank 0: ``build()`` (the whole Simulation ``sim``, its stepper distributed), then every
     other process's part sent to it, then rank 0 keeps its own share. An error while building is
     raised on every process (each waits in :func:`receive_simulation`)."""
-    from .held import let_go
     from .stepper import threads_per_process
 
     try:
@@ -155,7 +154,7 @@ def build_and_send(sim, comm, build) -> None:
     if sim.threads is None:  # the machine's cores shared among its processes, not each taking all
         sim.threads = threads
     send_simulation(sim, comm, key)
-    let_go(sim)
+    sim.stepper.keep_share(sim._state)
 
 
 def send_simulation(sim, comm, key) -> None:
