@@ -10,7 +10,8 @@ every process, as a script written for one process does.
 
 A 6-neighbour lattice of about ``--springs`` springs (jitter 0.1) with conduction (g = 4, every 2
 steps) and a bath on one face, 4 steps; each process prints its resident memory after building
-the Simulation, after the steps and at its peak (that of building the whole Simulation), the bytes
+the Simulation, after the steps and its peak until then (rank 0's and one process's: building
+the whole Simulation; the others': their share), the bytes
 of the whole state with its heat logs (as ``internal_state()`` puts it together, after the
 measurements) and, over several processes, those of its share's arrays (the stepping state and
 buffers, the incidence lists, the conduction sweep's arrays: the share plus the halo). What each
@@ -79,12 +80,13 @@ def main(argv=None) -> None:
     built, after_build = time.perf_counter() - start, resident_mb()
     sim.run(steps=4, diagnostics_every=4)
     after_steps = resident_mb()  # (before reading the state: over processes, a read puts it together)
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     state = sim.internal_state()
     whole = sum(a.nbytes for a in (state.positions, state.momenta, state.thermal_displacement, state.entropy))
     whole += sum(v.nbytes for v in state.extra["heat"].values())
     line = (f"process {rank}: {sim.net.n_springs} springs, {sim.net.n_nodes} nodes; whole state and heat logs "
             f"{whole / 2**20:.1f} MB; resident after building {after_build:.0f} MB (built in {built:.1f} s), after 4 "
-            f"steps {after_steps:.0f} MB, peak {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MB")
+            f"steps {after_steps:.0f} MB, peak {peak:.0f} MB")
     if sim.comm is not None:
         sh = sim.stepper.share
         line += (f"; share: {len(sh.nodes)} nodes ({sh.ghosts} ghosts), {len(sh.springs)} springs, arrays "

@@ -67,7 +67,7 @@ class RankNet:
         NotHeld(f"the net's {name}")._refuse()
 
 
-#: the System's and Layout's whole-net arrays a process other than rank 0 lets go of
+#: the System's and Layout's whole-net arrays a process other than rank 0 receives as stand-ins
 SYSTEM_ARRAYS = ("rest_lengths", "parameters", "masses", "inv_mass", "anchored")
 LAYOUT_ARRAYS = ("edges", "inc_other", "inc_ptr", "inc_spring")
 #: the HeatSetup's whole-net arrays (the distributed sweep keeps its part of them) and caches

@@ -7,7 +7,8 @@ functions, from the same disk cache) on its share (:mod:`thermonet.parallel.doma
 θ, T/l and Φ; per owned node the force gathered in the whole net's order, the kick and the drift;
 then the halo. Two kicks meeting at a step boundary stay two additions and a call ends with the
 closing kick, exactly as in one process, so every owned node and spring gets the same bits as in
-one process.
+one process. Rank 0 builds every process's stepper from the whole net
+(:meth:`~DistributedStepper.for_rank`) and sends it to its process (:mod:`thermonet.parallel.ship`).
 
 Between calls the state stays in the shares: a call starts from the share's arrays where the
 Simulation's state is the one they were taken from (:meth:`DistributedStepper._bind`; a state
@@ -98,7 +99,8 @@ class DistributedStepper(Stepper):
     """An explicit :class:`~thermonet.explicit.splitting.Splitting` over the processes of
     ``comm``: see the module docstring.
 
-    integrator: the splitting; system: the whole net's System (every process builds it);
+    integrator: the splitting; system: the whole net's System (rank 0's: the other processes get
+    their steppers from rank 0, built by :meth:`for_rank`, with stand-ins for its whole arrays);
     points: (n, 3) reference positions, internal numbering (the partition's input);
     parallel: multi-threaded passes; method: "rcb", "metis" or "blocks"
     (:mod:`thermonet.parallel.partition`), default "blocks" with conduction, else "rcb".
@@ -325,8 +327,8 @@ class DistributedStepper(Stepper):
         return sums_of(acc, float(theta[0]), -float(theta[1]), self.system.thermal)
 
     def keep_share(self, state) -> None:
-        """Take this process's share of ``state`` (every process, together) and let go of its
-        whole x, p, Φ on ranks > 0: rank 0's hold the same values."""
+        """Rank 0, its Simulation built: take its share of ``state`` (the whole state stays
+        up to date here until the first call)."""
         self._bind(state)
         self._fresh = ROOT
         self._release_whole()
