@@ -16,7 +16,7 @@ import sys
 
 import numpy as np
 from mpi4py import MPI
-from mpi_held import whole_net_arrays
+from mpi_held import builds_nothing_whole_here, whole_net_arrays
 
 from thermonet.heat.logs import heat_logs
 from thermonet.parallel.stepper import PARTITION_VARIABLE
@@ -52,8 +52,9 @@ def holds_its_share_only() -> str:
     """"only" where, after conducting calls with diagnostics rows, no process other than rank 0
     holds an array of the whole net's length (n, n + 1, 3n, m or 2m: nodes, incidence pointers,
     springs, incidences) and no whole state or heat log was put together for the rows; else
-    what was found."""
-    sim = load_scene(SCENE).build().simulation
+    what was found; the others never build the whole net (rank 0 sends them their parts)."""
+    with builds_nothing_whole_here():
+        sim = load_scene(SCENE).build().simulation
     sim.stability_guard.active = False
     gathers = []
     for holder in (sim.stepper._gather, sim.stepper._conduction):

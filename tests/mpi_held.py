@@ -1,5 +1,6 @@
 """What the MPI test scripts (tests/mpi_*.py, run under ``mpiexec``) check a process holds."""
 
+from contextlib import contextmanager
 from dataclasses import fields, is_dataclass
 
 import numpy as np
@@ -42,3 +43,27 @@ def whole_net_arrays(sim) -> list:
         return []
     n, m = sim.net.n_nodes, sim.net.n_springs
     return whole_sized(sim, {n, n + 1, 3 * n, m, 2 * m})
+
+
+@contextmanager
+def builds_nothing_whole_here():
+    """Within: on a process other than rank 0, the builders of the whole net's layout, system,
+    heat setup and initial state fail if called (only rank 0 builds them)."""
+    from mpi4py import MPI
+
+    import thermonet.simulation as simulation
+
+    names = ("build_layout", "build_system", "build_heat", "initial_state")
+    saved = {name: getattr(simulation, name) for name in names}
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("a process other than rank 0 built a whole-net structure")
+
+    if MPI.COMM_WORLD.Get_rank() > 0:
+        for name in names:
+            setattr(simulation, name, refuse)
+    try:
+        yield
+    finally:
+        for name, fn in saved.items():
+            setattr(simulation, name, fn)

@@ -15,7 +15,7 @@ import sys
 
 import numpy as np
 from mpi4py import MPI
-from mpi_held import whole_net_arrays
+from mpi_held import builds_nothing_whole_here, whole_net_arrays
 
 from thermonet.errors import SimulationError
 from thermonet.parallel.held import NotHeldError
@@ -57,7 +57,8 @@ def holds_its_share_only() -> bool:
     processes other than rank 0, the whole net's arrays are let go of (a read raises
     NotHeldError; nothing of the whole net's length is held) while ``sim.state`` is still read
     whole."""
-    sim = load_scene(SCENE).build().simulation
+    with builds_nothing_whole_here():  # (rank 0 alone builds the whole net)
+        sim = load_scene(SCENE).build().simulation
     sim.stability_guard.active = False
     gathers = []
     to_root = sim.stepper._gather.to_root
