@@ -9,8 +9,10 @@ initial state and heat logs: :meth:`~thermonet.parallel.stepper.DistributedStepp
 and sends q the Simulation with that stepper, pickled with every whole-net array replaced by a
 :class:`~thermonet.parallel.held.NotHeld` stand-in (the state's whole arrays by the empty arrays
 the stepper leaves between reads) and the net by a :class:`~thermonet.parallel.held.RankNet`.
-What cannot travel is named instead and found again on arrival: the communicator, the model,
-and the compiled passes (the receiving process gets the same ones from its own disk cache).
+What cannot travel is named instead and found again on arrival: the Simulation itself (its runner
+and guards refer to it), the communicator, the model, and the compiled passes (the receiving
+process gets the same ones from its own disk cache). An error on rank 0 while building or
+sending is raised on every process waiting for its part.
 
 A process other than rank 0 thus holds, at its peak, what it holds from then on: its share plus
 the halo, with the net its script passed (docs/parallel.md, "Memory").
@@ -29,8 +31,20 @@ from .held import (HEAT_ARRAYS, HEAT_CACHES, LAYOUT_ARRAYS, LAYOUT_ORDERS, SYSTE
                    give_back_freed_memory)
 from .stepper import ENTRY_LOGS, _RELEASED_NODES, _RELEASED_SPRINGS, compiled_parts
 
-#: message tags of the Simulation sent to a process (its size, then its bytes)
+#: message tags: rank 0's word ("built" or "error", then the pickled part with its buffers' sizes),
+#: then the buffers' bytes
 TAG_SIZE, TAG_BYTES = 41, 42
+
+
+def _tell_error(comm, processes, exc: Exception) -> None:
+    """Send rank 0's error to ``processes`` (each raises it), as itself where it pickles."""
+    from ..errors import SimulationError
+
+    for q in processes:
+        try:
+            comm.send(("error", exc), dest=q, tag=TAG_SIZE)
+        except Exception:  # (an error that does not pickle: its message)
+            comm.send(("error", SimulationError(f"{type(exc).__name__}: {exc}")), dest=q, tag=TAG_SIZE)
 
 
 def _whole_arrays(sim) -> dict:
@@ -144,8 +158,7 @@ def build_and_send(sim, comm, build) -> None:
     try:
         build()
     except Exception as exc:
-        for q in range(1, comm.Get_size()):
-            comm.send(("error", exc), dest=q, tag=TAG_SIZE)
+        _tell_error(comm, range(1, comm.Get_size()), exc)
         raise
     key = _compiled_key(sim)
     for q in range(1, comm.Get_size()):
@@ -165,17 +178,21 @@ def send_simulation(sim, comm, key) -> None:
     named = {id(obj): k for k, obj in _named_objects(sim, comm, sim.model, compiled_parts(sim.model, *key)).items()}
     state = sim._state
     for q in range(1, comm.Get_size()):
-        part = stepper.for_rank(q, state)
-        file, buffers = io.BytesIO(), []
-        heat = sim.system.heat
-        caches = {k: heat.__dict__.pop(k) for k in HEAT_CACHES if heat is not None and k in heat.__dict__}
-        try:  # (the heat setup's caches, whole-net arrays built on demand, stay here)
-            _Pickler(file, whole, named, buffers).dump({**sim.__dict__, "stepper": part})
-        finally:
-            if caches:
-                heat.__dict__.update(caches)
+        try:
+            part = stepper.for_rank(q, state)
+            file, buffers = io.BytesIO(), []
+            heat = sim.system.heat
+            caches = {k: heat.__dict__.pop(k) for k in HEAT_CACHES if heat is not None and k in heat.__dict__}
+            try:  # (the heat setup's caches, whole-net arrays built on demand, stay here)
+                _Pickler(file, whole, named, buffers).dump({**sim.__dict__, "stepper": part})
+            finally:
+                if caches:
+                    heat.__dict__.update(caches)
+        except Exception as exc:  # (the processes still waiting learn it and stop too)
+            _tell_error(comm, range(q, comm.Get_size()), exc)
+            raise
         views = [b.raw() for b in buffers]
-        comm.send((file.getvalue(), [v.nbytes for v in views]), dest=q, tag=TAG_SIZE)
+        comm.send(("part", file.getvalue(), [v.nbytes for v in views]), dest=q, tag=TAG_SIZE)
         for v in views:
             comm.Send(v, dest=q, tag=TAG_BYTES)
         del part, file, buffers, views
@@ -195,7 +212,10 @@ def receive_simulation(sim, comm, model, threads) -> None:
         raise message[1]
     key = message[1]
     here = threads_per_process(comm)  # (every process takes part)
-    stream, sizes = comm.recv(source=0, tag=TAG_SIZE)
+    message = comm.recv(source=0, tag=TAG_SIZE)
+    if message[0] == "error":
+        raise message[1]
+    _, stream, sizes = message
     buffers = [np.empty(n, dtype=np.uint8) for n in sizes]  # (the arrays are made on these, not copied)
     for b in buffers:
         comm.Recv(b, source=0, tag=TAG_BYTES)
