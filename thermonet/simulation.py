@@ -13,6 +13,7 @@ numbering (chosen for memory locality) never shows.
 
 from __future__ import annotations
 
+from contextlib import nullcontext
 from typing import Mapping
 
 import numpy as np
@@ -140,118 +141,91 @@ class Simulation:
         anchors=None,
         comm=None,
     ):
-        arguments = {name: value for name, value in locals().items() if name != "self"}
         from .parallel import world
 
         mpi = world(comm)
-        if mpi is None:
-            self._build(**arguments, mpi=None)
-            return
-        # over MPI processes rank 0 builds the whole net and every other process's part of it
-        from .parallel.ship import build_and_send, receive_simulation
+        if mpi is not None and mpi.Get_rank() > 0:  # (its part comes from rank 0: thermonet.parallel.ship)
+            from .parallel.ship import receive_simulation
 
-        if mpi.Get_rank() > 0:
             receive_simulation(self, mpi, model, threads)
-        else:
-            build_and_send(self, mpi, lambda: self._build(**arguments, mpi=mpi))
+            return
+        if mpi is None:
+            building = nullcontext()
+        else:  # (over MPI processes rank 0 builds the whole net: an error here is raised on every process)
+            from .parallel.ship import errors_told_to_others
 
-    def _build(
-        self,
-        net: Net,
-        model="hencky",
-        parameters: Mapping | None = None,
-        temperatures=None,
-        momenta=None,
-        velocities=None,
-        integrator="co2",
-        h: float = 1e-3,
-        gravity=None,
-        thermal: bool = True,
-        threads: int | None = None,
-        parallel: bool | None = None,
-        renumber: bool = True,
-        integrator_options: Mapping | None = None,
-        backend: str = "cpu",
-        stretch_bounds=STRETCH_BOUNDS,
-        energy_tolerance: float | None = DEFAULT_ENERGY_TOLERANCE,
-        stability_guard="stop",
-        conduction: bool | None = None,
-        conduction_every="auto",
-        thermal_waves: bool | None = None,
-        baths: Mapping | None = None,
-        sources: Mapping | None = None,
-        loads=None,
-        anchors=None,
-        comm=None,
-        mpi=None,
-    ):
-        """The Simulation of the arguments of :meth:`__init__` (over MPI processes, rank 0's:
-        the whole net, and its stepper distributed over ``mpi``)."""
-        if not isinstance(net, Net):
-            raise InputError(f"net must be a thermonet.Net, got {type(net).__name__}")
-        if anchors is not None:
-            net = _with_anchors(net, anchors)
-        self.model = get_model(model)
-        net, parameters, self.continuum = apply_continuum(net, self.model, parameters)
-        model_parameters, transport = split_parameters(parameters)  # the model's, and heat flow's
-        self.net = net
-        self._state: State | None = None
-        self.h = check_step(h)
-        integrator_options = dict(integrator_options or {})
-        stepper_keys = {"tolerance", "max_iterations", "retry", "linear_solver", "rtol", "atol",
-                        "newton_path"}
-        stepper_options = {k: integrator_options.pop(k) for k in list(integrator_options) if k in stepper_keys}
-        try:
-            self.integrator = get_integrator(integrator, **integrator_options)
-        except (InputError, TypeError):
-            unknown = integrator_option_problem(integrator_options)
-            if unknown is None:
-                raise
-            raise InputError(f"integrator {integrator!r}: {unknown}") from None
-        self.backend = check_backend(backend, self.integrator)
-        self.threads = threads
-        self.layout = layout = build_layout(net, renumber=renumber)
-        P_user = self.model.parameter_array(model_parameters, net.n_springs)
-        self.angular_momentum_about = angular_momentum_reference(net)
-        heat = build_heat(net, layout, self.model, P_user, transport, thermal=thermal, conduction=conduction,
-                          waves=thermal_waves, baths=baths, sources=sources)
-        load_set = resolve(loads, net)
-        check_load_support(load_set, self.integrator, self.backend)
-        self.system = build_system(net, self.model, layout, P_user, gravity, thermal, stretch_bounds, heat, load_set)
-        if parallel is None:
-            parallel = threads != 1 and net.n_springs >= PARALLEL_MIN_SPRINGS
-        self.parallel = bool(parallel)
-        self.integrator, self.stepper = assemble(self.integrator, self.system, parallel=self.parallel,
-                                                 backend=self.backend, options=stepper_options,
-                                                 time_origin=self.time_origin)
-        #: the MPI communicator the net is distributed over (None: one process)
-        self.comm = mpi
-        if self.comm is not None:
-            from .parallel.stepper import distribute
+            building = errors_told_to_others(mpi)
+        with building:
+            if not isinstance(net, Net):
+                raise InputError(f"net must be a thermonet.Net, got {type(net).__name__}")
+            if anchors is not None:
+                net = _with_anchors(net, anchors)
+            self.model = get_model(model)
+            net, parameters, self.continuum = apply_continuum(net, self.model, parameters)
+            model_parameters, transport = split_parameters(parameters)  # the model's, and heat flow's
+            self.net = net
+            self._state: State | None = None
+            self.h = check_step(h)
+            integrator_options = dict(integrator_options or {})
+            stepper_keys = {"tolerance", "max_iterations", "retry", "linear_solver", "rtol", "atol",
+                            "newton_path"}
+            stepper_options = {k: integrator_options.pop(k) for k in list(integrator_options) if k in stepper_keys}
+            try:
+                self.integrator = get_integrator(integrator, **integrator_options)
+            except (InputError, TypeError):
+                unknown = integrator_option_problem(integrator_options)
+                if unknown is None:
+                    raise
+                raise InputError(f"integrator {integrator!r}: {unknown}") from None
+            self.backend = check_backend(backend, self.integrator)
+            self.threads = threads
+            self.layout = layout = build_layout(net, renumber=renumber)
+            P_user = self.model.parameter_array(model_parameters, net.n_springs)
+            self.angular_momentum_about = angular_momentum_reference(net)
+            heat = build_heat(net, layout, self.model, P_user, transport, thermal=thermal, conduction=conduction,
+                              waves=thermal_waves, baths=baths, sources=sources)
+            load_set = resolve(loads, net)
+            check_load_support(load_set, self.integrator, self.backend)
+            self.system = build_system(net, self.model, layout, P_user, gravity, thermal, stretch_bounds, heat,
+                                       load_set)
+            if parallel is None:
+                parallel = threads != 1 and net.n_springs >= PARALLEL_MIN_SPRINGS
+            self.parallel = bool(parallel)
+            self.integrator, self.stepper = assemble(self.integrator, self.system, parallel=self.parallel,
+                                                     backend=self.backend, options=stepper_options,
+                                                     time_origin=self.time_origin)
+            #: the MPI communicator the net is distributed over (None: one process)
+            self.comm = mpi
+            if self.comm is not None:
+                from .parallel.stepper import distribute
 
-            self.stepper = distribute(self, self.comm)
-        self.energy_tolerance = check_energy_tolerance(energy_tolerance)
-        self.stability_guard = StabilityGuard(self, guard_mode(stability_guard))  # (the integrator with heat)
-        self._state = initial_state(net, self.model, layout, P_user, thermal, temperatures, momenta, velocities)
-        if heat is not None:
-            heat_logs(self._state, heat)
-        self.conduction_every = check_conduction_every(conduction_every)
-        if heat is not None and heat.conduction and self.conduction_every != "auto":  # cycles counted from step 0
-            heat_logs(self._state, heat)["cycle"][:] = (self.conduction_every, 0)
-        #: (k, why) of the conduction cycle the last run used (None: no conduction, or no run yet)
-        self.conduction_cycle = None
-        hold_driven_axes(self._state, layout, load_set)
-        #: the loads' columns of the diagnostics rows (None without loads)
-        self.loads = None if load_set is None else SimulationLoads(layout, load_set)
-        #: per-group series attached by :meth:`add_probes` (None: none)
-        self.probes = None
-        self.diagnostics = Diagnostics()
-        #: seconds spent stepping (Numba compilation excluded) and steps run, over all runs
-        self.wall_time = 0.0
-        self.steps_run = 0
-        #: seconds ``run`` spent compiling kernels (first runs of a model and integrator)
-        self.compile_time = 0.0
-        self.runner = Runner(self)
+                self.stepper = distribute(self, self.comm)
+            self.energy_tolerance = check_energy_tolerance(energy_tolerance)
+            self.stability_guard = StabilityGuard(self, guard_mode(stability_guard))  # (the integrator with heat)
+            self._state = initial_state(net, self.model, layout, P_user, thermal, temperatures, momenta, velocities)
+            if heat is not None:
+                heat_logs(self._state, heat)
+            self.conduction_every = check_conduction_every(conduction_every)
+            if heat is not None and heat.conduction and self.conduction_every != "auto":  # cycles counted from step 0
+                heat_logs(self._state, heat)["cycle"][:] = (self.conduction_every, 0)
+            #: (k, why) of the conduction cycle the last run used (None: no conduction, or no run yet)
+            self.conduction_cycle = None
+            hold_driven_axes(self._state, layout, load_set)
+            #: the loads' columns of the diagnostics rows (None without loads)
+            self.loads = None if load_set is None else SimulationLoads(layout, load_set)
+            #: per-group series attached by :meth:`add_probes` (None: none)
+            self.probes = None
+            self.diagnostics = Diagnostics()
+            #: seconds spent stepping (Numba compilation excluded) and steps run, over all runs
+            self.wall_time = 0.0
+            self.steps_run = 0
+            #: seconds ``run`` spent compiling kernels (first runs of a model and integrator)
+            self.compile_time = 0.0
+            self.runner = Runner(self)
+        if mpi is not None:  # every other process's part of it sent, rank 0's share kept
+            from .parallel.ship import send_parts
+
+            send_parts(self, mpi)
 
     # ------------------------------------------------------------------------------------------
     # time

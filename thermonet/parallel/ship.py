@@ -23,6 +23,7 @@ from __future__ import annotations
 import gc
 import io
 import pickle
+from contextlib import contextmanager
 
 import numpy as np
 
@@ -149,17 +150,22 @@ def _compiled_key(sim) -> tuple:
             bool(sim.integrator.heat_rows[0]))
 
 
-def build_and_send(sim, comm, build) -> None:
-    """Rank 0: ``build()`` (the whole Simulation ``sim``, its stepper distributed), then every
-    other process's part sent to it, then rank 0 keeps its own share. An error while building is
-    raised on every process (each waits in :func:`receive_simulation`)."""
-    from .stepper import threads_per_process
-
+@contextmanager
+def errors_told_to_others(comm):
+    """Rank 0 building its Simulation: an error raised inside is sent to every other process
+    (waiting in :func:`receive_simulation`, each raises it too), then raised here."""
     try:
-        build()
+        yield
     except Exception as exc:
         _tell_error(comm, range(1, comm.Get_size()), exc)
         raise
+
+
+def send_parts(sim, comm) -> None:
+    """Rank 0, its whole Simulation ``sim`` built (its stepper distributed): every other
+    process's part sent to it, then rank 0 keeps its own share."""
+    from .stepper import threads_per_process
+
     key = _compiled_key(sim)
     for q in range(1, comm.Get_size()):
         comm.send(("built", key), dest=q, tag=TAG_SIZE)
@@ -237,4 +243,4 @@ def receive_simulation(sim, comm, model, threads) -> None:
         sim.threads = here
 
 
-__all__ = ["send_simulation", "receive_simulation"]
+__all__ = ["errors_told_to_others", "send_parts", "send_simulation", "receive_simulation"]
