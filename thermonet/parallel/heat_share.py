@@ -76,14 +76,6 @@ def ranges(sizes: np.ndarray) -> np.ndarray:
     return np.arange(total, dtype=np.int64) - starts
 
 
-def _within(values: np.ndarray, sorted_set: np.ndarray) -> np.ndarray:
-    """(k,) bool: which of ``values`` are in the ascending array ``sorted_set``."""
-    if len(sorted_set) == 0:
-        return np.zeros(len(values), dtype=bool)
-    at = np.minimum(np.searchsorted(sorted_set, values), len(sorted_set) - 1)
-    return sorted_set[at] == values
-
-
 def ascending_set(values: np.ndarray, m: int, without: np.ndarray | None = None) -> np.ndarray:
     """(k,) int64 the distinct ``values`` (in 0..m−1) ascending, but those in ``without``: a mask
     of m bytes (faster than sorting the values for the sizes here)."""
@@ -154,15 +146,15 @@ def heat_shares(order, inc_ptr, inc_spring, bound_spring, bound_ptr, dec, share_
         touched_q = _springs_of(order, inc_ptr, inc_spring, blocks_of(q), m)
         for c in range(n_colours):  # what I change and q holds; what q changes and I hold
             mine = changed[c]
-            add(colours[c].send, q, mine[_within(mine, touched_q) | _within(mine, share_q)])
+            add(colours[c].send, q, mine[np.isin(mine, touched_q) | np.isin(mine, share_q)])
             theirs = _springs_of(order, inc_ptr, inc_spring, blocks_of(q, c), m)
             add(colours[c].recv, q, theirs[held_me[theirs]])
         if has_bound:  # the boundary springs each process reports, to the others holding them
-            add(boundary.send, q, bound_me[_within(bound_me, touched_q) | _within(bound_me, share_q)])
+            add(boundary.send, q, bound_me[np.isin(bound_me, touched_q) | np.isin(bound_me, share_q)])
             theirs = bound_spring[bound_owner == q]
             add(boundary.recv, q, theirs[held_me[theirs]])
         # before a sweep: the further springs' θ from the processes reporting them
-        further_q = touched_q[~_within(touched_q, share_q)]
+        further_q = touched_q[~np.isin(touched_q, share_q)]
         add(start.send, q, further_q[spring_owner[further_q] == rank])
         add(start.recv, q, further_me[spring_owner[further_me] == q])
     bound = np.flatnonzero(bound_owner == rank) if has_bound else np.zeros(0, dtype=np.int64)

@@ -339,16 +339,15 @@ class DistributedStepper(Stepper):
             state.positions = state.momenta = _RELEASED_NODES
             if self.system.thermal:
                 state.thermal_displacement = state.entropy = _RELEASED_SPRINGS
-            logs = self._share_logs(state)
-            for k in logs:
-                logs[k] = _RELEASED_SPRINGS
+            for k in self._share_log_keys(state):
+                state.extra["heat"][k] = _RELEASED_SPRINGS
 
-    def _share_logs(self, state) -> dict:
-        """``state``'s heat-log dict restricted to the logs each process keeps per share
-        (:meth:`DistributedConduction.share_logs`), as a view: {} without conduction."""
+    def _share_log_keys(self, state) -> list:
+        """The keys of ``state``'s heat logs each process keeps per share
+        (:meth:`DistributedConduction.share_logs`): none without conduction."""
         if self._conduction is None:
-            return {}
-        return _LogView(state.extra["heat"], SHARE_LOGS)
+            return []
+        return [k for k in SHARE_LOGS if k in state.extra["heat"]]
 
     def _to_root(self, state, whole: bool = True) -> None:
         """The owned values of every process into ``state``'s whole arrays on rank 0: all of
@@ -369,11 +368,11 @@ class DistributedStepper(Stepper):
             state.positions, state.momenta = np.empty((n, 3)), np.empty((n, 3))
             if self.system.thermal:
                 state.thermal_displacement, state.entropy = np.empty(m), np.empty(m)
-            logs = self._share_logs(state)
-            for k in logs:
-                logs[k] = np.empty(self._entries if k in ENTRY_LOGS else m)
+            for k in self._share_log_keys(state):
+                state.extra["heat"][k] = np.empty(self._entries if k in ENTRY_LOGS else m)
         thermal = [state.entropy, state.thermal_displacement] if self.system.thermal else []
-        broadcast(self.comm, [state.positions, state.momenta] + thermal + list(self._share_logs(state).values()))
+        logs = [state.extra["heat"][k] for k in self._share_log_keys(state)]
+        broadcast(self.comm, [state.positions, state.momenta] + thermal + logs)
         self._fresh = ALL
 
     def on_root(self, state, fn, whole: bool = True, arrays: bool = False):
@@ -408,7 +407,7 @@ class DistributedStepper(Stepper):
                 if kept is None:
                     kept = b.logs[k] = np.empty_like(part)
                 np.copyto(kept, part)
-        copy_extra(_without(state.extra, self._share_logs(state)), b.extra)
+        copy_extra(_without(state.extra, self._share_log_keys(state)), b.extra)
         return b
 
     def restore_state(self, backup, state, entropy: bool = True) -> None:
@@ -549,26 +548,13 @@ class _OwnedGather:
                 state.thermal_displacement[springs] = recv[at:at + j]
 
 
-class _LogView(dict):
-    """The entries ``keys`` of a heat-log dict: reads as a dict of them; setting one sets it in
-    the logs."""
-
-    def __init__(self, logs: dict, keys: tuple):
-        super().__init__((k, logs[k]) for k in keys if k in logs)
-        self._logs = logs
-
-    def __setitem__(self, key, value):
-        super().__setitem__(key, value)
-        self._logs[key] = value
-
-
 #: the heat logs each process keeps per share (DistributedConduction.share_logs), per entry the last two
 ENTRY_LOGS = ("entry_heat", "entry_flux")
 SHARE_LOGS = PER_SPRING_LOGS + ENTRY_LOGS
 
 
-def _without(extra: dict, logs: dict) -> dict:
-    """``extra`` without the heat logs in ``logs`` (a shallow copy; nothing copied where none)."""
+def _without(extra: dict, logs: list) -> dict:
+    """``extra`` without the heat logs named in ``logs`` (a shallow copy; nothing copied where none)."""
     if not logs:
         return extra
     heat = {k: v for k, v in extra["heat"].items() if k not in logs}
