@@ -8,17 +8,24 @@ row every process makes from its share).
 CALLS: the calls' lengths, comma-separated; per EVERY:PARTS (the cycle's steps, the
 partitioner) rank 0 prints "same" or "DIFFERENT: <what>", then "share only" where the processes
 other than rank 0 hold nothing of the whole net's size after conducting calls and diagnostics
-rows, and no whole state or heat log was put together for the rows ("WHOLE: <what>" else). ARGS: a ``thermonet`` command run
+rows and a checkpoint (each process writes its piece), no whole state or heat log was put
+together for them, and a piece that cannot be written keeps the previous checkpoint ("WHOLE:
+<what>" else). ARGS: a ``thermonet`` command run
 first over the same processes (the test's resumed run: one launch instead of two)."""
 
 import os
+import shutil
 import sys
+import tempfile
+from contextlib import contextmanager
 
 import numpy as np
 from mpi4py import MPI
 from mpi_held import builds_nothing_whole_here, whole_net_arrays
 
 from thermonet.heat.logs import heat_logs
+from thermonet.io import RunOutput
+from thermonet.parallel import pieces
 from thermonet.parallel.stepper import PARTITION_VARIABLE
 from thermonet.parallel.world import LAUNCHER_VARIABLES
 from thermonet.scenes import load_scene
@@ -61,9 +68,47 @@ def holds_its_share_only() -> str:
         to_root = holder.to_root
         holder.to_root = lambda *args, _f=to_root, **kwargs: (gathers.append(1), _f(*args, **kwargs))
     sim.run(steps=4, diagnostics_every=2)
+    folder = sim.comm.bcast(tempfile.mkdtemp() if sim.comm.Get_rank() == 0 else None)
+    out = RunOutput.for_simulation(sim, folder, "shock", frames_every=0, checkpoint_every=4)
+    out.write_checkpoint(sim)  # (each process its piece: nothing put together)
     found = ([f"{len(gathers)} gathers"] if gathers else []) + whole_net_arrays(sim)
+    found += failed_piece_keeps_the_checkpoint(sim, out)
     found = sum(sim.comm.allgather(found), [])
+    if sim.comm.Get_rank() == 0:
+        shutil.rmtree(folder)
     return "only" if not found else "WHOLE: " + "; ".join(found)
+
+
+def failed_piece_keeps_the_checkpoint(sim, out) -> list:
+    """[] where a piece the last process cannot write stops the checkpoint on every process
+    with an error naming it, and the previous checkpoint stays whole and readable; else what went
+    wrong."""
+    from thermonet.errors import OutputError
+    from thermonet.io import load_checkpoint
+
+    last = sim.comm.Get_size() - 1
+    sim.run(steps=2)
+
+    @contextmanager
+    def full_disk(path, mode="wb"):
+        raise OSError(28, "No space left on device", path)
+
+    saved = pieces.atomic_write
+    if sim.comm.Get_rank() == last:
+        pieces.atomic_write = full_disk
+    try:
+        out.write_checkpoint(sim)
+        return ["a piece that failed did not stop the checkpoint"]
+    except OutputError as exc:
+        if f"piece-{last:05d}.npz: No space left on device" not in str(exc) or "previous one is kept" not in str(exc):
+            return [f"the error does not name the piece: {exc}"]
+    finally:
+        pieces.atomic_write = saved
+    sim.comm.Barrier()
+    state, _ = load_checkpoint(out.checkpoint_path)
+    if state.step != 4 or len(os.listdir(pieces.pieces_folder(out.checkpoint_path))) != 1:
+        return [f"the checkpoint kept is of step {state.step}, not 4, or the failed pieces were not removed"]
+    return []
 
 
 if "--" in sys.argv:

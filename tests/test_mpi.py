@@ -2,14 +2,17 @@
 
 The default scene runs in this process (which also fills Numba's disk cache: the processes
 started by ``mpiexec`` then load the kernels instead of compiling them) and over 2 processes, cut
-in two and resumed; the tensile scene (a drive) with a multi-stage splitting (a halo exchange per
+in two and resumed on 3 and in one process; the tensile scene (a drive) with a multi-stage splitting (a halo exchange per
 stage) over 3; the thermal-shock scene (conduction from a bath, multirate) over 2, resumed on 3;
-their diagnostics and probe files, checkpoints and frames (ParaView's parallel pieces, joined
-back by the node and spring numbers they carry) must be the same bytes.
+their diagnostics and probe files, checkpoints (one piece per process, put back together) and
+frames (ParaView's parallel pieces, joined back by the node and spring numbers they carry) must be
+the same bytes. A checkpoint with a piece missing, foreign or damaged is refused, naming it.
 Effects the distributed step does not carry are refused in one line naming them.
 """
 
 import importlib.util
+import io
+import json
 import os
 import shutil
 import subprocess
@@ -59,9 +62,26 @@ def mpirun(ranks: int, *args, timeout: int = 300, module: bool = True) -> subpro
 
 
 def checkpoint(folder, name: str = "truss_block") -> dict:
+    """The checkpoint's state as the arrays of a one-file checkpoint (a run over processes writes
+    a manifest and one piece per process: put together by load_checkpoint)."""
+    state, _ = tn.io.load_checkpoint(os.path.join(folder, f"{name}.checkpoint.npz"))
+    out = {k: getattr(state, k) for k in ("positions", "momenta", "entropy", "thermal_displacement")
+           if getattr(state, k) is not None}
+    out.update(time=np.float64(state.time), step=np.int64(state.step))
+    out.update({f"heat_{k}": v for k, v in state.extra.pop("heat", {}).items()})
+    out.update({f"extra.{k}": v for k, v in state.extra.items()})
+    return out
+
+
+def pieces_of(folder, name: str = "truss_block") -> list:
+    """[(format, the pieces' folders, the pieces in the one listed)] of a run's checkpoint."""
     path = os.path.join(folder, f"{name}.checkpoint.npz")
     with np.load(path) as z:
-        return {k: z[k] for k in z.files if k != "meta"}
+        meta = json.loads(bytes(z["meta"]).decode())
+    base = path[:-len(".npz")] + ".pieces"
+    listed = os.path.join(folder, meta["pieces"]["folder"]) if "pieces" in meta else None
+    return [meta["format"], sorted(os.listdir(base)) if os.path.isdir(base) else [],
+            sorted(os.listdir(listed)) if listed else []]
 
 
 def assert_same_run(one, many, name: str = "truss_block") -> None:
@@ -181,7 +201,9 @@ def one_process(tmp_path_factory):
 
 @needs_mpi
 def test_two_processes_cut_in_two_and_resumed_on_three_are_one_process_bit_for_bit(one_process, tmp_path):
-    """The checkpoint holds the whole state: a run cut on 2 processes continues on 3. In the same
+    """A run cut on 2 processes (a checkpoint of two pieces and a manifest) continues on 3 (whose
+    checkpoint replaces the two pieces by three) and in one process (whose one-file checkpoint
+    replaces the pieces), bit for bit. In the same
     launch of 2 processes, every kind of splitting over them and alone: drift first (F10, BM6A), a
     kick of 0 (GTR-0, GTR-1), no Φ (NM2), a composition (CO4); then CO2 continued at a step that
     blows up (the good steps replayed from the runner's backup of the shares) and at one the
@@ -192,14 +214,65 @@ def test_two_processes_cut_in_two_and_resumed_on_three_are_one_process_bit_for_b
                   "--out", str(out), "--set", "integrator.t_end=0.02", *RUN, module=False)
     assert done.stdout.split() == [w for n in names for w in (n, "same")] + ["share", "only"], done.stdout
     assert checkpoint(out)["step"] == 100
+    cut = pieces_of(out)
+    assert cut[0] == "thermonet-checkpoint-pieces-1" and len(cut[1]) == 1, cut
+    assert cut[2] == ["piece-00000.npz", "piece-00001.npz"]
+    alone = tmp_path / "alone"  # (the pieces of 2 processes continued in one)
+    shutil.copytree(out, alone)
     mpirun(3, "run", "--resume", str(out), *SHORT, "--quiet")
     assert_same_run(one_process, out)
+    resumed = pieces_of(out)  # (the pieces of the checkpoint resumed from removed)
+    assert len(resumed[1]) == 1 and resumed[1] != cut[1] and len(resumed[2]) == 3, resumed
+    assert main(["run", "--resume", str(alone), *SHORT, "--quiet"]) == 0
+    assert_same_run(one_process, alone)
+    assert pieces_of(alone) == ["thermonet-checkpoint-1", [], []]
     # frame 0 from two pieces; 100 (rewritten on resume) and 200 from three
     assert assert_same_frames(one_process, out, (2, 3)) == [2, 3, 3]
     from thermonet.io.folder import run_files  # (--overwrite removes them, a new run is refused)
 
     assert {"truss_block_000000.pvtu", "truss_block_000000_p1.vtu", "truss_block_000002_p2.vtu"} <= set(run_files(out))
     assert not [f for f in os.listdir(out) if f.endswith(".vtu") and "_p" not in f]  # pieces only
+
+
+@needs_mpi
+def test_a_checkpoint_with_a_piece_missing_foreign_or_damaged_is_refused_naming_it(tmp_path):
+    """A checkpoint written by 2 processes (a manifest and two pieces) read back whole; then with
+    one piece deleted, of another checkpoint, truncated, or holding a node the other holds: each
+    refused with an error naming the piece."""
+    from thermonet.io import load_checkpoint
+
+    mpirun(2, "run", DEFAULT, "--out", str(tmp_path), "--set", "integrator.t_end=0.004", "--set",
+           "output.checkpoint_every=2", "--quiet")
+    path = tmp_path / "truss_block.checkpoint.npz"
+    whole, _ = load_checkpoint(path)
+    assert whole.step == 20 and np.isfinite(whole.positions).all()
+    piece = tmp_path / "truss_block.checkpoint.pieces" / pieces_of(tmp_path)[1][0] / "piece-00001.npz"
+    kept = piece.read_bytes()
+    with np.load(io.BytesIO(kept)) as z:
+        arrays = {k: z[k] for k in z.files}
+
+    def rewritten(**changed):
+        header = {**json.loads(bytes(arrays["meta"]).decode()), **changed.pop("header", {})}
+        meta = np.frombuffer(json.dumps(header).encode(), dtype=np.uint8)
+        with open(piece, "wb") as f:
+            np.savez(f, **{**arrays, **changed, "meta": meta})
+
+    piece.unlink()
+    with pytest.raises(InputError, match=r"piece-00001\.npz: no such checkpoint piece"):
+        load_checkpoint(path)
+    rewritten(header={"tag": "000000002-00000000"})  # (as the pieces of step 2 were)
+    with pytest.raises(InputError, match=r"piece-00001\.npz: a piece of another checkpoint"):
+        load_checkpoint(path)
+    piece.write_bytes(kept[:len(kept) // 2])
+    with pytest.raises(InputError, match=r"piece-00001\.npz: not a readable thermonet checkpoint piece"):
+        load_checkpoint(path)
+    first = np.load(piece.parent / "piece-00000.npz")["nodes"][0]
+    rewritten(nodes=np.concatenate([[first], arrays["nodes"][1:]]))
+    with pytest.raises(InputError, match=rf"piece-00001\.npz: node {first} is in another piece too"):
+        load_checkpoint(path)
+    piece.write_bytes(kept)
+    again, _ = load_checkpoint(path)
+    assert np.array_equal(again.positions, whole.positions)
 
 
 @needs_mpi

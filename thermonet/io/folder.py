@@ -3,31 +3,36 @@ removing them on request, and cleaning up after a killed run.
 
 A run's files are ``<name>.pvd``, its ``<name>_NNNNNN.vtu`` frames (over MPI processes
 ``<name>_NNNNNN.pvtu`` and its pieces ``<name>_NNNNNN_p<rank>.vtu``), ``diagnostics.csv``,
-``probe_<name>.csv``, ``summary.json``, ``<name>.checkpoint.npz``, ``scene-as-run.toml``,
-``run.log`` and, after a process was killed while writing, the
-temporary files of atomic writes (``*.tmp-<pid>``, ``diagnostics.csv.tmp``).
+``probe_<name>.csv``, ``summary.json``, ``<name>.checkpoint.npz`` (over MPI processes with the
+folder of its pieces ``<name>.checkpoint.pieces``), ``scene-as-run.toml``, ``run.log`` and, after
+a process was killed while writing, the temporary files of atomic writes (``*.tmp-<pid>``,
+``diagnostics.csv.tmp``).
 """
 
 from __future__ import annotations
 
 import os
 import re
+import shutil
 
 from ..errors import InputError, OutputError
 
 _RUN_FILE = re.compile(r"(.+\.pvd|.+_\d{6}\.vtu|.+_\d{6}_p\d+\.vtu|.+_\d{6}\.pvtu|.+\.checkpoint\.npz"
                        r"|diagnostics\.csv|summary\.json|probe_.+\.csv|scene-as-run\.toml|run\.log)$")
 _TEMPORARY = re.compile(r".+\.tmp(-\d+)?$")
+_RUN_FOLDER = re.compile(r".+\.checkpoint\.pieces$")
 
 
 def run_files(folder) -> list[str]:
-    """Names of the files in ``folder`` that a run writes (temporaries included), sorted."""
+    """Names of the files in ``folder`` that a run writes (temporaries included) and of the
+    folder of its checkpoint's pieces, sorted."""
     try:
         names = os.listdir(folder)
     except OSError:
         return []
-    return sorted(n for n in names if (_RUN_FILE.match(n) or _TEMPORARY.match(n))
-                  and os.path.isfile(os.path.join(folder, n)))
+    return sorted(n for n in names if ((_RUN_FILE.match(n) or _TEMPORARY.match(n))
+                                       and os.path.isfile(os.path.join(folder, n)))
+                  or (_RUN_FOLDER.match(n) and os.path.isdir(os.path.join(folder, n))))
 
 
 def stale_temporaries(folder) -> list[str]:
@@ -61,7 +66,11 @@ def prepare_output_folder(folder, *, overwrite: bool = False) -> list[str]:
         os.makedirs(folder, exist_ok=True)
         check_writable(folder)
         for name in previous:
-            os.unlink(os.path.join(folder, name))
+            path = os.path.join(folder, name)
+            if os.path.isdir(path):  # (a checkpoint's pieces)
+                shutil.rmtree(path)
+            else:
+                os.unlink(path)
     except OSError as exc:
         raise OutputError(f"--out {folder}: cannot write the output folder: {describe_os_error(exc)}") from None
     return previous

@@ -1,8 +1,9 @@
 """The files of one run, written by observers outside the time-stepping loop.
 
 ``OUTDIR/<name>.pvd`` indexes ``OUTDIR/<name>_NNNNNN.vtu`` frames; ``OUTDIR/diagnostics.csv``;
-``OUTDIR/summary.json``; ``OUTDIR/<name>.checkpoint.npz`` (the latest checkpoint). Everything is
-in the user's numbering and written atomically.
+``OUTDIR/summary.json``; ``OUTDIR/<name>.checkpoint.npz`` (the latest checkpoint; over MPI
+processes a manifest of the pieces in ``OUTDIR/<name>.checkpoint.pieces/``, one per process).
+Everything is in the user's numbering and written atomically.
 
 A frame is filled from the state at its step, then written to disk by a writer thread while the
 run goes on: direct to the device where the file system allows (``O_DIRECT``: no copy into the
@@ -21,6 +22,7 @@ from __future__ import annotations
 import json
 import os
 import platform
+import shutil
 import time as _time
 from concurrent.futures import ThreadPoolExecutor
 
@@ -32,7 +34,7 @@ from ..errors import InputError
 from ..parallel.frames import PieceWriter
 from ..parallel.world import on_root
 from .atomic import atomic_write, direct_writes_possible, release_page_cache
-from .checkpoint import load_checkpoint, save_checkpoint
+from .checkpoint import load_checkpoint, pieces_folder, save_checkpoint
 from .folder import check_writable, prepare_output_folder, remove_stale_temporaries
 from .pvd import PVDIndex
 from .vtu import FrameImage, VTUWriter
@@ -323,9 +325,14 @@ class RunOutput:
             "wall_time_s": sim.wall_time,
             "steps_run": sim.steps_run,
         }
-        # over MPI processes the whole state is put together on rank 0 from the shares, and rank 0
-        # writes it (one checkpoint resumes on any count)
-        sim.on_root(lambda: save_checkpoint(self.checkpoint_path, sim.state, meta))
+        if getattr(sim, "comm", None) is not None:  # over MPI processes: one piece each, and a manifest
+            from ..parallel.pieces import write_pieces
+
+            write_pieces(sim, self.checkpoint_path, meta)
+        else:
+            save_checkpoint(self.checkpoint_path, sim.state, meta)
+            # (a run over processes continued in one: its pieces are no longer listed)
+            shutil.rmtree(pieces_folder(self.checkpoint_path), ignore_errors=True)
         self.checkpoint_step = sim.step
         self.write_csv()
 

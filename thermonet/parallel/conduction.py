@@ -66,6 +66,12 @@ class DistributedConduction:
         steps in place), keyed as the whole ones."""
         return {"length": self._length, "theta": self._theta_log, **self._sweep.share_logs()}
 
+    @property
+    def entries(self) -> np.ndarray:
+        """(E_r,) int64 the bath and source entries whose logs this process keeps (whole-net
+        entry numbers: the same in every numbering)."""
+        return self._sweep.part.entries
+
     def to_root(self, state) -> None:
         """The shares' heat logs into ``state``'s whole ones on rank 0 (every process must call it)."""
         self._sweep.to_root(state.extra["heat"], [(self._length, state.extra["heat"]["length"]),

@@ -174,7 +174,7 @@ class DistributedStepper(Stepper):
         self._scratch = records.scratch(nl, ml, thermal)
         self._no_heat = records.no_heat_cpu()
         self._bad = np.zeros(1, dtype=np.int64)
-        self._gather = _OwnedGather(dec, sh, thermal, conducting, self.rank)
+        self._gather = _OwnedGather(dec, sh, thermal, conducting, self.rank, system.layout)
         #: (state, step) whose closing kick left the share's spring energies (advance(..., measure))
         self._measured = None
         #: (ml,) uint8: the share's springs this process reports, whose U and η its diagnostics
@@ -438,6 +438,25 @@ class DistributedStepper(Stepper):
     def _share_arrays(self) -> tuple:
         return self._x, self._p, self._phi, self._eta
 
+    def piece(self, state) -> dict:
+        """This process's part of ``state`` as a checkpoint piece keeps it, keyed as the
+        checkpoint's arrays (:mod:`thermonet.parallel.pieces`): ``nodes`` (n_r,) its nodes in the
+        user's numbering with their ``positions``, ``momenta`` (n_r, 3); ``springs`` (m_r,) the
+        springs it reports with their ``thermal_displacement``, ``entropy`` and per-spring heat
+        logs ``heat_<name>``; ``entries`` (E_r,) its bath and source entries with their logs. Each
+        node, spring and entry is in exactly one process's piece. Copies; nothing is sent."""
+        self._bind(state)
+        g = self._gather
+        out = {"nodes": g.user_nodes, "positions": self._x[g.local_nodes], "momenta": self._p[g.local_nodes]}
+        if self.system.thermal:
+            out.update(springs=g.user_springs, thermal_displacement=self._phi[g.local_springs],
+                       entropy=self._eta[g.local_springs])
+        if self._conduction is not None:
+            for k, part in self._conduction.share_logs().items():
+                out[f"heat_{k}"] = part.copy() if k in ENTRY_LOGS else part[g.local_springs]
+            out["entries"] = self._conduction.entries
+        return out
+
     def summary(self) -> dict | None:
         return None
 
@@ -490,12 +509,19 @@ class _OwnedGather:
     """Where each process's owned nodes and reported springs go in the whole state: one
     ``Gatherv`` to rank 0 of [x (3 n_q), p (3 n_q), η (m_q, with conduction), Φ (m_q)] per
     process q, or, for a diagnostics row (which does not read Φ), of all but Φ. Rank 0 alone
-    holds the whole-net index lists and the receive buffer."""
+    holds the whole-net index lists and the receive buffer; each process the user's numbers of
+    its own nodes and springs (its checkpoint piece names them: :mod:`thermonet.parallel.pieces`).
 
-    def __init__(self, dec, sh, thermal: bool, conducting: bool, rank: int):
+    local_nodes, local_springs: (n_r,), (m_r,) int64 positions in the share of the owned nodes and
+    reported springs; user_nodes, user_springs: the same nodes and springs in the user's numbering.
+    """
+
+    def __init__(self, dec, sh, thermal: bool, conducting: bool, rank: int, layout):
         self.thermal, self.conducting = thermal, conducting
         self.local_nodes = np.flatnonzero(sh.owned)
         self.local_springs = np.searchsorted(sh.springs, dec.owned_springs(rank))
+        self.user_nodes = np.take(layout.node_order, sh.nodes[self.local_nodes]).astype(np.int64)
+        self.user_springs = np.take(layout.spring_order, sh.springs[self.local_springs]).astype(np.int64)
         node_counts = np.bincount(dec.owner, minlength=dec.size)
         spring_counts = np.bincount(dec.spring_owner, minlength=dec.size)
         row = 6 * node_counts + (spring_counts if conducting else 0)
