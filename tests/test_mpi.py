@@ -49,15 +49,15 @@ needs_mpi = pytest.mark.skipif(MPIEXEC is None or importlib.util.find_spec("mpi4
                                reason="needs mpi4py and mpiexec (pip install 'thermonet[mpi]')")
 
 
-def mpirun(ranks: int, *args, timeout: int = 300, module: bool = True) -> subprocess.CompletedProcess:
+def mpirun(ranks: int, *args, timeout: int = 300, module: bool = True, ok: bool = True) -> subprocess.CompletedProcess:
     """``mpiexec -n ranks python -m thermonet *args`` (``python *args`` unless ``module``) with
-    this checkout on the path."""
+    this checkout on the path; ``ok``: its exit status must be 0."""
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([ROOT, os.environ.get("PYTHONPATH", "")]),
                NUMBA_NUM_THREADS="1")
     command = [sys.executable, "-m", "thermonet", *args] if module else [sys.executable, *args]
     done = subprocess.run([MPIEXEC, "-n", str(ranks), *command], env=env, capture_output=True, text=True,
                           timeout=timeout)
-    assert done.returncode == 0, done.stdout + done.stderr
+    assert done.returncode == 0 or not ok, done.stdout + done.stderr
     return done
 
 
@@ -232,6 +232,19 @@ def test_two_processes_cut_in_two_and_resumed_on_three_are_one_process_bit_for_b
 
     assert {"truss_block_000000.pvtu", "truss_block_000000_p1.vtu", "truss_block_000002_p2.vtu"} <= set(run_files(out))
     assert not [f for f in os.listdir(out) if f.endswith(".vtu") and "_p" not in f]  # pieces only
+
+
+@needs_mpi
+def test_a_run_on_two_processes_killed_after_a_checkpoint_resumes_bit_for_bit(one_process, tmp_path):
+    """The default scene on 2 processes, killed at step 150 by one process's abort (its checkpoint
+    of step 100 is then the last), resumed on 2: the one-process run's rows and state."""
+    out = tmp_path / "run"
+    killed = mpirun(2, os.path.join(ROOT, "tests", "mpi_killed.py"), "150", "run", DEFAULT, "--out", str(out),
+                    *SHORT, *RUN, "--set", "output.checkpoint_every=100", module=False, ok=False)
+    assert killed.returncode != 0
+    assert checkpoint(out)["step"] == 100
+    mpirun(2, "run", "--resume", str(out), "--quiet")
+    assert_same_run(one_process, out)
 
 
 @needs_mpi
