@@ -152,7 +152,10 @@ def _assembled(path: str, z, meta: dict) -> State:
             "entries": np.zeros(entries, dtype=bool)}
     for q, (name, size) in enumerate(zip(files, sizes)):
         piece_path = os.path.join(folder, name)
-        p, header = _open(piece_path, (PIECE_FORMAT,), f"checkpoint piece (listed in {path})")
+        try:
+            p, header = _open(piece_path, (PIECE_FORMAT,), "checkpoint piece")
+        except InputError as exc:
+            raise InputError(f"{exc} (one of the {len(files)} pieces {path} lists)") from None
         try:
             if (header.get("tag"), header.get("process"), header.get("processes")) != (tag, q, len(files)):
                 raise InputError(f"{piece_path}: a piece of another checkpoint (process {header.get('process')} of "
@@ -201,6 +204,6 @@ def _place(path: str, p, size: list, whole: dict, held: dict) -> None:
         seen[idx] = True
     for k, values in arrays.items():
         idx = index[_INDEX_OF.get(k, "springs")]
-        if values.shape[:1] != idx.shape:
-            raise InputError(f"{path}: {k} has {values.shape[0]} rows for {len(idx)} {_INDEX_OF.get(k, 'springs')}")
+        if values.shape != (len(idx),) + whole[k].shape[1:]:
+            raise InputError(f"{path}: {k} has shape {values.shape} for {len(idx)} {_INDEX_OF.get(k, 'springs')}")
         whole[k][idx] = values
