@@ -374,7 +374,7 @@ class Simulation:
         """``fn()`` with the whole state at hand: in one process, simply called; over MPI processes
         (a step every process takes), run by rank 0 with the state put together there (x, p, η,
         and Φ where ``whole``), its result or its error given to every process. For what needs
-        the whole net (diagnostics rows, frames, checkpoints, guards): the other processes hold
+        the whole net (diagnostics rows with loads, frames, guards): the other processes hold
         their shares only (docs/parallel.md). ``arrays``: a result holding large arrays (sent
         as buffers rather than pickled)."""
         if self.comm is None or self.stepper.local:  # (rank 0 already inside one)

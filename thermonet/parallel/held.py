@@ -6,7 +6,7 @@ stand-in (the net's arrays, the system's per-spring parameters, rest lengths and
 layout's orders, spring ends and incidence lists, the heat setup's per-spring and per-entry
 arrays, the loads' per-node arrays) and the net a :class:`RankNet` (its size and groups). Work
 that reads them runs on rank 0 (``Simulation.on_root``: the diagnostics rows with loads, frames,
-checkpoints, guards, reads of ``sim.state`` for every process, loaded states); a read of one
+checkpoints' manifests, guards, reads of ``sim.state`` for every process, loaded states); a read of one
 elsewhere fails with a :class:`NotHeldError` naming it. The lists of those arrays are here.
 """
 

@@ -2,7 +2,7 @@
 processes never build, hold or receive the whole net.
 
 Rank 0 builds the whole :class:`~thermonet.simulation.Simulation` (it writes the frames,
-checkpoints and rows with loads from it); the others wait. It then builds, for each other
+the checkpoints' manifests and rows with loads from it); the others wait. It then builds, for each other
 process q, q's :class:`~thermonet.parallel.stepper.DistributedStepper` from the whole net (its
 share, records, halo lists, conduction plan and part of the setup, loads, and its share of the
 initial state and heat logs: :meth:`~thermonet.parallel.stepper.DistributedStepper.for_rank`)

@@ -15,8 +15,8 @@ Simulation's state is the one they were taken from (:meth:`DistributedStepper._b
 loaded or replaced is taken again) and leaves its result there. The whole net's arrays are put
 together only when something reads them (a diagnostics row does not: each process reduces its
 share into exact sums, added over the processes, :meth:`~DistributedStepper.row_sums`);
-:meth:`~DistributedStepper.sync` (``Simulation.internal_state``: frames, probes, checkpoints,
-``sim.state``) gives them to every process, so reading them is a step every process takes. The
+:meth:`~DistributedStepper.sync` (``Simulation.internal_state``: frames, probes, ``sim.state``;
+a checkpoint is written in pieces, :meth:`~DistributedStepper.piece`) gives them to every process, so reading them is a step every process takes. The
 runner's backup for blow-up replays is a copy of the shares (:meth:`~DistributedStepper.backup_state`).
 Between a call's end and the next read, processes other than rank 0 hold no whole x, p, Φ, η or heat
 logs (empty arrays stand in for them, so a read that skipped ``sync`` fails instead of seeing old
