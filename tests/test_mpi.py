@@ -2,12 +2,13 @@
 
 The default scene runs in this process (which also fills Numba's disk cache: the processes
 started by ``mpiexec`` then load the kernels instead of compiling them) and over 2 processes, cut
-in two and resumed on 3 and in one process; the tensile scene (a drive) with a multi-stage splitting (a halo exchange per
-stage) over 3; the thermal-shock scene (conduction from a bath, multirate) over 2, resumed on 3;
-their diagnostics and probe files, checkpoints (one piece per process, put back together) and
-frames (ParaView's parallel pieces, joined back by the node and spring numbers they carry) must be
-the same bytes. A checkpoint with a piece missing, foreign or damaged is refused, naming it.
-Effects the distributed step does not carry are refused in one line naming them.
+in two and resumed on 3 and in one process, and killed and resumed on 2; the tensile scene (a
+drive) with a multi-stage splitting (a halo exchange per stage) over 3; the thermal-shock scene
+(conduction from a bath, multirate) over 2, resumed on 3; their diagnostics and probe files,
+checkpoints (one piece per process, put back together) and frames (ParaView's parallel pieces,
+joined back by the node and spring numbers they carry) must be the same bytes. A checkpoint with
+a piece missing, foreign or damaged is refused, naming it. Effects the distributed step does not
+carry are refused in one line naming them.
 """
 
 import importlib.util
