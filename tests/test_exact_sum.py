@@ -49,6 +49,30 @@ def test_special_values_are_those_of_an_ieee_sum_in_any_order():
     assert exact.exact_sum([5e-324, 5e-324, 5e-324]) == 1.5e-323  # subnormals exactly
 
 
+def test_halfway_sums_round_to_even_and_any_bit_below_breaks_the_tie():
+    """Sums exactly halfway between two floats (at every scale, the subnormals' included) round
+    to the even one; a bit far below the halfway point, or above it, decides; the largest float
+    plus half its spacing is +inf. As math.fsum rounds them."""
+    rng = np.random.default_rng(5)
+    cases = [[2.0 ** 1023 * (2 - 2.0 ** -52), 2.0 ** 970]]  # (beyond the range)
+    for e in list(rng.integers(-1074, 970, 300)) + [-1074, -1073, -1023, -1022, -1021, -1000, 0, 969]:
+        e = int(e)
+        for odd in (0, 1):
+            base = math.ldexp(float((1 << 52) + 2 * int(rng.integers(0, 1 << 50)) + odd), e)
+            half = math.ldexp(1.0, e - 1)  # half the spacing at base (the subnormals' smallest: 0)
+            below = [math.ldexp(1.0, max(e - 1 - k, -1074)) for k in (1, 60, 500)]
+            cases += [[base, half], [-base, -half], [base, half, below[0]], [base, half, -below[1]],
+                      [base, half, below[2], -below[2]], [half, base, -half, -half]]
+    for c in cases:
+        c = [x for x in c if x != 0.0]
+        got = exact.exact_sum(c)
+        try:
+            want = math.fsum(c)
+        except OverflowError:
+            want = math.inf
+        assert got.hex() == want.hex(), (c, got, want)
+
+
 def test_a_normalized_accumulator_keeps_its_digits_in_range():
     acc = exact.new()
     exact.add_array(acc, -np.abs(terms(9)))

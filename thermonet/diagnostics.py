@@ -88,7 +88,7 @@ def row_sums(system, x, p, eta, edges, springs, nodes, uniform: bool, counted=EV
 def sums_of(acc: np.ndarray, theta_min: float, theta_max: float, thermal: bool) -> dict:
     """The rounded sums of the accumulators of :func:`row_sums` (of the whole net: added over the
     processes' shares where there are several), keyed as :func:`diagnostics_row`'s arguments."""
-    v = [exact.value(a) for a in acc]
+    v = exact.values(acc).tolist()
     kinetic, potential, px, py, pz, Lx, Ly, Lz = v[NODES:]
     return dict(kinetic=kinetic, internal=v[INTERNAL], potential=potential,
                 entropy=v[ENTROPY] if thermal else None, momentum=(px, py, pz), angular_momentum=(Lx, Ly, Lz),

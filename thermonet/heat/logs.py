@@ -49,11 +49,12 @@ def heat_sums(produced: np.ndarray, entry_heat: np.ndarray, entry_flux: np.ndarr
 def heat_columns_of(heat, acc: np.ndarray) -> dict:
     """The logged columns from the accumulators of :func:`heat_sums` (of the whole net: added
     over the processes' shares where there are several)."""
-    row = {"entropy_produced": exact.value(acc[0])}
+    v = exact.values(acc).tolist()
+    row = {"entropy_produced": v[0]}
     for i, name in enumerate(heat.names):
-        row[f"heat_{name}"] = exact.value(acc[3 + i])
-    row["heat_in"] = exact.value(acc[2])
-    row["entropy_in"] = exact.value(acc[1])
+        row[f"heat_{name}"] = v[3 + i]
+    row["heat_in"] = v[2]
+    row["entropy_in"] = v[1]
     return row
 
 

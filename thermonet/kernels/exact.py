@@ -190,30 +190,99 @@ def combine(accumulators) -> np.ndarray:
     return np.sum(np.asarray(accumulators, dtype=np.int64), axis=0)
 
 
-#: Σ_{i < CHUNKS} 2^(32 i)
-_ONES = ((1 << (DIGIT * CHUNKS)) - 1) // ((1 << DIGIT) - 1)
+@njit(cache=True, error_model="numpy", boundscheck=False)
+def _round(acc) -> float:
+    """The exact sum of the digits of ``acc`` (WIDTH,) int64, none of its special counters set,
+    rounded once to the nearest float64 (ties to even; ±inf beyond the range)."""
+    d = acc[:CHUNKS].copy()
+    normalize(d)  # (digits in [0, 2^32), the top one signed)
+    negative = d[CHUNKS - 1] < 0
+    if negative:  # the magnitude: every digit negated, carried again
+        for i in range(CHUNKS):
+            d[i] = -d[i]
+        normalize(d)
+    t = CHUNKS - 1
+    while t >= 0 and d[t] == 0:
+        t -= 1
+    if t < 0:
+        return 0.0
+    # the top four digits as one 128-bit number H:L whose lowest bit is digit t − 3's (digits
+    # below 0 are zero); H ≥ 2^32, so H:L holds at least 96 significant bits
+    d3 = np.uint64(d[t - 3]) if t >= 3 else np.uint64(0)
+    d2 = np.uint64(d[t - 2]) if t >= 2 else np.uint64(0)
+    d1 = np.uint64(d[t - 1]) if t >= 1 else np.uint64(0)
+    high = (np.uint64(d[t]) << np.uint64(32)) | d1
+    low = (d2 << np.uint64(32)) | d3
+    sticky = False
+    for i in range(t - 3):
+        if d[i] != 0:
+            sticky = True
+            break
+    bits = 0  # the bit length of high (33 to 64)
+    probe = high
+    while probe:
+        probe >>= np.uint64(1)
+        bits += 1
+    base = DIGIT * (t - 3) - 1074  # the weight of H:L's lowest bit is 2^base
+    if base + 64 + bits <= -1074 + 53:  # below 2^53 units of 2^-1074 (so t ≤ 1, low = 0): exact
+        r = np.ldexp(np.float64(high), np.int32(base + 64))
+        return -r if negative else r
+    # keep the top 53 bits of H:L (on the subnormal grid where the sum lies below 2^-1022)
+    shift = bits + 64 - 53
+    if base + shift < -1074:
+        shift = -1074 - base
+    if shift >= 64:
+        s = np.uint64(shift - 64)
+        mantissa = high >> s
+        below = high & ((np.uint64(1) << s) - np.uint64(1)) if s > 0 else np.uint64(0)
+        half = np.uint64(1) << (s - np.uint64(1)) if s > 0 else np.uint64(0)
+        if s == 0:  # the round bit is low's top bit
+            round_bit = (low >> np.uint64(63)) != 0
+            sticky = sticky or (low << np.uint64(1)) != 0
+        else:
+            round_bit = (below & half) != 0
+            sticky = sticky or (below & (half - np.uint64(1))) != 0 or low != 0
+    else:
+        s = np.uint64(shift)
+        mantissa = (high << (np.uint64(64) - s)) | (low >> s)
+        below = low & ((np.uint64(1) << s) - np.uint64(1))
+        half = np.uint64(1) << (s - np.uint64(1))
+        round_bit = (below & half) != 0
+        sticky = sticky or (below & (half - np.uint64(1))) != 0
+    if round_bit and (sticky or (mantissa & np.uint64(1)) != 0):
+        mantissa += np.uint64(1)  # (2^53 at most: still exact as a float64)
+    r = np.ldexp(np.float64(mantissa), np.int32(base + shift))
+    return -r if negative else r
+
+
+@njit(cache=True, error_model="numpy", boundscheck=False)
+def _value(acc) -> float:
+    if acc[NAN] or (acc[POS_INF] and acc[NEG_INF]):
+        return np.nan
+    if acc[POS_INF]:
+        return np.inf
+    if acc[NEG_INF]:
+        return -np.inf
+    return _round(acc)
+
+
+@njit(cache=True, error_model="numpy", boundscheck=False)
+def _values(accs, out):
+    for i in range(accs.shape[0]):
+        out[i] = _value(accs[i])
 
 
 def value(acc) -> float:
     """The exact sum held by ``acc`` (WIDTH,), rounded once to the nearest float64."""
-    acc = np.asarray(acc)
-    if acc[NAN] or (acc[POS_INF] and acc[NEG_INF]):
-        return math.nan
-    if acc[POS_INF]:
-        return math.inf
-    if acc[NEG_INF]:
-        return -math.inf
-    # Σ d_i 2^(32 i) over signed int64 digits, read as bytes: d = low + 2^32 high with
-    # low = d mod 2^32 and high = d >> 32 in [−2^31, 2^31), stored shifted by 2^31 as unsigned
-    digits = acc[:CHUNKS].astype(np.int64)
-    low = (digits & 0xFFFFFFFF).astype("<u4")
-    high = ((digits >> 32) + 2 ** 31).astype("<u4")
-    total = (int.from_bytes(low.tobytes(), "little")
-             + ((int.from_bytes(high.tobytes(), "little") - 2 ** 31 * _ONES) << DIGIT))
-    try:
-        return total / (1 << 1074)  # (Python's int division rounds correctly, subnormals too)
-    except OverflowError:
-        return math.inf if total > 0 else -math.inf
+    return float(_value(np.ascontiguousarray(acc, dtype=np.int64)))
+
+
+def values(accs) -> np.ndarray:
+    """(k,) float64: :func:`value` of each accumulator of ``accs`` (k, WIDTH), in one call."""
+    accs = np.ascontiguousarray(accs, dtype=np.int64)
+    out = np.empty(accs.shape[0])
+    _values(accs, out)
+    return out
 
 
 def exact_sum(values) -> float:
