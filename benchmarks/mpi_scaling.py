@@ -7,10 +7,14 @@ springs, random temperatures and velocities; ``--quick``: the built-in default s
 steps) in one process on one thread, in one process on two threads (the threaded
 kernel's own scaling, the reference) and over two MPI processes of one thread each
 (``mpiexec -n 2``), and prints a markdown table: wall time per step (the median of the repeats,
-after a warm-up call that loads or compiles the kernels), speed-up over one thread, the halo
+after a warm-up call that loads or compiles the kernels), speed-up over one thread (the median of
+the rounds' ratios), the halo
 each process sends per step (messages, bytes), the peak resident memory of each process, and
 whether the two-process state and last diagnostics row are bit for bit the one-process ones.
-Each repeat times a call of ``--steps`` steps with one diagnostics row (at its end), then one of as
+The three runs are built once and kept waiting, and their repeats interleaved: in each round every
+run times one repeat in turn while the others wait idle, so that a machine whose speed drifts
+(a shared host, a virtual machine) slows all three alike. Each repeat times a call of ``--steps``
+steps with one diagnostics row (at its end), then one of as
 many steps with a row every fifth of them: s/step is the first's time per step; their difference
 is what each further diagnostics stop costs (the row, and the call cut there), and the first's
 time less one stop is a step alone. Memory per process: the
@@ -22,8 +26,10 @@ bandwidth), from the measured halo of the two-process run scaled by the surface 
 share ((1/P)^(2/3) of the whole net's cross-section per neighbour, six neighbours in 3D), for a
 network of ``--latency`` seconds (default 2 µs) at 10 Gb/s and 100 Gb/s.
 
-The workers are this script with ``--worker``, started by ``mpiexec``; the machine's load average
-is printed with the table (on a shared machine ratios measured side by side are what counts).
+The workers are this script with ``--worker``, started by ``mpiexec``, each told by a line on its
+standard input to time a repeat or to finish (over processes rank 0 reads it and passes it on; the
+others wait for it asleep, not polling a core); the machine's load average is printed with the
+table (on a shared machine ratios measured side by side are what counts).
 """
 
 from __future__ import annotations
@@ -63,15 +69,33 @@ def make_simulation(springs: float, quick: bool, threads: int):
                          energy_tolerance=None)
 
 
+def _command(comm) -> str:
+    """The next line of rank 0's standard input ("repeat" or "finish"), on every process; the
+    processes other than rank 0 wait for it asleep (a blocking broadcast would poll a core)."""
+    if comm is None:
+        return sys.stdin.readline().strip()
+    buf = np.zeros(1, dtype=np.int64)
+    if comm.Get_rank() == 0:
+        buf[0] = 1 if sys.stdin.readline().strip() == "repeat" else 0
+    request = comm.Ibcast(buf, root=0)
+    while not request.Test():
+        time.sleep(0.002)
+    return "repeat" if buf[0] == 1 else "finish"
+
+
 def worker(args) -> None:
-    """One process of a measurement: warm up, time ``--steps`` steps ``--repeats`` times, then
-    rank 0 prints one JSON line."""
+    """One process of a measurement: warm up, say "ready", then time a repeat each time rank 0
+    reads "repeat" (rank 0 prints it as a JSON line); at "finish" rank 0 prints one JSON line of
+    the whole run."""
     sim = make_simulation(args.springs, args.quick, args.threads)
     sim.run(steps=2, diagnostics_every=2)  # kernels loaded or compiled, not timed
-    times, steps, stops = [], [], []
+    comm = sim.comm
+    root = comm is None or comm.Get_rank() == 0
+    if root:
+        print("ready", flush=True)
     every = max(1, args.steps // 5)
     rows = sim.diagnostics.rows
-    for _ in range(args.repeats):
+    while _command(comm) == "repeat":
         before = len(rows)
         t0 = time.perf_counter()
         sim.run(steps=args.steps, diagnostics_every=args.steps)
@@ -80,11 +104,10 @@ def worker(args) -> None:
         sim.run(steps=args.steps, diagnostics_every=every)
         t2 = time.perf_counter()
         extra = (len(rows) - first) - (first - before)  # the second call's stops besides the first's
-        times.append((t1 - t0) / args.steps)
         stop = ((t2 - t1) - (t1 - t0)) / extra if extra > 0 else float("nan")
-        stops.append(stop)
-        steps.append(((t1 - t0) - stop) / args.steps)
-    comm = sim.comm
+        if root:
+            print(json.dumps({"seconds_per_step": (t1 - t0) / args.steps, "stop_seconds": stop,
+                              "step_seconds": ((t1 - t0) - stop) / args.steps}), flush=True)
     halo = getattr(sim.stepper, "halo", None)
     stages = sum(1 for d in sim.integrator.drifts if d != 0.0)
     mine = {"rss_mb": resident_mb(), "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
@@ -94,13 +117,12 @@ def worker(args) -> None:
             "ghosts": 0 if halo is None else sim.stepper.share.ghosts}
     every = [mine] if comm is None else comm.gather(mine, root=0)
     s = sim.state  # (over processes, a step every process takes: the whole state put together)
-    if comm is not None and comm.Get_rank() != 0:
+    if not root:
         return
     row = sim.diagnostics.rows[-1]
     np.save(args.worker, np.concatenate([s.positions.ravel(), s.momenta.ravel(), [row[k] for k in sorted(row)]]))
-    print(json.dumps({"seconds_per_step": float(np.median(times)), "step_seconds": float(np.median(steps)),
-                      "stop_seconds": float(np.median(stops)), "springs": sim.net.n_springs,
-                      "nodes": sim.net.n_nodes, "stages": stages, "ranks": every}))
+    print(json.dumps({"springs": sim.net.n_springs, "nodes": sim.net.n_nodes, "stages": stages, "ranks": every}),
+          flush=True)
 
 
 def resident_mb() -> float:
@@ -136,18 +158,53 @@ def stepping_bytes(sim) -> int:
     return total
 
 
-def measure(args, ranks: int, threads: int, out: str) -> dict:
-    """A worker run over ``ranks`` processes of ``threads`` threads; its JSON line."""
-    command = [sys.executable, os.path.abspath(__file__), "--worker", out, "--springs", str(args.springs),
-               "--steps", str(args.steps), "--repeats", str(args.repeats), "--threads", str(threads)]
-    command += ["--quick"] if args.quick else []
-    env = dict(os.environ, NUMBA_NUM_THREADS=str(max(threads, 1)), OMP_NUM_THREADS="1")
-    if ranks > 1:
-        command = [shutil.which("mpiexec") or "mpiexec", "-n", str(ranks)] + command
-    done = subprocess.run(command, capture_output=True, text=True, env=env, timeout=3600)
-    if done.returncode != 0:
-        raise SystemExit(f"mpi_scaling: the run over {ranks} process(es) failed:\n{done.stderr[-3000:]}")
-    return json.loads(done.stdout.strip().splitlines()[-1])
+class Run:
+    """A worker run over ``ranks`` processes of ``threads`` threads, kept waiting for commands."""
+
+    def __init__(self, args, ranks: int, threads: int, out: str):
+        command = [sys.executable, os.path.abspath(__file__), "--worker", out, "--springs", str(args.springs),
+                   "--steps", str(args.steps), "--threads", str(threads)]
+        command += ["--quick"] if args.quick else []
+        env = dict(os.environ, NUMBA_NUM_THREADS=str(max(threads, 1)), OMP_NUM_THREADS="1")
+        if ranks > 1:
+            command = [shutil.which("mpiexec") or "mpiexec", "-n", str(ranks)] + command
+        self.ranks = ranks
+        self.errors = open(out + ".stderr", "w+")  # (a file: a full pipe nobody reads would stall the worker)
+        self.process = subprocess.Popen(command, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                        stderr=self.errors, text=True, env=env)
+        self.repeats: list = []
+        if self._line() != "ready":
+            self._failed()
+
+    def _line(self) -> str:
+        line = self.process.stdout.readline()
+        if not line:
+            self._failed()
+        return line.strip()
+
+    def _failed(self):
+        self.process.kill()
+        self.process.wait()
+        self.errors.seek(0)
+        raise SystemExit(f"mpi_scaling: the run over {self.ranks} process(es) failed:\n{self.errors.read()[-3000:]}")
+
+    def repeat(self) -> dict:
+        """One timed repeat (this run alone on the machine while it lasts)."""
+        self.process.stdin.write("repeat\n")
+        self.process.stdin.flush()
+        self.repeats.append(json.loads(self._line()))
+        return self.repeats[-1]
+
+    def finish(self) -> dict:
+        """The run's JSON line, with the medians of its repeats."""
+        self.process.stdin.write("finish\n")
+        self.process.stdin.flush()
+        out = json.loads(self._line())
+        self.process.wait(timeout=600)
+        self.errors.close()
+        for key in ("seconds_per_step", "step_seconds", "stop_seconds"):
+            out[key] = float(np.median([r[key] for r in self.repeats]))
+        return out
 
 
 def model_rows(one: dict, two: dict, latency: float, bandwidths, counts=(2, 4, 8, 16, 64)) -> list:
@@ -184,14 +241,24 @@ def main(argv=None) -> list:
         runs = [("1 process, 1 thread", 1, 1), ("1 process, 2 threads", 1, 2), ("2 processes × 1 thread", 2, 1)]
         if args.quick:
             runs = [runs[0], runs[2]]
-        rows, states = [], []
-        for label, ranks, threads in runs:
-            out = os.path.join(tmp, f"{ranks}_{threads}.npy")
-            rows.append(dict(measure(args, ranks, threads, out), label=label, processes=ranks, threads=threads))
-            states.append(np.load(out))
+        started, rows, states = [], [], []
+        try:
+            for label, ranks, threads in runs:  # (built one after the other, then kept waiting)
+                started.append(Run(args, ranks, threads, os.path.join(tmp, f"{ranks}_{threads}.npy")))
+            for _ in range(args.repeats):  # interleaved rounds
+                for run in started:
+                    run.repeat()
+            for (label, ranks, threads), run in zip(runs, started):
+                rows.append(dict(run.finish(), label=label, processes=ranks, threads=threads))
+                states.append(np.load(os.path.join(tmp, f"{ranks}_{threads}.npy")))
+        finally:
+            for run in started:
+                if run.process.poll() is None:
+                    run.process.kill()
     base = rows[0]
-    for row, state in zip(rows, states):
-        row["speedup"] = base["seconds_per_step"] / row["seconds_per_step"]
+    for row, run, state in zip(rows, started, states):
+        row["speedup"] = float(np.median([b["seconds_per_step"] / r["seconds_per_step"]
+                                          for b, r in zip(started[0].repeats, run.repeats)]))
         row["identical"] = bool(np.array_equal(state, states[0]))
     print(f"\n{base['springs']} springs, {base['nodes']} nodes; load average {os.getloadavg()[0]:.2f} "
           f"on {os.cpu_count()} cores\n")
