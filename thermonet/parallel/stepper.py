@@ -16,11 +16,12 @@ loaded or replaced is taken again) and leaves its result there. The whole net's 
 together only when something reads them (a diagnostics row does not: each process reduces its
 share into exact sums, added over the processes, :meth:`~DistributedStepper.row_sums`);
 :meth:`~DistributedStepper.sync` (``Simulation.internal_state``: frames, probes, ``sim.state``;
-a checkpoint is written in pieces, :meth:`~DistributedStepper.piece`) gives them to every process, so reading them is a step every process takes. The
-runner's backup for blow-up replays is a copy of the shares (:meth:`~DistributedStepper.backup_state`).
-Between a call's end and the next read, processes other than rank 0 hold no whole x, p, Φ, η or heat
-logs (empty arrays stand in for them, so a read that skipped ``sync`` fails instead of seeing old
-values); the share's heat logs are the conduction's (:mod:`thermonet.parallel.conduction`).
+a checkpoint is written in pieces, :meth:`~DistributedStepper.piece`) gives them to every
+process, so reading them is a step every process takes. The runner's backup for blow-up replays
+is a copy of the shares (:meth:`~DistributedStepper.backup_state`). Between a call's end and the
+next read, processes other than rank 0 hold no whole x, p, Φ, η or heat logs (empty arrays stand
+in for them, so a read that skipped ``sync`` fails instead of seeing old values); the share's heat
+logs are the conduction's (:mod:`thermonet.parallel.conduction`).
 """
 
 from __future__ import annotations
