@@ -21,6 +21,8 @@ from ..kernels import exact
 
 #: heat-flow logs with one value per spring (stored in the user's numbering outside the engine)
 PER_SPRING_LOGS = ("produced", "theta", "length", "pending_eta", "pending_produced", "pending_theta")
+#: heat-flow logs with one value per bath or source entry (the same in every numbering)
+ENTRY_LOGS = ("entry_heat", "entry_flux")
 
 
 def heat_columns(heat, state) -> dict:

@@ -14,6 +14,7 @@ import os
 import numpy as np
 
 from ..errors import InputError
+from ..heat.logs import ENTRY_LOGS
 from ..state import State
 from .atomic import atomic_write
 
@@ -46,11 +47,7 @@ def save_checkpoint(path, state: State, meta: dict) -> None:
     if state.entropy is not None:
         arrays["entropy"] = state.entropy
         arrays["thermal_displacement"] = state.thermal_displacement
-    for key, value in (state.extra.get("heat") or {}).items():  # heat-flow logs
-        arrays[f"heat_{key}"] = value
-    for key, value in state.extra.items():  # accumulators such as the loads' work
-        if isinstance(value, np.ndarray):
-            arrays[f"extra.{key}"] = value
+    arrays.update(extra_arrays(state.extra, state.extra.get("heat") or {}))
     with atomic_write(path) as f:
         save_arrays(f, arrays, {"format": FORMAT, **meta})
 
@@ -119,6 +116,14 @@ def _state_of(path: str, z) -> State:
     return state
 
 
+def extra_arrays(extra: dict, logs: dict) -> dict:
+    """A checkpoint's arrays of a State's ``extra``: the heat-flow ``logs`` given as "heat_<key>",
+    the accumulators (the loads' work, ...) as "extra.<key>"; :func:`_extra_of` reads them back."""
+    arrays = {f"heat_{key}": value for key, value in logs.items()}
+    arrays.update({f"extra.{key}": value for key, value in extra.items() if isinstance(value, np.ndarray)})
+    return arrays
+
+
 def _extra_of(z) -> dict:
     """A State's ``extra`` from the arrays of ``z``: "extra.<key>" ones, and the heat logs "heat_<key>"."""
     extra = {k[len("extra."):]: z[k].copy() for k in z.files if k.startswith("extra.")}
@@ -147,7 +152,7 @@ def _assembled(path: str, z, meta: dict) -> State:
     if thermal:
         whole["thermal_displacement"], whole["entropy"] = np.empty(m), np.empty(m)
     for k in shared:
-        whole[f"heat_{k}"] = np.empty(entries if k in ("entry_heat", "entry_flux") else m)
+        whole[f"heat_{k}"] = np.empty(entries if k in ENTRY_LOGS else m)
     held = {"nodes": np.zeros(n, dtype=bool), "springs": np.zeros(m, dtype=bool),
             "entries": np.zeros(entries, dtype=bool)}
     for q, (name, size) in enumerate(zip(files, sizes)):
@@ -182,7 +187,7 @@ def _assembled(path: str, z, meta: dict) -> State:
 
 #: which index array of a piece names the rows of each of its arrays
 _INDEX_OF = {"positions": "nodes", "momenta": "nodes", "thermal_displacement": "springs", "entropy": "springs",
-             "heat_entry_heat": "entries", "heat_entry_flux": "entries"}
+             **{f"heat_{k}": "entries" for k in ENTRY_LOGS}}
 
 
 def _place(path: str, p, size: list, whole: dict, held: dict) -> None:

@@ -26,7 +26,7 @@ import numpy as np
 from ..errors import OutputError
 from ..heat.logs import PER_SPRING_LOGS
 from ..io.atomic import atomic_write
-from ..io.checkpoint import PIECE_FORMAT, PIECES_FORMAT, pieces_folder, save_arrays
+from ..io.checkpoint import PIECE_FORMAT, PIECES_FORMAT, extra_arrays, pieces_folder, save_arrays
 from .world import on_root
 
 
@@ -78,13 +78,9 @@ def _write_manifest(sim, path: str, meta: dict, base: str, tag: str, told: list)
     state, layout = sim._state, sim.layout
     stepper = sim.stepper
     shared = set(stepper._share_log_keys(state))
-    arrays = {"time": np.float64(state.time), "step": np.int64(state.step)}
-    for key, value in (state.extra.get("heat") or {}).items():  # held alike by every process
-        if key not in shared:
-            arrays[f"heat_{key}"] = layout.springs_to_user(value) if key in PER_SPRING_LOGS else value
-    for key, value in state.extra.items():  # accumulators such as the loads' work
-        if isinstance(value, np.ndarray):
-            arrays[f"extra.{key}"] = value
+    logs = {key: layout.springs_to_user(value) if key in PER_SPRING_LOGS else value  # (held alike by every process)
+            for key, value in (state.extra.get("heat") or {}).items() if key not in shared}
+    arrays = {"time": np.float64(state.time), "step": np.int64(state.step), **extra_arrays(state.extra, logs)}
     pieces = {"folder": os.path.join(os.path.basename(base), tag), "files": [name for name, _, _ in told],
               "sizes": [sizes for _, sizes, _ in told], "tag": tag, "nodes": sim.system.n_nodes,
               "springs": sim.system.n_springs, "entries": stepper._entries, "thermal": bool(sim.system.thermal),

@@ -27,10 +27,10 @@ from contextlib import contextmanager
 
 import numpy as np
 
-from ..heat.logs import PER_SPRING_LOGS
+from ..heat.logs import ENTRY_LOGS, PER_SPRING_LOGS
 from .held import (HEAT_ARRAYS, HEAT_CACHES, LAYOUT_ARRAYS, LAYOUT_ORDERS, SYSTEM_ARRAYS, NotHeld, RankNet,
                    give_back_freed_memory)
-from .stepper import ENTRY_LOGS, _RELEASED_NODES, _RELEASED_SPRINGS, compiled_parts
+from .stepper import _RELEASED_NODES, _RELEASED_SPRINGS, compiled_parts
 
 #: message tags: rank 0's word ("built" or "error", then the pickled part with its buffers' sizes),
 #: then the buffers' bytes

@@ -36,7 +36,7 @@ from ..errors import InputError
 from ..explicit import cpu
 from ..explicit.codes import FORCE_KEPT
 from ..explicit.schedule import STAGE
-from ..heat.logs import PER_SPRING_LOGS, heat_columns_of
+from ..heat.logs import ENTRY_LOGS, PER_SPRING_LOGS, heat_columns_of
 from ..integrators.base import Stepper
 from ..kernels import records
 from ..kernels.specialize import model_fingerprint
@@ -575,8 +575,7 @@ class _OwnedGather:
                 state.thermal_displacement[springs] = recv[at:at + j]
 
 
-#: the heat logs each process keeps per share (DistributedConduction.share_logs), per entry the last two
-ENTRY_LOGS = ("entry_heat", "entry_flux")
+#: the heat logs each process keeps per share (DistributedConduction.share_logs)
 SHARE_LOGS = PER_SPRING_LOGS + ENTRY_LOGS
 
 
