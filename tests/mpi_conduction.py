@@ -5,8 +5,8 @@ row every process makes from its share).
 
     mpiexec -n P python tests/mpi_conduction.py SCENE CALLS EVERY:PARTS ... [-- ARGS]
 
-CALLS: the calls' lengths, comma-separated; per EVERY:PARTS (the cycle's steps, the
-partitioner) rank 0 prints "same" or "DIFFERENT: <what>", then "share only" where the processes
+CALLS: the calls' lengths, comma-separated; per EVERY:PARTS (the cycle's steps k, or kxj with j
+sub-sweeps; the partitioner) rank 0 prints "same" or "DIFFERENT: <what>", then "share only" where the processes
 other than rank 0 hold nothing of the whole net's size after conducting calls and diagnostics
 rows and a checkpoint (each process writes its piece), no whole state or heat log was put
 together for them, and a piece that cannot be written keeps the previous checkpoint ("WHOLE:
@@ -34,7 +34,7 @@ ARGS = sys.argv[1:sys.argv.index("--")] if "--" in sys.argv else sys.argv[1:]
 SCENE, CALLS, SPECS = ARGS[0], [int(n) for n in ARGS[1].split(",")], ARGS[2:]
 
 
-def run(every: int, alone: bool) -> dict:
+def run(every: int, sweeps: int, alone: bool) -> dict:
     """The state's arrays and heat logs after the calls; ``alone``: as if not started by mpiexec."""
     saved = {k: os.environ.pop(k) for k in LAUNCHER_VARIABLES if k in os.environ} if alone else {}
     try:
@@ -43,7 +43,7 @@ def run(every: int, alone: bool) -> dict:
         os.environ.update(saved)
     assert (sim.comm is None) == alone
     state = sim.internal_state()
-    heat_logs(state, sim.system.heat)["cycle"][:] = (every, 0)
+    heat_logs(state, sim.system.heat)["cycle"][:] = (every, 0, sweeps)
     for n in CALLS:
         sim.runner.advance(n)
     sim.record_diagnostics()  # (over processes: from the shares, the heat columns from the logs; on every process)
@@ -116,9 +116,10 @@ if "--" in sys.argv:
 
     assert main(sys.argv[sys.argv.index("--") + 1:]) == 0
 for spec in SPECS:
-    every, parts = spec.split(":")
+    cycle, parts = spec.split(":")
+    every, sweeps = (int(v) for v in (cycle.split("x") if "x" in cycle else (cycle, 1)))
     os.environ[PARTITION_VARIABLE] = parts
-    many, one = run(int(every), False), run(int(every), True)
+    many, one = run(every, sweeps, False), run(every, sweeps, True)
     different = [k for k in one if not np.array_equal(one[k], many[k])]
     different = sorted(set(sum(MPI.COMM_WORLD.allgather(different), [])))  # (every process's row too)
     if MPI.COMM_WORLD.Get_rank() == 0:

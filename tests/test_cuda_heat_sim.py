@@ -56,13 +56,16 @@ def small_net(shape=(1, 1, 1), neighbours=6, seed=5):
 
 def conduction_sim(backend, fused=True, bath=None, integrator="co2", net=None, every=1):
     """Conduction with a bath on nodes 0, 1 (a sine in time unless ``bath`` is a number) and a
-    source on springs 3, 5, every ``every`` steps; on the CPU swept in the GPU's order."""
+    source on springs 3, 5, every ``every`` steps (k, or (k, j): j sub-sweeps); on the CPU swept
+    in the GPU's order."""
+    every, sweeps = every if isinstance(every, tuple) else (every, 1)
     net, v, temps = net or small_net()
     temperature = TimeFunction.sine(50.0, 3.0, 0.0, 500.0) if bath is None else bath
     sim = tn.Simulation(net, parameters=dict(c=100, beta=1.0, C0=1.0, theta0=300, g=0.5), temperatures=temps,
                         velocities=v, integrator=integrator, h=H, backend=backend,
                         baths={"hot": Bath([0, 1], temperature)},
-                        sources={"s": Source(SOURCE_SPRINGS, SOURCE_POWER)}, conduction_every=every, **QUIET)
+                        sources={"s": Source(SOURCE_SPRINGS, SOURCE_POWER)}, conduction_every=every,
+                        conduction_sweeps=sweeps, **QUIET)
     sim.system.heat.use_order_of("cuda")
     return _mode(sim, fused)
 
@@ -101,8 +104,10 @@ def _mode(sim, fused):
 CASES = {
     "conduction": (conduction_sim, True),
     "conduction-two-launch": (conduction_sim, False),
-    "conduction-multirate": (lambda backend, fused: conduction_sim(backend, fused, every=STEPS), True),
-    "conduction-multirate-two-launch": (lambda backend, fused: conduction_sim(backend, fused, every=STEPS), False),
+    # (a cycle of STEPS steps, each boundary swept twice: sub-sweeps)
+    "conduction-multirate": (lambda backend, fused: conduction_sim(backend, fused, every=(STEPS, 2)), True),
+    "conduction-multirate-two-launch": (lambda backend, fused: conduction_sim(backend, fused, every=(STEPS, 2)),
+                                        False),
     "waves": (waves_sim, True),
     "waves-two-launch": (waves_sim, False),
 }
@@ -148,11 +153,11 @@ def main(path):
     sim.run(steps=1, diagnostics_every=1)
     sim.run(steps=1, diagnostics_every=1)
     record(out, "calls-two-launch/cuda", sim)
-    # multirate: a cycle of 2 steps in one call, and cut inside the cycle
-    sim = conduction_sim("cuda", True, bath=500.0, every=2)
+    # multirate: a cycle of 2 steps with 3 sub-sweeps in one call, and cut inside the cycle
+    sim = conduction_sim("cuda", True, bath=500.0, every=(2, 3))
     sim.run(steps=2, diagnostics_every=2)
     record(out, "whole-multirate/cuda", sim)
-    sim = conduction_sim("cuda", True, bath=500.0, every=2)
+    sim = conduction_sim("cuda", True, bath=500.0, every=(2, 3))
     sim.runner.advance(1)
     sim.runner.advance(1)
     sim.record_diagnostics()

@@ -97,13 +97,17 @@ def test_a_run_says_which_conduction_cycle_it_took_and_why(tmp_path, capsys):
 
     out = tmp_path / "run"
     # 100 steps, outputs every 10 (diagnostics, checkpoints) and 50 (frames) steps; λ h = 0.08:
-    # "auto" conducts every 2 steps
+    # "auto" conducts every 10 steps, each boundary swept 3 times (as every 10/3 steps for the
+    # error), which its cost model finds cheaper than every 2 steps with one sweep
     assert thermonet(["run", str(ROOT / "scenes" / "thermal_shock.toml"), "--out", str(out),
                       "--set", "integrator.t_end=1.0"]) == 0
     printed = capsys.readouterr().out
-    assert "conduction every 2 steps (auto: fastest conduction rate λ = 8/time, λ k h = 0.16 ≤ 0.3)" in printed
+    assert ("conduction every 10 steps, 3 sub-sweeps (auto: fastest conduction rate λ = 8/time, 3 sub-sweeps per "
+            "cycle boundary: λ k h / 3 = 0.267 ≤ 0.3, λ k h = 0.8 ≤ 1; about 0.29 adiabatic steps of conduction per "
+            "step against 0.65 with k = 2 and one sweep)") in printed
     summary = json.loads((out / "summary.json").read_text())
-    assert summary["conduction_every"]["k"] == 2 and "λ k h = 0.16" in summary["conduction_every"]["why"]
+    cycle = summary["conduction_every"]
+    assert cycle["k"] == 10 and cycle["sweeps"] == 3 and "λ k h / 3 = 0.267" in cycle["why"]
     d = np.genfromtxt(out / "diagnostics.csv", delimiter=",", names=True)
     assert np.all(np.diff(d["entropy_produced"]) >= 0.0) and d["heat_hot"][-1] > 0.0
 

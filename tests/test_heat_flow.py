@@ -38,12 +38,23 @@ def test_junction_rule_on_a_star_and_the_colouring():
     assert graph.n_colours == 3  # K4's edges need exactly three colours
 
 
+def cycle(every) -> dict:
+    """The Simulation's arguments for a conduction cycle ``every``: k, or (k, j) with j sub-sweeps."""
+    k, j = every if isinstance(every, tuple) else (every, 1)
+    return dict(conduction_every=k, conduction_sweeps=j)
+
+
+def steps_of(every) -> int:
+    """The cycle's k."""
+    return every[0] if isinstance(every, tuple) else every
+
+
 def two_springs(C, g, h: float, every=1):
     """(θ0 − θ1 at t = 2, its exact value, the final C-weighted mean, the exact one, diagnostics)."""
     C, g = np.asarray(C, dtype=float), np.asarray(g, dtype=float)
     sim = tn.Simulation(chain_net(2), parameters=dict(c=100, beta=0.0, C0=C, theta0=300, g=g), temperatures=[800, 400],
-                        h=h, renumber=False, conduction_every=every, **QUIET)
-    d = sim.run(t_end=2.0, diagnostics_every=10 * every)
+                        h=h, renumber=False, **cycle(every), **QUIET)
+    d = sim.run(t_end=2.0, diagnostics_every=10 * steps_of(every))
     kappa = g[0] * g[1] / g.sum()  # two springs at the middle node
     reduced = C[0] * C[1] / C.sum()
     theta = sim.temperatures()
@@ -51,7 +62,7 @@ def two_springs(C, g, h: float, every=1):
             (C[0] * 800 + C[1] * 400) / C.sum(), d)
 
 
-@pytest.mark.parametrize("every", [1, 5])
+@pytest.mark.parametrize("every", [1, 5, (5, 2)])
 def test_two_springs_relax_along_the_exact_exponential_with_energy_to_round_off(every):
     # equal rates g/C at the junction: the node-star exchange is the exact flow, whatever k h
     gap, exact, mean, exact_mean, d = two_springs([5.0, 2.0], [1.75, 0.7], 0.01, every)
@@ -77,8 +88,8 @@ def fourier_decay_rate(h: float, n_springs: int = 16, mode: int = 3, t_end: floa
     q = np.pi * mode / n_springs
     theta0 = 300.0 * (1 + amp * np.cos(q * (e + 0.5)))  # a Neumann eigenvector of the chain
     sim = tn.Simulation(net, parameters=dict(c=100, beta=0.0, C0=C, theta0=300, g=g), temperatures=theta0, h=h,
-                        renumber=False, conduction_every=every, **QUIET)
-    sim.run(t_end=t_end, diagnostics_every=every)
+                        renumber=False, **cycle(every), **QUIET)
+    sim.run(t_end=t_end, diagnostics_every=steps_of(every))
     shape = np.cos(q * (e + 0.5))
     a0 = shape @ (theta0 - 300.0)
     a1 = shape @ (sim.temperatures() - 300.0)
@@ -105,17 +116,76 @@ def test_multirate_conduction_is_second_order_in_k_h():
     assert 1.8 < slope < 2.2, (errors, slope)
 
 
+def test_sub_sweeps_are_the_shorter_cycles_sweeps_and_second_order_in_k_h_over_j():
+    # β = 0: the steps leave temperatures alone, so a cycle of 12 steps swept 3 times at each
+    # boundary (half sweeps reverse, forward, reverse | forward, reverse, forward over 2 h) runs
+    # the very half sweeps of a cycle of 4 steps swept once: the same temperatures to round-off
+    q = np.pi * 3 / 16
+    exact = (2 * 0.5 / 2.0) * (1 - np.cos(q))
+    h = 0.005
+    assert fourier_decay_rate(h, t_end=2.4, every=(12, 3)) == pytest.approx(
+        fourier_decay_rate(h, t_end=2.4, every=4), rel=1e-10)
+    # k fixed, j sub-sweeps: order 2 in k h / j
+    js = np.array([2, 4, 8])
+    errors = np.array([abs(fourier_decay_rate(h, t_end=2.4, every=(48, int(j))) - exact) for j in js])
+    slope = np.polyfit(np.log(js), np.log(errors), 1)[0]
+    assert -2.2 < slope < -1.8, (errors, slope)
+
+
+def test_a_boundary_with_sub_sweeps_is_its_half_sweeps_one_after_the_other_bit_for_bit():
+    # the sweep kernel with j = 3 (its colours fused across the six half sweeps: no baths) against
+    # six calls of one half sweep each, reverse, forward, … (temperatures only: the entropy
+    # update deferred), the factors the same
+    from thermonet.heat.logs import heat_logs
+    from thermonet.heat.passes import DEFER_FINISH, FORWARD, REVERSE, heat_kernels
+
+    net = tn.lattice((12, 3, 3), neighbours=6, jitter=0.2, seed=29)
+    theta = np.random.default_rng(29).uniform(300.0, 1500.0, net.n_springs)
+    sim = tn.Simulation(net, parameters=dict(c=100, beta=1.0, C0=1.0, theta0=300, g=0.4), temperatures=theta,
+                        h=0.01, **QUIET)
+    heat = sim.system.heat
+    order = heat.star_order("cpu")  # (two colours of two blocks: fused and paired)
+    assert order.n_colours == 2 and order.n_blocks == 4 and len(heat.entry_spring) == 0
+    _, sweep = heat_kernels(sim.system.model, False, True)
+    state = sim.internal_state()
+    logs = heat_logs(state, heat)
+    start = np.empty(net.n_springs)
+    tau = 0.05
+    at_once = sim.layout.springs_to_internal(theta).astype(float)
+    sweep(heat.record(tau, logs, sweeps=3), at_once, start, state.entropy.copy(), tau, 0.0,
+          REVERSE | FORWARD | DEFER_FINISH)
+    one_by_one = sim.layout.springs_to_internal(theta).astype(float)
+    for half in range(6):
+        sweep(heat.record(tau, logs, sweeps=1), one_by_one, start, state.entropy.copy(), tau, 0.0,
+              (FORWARD if half % 2 else REVERSE) | DEFER_FINISH)
+    assert np.array_equal(at_once, one_by_one)
+    assert not np.array_equal(at_once, sim.layout.springs_to_internal(theta))  # heat moved
+
+
 def test_auto_picks_the_cycle_from_the_rate_the_step_and_the_cadences():
     from thermonet.heat.multirate import choose_cycle
 
     # λ h = 0.02: up to 15 steps within λ k h ≤ 0.3, so 10 of the series 1, 2, 5, 10, …
     assert choose_cycle("auto", 0.2, 0.1, [20, 40])[0] == 10
     # the largest divisor of 10 that divides the cadences and the run's length (8 steps: 2)
-    k, why = choose_cycle("auto", 0.2, 0.1, [8, 8])
-    assert k == 2 and "divides the output cadences and the run's length, 8" in why
+    k, sweeps, why = choose_cycle("auto", 0.2, 0.1, [8, 8])
+    assert (k, sweeps) == (2, 1) and "divides the output cadences and the run's length, 8" in why
     # λ h = 2.5 > 0.3: every step, and the reason says that no k meets the tolerance
-    k, why = choose_cycle("auto", 25.0, 0.1, [10])
-    assert k == 1 and "λ h = 2.5 > 0.3" in why and "≤" not in why
+    k, sweeps, why = choose_cycle("auto", 25.0, 0.1, [10])
+    assert (k, sweeps) == (1, 1) and "λ h = 2.5 > 0.3" in why and "≤" not in why
+    # λ h = 0.08 (the thermal-shock scene), outputs every 10 steps: one sweep would allow k = 2
+    # (λ k h = 0.16); 10 steps with 3 sub-sweeps (λ k h / 3 = 0.27, λ k h = 0.8 ≤ 1) cost about
+    # (0.5 + 3 × 0.8) / 10 = 0.29 adiabatic steps per step against (0.5 + 0.8) / 2 = 0.65
+    k, sweeps, why = choose_cycle("auto", 8.0, 0.01, [10, 50])
+    assert (k, sweeps) == (10, 3) and "λ k h / 3 = 0.267 ≤ 0.3" in why and "0.29" in why and "0.65" in why
+    # where sub-sweeps save less than 0.05 steps per step, none (λ h = 0.02, outputs every 20
+    # steps: k = 10 costs 0.13, k = 20 with 2 sub-sweeps 0.105); every 100 steps: k = 50 with 4
+    # (λ k h / 4 = 0.25) costs 0.074
+    assert choose_cycle("auto", 0.2, 0.1, [20])[:2] == (10, 1)
+    assert choose_cycle("auto", 0.2, 0.1, [100])[:2] == (50, 4)
+    # an integer k takes j as given (default 1)
+    assert choose_cycle(10, 8.0, 0.01, [10], sweeps=3)[:2] == (10, 3)
+    assert choose_cycle(10, 8.0, 0.01, [10])[:2] == (10, 1)
 
 
 def hot_jittered_net(seed: int = 3) -> tuple[tn.Net, np.ndarray]:
@@ -124,12 +194,12 @@ def hot_jittered_net(seed: int = 3) -> tuple[tn.Net, np.ndarray]:
     return net, rng.uniform(300.0, 1500.0, net.n_springs)
 
 
-@pytest.mark.parametrize("every", [1, 10])
+@pytest.mark.parametrize("every", [1, 10, (10, 3)])
 def test_entropy_never_decreases_and_the_production_log_is_the_entropy_gained(every):
     net, theta = hot_jittered_net()
     sim = tn.Simulation(net, parameters=dict(c=200, beta=2.0, C0=1.0, theta0=300, g=0.5), temperatures=theta,
-                        h=0.005, conduction_every=every, **QUIET)
-    d = sim.run(steps=10_000, diagnostics_every=every)
+                        h=0.005, **cycle(every), **QUIET)
+    d = sim.run(steps=10_000, diagnostics_every=steps_of(every))
     steps = np.diff(d.entropy)
     assert steps.min() > -1e-12 * np.abs(d.entropy).max(), steps.min()
     assert d.entropy[-1] - d.entropy[0] > 1.0  # it did mix
@@ -142,15 +212,16 @@ def energy_oscillation(h: float, steps: int, every: int = 1) -> tuple[float, flo
     net, theta = hot_jittered_net(5)
     sim = tn.Simulation(net, parameters=dict(c=100, beta=1.0, C0=1.0, theta0=300, g=0.3), temperatures=theta,
                         velocities=np.random.default_rng(1).normal(0, 0.3, (net.n_nodes, 3)), h=h,
-                        conduction_every=every, **QUIET)
-    d = sim.run(steps=steps, diagnostics_every=max(every, steps // 2000))
+                        **cycle(every), **QUIET)
+    k = steps_of(every)
+    d = sim.run(steps=steps, diagnostics_every=max(k, steps // 2000 // k * k))
     e = d.energy
     tenth = len(e) // 10
     drift = abs(e[-tenth:].mean() - e[:tenth].mean())
     return float(np.max(np.abs(e - e[0]))), float(drift)
 
 
-@pytest.mark.parametrize("every", [1, 5])
+@pytest.mark.parametrize("every", [1, 5, (10, 2)])
 def test_energy_bounded_without_drift_and_its_oscillation_is_order_2(every):
     osc, drift = energy_oscillation(0.004, 100_000, every)
     assert drift < 0.2 * osc
@@ -162,19 +233,20 @@ def test_energy_bounded_without_drift_and_its_oscillation_is_order_2(every):
 def steady_chain(h: float, n: int = 8, g: float = 2.0, hot: float = 600.0, cold: float = 300.0, every: int = 1):
     sim = tn.Simulation(chain_net(n), parameters=dict(c=100, beta=0.0, C0=1.0, theta0=300, g=g), temperatures=300.0,
                         h=h, baths={"hot": Bath("left", hot), "cold": Bath("right", cold)}, renumber=False,
-                        conduction_every=every, **QUIET)
+                        **cycle(every), **QUIET)
     d = sim.run(t_end=200.0, diagnostics_every=round(1 / h))
     return sim, d
 
 
-@pytest.mark.parametrize("every", [1, 4])
+@pytest.mark.parametrize("every", [1, 4, (4, 2)])
 def test_a_chain_between_two_baths_reaches_the_linear_profile_and_the_series_heat_flow(every):
     n, g, hot, cold = 8, 2.0, 600.0, 300.0
     e = np.arange(n)
     profile = hot - (hot - cold) * (2 * e + 1) / (2 * n)  # 2n half-springs of conductance g in series
     series = g / (2 * n) * (hot - cold)
     errors, flows = [], []
-    for h in (0.05 / every, 0.025 / every):  # the conduction step k h: 0.05, then 0.025
+    k, j = every if isinstance(every, tuple) else (every, 1)
+    for h in (0.05 * j / k, 0.025 * j / k):  # the conduction step k h / j: 0.05, then 0.025
         sim, d = steady_chain(h, every=every)
         errors.append(np.abs(sim.temperatures() - profile).max())
         rate = (d.heat_hot[-1] - d.heat_hot[-2]) / (d.time[-1] - d.time[-2])
@@ -196,12 +268,12 @@ def bath_balance(h: float, every: int = 1) -> float:
     sim = tn.Simulation(net, parameters=dict(c=100, beta=2.0, C0=1.0, theta0=300, g=0.4), temperatures=theta,
                         h=h, baths={"b": Bath("hot", {"start": 300.0, "end": 900.0, "duration": 1.0})},
                         sources={"s": Source(np.arange(5), {"amplitude": 20.0, "frequency": 1.0, "offset": 10.0})},
-                        conduction_every=every, **QUIET)
-    d = sim.run(t_end=2.0, diagnostics_every=max(every, round(0.01 / h)))
+                        **cycle(every), **QUIET)
+    d = sim.run(t_end=2.0, diagnostics_every=max(steps_of(every), round(0.01 / h)))
     return float(np.max(np.abs(d.energy_balance)))
 
 
-@pytest.mark.parametrize("every", [1, 5])
+@pytest.mark.parametrize("every", [1, 5, (5, 2)])
 def test_with_baths_and_sources_the_energy_balance_is_order_2(every):
     coarse, fine = bath_balance(0.004, every), bath_balance(0.002, every)
     assert 3.0 < coarse / fine < 5.0, (coarse, fine)
@@ -220,7 +292,7 @@ def test_no_conductance_is_bit_identical_to_no_conduction():
     assert np.array_equal(a.state.entropy, b.state.entropy)
 
 
-@pytest.mark.parametrize("every", [1, 4])
+@pytest.mark.parametrize("every", [1, 4, (4, 3)])
 def test_chunked_and_resumed_runs_are_bit_identical(tmp_path, every):
     # (thread counts: tests/test_loads_heat.py, whose one threaded kernel carries loads and heat)
     from thermonet.io.checkpoint import load_checkpoint, save_checkpoint
@@ -231,7 +303,7 @@ def test_chunked_and_resumed_runs_are_bit_identical(tmp_path, every):
     def make(**kw):
         return tn.Simulation(net, parameters=dict(c=100, beta=1.0, C0=1.0, theta0=300, g=0.4), temperatures=theta,
                              h=0.004, baths={"b": Bath("hot", 700.0)}, sources={"s": Source([0, 1], 5.0)},
-                             conduction_every=every, **QUIET, **kw)
+                             **cycle(every), **QUIET, **kw)
 
     one = make()
     one.run(steps=400, diagnostics_every=400)
@@ -289,6 +361,9 @@ def test_conduction_around_an_implicit_integrator_keeps_its_balances():
     (dict(conduction=True), "no conductance 'g' is given"),
     (dict(parameters=dict(g=1.0), sources={"s": Source("nope", 1.0)}), "sources.s.group: no spring group"),
     (dict(parameters=dict(g=1.0), baths={"a": Bath("left", 500.0), "b": Bath([0], 400.0)}), "node 0 is already in bath 'a'"),
+    (dict(parameters=dict(g=1.0), conduction_sweeps=2), 'conduction_sweeps: set it with a whole conduction_every'),
+    (dict(parameters=dict(g=1.0), conduction_every=2, conduction_sweeps=0),
+     "conduction_sweeps: expected a whole number of sub-sweeps ≥ 1, got 0"),
 ])
 def test_bad_heat_input_names_the_key(kwargs, message):
     kwargs = dict(kwargs)
@@ -314,11 +389,12 @@ def test_state_copies_do_not_share_the_heat_logs_and_orders_are_honest():
     assert BM4.with_heat(False, True).order == 2
 
 
-def test_conduction_around_em2_keeps_energy_exact_and_entropy_rising():
+@pytest.mark.parametrize("every", [1, (5, 2)])
+def test_conduction_around_em2_keeps_energy_exact_and_entropy_rising(every):
     net, theta = hot_jittered_net(23)
     sim = tn.Simulation(net, parameters=dict(c=100, beta=1.0, C0=1.0, theta0=300, g=0.4), temperatures=theta,
                         velocities=np.random.default_rng(4).normal(0, 0.3, (net.n_nodes, 3)), integrator="em2",
-                        integrator_options={"tolerance": 1e-15, "rtol": 1e-12}, h=0.01, **QUIET)
+                        integrator_options={"tolerance": 1e-15, "rtol": 1e-12}, h=0.01, **cycle(every), **QUIET)
     d = sim.run(steps=60, diagnostics_every=5)
     assert np.max(np.abs(d.energy - d.energy[0])) < 1e-11 * abs(d.energy[0])
     assert np.all(np.diff(d.entropy) > -1e-12 * np.abs(d.entropy).max()) and d.entropy[-1] > d.entropy[0]

@@ -97,10 +97,11 @@ def same_bits(a, b):
         assert np.array_equal(a.state.extra["heat"][k], b.state.extra["heat"][k]), k
 
 
-@pytest.mark.parametrize("every, order", [(1, "cpu"), (4, "cpu"), (1, "cuda")])
+@pytest.mark.parametrize("every, order", [(1, "cpu"), ((4, 2), "cpu"), (1, "cuda")])
 def test_the_threaded_kernel_with_loads_and_heat_does_not_depend_on_the_thread_count(every, order):
     """One threaded kernel carries both effects (each alone would be a threaded variant of its own
-    to compile): one and two threads give the same bits, in chunks that cut conduction cycles, and
+    to compile): one and two threads give the same bits, in chunks that cut conduction cycles (of
+    4 steps with 2 sub-sweeps in one case), and
     the serial kernel's bits for everything but the loads' reductions' round-off. In the GPU's
     sweep order (one junction per block, 4 blocks per colour) the serial kernel takes a colour's
     blocks in pairs, and so does the threaded one with a pool of two threads (one block at a time
@@ -114,7 +115,8 @@ def test_the_threaded_kernel_with_loads_and_heat_does_not_depend_on_the_thread_c
     varied["beta"] *= rng.uniform(0.9, 1.1, m)
 
     def make(**kw):
-        sim = loaded_hot_strip(0.004, conduction_every=every, parameters=varied, **kw)
+        k, j = every if isinstance(every, tuple) else (every, 1)
+        sim = loaded_hot_strip(0.004, conduction_every=k, conduction_sweeps=j, parameters=varied, **kw)
         sim.system.heat.use_order_of(order)
         return sim
 

@@ -312,15 +312,15 @@ def test_the_thermal_shock_on_two_processes_resumed_on_three_is_one_process_bit_
     """Conduction from a bath (each process sweeping its blocks, temperatures exchanged between
     colours; the kick deferred past the sweeps) every 2 steps: cut on 2 processes, resumed on 3,
     the parts cut between the sweep's blocks (the default); then, on 3 processes with RCB parts
-    (blocks cut by the parts), calls of uneven lengths ending inside 3-step cycles (as a replay
-    after a blow-up)."""
+    (blocks cut by the parts), calls of uneven lengths ending inside 3-step cycles with 2
+    sub-sweeps (as a replay after a blow-up)."""
     args = ["--set", "effects.conduction_every=2", "--set", "output.frames_every=10", "--set",
             "output.diagnostics_every=2", "--set", "output.checkpoint_every=10", "--quiet"]
     assert main(["run", SHOCK, "--out", str(tmp_path / "one"), "--set", "integrator.t_end=0.2", *args]) == 0
     compile_here(SHOCK)
     mpirun(2, "run", SHOCK, "--out", str(tmp_path / "cut"), "--set", "integrator.t_end=0.1", *args)
     # (the resumed run and the calls in one launch)
-    done = mpirun(3, os.path.join(ROOT, "tests", "mpi_conduction.py"), SHOCK, "3,1,4,1", "3:rcb", "--",
+    done = mpirun(3, os.path.join(ROOT, "tests", "mpi_conduction.py"), SHOCK, "3,1,4,1", "3x2:rcb", "--",
                   "run", "--resume", str(tmp_path / "cut"), "--set", "integrator.t_end=0.2", "--quiet", module=False)
     assert done.stdout.splitlines() == ["same", "share only"], done.stdout
     assert_same_run(tmp_path / "one", tmp_path / "cut", "thermal_shock")

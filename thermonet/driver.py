@@ -19,8 +19,8 @@ from .blowup import remedy
 from .compile_watch import CompileWatch
 from .diagnostics import Diagnostics, diagnostics_row, measure
 from .errors import InputError, SimulationError
-from .heat.logs import balances, cycle_position, heat_columns, heat_logs, wave_energy
-from .heat.multirate import choose_cycle
+from .heat.logs import balances, cycle_position, cycle_sweeps, heat_columns, heat_logs, wave_energy
+from .heat.multirate import ConductionCycle, choose_cycle
 from .integrators.base import StepFailure
 from .run_guards import energy_departure
 from .state import State
@@ -163,14 +163,16 @@ class Runner:
             return
         every, at = cycle_position(sim._state, heat)
         if at != 0:
-            sim.conduction_cycle = (every, f"continuing a cycle of {every} steps begun at step "
-                                            f"{sim._state.step - at}")
+            sweeps = cycle_sweeps(sim._state, heat)
+            sim.conduction_cycle = ConductionCycle(every, f"continuing a cycle of {every} steps begun at step "
+                                                          f"{sim._state.step - at}", sweeps)
             return
         step = sim._state.step
-        k, why = choose_cycle(sim.conduction_every, heat.fastest_rate(), sim._h, list(cadences) + [steps, step])
-        if k != every:
-            heat_logs(sim._state, heat)["cycle"][:] = (k, step)
-        sim.conduction_cycle = (k, why)
+        k, sweeps, why = choose_cycle(sim.conduction_every, heat.fastest_rate(), sim._h,
+                                      list(cadences) + [steps, step], sweeps=sim.conduction_sweeps)
+        if (k, sweeps) != (every, cycle_sweeps(sim._state, heat)):
+            heat_logs(sim._state, heat)["cycle"][:] = (k, step, sweeps)
+        sim.conduction_cycle = ConductionCycle(k, why, sweeps)
 
     def _set_step(self, step: int) -> None:
         """Move the step counter; time is origin + (steps since origin)·h, so it does not depend

@@ -24,7 +24,7 @@ from .diagnostics import Diagnostics, spring_fields
 from .driver import Runner
 from .errors import InputError, SimulationError
 from .heat.logs import PER_SPRING_LOGS, heat_logs
-from .heat.multirate import check_conduction_every
+from .heat.multirate import check_conduction_every, check_conduction_sweeps
 from .heat.parameters import split_parameters
 from .heat.setup import build_heat
 from .inputs import (angular_momentum_reference, build_system, check_backend, check_energy_tolerance, check_step,
@@ -95,7 +95,11 @@ class Simulation:
     conduction_every: k, the steps of one conduction cycle: "auto" (default: the largest k of
         1, 2, 5, 10, 20, … with λ k h ≤ 0.3, λ the conduction's fastest rate, that divides the
         output cadences; :mod:`thermonet.heat.multirate`) or a whole number that divides every
-        run's output cadences and length. ``self.conduction_cycle`` says which k ran and why.
+        run's output cadences and length. "auto" may also sweep each cycle boundary j > 1 times
+        (sub-sweeps: the error of a cycle of k / j steps at the cost of one boundary).
+        ``self.conduction_cycle`` says which k and j ran and why.
+    conduction_sweeps: j, with an integer ``conduction_every``: each cycle boundary's conduction
+        as 2j half sweeps over k h / (2 j) (default 1); "auto" chooses j itself.
     thermal_waves: Green–Naghdi type II thermal waves (docs/heat.md) through ``g_star`` (in
         ``parameters``); explicit splittings only; default: on when ``g_star`` is given.
     baths: name -> :class:`thermonet.heat.Bath` (a node group held at θ_b(t)), needs conduction.
@@ -134,6 +138,7 @@ class Simulation:
         stability_guard="stop",
         conduction: bool | None = None,
         conduction_every="auto",
+        conduction_sweeps: int | None = None,
         thermal_waves: bool | None = None,
         baths: Mapping | None = None,
         sources: Mapping | None = None,
@@ -206,9 +211,11 @@ class Simulation:
             if heat is not None:
                 heat_logs(self._state, heat)
             self.conduction_every = check_conduction_every(conduction_every)
+            self.conduction_sweeps = check_conduction_sweeps(conduction_sweeps, self.conduction_every)
             if heat is not None and heat.conduction and self.conduction_every != "auto":  # cycles counted from step 0
-                heat_logs(self._state, heat)["cycle"][:] = (self.conduction_every, 0)
-            #: (k, why) of the conduction cycle the last run used (None: no conduction, or no run yet)
+                heat_logs(self._state, heat)["cycle"][:] = (self.conduction_every, 0, self.conduction_sweeps or 1)
+            #: the conduction cycle the last run used (None: no conduction, or no run yet): a
+            #: :class:`~thermonet.heat.multirate.ConductionCycle` (k, why, sweeps)
             self.conduction_cycle = None
             hold_driven_axes(self._state, layout, load_set)
             #: the loads' columns of the diagnostics rows (None without loads)

@@ -183,10 +183,12 @@ def _heat_flow(sim, specs: dict, cadences=()) -> list[str]:
 def conduction_line(sim, cadences=()) -> str:
     """Which conduction cycle a run with output ``cadences`` (steps) takes, and why."""
     try:
-        k, why = choose_cycle(sim.conduction_every, sim.system.heat.fastest_rate(), sim.h, cadences)
+        k, sweeps, why = choose_cycle(sim.conduction_every, sim.system.heat.fastest_rate(), sim.h, cadences,
+                                      sweeps=sim.conduction_sweeps)
     except InputError as exc:  # (run refuses it the same way)
         return f"conduction_every: {exc}"
-    return f"conduction every {k} step{'s' if k != 1 else ''} ({why})"
+    return (f"conduction every {k} step{'s' if k != 1 else ''}" + (f", {sweeps} sub-sweeps" if sweeps > 1 else "")
+            + f" ({why})")
 
 
 def _span(values) -> str:

@@ -13,7 +13,7 @@ import numpy as np
 from ..blowup import blowup_failure
 from ..diagnostics import row_sums, sums_of
 from ..errors import InputError
-from ..heat.logs import cycle_position, heat_logs
+from ..heat.logs import cycle_position, cycle_sweeps, heat_logs
 from ..integrators.base import Stepper
 from ..kernels import records
 from ..kernels.records import Run, StateArrays, no_heat_cpu
@@ -95,10 +95,11 @@ class SplittingStepper(Stepper):
 
     def _heat_record(self, state, h: float, every: int):
         """The kernels' Heat record: conduction factors for the half sweeps of this h and a
-        cycle of ``every`` steps (τ = k h / 2), logs in the state."""
+        cycle of ``every`` steps (τ = k h / (2 j), j the cycle's sub-sweeps), logs in the state."""
         if self._heat is None:
             return _NO_HEAT
-        return self._heat.record(0.5 * every * h, heat_logs(state, self._heat))
+        sweeps = cycle_sweeps(state, self._heat) if self._conduction else 1
+        return self._heat.record(0.5 * every * h / sweeps, heat_logs(state, self._heat), sweeps=sweeps)
 
     def closing_sums(self, state) -> dict | None:
         """See :meth:`Stepper.closing_sums`: Σ U from the springs' energies the closing kick left

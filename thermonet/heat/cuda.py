@@ -70,47 +70,54 @@ def _conduction_due(code, every, step_in_cycle):
     return step_in_cycle == every - 1
 
 
-def _phase_span(code, phase, colour_ptr, star_colour_ptr, n_bound, m):
-    """(kind, lo, hi): phase ``phase`` of heat row ``code`` runs elements lo:hi of kind PAIRS
-    (one colour's wave pairs), BLOCKS (one star colour's blocks), BOUNDARY (boundary springs),
-    START or FINISH (all m springs)."""
+def _phase_span(code, phase, colour_ptr, star_colour_ptr, n_bound, m, sweeps):
+    """(kind, lo, hi, reverse): phase ``phase`` of heat row ``code`` runs elements lo:hi of kind
+    PAIRS (one colour's wave pairs), BLOCKS (one star colour's blocks), BOUNDARY (boundary
+    springs), START or FINISH (all m springs); ``reverse``: its blocks' nodes last to first, its
+    entries in reverse. A conduction row is START, its ``sweeps`` half sweeps (the CPU's: those
+    of a boundary's 2j alternate reverse, forward, …; the reverse row the first j, the forward
+    row the last j), FINISH."""
     if code == THERMAL_WAVES:
-        return PAIRS, colour_ptr[phase], colour_ptr[phase + 1]
+        return PAIRS, colour_ptr[phase], colour_ptr[phase + 1], False
     n_colours = star_colour_ptr.shape[0] - 1
     if phase == 0:
-        return START, 0, m
-    if phase == n_colours + 2:
-        return FINISH, 0, m
-    reverse = code == CONDUCTION_REVERSE
-    if phase == (n_colours + 1 if reverse else 1):
-        return BOUNDARY, 0, n_bound
-    colour = n_colours - phase if reverse else phase - 2
-    return BLOCKS, star_colour_ptr[colour], star_colour_ptr[colour + 1]
+        return START, 0, m, False
+    if phase == sweeps * (n_colours + 1) + 1:
+        return FINISH, 0, m, False
+    half = (phase - 1) // (n_colours + 1) + (0 if code == CONDUCTION_REVERSE else sweeps)
+    within = (phase - 1) % (n_colours + 1)
+    reverse = half % 2 == 0
+    if within == (n_colours if reverse else 0):
+        return BOUNDARY, 0, n_bound, reverse
+    colour = n_colours - 1 - within if reverse else within - 1
+    return BLOCKS, star_colour_ptr[colour], star_colour_ptr[colour + 1], reverse
 
 
-def _phase_count(code, colour_ptr, star_colour_ptr):
-    """Phases of heat row ``code``: the wave pairs' colours, or for conduction the star colours
-    and the start, boundary and finish phases."""
+def _phase_count(code, colour_ptr, star_colour_ptr, sweeps):
+    """Phases of heat row ``code``: the wave pairs' colours, or for conduction the start phase,
+    the star colours and boundary phase of each of its ``sweeps`` half sweeps, the finish."""
     if code == THERMAL_WAVES:
         return colour_ptr.shape[0] - 1
-    return star_colour_ptr.shape[0] - 1 + 3
+    return sweeps * (star_colour_ptr.shape[0] - 1 + 1) + 2
 
 
 def _sweep_phase(code, phase, heat, tau, t, phi, eta, first, stride):
-    """The elements first, first + stride, ... of phase ``phase`` of heat row ``code`` over τ at
-    time t (conduction on heat.theta; see the module docstring). phi, eta: (m,)."""
-    kind, lo, hi = phase_span(code, phase, heat.colour_ptr, heat.star_colour_ptr, heat.bound_spring.shape[0],
-                              heat.capacity.shape[0])
+    """The elements first, first + stride, ... of phase ``phase`` of heat row ``code`` at time
+    t, the row over τ (a conduction row's half sweeps each over τ / heat.sweeps[0]; conduction
+    on heat.theta; see the module docstring). phi, eta: (m,)."""
+    sweeps = heat.sweeps[0]
+    kind, lo, hi, reverse = phase_span(code, phase, heat.colour_ptr, heat.star_colour_ptr,
+                                       heat.bound_spring.shape[0], heat.capacity.shape[0], sweeps)
     if WAVES and code == THERMAL_WAVES:
         for k in range(lo + first, hi, stride):
             wave_exchange(k, heat.first, heat.second, heat.wave, tau, phi, eta)
     elif CONDUCTION and kind == BLOCKS:
         for b in range(lo + first, hi, stride):
-            star_block(b, heat, code == CONDUCTION_REVERSE, heat.theta)
+            star_block(b, heat, reverse, heat.theta)
     elif CONDUCTION and kind == BOUNDARY:
         logs = (heat.produced, heat.entry_heat, heat.entry_flux)
         for j in range(lo + first, hi, stride):
-            boundary_exchange(j, heat, tau, t, code == CONDUCTION_REVERSE, heat.theta, logs)
+            boundary_exchange(j, heat, tau / sweeps, t, reverse, heat.theta, logs)
     elif CONDUCTION and kind == START:
         for e in range(lo + first, hi, stride):
             heat.theta_start[e] = heat.theta[e]
@@ -196,17 +203,21 @@ class DeviceHeat:
         self.logs = tuple(to_device(np.ascontiguousarray(getattr(host, k))) for k in LOGS)
         self._cpu_logs = tuple(to_device(np.empty(0)) for _ in CPU_LOGS)
         self._work = tuple(to_device(np.zeros_like(getattr(host, k))) for k in WORK)
-        self._factor = (None, None)  # (τ, device weight, decay and node scale)
+        self._factor = (None, None)  # ((τ, j), device weight, decay, node scale and sweeps)
+        self.sweeps = 1  # of the last record
 
-    def record(self, h: float, every: int = 1) -> Heat:
-        """The device :class:`Heat` for sweeps over τ = coefficient · k · h (a cycle of k steps)."""
+    def record(self, h: float, every: int = 1, sweeps: int = 1) -> Heat:
+        """The device :class:`Heat` for a conduction row over τ = coefficient · k · h (a cycle of
+        k steps), as ``sweeps`` half sweeps over τ / sweeps each."""
         static = list(self._static)
         if self.setup is not None and self.setup.conduction:
             tau = self.coefficient * every * h
-            if self._factor[0] != tau:
-                self._factor = (tau, tuple(self._to_device(a) for a in self.setup.factors(tau)))
-            for name, value in zip(("weight", "decay", "factor_mask", "node_scale"), self._factor[1]):
+            if self._factor[0] != (tau, sweeps):
+                factors = (*self.setup.factors(tau / sweeps), np.array([sweeps], dtype=np.int64))
+                self._factor = ((tau, sweeps), tuple(self._to_device(a) for a in factors))
+            for name, value in zip(("weight", "decay", "factor_mask", "node_scale", "sweeps"), self._factor[1]):
                 static[Heat._fields.index(name)] = value
+            self.sweeps = sweeps
         return Heat(*static, *self.logs, *self._cpu_logs, *self._work)
 
     def upload(self, state) -> None:
@@ -239,10 +250,12 @@ class DeviceHeat:
         self.logs[LOGS.index("theta_ok")].copy_to_device(np.array([1.0 if valid else 0.0]))
 
     def phases(self, code: int):
-        """(phase, number of elements) of heat row ``code``, in order (see :func:`_phase_span`)."""
+        """(phase, number of elements) of heat row ``code``, in order (see :func:`_phase_span`),
+        with the sub-sweeps of the last :meth:`record`."""
         out = []
-        for phase in range(_phase_count(code, self.colour_ptr, self.star_colour_ptr)):
-            _, lo, hi = _phase_span(code, phase, self.colour_ptr, self.star_colour_ptr, self.n_bound, self.m)
+        for phase in range(_phase_count(code, self.colour_ptr, self.star_colour_ptr, self.sweeps)):
+            _, lo, hi, _ = _phase_span(code, phase, self.colour_ptr, self.star_colour_ptr, self.n_bound, self.m,
+                                       self.sweeps)
             out.append((phase, int(hi - lo)))
         return out
 
@@ -278,5 +291,5 @@ def compile_heat_ptx(model, uniform: bool = True, cc=(9, 0)) -> dict[str, str]:
 def sample_heat():
     """A :class:`Heat` record of one-element arrays of the kernels' types (for compiling)."""
     v, i, i32 = np.empty(1), np.empty(1, np.int64), np.empty(1, np.int32)
-    return Heat(i, i, i, i, np.empty(1, np.uint32), v, v, np.zeros(1, np.uint64), v, i32, i32, v, i, v, v, i, i, i, i, v, i, np.empty((1, 4)), i,
-                v, v, v, v, v, v, v, v, v, v, v, v, v, v)
+    return Heat(i, i, i, i, np.empty(1, np.uint32), v, v, np.zeros(1, np.uint64), v, np.ones(1, np.int64), i32, i32,
+                v, i, v, v, i, i, i, i, v, i, np.empty((1, 4)), i, v, v, v, v, v, v, v, v, v, v, v, v, v, v)

@@ -1,5 +1,5 @@
-"""The heat-flow logs the kernels keep in the state (:func:`heat_logs`, :func:`cycle_position`)
-and the heat-flow columns of a diagnostics row computed from them.
+"""The heat-flow logs the kernels keep in the state (:func:`heat_logs`, :func:`cycle_position`,
+:func:`cycle_sweeps`) and the heat-flow columns of a diagnostics row computed from them.
 
 - ``entropy_produced``: Σ of every exchange's entropy production (junctions and bath ends), since
   the run's logs started;
@@ -86,6 +86,8 @@ def heat_logs(state, heat) -> dict:
         for key, value in heat.new_logs().items():
             logs.setdefault(key, value)
         logs["cycle"][1] = float(state.step)
+    elif len(logs["cycle"]) < 3:  # saved before sub-sweeps: one half sweep per half boundary
+        logs["cycle"] = np.append(logs["cycle"][:2], 1.0)
     return logs
 
 
@@ -96,3 +98,9 @@ def cycle_position(state, heat) -> tuple[int, int]:
     cycle = heat_logs(state, heat)["cycle"]
     every = int(cycle[0])
     return every, int((state.step - int(cycle[1])) % every)
+
+
+def cycle_sweeps(state, heat) -> int:
+    """The half sweeps j of each half of the boundaries of ``state``'s conduction cycle
+    (sub-sweeps: :mod:`thermonet.heat.multirate`)."""
+    return int(heat_logs(state, heat)["cycle"][2])

@@ -42,6 +42,9 @@ CONTINUE = 8
 #: leave the entropy update to the caller, who runs it with the next kick's spring pass
 #: (:func:`_finish_refresh_pass`: one pass over the springs instead of two)
 DEFER_FINISH = 16
+#: (:func:`_sweep_colour` only) each block forward, then in reverse: a forward half sweep's last
+#: colour and the next reverse half sweep's first, as one phase (sub-sweeps)
+FORWARD_THEN_REVERSE = 32
 
 # Bound per kernel variant (see thermonet.explicit.cpu; spring_pass and node_pass for
 # conduction_boundary, which only the explicit step uses).
@@ -301,8 +304,8 @@ def _star_blocks(b1, b2, heat, reverse, theta):
 
 
 def _sweep_colour(heat, ptr, colour, directions, theta):
-    """The blocks of one colour, in parallel: each reverse (REVERSE), forward (FORWARD), or
-    reverse then forward (both). With shared factors and two blocks or more (with threads:
+    """The blocks of one colour, in parallel: each reverse (REVERSE), forward (FORWARD),
+    reverse then forward (both), or forward then reverse (FORWARD_THEN_REVERSE). With shared factors and two blocks or more (with threads:
     PAIRS_FROM or more, a pair for every thread of the pool), the blocks go in pairs (block k
     with block k + ⌈B/2⌉ of the colour, :func:`_star_blocks`), the pairs in parallel; the pairing changes no result, only
     the order in which independent blocks interleave. (Unpaired, a thread's junction sums are
@@ -318,21 +321,28 @@ def _sweep_colour(heat, ptr, colour, directions, theta):
             b2 = b1 + half + odd if k < half else -1
             if directions & REVERSE:
                 _star_blocks(b1, b2, heat, True, theta)
-            if directions & FORWARD:
+            if directions & (FORWARD | FORWARD_THEN_REVERSE):
                 _star_blocks(b1, b2, heat, False, theta)
+            if directions & FORWARD_THEN_REVERSE:
+                _star_blocks(b1, b2, heat, True, theta)
     else:
         for b in prange(lo, lo + count):
             if directions & REVERSE:
                 star_block(b, heat, True, theta)
-            if directions & FORWARD:
+            if directions & (FORWARD | FORWARD_THEN_REVERSE):
                 star_block(b, heat, False, theta)
+            if directions & FORWARD_THEN_REVERSE:
+                star_block(b, heat, True, theta)
 
 
 def _conduction_sweep(heat, theta, theta_start, eta, tau, t, directions):
     """Conduction half sweeps over τ each at time t (see the module docstring): ``directions``
-    REVERSE, FORWARD or both (the reverse one first), with SAVE or CONTINUE. theta must hold the
-    springs' temperatures at the current positions, and is kept so; theta_start (m,) is
-    scratch. Ends with each spring's entropy update (:func:`finish_spring`) unless DEFER_FINISH."""
+    REVERSE (the half that ends a cycle), FORWARD (the half that starts one) or both (the reverse
+    one first), with SAVE or CONTINUE. A step boundary is 2j half sweeps, j = heat.sweeps[0],
+    alternately reverse and forward (reverse, forward, reverse, …): the first j end a cycle, the
+    last j start the next (j = 1: one reverse, one forward). theta must hold the springs'
+    temperatures at the current positions, and is kept so; theta_start (m,) is scratch. Ends
+    with each spring's entropy update (:func:`finish_spring`) unless DEFER_FINISH."""
     ptr = heat.star_colour_ptr
     n_colours = ptr.shape[0] - 1
     # the arrays written in parallel loops are taken out of the record first: Numba's parallel
@@ -353,23 +363,33 @@ def _conduction_sweep(heat, theta, theta_start, eta, tau, t, directions):
     else:
         for e in prange(m):
             theta_start[e] = theta[e]
-    # with no boundary entries between them, the reverse sweep's last colour and the forward
-    # sweep's first (the same colour) run as one phase, each block reverse then forward (a
-    # block's springs meet no other block of its colour: the same operations in the same order)
-    fuse = directions & REVERSE != 0 and directions & FORWARD != 0 and n_bound == 0 and n_colours > 0
-    if directions & REVERSE:
-        for i in range(n_colours - 1 if fuse else n_colours):
-            # (np.int64: with the literal, the call below would compile a second _sweep_colour)
-            _sweep_colour(heat, ptr, n_colours - 1 - i, np.int64(REVERSE), theta)
-        if n_bound > 0:  # (a parallel loop costs a barrier even when empty)
-            for j in prange(n_bound):
-                boundary_exchange(j, heat, tau, t, True, theta, logs)
-    if directions & FORWARD:
-        if n_bound > 0:
-            for j in prange(n_bound):
-                boundary_exchange(j, heat, tau, t, False, theta, logs)
-        for colour in range(n_colours):
-            _sweep_colour(heat, ptr, colour, REVERSE | FORWARD if fuse and colour == 0 else FORWARD, theta)
+    sweeps = heat.sweeps[0]
+    first = 0 if directions & REVERSE else sweeps
+    last = 2 * sweeps if directions & FORWARD else sweeps
+    # with no boundary entries between them, a half sweep's last colour and the next one's first
+    # (the same colour: the directions alternate) run as one phase, each block in one direction
+    # then the other (a block's springs meet no other block of its colour: the same operations
+    # in the same order); one colour alone is one phase either way
+    fuse = n_bound == 0 and n_colours > 1
+    joined = False  # this half sweep's first colour ran with the last one's last
+    for half in range(first, last):
+        more = fuse and half + 1 < last
+        if half % 2 == 0:  # reverse: the colours backwards, then the boundary entries
+            for i in range(1 if joined else 0, n_colours):
+                # (np.int64: with the literal, the call would compile a second _sweep_colour)
+                code = np.int64(REVERSE | FORWARD if more and i == n_colours - 1 else REVERSE)
+                _sweep_colour(heat, ptr, n_colours - 1 - i, code, theta)
+            if n_bound > 0:  # (a parallel loop costs a barrier even when empty)
+                for j in prange(n_bound):
+                    boundary_exchange(j, heat, tau, t, True, theta, logs)
+        else:  # forward: the boundary entries, then the colours in order
+            if n_bound > 0:
+                for j in prange(n_bound):
+                    boundary_exchange(j, heat, tau, t, False, theta, logs)
+            for colour in range(1 if joined else 0, n_colours):
+                code = np.int64(FORWARD_THEN_REVERSE if more and colour == n_colours - 1 else FORWARD)
+                _sweep_colour(heat, ptr, colour, code, theta)
+        joined = more
     if directions & SAVE:
         for e in prange(m):
             pending_theta[e] = theta_start[e]
@@ -397,8 +417,8 @@ def conduction_boundary(state, cur, topology, springs, scratch, heat, run, pendi
                           pending != 0.0, heat.length, heat.strain)[0]
         if bad > 0:
             return bad
-    conduction_sweep(heat, scratch.theta_keep, heat.theta_start, state.eta, 0.5 * run.conduction_every * run.h,
-                     run.t0 + step * run.h, directions)
+    conduction_sweep(heat, scratch.theta_keep, heat.theta_start, state.eta,
+                     0.5 * run.conduction_every * run.h / heat.sweeps[0], run.t0 + step * run.h, directions)
     return 0
 
 

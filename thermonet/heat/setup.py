@@ -72,12 +72,13 @@ class HeatSetup:
     def new_logs(self) -> dict:
         """Zeroed logs: produced (m,), entry_heat (E,), entry_flux (E,), the sweeps' working
         temperatures and lengths theta, length (m,) with theta_ok (1,) = 0 (not valid yet), and
-        cycle (2,): the conduction cycle's length k and the step it is counted from (multirate
-        conduction: a cycle starts at every step s with (s − cycle[1]) % cycle[0] == 0);
+        cycle (3,): the conduction cycle's length k, the step it is counted from (multirate
+        conduction: a cycle starts at every step s with (s − cycle[1]) % cycle[0] == 0) and the
+        half sweeps j of each half of its boundaries (:mod:`thermonet.heat.multirate`);
         pending_eta, pending_produced, pending_theta (m,): see :class:`~thermonet.kernels.records.Heat`."""
         return {"produced": np.zeros(len(self.capacity)), "entry_heat": np.zeros(len(self.entry_spring)),
                 "entry_flux": np.zeros(len(self.entry_spring)), "theta": np.zeros(len(self.capacity)),
-                "theta_ok": np.zeros(1), "length": np.zeros(len(self.capacity)), "cycle": np.array([1.0, 0.0]),
+                "theta_ok": np.zeros(1), "length": np.zeros(len(self.capacity)), "cycle": np.array([1.0, 0.0, 1.0]),
                 "pending_eta": np.zeros(len(self.capacity)), "pending_produced": np.zeros(len(self.capacity)),
                 "pending_theta": np.zeros(len(self.capacity))}
 
@@ -136,21 +137,22 @@ class HeatSetup:
         """The baths' and sources' time functions packed for the kernels (:func:`thermonet.timefunctions.pack`)."""
         return pack(self.functions) if self.functions else pack([TimeFunction.constant(0.0)])
 
-    def record(self, tau: float, logs: dict, backend: str = "cpu") -> Heat:
-        """The kernels' :class:`~thermonet.kernels.records.Heat` for conduction sweeps over τ in
-        ``backend``'s order, logging into ``logs`` (:meth:`new_logs`, kept in the state). The
-        last one is kept and returned again while τ, the order and the log arrays are the same
-        (a run asks for one per call: building it costs more than a small net's step)."""
+    def record(self, tau: float, logs: dict, backend: str = "cpu", sweeps: int = 1) -> Heat:
+        """The kernels' :class:`~thermonet.kernels.records.Heat` for conduction half sweeps over
+        τ in ``backend``'s order, ``sweeps`` of them in each half of a cycle boundary, logging
+        into ``logs`` (:meth:`new_logs`, kept in the state). The last one is kept and returned
+        again while τ, the sweeps, the order and the log arrays are the same (a run asks for one
+        per call: building it costs more than a small net's step)."""
         order = self.star_order(backend)
         last = self.__dict__.get("_last_record")
-        if (last is not None and last[0] == tau and last[1] is order and len(last[2]) == len(logs)
+        if (last is not None and last[0] == (tau, sweeps) and last[1] is order and len(last[2]) == len(logs)
                 and all(logs.get(k) is v for k, v in last[2].items())):
             return last[3]
-        record = self._record(tau, logs, order)
-        self.__dict__["_last_record"] = (tau, order, dict(logs), record)
+        record = self._record(tau, logs, order, sweeps)
+        self.__dict__["_last_record"] = ((tau, sweeps), order, dict(logs), record)
         return record
 
-    def _record(self, tau: float, logs: dict, order: StarOrder) -> Heat:
+    def _record(self, tau: float, logs: dict, order: StarOrder, sweeps: int = 1) -> Heat:
         cached = self.__dict__.get("_static")
         if cached is None:
             spring = self.entry_spring
@@ -166,7 +168,7 @@ class HeatSetup:
             inc = self.__dict__["_incidence"] = (np.ascontiguousarray(self.layout.inc_ptr, dtype=np.int64),
                                                  np.ascontiguousarray(self.layout.inc_spring).view(np.uint32))
         return Heat(order.colour_ptr, order.block_ptr, order.node, *inc, *self.factors(tau),
-                    g.first, g.second, np.ascontiguousarray(g.kappa[:, 1]), g.colour_ptr, self.capacity, inv_capacity,
+                    np.array([sweeps], dtype=np.int64), g.first, g.second, np.ascontiguousarray(g.kappa[:, 1]), g.colour_ptr, self.capacity, inv_capacity,
                     bound, ptr, self.entry_kind, self.entry_fn, self.entry_rate, *packed,
                     logs["produced"], logs["entry_heat"], logs["entry_flux"], logs["theta"], logs["theta_ok"],
                     logs["length"], logs["pending_eta"], logs["pending_produced"], logs["pending_theta"],

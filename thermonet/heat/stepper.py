@@ -48,10 +48,10 @@ class ConductionAround(Stepper):
         self._theta_start = np.empty(system.n_springs)
         self._length = np.empty(system.n_springs)
 
-    def _conduct(self, state, tau: float, t: float, directions: int) -> None:
+    def _conduct(self, state, tau: float, t: float, directions: int, sweeps: int) -> None:
         from .logs import heat_logs
 
-        record = self.heat.record(tau, heat_logs(state, self.heat))
+        record = self.heat.record(tau, heat_logs(state, self.heat), sweeps=sweeps)
         self._temperature_pass(state.positions, state.entropy, self._topology, self._springs, self._theta,
                                self._length)
         self._sweep(record, self._theta, self._theta_start, state.entropy, tau, t, directions)
@@ -61,20 +61,21 @@ class ConductionAround(Stepper):
         the logs included) and the StepFailure says how many steps were done. The forward half
         sweep runs before the first step of each conduction cycle, the reverse one after its
         last (:func:`~thermonet.heat.logs.cycle_position`)."""
-        from .logs import cycle_position, heat_logs
+        from .logs import cycle_position, cycle_sweeps, heat_logs
         from .passes import FORWARD, REVERSE
 
         stats = None
         step0, t0 = state.step, state.time
         every, at = cycle_position(state, self.heat)
-        tau = 0.5 * every * h
+        sweeps = cycle_sweeps(state, self.heat)
+        tau = 0.5 * every * h / sweeps
         for i in range(int(n_steps)):
             t = t0 + i * h
             eta = state.entropy.copy()
             logs = {k: v.copy() for k, v in heat_logs(state, self.heat).items()}
             state.step, state.time = step0 + i, t
             if (at + i) % every == 0:
-                self._conduct(state, tau, t, FORWARD)
+                self._conduct(state, tau, t, FORWARD, sweeps)
             try:
                 stats = self.inner.advance(state, 1, h)
             except StepFailure as exc:
@@ -84,7 +85,7 @@ class ConductionAround(Stepper):
                 state.step, state.time = step0, t0
                 raise StepFailure(str(exc), steps_done=i, details=exc.details) from None
             if (at + i + 1) % every == 0:
-                self._conduct(state, tau, t0 + (i + 1) * h, REVERSE)
+                self._conduct(state, tau, t0 + (i + 1) * h, REVERSE, sweeps)
         state.step, state.time = step0, t0
         return stats
 

@@ -359,7 +359,8 @@ class RunOutput:
             "frames": len(self.pvd.frames),
             "conserved": summary,
             **({"newton": run["newton"]} if "newton" in run else {}),
-            **({"conduction_every": {"k": sim.conduction_cycle[0], "why": sim.conduction_cycle[1]}}
+            **({"conduction_every": {"k": sim.conduction_cycle.k, "sweeps": sim.conduction_cycle.sweeps,
+                                     "why": sim.conduction_cycle.why}}
                if sim.conduction_cycle else {}),
             **(extra or {}),
         }

@@ -128,7 +128,9 @@ class Heat(NamedTuple):
     weight, decay: (2m,) a = C (1 − exp(−g τ/C)) and exp(−g τ/C) for the sweep's τ, of the
     spring of each incidence (inc_spring's order), or (1,) when all springs share them, with
     factor_mask (1,) uint64: all ones, or 0 for the shared ones (an incidence j reads element
-    j & mask); node_scale: (n,) 1 / Σ a over each node's incidences (0 where that is 0).
+    j & mask); node_scale: (n,) 1 / Σ a over each node's incidences (0 where that is 0); sweeps:
+    (1,) int64 j, the half sweeps over τ of each half of a cycle boundary (sub-sweeps, see
+    :mod:`thermonet.heat.multirate`; 1: one reverse half sweep ends a cycle, one forward starts it).
     Thermal waves: first, second: (P,) int32 springs of each pair; wave: (P,) k* of each pair;
     colour_ptr: (K+1,) int64, colour c is pairs colour_ptr[c]:colour_ptr[c+1] (no two share a spring).
     capacity, inv_capacity: (m,) C and 1/C per spring; bound_spring: (S,) int64 springs with
@@ -156,6 +158,7 @@ class Heat(NamedTuple):
     decay: np.ndarray
     factor_mask: np.ndarray
     node_scale: np.ndarray
+    sweeps: np.ndarray
     first: np.ndarray
     second: np.ndarray
     wave: np.ndarray
@@ -193,7 +196,7 @@ def no_heat() -> Heat:
     i32 = np.empty(0, dtype=np.int32)
     ptr = np.zeros(1, dtype=np.int64)
     return Heat(ptr, ptr, i, ptr, np.empty(0, dtype=np.uint32), f, f, np.zeros(1, dtype=np.uint64), f,
-                i32, i32, f, ptr, f, f, i, ptr, i, i, f,
+                np.ones(1, dtype=np.int64), i32, i32, f, ptr, f, f, i, ptr, i, i, f,
                 i, np.empty((0, 4)), ptr, f, f, f, f, f, f, np.zeros(1), f, f, f, f, f, f, f)
 
 

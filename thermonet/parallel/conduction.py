@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..heat.logs import cycle_position, heat_logs
+from ..heat.logs import cycle_position, cycle_sweeps, heat_logs
 from ..heat.passes import CONTINUE, FORWARD, REVERSE, SAVE
 from ..kernels import records
 from ..loads.elements import NO_LOADS
@@ -89,6 +89,7 @@ class DistributedConduction:
         st = self.stepper
         logs = heat_logs(state, self.heat)
         every, cycle_step = cycle_position(state, self.heat)
+        sweeps = cycle_sweeps(state, self.heat)
         lo, hi = st.system.stretch_bounds
         run = records.Run(float(h), float(state.time), int(n_steps), bool(st.integrator.track_phi), float(lo),
                           float(hi), False, False, int(every), int(cycle_step))
@@ -117,8 +118,8 @@ class DistributedConduction:
                 if st._any(self._before_sweep(cur, arrays, topology, springs, before, (length, strain), pending, run)):
                     return False
                 strain_ok = True
-            self._sweep.sweep(logs["theta_ok"], scratch.theta_keep, arrays.eta, 0.5 * run.conduction_every * run.h,
-                              run.t0 + step * run.h, directions)
+            self._sweep.sweep(logs["theta_ok"], scratch.theta_keep, arrays.eta,
+                              0.5 * run.conduction_every * run.h / sweeps, run.t0 + step * run.h, directions, sweeps)
             return True
 
         for step in range(n_steps):

@@ -163,11 +163,11 @@ class DistributedSweep:
         return heat_sums(self.produced[:self.ml][counted.view(bool)], self.entry_heat, self.entry_flux,
                          self._entry_fn, self._n_names)
 
-    def _local_record(self, tau: float, theta_ok: np.ndarray):
-        """This process's :class:`~thermonet.kernels.records.Heat` for sweeps over τ (its
-        factors made from its part of the setup, as the whole net's are:
-        :func:`thermonet.heat.setup.incidence_factors`); theta_ok: the logs' flag (1,)."""
-        if self._record is not None and self._record[0] == tau and self._record[1] is theta_ok:
+    def _local_record(self, tau: float, theta_ok: np.ndarray, sweeps: int):
+        """This process's :class:`~thermonet.kernels.records.Heat` for half sweeps over τ,
+        ``sweeps`` per half boundary (its factors made from its part of the setup, as the whole
+        net's are: :func:`thermonet.heat.setup.incidence_factors`); theta_ok: the logs' flag (1,)."""
+        if self._record is not None and self._record[0] == (tau, sweeps) and self._record[1] is theta_ok:
             return self._record[2]
         hs = self.part
         weight, decay, mask, node_scale = incidence_factors(self._conductance, self._capacity, tau, hs.inc_ptr,
@@ -176,20 +176,21 @@ class DistributedSweep:
             weight, decay = np.zeros(1), np.zeros(1)
         empty = np.zeros(0)
         local = records.Heat(hs.colour_ptr, hs.block_ptr, self._block_node, hs.inc_ptr, hs.inc_spring, weight, decay,
-                             mask, node_scale, *self._waves, self._capacity, self._inv_capacity,
+                             mask, node_scale, np.array([sweeps], dtype=np.int64), *self._waves, self._capacity, self._inv_capacity,
                              self._bound_spring, self._bound_ptr, self._entry_kind, self._entry_fn, self._entry_rate,
                              *self._functions, self.produced, self.entry_heat, self.entry_flux, empty, theta_ok, empty,
                              self.pending["pending_eta"], self.pending["pending_produced"],
                              self.pending["pending_theta"], empty, self.theta_start, empty)
-        self._record = (tau, theta_ok, local)
+        self._record = ((tau, sweeps), theta_ok, local)
         return local
 
     def sweep(self, theta_ok: np.ndarray, theta_keep: np.ndarray, eta: np.ndarray, tau: float, t: float,
-              directions: int) -> None:
-        """The half sweeps ``directions`` (REVERSE, FORWARD, both; SAVE, CONTINUE) over τ at t
-        from the share's θ (ml,) (updated in place) and η (ml,) (its entropy update made);
-        theta_ok: the heat logs' flag (1,)."""
-        heat = self._local_record(tau, theta_ok)
+              directions: int, sweeps: int = 1) -> None:
+        """The half sweeps ``directions`` (REVERSE, FORWARD, both; SAVE, CONTINUE) over τ at t,
+        ``sweeps`` per half of the boundary (alternately reverse and forward, as
+        :func:`thermonet.heat.passes._conduction_sweep`'s), from the share's θ (ml,) (updated in
+        place) and η (ml,) (its entropy update made); theta_ok: the heat logs' flag (1,)."""
+        heat = self._local_record(tau, theta_ok, sweeps)
         ml, theta, start = self.ml, self.theta, self.theta_start
         theta[:ml] = theta_keep
         self._start.exchange(theta)
@@ -200,21 +201,22 @@ class DistributedSweep:
         else:
             start[:ml] = theta[:ml]
         n_colours = len(self._colours)
-        if directions & REVERSE:
-            for i in range(n_colours):
-                colour = n_colours - 1 - i
-                self._colour_phase(heat, theta, colour, True)
-                self._colours[colour].exchange(theta)
-            if self._any_boundary:
-                self._boundary_phase(heat, theta, tau, t, True)
-                self._boundary.exchange(theta)
-        if directions & FORWARD:
-            if self._any_boundary:
-                self._boundary_phase(heat, theta, tau, t, False)
-                self._boundary.exchange(theta)
-            for colour in range(n_colours):
-                self._colour_phase(heat, theta, colour, False)
-                self._colours[colour].exchange(theta)
+        for half in range(0 if directions & REVERSE else sweeps, 2 * sweeps if directions & FORWARD else sweeps):
+            if half % 2 == 0:  # reverse: the colours backwards, then the boundary entries
+                for i in range(n_colours):
+                    colour = n_colours - 1 - i
+                    self._colour_phase(heat, theta, colour, True)
+                    self._colours[colour].exchange(theta)
+                if self._any_boundary:
+                    self._boundary_phase(heat, theta, tau, t, True)
+                    self._boundary.exchange(theta)
+            else:
+                if self._any_boundary:
+                    self._boundary_phase(heat, theta, tau, t, False)
+                    self._boundary.exchange(theta)
+                for colour in range(n_colours):
+                    self._colour_phase(heat, theta, colour, False)
+                    self._colours[colour].exchange(theta)
         if directions & SAVE:
             self.pending["pending_theta"][:] = start[:ml]
             self.pending["pending_eta"][:] = eta

@@ -83,6 +83,7 @@ def build_scene(scene: Scene) -> BuiltScene:
             stability_guard="stop" if integ["check_step"] else "warn",
             conduction=d["effects"]["conduction"],
             conduction_every=d["effects"]["conduction_every"],
+            conduction_sweeps=d["effects"].get("conduction_sweeps"),
             thermal_waves=d["effects"]["thermal_waves"],
             baths={name: Bath(b["group"], b["temperature"]) for name, b in d["baths"].items()},
             sources={name: Source(b["group"], b["power"]) for name, b in d["sources"].items()},

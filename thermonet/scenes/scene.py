@@ -294,6 +294,9 @@ def check(scene: Scene) -> None:
     if out["diagnostics_every"] == 0:
         raise scene.error("output.diagnostics_every", 'must be >= 1 or "auto" (diagnostics cannot be switched off)')
     every = effects["conduction_every"]
+    if effects.get("conduction_sweeps") is not None and every == "auto":
+        raise scene.error("effects.conduction_sweeps", 'set it with a whole conduction_every (k); "auto" chooses the '
+                          "sub-sweeps itself")
     if effects["conduction"] and every != "auto":
         total = scene.total_steps()
         cadences = [scene.cadence(k, total) for k in ("frames_every", "diagnostics_every", "checkpoint_every")]

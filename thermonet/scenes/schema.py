@@ -395,7 +395,11 @@ SCHEMA = Table({
         "conduction": Key(boolean, "boolean", "Fourier heat conduction between springs through their conductance "
                           "g (a material parameter); needs thermal", False),
         "conduction_every": Key(auto_or_steps, '"auto" | integer ≥ 1', "conduction every k steps, sweeps over k h: "
-                                "\"auto\" picks k from the conduction's fastest rate (docs/heat.md)", "auto"),
+                                "\"auto\" picks k (and its sub-sweeps) from the conduction's fastest rate "
+                                "(docs/heat.md)", "auto"),
+        "conduction_sweeps": Key(integer(1), "integer ≥ 1", "with an integer conduction_every: each conduction "
+                                 "cycle's boundary swept j times, as 2j half sweeps over k h / (2 j) (default 1; "
+                                 "\"auto\" chooses j)", None),
         "thermal_waves": Key(boolean, "boolean", "Green–Naghdi type II thermal waves through g_star (a material "
                              "parameter); explicit splittings only; needs thermal", False),
     }, "the physics the scene switches on; what is off is not computed"),

@@ -208,7 +208,7 @@ def _no_temperature(e, x, eta, edges, springs, heat):
     return None
 
 
-def _no_phases(code, colour_ptr, star_colour_ptr):
+def _no_phases(code, colour_ptr, star_colour_ptr, sweeps):
     """No heat flow compiled in."""
     return 0
 
@@ -303,7 +303,7 @@ def _steps_kernel(state, x_buf, s, topology, springs, nodes, table, flows, run, 
                         continue
                     t = run.t0 + (step + table.drift[r]) * h
                     tau = table.kick[r] * h * (run.conduction_every if code != THERMAL_WAVES else 1)
-                    for phase in range(phase_count(code, heat.colour_ptr, heat.star_colour_ptr)):
+                    for phase in range(phase_count(code, heat.colour_ptr, heat.star_colour_ptr, heat.sweeps[0])):
                         sweep_phase(code, phase, heat, tau, t, phi, eta, first, stride)
                         grid.sync()
                     continue
