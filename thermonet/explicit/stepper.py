@@ -13,7 +13,7 @@ import numpy as np
 from ..blowup import blowup_failure
 from ..diagnostics import row_sums, sums_of
 from ..errors import InputError
-from ..heat.logs import cycle_position, cycle_sweeps, heat_logs
+from ..heat.logs import cycle_of, heat_logs
 from ..integrators.base import Stepper
 from ..kernels import records
 from ..kernels.records import Run, StateArrays, no_heat_cpu
@@ -79,12 +79,13 @@ class SplittingStepper(Stepper):
         lo, hi = self.system.stretch_bounds
         reuse = self._boundary is not None and self._boundary[0] is state and self._boundary[1] == state.step
         self._boundary = None
-        every, cycle_step = cycle_position(state, self._heat) if self._conduction else (1, 0)
+        every, cycle_step, sweeps = cycle_of(state, self._heat) if self._conduction else (1, 0, 1)
         run = Run(float(h), float(state.time), int(n_steps), bool(self.integrator.track_phi), float(lo), float(hi),
                   bool(reuse), bool(measure), every, cycle_step)
         loads = self.loads.arrays_for(state, h) if self.loads is not None else NO_LOADS  # loads
         done, detected, summed = self._advance(arrays, self._scratch, self._topology, self._springs, self._nodes,
-                                               self._table, self._effects, self._heat_record(state, h, every), run, loads)
+                                               self._table, self._effects, self._heat_record(state, h, every, sweeps),
+                                               run, loads)
         if not detected and self._table.carry != 0.0:
             self._boundary = (state, state.step + int(n_steps))
         if summed:
@@ -93,12 +94,11 @@ class SplittingStepper(Stepper):
             raise blowup_failure(self.system, state.positions, state.entropy, done)
         return None
 
-    def _heat_record(self, state, h: float, every: int):
+    def _heat_record(self, state, h: float, every: int, sweeps: int):
         """The kernels' Heat record: conduction factors for the half sweeps of this h and a
-        cycle of ``every`` steps (τ = k h / (2 j), j the cycle's sub-sweeps), logs in the state."""
+        cycle of ``every`` steps with ``sweeps`` sub-sweeps (τ = k h / (2 j)), logs in the state."""
         if self._heat is None:
             return _NO_HEAT
-        sweeps = cycle_sweeps(state, self._heat) if self._conduction else 1
         return self._heat.record(0.5 * every * h / sweeps, heat_logs(state, self._heat), sweeps=sweeps)
 
     def closing_sums(self, state) -> dict | None:

@@ -38,14 +38,45 @@ def heat_sums(produced: np.ndarray, entry_heat: np.ndarray, entry_flux: np.ndarr
     """(3 + n_names, WIDTH) int64 exact accumulators (:mod:`thermonet.kernels.exact`) of the
     heat-flow sums of a row: Σ produced (k,), Σ entry_flux, Σ entry_heat (E,), then Σ entry_heat
     of the entries of each bath or source (``entry_fn`` (E,): their numbers). Exact: the
-    accumulators of parts of the logs (a process's springs and entries) add up to the whole's."""
+    accumulators of parts of the logs (a process's springs and entries) add up to the whole's.
+    One compiled call (a row of a small net is otherwise mostly calls)."""
     acc = np.zeros((3 + n_names, exact.WIDTH), dtype=np.int64)
-    exact.add_array(acc[0], np.ascontiguousarray(produced, dtype=np.float64))
-    exact.add_array(acc[1], np.ascontiguousarray(entry_flux, dtype=np.float64))
-    exact.add_array(acc[2], np.ascontiguousarray(entry_heat, dtype=np.float64))
-    for i in range(n_names):
-        exact.add_array(acc[3 + i], np.ascontiguousarray(entry_heat[entry_fn == i], dtype=np.float64))
+    _sums_kernel()(acc, np.ascontiguousarray(produced, dtype=np.float64),
+                   np.ascontiguousarray(entry_heat, dtype=np.float64),
+                   np.ascontiguousarray(entry_flux, dtype=np.float64), np.ascontiguousarray(entry_fn, dtype=np.int64))
     return acc
+
+
+def _heat_sums(acc, produced, entry_heat, entry_flux, entry_fn):
+    """:func:`heat_sums` into the zeroed acc (3 + names, WIDTH)."""
+    rest = np.empty(exact.BLOCK)
+    for row, values in ((0, produced), (1, entry_flux), (2, entry_heat)):
+        k = values.shape[0]
+        for lo in range(0, k, exact.BLOCK):
+            exact.add_terms(acc[row], values[lo:], min(exact.BLOCK, k - lo), rest)
+    bits = entry_heat.view(np.uint64)
+    for j in range(entry_heat.shape[0]):  # (each to its bath's or source's accumulator)
+        exact.add_bits(acc[3 + entry_fn[j]], bits[j])
+    for row in range(acc.shape[0]):
+        exact.normalize(acc[row])
+
+
+_SUMS = []
+
+
+def _sums_kernel():
+    """:func:`_heat_sums` compiled, its cache name carrying a digest of the exact sums' source
+    (which it inlines: Numba's disk cache watches this file only)."""
+    if not _SUMS:
+        import hashlib
+        import inspect
+
+        from ..kernels.specialize import specialize
+
+        digest = hashlib.sha256((inspect.getsource(exact) + inspect.getsource(_heat_sums)).encode()).hexdigest()[:8]
+        _SUMS.append(specialize(_heat_sums, f"x{digest}", {"exact": exact, "np": np}, cache=True,
+                                error_model="numpy", boundscheck=False))
+    return _SUMS[0]
 
 
 def heat_columns_of(heat, acc: np.ndarray) -> dict:
@@ -95,12 +126,17 @@ def cycle_position(state, heat) -> tuple[int, int]:
     """(k, steps of its conduction cycle ``state`` has made): the cycle's length k and
     ``(step − origin) % k`` from the state's heat logs (see
     :meth:`~thermonet.heat.setup.HeatSetup.new_logs`)."""
-    cycle = heat_logs(state, heat)["cycle"]
-    every = int(cycle[0])
-    return every, int((state.step - int(cycle[1])) % every)
+    return cycle_of(state, heat)[:2]
 
 
 def cycle_sweeps(state, heat) -> int:
     """The half sweeps j of each half of the boundaries of ``state``'s conduction cycle
     (sub-sweeps: :mod:`thermonet.heat.multirate`)."""
-    return int(heat_logs(state, heat)["cycle"][2])
+    return cycle_of(state, heat)[2]
+
+
+def cycle_of(state, heat) -> tuple[int, int, int]:
+    """(k, steps of the cycle made, j): :func:`cycle_position` and :func:`cycle_sweeps` at once."""
+    k, origin, sweeps = heat_logs(state, heat)["cycle"].tolist()
+    k = int(k)
+    return k, int((state.step - int(origin)) % k), int(sweeps)
