@@ -202,7 +202,7 @@ def no_heat() -> Heat:
 
 class NoHeat(NamedTuple):
     """What the CPU step reads of a :class:`Heat` record when heat does not flow (its heat-flow
-    code compiled out): five empty arrays instead of the whole record's 37, each of which the
+    code compiled out): five empty arrays instead of the whole record's 38, each of which the
     dispatcher would otherwise unbox at every call."""
 
     s_before: np.ndarray
