@@ -125,12 +125,12 @@ class Sweeps:
 
 def gpu_phases(net: tn.Net, sim) -> tuple[int, int]:
     """Grid-wide phases per step of conduction on the GPU: (pairwise sweeps, node-star sweeps at
-    the run's k)."""
+    the run's k and sub-sweeps j: two rows per cycle of j (colours + 1) + 2 phases each)."""
     heat = sim.system.heat
     pairs = pair_graph(sim.system.layout, heat.conductance[None, :], junction=heat.bath_nodes < 0)
     stars = heat.star_order("cuda")
-    k = sim.conduction_cycle[0] if sim.conduction_cycle else 1
-    return 2 * (pairs.n_colours + 3), 2 * (stars.n_colours + 3) / k
+    k, j = (sim.conduction_cycle.k, sim.conduction_cycle.sweeps) if sim.conduction_cycle else (1, 1)
+    return 2 * (pairs.n_colours + 3), 2 * (j * (stars.n_colours + 1) + 2) / k
 
 
 def measure(name: str, net: tn.Net, threads: int | None, steps: int, repeats: int) -> dict:
@@ -150,7 +150,8 @@ def measure(name: str, net: tn.Net, threads: int | None, steps: int, repeats: in
     return {
         "net": name, "springs": net.n_springs, "threads": threads or numba.config.NUMBA_NUM_THREADS,
         "kernels": "parallel" if conduction.parallel else "serial",
-        "blocks": order.n_blocks, "colours": order.n_colours, "k": auto.conduction_cycle[0],
+        "blocks": order.n_blocks, "colours": order.n_colours, "k": auto.conduction_cycle.k,
+        "sweeps_auto": auto.conduction_cycle.sweeps,
         "gpu_pair_phases": pair_phases, "gpu_star_phases": star_phases,
         **{k: statistics.median(v) for k, v in samples.items()},
         "ratio": statistics.median(c / a for a, c in zip(samples["adiabatic"], samples["conduction"])),
@@ -184,8 +185,8 @@ def measure_part(name: str, scene_path: str, overrides, threads, steps: int, rep
             sim.run(steps=steps, diagnostics_every=cadence)
             samples[key].append((time.perf_counter() - t0) / steps)
     return {"net": name, "springs": auto.net.n_springs, "threads": threads or numba.config.NUMBA_NUM_THREADS,
-            "kernels": "parallel" if auto.parallel else "serial", "h": auto.h, "k": auto.conduction_cycle[0],
-            "why": auto.conduction_cycle[1], **{k: statistics.median(v) for k, v in samples.items()},
+            "kernels": "parallel" if auto.parallel else "serial", "h": auto.h, "k": auto.conduction_cycle.k,
+            "sweeps_auto": auto.conduction_cycle.sweeps, "why": auto.conduction_cycle.why, **{k: statistics.median(v) for k, v in samples.items()},
             "auto_ratio": statistics.median(c / a for a, c in zip(samples["adiabatic"], samples["auto"]))}
 
 
@@ -245,19 +246,21 @@ def main(argv=None) -> tuple[list, list]:
     if rows:
         print(f"g = {G}, h = 0.4× the adiabatic stable step:\n")
         print("| net | springs | threads | CPU blocks / colours | adiabatic ms/step | conduction ms/step | ratio "
-              "| g = 0 ms/step | sweeps ms/step | auto: k | auto ratio | GPU phases/step: pairs → stars |")
+              "| g = 0 ms/step | sweeps ms/step | auto: k (j) | auto ratio | GPU phases/step: pairs → stars |")
         print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
         for r in rows:
             print(f"| {r['net']} | {r['springs']:,} | {r['threads']} ({r['kernels']}) | {r['blocks']} / {r['colours']} "
                   f"| {1e3 * r['adiabatic']:.3g} | {1e3 * r['conduction']:.3g} | **{r['ratio']:.2f}×** | "
-                  f"{1e3 * r['schedule']:.3g} | {1e3 * r['sweeps']:.3g} | {r['k']} | {r['auto_ratio']:.2f}× | "
+                  f"{1e3 * r['schedule']:.3g} | {1e3 * r['sweeps']:.3g} | {r['k']} ({r['sweeps_auto']}) | "
+                  f"{r['auto_ratio']:.2f}× | "
                   f"{r['gpu_pair_phases']} → {r['gpu_star_phases']:.3g} |")
     if parts:
         print("\nconduction_every = \"auto\" on parts run as users run them:\n")
-        print("| part | springs | threads | h | k | adiabatic ms/step | auto ms/step | ratio |")
+        print("| part | springs | threads | h | k (j) | adiabatic ms/step | auto ms/step | ratio |")
         print("|---|---:|---:|---:|---:|---:|---:|---:|")
         for r in parts:
-            print(f"| {r['net']} | {r['springs']:,} | {r['threads']} ({r['kernels']}) | {r['h']:.3g} | {r['k']} | "
+            print(f"| {r['net']} | {r['springs']:,} | {r['threads']} ({r['kernels']}) | {r['h']:.3g} | "
+                  f"{r['k']} ({r['sweeps_auto']}) | "
                   f"{1e3 * r['adiabatic']:.3g} | {1e3 * r['auto']:.3g} | **{r['auto_ratio']:.2f}×** |")
     return rows, parts
 

@@ -125,6 +125,9 @@ def test_sub_sweeps_are_the_shorter_cycles_sweeps_and_second_order_in_k_h_over_j
     h = 0.005
     assert fourier_decay_rate(h, t_end=2.4, every=(12, 3)) == pytest.approx(
         fourier_decay_rate(h, t_end=2.4, every=4), rel=1e-10)
+    # with j even too (forward, reverse | forward, reverse over 3 h: the cycle of 6 steps)
+    assert fourier_decay_rate(h, t_end=2.4, every=(12, 2)) == pytest.approx(
+        fourier_decay_rate(h, t_end=2.4, every=6), rel=1e-10)
     # k fixed, j sub-sweeps: order 2 in k h / j
     js = np.array([2, 4, 8])
     errors = np.array([abs(fourier_decay_rate(h, t_end=2.4, every=(48, int(j))) - exact) for j in js])
@@ -132,10 +135,11 @@ def test_sub_sweeps_are_the_shorter_cycles_sweeps_and_second_order_in_k_h_over_j
     assert -2.2 < slope < -1.8, (errors, slope)
 
 
-def test_a_boundary_with_sub_sweeps_is_its_half_sweeps_one_after_the_other_bit_for_bit():
-    # the sweep kernel with j = 3 (its colours fused across the six half sweeps: no baths) against
-    # six calls of one half sweep each, reverse, forward, … (temperatures only: the entropy
-    # update deferred), the factors the same
+@pytest.mark.parametrize("sweeps", [2, 3])
+def test_a_boundary_with_sub_sweeps_is_its_half_sweeps_one_after_the_other_bit_for_bit(sweeps):
+    # the sweep kernel with j sub-sweeps (its colours fused across the 2j half sweeps: no baths)
+    # against 2j calls of one half sweep each, alternately reverse and forward, the j-th a reverse
+    # one (temperatures only: the entropy update deferred), the factors the same
     from thermonet.heat.logs import heat_logs
     from thermonet.heat.passes import DEFER_FINISH, FORWARD, REVERSE, heat_kernels
 
@@ -152,12 +156,12 @@ def test_a_boundary_with_sub_sweeps_is_its_half_sweeps_one_after_the_other_bit_f
     start = np.empty(net.n_springs)
     tau = 0.05
     at_once = sim.layout.springs_to_internal(theta).astype(float)
-    sweep(heat.record(tau, logs, sweeps=3), at_once, start, state.entropy.copy(), tau, 0.0,
+    sweep(heat.record(tau, logs, sweeps=sweeps), at_once, start, state.entropy.copy(), tau, 0.0,
           REVERSE | FORWARD | DEFER_FINISH)
     one_by_one = sim.layout.springs_to_internal(theta).astype(float)
-    for half in range(6):
+    for half in range(2 * sweeps):
         sweep(heat.record(tau, logs, sweeps=1), one_by_one, start, state.entropy.copy(), tau, 0.0,
-              (FORWARD if half % 2 else REVERSE) | DEFER_FINISH)
+              (REVERSE if (sweeps - 1 - half) % 2 == 0 else FORWARD) | DEFER_FINISH)
     assert np.array_equal(at_once, one_by_one)
     assert not np.array_equal(at_once, sim.layout.springs_to_internal(theta))  # heat moved
 

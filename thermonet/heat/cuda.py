@@ -44,6 +44,7 @@ from ..kernels.records import Heat, no_heat
 from ..kernels.specialize import rebind
 from . import exchange
 from .rows import CONDUCTION_FORWARD, CONDUCTION_REVERSE, THERMAL_WAVES
+from .setup import entry_decay
 
 # Bound per kernel variant by bind_device_heat() (see thermonet.heat.exchange).
 star_node = star_block = boundary_exchange = finish_spring = wave_exchange = spring_temperature = squared_length = None
@@ -75,8 +76,8 @@ def _phase_span(code, phase, colour_ptr, star_colour_ptr, n_bound, m, sweeps):
     PAIRS (one colour's wave pairs), BLOCKS (one star colour's blocks), BOUNDARY (boundary
     springs), START or FINISH (all m springs); ``reverse``: its blocks' nodes last to first, its
     entries in reverse. A conduction row is START, its ``sweeps`` half sweeps (the CPU's: those
-    of a boundary's 2j alternate reverse, forward, …; the reverse row the first j, the forward
-    row the last j), FINISH."""
+    of a boundary's 2j alternately reverse and forward, the middle between a reverse and a
+    forward one; the reverse row the first j, the forward row the last j), FINISH."""
     if code == THERMAL_WAVES:
         return PAIRS, colour_ptr[phase], colour_ptr[phase + 1], False
     n_colours = star_colour_ptr.shape[0] - 1
@@ -86,7 +87,7 @@ def _phase_span(code, phase, colour_ptr, star_colour_ptr, n_bound, m, sweeps):
         return FINISH, 0, m, False
     half = (phase - 1) // (n_colours + 1) + (0 if code == CONDUCTION_REVERSE else sweeps)
     within = (phase - 1) % (n_colours + 1)
-    reverse = half % 2 == 0
+    reverse = (half + sweeps) % 2 == 1
     if within == (n_colours if reverse else 0):
         return BOUNDARY, 0, n_bound, reverse
     colour = n_colours - 1 - within if reverse else within - 1
@@ -203,7 +204,7 @@ class DeviceHeat:
         self.logs = tuple(to_device(np.ascontiguousarray(getattr(host, k))) for k in LOGS)
         self._cpu_logs = tuple(to_device(np.empty(0)) for _ in CPU_LOGS)
         self._work = tuple(to_device(np.zeros_like(getattr(host, k))) for k in WORK)
-        self._factor = (None, None)  # ((τ, j), device weight, decay, node scale and sweeps)
+        self._factor = (None, None)  # ((τ, j), device weight, decay, node scale, sweeps, bath decays)
         self.sweeps = 1  # of the last record
 
     def record(self, h: float, every: int = 1, sweeps: int = 1) -> Heat:
@@ -213,9 +214,11 @@ class DeviceHeat:
         if self.setup is not None and self.setup.conduction:
             tau = self.coefficient * every * h
             if self._factor[0] != (tau, sweeps):
-                factors = (*self.setup.factors(tau / sweeps), np.array([sweeps], dtype=np.int64))
-                self._factor = ((tau, sweeps), tuple(self._to_device(a) for a in factors))
-            for name, value in zip(("weight", "decay", "factor_mask", "node_scale", "sweeps"), self._factor[1]):
+                factors = (*self.setup.factors(tau / sweeps), np.array([sweeps], dtype=np.int64),
+                           entry_decay(self.setup.entry_rate, tau / sweeps))
+                self._factor = ((tau, sweeps), tuple(self._to_device(np.ascontiguousarray(a)) for a in factors))
+            for name, value in zip(("weight", "decay", "factor_mask", "node_scale", "sweeps", "entry_decay"),
+                                   self._factor[1]):
                 static[Heat._fields.index(name)] = value
             self.sweeps = sweeps
         return Heat(*static, *self.logs, *self._cpu_logs, *self._work)

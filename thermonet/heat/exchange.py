@@ -108,7 +108,7 @@ def boundary_exchange(j, heat, tau, t, reverse, theta, logs):
                          heat.entry_fn[q], t)
         te = theta[e]
         if heat.entry_kind[q] == BATH:
-            te_new = value + (te - value) * math.exp(-heat.entry_rate[q] * tau)
+            te_new = value + (te - value) * heat.entry_decay[q]  # exp(−g τ / C), made with the record
             heat_in = c * (te_new - te)
             flux = heat_in / value
         else:

@@ -9,7 +9,9 @@ its conduction).
 
 *Sub-sweeps.* A cycle boundary may also sweep j times (j ≥ 1): its conduction over k h is then
 2j half sweeps over k h / (2 j), alternately reverse and forward, the first j ending one cycle
-and the last j starting the next (each half the other's adjoint: the cycle stays symmetric).
+(the last of them a reverse one) and the last j starting the next (the first a forward one):
+each half is the other's adjoint, so the cycle stays symmetric, and its outputs fall between a
+reverse and a forward half sweep as with one sweep.
 The sweep error is that of a cycle of k / j steps, at the cost of one boundary (one entropy
 update, one refresh of the forces) with j sweep pairs, instead of j boundaries.
 

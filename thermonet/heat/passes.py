@@ -339,8 +339,9 @@ def _conduction_sweep(heat, theta, theta_start, eta, tau, t, directions):
     """Conduction half sweeps over τ each at time t (see the module docstring): ``directions``
     REVERSE (the half that ends a cycle), FORWARD (the half that starts one) or both (the reverse
     one first), with SAVE or CONTINUE. A step boundary is 2j half sweeps, j = heat.sweeps[0],
-    alternately reverse and forward (reverse, forward, reverse, …): the first j end a cycle, the
-    last j start the next (j = 1: one reverse, one forward). theta must hold the springs'
+    alternately reverse and forward: the first j end a cycle, their last a reverse one, the last
+    j start the next, their first a forward one (j = 1: one reverse, one forward; j = 2: forward,
+    reverse | forward, reverse). theta must hold the springs'
     temperatures at the current positions, and is kept so; theta_start (m,) is scratch. Ends
     with each spring's entropy update (:func:`finish_spring`) unless DEFER_FINISH."""
     ptr = heat.star_colour_ptr
@@ -374,7 +375,7 @@ def _conduction_sweep(heat, theta, theta_start, eta, tau, t, directions):
     joined = False  # this half sweep's first colour ran with the last one's last
     for half in range(first, last):
         more = fuse and half + 1 < last
-        if half % 2 == 0:  # reverse: the colours backwards, then the boundary entries
+        if (half + sweeps) % 2 == 1:  # reverse: the colours backwards, then the boundary entries
             for i in range(1 if joined else 0, n_colours):
                 # (np.int64: with the literal, the call would compile a second _sweep_colour)
                 code = np.int64(REVERSE | FORWARD if more and i == n_colours - 1 else REVERSE)

@@ -169,7 +169,7 @@ class HeatSetup:
                                                  np.ascontiguousarray(self.layout.inc_spring).view(np.uint32))
         return Heat(order.colour_ptr, order.block_ptr, order.node, *inc, *self.factors(tau),
                     np.array([sweeps], dtype=np.int64), g.first, g.second, np.ascontiguousarray(g.kappa[:, 1]), g.colour_ptr, self.capacity, inv_capacity,
-                    bound, ptr, self.entry_kind, self.entry_fn, self.entry_rate, *packed,
+                    bound, ptr, self.entry_kind, self.entry_fn, entry_decay(self.entry_rate, tau), *packed,
                     logs["produced"], logs["entry_heat"], logs["entry_flux"], logs["theta"], logs["theta_ok"],
                     logs["length"], logs["pending_eta"], logs["pending_produced"], logs["pending_theta"],
                     *self._work())
@@ -181,6 +181,12 @@ class HeatSetup:
             m = len(self.capacity)
             work = self.__dict__["_work_arrays"] = (np.empty(m), np.empty(m), np.empty(m))
         return work
+
+
+def entry_decay(entry_rate: np.ndarray, tau: float) -> np.ndarray:
+    """(E,) exp(−r τ) of each bath end's rate r = g/C for a half sweep over τ (a source's entry
+    ignores it): made once with the sweep's record, not at every exchange."""
+    return np.exp(-np.asarray(entry_rate, dtype=np.float64) * tau)
 
 
 def incidence_factors(conductance: np.ndarray, capacity: np.ndarray, tau: float, inc_ptr: np.ndarray,

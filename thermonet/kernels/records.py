@@ -135,7 +135,8 @@ class Heat(NamedTuple):
     colour_ptr: (K+1,) int64, colour c is pairs colour_ptr[c]:colour_ptr[c+1] (no two share a spring).
     capacity, inv_capacity: (m,) C and 1/C per spring; bound_spring: (S,) int64 springs with
     bath ends or sources; bound_ptr: (S+1,) int64 their entries; entry_kind (E,) int64 (0 bath,
-    1 source), entry_fn (E,) int64 the entry's time function, entry_rate (E,) g/C of a bath end;
+    1 source), entry_fn (E,) int64 the entry's time function, entry_decay (E,) exp(−g τ/C) of a
+    bath end for the sweep's τ (:func:`thermonet.heat.setup.entry_decay`);
     fn_*: the time functions (:func:`thermonet.timefunctions.pack`); produced: (m,) cumulative
     entropy produced, per spring; entry_heat, entry_flux: (E,) cumulative heat given and entropy
     brought by each entry; theta, length: (m,) the springs' temperatures and lengths where a call
@@ -169,7 +170,7 @@ class Heat(NamedTuple):
     bound_ptr: np.ndarray
     entry_kind: np.ndarray
     entry_fn: np.ndarray
-    entry_rate: np.ndarray
+    entry_decay: np.ndarray
     fn_kind: np.ndarray
     fn_params: np.ndarray
     fn_ptr: np.ndarray

@@ -18,7 +18,7 @@ import numpy as np
 
 from ..heat.logs import heat_sums
 from ..heat.passes import CONTINUE, FORWARD, REVERSE, SAVE
-from ..heat.setup import incidence_factors
+from ..heat.setup import entry_decay, incidence_factors
 from ..kernels import records
 from .heat_share import ascending_set, heat_shares, ranges
 from .whole import IndexGather
@@ -177,7 +177,8 @@ class DistributedSweep:
         empty = np.zeros(0)
         local = records.Heat(hs.colour_ptr, hs.block_ptr, self._block_node, hs.inc_ptr, hs.inc_spring, weight, decay,
                              mask, node_scale, np.array([sweeps], dtype=np.int64), *self._waves, self._capacity, self._inv_capacity,
-                             self._bound_spring, self._bound_ptr, self._entry_kind, self._entry_fn, self._entry_rate,
+                             self._bound_spring, self._bound_ptr, self._entry_kind, self._entry_fn,
+                             entry_decay(self._entry_rate, tau),
                              *self._functions, self.produced, self.entry_heat, self.entry_flux, empty, theta_ok, empty,
                              self.pending["pending_eta"], self.pending["pending_produced"],
                              self.pending["pending_theta"], empty, self.theta_start, empty)
@@ -202,7 +203,7 @@ class DistributedSweep:
             start[:ml] = theta[:ml]
         n_colours = len(self._colours)
         for half in range(0 if directions & REVERSE else sweeps, 2 * sweeps if directions & FORWARD else sweeps):
-            if half % 2 == 0:  # reverse: the colours backwards, then the boundary entries
+            if (half + sweeps) % 2 == 1:  # reverse: the colours backwards, then the boundary entries
                 for i in range(n_colours):
                     colour = n_colours - 1 - i
                     self._colour_phase(heat, theta, colour, True)
