@@ -121,9 +121,7 @@ def choose_cycle(requested, rate: float, h: float, cadences, where: str = "condu
     if rate <= 0.0:
         k = common or 1
         return k, 1, "auto: no conductance, the sweeps exchange nothing"
-    limit = auto_limit(rate, h)
-    series = round_below(limit)
-    k = math.gcd(common, series) if common else series
+    k, series = one_sweep_cycle(rate, h, cadences), round_below(auto_limit(rate, h))
     if rate * h > AUTO_TOLERANCE:  # (k = 1 cannot meet the tolerance: say so rather than claim it)
         return k, 1, (f"auto: fastest conduction rate λ = {rate:.4g}/time, λ h = {rate * h:.3g} > "
                       f"{AUTO_TOLERANCE:g}: conduction every step")
@@ -147,6 +145,14 @@ def choose_cycle(requested, rate: float, h: float, cadences, where: str = "condu
         f"≤ {AUTO_CYCLE:g}; about {boundary_cost(longer, sweeps):.2g} adiabatic steps of conduction per step "
         f"against {boundary_cost(k, 1):.2g} with k = {k} and one sweep"
         + (f" (k divides the output cadences and the run's length, {common})" if longer < wanted else ""))
+
+
+def one_sweep_cycle(rate: float, h: float, cadences) -> int:
+    """The cycle "auto" takes with one sweep per boundary: the largest k of the series with
+    λ k h ≤ AUTO_TOLERANCE, or its largest divisor that divides the ``cadences`` (rate > 0)."""
+    common = reduce(math.gcd, [int(c) for c in cadences if int(c) > 0], 0)
+    series = round_below(auto_limit(rate, h))
+    return math.gcd(common, series) if common else series
 
 
 def round_below(limit: int) -> int:
