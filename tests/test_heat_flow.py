@@ -166,6 +166,29 @@ def test_a_boundary_with_sub_sweeps_is_its_half_sweeps_one_after_the_other_bit_f
     assert not np.array_equal(at_once, sim.layout.springs_to_internal(theta))  # heat moved
 
 
+def test_a_state_saved_before_sub_sweeps_continues_with_one_sweep():
+    # heat logs whose cycle holds (k, origin) only, as checkpoints wrote them before sub-sweeps
+    net, theta = hot_jittered_net(31)
+
+    def make():
+        return tn.Simulation(net, parameters=dict(c=100, beta=1.0, C0=1.0, theta0=300, g=0.4), temperatures=theta,
+                             h=0.004, conduction_every=4, **QUIET)
+
+    one = make()
+    one.run(steps=40, diagnostics_every=4)
+    old = make()
+    old.runner.advance(6)  # inside a cycle of 4
+    state = old.state
+    assert list(state.extra["heat"]["cycle"]) == [4.0, 0.0, 1.0]
+    state.extra["heat"]["cycle"] = state.extra["heat"]["cycle"][:2].copy()
+    resumed = make()
+    resumed.load_state(state)
+    resumed.run(steps=34, diagnostics_every=34)
+    assert resumed.conduction_cycle.k == 4 and resumed.conduction_cycle.sweeps == 1
+    assert np.array_equal(one.state.entropy, resumed.state.entropy)
+    assert np.array_equal(one.state.positions, resumed.state.positions)
+
+
 def test_auto_picks_the_cycle_from_the_rate_the_step_and_the_cadences():
     from thermonet.heat.multirate import choose_cycle
 

@@ -363,6 +363,8 @@ class Simulation:
                     if k not in given:  # (a log this version added: its default)
                         continue
                     a = np.asarray(given[k], dtype=np.float64)
+                    if k == "cycle" and a.shape == (2,):  # (saved before sub-sweeps: one sweep)
+                        a = np.append(a, 1.0)
                     if a.shape != v.shape:
                         raise InputError(f"the state's heat log {k!r} has shape {a.shape}, this run's has {v.shape}")
                     v[:] = springs(a) if k in PER_SPRING_LOGS else a
