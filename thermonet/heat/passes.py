@@ -305,7 +305,8 @@ def _star_blocks(b1, b2, heat, reverse, theta):
 
 def _sweep_colour(heat, ptr, colour, directions, theta):
     """The blocks of one colour, in parallel: each reverse (REVERSE), forward (FORWARD),
-    reverse then forward (both), or forward then reverse (FORWARD_THEN_REVERSE). With shared factors and two blocks or more (with threads:
+    reverse then forward (both), or forward then reverse (FORWARD_THEN_REVERSE). With shared
+    factors and two blocks or more (with threads:
     PAIRS_FROM or more, a pair for every thread of the pool), the blocks go in pairs (block k
     with block k + ⌈B/2⌉ of the colour, :func:`_star_blocks`), the pairs in parallel; the pairing changes no result, only
     the order in which independent blocks interleave. (Unpaired, a thread's junction sums are
@@ -341,9 +342,9 @@ def _conduction_sweep(heat, theta, theta_start, eta, tau, t, directions):
     one first), with SAVE or CONTINUE. A step boundary is 2j half sweeps, j = heat.sweeps[0],
     alternately reverse and forward: the first j end a cycle, their last a reverse one, the last
     j start the next, their first a forward one (j = 1: one reverse, one forward; j = 2: forward,
-    reverse | forward, reverse). theta must hold the springs'
-    temperatures at the current positions, and is kept so; theta_start (m,) is scratch. Ends
-    with each spring's entropy update (:func:`finish_spring`) unless DEFER_FINISH."""
+    reverse | forward, reverse). theta must hold the springs' temperatures at the current
+    positions, and is kept so; theta_start (m,) is scratch. Ends with each spring's entropy
+    update (:func:`finish_spring`) unless DEFER_FINISH."""
     ptr = heat.star_colour_ptr
     n_colours = ptr.shape[0] - 1
     # the arrays written in parallel loops are taken out of the record first: Numba's parallel

@@ -168,7 +168,8 @@ class HeatSetup:
             inc = self.__dict__["_incidence"] = (np.ascontiguousarray(self.layout.inc_ptr, dtype=np.int64),
                                                  np.ascontiguousarray(self.layout.inc_spring).view(np.uint32))
         return Heat(order.colour_ptr, order.block_ptr, order.node, *inc, *self.factors(tau),
-                    np.array([sweeps], dtype=np.int64), g.first, g.second, np.ascontiguousarray(g.kappa[:, 1]), g.colour_ptr, self.capacity, inv_capacity,
+                    np.array([sweeps], dtype=np.int64), g.first, g.second, np.ascontiguousarray(g.kappa[:, 1]),
+                    g.colour_ptr, self.capacity, inv_capacity,
                     bound, ptr, self.entry_kind, self.entry_fn, entry_decay(self.entry_rate, tau), *packed,
                     logs["produced"], logs["entry_heat"], logs["entry_flux"], logs["theta"], logs["theta_ok"],
                     logs["length"], logs["pending_eta"], logs["pending_produced"], logs["pending_theta"],

@@ -176,7 +176,8 @@ class DistributedSweep:
             weight, decay = np.zeros(1), np.zeros(1)
         empty = np.zeros(0)
         local = records.Heat(hs.colour_ptr, hs.block_ptr, self._block_node, hs.inc_ptr, hs.inc_spring, weight, decay,
-                             mask, node_scale, np.array([sweeps], dtype=np.int64), *self._waves, self._capacity, self._inv_capacity,
+                             mask, node_scale, np.array([sweeps], dtype=np.int64), *self._waves, self._capacity,
+                             self._inv_capacity,
                              self._bound_spring, self._bound_ptr, self._entry_kind, self._entry_fn,
                              entry_decay(self._entry_rate, tau),
                              *self._functions, self.produced, self.entry_heat, self.entry_flux, empty, theta_ok, empty,
