@@ -89,7 +89,7 @@ def launch_profile(sim, cuda, repeats: int) -> list[dict]:
     kinds = {START: "θ start", BOUNDARY: "baths and sources", BLOCKS: "star colour", FINISH: "finish (η)"}
     dh = stepper._heat
     for phase, count in dh.phases(code):
-        kind = _phase_span(code, phase, dh.colour_ptr, dh.star_colour_ptr, dh.n_bound, dh.m, dh.sweeps)[0]
+        kind = _phase_span(code, phase, dh.colour_ptr, dh.star_colour_ptr, dh.n_bound, dh.m, 1)[0]
         if count > 0:
             launches.append((f"phase {phase}: {kinds[kind]}", count, lambda phase=phase, count=count: stepper._launch(
                 k.sweep, k.blocks(count), k.threads, code, phase, heat, tau, 0.0, stepper._phi, stepper._eta,

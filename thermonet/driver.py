@@ -19,7 +19,7 @@ from .blowup import remedy
 from .compile_watch import CompileWatch
 from .diagnostics import Diagnostics, diagnostics_row, measure
 from .errors import InputError, SimulationError
-from .heat.logs import balances, cycle_position, cycle_sweeps, heat_columns, heat_logs, wave_energy
+from .heat.logs import balances, cycle_of, heat_columns, heat_logs, wave_energy
 from .heat.multirate import ConductionCycle, choose_cycle
 from .integrators.base import StepFailure
 from .run_guards import energy_departure
@@ -161,16 +161,15 @@ class Runner:
         heat = sim.system.heat
         if heat is None or not heat.conduction or steps <= 0:
             return
-        every, at = cycle_position(sim._state, heat)
+        every, at, current = cycle_of(sim._state, heat)
         if at != 0:
-            sweeps = cycle_sweeps(sim._state, heat)
             sim.conduction_cycle = ConductionCycle(every, f"continuing a cycle of {every} steps begun at step "
-                                                          f"{sim._state.step - at}", sweeps)
+                                                          f"{sim._state.step - at}", current)
             return
         step = sim._state.step
         k, sweeps, why = choose_cycle(sim.conduction_every, heat.fastest_rate(), sim._h,
                                       list(cadences) + [steps, step], sweeps=sim.conduction_sweeps)
-        if (k, sweeps) != (every, cycle_sweeps(sim._state, heat)):
+        if (k, sweeps) != (every, current):
             heat_logs(sim._state, heat)["cycle"][:] = (k, step, sweeps)
         sim.conduction_cycle = ConductionCycle(k, why, sweeps)
 

@@ -12,7 +12,7 @@ from ..builders import from_meshio, read_meshio
 from ..errors import InputError
 from ..heat.exchange import BATH
 from ..heat.graph import pairs_per_spring
-from ..heat.multirate import choose_cycle
+from ..heat.multirate import ConductionCycle, choose_cycle
 from ..materials.homogenize import boundary_nodes, box_boundary
 from ..materials.report import describe, measure
 from ..materials.rigidity import floppy_modes
@@ -187,8 +187,7 @@ def conduction_line(sim, cadences=()) -> str:
                                       sweeps=sim.conduction_sweeps)
     except InputError as exc:  # (run refuses it the same way)
         return f"conduction_every: {exc}"
-    return (f"conduction every {k} step{'s' if k != 1 else ''}" + (f", {sweeps} sub-sweeps" if sweeps > 1 else "")
-            + f" ({why})")
+    return ConductionCycle(k, why, sweeps).describe()
 
 
 def _span(values) -> str:

@@ -22,9 +22,7 @@ def format_summary(sim, scene: str, out: str | None = None) -> str:
                         + (f" + {nw['jacobi_steps'] / max(1, nw['steps']):.3g} Jacobi steps/step" if nw.get("jacobi_steps") else "")
                         + f", final scaled residual <= {nw['residual_max']:.2e}, {nw['retried_steps']} retried steps")
     if sim.conduction_cycle:
-        k, why, sweeps = sim.conduction_cycle
-        lines.insert(2, f"  conduction every {k} step{'s' if k != 1 else ''}"
-                        + (f", {sweeps} sub-sweeps" if sweeps > 1 else "") + f" ({why})")
+        lines.insert(2, f"  {sim.conduction_cycle.describe()}")
     for name, v in s.items():
         flag = "" if name in conserved else "   (not conserved here)"
         lines.append(f"  {name:<15} {v['initial']:>17.15g} {v['max_deviation']:>16.3e} {v['relative']:>10.2e}{flag}")

@@ -48,6 +48,7 @@ from .setup import entry_decay
 
 # Bound per kernel variant by bind_device_heat() (see thermonet.heat.exchange).
 star_node = star_block = boundary_exchange = finish_spring = wave_exchange = spring_temperature = squared_length = None
+reverse_half = exchange.reverse_half  # (plain Python too: DeviceHeat.phases runs _phase_span on the host)
 phase_span = phase_count = sweep_phase = temperature_update = None
 CONDUCTION = False
 WAVES = False
@@ -87,7 +88,7 @@ def _phase_span(code, phase, colour_ptr, star_colour_ptr, n_bound, m, sweeps):
         return FINISH, 0, m, False
     half = (phase - 1) // (n_colours + 1) + (0 if code == CONDUCTION_REVERSE else sweeps)
     within = (phase - 1) % (n_colours + 1)
-    reverse = (half + sweeps) % 2 == 1
+    reverse = reverse_half(half, sweeps)
     if within == (n_colours if reverse else 0):
         return BOUNDARY, 0, n_bound, reverse
     colour = n_colours - 1 - within if reverse else within - 1
@@ -205,7 +206,6 @@ class DeviceHeat:
         self._cpu_logs = tuple(to_device(np.empty(0)) for _ in CPU_LOGS)
         self._work = tuple(to_device(np.zeros_like(getattr(host, k))) for k in WORK)
         self._factor = (None, None)  # ((τ, j), device weight, decay, node scale, sweeps, bath decays)
-        self.sweeps = 1  # of the last record
 
     def record(self, h: float, every: int = 1, sweeps: int = 1) -> Heat:
         """The device :class:`Heat` for a conduction row over τ = coefficient · k · h (a cycle of
@@ -220,7 +220,6 @@ class DeviceHeat:
             for name, value in zip(("weight", "decay", "factor_mask", "node_scale", "sweeps", "entry_decay"),
                                    self._factor[1]):
                 static[Heat._fields.index(name)] = value
-            self.sweeps = sweeps
         return Heat(*static, *self.logs, *self._cpu_logs, *self._work)
 
     def upload(self, state) -> None:
@@ -252,13 +251,12 @@ class DeviceHeat:
     def set_theta_ok(self, valid: bool) -> None:
         self.logs[LOGS.index("theta_ok")].copy_to_device(np.array([1.0 if valid else 0.0]))
 
-    def phases(self, code: int):
-        """(phase, number of elements) of heat row ``code``, in order (see :func:`_phase_span`),
-        with the sub-sweeps of the last :meth:`record`."""
+    def phases(self, code: int, sweeps: int = 1):
+        """(phase, number of elements) of heat row ``code`` with ``sweeps`` sub-sweeps, in order
+        (see :func:`_phase_span`)."""
         out = []
-        for phase in range(_phase_count(code, self.colour_ptr, self.star_colour_ptr, self.sweeps)):
-            _, lo, hi, _ = _phase_span(code, phase, self.colour_ptr, self.star_colour_ptr, self.n_bound, self.m,
-                                       self.sweeps)
+        for phase in range(_phase_count(code, self.colour_ptr, self.star_colour_ptr, sweeps)):
+            _, lo, hi, _ = _phase_span(code, phase, self.colour_ptr, self.star_colour_ptr, self.n_bound, self.m, sweeps)
             out.append((phase, int(hi - lo)))
         return out
 

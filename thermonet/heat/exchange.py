@@ -140,8 +140,16 @@ def wave_exchange(k, first, second, wave, tau, phi, eta):
     eta[f] += flow
 
 
+def reverse_half(half, sweeps):
+    """Whether half sweep ``half`` (0 … 2j − 1) of a cycle boundary swept ``sweeps`` = j times runs
+    in reverse: they alternate, the first j ending a cycle with a reverse one, the last j starting
+    the next with a forward one (j = 1: reverse, forward; j = 2: forward, reverse | forward,
+    reverse). Every backend's sweep order follows it."""
+    return (half + sweeps) % 2 == 1
+
+
 #: the functions above, in the order a kernel factory binds them (callees first)
-SHARED = ("star_node", "star_block", "boundary_exchange", "finish_spring", "wave_exchange")
+SHARED = ("star_node", "star_block", "boundary_exchange", "finish_spring", "wave_exchange", "reverse_half")
 
 
 def source_digest() -> str:

@@ -1,5 +1,5 @@
-"""The heat-flow logs the kernels keep in the state (:func:`heat_logs`, :func:`cycle_position`,
-:func:`cycle_sweeps`) and the heat-flow columns of a diagnostics row computed from them.
+"""The heat-flow logs the kernels keep in the state (:func:`heat_logs`, :func:`cycle_of`) and the
+heat-flow columns of a diagnostics row computed from them.
 
 - ``entropy_produced``: Σ of every exchange's entropy production (junctions and bath ends), since
   the run's logs started;
@@ -65,16 +65,14 @@ _SUMS = []
 
 
 def _sums_kernel():
-    """:func:`_heat_sums` compiled, its cache name carrying a digest of the exact sums' source
-    (which it inlines: Numba's disk cache watches this file only)."""
+    """:func:`_heat_sums` compiled, its cache name carrying the exact sums' digest
+    (:func:`thermonet.kernels.reductions.rows_digest`: it inlines them, and Numba's disk cache
+    watches this file only)."""
     if not _SUMS:
-        import hashlib
-        import inspect
-
+        from ..kernels.reductions import rows_digest
         from ..kernels.specialize import specialize
 
-        digest = hashlib.sha256((inspect.getsource(exact) + inspect.getsource(_heat_sums)).encode()).hexdigest()[:8]
-        _SUMS.append(specialize(_heat_sums, f"x{digest}", {"exact": exact, "np": np}, cache=True,
+        _SUMS.append(specialize(_heat_sums, f"x{rows_digest()}", {"exact": exact, "np": np}, cache=True,
                                 error_model="numpy", boundscheck=False))
     return _SUMS[0]
 
@@ -117,26 +115,14 @@ def heat_logs(state, heat) -> dict:
         for key, value in heat.new_logs().items():
             logs.setdefault(key, value)
         logs["cycle"][1] = float(state.step)
-    elif len(logs["cycle"]) < 3:  # saved before sub-sweeps: one half sweep per half boundary
-        logs["cycle"] = np.append(logs["cycle"][:2], 1.0)
     return logs
 
 
-def cycle_position(state, heat) -> tuple[int, int]:
-    """(k, steps of its conduction cycle ``state`` has made): the cycle's length k and
-    ``(step − origin) % k`` from the state's heat logs (see
-    :meth:`~thermonet.heat.setup.HeatSetup.new_logs`)."""
-    return cycle_of(state, heat)[:2]
-
-
-def cycle_sweeps(state, heat) -> int:
-    """The half sweeps j of each half of the boundaries of ``state``'s conduction cycle
-    (sub-sweeps: :mod:`thermonet.heat.multirate`)."""
-    return cycle_of(state, heat)[2]
-
-
 def cycle_of(state, heat) -> tuple[int, int, int]:
-    """(k, steps of the cycle made, j): :func:`cycle_position` and :func:`cycle_sweeps` at once."""
+    """(k, steps of its conduction cycle ``state`` has made, j) from the state's heat logs (see
+    :meth:`~thermonet.heat.setup.HeatSetup.new_logs`): the cycle's length k, ``(step − origin) %
+    k``, and the half sweeps j of each half of its boundaries (sub-sweeps:
+    :mod:`thermonet.heat.multirate`)."""
     k, origin, sweeps = heat_logs(state, heat)["cycle"].tolist()
     k = int(k)
     return k, int((state.step - int(origin)) % k), int(sweeps)

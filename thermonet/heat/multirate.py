@@ -47,6 +47,15 @@ class ConductionCycle(NamedTuple):
     why: str
     sweeps: int = 1
 
+    def describe(self) -> str:
+        """"conduction every k steps[, j sub-sweeps] (why)": the run summary's and ``info``'s line."""
+        return (f"conduction every {self.k} step{'s' if self.k != 1 else ''}"
+                + (f", {self.sweeps} sub-sweeps" if self.sweeps > 1 else "") + f" ({self.why})")
+
+
+#: why a j given with conduction_every = "auto" is refused (the API and scenes)
+SWEEPS_WITH_AUTO = 'set it with a whole conduction_every (k); "auto" chooses the sub-sweeps itself'
+
 #: "auto": k with λ k h / j ≤ this (on the thermal-shock scene: errors ≤ 1e-3 of the temperature range)
 AUTO_TOLERANCE = 0.3
 #: "auto" with sub-sweeps: a cycle's λ k h at most this (the fastest mode decays by at most e⁻¹
@@ -79,7 +88,7 @@ def check_conduction_sweeps(value, every, where: str = "conduction_sweeps"):
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) or int(value) < 1:
         raise InputError(f"{where}: expected a whole number of sub-sweeps ≥ 1, got {value!r}")
     if every == "auto":
-        raise InputError(f"{where}: set it with a whole conduction_every (k); \"auto\" chooses the sub-sweeps itself")
+        raise InputError(f"{where}: {SWEEPS_WITH_AUTO}")
     return int(value)
 
 
@@ -132,17 +141,17 @@ def choose_cycle(requested, rate: float, h: float, cadences, where: str = "condu
     while scale * rate * h <= AUTO_CYCLE:  # longer cycles with sub-sweeps
         for m in (1, 2, 5):
             longer = math.gcd(common, m * scale) if common else m * scale
-            sweeps = math.ceil(rate * longer * h / AUTO_TOLERANCE * (1 - 1e-12))
-            if m * scale * rate * h <= AUTO_CYCLE and sweeps > 1 and boundary_cost(longer, sweeps) < best[0]:
-                best = (boundary_cost(longer, sweeps), longer, sweeps, m * scale)
+            j = math.ceil(rate * longer * h / AUTO_TOLERANCE * (1 - 1e-12))
+            if m * scale * rate * h <= AUTO_CYCLE and j > 1 and boundary_cost(longer, j) < best[0]:
+                best = (boundary_cost(longer, j), longer, j, m * scale)
         scale *= 10
     if best[2] == 1:
         return k, 1, why
-    _, longer, sweeps, wanted = best
-    return longer, sweeps, (
-        f"auto: fastest conduction rate λ = {rate:.4g}/time, {sweeps} sub-sweeps per cycle boundary: "
-        f"λ k h / {sweeps} = {rate * longer * h / sweeps:.3g} ≤ {AUTO_TOLERANCE:g}, λ k h = {rate * longer * h:.3g} "
-        f"≤ {AUTO_CYCLE:g}; about {boundary_cost(longer, sweeps):.2g} adiabatic steps of conduction per step "
+    _, longer, j, wanted = best
+    return longer, j, (
+        f"auto: fastest conduction rate λ = {rate:.4g}/time, {j} sub-sweeps per cycle boundary: "
+        f"λ k h / {j} = {rate * longer * h / j:.3g} ≤ {AUTO_TOLERANCE:g}, λ k h = {rate * longer * h:.3g} "
+        f"≤ {AUTO_CYCLE:g}; about {boundary_cost(longer, j):.2g} adiabatic steps of conduction per step "
         f"against {boundary_cost(k, 1):.2g} with k = {k} and one sweep"
         + (f" (k divides the output cadences and the run's length, {common})" if longer < wanted else ""))
 

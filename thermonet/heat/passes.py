@@ -52,7 +52,8 @@ spring_pass = temperature_pass = conduction_sweep = node_pass = None
 finish_refresh_pass = refresh_pass = None
 cpu_evaluate_loads = cpu_load_work = None
 LOADS = False
-star_node = star_block = boundary_exchange = finish_spring = wave_exchange = spring_temperature = squared_length = None
+star_node = star_block = boundary_exchange = finish_spring = wave_exchange = reverse_half = None
+spring_temperature = squared_length = None
 tension = outside_admissible = advance_thermal_displacement = spring_energy = None
 model_strain = tension_at_strain = None
 boundary_node_pass = None
@@ -376,7 +377,7 @@ def _conduction_sweep(heat, theta, theta_start, eta, tau, t, directions):
     joined = False  # this half sweep's first colour ran with the last one's last
     for half in range(first, last):
         more = fuse and half + 1 < last
-        if (half + sweeps) % 2 == 1:  # reverse: the colours backwards, then the boundary entries
+        if reverse_half(half, sweeps):  # reverse: the colours backwards, then the boundary entries
             for i in range(1 if joined else 0, n_colours):
                 # (np.int64: with the literal, the call would compile a second _sweep_colour)
                 code = np.int64(REVERSE | FORWARD if more and i == n_colours - 1 else REVERSE)

@@ -60,14 +60,13 @@ class ConductionAround(Stepper):
         """``n_steps`` steps; on a failed step the state is restored to the step's start (η and
         the logs included) and the StepFailure says how many steps were done. The forward half
         sweep runs before the first step of each conduction cycle, the reverse one after its
-        last (:func:`~thermonet.heat.logs.cycle_position`)."""
-        from .logs import cycle_position, cycle_sweeps, heat_logs
+        last (:func:`~thermonet.heat.logs.cycle_of`)."""
+        from .logs import cycle_of, heat_logs
         from .passes import FORWARD, REVERSE
 
         stats = None
         step0, t0 = state.step, state.time
-        every, at = cycle_position(state, self.heat)
-        sweeps = cycle_sweeps(state, self.heat)
+        every, at, sweeps = cycle_of(state, self.heat)
         tau = 0.5 * every * h / sweeps
         for i in range(int(n_steps)):
             t = t0 + i * h

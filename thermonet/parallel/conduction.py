@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..heat.logs import cycle_position, cycle_sweeps, heat_logs
+from ..heat.logs import cycle_of, heat_logs
 from ..heat.passes import CONTINUE, FORWARD, REVERSE, SAVE
 from ..kernels import records
 from ..loads.elements import NO_LOADS
@@ -88,8 +88,7 @@ class DistributedConduction:
         on every process, are updated in the whole logs of every process."""
         st = self.stepper
         logs = heat_logs(state, self.heat)
-        every, cycle_step = cycle_position(state, self.heat)
-        sweeps = cycle_sweeps(state, self.heat)
+        every, cycle_step, sweeps = cycle_of(state, self.heat)
         lo, hi = st.system.stretch_bounds
         run = records.Run(float(h), float(state.time), int(n_steps), bool(st.integrator.track_phi), float(lo),
                           float(hi), False, False, int(every), int(cycle_step))

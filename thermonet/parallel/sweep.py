@@ -18,6 +18,7 @@ import numpy as np
 
 from ..heat.logs import heat_sums
 from ..heat.passes import CONTINUE, FORWARD, REVERSE, SAVE
+from ..heat.exchange import reverse_half
 from ..heat.setup import entry_decay, incidence_factors
 from ..kernels import records
 from .heat_share import ascending_set, heat_shares, ranges
@@ -204,7 +205,7 @@ class DistributedSweep:
             start[:ml] = theta[:ml]
         n_colours = len(self._colours)
         for half in range(0 if directions & REVERSE else sweeps, 2 * sweeps if directions & FORWARD else sweeps):
-            if (half + sweeps) % 2 == 1:  # reverse: the colours backwards, then the boundary entries
+            if reverse_half(half, sweeps):  # reverse: the colours backwards, then the boundary entries
                 for i in range(n_colours):
                     colour = n_colours - 1 - i
                     self._colour_phase(heat, theta, colour, True)

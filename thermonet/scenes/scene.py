@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..errors import InputError
+from ..heat.multirate import SWEEPS_WITH_AUTO
 from ..heat.parameters import TRANSPORT_PARAMETERS
 from ..materials.continuum import CONTINUUM_KEYS, region_problem
 from ..models import get_model
@@ -295,8 +296,7 @@ def check(scene: Scene) -> None:
         raise scene.error("output.diagnostics_every", 'must be >= 1 or "auto" (diagnostics cannot be switched off)')
     every = effects["conduction_every"]
     if effects.get("conduction_sweeps") is not None and every == "auto":
-        raise scene.error("effects.conduction_sweeps", 'set it with a whole conduction_every (k); "auto" chooses the '
-                          "sub-sweeps itself")
+        raise scene.error("effects.conduction_sweeps", SWEEPS_WITH_AUTO)
     if effects["conduction"] and every != "auto":
         total = scene.total_steps()
         cadences = [scene.cadence(k, total) for k in ("frames_every", "diagnostics_every", "checkpoint_every")]

@@ -80,8 +80,7 @@ class CudaSplittingStepper(Stepper):
         if (conduction or waves) and getattr(system, "heat", None) is None:
             raise InputError(f"{integrator.name} has heat-flow rows but the system has no heat flow set up")
         self._heat = DeviceHeat(system.heat if (conduction or waves) else None, integrator, dev)
-        self._cycle = (1, 0)  # (k, steps of the cycle made) at the call's start
-        self._sweeps = 1  # the cycle's sub-sweeps (half sweeps per half boundary)
+        self._cycle = (1, 0, 1)  # (k, steps of the cycle made, sub-sweeps j) at the call's start
         self._k = cuda_kernels(system.model, system.thermal, uniform, flows, conduction, waves, self.loads is not None)
         self._table = records_to_device(table, dev)
         self._rows = [(int(c), float(k), float(d)) for c, k, d in zip(table.code, table.kick, table.drift)]
@@ -187,10 +186,9 @@ class CudaSplittingStepper(Stepper):
         self._keep_backup(state, h)
         self._call_step = state.step  # loads: the clock's step
         if self._heat.setup is not None and self._heat.setup.conduction:  # the conduction cycle
-            from ...heat.logs import cycle_position, cycle_sweeps
+            from ...heat.logs import cycle_of
 
-            self._cycle = cycle_position(state, self._heat.setup)
-            self._sweeps = cycle_sweeps(state, self._heat.setup)
+            self._cycle = cycle_of(state, self._heat.setup)
         stop = self._steps(float(state.time), int(n_steps), float(h))
         self._device_newer = True
         if stop is not None:
@@ -203,7 +201,7 @@ class CudaSplittingStepper(Stepper):
         from ...heat.cuda import _conduction_due  # (the rows' own test, run here on the host)
 
         lo, hi = self.system.stretch_bounds
-        every, at = self._cycle
+        every, at, sweeps = self._cycle
         run = records.Run(h, t0, n_steps, bool(self.integrator.track_phi), float(lo), float(hi), False, False, every, at)
         fused = self.fused if self.fused is not None else self.system.n_springs < self.FUSED_MAX_SPRINGS
         if fused:
@@ -220,7 +218,7 @@ class CudaSplittingStepper(Stepper):
         x_start = self._x
         pending = 0.0
         stages = 0
-        heat = self._heat.record(h, every, self._sweeps) if self._heat.setup is not None else None
+        heat = self._heat.record(h, every, sweeps) if self._heat.setup is not None else None
         theta_valid = heat is not None and self._heat.theta_ok()
         clock = self._load_clock(h)  # loads
         for step in range(n_steps):
@@ -261,7 +259,7 @@ class CudaSplittingStepper(Stepper):
         if code != THERMAL_WAVES and not theta_valid and m > 0:
             self._launch(k.temperature, k.blocks(m), k.threads, self._x, self._eta, self._topology.edges,
                          self._springs, heat, self._flag)
-        for phase, count in self._heat.phases(code):
+        for phase, count in self._heat.phases(code, self._cycle[2]):
             if count > 0:
                 self._launch(k.sweep, k.blocks(count), k.threads, code, phase, heat, tau, t, self._phi, self._eta,
                              self._flag)
@@ -292,7 +290,7 @@ class CudaSplittingStepper(Stepper):
         two-launch loop (including the closing half kick), so a chunk ends in the same state."""
         k = self._k
         args = (self._state_arrays(), self._x_buf, self._s, self._topology, self._springs, self._nodes, self._table,
-                (self._effects, self._heat.record(run.h, run.conduction_every, self._sweeps)), run, self._flag)
+                (self._effects, self._heat.record(run.h, run.conduction_every, self._cycle[2])), run, self._flag)
         if self._fused_blocks is None:
             self._fused_blocks = self._cooperative_blocks(args)
         k.steps[self._fused_blocks, k.threads](*args)
