@@ -18,12 +18,16 @@ A conduction row of a step that does not start (forward) or end (reverse) a cycl
 :func:`_sweep_kernel` once per phase (one thread per element), the fused kernel calls it between
 grid-wide barriers. A conduction sweep works on the springs' temperatures in the device copy of
 the ``theta`` log (``heat.theta``), valid when ``theta_ok`` says so, as the CPU's ``theta_keep``:
-after a sweep, and across calls. Where the CPU reuses the θ its spring pass computed (a stage
-without drift), the GPU recomputes it with a temperature pass (:func:`_temperature_update`, the
-same function of the same l and η) instead of writing θ from the spring update, and the kick
-after the sweeps evaluates θ(l, η) again where the CPU takes the swept θ and the stored length
-(``refresh_pass``): equal to round-off. The temperature pass also keeps the lengths in
-``heat.length``, so the logs stay valid for a CPU run continuing from the state.
+after a sweep, and across calls. Where θ is not valid, a temperature pass
+(:func:`_temperature_update`) computes θ(l, η) before the sweep; where the stage right before a
+due sweep does not drift (a kick), its spring pass keeps the θ it computed, and l, instead
+(:func:`_keep_temperature`, the same function of the same l and η, as the CPU reuses that θ).
+The kick after the sweeps evaluates θ(l, η) again where the CPU takes the swept θ and the stored
+length (``refresh_pass``): equal to round-off. Both keep the lengths in ``heat.length``, so the
+logs stay valid for a CPU run continuing from the state, and θ as the sweep's start
+(``theta_start``), as does a reverse row's finish for the forward row right after it: then the
+row skips its start phase (:func:`first_phase`). A call's first sweep without such a pass runs
+it, so the bits do not depend on where calls end.
 
 :class:`DeviceHeat` keeps the heat record and its logs on the device for the stepper.
 """
@@ -49,7 +53,7 @@ from .setup import entry_decay
 # Bound per kernel variant by bind_device_heat() (see thermonet.heat.exchange).
 star_node = star_block = boundary_exchange = finish_spring = wave_exchange = spring_temperature = squared_length = None
 reverse_half = exchange.reverse_half  # (plain Python too: DeviceHeat.phases runs _phase_span on the host)
-phase_span = phase_count = sweep_phase = temperature_update = None
+phase_span = phase_count = sweep_phase = temperature_update = conduction_due = None
 CONDUCTION = False
 WAVES = False
 UNIFORM = False
@@ -126,15 +130,48 @@ def _sweep_phase(code, phase, heat, tau, t, phi, eta, first, stride):
     elif CONDUCTION:
         for e in range(lo + first, hi, stride):
             finish_spring(e, heat.theta, heat.theta_start, eta, heat.capacity, heat.produced)
+            if code == CONDUCTION_REVERSE:  # the forward row that follows starts from this θ
+                heat.theta_start[e] = heat.theta[e]
 
 
 def _temperature_update(e, x, eta, edges, springs, heat):
-    """heat.theta[e] = θ(l_e, η_e) and heat.length[e] = l_e at positions x (the CPU's
-    temperature pass, per spring)."""
+    """heat.theta[e] = heat.theta_start[e] = θ(l_e, η_e) and heat.length[e] = l_e at positions
+    x (the CPU's temperature pass, per spring; the sweep that follows starts from this θ)."""
     l = math.sqrt(squared_length(x, edges, e))
     c = 0 if UNIFORM else e
+    theta = spring_temperature(l, eta[e], springs.rest[e], springs.P, c)
     heat.length[e] = l
-    heat.theta[e] = spring_temperature(l, eta[e], springs.rest[e], springs.P, c)
+    heat.theta[e] = theta
+    heat.theta_start[e] = theta
+
+
+def _keep_temperature(e, l, theta, kept):
+    """A spring pass right before a conduction sweep keeps spring e's θ(l, η) and l for it, as
+    the temperature pass would: kept = (heat.theta, heat.length, heat.theta_start)."""
+    kept[0][e] = theta
+    kept[1][e] = l
+    kept[2][e] = theta
+
+
+def _sweep_follows(table, r, every, step_in_cycle):
+    """Whether row r + 1 of the stage table is a conduction row due on this step (step
+    ``step_in_cycle`` of a cycle of ``every`` steps): then the spring pass of row r, if its
+    stage does not drift, keeps the temperatures for the sweep (:func:`_keep_temperature`)
+    instead of a temperature pass."""
+    if r + 1 >= table.code.shape[0]:
+        return False
+    code = table.code[r + 1]
+    if code != CONDUCTION_FORWARD and code != CONDUCTION_REVERSE:
+        return False
+    return conduction_due(code, every, step_in_cycle)
+
+
+def first_phase(code, start_kept):
+    """The first phase of heat row ``code`` to run: a conduction row skips its start phase
+    (θ copied to ``theta_start``) when ``start_kept``, i.e. when the pass before it wrote
+    ``theta_start`` = θ already: a temperature pass, a spring pass that kept θ, or a reverse row's
+    finish (a forward row right after it)."""
+    return 1 if code != THERMAL_WAVES and start_kept else 0
 
 
 def _sweep_kernel(code, phase, heat, tau, t, phi, eta, flag):
@@ -165,7 +202,9 @@ def bind_device_heat(ns: dict, tag: str, inline) -> None:
     for name in exchange.SHARED:
         ns[name] = inline(rebind(getattr(exchange, name), tag, ns))
     for name, template in (("phase_span", _phase_span), ("phase_count", _phase_count), ("sweep_phase", _sweep_phase),
-                           ("temperature_update", _temperature_update), ("conduction_due", _conduction_due)):
+                           ("temperature_update", _temperature_update), ("conduction_due", _conduction_due),
+                           ("keep_temperature", _keep_temperature), ("sweep_follows", _sweep_follows),
+                           ("first_phase", first_phase)):
         ns[name] = inline(rebind(template, tag, ns))
 
 
@@ -205,6 +244,9 @@ class DeviceHeat:
         self.logs = tuple(to_device(np.ascontiguousarray(getattr(host, k))) for k in LOGS)
         self._cpu_logs = tuple(to_device(np.empty(0)) for _ in CPU_LOGS)
         self._work = tuple(to_device(np.zeros_like(getattr(host, k))) for k in WORK)
+        #: (theta, length, theta_start): where a spring pass keeps θ and l for the sweep after it
+        self.kept = (self.logs[LOGS.index("theta")], self.logs[LOGS.index("length")],
+                     self._work[WORK.index("theta_start")])
         self._factor = (None, None)  # ((τ, j), device weight, decay, node scale, sweeps, bath decays)
 
     def record(self, h: float, every: int = 1, sweeps: int = 1) -> Heat:

@@ -54,7 +54,7 @@ squared_length = None
 gather_force = kick_momentum = drift_position = load_row = store_row = update = None
 flow_update_0 = flow_update_1 = flow_update_2 = flow_update_3 = None
 # --- heat flow (thermonet.heat.cuda): compiled in only with CONDUCTION / WAVES ---
-sweep_phase = temperature_update = phase_count = conduction_due = None
+sweep_phase = temperature_update = phase_count = conduction_due = keep_temperature = sweep_follows = first_phase = None
 CONDUCTION = False
 WAVES = False
 # --- end heat flow ---
@@ -73,6 +73,11 @@ SIMULATOR_THREADS = 32
 #: at 1e6 springs and from 14.0 to 17.8 at 3e6 (small nets use fewer blocks anyway:
 #: thermonet.explicit.cuda.stepper.fused_grid). None: unbounded.
 FUSED_LAUNCH_BOUNDS = (THREADS, 4)
+#: launch bounds of the fused kernel on small nets, which run at most two blocks a multiprocessor
+#: (thermonet.explicit.cuda.stepper.CudaSplittingStepper.SMALL_NET_BLOCKS_PER_SM): up to 128
+#: registers a thread, so the per-step work is not spilled to local memory where latency, not
+#: bandwidth, bounds a step
+SMALL_NET_LAUNCH_BOUNDS = (THREADS, 2)
 #: threads per block of the diagnostics sums, a compile-time constant of their shared-memory trees
 #: (a power of two), and their (grid-stride) blocks
 REDUCE_THREADS = 256
@@ -98,6 +103,7 @@ class CudaKernels:
     def __init__(self, spring, node, flows, steps, spring_sums, node_sums, finish, threads, reduce_threads,
                  reduce_blocks):
         self.spring, self.node, self.flows, self.steps = spring, node, flows, steps
+        self.steps_small = steps  # the fused kernel for small nets: see SMALL_NET_LAUNCH_BOUNDS
         self.sweep = self.temperature = None  # heat flow: see cuda_kernels(conduction=, waves=)
         self.load_start = self.load_stage = None  # loads: see cuda_kernels(loads=True)
         self.spring_sums, self.node_sums, self.finish = spring_sums, node_sums, finish
@@ -119,7 +125,7 @@ def cuda_kernels(model, thermal: bool = True, uniform: bool = False, flows=(), c
     passes (two launches per stage only: the fused ``steps`` kernel is not compiled with them)."""
     sim = simulator_enabled()
     key = (model_fingerprint(model), bool(thermal), bool(uniform), sim, tuple(id(f) for f in flows),
-           bool(conduction), bool(waves), bool(loads), FUSED_LAUNCH_BOUNDS)
+           bool(conduction), bool(waves), bool(loads), FUSED_LAUNCH_BOUNDS, SMALL_NET_LAUNCH_BOUNDS)
     if key not in _CACHE:
         ns = kernel_namespace(model, thermal, uniform)
         if sim:
@@ -140,8 +146,7 @@ def cuda_kernels(model, thermal: bool = True, uniform: bool = False, flows=(), c
             tag += f"_{'k' * conduction}{'w' * waves}{heat_exchange.source_digest()}{heat.source_digest()}"
             heat.bind_device_heat(ns, tag, inline)
         else:
-            ns["sweep_phase"], ns["temperature_update"] = inline(_no_sweep), inline(_no_temperature)
-            ns["phase_count"], ns["conduction_due"] = inline(_no_phases), inline(_no_due)
+            _bind_no_heat(ns, inline)
         # --- end heat flow ---
         ns["LOADS"] = bool(loads)
         if loads:
@@ -159,6 +164,8 @@ def cuda_kernels(model, thermal: bool = True, uniform: bool = False, flows=(), c
 
         fused_jit = jit if sim or FUSED_LAUNCH_BOUNDS is None else \
             cuda.jit(cache=True, launch_bounds=FUSED_LAUNCH_BOUNDS)
+        small_jit = jit if sim or SMALL_NET_LAUNCH_BOUNDS is None else \
+            cuda.jit(cache=True, launch_bounds=SMALL_NET_LAUNCH_BOUNDS)
 
         flow_kernels = tuple(compile_(_flow_kernel, dict(ns, update=ns[f"flow_update_{slot}"]), f"_{slot}")
                              for slot in range(len(flows)))
@@ -167,6 +174,8 @@ def cuda_kernels(model, thermal: bool = True, uniform: bool = False, flows=(), c
             compile_(_steps_kernel, compiler=fused_jit),
             compile_(_spring_sums_kernel), compile_(_node_sums_kernel), compile_(_finish_kernel),
             SIMULATOR_THREADS if sim else THREADS, reduce_threads, SIMULATOR_REDUCE_BLOCKS if sim else REDUCE_BLOCKS)
+        # (a dispatcher compiles at its first launch: a run compiles only the variant it uses)
+        kernels.steps_small = kernels.steps if sim else compile_(_steps_kernel, suffix="_small", compiler=small_jit)
         if conduction or waves:  # heat flow
             kernels.sweep, kernels.temperature = heat.heat_kernels(compile_)  # (thermonet.heat.cuda)
         if loads:  # loads
@@ -198,6 +207,14 @@ def _no_update(i, data, tau, t, x, p, phi, eta):
     return None
 
 
+def _bind_no_heat(ns: dict, inline) -> None:
+    """The heat-flow functions the kernels call, as empty ones: no heat flow compiled in."""
+    ns["sweep_phase"], ns["temperature_update"] = inline(_no_sweep), inline(_no_temperature)
+    ns["phase_count"], ns["conduction_due"] = inline(_no_phases), inline(_no_due)
+    ns["keep_temperature"], ns["sweep_follows"] = inline(_no_keep), inline(_no_follows)
+    ns["first_phase"] = inline(_no_first_phase)
+
+
 def _no_sweep(code, phase, heat, tau, t, phi, eta, first, stride):
     """No heat flow compiled in."""
     return None
@@ -218,17 +235,32 @@ def _no_due(code, every, step_in_cycle):
     return False
 
 
+def _no_keep(e, l, theta, kept):
+    """No heat flow compiled in."""
+    return None
+
+
+def _no_follows(table, r, every, step_in_cycle):
+    """No heat flow compiled in."""
+    return False
+
+
+def _no_first_phase(code, start_kept):
+    """No heat flow compiled in."""
+    return 0
+
+
 # ----------------------------------------------------------------------------------------------
 # one stage
 
 
-def _spring_kernel(x, eta, phi, springs, edges, s, steps, run, flag, where):
+def _spring_kernel(x, eta, phi, springs, edges, s, steps, run, flag, where, kept, keep):
     """Thread e: :func:`_spring_update` of spring e, unless the call already stopped (``flag``).
     steps: (kick1 h, kick2 h) of Φ's update; where: (step, row, stages) written into ``flag``
-    if spring e is outside the admissible states."""
+    if spring e is outside the admissible states; kept, keep: see :func:`_spring_update`."""
     e = cuda.grid(1)
     if e < edges.shape[0] and flag[FLAG_SET] == 0:
-        if _spring_update(e, x, eta, phi, springs, edges, s, steps, run):
+        if _spring_update(e, x, eta, phi, springs, edges, s, steps, run, kept, keep):
             _raise_flag(flag, where)
 
 
@@ -269,6 +301,8 @@ def _steps_kernel(state, x_buf, s, topology, springs, nodes, table, flows, run, 
     effects = flows[0]
     heat = flows[1]
     theta_valid = CONDUCTION and heat.theta_ok[0] >= 1.0  # the previous call's sweeps continue
+    start_kept = False  # heat.theta_start = heat.theta (see thermonet.heat.cuda.first_phase)
+    kept = (heat.theta, heat.length, heat.theta_start)
     h = run.h
     n_rows = table.code.shape[0]
     edges = topology.edges
@@ -285,7 +319,7 @@ def _steps_kernel(state, x_buf, s, topology, springs, nodes, table, flows, run, 
                     t = run.t0 + (step + table.drift[r]) * h
                     _flow_grid(code, effects, tau, t, xs, p, phi, eta, first, stride)
                     grid.sync()
-                    theta_valid = False
+                    theta_valid = start_kept = False
                     continue
                 if code <= CONDUCTION_FORWARD:  # --- heat flow (as the CPU's _advance) ---
                     if WAVES and code == THERMAL_WAVES:
@@ -298,14 +332,17 @@ def _steps_kernel(state, x_buf, s, topology, springs, nodes, table, flows, run, 
                             for e in range(first, edges.shape[0], stride):
                                 temperature_update(e, xs, eta, edges, springs, heat)
                             grid.sync()
+                            start_kept = True
                         theta_valid = True
                     else:
                         continue
                     t = run.t0 + (step + table.drift[r]) * h
                     tau = table.kick[r] * h * (run.conduction_every if code != THERMAL_WAVES else 1)
-                    for phase in range(phase_count(code, heat.colour_ptr, heat.star_colour_ptr, heat.sweeps[0])):
+                    for phase in range(first_phase(code, start_kept),
+                                       phase_count(code, heat.colour_ptr, heat.star_colour_ptr, heat.sweeps[0])):
                         sweep_phase(code, phase, heat, tau, t, phi, eta, first, stride)
                         grid.sync()
+                    start_kept = code == CONDUCTION_REVERSE  # its finish kept θ as the start
                     continue
                 k1 = pending if r == 0 else 0.0
                 k2 = table.kick[r]
@@ -317,11 +354,14 @@ def _steps_kernel(state, x_buf, s, topology, springs, nodes, table, flows, run, 
             else:
                 break
             with_force = k1 != 0.0 or k2 != 0.0
+            # heat flow: a stage without drift before a due sweep keeps θ(l, η) and l for it
+            keep = CONDUCTION and with_force and d == 0.0 and step < run.n_steps and sweep_follows(
+                table, r, run.conduction_every, (run.cycle_step + step) % run.conduction_every)
             if with_force or d != 0.0:
-                theta_valid = False  # (a stage without drift leaves θ(l, η), recomputed the same)
+                theta_valid = start_kept = keep
             if with_force:
                 for e in range(first, edges.shape[0], stride):
-                    if _spring_update(e, xs, eta, phi, springs, edges, s, (k1 * h, k2 * h), run):
+                    if _spring_update(e, xs, eta, phi, springs, edges, s, (k1 * h, k2 * h), run, kept, keep):
                         _raise_flag(flag, (step, r if step < run.n_steps else n_rows, parity))
                 grid.sync()
                 if flag[FLAG_SET] != 0:
@@ -365,9 +405,11 @@ def _spring_length(x, edges, e):
     return math.sqrt(squared_length(x, edges, e))
 
 
-def _spring_update(e, x, eta, phi, springs, edges, s, steps, run):
+def _spring_update(e, x, eta, phi, springs, edges, s, steps, run, kept, keep):
     """Spring e: s[e] = T/l at x; Φ[e] += steps[0] θ; Φ[e] += steps[1] θ. Returns whether the
-    spring is outside the admissible states.
+    spring is outside the admissible states. With ``keep`` (heat flow: a stage without drift
+    right before a conduction sweep) θ and l are kept for the sweep in ``kept`` = (heat.theta,
+    heat.length, heat.theta_start), in place of a temperature pass.
 
     x: (n, 3); eta, phi, s: (m,) (eta, phi empty when not THERMAL); edges: (m, 2) uint32.
     """
@@ -376,6 +418,8 @@ def _spring_update(e, x, eta, phi, springs, edges, s, steps, run):
     rest = springs.rest[e]
     theta, force = spring_force(l, eta[e] if THERMAL else 0.0, rest, springs.P, c)
     s[e] = force
+    if CONDUCTION and keep:
+        keep_temperature(e, l, theta, kept)
     if THERMAL and run.track_phi:
         advance_thermal_displacement(phi, e, theta, steps[0], steps[1])
     return outside_admissible(l, rest, force, theta, run.stretch_min, run.stretch_max)
@@ -530,6 +574,7 @@ def compile_ptx(model, thermal: bool = True, uniform: bool = False, cc=(9, 0)) -
     ns["REDUCE_THREADS"] = REDUCE_THREADS
     tag = f"{model.name}_ptx"
     bind_subflows(ns, tag, njit(inline="always"))
+    _bind_no_heat(ns, njit(inline="always"))
     for name, template in _SHARED:
         ns[name] = njit(inline="always")(rebind(template, tag, ns))
     v, x, u = np.empty(1), np.empty((1, 3)), np.empty(1, np.uint32)
@@ -539,7 +584,8 @@ def compile_ptx(model, thermal: bool = True, uniform: bool = False, cc=(9, 0)) -
     run = records.Run(1.0, 0.0, 1, True, 0.1, 10.0, False, False)
     flag = np.zeros(4, np.int64)
     samples = {
-        "spring": (_spring_kernel, (x, v, v, springs, topology.edges, v, (1.0, 1.0), run, flag, (0, 0, 0))),
+        "spring": (_spring_kernel, (x, v, v, springs, topology.edges, v, (1.0, 1.0), run, flag, (0, 0, 0), (v, v, v),
+                                    False)),
         "node": (_node_kernel, (x, x, x, v, topology, nodes, (1.0, 1.0, 1.0, True), flag, nodes)),
         "spring_sums": (_spring_sums_kernel, (x, v, v, springs.P, topology.edges, x)),
         "node_sums": (_node_sums_kernel, (x, x, v, nodes.anchored, v, v, x)),

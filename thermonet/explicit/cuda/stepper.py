@@ -16,7 +16,7 @@ import numpy as np
 from ...blowup import blowup_failure
 from ...diagnostics import diagnostics_row
 from ...errors import InputError
-from ...heat.rows import CONDUCTION_FORWARD, THERMAL_WAVES
+from ...heat.rows import CONDUCTION_FORWARD, CONDUCTION_REVERSE, THERMAL_WAVES
 from ...integrators.base import Stepper
 from ...kernels import records
 from ...kernels.specialize import kernel_parameters
@@ -152,12 +152,14 @@ class CudaSplittingStepper(Stepper):
     # ------------------------------------------------------------------------------------------
     # stepping
 
-    def _stage(self, k1: float, k2: float, drift: float, with_force: bool, run, where) -> None:
+    def _stage(self, k1: float, k2: float, drift: float, with_force: bool, run, where, keep: bool = False) -> None:
+        """One stage: the spring pass (with ``keep``, keeping θ and l for the conduction sweep
+        that follows), the node pass, the loads' pass."""
         k = self._k
         n, m = self.system.n_nodes, self.system.n_springs
         if with_force and m > 0:
             self._launch(k.spring, k.blocks(m), k.threads, self._x, self._eta, self._phi, self._springs,
-                         self._topology.edges, self._s, (k1, k2), run, self._flag, where)
+                         self._topology.edges, self._s, (k1, k2), run, self._flag, where, self._heat.kept, keep)
         if n > 0:
             self._launch(k.node, k.blocks(n), k.threads, self._x, self._x_buf, self._p, self._s, self._topology,
                          self._nodes, (k1, k2, drift, with_force), self._flag, self._loads)
@@ -220,28 +222,32 @@ class CudaSplittingStepper(Stepper):
         stages = 0
         heat = self._heat.record(h, every, sweeps) if self._heat.setup is not None else None
         theta_valid = heat is not None and self._heat.theta_ok()
+        start_kept = False  # as in _steps_kernel
+        conduction = heat is not None and self._heat.setup.conduction
         clock = self._load_clock(h)  # loads
         for step in range(n_steps):
             t_step = t0 + step * h
             for r, (code, kick, drift) in enumerate(self._rows):
                 if code >= FIRST_FLOW_SLOT:
                     self._flow(code, kick * h, t_step + drift * h)
-                    theta_valid = False
+                    theta_valid = start_kept = False
                     continue
                 if code <= CONDUCTION_FORWARD:
                     if code == THERMAL_WAVES:
-                        self._heat_row(heat, code, kick * h, t_step + drift * h, theta_valid)
-                        theta_valid = False
+                        self._heat_row(heat, code, kick * h, t_step + drift * h, theta_valid, False)
+                        theta_valid = start_kept = False
                     elif _conduction_due(code, every, (at + step) % every):
-                        self._heat_row(heat, code, kick * every * h, t_step + drift * h, theta_valid)
-                        theta_valid = True
+                        self._heat_row(heat, code, kick * every * h, t_step + drift * h, theta_valid, start_kept)
+                        theta_valid, start_kept = True, code == CONDUCTION_REVERSE
                     continue
                 if clock is not None:  # loads: the time at the end of this stage's drift
                     self._t_after = clock[0] + ((clock[1] + step) + self._drift_time[r]) * h
                 k1 = pending if r == 0 else 0.0
-                self._stage(k1 * h, kick * h, drift * h, k1 != 0.0 or kick != 0.0, run, (step, r, stages))
-                if k1 != 0.0 or kick != 0.0 or drift != 0.0:
-                    theta_valid = False  # see _steps_kernel
+                with_force = k1 != 0.0 or kick != 0.0
+                keep = conduction and with_force and drift == 0.0 and self._sweep_follows(r, every, (at + step) % every)
+                self._stage(k1 * h, kick * h, drift * h, with_force, run, (step, r, stages), keep)
+                if with_force or drift != 0.0:
+                    theta_valid = start_kept = keep  # see _steps_kernel
                 stages += 1
             pending = self._carry
         if heat is not None and self._heat.setup.conduction:
@@ -251,18 +257,33 @@ class CudaSplittingStepper(Stepper):
         flag = self._flag.copy_to_host()
         return (flag, 0, x_start) if flag[FLAG_SET] else None
 
-    def _heat_row(self, heat, code: int, tau: float, t: float, theta_valid: bool) -> None:
+    def _heat_row(self, heat, code: int, tau: float, t: float, theta_valid: bool, start_kept: bool) -> None:
         """Heat row ``code`` over τ at time t, one launch per phase (:mod:`thermonet.heat.cuda`),
-        after a temperature pass when a conduction sweep has no valid θ."""
+        after a temperature pass when a conduction sweep has no valid θ; without the start phase
+        when the pass before kept θ as the start (``start_kept``, or after a temperature pass)."""
+        from ...heat.cuda import first_phase
+
         k = self._k
         m = self.system.n_springs
-        if code != THERMAL_WAVES and not theta_valid and m > 0:
-            self._launch(k.temperature, k.blocks(m), k.threads, self._x, self._eta, self._topology.edges,
-                         self._springs, heat, self._flag)
-        for phase, count in self._heat.phases(code, self._cycle[2]):
+        if code != THERMAL_WAVES and not theta_valid:
+            if m > 0:
+                self._launch(k.temperature, k.blocks(m), k.threads, self._x, self._eta, self._topology.edges,
+                             self._springs, heat, self._flag)
+            start_kept = True
+        for phase, count in self._heat.phases(code, self._cycle[2])[first_phase(code, start_kept):]:
             if count > 0:
                 self._launch(k.sweep, k.blocks(count), k.threads, code, phase, heat, tau, t, self._phi, self._eta,
                              self._flag)
+
+    def _sweep_follows(self, r: int, every: int, step_in_cycle: int) -> bool:
+        """Whether row r + 1 is a conduction row due on this step (see
+        :func:`thermonet.heat.cuda._sweep_follows`, the fused kernel's test)."""
+        from ...heat.cuda import _conduction_due
+
+        if r + 1 >= len(self._rows):
+            return False
+        code = self._rows[r + 1][0]
+        return code in (CONDUCTION_FORWARD, CONDUCTION_REVERSE) and _conduction_due(code, every, step_in_cycle)
 
     def _launch(self, kernel, blocks: int, threads: int, *args) -> None:
         """``kernel[blocks, threads](*args)`` through its :class:`~thermonet.explicit.cuda.launch.Launcher`."""
@@ -293,10 +314,15 @@ class CudaSplittingStepper(Stepper):
                 (self._effects, self._heat.record(run.h, run.conduction_every, self._cycle[2])), run, self._flag)
         if self._fused_blocks is None:
             self._fused_blocks = self._cooperative_blocks(args)
-        k.steps[self._fused_blocks, k.threads](*args)
+        self._fused_kernel()[self._fused_blocks, k.threads](*args)
         stages = run.n_steps * sum(1 for c, _, _ in self._rows if c == -1) + (1 if self._carry != 0.0 else 0)
         if stages % 2:
             self._x, self._x_buf = self._x_buf, self._x
+
+    def _fused_kernel(self):
+        """The fused kernel compiled for this net's size: on nets below :data:`SMALL_NET_SPRINGS`
+        the variant with room for more registers (``kernels.SMALL_NET_LAUNCH_BOUNDS``)."""
+        return self._k.steps_small if self.system.n_springs < self.SMALL_NET_SPRINGS else self._k.steps
 
     def _cooperative_blocks(self, args) -> int:
         """Blocks of the fused launch: enough for one thread per spring or node, at most as many
@@ -310,7 +336,7 @@ class CudaSplittingStepper(Stepper):
         if simulator_enabled():
             return 1
         k = self._k
-        kernel = k.steps.compile(tuple(typeof(a) for a in args))
+        kernel = self._fused_kernel().compile(tuple(typeof(a) for a in args))
         return fused_grid(self.system.n_springs, self.system.n_nodes, k.threads,
                           kernel.max_cooperative_grid_blocks(k.threads),
                           self._cuda.get_current_device().MULTIPROCESSOR_COUNT)
