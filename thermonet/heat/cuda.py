@@ -44,6 +44,7 @@ from numba import cuda
 
 from ..errors import InputError
 from ..explicit.cuda import FLAG_SET
+from ..explicit.schedule import STAGE
 from ..kernels.records import Heat, no_heat
 from ..kernels.specialize import rebind
 from . import exchange
@@ -65,6 +66,8 @@ CPU_LOGS = ("pending_eta", "pending_produced", "pending_theta")
 WORK = ("s_before", "theta_start", "strain")
 #: what a phase runs over (see _phase_span)
 PAIRS, BLOCKS, BOUNDARY, START, FINISH = range(5)
+#: the arrays of DeviceHeat.kept, by position
+KEPT_THETA, KEPT_LENGTH, KEPT_START, KEPT_CAPACITY, KEPT_PRODUCED = range(5)
 
 
 def _conduction_due(code, every, step_in_cycle):
@@ -147,10 +150,23 @@ def _temperature_update(e, x, eta, edges, springs, heat):
 
 def _keep_temperature(e, l, theta, kept):
     """A spring pass right before a conduction sweep keeps spring e's θ(l, η) and l for it, as
-    the temperature pass would: kept = (heat.theta, heat.length, heat.theta_start)."""
-    kept[0][e] = theta
-    kept[1][e] = l
-    kept[2][e] = theta
+    the temperature pass would. kept: :attr:`DeviceHeat.kept`."""
+    kept[KEPT_THETA][e] = theta
+    kept[KEPT_LENGTH][e] = l
+    kept[KEPT_START][e] = theta
+
+
+def _finish_before_kick(e, eta, kept):
+    """The finish of the forward sweep before this spring pass (:func:`_finish_deferred`),
+    spring e's ``η += C ln(θ'/θ)``, before the pass reads η. kept: :attr:`DeviceHeat.kept`."""
+    finish_spring(e, kept[KEPT_THETA], kept[KEPT_START], eta, kept[KEPT_CAPACITY], kept[KEPT_PRODUCED])
+
+
+def finish_deferred(code, kick, r):
+    """Whether row r, a forward conduction row, leaves its finish phase to the spring pass of
+    the stage right after it (row r + 1 a stage with a kick, which reads η anyway:
+    :func:`_finish_before_kick`). code, kick: the stage table's columns."""
+    return code[r] == CONDUCTION_FORWARD and r + 1 < code.shape[0] and code[r + 1] == STAGE and kick[r + 1] != 0.0
 
 
 def _sweep_follows(table, r, every, step_in_cycle):
@@ -204,7 +220,8 @@ def bind_device_heat(ns: dict, tag: str, inline) -> None:
     for name, template in (("phase_span", _phase_span), ("phase_count", _phase_count), ("sweep_phase", _sweep_phase),
                            ("temperature_update", _temperature_update), ("conduction_due", _conduction_due),
                            ("keep_temperature", _keep_temperature), ("sweep_follows", _sweep_follows),
-                           ("first_phase", first_phase)):
+                           ("first_phase", first_phase), ("finish_before_kick", _finish_before_kick),
+                           ("finish_deferred", finish_deferred)):
         ns[name] = inline(rebind(template, tag, ns))
 
 
@@ -244,9 +261,11 @@ class DeviceHeat:
         self.logs = tuple(to_device(np.ascontiguousarray(getattr(host, k))) for k in LOGS)
         self._cpu_logs = tuple(to_device(np.empty(0)) for _ in CPU_LOGS)
         self._work = tuple(to_device(np.zeros_like(getattr(host, k))) for k in WORK)
-        #: (theta, length, theta_start): where a spring pass keeps θ and l for the sweep after it
+        #: (theta, length, theta_start, capacity, produced), positions KEPT_*: what a spring pass
+        #: reads and writes when it keeps θ and l for the sweep after it or finishes the one before
+        capacity = self._static[Heat._fields.index("capacity")]
         self.kept = (self.logs[LOGS.index("theta")], self.logs[LOGS.index("length")],
-                     self._work[WORK.index("theta_start")])
+                     self._work[WORK.index("theta_start")], capacity, self.logs[LOGS.index("produced")])
         self._factor = (None, None)  # ((τ, j), device weight, decay, node scale, sweeps, bath decays)
 
     def record(self, h: float, every: int = 1, sweeps: int = 1) -> Heat:

@@ -55,6 +55,7 @@ gather_force = kick_momentum = drift_position = load_row = store_row = update = 
 flow_update_0 = flow_update_1 = flow_update_2 = flow_update_3 = None
 # --- heat flow (thermonet.heat.cuda): compiled in only with CONDUCTION / WAVES ---
 sweep_phase = temperature_update = phase_count = conduction_due = keep_temperature = sweep_follows = first_phase = None
+finish_before_kick = finish_deferred = None
 CONDUCTION = False
 WAVES = False
 # --- end heat flow ---
@@ -213,6 +214,7 @@ def _bind_no_heat(ns: dict, inline) -> None:
     ns["phase_count"], ns["conduction_due"] = inline(_no_phases), inline(_no_due)
     ns["keep_temperature"], ns["sweep_follows"] = inline(_no_keep), inline(_no_follows)
     ns["first_phase"] = inline(_no_first_phase)
+    ns["finish_before_kick"], ns["finish_deferred"] = inline(_no_finish), inline(_no_deferred)
 
 
 def _no_sweep(code, phase, heat, tau, t, phi, eta, first, stride):
@@ -250,17 +252,27 @@ def _no_first_phase(code, start_kept):
     return 0
 
 
+def _no_finish(e, eta, kept):
+    """No heat flow compiled in."""
+    return None
+
+
+def _no_deferred(code, kick, r):
+    """No heat flow compiled in."""
+    return False
+
+
 # ----------------------------------------------------------------------------------------------
 # one stage
 
 
-def _spring_kernel(x, eta, phi, springs, edges, s, steps, run, flag, where, kept, keep):
+def _spring_kernel(x, eta, phi, springs, edges, s, steps, run, flag, where, kept, keep, finish):
     """Thread e: :func:`_spring_update` of spring e, unless the call already stopped (``flag``).
     steps: (kick1 h, kick2 h) of Φ's update; where: (step, row, stages) written into ``flag``
-    if spring e is outside the admissible states; kept, keep: see :func:`_spring_update`."""
+    if spring e is outside the admissible states; kept, keep, finish: see :func:`_spring_update`."""
     e = cuda.grid(1)
     if e < edges.shape[0] and flag[FLAG_SET] == 0:
-        if _spring_update(e, x, eta, phi, springs, edges, s, steps, run, kept, keep):
+        if _spring_update(e, x, eta, phi, springs, edges, s, steps, run, kept, keep, finish):
             _raise_flag(flag, where)
 
 
@@ -302,7 +314,8 @@ def _steps_kernel(state, x_buf, s, topology, springs, nodes, table, flows, run, 
     heat = flows[1]
     theta_valid = CONDUCTION and heat.theta_ok[0] >= 1.0  # the previous call's sweeps continue
     start_kept = False  # heat.theta_start = heat.theta (see thermonet.heat.cuda.first_phase)
-    kept = (heat.theta, heat.length, heat.theta_start)
+    finish_pending = False  # the forward sweep's finish, left to the next spring pass
+    kept = (heat.theta, heat.length, heat.theta_start, heat.capacity, heat.produced)  # (DeviceHeat.kept)
     h = run.h
     n_rows = table.code.shape[0]
     edges = topology.edges
@@ -338,8 +351,10 @@ def _steps_kernel(state, x_buf, s, topology, springs, nodes, table, flows, run, 
                         continue
                     t = run.t0 + (step + table.drift[r]) * h
                     tau = table.kick[r] * h * (run.conduction_every if code != THERMAL_WAVES else 1)
+                    finish_pending = CONDUCTION and finish_deferred(table.code, table.kick, r)
                     for phase in range(first_phase(code, start_kept),
-                                       phase_count(code, heat.colour_ptr, heat.star_colour_ptr, heat.sweeps[0])):
+                                       phase_count(code, heat.colour_ptr, heat.star_colour_ptr, heat.sweeps[0])
+                                       - (1 if finish_pending else 0)):
                         sweep_phase(code, phase, heat, tau, t, phi, eta, first, stride)
                         grid.sync()
                     start_kept = code == CONDUCTION_REVERSE  # its finish kept θ as the start
@@ -359,9 +374,11 @@ def _steps_kernel(state, x_buf, s, topology, springs, nodes, table, flows, run, 
                 table, r, run.conduction_every, (run.cycle_step + step) % run.conduction_every)
             if with_force or d != 0.0:
                 theta_valid = start_kept = keep
+            finish = finish_pending
+            finish_pending = False
             if with_force:
                 for e in range(first, edges.shape[0], stride):
-                    if _spring_update(e, xs, eta, phi, springs, edges, s, (k1 * h, k2 * h), run, kept, keep):
+                    if _spring_update(e, xs, eta, phi, springs, edges, s, (k1 * h, k2 * h), run, kept, keep, finish):
                         _raise_flag(flag, (step, r if step < run.n_steps else n_rows, parity))
                 grid.sync()
                 if flag[FLAG_SET] != 0:
@@ -405,14 +422,17 @@ def _spring_length(x, edges, e):
     return math.sqrt(squared_length(x, edges, e))
 
 
-def _spring_update(e, x, eta, phi, springs, edges, s, steps, run, kept, keep):
+def _spring_update(e, x, eta, phi, springs, edges, s, steps, run, kept, keep, finish):
     """Spring e: s[e] = T/l at x; Φ[e] += steps[0] θ; Φ[e] += steps[1] θ. Returns whether the
-    spring is outside the admissible states. With ``keep`` (heat flow: a stage without drift
-    right before a conduction sweep) θ and l are kept for the sweep in ``kept`` = (heat.theta,
-    heat.length, heat.theta_start), in place of a temperature pass.
+    spring is outside the admissible states. Heat flow (``kept``: the heat record's arrays,
+    :attr:`thermonet.heat.cuda.DeviceHeat.kept`): with ``finish``, first the entropy update that
+    ends the forward sweep before this stage; with ``keep`` (a stage without drift right before
+    a conduction sweep), θ and l kept for the sweep, in place of a temperature pass.
 
     x: (n, 3); eta, phi, s: (m,) (eta, phi empty when not THERMAL); edges: (m, 2) uint32.
     """
+    if CONDUCTION and finish:
+        finish_before_kick(e, eta, kept)
     l = _spring_length(x, edges, e)
     c = 0 if UNIFORM else e
     rest = springs.rest[e]
@@ -584,8 +604,8 @@ def compile_ptx(model, thermal: bool = True, uniform: bool = False, cc=(9, 0)) -
     run = records.Run(1.0, 0.0, 1, True, 0.1, 10.0, False, False)
     flag = np.zeros(4, np.int64)
     samples = {
-        "spring": (_spring_kernel, (x, v, v, springs, topology.edges, v, (1.0, 1.0), run, flag, (0, 0, 0), (v, v, v),
-                                    False)),
+        "spring": (_spring_kernel, (x, v, v, springs, topology.edges, v, (1.0, 1.0), run, flag, (0, 0, 0),
+                                    (v, v, v, v, v), False, False)),
         "node": (_node_kernel, (x, x, x, v, topology, nodes, (1.0, 1.0, 1.0, True), flag, nodes)),
         "spring_sums": (_spring_sums_kernel, (x, v, v, springs.P, topology.edges, x)),
         "node_sums": (_node_sums_kernel, (x, x, v, nodes.anchored, v, v, x)),

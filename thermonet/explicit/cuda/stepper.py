@@ -84,6 +84,7 @@ class CudaSplittingStepper(Stepper):
         self._k = cuda_kernels(system.model, system.thermal, uniform, flows, conduction, waves, self.loads is not None)
         self._table = records_to_device(table, dev)
         self._rows = [(int(c), float(k), float(d)) for c, k, d in zip(table.code, table.kick, table.drift)]
+        self._codes, self._kicks = np.asarray(table.code), np.asarray(table.kick)  # (for finish_deferred)
         self._carry = float(table.carry)
         self._topology = records_to_device(records.topology(system.layout), dev)
         self._springs = records_to_device(records.Springs(system.rest_lengths, P), dev)
@@ -152,14 +153,17 @@ class CudaSplittingStepper(Stepper):
     # ------------------------------------------------------------------------------------------
     # stepping
 
-    def _stage(self, k1: float, k2: float, drift: float, with_force: bool, run, where, keep: bool = False) -> None:
-        """One stage: the spring pass (with ``keep``, keeping θ and l for the conduction sweep
-        that follows), the node pass, the loads' pass."""
+    def _stage(self, k1: float, k2: float, drift: float, with_force: bool, run, where, keep: bool = False,
+               finish: bool = False) -> None:
+        """One stage: the spring pass (with ``finish``, first ending the forward conduction
+        sweep before it; with ``keep``, keeping θ and l for the sweep after it), the node pass,
+        the loads' pass."""
         k = self._k
         n, m = self.system.n_nodes, self.system.n_springs
         if with_force and m > 0:
             self._launch(k.spring, k.blocks(m), k.threads, self._x, self._eta, self._phi, self._springs,
-                         self._topology.edges, self._s, (k1, k2), run, self._flag, where, self._heat.kept, keep)
+                         self._topology.edges, self._s, (k1, k2), run, self._flag, where, self._heat.kept, keep,
+                         finish)
         if n > 0:
             self._launch(k.node, k.blocks(n), k.threads, self._x, self._x_buf, self._p, self._s, self._topology,
                          self._nodes, (k1, k2, drift, with_force), self._flag, self._loads)
@@ -200,7 +204,7 @@ class CudaSplittingStepper(Stepper):
     def _steps(self, t0: float, n_steps: int, h: float):
         """n_steps steps from time t0 on the device state; None, or where a launch stopped:
         (flag, steps completed before its launch sequence, positions buffer at that start)."""
-        from ...heat.cuda import _conduction_due  # (the rows' own test, run here on the host)
+        from ...heat.cuda import _conduction_due, finish_deferred  # (the rows' own tests, run here on the host)
 
         lo, hi = self.system.stretch_bounds
         every, at, sweeps = self._cycle
@@ -222,7 +226,7 @@ class CudaSplittingStepper(Stepper):
         stages = 0
         heat = self._heat.record(h, every, sweeps) if self._heat.setup is not None else None
         theta_valid = heat is not None and self._heat.theta_ok()
-        start_kept = False  # as in _steps_kernel
+        start_kept = finish = False  # as in _steps_kernel
         conduction = heat is not None and self._heat.setup.conduction
         clock = self._load_clock(h)  # loads
         for step in range(n_steps):
@@ -237,7 +241,9 @@ class CudaSplittingStepper(Stepper):
                         self._heat_row(heat, code, kick * h, t_step + drift * h, theta_valid, False)
                         theta_valid = start_kept = False
                     elif _conduction_due(code, every, (at + step) % every):
-                        self._heat_row(heat, code, kick * every * h, t_step + drift * h, theta_valid, start_kept)
+                        finish = finish_deferred(self._codes, self._kicks, r)
+                        self._heat_row(heat, code, kick * every * h, t_step + drift * h, theta_valid, start_kept,
+                                       finish)
                         theta_valid, start_kept = True, code == CONDUCTION_REVERSE
                     continue
                 if clock is not None:  # loads: the time at the end of this stage's drift
@@ -245,7 +251,8 @@ class CudaSplittingStepper(Stepper):
                 k1 = pending if r == 0 else 0.0
                 with_force = k1 != 0.0 or kick != 0.0
                 keep = conduction and with_force and drift == 0.0 and self._sweep_follows(r, every, (at + step) % every)
-                self._stage(k1 * h, kick * h, drift * h, with_force, run, (step, r, stages), keep)
+                self._stage(k1 * h, kick * h, drift * h, with_force, run, (step, r, stages), keep, finish)
+                finish = False
                 if with_force or drift != 0.0:
                     theta_valid = start_kept = keep  # see _steps_kernel
                 stages += 1
@@ -257,10 +264,12 @@ class CudaSplittingStepper(Stepper):
         flag = self._flag.copy_to_host()
         return (flag, 0, x_start) if flag[FLAG_SET] else None
 
-    def _heat_row(self, heat, code: int, tau: float, t: float, theta_valid: bool, start_kept: bool) -> None:
+    def _heat_row(self, heat, code: int, tau: float, t: float, theta_valid: bool, start_kept: bool,
+                  finish_deferred: bool = False) -> None:
         """Heat row ``code`` over τ at time t, one launch per phase (:mod:`thermonet.heat.cuda`),
         after a temperature pass when a conduction sweep has no valid θ; without the start phase
-        when the pass before kept θ as the start (``start_kept``, or after a temperature pass)."""
+        when the pass before kept θ as the start (``start_kept``, or after a temperature pass);
+        without the finish phase when the next spring pass runs it (``finish_deferred``)."""
         from ...heat.cuda import first_phase
 
         k = self._k
@@ -270,7 +279,8 @@ class CudaSplittingStepper(Stepper):
                 self._launch(k.temperature, k.blocks(m), k.threads, self._x, self._eta, self._topology.edges,
                              self._springs, heat, self._flag)
             start_kept = True
-        for phase, count in self._heat.phases(code, self._cycle[2])[first_phase(code, start_kept):]:
+        phases = self._heat.phases(code, self._cycle[2])
+        for phase, count in phases[first_phase(code, start_kept):len(phases) - (1 if finish_deferred else 0)]:
             if count > 0:
                 self._launch(k.sweep, k.blocks(count), k.threads, code, phase, heat, tau, t, self._phi, self._eta,
                              self._flag)
