@@ -9,8 +9,8 @@ Needs an NVIDIA GPU and numba-cuda (``pip install '.[cuda]'``, docs/gpu.md says 
 wheels to a machine without the package index). Per net it prints a markdown table: G
 spring-steps/s of the adiabatic run and of the run with conduction (``stepper.advance`` timed
 with the device synchronized, medians of three runs of about ``--seconds`` each after a warm-up
-that compiles the kernels), their ratio, and the grid-wide phases of one conduction half sweep
-(the node colours of the GPU's sweep order + 3). Then, per net, a launch profile of the step with
+that compiles the kernels), their ratio, and the grid-wide conduction phases of a step with
+conduction every step (:func:`phases_per_step`). Then, per net, a launch profile of the step with
 conduction (:func:`launch_profile`): host and wall µs of each launch of a half sweep, which says
 whether the host or the device bounds it. Hencky springs at 250–350 K, g = 1, C0 = 5,
 h = 0.4× the stable step. Target: conduction every step ≤ 2.5× the adiabatic step at 3e6 springs.
@@ -34,6 +34,7 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import thermonet as tn  # noqa: E402
 from gpu_throughput import gpu_rate  # noqa: E402
 from thermonet.explicit.cuda import cuda_problem, simulator_enabled  # noqa: E402
+from thermonet.kernels import records  # noqa: E402
 from thermonet.heat.multirate import choose_cycle  # noqa: E402
 from thermonet.stability import stable_step  # noqa: E402
 
@@ -68,9 +69,22 @@ def rate(sim, cuda, seconds: float, fused: bool, quick: bool) -> float:
     return gpu_rate(sim, cuda, seconds, fused, cycle, quick=quick)
 
 
+def phases_per_step(sim) -> int:
+    """Grid-wide conduction phases of a step of ``sim`` (conduction every step, one sweep), as
+    the stepper runs them: the reverse row's but its start (the kick before it keeps θ as the
+    start), the forward row's but its start and finish (the reverse row's finish keeps the start;
+    the kick after it runs the finish), empty ones (no baths or sources) left out."""
+    from thermonet.heat.rows import CONDUCTION_FORWARD, CONDUCTION_REVERSE
+
+    heat = sim.stepper._heat
+    return (sum(1 for _, count in heat.phases(CONDUCTION_REVERSE)[1:] if count > 0)
+            + sum(1 for _, count in heat.phases(CONDUCTION_FORWARD)[1:-1] if count > 0))
+
+
 def launch_profile(sim, cuda, repeats: int) -> list[dict]:
     """Where a conduction step's time goes with two launches per stage: each launch of a
-    forward half sweep (the temperature pass, then its phases) and of an adiabatic stage,
+    forward half sweep (the temperature pass, the spring pass of a kick plain, keeping θ for the
+    sweep after it and finishing the sweep before it, then the half sweep's phases),
     ``repeats`` times back to back. Per launch: the host's time to enqueue it (the loop before
     the device is synchronized) and the wall time (after it): wall ≈ host means the host
     bounds that launch, wall > host means the device does. The runs leave the state
@@ -86,6 +100,16 @@ def launch_profile(sim, cuda, repeats: int) -> list[dict]:
     launches = [("temperature pass", m, lambda: stepper._launch(
         k.temperature, k.blocks(m), k.threads, stepper._x, stepper._eta, stepper._topology.edges, stepper._springs,
         heat, stepper._flag))]
+    run = records.Run(sim.h, 0.0, 1, True, *(float(b) for b in sim.system.stretch_bounds), False, False, 1, 0)
+
+    def spring_pass(keep: bool, finish: bool):
+        return lambda: stepper._launch(k.spring, k.blocks(m), k.threads, stepper._x, stepper._eta, stepper._phi,
+                                       stepper._springs, stepper._topology.edges, stepper._s, (0.5 * sim.h, 0.0), run,
+                                       stepper._flag, (0, 0, 0), stepper._heat.kept, keep, finish)
+
+    launches += [("spring pass of a kick", m, spring_pass(False, False)),
+                 ("the same, keeping θ and l for the sweep after it", m, spring_pass(True, False)),
+                 ("the same, finishing the forward sweep before it", m, spring_pass(False, True))]
     kinds = {START: "θ start", BOUNDARY: "baths and sources", BLOCKS: "star colour", FINISH: "finish (η)"}
     dh = stepper._heat
     for phase, count in dh.phases(code):
@@ -131,11 +155,11 @@ def main(argv=None) -> list[dict]:
     from numba import cuda
 
     rows = []
-    print("| springs | launch | run | G spring-steps/s | × the adiabatic step | phases per half sweep |")
+    print("| springs | launch | run | G spring-steps/s | × the adiabatic step | conduction phases per step |")
     print("|---:|---|---|---:|---:|---:|")
     for size in (int(float(s)) for s in args.sizes.split(",")):
         sims = simulations(size)
-        phases = sims["every step"].system.heat.star_order("cuda").n_colours + 3
+        phases = phases_per_step(sims["every step"])
         for fused in (True, False):
             rates = {name: rate(sim, cuda, args.seconds, fused, args.quick) for name, sim in sims.items()}
             for name, r in rates.items():

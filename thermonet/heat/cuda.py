@@ -54,7 +54,7 @@ from .setup import entry_decay
 # Bound per kernel variant by bind_device_heat() (see thermonet.heat.exchange).
 star_node = star_block = boundary_exchange = finish_spring = wave_exchange = spring_temperature = squared_length = None
 reverse_half = exchange.reverse_half  # (plain Python too: DeviceHeat.phases runs _phase_span on the host)
-phase_span = phase_count = sweep_phase = temperature_update = conduction_due = None
+phase_span = phase_count = phase_elements = sweep_phase = temperature_update = conduction_due = None
 CONDUCTION = False
 WAVES = False
 UNIFORM = False
@@ -108,6 +108,14 @@ def _phase_count(code, colour_ptr, star_colour_ptr, sweeps):
     if code == THERMAL_WAVES:
         return colour_ptr.shape[0] - 1
     return sweeps * (star_colour_ptr.shape[0] - 1 + 1) + 2
+
+
+def _phase_elements(code, phase, heat):
+    """How many elements phase ``phase`` of heat row ``code`` runs over (the fused kernel skips
+    the grid-wide barrier after an empty one: baths and sources on a net without them)."""
+    _, lo, hi, _ = phase_span(code, phase, heat.colour_ptr, heat.star_colour_ptr, heat.bound_spring.shape[0],
+                              heat.capacity.shape[0], heat.sweeps[0])
+    return hi - lo
 
 
 def _sweep_phase(code, phase, heat, tau, t, phi, eta, first, stride):
@@ -217,7 +225,8 @@ def bind_device_heat(ns: dict, tag: str, inline) -> None:
     ns["log"] = math.log  # (the CPU binds a vectorizing log; one call per spring here)
     for name in exchange.SHARED:
         ns[name] = inline(rebind(getattr(exchange, name), tag, ns))
-    for name, template in (("phase_span", _phase_span), ("phase_count", _phase_count), ("sweep_phase", _sweep_phase),
+    for name, template in (("phase_span", _phase_span), ("phase_count", _phase_count),
+                           ("phase_elements", _phase_elements), ("sweep_phase", _sweep_phase),
                            ("temperature_update", _temperature_update), ("conduction_due", _conduction_due),
                            ("keep_temperature", _keep_temperature), ("sweep_follows", _sweep_follows),
                            ("first_phase", first_phase), ("finish_before_kick", _finish_before_kick),

@@ -55,7 +55,7 @@ gather_force = kick_momentum = drift_position = load_row = store_row = update = 
 flow_update_0 = flow_update_1 = flow_update_2 = flow_update_3 = None
 # --- heat flow (thermonet.heat.cuda): compiled in only with CONDUCTION / WAVES ---
 sweep_phase = temperature_update = phase_count = conduction_due = keep_temperature = sweep_follows = first_phase = None
-finish_before_kick = finish_deferred = None
+finish_before_kick = finish_deferred = phase_elements = None
 CONDUCTION = False
 WAVES = False
 # --- end heat flow ---
@@ -215,6 +215,7 @@ def _bind_no_heat(ns: dict, inline) -> None:
     ns["keep_temperature"], ns["sweep_follows"] = inline(_no_keep), inline(_no_follows)
     ns["first_phase"] = inline(_no_first_phase)
     ns["finish_before_kick"], ns["finish_deferred"] = inline(_no_finish), inline(_no_deferred)
+    ns["phase_elements"] = inline(_no_elements)
 
 
 def _no_sweep(code, phase, heat, tau, t, phi, eta, first, stride):
@@ -260,6 +261,11 @@ def _no_finish(e, eta, kept):
 def _no_deferred(code, kick, r):
     """No heat flow compiled in."""
     return False
+
+
+def _no_elements(code, phase, heat):
+    """No heat flow compiled in."""
+    return 0
 
 
 # ----------------------------------------------------------------------------------------------
@@ -355,8 +361,9 @@ def _steps_kernel(state, x_buf, s, topology, springs, nodes, table, flows, run, 
                     for phase in range(first_phase(code, start_kept),
                                        phase_count(code, heat.colour_ptr, heat.star_colour_ptr, heat.sweeps[0])
                                        - (1 if finish_pending else 0)):
-                        sweep_phase(code, phase, heat, tau, t, phi, eta, first, stride)
-                        grid.sync()
+                        if phase_elements(code, phase, heat) > 0:
+                            sweep_phase(code, phase, heat, tau, t, phi, eta, first, stride)
+                            grid.sync()
                     start_kept = code == CONDUCTION_REVERSE  # its finish kept θ as the start
                     continue
                 k1 = pending if r == 0 else 0.0
