@@ -349,7 +349,8 @@ def test_fused_kernel_with_heat_rows_compiles_for_h100_but_for_its_grid_barriers
 @pytest.mark.parametrize("make", [conduction_sim, waves_sim], ids=["conduction", "waves"])
 def test_gpu_heat_flow_equals_cpu_and_launch_modes_agree(make):
     """On a GPU: CPU to 1e-10 after 40 steps (fused multiply-adds), the fused launch equal to two
-    launches per stage bit for bit, cut into calls or not."""
+    launches per stage bit for bit, cut into calls or not; every launch after a kernel's first
+    took the launcher's fast path (its arguments kept their types)."""
     net = small_net((4, 4, 4), 18, seed=2)
     states = {}
     for backend, fused, chunks in (("cpu", True, (40,)), ("cuda", False, (40,)), ("cuda", True, (40,)),
@@ -358,6 +359,10 @@ def test_gpu_heat_flow_equals_cpu_and_launch_modes_agree(make):
         for n in chunks:
             sim.run(steps=n, diagnostics_every=n)
         states[backend, fused, chunks] = sim.state
+        if backend == "cuda" and not fused:
+            slow = {launcher.dispatcher.py_func.__name__: launcher.slow_launches
+                    for launcher in sim.stepper._launchers.values() if launcher.slow_launches}
+            assert not slow, f"launches that fell back to the dispatcher: {slow}"
     cpu = states["cpu", True, (40,)]
     reference = states["cuda", False, (40,)]
     for field in ("positions", "momenta", "thermal_displacement", "entropy"):

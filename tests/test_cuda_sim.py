@@ -292,3 +292,14 @@ def test_fused_grid_covers_the_net_within_residency_and_caps_small_nets():
     assert fused_grid(104_544, 35_937, 256, 528, 132) == 264  # would need 409: capped at 2 per SM
     assert fused_grid(1_014_300, 343_000, 256, 528, 132) == 528  # large: every resident block
     assert fused_grid(0, 0, 256, 528, 132) == 1
+
+
+def test_the_launcher_counts_numpy_scalars_as_the_python_types_numba_types_alike():
+    """A flag computed with NumPy (numpy.bool_) or a count read from an array (numpy.int64) keeps a
+    launch on the launcher's fast path where the first launch had bool / int; a NumPy scalar that
+    Numba types differently (int32) does not."""
+    from thermonet.explicit.cuda.launch import _python_types
+
+    assert _python_types(np.bool_(True)) == _python_types(False)
+    assert _python_types((np.int64(3), 1.0, np.True_)) == _python_types((0, np.float64(2.0), False))
+    assert _python_types(np.int32(1)) != _python_types(1)

@@ -16,13 +16,23 @@ numba-cuda, a launcher falls back to the dispatcher call.
 
 from __future__ import annotations
 
+import numpy as np
+
 #: flattened arguments kept per argument position (the oldest dropped beyond this)
 KEEP = 8
 
 
+#: NumPy scalar types that Numba types as the Python type they map to (a flag computed with NumPy
+#: is a numpy.bool_, a count read from an array a numpy.int64): the same kernel signature
+_SAME_AS_PYTHON = {np.bool_: bool, np.int64: int, np.float64: float}
+
+
 def _python_types(value):
-    """The Python types a scalar or tuple-of-scalars argument was typed from."""
-    return tuple(type(v) for v in value) if isinstance(value, tuple) else type(value)
+    """The Python types a scalar or tuple-of-scalars argument was typed from (NumPy's bool_,
+    int64 and float64 counted as bool, int and float, which Numba types alike)."""
+    if isinstance(value, tuple):
+        return tuple(_SAME_AS_PYTHON.get(type(v), type(v)) for v in value)
+    return _SAME_AS_PYTHON.get(type(value), type(value))
 
 
 def _holds_device_array(value) -> bool:
@@ -40,6 +50,9 @@ class Launcher:
         self._kernel = None  # the compiled kernel, after the first launch (False: dispatcher only)
         self._flat: list[dict] = []  # per argument position: id -> (object, flattened form)
         self._configs: dict = {}
+        #: launches after the first that took the dispatcher's slow path (an argument typed
+        #: differently from the first launch's): none in a run whose arguments keep their types
+        self.slow_launches = 0
 
     def __call__(self, blocks: int, threads: int, *args) -> None:
         if not self._kernel:
@@ -62,6 +75,7 @@ class Launcher:
             elif _python_types(value) == self._scalar_types[position]:
                 kernel._prepare_args(ty, value, self._stream, [], flat)
             else:  # typed differently from the first launch: the dispatcher types it
+                self.slow_launches += 1
                 self.dispatcher[blocks, threads](*args)
                 return
         config = self._configs.get((blocks, threads))

@@ -241,7 +241,7 @@ class CudaSplittingStepper(Stepper):
                         self._heat_row(heat, code, kick * h, t_step + drift * h, theta_valid, False)
                         theta_valid = start_kept = False
                     elif _conduction_due(code, every, (at + step) % every):
-                        finish = finish_deferred(self._codes, self._kicks, r)
+                        finish = bool(finish_deferred(self._codes, self._kicks, r))
                         self._heat_row(heat, code, kick * every * h, t_step + drift * h, theta_valid, start_kept,
                                        finish)
                         theta_valid, start_kept = True, code == CONDUCTION_REVERSE
