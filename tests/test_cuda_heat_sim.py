@@ -162,6 +162,7 @@ def main(path):
     sim.runner.advance(1)
     sim.record_diagnostics()
     record(out, "calls-multirate/cuda", sim)
+    out["phase-launches"] = np.array([phase_launches(4), phase_launches(4, calls=2)])
     for name, fused in BLOWUPS.items():
         for backend in ("cpu", "cuda"):
             sim = blowup_sim(backend, fused)
@@ -179,6 +180,33 @@ def main(path):
         sim.run(steps=int(out[f"{name}/cpu/step"]), diagnostics_every=5)
         record(out, f"{name}/good", sim)
     np.savez(path, **out)
+
+
+def phase_launches(steps, calls=1):
+    """The two-launch path's heat launches in the last of ``calls`` calls of ``steps`` CO2 steps
+    with conduction every step: (temperature passes, start phases, star colours, boundary
+    phases, finish phases, star colours of the net)."""
+    from thermonet.heat.cuda import BLOCKS, BOUNDARY, FINISH, START, _phase_span
+
+    sim = conduction_sim("cuda", False, bath=500.0)
+    stepper, heat = sim.stepper, sim.stepper._heat
+    counts = dict.fromkeys(("temperature", START, BLOCKS, BOUNDARY, FINISH), 0)
+    launch = stepper._launch
+
+    def counting(kernel, blocks, threads, *args):
+        name = getattr(kernel, "py_func", kernel).__name__
+        if name.startswith("_temperature_kernel"):
+            counts["temperature"] += 1
+        elif name.startswith("_sweep_kernel"):
+            code, phase = args[0], args[1]
+            counts[_phase_span(code, phase, heat.colour_ptr, heat.star_colour_ptr, heat.n_bound, heat.m, 1)[0]] += 1
+        launch(kernel, blocks, threads, *args)
+
+    for call in range(calls):
+        if call == calls - 1:
+            stepper._launch = counting
+        sim.run(steps=steps, diagnostics_every=steps)
+    return [counts[k] for k in ("temperature", START, BLOCKS, BOUNDARY, FINISH)] + [len(heat.star_colour_ptr) - 1]
 
 
 # ----------------------------------------------------------------------------------------------
@@ -256,6 +284,18 @@ def test_a_run_cut_into_calls_or_launches_equals_one_call(runs, chunked, whole):
 def test_the_two_launch_path_cut_into_calls_equals_the_fused_call(runs):
     for field in ("positions", "momenta", "thermal_displacement", "entropy") + LOGS:
         assert _close(runs[f"calls-two-launch/cuda/{field}"], runs[f"whole/cuda/{field}"], STATE_RTOL), field
+
+
+def test_the_device_runs_no_pass_the_pass_before_already_did(runs):
+    """Conduction every step with two launches: a call's first sweep starts from a temperature
+    pass (θ not valid: the first call) or a start phase (θ kept across calls), after that the kick
+    before each reverse sweep keeps θ and its start, the reverse row's finish keeps the forward
+    row's start, and the kick after the forward row runs its finish: per step the star colours
+    twice, the boundary phase twice, one finish (docs/gpu.md)."""
+    for (temperature, start, colours, boundary, finish, n_colours), (want_temperature, want_start) in zip(
+            runs["phase-launches"], ((1, 0), (0, 1))):
+        assert (temperature, start) == (want_temperature, want_start)
+        assert colours == 2 * n_colours * 4 and boundary == 2 * 4 and finish == 4
 
 
 @pytest.mark.parametrize("name", list(BLOWUPS))
