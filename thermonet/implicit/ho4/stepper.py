@@ -75,7 +75,9 @@ class HO4Stepper(ImplicitStepper):
 
     def begin(self, x, p, eta, h: float) -> None:
         super().begin(x, p, eta, h)
-        if not self._subset_compiled:  # compile (or load) it now, not at a run's first local step
+        # compile (or load) the local Jacobi step now, not at a run's first local step; only a
+        # solver that takes Jacobi steps (matrix-free) ever calls it (core.newton)
+        if not self._subset_compiled and getattr(self.solver, "jacobi", None) is not None:
             self.kernels.local_jacobi(self._step_start, self._topology, self._springs, self._nodes, self._work,
                                       self.u, self._residuals, False, math.inf, self.local_scratch())  # no node: no-op
             self._subset_compiled = True
