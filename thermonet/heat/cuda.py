@@ -165,7 +165,7 @@ def _keep_temperature(e, l, theta, kept):
 
 
 def _finish_before_kick(e, eta, kept):
-    """The finish of the forward sweep before this spring pass (:func:`_finish_deferred`),
+    """The finish of the forward sweep before this spring pass (:func:`finish_deferred`),
     spring e's ``η += C ln(θ'/θ)``, before the pass reads η. kept: :attr:`DeviceHeat.kept`."""
     finish_spring(e, kept[KEPT_THETA], kept[KEPT_START], eta, kept[KEPT_CAPACITY], kept[KEPT_PRODUCED])
 
