@@ -54,7 +54,7 @@ from .setup import entry_decay
 # Bound per kernel variant by bind_device_heat() (see thermonet.heat.exchange).
 star_node = star_block = boundary_exchange = finish_spring = wave_exchange = spring_temperature = squared_length = None
 reverse_half = exchange.reverse_half  # (plain Python too: DeviceHeat.phases runs _phase_span on the host)
-phase_span = phase_count = phase_elements = sweep_phase = temperature_update = conduction_due = None
+phase_span = phase_count = phase_elements = sweep_phase = temperature_update = None
 CONDUCTION = False
 WAVES = False
 UNIFORM = False
@@ -77,6 +77,9 @@ def _conduction_due(code, every, step_in_cycle):
     if code == CONDUCTION_FORWARD:
         return step_in_cycle == 0
     return step_in_cycle == every - 1
+
+
+conduction_due = _conduction_due  # (plain Python too: the two-launch path asks _sweep_follows on the host)
 
 
 def _phase_span(code, phase, colour_ptr, star_colour_ptr, n_bound, m, sweeps):
@@ -170,11 +173,12 @@ def _finish_before_kick(e, eta, kept):
     finish_spring(e, kept[KEPT_THETA], kept[KEPT_START], eta, kept[KEPT_CAPACITY], kept[KEPT_PRODUCED])
 
 
-def finish_deferred(code, kick, r):
-    """Whether row r, a forward conduction row, leaves its finish phase to the spring pass of
-    the stage right after it (row r + 1 a stage with a kick, which reads η anyway:
-    :func:`_finish_before_kick`). code, kick: the stage table's columns."""
-    return code[r] == CONDUCTION_FORWARD and r + 1 < code.shape[0] and code[r + 1] == STAGE and kick[r + 1] != 0.0
+def finish_deferred(table, r):
+    """Whether row r of the stage table, a forward conduction row, leaves its finish phase to
+    the spring pass of the stage right after it (row r + 1 a stage with a kick, which reads η
+    anyway: :func:`_finish_before_kick`)."""
+    code = table.code
+    return code[r] == CONDUCTION_FORWARD and r + 1 < code.shape[0] and code[r + 1] == STAGE and table.kick[r + 1] != 0.0
 
 
 def _sweep_follows(table, r, every, step_in_cycle):

@@ -258,7 +258,7 @@ def _no_finish(e, eta, kept):
     return None
 
 
-def _no_deferred(code, kick, r):
+def _no_deferred(table, r):
     """No heat flow compiled in."""
     return False
 
@@ -357,7 +357,7 @@ def _steps_kernel(state, x_buf, s, topology, springs, nodes, table, flows, run, 
                         continue
                     t = run.t0 + (step + table.drift[r]) * h
                     tau = table.kick[r] * h * (run.conduction_every if code != THERMAL_WAVES else 1)
-                    finish_pending = CONDUCTION and finish_deferred(table.code, table.kick, r)
+                    finish_pending = CONDUCTION and finish_deferred(table, r)
                     for phase in range(first_phase(code, start_kept),
                                        phase_count(code, heat.colour_ptr, heat.star_colour_ptr, heat.sweeps[0])
                                        - (1 if finish_pending else 0)):

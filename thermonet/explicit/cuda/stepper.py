@@ -84,7 +84,7 @@ class CudaSplittingStepper(Stepper):
         self._k = cuda_kernels(system.model, system.thermal, uniform, flows, conduction, waves, self.loads is not None)
         self._table = records_to_device(table, dev)
         self._rows = [(int(c), float(k), float(d)) for c, k, d in zip(table.code, table.kick, table.drift)]
-        self._codes, self._kicks = np.asarray(table.code), np.asarray(table.kick)  # (for finish_deferred)
+        self._host_table = table  # (the heat rows' tests, asked on the host: finish_deferred, _sweep_follows)
         self._carry = float(table.carry)
         self._topology = records_to_device(records.topology(system.layout), dev)
         self._springs = records_to_device(records.Springs(system.rest_lengths, P), dev)
@@ -204,7 +204,7 @@ class CudaSplittingStepper(Stepper):
     def _steps(self, t0: float, n_steps: int, h: float):
         """n_steps steps from time t0 on the device state; None, or where a launch stopped:
         (flag, steps completed before its launch sequence, positions buffer at that start)."""
-        from ...heat.cuda import _conduction_due, finish_deferred  # (the rows' own tests, run here on the host)
+        from ...heat.cuda import _conduction_due, _sweep_follows, finish_deferred  # (the rows' own tests)
 
         lo, hi = self.system.stretch_bounds
         every, at, sweeps = self._cycle
@@ -241,7 +241,7 @@ class CudaSplittingStepper(Stepper):
                         self._heat_row(heat, code, kick * h, t_step + drift * h, theta_valid, False)
                         theta_valid = start_kept = False
                     elif _conduction_due(code, every, (at + step) % every):
-                        finish = bool(finish_deferred(self._codes, self._kicks, r))
+                        finish = bool(finish_deferred(self._host_table, r))
                         self._heat_row(heat, code, kick * every * h, t_step + drift * h, theta_valid, start_kept,
                                        finish)
                         theta_valid, start_kept = True, code == CONDUCTION_REVERSE
@@ -250,7 +250,8 @@ class CudaSplittingStepper(Stepper):
                     self._t_after = clock[0] + ((clock[1] + step) + self._drift_time[r]) * h
                 k1 = pending if r == 0 else 0.0
                 with_force = k1 != 0.0 or kick != 0.0
-                keep = conduction and with_force and drift == 0.0 and self._sweep_follows(r, every, (at + step) % every)
+                keep = conduction and with_force and drift == 0.0 and bool(
+                    _sweep_follows(self._host_table, r, every, (at + step) % every))
                 self._stage(k1 * h, kick * h, drift * h, with_force, run, (step, r, stages), keep, finish)
                 finish = False
                 if with_force or drift != 0.0:
@@ -284,16 +285,6 @@ class CudaSplittingStepper(Stepper):
             if count > 0:
                 self._launch(k.sweep, k.blocks(count), k.threads, code, phase, heat, tau, t, self._phi, self._eta,
                              self._flag)
-
-    def _sweep_follows(self, r: int, every: int, step_in_cycle: int) -> bool:
-        """Whether row r + 1 is a conduction row due on this step (see
-        :func:`thermonet.heat.cuda._sweep_follows`, the fused kernel's test)."""
-        from ...heat.cuda import _conduction_due
-
-        if r + 1 >= len(self._rows):
-            return False
-        code = self._rows[r + 1][0]
-        return code in (CONDUCTION_FORWARD, CONDUCTION_REVERSE) and _conduction_due(code, every, step_in_cycle)
 
     def _launch(self, kernel, blocks: int, threads: int, *args) -> None:
         """``kernel[blocks, threads](*args)`` through its :class:`~thermonet.explicit.cuda.launch.Launcher`."""
