@@ -3,7 +3,7 @@ code before it, measured in the same period on the same machine.
 
     python benchmarks/ab_explicit.py --old /path/to/old/checkout [--cells 32,70]
                                      [--integrators co2] [--repeats 8] [--steps 100]
-                                     [--diagnostics-every 10]
+                                     [--diagnostics-every 10] [--conduction-every 1]
     python benchmarks/ab_explicit.py --quick   # this checkout against a copy of itself, a 3³ lattice
 
 Each version runs in a worker process of its own (this checkout's ``thermonet``, and the old
@@ -17,7 +17,8 @@ diagnostics row every ``--diagnostics-every`` steps) both simulations are built 
 (kernels compiled or loaded), then timed alternately, ``--steps`` steps per call. Prints a
 markdown table of the median time per step and the ratio new/old of medians, with the range of
 the paired ratios: on a shared machine a range straddling 1 is noise. Set NUMBA_NUM_THREADS to
-compare at a thread count.
+compare at a thread count. With ``--conduction-every k`` the nets conduct heat (g = 1, a cycle
+of k steps): the conduction sweeps' speed against the code before.
 """
 
 from __future__ import annotations
@@ -48,20 +49,22 @@ def load_old(checkout: str):
     return thermonet_old, folder
 
 
-def simulation(tn, cells: int, integrator: str):
+def simulation(tn, cells: int, integrator: str, conduction_every: int = 0):
     net = tn.lattice((cells, cells, cells), neighbours=6, jitter=0.1, seed=1)
     rng = np.random.default_rng(1)
     # the stepping alone: run-time guards off where a version has them (effects_cost.py prices them)
     guards = dict(stability_guard="off", energy_tolerance=None) if "stability_guard" in getattr(
         tn.Simulation.__init__, "__code__").co_varnames else {}
+    heat = dict(conduction=True, conduction_every=conduction_every, parameters={"g": 1.0}) if conduction_every else {}
     sim = tn.Simulation(net, temperatures=250 + 100 * rng.random(net.n_springs),
-                        velocities=rng.normal(0, 0.01, (net.n_nodes, 3)), integrator=integrator, h=1e-3, **guards)
+                        velocities=rng.normal(0, 0.01, (net.n_nodes, 3)), integrator=integrator, h=1e-3, **guards,
+                        **heat)
     sim.run(steps=20, diagnostics_every=10)
     return sim
 
 
 def worker(old_checkout, conn) -> None:
-    """Serve ("build", cells, integrator) -> springs and ("run", steps, every) -> seconds until
+    """Serve ("build", cells, integrator, conduction_every) -> springs and ("run", steps, every) -> seconds until
     "stop", with the old checkout's package if ``old_checkout`` else this one's."""
     tn, folder = load_old(old_checkout) if old_checkout else (__import__("thermonet"), None)
     sim = None
@@ -69,7 +72,7 @@ def worker(old_checkout, conn) -> None:
         while True:
             msg = conn.recv()
             if msg[0] == "build":
-                sim = simulation(tn, msg[1], msg[2])
+                sim = simulation(tn, *msg[1:])
                 conn.send(sim.net.n_springs)
             elif msg[0] == "run":
                 t = time.perf_counter()
@@ -95,6 +98,8 @@ def main(argv=None) -> list[dict]:
     ap.add_argument("--steps", type=int, default=100)
     ap.add_argument("--diagnostics-every", type=int, default=10,
                     help="diagnostics cadence of the timed runs (above --steps: one row per call)")
+    ap.add_argument("--conduction-every", type=int, default=0,
+                    help="conduct heat (g = 1) in cycles of this many steps (0: adiabatic)")
     ap.add_argument("--quick", action="store_true", help="a 3³ lattice, 10 steps, 2 repeats; without --old, this "
                     "checkout against a copy of itself (a smoke run)")
     args = ap.parse_args(argv)
@@ -120,7 +125,7 @@ def main(argv=None) -> list[dict]:
         for integrator in args.integrators.split(","):
             for cells in (int(c) for c in args.cells.split(",")):
                 for pipe in pipes.values():
-                    pipe.send(("build", cells, integrator))
+                    pipe.send(("build", cells, integrator, args.conduction_every))
                 springs = [pipe.recv() for pipe in pipes.values()][-1]
                 times: dict[str, list] = {"old": [], "new": []}
                 for r in range(args.repeats):

@@ -128,6 +128,16 @@ def test_ab_explicit_quick_mode_times_this_checkout_against_a_copy_of_itself():
     assert low - 0.005 <= ratio <= high + 0.005
 
 
+def test_ab_explicit_builds_conducting_nets_for_the_sweeps_a_b():
+    """--conduction-every k: the nets A/B'd conduct heat in cycles of k steps (this checkout's
+    side; the quick mode above runs both sides adiabatic)."""
+    import thermonet as tn
+
+    sim = load("ab_explicit").simulation(tn, 3, "co2", 2)
+    assert sim.conduction_cycle.k == 2 and sim.system.heat.conduction
+    assert float(sim.diagnostics.entropy_produced[-1]) > 0.0
+
+
 def test_explicit_throughput_quick_mode_times_both_kernels_and_the_numpy_step(capsys):
     rows = load("explicit_throughput").main(["--quick"])
     assert len(rows) == 1

@@ -134,7 +134,7 @@ def splitting_kernels(model, parallel: bool, thermal: bool = True, uniform: bool
         bind_subflows(ns, tag, inline)
         if conduction or waves:
             bind_heat_flow(ns, tag, inline)
-            bind_heat_passes(ns, tag, parallel)
+            bind_heat_passes(ns, model, parallel, uniform)
         ns["LOADS"] = bool(loads)
         if loads:
             tag += bind_loads(ns, tag, inline)

@@ -73,6 +73,14 @@ _OPTIONS = dict(cache=True, error_model="numpy", boundscheck=False, _nrt=False) 
 def bind_heat_flow(ns: dict, tag: str, compile_) -> None:
     """Bind :mod:`thermonet.heat.exchange`'s functions into the kernel namespace ``ns``,
     each compiled by ``compile_`` (the time functions' ``evaluate`` with it)."""
+    _bind_exchange(ns, tag, compile_)
+    if ns.get("model_strain") is None or ns.get("tension_at_strain") is None:
+        # T from the length itself (the "strain" kept is the length)
+        ns["model_strain"] = compile_(_length_as_strain)
+        ns["tension_at_strain"] = compile_(rebind(_tension_of_length, tag, ns))
+
+
+def _bind_exchange(ns: dict, tag: str, compile_) -> None:
     from ..kernels.fastmath import log
     from ..timefunctions import evaluate_py
 
@@ -80,10 +88,6 @@ def bind_heat_flow(ns: dict, tag: str, compile_) -> None:
     ns["log"] = log
     for name in exchange.SHARED:
         ns[name] = compile_(rebind(getattr(exchange, name), tag, ns))
-    if ns.get("model_strain") is None or ns.get("tension_at_strain") is None:
-        # T from the length itself (the "strain" kept is the length)
-        ns["model_strain"] = compile_(_length_as_strain)
-        ns["tension_at_strain"] = compile_(rebind(_tension_of_length, tag, ns))
 
 
 def _length_as_strain(l, l0):
@@ -96,25 +100,65 @@ def _tension_of_length(L, l, theta, l0, P, e):
     return tension(l, theta, l0, P, e)
 
 
-def bind_heat_passes(ns: dict, tag: str, parallel: bool) -> None:
-    """Compile the passes below into ``ns`` (which must hold the model, subflows and exchange
-    bindings)."""
+#: the heat passes compiled in this process, by cache tag (:func:`sweep_tag`, :func:`pass_tag`)
+_COMPILED: dict = {}
+
+
+def sweep_tag(parallel: bool) -> str:
+    """The cache tag of the conduction and wave sweeps: they read the temperatures, the heat
+    record and the time functions, no model, so one compiled sweep (per threading) serves every
+    model and kernel variant (with or without loads, other sub-flows, an implicit stepper's)."""
+    from ..kernels.fastmath import log
+    from ..kernels.specialize import function_fingerprint
+    from ..timefunctions import evaluate_py
+
+    return f"{'par' if parallel else 'ser'}_h{source_digest(parallel)}_e{function_fingerprint(evaluate_py, log)}"
+
+
+def pass_tag(model, parallel: bool, uniform: bool) -> str:
+    """The cache tag of the heat passes that read the model (temperature, refresh, entropy update,
+    the springs' sums): the model, threading and parameter layout, and the sources they inline;
+    not the loads, sub-flows or rows of the kernel variant that calls them."""
+    from ..kernels.fastmath import log
+    from ..kernels.specialize import function_fingerprint
+    from ..kernels.subflows import source_digest as subflows_digest
+
+    return (f"{model.name}_{model_fingerprint(model)}_{'par' if parallel else 'ser'}{'_uniform' if uniform else ''}"
+            f"_s{subflows_digest()}_h{source_digest(parallel)}_e{function_fingerprint(log)}")
+
+
+def bind_heat_passes(ns: dict, model, parallel: bool, uniform: bool) -> None:
+    """Bind the passes below into ``ns`` (which must hold the model, subflows and exchange
+    bindings of ``model``, thermal, ``uniform``), each compiled once per process for its
+    :func:`pass_tag` or :func:`sweep_tag` (and loaded from Numba's disk cache under it)."""
+    tag = pass_tag(model, parallel, uniform)
     ns["gather_two_forces"] = specialize(_gather_two_forces, tag, ns, inline="always", **_OPTIONS)
-    ns["temperature_pass"] = specialize(_temperature_pass, tag, ns, parallel=parallel, **_OPTIONS)
-    ns["_refresh_spring"] = specialize(_refresh_spring, tag, ns, inline="always", **_OPTIONS)
-    ns["_refresh_block"] = specialize(_refresh_block, tag, ns, inline="always", **_OPTIONS)
-    ns["refresh_pass"] = specialize(_refresh_pass, tag, ns, parallel=parallel, **_OPTIONS)
-    ns["finish_refresh_pass"] = specialize(_finish_refresh_pass, tag, ns, parallel=parallel, **_OPTIONS)
-    ns["PAIRED"] = not parallel
-    ns["_star_nodes"] = specialize(_star_nodes, tag, ns, inline="always", **_OPTIONS)
-    ns["_star_blocks"] = specialize(_star_blocks, tag, ns, inline="always", **_OPTIONS)
-    # a function of its own, not inlined: its two call sites in the sweep would otherwise each
-    # carry four copies of the block exchange (inlined, a cold serial conducting kernel took 50 s
-    # of CPU to compile, 40 s without; one call per colour costs nothing at run time)
-    ns["_sweep_colour"] = specialize(_sweep_colour, tag, ns, parallel=parallel, **_OPTIONS)
-    ns["conduction_sweep"] = specialize(_conduction_sweep, tag, ns, parallel=parallel, **_OPTIONS)
-    ns["wave_sweep"] = specialize(_wave_sweep, tag, ns, parallel=parallel, **_OPTIONS)
-    ns["state_spring_sums"] = specialize(_state_spring_sums, tag, ns, parallel=parallel, **_OPTIONS)
+    if tag not in _COMPILED:
+        own = dict(ns)
+        own["_refresh_spring"] = specialize(_refresh_spring, tag, own, inline="always", **_OPTIONS)
+        own["_refresh_block"] = specialize(_refresh_block, tag, own, inline="always", **_OPTIONS)
+        _COMPILED[tag] = {name: specialize(template, tag, own, parallel=parallel, **_OPTIONS) for name, template in (
+            ("temperature_pass", _temperature_pass), ("refresh_pass", _refresh_pass),
+            ("finish_refresh_pass", _finish_refresh_pass), ("state_spring_sums", _state_spring_sums))}
+    ns.update(_COMPILED[tag])
+    ns.update(_sweeps(parallel))
+
+
+def _sweeps(parallel: bool) -> dict:
+    """{"conduction_sweep": …, "wave_sweep": …} compiled for ``parallel`` (see :func:`sweep_tag`)."""
+    tag = sweep_tag(parallel)
+    if tag not in _COMPILED:
+        ns = {"PAIRED": not parallel}
+        _bind_exchange(ns, tag, njit(inline="always", error_model="numpy", boundscheck=False))
+        ns["_star_nodes"] = specialize(_star_nodes, tag, ns, inline="always", **_OPTIONS)
+        ns["_star_blocks"] = specialize(_star_blocks, tag, ns, inline="always", **_OPTIONS)
+        ns["_runs_direction"] = specialize(_runs_direction, tag, ns, inline="always", **_OPTIONS)
+        # a function of its own, not inlined into the sweep (whose compile time it would add to;
+        # one call per colour costs nothing at run time)
+        ns["_sweep_colour"] = specialize(_sweep_colour, tag, ns, parallel=parallel, **_OPTIONS)
+        _COMPILED[tag] = {"conduction_sweep": specialize(_conduction_sweep, tag, ns, parallel=parallel, **_OPTIONS),
+                          "wave_sweep": specialize(_wave_sweep, tag, ns, parallel=parallel, **_OPTIONS)}
+    return _COMPILED[tag]
 
 
 def _temperature_pass(x, eta, topology, springs, theta, length):
@@ -304,6 +348,16 @@ def _star_blocks(b1, b2, heat, reverse, theta):
         _star_nodes(i1, i2, inc_ptr, inc_spring, weight, decay, node_scale, theta)
 
 
+def _runs_direction(q, directions):
+    """Whether a block of :func:`_sweep_colour` runs its q-th pass (0: reverse, 1: forward, 2:
+    reverse again), in that order, for ``directions``."""
+    if q == 0:
+        return directions & REVERSE != 0
+    if q == 1:
+        return directions & (FORWARD | FORWARD_THEN_REVERSE) != 0
+    return directions & FORWARD_THEN_REVERSE != 0
+
+
 def _sweep_colour(heat, ptr, colour, directions, theta):
     """The blocks of one colour, in parallel: each reverse (REVERSE), forward (FORWARD),
     reverse then forward (both), or forward then reverse (FORWARD_THEN_REVERSE). With shared
@@ -321,20 +375,14 @@ def _sweep_colour(heat, ptr, colour, directions, theta):
         for k in prange(half + odd):
             b1 = lo + k
             b2 = b1 + half + odd if k < half else -1
-            if directions & REVERSE:
-                _star_blocks(b1, b2, heat, True, theta)
-            if directions & (FORWARD | FORWARD_THEN_REVERSE):
-                _star_blocks(b1, b2, heat, False, theta)
-            if directions & FORWARD_THEN_REVERSE:
-                _star_blocks(b1, b2, heat, True, theta)
+            for q in range(3):  # (one inlined copy of the block exchange, not three: a third of the compile)
+                if _runs_direction(q, directions):
+                    _star_blocks(b1, b2, heat, q != 1, theta)
     else:
         for b in prange(lo, lo + count):
-            if directions & REVERSE:
-                star_block(b, heat, True, theta)
-            if directions & (FORWARD | FORWARD_THEN_REVERSE):
-                star_block(b, heat, False, theta)
-            if directions & FORWARD_THEN_REVERSE:
-                star_block(b, heat, True, theta)
+            for q in range(3):
+                if _runs_direction(q, directions):
+                    star_block(b, heat, q != 1, theta)
 
 
 def _conduction_sweep(heat, theta, theta_start, eta, tau, t, directions):
@@ -377,21 +425,20 @@ def _conduction_sweep(heat, theta, theta_start, eta, tau, t, directions):
     joined = False  # this half sweep's first colour ran with the last one's last
     for half in range(first, last):
         more = fuse and half + 1 < last
-        if reverse_half(half, sweeps):  # reverse: the colours backwards, then the boundary entries
-            for i in range(1 if joined else 0, n_colours):
-                # (np.int64: with the literal, the call would compile a second _sweep_colour)
-                code = np.int64(REVERSE | FORWARD if more and i == n_colours - 1 else REVERSE)
-                _sweep_colour(heat, ptr, n_colours - 1 - i, code, theta)
-            if n_bound > 0:  # (a parallel loop costs a barrier even when empty)
+        reverse = reverse_half(half, sweeps)
+        # forward: the boundary entries, then the colours in order; reverse: the colours backwards,
+        # then the entries (one call site each: each is compiled once)
+        for stage in range(3):
+            if stage == 1:
+                for i in range(1 if joined else 0, n_colours):
+                    code = REVERSE if reverse else FORWARD
+                    if more and i == n_colours - 1:
+                        code = REVERSE | FORWARD if reverse else FORWARD_THEN_REVERSE
+                    # (np.int64: with a literal, the call would compile a second _sweep_colour)
+                    _sweep_colour(heat, ptr, n_colours - 1 - i if reverse else i, np.int64(code), theta)
+            elif n_bound > 0 and (stage == 2) == reverse:  # (a parallel loop costs a barrier even when empty)
                 for j in prange(n_bound):
-                    boundary_exchange(j, heat, tau, t, True, theta, logs)
-        else:  # forward: the boundary entries, then the colours in order
-            if n_bound > 0:
-                for j in prange(n_bound):
-                    boundary_exchange(j, heat, tau, t, False, theta, logs)
-            for colour in range(1 if joined else 0, n_colours):
-                code = np.int64(FORWARD_THEN_REVERSE if more and colour == n_colours - 1 else FORWARD)
-                _sweep_colour(heat, ptr, colour, code, theta)
+                    boundary_exchange(j, heat, tau, t, reverse, theta, logs)
         joined = more
     if directions & SAVE:
         for e in prange(m):
@@ -514,12 +561,11 @@ def heat_kernels(model, parallel: bool, uniform: bool):
 
     key = (model_fingerprint(model), bool(parallel), bool(uniform))
     if key not in _CACHE:
-        tag = (f"{model.name}_{key[0]}_{'par' if parallel else 'ser'}{'_uniform' if uniform else ''}"
-               f"_h{source_digest(parallel)}")
+        tag = pass_tag(model, parallel, uniform)
         ns = kernel_namespace(model, True, uniform)
         inline = njit(inline="always", error_model="numpy", boundscheck=False)
         bind_subflows(ns, tag, inline)
         bind_heat_flow(ns, tag, inline)
-        bind_heat_passes(ns, tag, parallel)
+        bind_heat_passes(ns, model, parallel, uniform)
         _CACHE[key] = (ns["temperature_pass"], ns["conduction_sweep"])
     return _CACHE[key]

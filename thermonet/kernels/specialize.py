@@ -14,7 +14,11 @@ callees live in, so the same model code imported under another module name (a sc
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
+import os
+import tempfile
+import threading
 import types
 import weakref
 
@@ -144,7 +148,60 @@ def specialize(template, tag: str, namespace: dict, **jit_options):
         jit_options = {k: v for k, v in jit_options.items() if k != "_nrt"}
     dispatcher = njit(**jit_options)(fn)
     dispatcher._thermonet_runtime = jit_options.get("_nrt", True) is not False
+    if jit_options.get("cache"):
+        _compile_once_across_processes(dispatcher)
     return dispatcher
+
+
+def _compile_once_across_processes(dispatcher) -> None:
+    """Make the processes that compile the same cached kernel at the same time (test workers,
+    MPI ranks, Dask workers starting from a cold cache) take turns: the first compiles and
+    writes Numba's disk cache, the others then load it instead of compiling it again. A lock
+    file per kernel (its source file and qualified name), held while Numba compiles or loads it;
+    the kernels it calls lock their own (the call graph has no cycles, so no two processes wait
+    for each other). Without ``fcntl`` (Windows) every process compiles on its own."""
+    if _flock is None:
+        return
+    compile_ = dispatcher.compile
+    py = dispatcher.py_func
+    key = hashlib.sha256(f"{py.__code__.co_filename}:{py.__qualname__}".encode()).hexdigest()[:20]
+
+    def compile(sig):
+        with _kernel_lock(key):
+            return compile_(sig)
+
+    dispatcher.compile = compile
+
+
+try:
+    from fcntl import LOCK_EX as _LOCK_EX, LOCK_UN as _LOCK_UN, flock as _flock
+except ImportError:  # pragma: no cover - (not on Windows)
+    _flock = None
+
+_HELD = threading.local()  # the kernel locks this thread holds (a lock is taken once per process)
+
+
+@contextlib.contextmanager
+def _kernel_lock(key: str):
+    held = _HELD.__dict__.setdefault("keys", set())
+    if key in held:
+        yield
+        return
+    folder = os.path.join(tempfile.gettempdir(), "thermonet-compile-locks")
+    try:
+        os.makedirs(folder, exist_ok=True)
+        handle = open(os.path.join(folder, key), "a")
+    except OSError:  # (no writable temporary folder: compile unlocked)
+        yield
+        return
+    with handle:
+        _flock(handle.fileno(), _LOCK_EX)
+        held.add(key)
+        try:
+            yield
+        finally:
+            held.discard(key)
+            _flock(handle.fileno(), _LOCK_UN)
 
 
 def _reaches_runtime(fn, seen: set) -> bool:
