@@ -375,9 +375,12 @@ def _sweep_colour(heat, ptr, colour, directions, theta):
         for k in prange(half + odd):
             b1 = lo + k
             b2 = b1 + half + odd if k < half else -1
-            for q in range(3):  # (one inlined copy of the block exchange, not three: a third of the compile)
+            for q in range(3):  # (two inlined copies of the block exchange, not three)
                 if _runs_direction(q, directions):
-                    _star_blocks(b1, b2, heat, q != 1, theta)
+                    if q == 1:  # (literal directions: a block's node order compiled in)
+                        _star_blocks(b1, b2, heat, False, theta)
+                    else:
+                        _star_blocks(b1, b2, heat, True, theta)
     else:
         for b in prange(lo, lo + count):
             for q in range(3):
