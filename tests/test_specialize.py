@@ -2,6 +2,8 @@
 the runtime (docs/architecture.md, "Kernels run without reference counting"), and keep it where
 something does, whatever the order in which the functions are first compiled."""
 
+import time
+
 import numpy as np
 from numba import prange
 
@@ -72,3 +74,79 @@ def test_the_serial_steppers_kernels_run_without_the_runtime():
     for kernel in (em2.stepper.compiled.driver, kernels.residual, kernels.sweep, kernels.jacobian, kernels.start,
                    kernels.finish):
         assert kernel.targetoptions["_nrt"] is False, kernel
+
+
+def test_processes_take_turns_at_a_kernels_lock(tmp_path):
+    """A second process asking for a kernel's lock while another holds it (compiling the kernel)
+    gets it only once the first lets go: then it loads the cache instead of compiling too."""
+    import subprocess
+    import sys
+    import textwrap
+    import uuid
+
+    key = f"test-{uuid.uuid4().hex}"
+    holder = textwrap.dedent(f"""
+        import time
+        from thermonet.kernels.specialize import _kernel_lock
+        with _kernel_lock({key!r}):
+            open({str(tmp_path / "in")!r}, "w").write("")
+            time.sleep(1.5)
+            released = time.time()
+        open({str(tmp_path / "out")!r}, "w").write(repr(released))
+    """)
+    waiter = textwrap.dedent(f"""
+        import time
+        from thermonet.kernels.specialize import _kernel_lock
+        with _kernel_lock({key!r}):
+            got = time.time()
+        open({str(tmp_path / "got")!r}, "w").write(repr(got))
+    """)
+    first = subprocess.Popen([sys.executable, "-c", holder])
+    deadline = time.monotonic() + 60
+    while not (tmp_path / "in").exists():
+        assert first.poll() is None and time.monotonic() < deadline, "the first process never held the lock"
+        time.sleep(0.02)
+    second = subprocess.run([sys.executable, "-c", waiter], timeout=120)
+    assert first.wait(timeout=120) == 0 and second.returncode == 0
+    assert float((tmp_path / "got").read_text()) >= float((tmp_path / "out").read_text())
+
+
+def test_a_lock_held_too_long_is_given_up(monkeypatch):
+    """A process stopped while holding a kernel's lock delays the others by LOCK_PATIENCE at
+    most: then they compile unlocked."""
+    import fcntl
+    import os
+    import tempfile
+    import uuid
+
+    from thermonet.kernels import specialize as sp
+
+    key = f"test-{uuid.uuid4().hex}"
+    folder = os.path.join(tempfile.gettempdir(), "thermonet-compile-locks")
+    os.makedirs(folder, exist_ok=True)
+    monkeypatch.setattr(sp, "LOCK_PATIENCE", 0.3)
+    with open(os.path.join(folder, key), "a") as other:  # (another open file: its lock excludes ours)
+        fcntl.flock(other.fileno(), fcntl.LOCK_EX)
+        t0 = time.monotonic()
+        with sp._kernel_lock(key):
+            waited = time.monotonic() - t0
+    assert 0.3 <= waited < 10.0
+
+
+def test_a_cached_kernel_compiles_and_loads_under_its_lock(monkeypatch):
+    import contextlib
+
+    from thermonet.kernels import specialize as sp
+
+    taken = []
+
+    @contextlib.contextmanager
+    def recording(key):
+        taken.append(key)
+        yield
+
+    monkeypatch.setattr(sp, "_kernel_lock", recording)
+    kernel = specialize(_plain, "locked", {}, cache=True)
+    assert kernel(np.array([1.5])) == 3.0
+    assert taken == [kernel._thermonet_lock_key]
+    assert not hasattr(specialize(_plain, "uncached", {}, cache=False), "_thermonet_lock_key")

@@ -19,6 +19,7 @@ import hashlib
 import os
 import tempfile
 import threading
+import time
 import types
 import weakref
 
@@ -171,18 +172,26 @@ def _compile_once_across_processes(dispatcher) -> None:
             return compile_(sig)
 
     dispatcher.compile = compile
+    dispatcher._thermonet_lock_key = key
 
 
 try:
-    from fcntl import LOCK_EX as _LOCK_EX, LOCK_UN as _LOCK_UN, flock as _flock
+    from fcntl import LOCK_EX as _LOCK_EX, LOCK_NB as _LOCK_NB, LOCK_UN as _LOCK_UN, flock as _flock
 except ImportError:  # pragma: no cover - (not on Windows)
     _flock = None
 
 _HELD = threading.local()  # the kernel locks this thread holds (a lock is taken once per process)
+#: how long a process waits for another to compile a kernel before compiling it itself (a cold
+#: conducting kernel with loads takes up to two minutes on a busy machine)
+LOCK_PATIENCE = 600.0
 
 
 @contextlib.contextmanager
 def _kernel_lock(key: str):
+    """Hold the lock file of kernel ``key`` (in the temporary folder) while the block runs: the
+    kernel's compile or cache load. Reentrant in a thread; a lock not had within LOCK_PATIENCE
+    seconds (a process stopped while holding it) or a folder that cannot be written is given up
+    and the block runs unlocked."""
     held = _HELD.__dict__.setdefault("keys", set())
     if key in held:
         yield
@@ -191,17 +200,31 @@ def _kernel_lock(key: str):
     try:
         os.makedirs(folder, exist_ok=True)
         handle = open(os.path.join(folder, key), "a")
-    except OSError:  # (no writable temporary folder: compile unlocked)
+    except OSError:
         yield
         return
     with handle:
-        _flock(handle.fileno(), _LOCK_EX)
-        held.add(key)
+        locked = _acquire(handle.fileno())
+        if locked:
+            held.add(key)
         try:
             yield
         finally:
-            held.discard(key)
-            _flock(handle.fileno(), _LOCK_UN)
+            if locked:
+                held.discard(key)
+                _flock(handle.fileno(), _LOCK_UN)
+
+
+def _acquire(fd: int) -> bool:
+    deadline = time.monotonic() + LOCK_PATIENCE
+    while True:
+        try:
+            _flock(fd, _LOCK_EX | _LOCK_NB)
+            return True
+        except BlockingIOError:
+            if time.monotonic() > deadline:
+                return False
+            time.sleep(0.05)
 
 
 def _reaches_runtime(fn, seen: set) -> bool:
