@@ -18,7 +18,8 @@ from thermonet.paper import CHAIN_MOMENTA, CHAIN_PARAMETERS, CHAIN_TEMPERATURES 
 
 # Seconds each module took in a cold-cache run of the suite on 2 cores (mostly compiling its
 # kernels; commit fc585c4): the modules run longest first, so that the two workers finish
-# together instead of one running a long module alone at the end (46 s of 973 in that run).
+# together instead of one running a long module alone at the end (the other idled for the last
+# 92 s of 973 in that run).
 # Only an order: a module missing here runs after these, in collection order.
 COLD_SECONDS = {
     "test_implicit_newton.py": 178, "test_loads_heat.py": 166, "test_heat_flow.py": 151,
