@@ -385,7 +385,10 @@ def _sweep_colour(heat, ptr, colour, directions, theta):
         for b in prange(lo, lo + count):
             for q in range(3):
                 if _runs_direction(q, directions):
-                    star_block(b, heat, q != 1, theta)
+                    if q == 1:
+                        star_block(b, heat, False, theta)
+                    else:
+                        star_block(b, heat, True, theta)
 
 
 def _conduction_sweep(heat, theta, theta_start, eta, tau, t, directions):

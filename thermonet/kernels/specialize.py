@@ -26,6 +26,11 @@ import weakref
 import numpy as np
 from numba import njit
 
+try:
+    from fcntl import LOCK_EX as _LOCK_EX, LOCK_NB as _LOCK_NB, LOCK_UN as _LOCK_UN, flock as _flock
+except ImportError:  # pragma: no cover - (not on Windows)
+    _flock = None
+
 MODEL_FUNCTIONS = ("free_energy", "tension", "entropy", "temperature", "internal_energy",
                    "d2F_dl2", "d2F_dl_dtheta", "d2F_dtheta2")
 #: a model's optional functions (None where it has none), fingerprinted with the others
@@ -174,11 +179,6 @@ def _compile_once_across_processes(dispatcher) -> None:
     dispatcher.compile = compile
     dispatcher._thermonet_lock_key = key
 
-
-try:
-    from fcntl import LOCK_EX as _LOCK_EX, LOCK_NB as _LOCK_NB, LOCK_UN as _LOCK_UN, flock as _flock
-except ImportError:  # pragma: no cover - (not on Windows)
-    _flock = None
 
 _HELD = threading.local()  # the kernel locks this thread holds (a lock is taken once per process)
 #: how long a process waits for another to compile a kernel before compiling it itself (a cold
