@@ -150,3 +150,93 @@ def test_a_cached_kernel_compiles_and_loads_under_its_lock(monkeypatch):
     assert kernel(np.array([1.5])) == 3.0
     assert taken == [kernel._thermonet_lock_key]
     assert not hasattr(specialize(_plain, "uncached", {}, cache=False), "_thermonet_lock_key")
+
+
+# --- passes named by what they read -------------------------------------------------------------
+
+from numba import njit  # noqa: E402
+
+from thermonet.kernels.specialize import namespace_digest, rebind  # noqa: E402
+
+INLINE = dict(inline="always")
+
+
+def _scaled(x):
+    return SCALE * helper(x)  # noqa: F821 (bound by specialize)
+
+
+def _helper_twice(x):
+    return 2.0 * x
+
+
+def _helper_thrice(x):
+    return 3.0 * x
+
+
+def _ns(scale=2.0, helper=_helper_twice, tag="a", **extra):
+    return dict(SCALE=scale, helper=njit(**INLINE)(rebind(helper, tag, {})), **extra)
+
+
+def test_a_pass_is_named_by_what_it_reads_not_by_its_variant():
+    base = namespace_digest(_scaled, _ns())
+    # names it does not read, and the tag its callee was compiled under, change nothing
+    assert namespace_digest(_scaled, _ns(LOADS=True, UNUSED=np.zeros(3), tag="another_variant")) == base
+    # a constant it reads, its callee's code, or the callee's compile options do
+    assert namespace_digest(_scaled, _ns(scale=3.0)) != base
+    assert namespace_digest(_scaled, _ns(helper=_helper_thrice)) != base
+    other_options = dict(_ns(), helper=njit(rebind(_helper_twice, "a", {})))
+    assert namespace_digest(_scaled, other_options) != base
+
+
+def test_a_closure_value_and_a_global_array_are_part_of_the_name():
+    def factory(k):
+        def update(x):
+            return k * x
+        return update
+
+    def digest(fn, **extra):
+        return namespace_digest(_scaled, dict(SCALE=1.0, helper=njit(**INLINE)(fn), **extra))
+
+    assert digest(factory(2.0)) == digest(factory(2.0))
+    assert digest(factory(2.0)) != digest(factory(5.0))
+    assert namespace_digest(_scaled, _ns(scale=np.array([1.0, 2.0]))) != namespace_digest(
+        _scaled, _ns(scale=np.array([1.0, 3.0])))
+
+
+def test_a_global_that_cannot_be_hashed_stably_is_refused():
+    import pytest
+
+    class Opaque:
+        pass
+
+    with pytest.raises(TypeError, match="cannot hash"):
+        namespace_digest(_scaled, _ns(scale=Opaque()))
+
+
+def test_kernel_variants_share_the_passes_that_do_not_read_what_they_differ_in():
+    """Nothing compiled: the passes each variant binds, compared as objects."""
+    from thermonet.explicit import cpu
+    from thermonet.loads.elements import CPU_PASSES
+    from thermonet.models import HENCKY, QUADRATIC
+
+    hencky = cpu.variant_passes(HENCKY, parallel=False, uniform=True)
+    quadratic = cpu.variant_passes(QUADRATIC, parallel=False, uniform=False)
+    hencky_loads = cpu.variant_passes(HENCKY, parallel=False, uniform=True, loads=True)
+    hencky_heat = cpu.variant_passes(HENCKY, parallel=False, uniform=True, conduction=True)
+    hencky_heat_loads = cpu.variant_passes(HENCKY, parallel=False, uniform=True, conduction=True, loads=True)
+    threaded = cpu.variant_passes(HENCKY, parallel=True, uniform=True)
+    # the node pass reads no model and no parameter layout; it reads the loads and the heat flow
+    assert quadratic["node_pass"] is hencky["node_pass"]
+    assert hencky_loads["node_pass"] is not hencky["node_pass"]
+    assert hencky_heat["node_pass"] is not hencky["node_pass"]
+    # the spring pass reads the model and the heat flow, not the loads
+    assert quadratic["spring_pass"] is not hencky["spring_pass"]
+    assert hencky_loads["spring_pass"] is hencky["spring_pass"]
+    assert hencky_heat_loads["boundary_spring_pass"] is hencky_heat["boundary_spring_pass"]
+    assert hencky_heat["spring_pass"] is not hencky["spring_pass"]
+    assert threaded["spring_pass"] is not hencky["spring_pass"]
+    assert threaded["thermal_kick"] is not hencky["thermal_kick"] and quadratic["thermal_kick"] is hencky["thermal_kick"]
+    # the loads' serial passes: one for every variant with loads, called, not inlined
+    for name in CPU_PASSES:
+        assert hencky_heat_loads[name] is hencky_loads[name]
+        assert hencky_loads[name].targetoptions.get("inline", "never") == "never"

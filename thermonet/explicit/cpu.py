@@ -72,7 +72,8 @@ from ..kernels.exact import add_terms, normalize
 from ..kernels.reductions import NODE_SUMS, chunk_length, node_diagnostic_terms, rows_digest
 from ..kernels.copies import _copy_rows, _copy_values
 from ..kernels.records import KickDrift
-from ..kernels.specialize import function_fingerprint, kernel_namespace, model_fingerprint, rebind, specialize
+from ..kernels.specialize import (function_fingerprint, kernel_namespace, model_fingerprint, namespace_digest, rebind,
+                                  specialize)
 from ..kernels.subflows import bind_subflows
 from ..loads.elements import bind_loads
 from .codes import FORCE_DEFERRED, FORCE_GATHER, FORCE_GATHER_KEEP, FORCE_KEPT
@@ -138,34 +139,61 @@ def splitting_kernels(model, parallel: bool, thermal: bool = True, uniform: bool
         ns["LOADS"] = bool(loads)
         if loads:
             tag += bind_loads(ns, tag, inline)
-        ns["spring_pass"] = specialize(_spring_pass, tag, ns, parallel=parallel, **_OPTIONS)
-        ns["node_pass"] = specialize(_node_pass, tag, ns, parallel=parallel, **_OPTIONS)
+        ns["spring_pass"] = _shared_pass(_spring_pass, tag, ns, parallel)
+        ns["node_pass"] = _shared_pass(_node_pass, tag, ns, parallel)
         boundary = dict(ns, CLOSING=True)
         boundary["closing_node_kick"] = specialize(_closing_node_kick, tag + "_boundary", boundary, inline="always",
                                                    **_OPTIONS)
-        ns["boundary_spring_pass"] = specialize(_spring_pass, tag + "_boundary", boundary, parallel=parallel,
-                                                **_OPTIONS)
-        ns["boundary_node_pass"] = specialize(_node_pass, tag + "_boundary", boundary, parallel=parallel,
-                                              **_OPTIONS)
-        ns["thermal_kick"] = specialize(_thermal_kick, tag, ns, parallel=parallel, **_OPTIONS)
-        ns["copy_rows"] = specialize(_copy_rows, tag, ns, parallel=parallel, **_OPTIONS)
+        ns["boundary_spring_pass"] = _shared_pass(_spring_pass, tag + "_boundary", boundary, parallel)
+        ns["boundary_node_pass"] = _shared_pass(_node_pass, tag + "_boundary", boundary, parallel)
+        ns["thermal_kick"] = _shared_pass(_thermal_kick, tag, ns, parallel)
+        ns["copy_rows"] = _shared_pass(_copy_rows, tag, ns, parallel)
         for slot in range(4):
             if slot < len(flows):
                 update_ = flows[slot].update
                 if not hasattr(update_, "py_func"):
                     update_ = njit(inline="always", error_model="numpy", boundscheck=False)(update_)
-                fn = specialize(_flow_pass, f"{tag}_{slot}", dict(ns, update=update_), parallel=parallel, **_OPTIONS)
+                fn = _shared_pass(_flow_pass, f"{tag}_{slot}", dict(ns, update=update_), parallel)
             else:
                 fn = _no_flow
             ns[f"flow_pass_{slot}"] = fn
         ns["apply_flow"] = specialize(_apply_flow, tag, ns, inline="always", **_OPTIONS)
         ns["_stopped"] = specialize(_stopped, tag, ns, inline="always", **_OPTIONS)
         if conduction:  # the conduction boundary and the kick it defers (thermonet.heat.passes)
-            ns["_deferred_kick"] = specialize(deferred_kick, tag, ns, inline="always", **_OPTIONS)
-            ns["conduction_boundary"] = specialize(conduction_boundary, tag, ns, inline="always", **_OPTIONS)
+            # (called, not inlined: each is called from two places once per cycle, and inlined
+            # both copies would be compiled into the kernel)
+            ns["_deferred_kick"] = _shared_pass(deferred_kick, tag, ns, parallel, threaded=False)
+            ns["conduction_boundary"] = _shared_pass(conduction_boundary, tag, ns, parallel, threaded=False)
         _CACHE[key] = specialize(_advance, tag, ns, **_OPTIONS)
         _PASSES[key] = ns
     return _CACHE[key]
+
+
+_SHARED_PASSES: dict = {}
+
+
+def variant_passes(model, **variant) -> dict:
+    """The namespace of the kernel variant :func:`splitting_kernels` makes for ``model`` and
+    ``variant`` (its passes by name; built, nothing compiled)."""
+    kernel = splitting_kernels(model, **variant)
+    return next(ns for key, ns in _PASSES.items() if _CACHE[key] is kernel)
+
+
+def _shared_pass(template, tag: str, ns: dict, parallel: bool, threaded: bool = True):
+    """``template`` compiled for ``ns``, named by what it reads
+    (:func:`~thermonet.kernels.specialize.namespace_digest`) rather than by its variant's ``tag``:
+    a pass that does not read the loads, the model or the heat flow is compiled once (per
+    process; loaded from Numba's disk cache in the next) for every variant that differs only in
+    those. A namespace the digest cannot hash keeps the variant's tag. ``threaded``: the
+    template's own loops run in parallel with ``parallel`` (else only the passes it calls do)."""
+    try:
+        tag = f"{'par' if parallel else 'ser'}_c{namespace_digest(template, ns)}"
+    except TypeError:
+        pass
+    key = (template, tag)
+    if key not in _SHARED_PASSES:
+        _SHARED_PASSES[key] = specialize(template, tag, ns, parallel=parallel and threaded, **_OPTIONS)
+    return _SHARED_PASSES[key]
 
 
 def _spring_pass(x, eta, phi, topology, springs, scratch, steps, run, keep, length, strain):
@@ -482,7 +510,7 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run
             if codes[r] >= FIRST_FLOW_SLOT:
                 if CONDUCTION and deferred != 0.0:  # a sub-flow may read p: apply the kick first
                     _deferred_kick(cur, nxt, p, topology, nodes, scratch, heat, loads, (deferred * h, deferred_time),
-                                   False)
+                                   np.bool_(False))  # (not the literal False: one compiled signature)
                     deferred = 0.0
                 apply_flow(codes[r], effects, table.kick[r] * h, run.t0 + (step + table.drift[r]) * h,
                            cur, p, phi, eta)

@@ -104,6 +104,73 @@ def function_fingerprint(*functions) -> str:
     return h.hexdigest()[:12]
 
 
+def namespace_digest(template, namespace: dict) -> str:
+    """A short stable hash of what ``template`` reads when compiled with ``namespace`` over its
+    globals: its code and, recursively, the code and compile options of every Numba function it
+    calls and the values of the constants it reads — not the names the functions were compiled
+    under. A pass that reads less than its kernel variant's whole namespace (no loads, no model)
+    thus gets the same hash, so the same cache name, in every variant that compiles it the same
+    way. Raises TypeError for a global it cannot hash stably (the caller then names the pass by
+    its variant's tag)."""
+    h = hashlib.sha256()
+    _content_digest(rebind(template, "", namespace), h, {})
+    return h.hexdigest()[:12]
+
+
+def _content_digest(py, h, seen: dict) -> None:
+    if id(py) in seen:  # (its place in the walk, the same in every process)
+        h.update(f"<{seen[id(py)]}>".encode())
+        return
+    seen[id(py)] = len(seen)
+    h.update(f"{py.__module__}.{py.__name__}".encode())
+    _code_digest(py.__code__, h)
+    for cell in py.__closure__ or ():  # (a closure's values are compiled in, like globals)
+        h.update(b"|cell=")
+        _value_digest(cell.cell_contents, h, seen)
+    for default in py.__defaults__ or ():
+        h.update(b"|default=")
+        _value_digest(default, h, seen)
+    glb = py.__globals__
+    names = sorted(set(_all_names(py.__code__)))
+    for name in names:
+        h.update(f"|{name}=".encode())
+        if name in glb:
+            _value_digest(glb[name], h, seen)
+            if isinstance(glb[name], types.ModuleType):  # (module.function: the functions it may name)
+                for attribute in names:
+                    member = getattr(glb[name], attribute, None)
+                    if hasattr(member, "py_func") and hasattr(member, "targetoptions"):
+                        h.update(f"|{name}.{attribute}=".encode())
+                        _value_digest(member, h, seen)
+
+
+def _value_digest(value, h, seen: dict) -> None:
+    if hasattr(value, "py_func") and hasattr(value, "targetoptions"):  # a Numba function
+        options = {k: v for k, v in value.targetoptions.items() if k != "cache"}
+        h.update(f"numba{sorted(options.items())!r}".encode())
+        if value.py_func is not None:
+            _content_digest(value.py_func, h, seen)
+    elif isinstance(value, types.FunctionType):
+        _content_digest(value, h, seen)
+    elif value is None or isinstance(value, (bool, int, float, complex, str, bytes, np.generic)):
+        h.update(f"{type(value).__name__}:{value!r}".encode())
+    elif isinstance(value, tuple):
+        h.update(f"tuple{len(value)}".encode())
+        for item in value:
+            _value_digest(item, h, seen)
+    elif isinstance(value, np.ndarray):
+        h.update(f"array{value.dtype.str}{value.shape}".encode())
+        h.update(np.ascontiguousarray(value).tobytes())
+    elif isinstance(value, (types.ModuleType, type)):
+        h.update(f"{getattr(value, '__module__', '')}.{getattr(value, '__qualname__', value.__name__)}".encode())
+    elif isinstance(value, types.BuiltinFunctionType):
+        h.update(f"builtin:{getattr(value, '__module__', '')}.{value.__name__}".encode())
+    elif type(value).__module__.startswith("numba") and " at 0x" not in repr(value):  # (Numba's types)
+        h.update(f"{type(value).__qualname__}:{value!r}".encode())
+    else:
+        raise TypeError(f"cannot hash the global {value!r} of a kernel stably")
+
+
 def model_namespace(model) -> dict:
     """Global names a template may use for the model's functions."""
     return {name: getattr(model, name) for name in MODEL_FUNCTIONS}

@@ -332,7 +332,9 @@ def _newton_steps(state, records, extra, linear, control, out):
             info[INFO_SPRING] = bad
             return k
         scheme_predict(step, topo, spring, node, work, extra, u)
-        warm = False
+        # (np.bool_: a plain False would be typed as the literal False at the loop's first call,
+        # and Numba would compile the scheme's residual a second time for it)
+        warm = np.bool_(False)
         corrections = 0
         jacobi_steps = 0
         increment = math.inf
