@@ -176,6 +176,13 @@ def add_terms(acc, terms, n, rest):
 
 
 @njit(cache=True, error_model="numpy", boundscheck=False)
+def add_block(acc, terms, n, rest):
+    """:func:`add_terms`, called rather than inlined: for kernels that add whole blocks at a few
+    places, where a copy inlined at each would cost compile time and save nothing."""
+    add_terms(acc, terms, n, rest)
+
+
+@njit(cache=True, error_model="numpy", boundscheck=False)
 def add_array(acc, values):
     """Add every entry of ``values`` (k,) float64 to ``acc`` (WIDTH,) int64 (normalized after)."""
     rest = np.empty(BLOCK)

@@ -25,7 +25,7 @@ from numba import njit, prange
 from . import exact, subflows
 from .subflows import bind_subflows
 from .blocks import BLOCK, squared_lengths
-from .exact import WIDTH, add_terms, normalize
+from .exact import WIDTH, add_block, add_terms, normalize
 from .specialize import function_fingerprint, kernel_namespace, model_fingerprint, specialize
 
 # Bound per model by specialize(); see thermonet.explicit.cpu for THERMAL / REFERENCE_TEMPERATURE /
@@ -45,7 +45,7 @@ ROW_SUMS = 2 + len(NODE_SUMS)
 _CACHE: dict = {}
 #: in the exact sums' names: a change to the exact accumulation is a new kernel (Numba's disk
 #: cache watches this module's file, not the functions it inlines from another)
-_EXACT = function_fingerprint(add_terms.py_func, normalize.py_func)
+_EXACT = function_fingerprint(add_block.py_func, add_terms.py_func, normalize.py_func)
 
 
 #: the fewest blocks of a chunk (fewer, larger chunks for small nets: each costs an accumulator
@@ -161,16 +161,16 @@ def _row_sums(x, p, masses, anchored, ref, gravity, energy, eta, counted):
             for lo in range(c * per_spring, min(m, (c + 1) * per_spring), BLOCK):
                 k = min(BLOCK, m - lo)
                 if every:  # (read in place)
-                    add_terms(accs[c, 0], energy[lo:], k, rest)
+                    add_block(accs[c, 0], energy[lo:], k, rest)
                     if thermal:
-                        add_terms(accs[c, 1], eta[lo:], k, rest)
+                        add_block(accs[c, 1], eta[lo:], k, rest)
                 else:
                     for i in range(k):
                         skipped = not counted[lo + i]
                         terms[0, i] = 0.0 if skipped else energy[lo + i]
                         terms[1, i] = 0.0 if skipped or not thermal else eta[lo + i]
                     for q in range(2 if thermal else 1):
-                        add_terms(accs[c, q], terms[q], k, rest)
+                        add_block(accs[c, q], terms[q], k, rest)
         else:
             b = c - spring_chunks
             for lo in range(b * per_node, min(n, (b + 1) * per_node), BLOCK):
@@ -193,7 +193,7 @@ def _row_sums(x, p, masses, anchored, ref, gravity, energy, eta, counted):
                     terms[6, j] = 0.0 if held else l1_
                     terms[7, j] = 0.0 if held else l2_
                 for q in range(8):
-                    add_terms(accs[c, 2 + q], terms[q], k, rest)
+                    add_block(accs[c, 2 + q], terms[q], k, rest)
         first, stop = (0, 2) if c < spring_chunks else (2, ROW_SUMS)  # (the accumulators it filled)
         for q in range(first, stop):
             normalize(accs[c, q])
