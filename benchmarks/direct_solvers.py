@@ -3,7 +3,7 @@ the steel part (em2_paths.py's ``part``): SciPy's SuperLU in double precision (w
 ``splu-reuse`` runs), SuperLU's factors solved on their elimination tree
 (thermonet.solvers.tree_solve, what ``splu-reuse`` switches to once a factorization has lasted)
 at each ``--threads`` count, SuperLU in single precision, and, where pypardiso is installed,
-MKL PARDISO at each ``--threads`` count. Prints each solver's factorization and solve times (the
+MKL PARDISO at each ``--threads`` count, and where cholespy is installed CHOLMOD's Cholesky. Prints each solver's factorization and solve times (the
 median of ``--rounds`` interleaved rounds, three solves a round), the nonzeros of its factors
 where it reports them, and the relative residual max |A x − b| / max |b| of a solve. The tree
 solve's "factorization" is the copy of SuperLU's factors onto the tree after SuperLU's
@@ -20,7 +20,8 @@ nested dissection on large nets); the right-hand side: that step's last residual
 with the options of thermonet.solvers.direct (NATURAL order, diagonal pivoting preferred) and is
 single-threaded; PARDISO with its own METIS order, its real unsymmetric type (11), no iterative
 refinement, through pypardiso's ``factorize`` (analysis and numerical factorization) and
-``solve``.
+``solve``. The matrix measures symmetric to round-off (printed); where cholespy is installed, CHOLMOD's
+Cholesky factorization of its symmetric part (cholespy's own fill-reducing order) runs too.
 """
 
 from __future__ import annotations
@@ -78,6 +79,15 @@ def main(argv=None) -> dict:
         import pypardiso
     except ImportError:
         pypardiso = None
+    try:
+        import cholespy
+    except ImportError:
+        cholespy = None
+    # the matrix measures symmetric to round-off (printed); Cholesky takes its symmetric part
+    asymmetry = float(abs(A - A.T).max() / abs(A).max())
+    if cholespy is not None:
+        S = ((A + A.T) * 0.5).tocsc()
+        S.sort_indices()
     pardiso = {}
     if pypardiso is not None:
         csr = A.tocsr()
@@ -129,6 +139,19 @@ def main(argv=None) -> dict:
         for _ in range(3):
             x["SuperLU single"] = timed("SuperLU single: solve", lambda: lu32.solve(b32).astype(np.float64))
         nnz["SuperLU double"] = nnz["SuperLU single"] = lu.L.nnz + lu.U.nnz
+        if cholespy is not None:
+            name = "CHOLMOD Cholesky (cholespy)"
+            chol = timed(f"{name}: factorization", lambda: cholespy.CholeskySolverD(
+                S.shape[0], S.indptr.astype(np.int32), S.indices.astype(np.int32), S.data, cholespy.MatrixType.CSC))
+
+            def chol_solve():
+                out = np.zeros_like(b)
+                chol.solve(b.copy(), out)
+                return out
+
+            for _ in range(3):
+                x[name] = timed(f"{name}: solve", chol_solve)
+            nnz[name] = None  # (cholespy does not report it)
         for k, solver in pardiso.items():
             solver.libmkl.MKL_Set_Num_Threads(k)
             timed(f"PARDISO, {k} thread(s): factorization", lambda: solver.factorize(csr))
@@ -137,7 +160,8 @@ def main(argv=None) -> dict:
             nnz[f"PARDISO, {k} thread(s)"] = int(solver.get_iparm(18))
     print(f"\nEM2's Newton matrix of the part: {springs} springs, {A.shape[0]} unknowns, {A.nnz} nonzeros, "
           f"h = {args.factor:g} × CO2's stable step; load {os.getloadavg()[0]:.2f} (1-min average), "
-          f"{os.cpu_count()} CPUs{'' if pypardiso else '; pypardiso not installed: no PARDISO rows'}\n")
+          f"{os.cpu_count()} CPUs{'' if pypardiso else '; pypardiso not installed: no PARDISO rows'}"
+          f"{'' if cholespy else '; cholespy not installed: no CHOLMOD row'}; max |A − Aᵀ| / max |A| = {asymmetry:.1e}\n")
     if "tree: copy, first" in times:
         kept = f"{1e3 * statistics.median(times['tree: copy']):.0f} ms" if "tree: copy" in times else "not measured (one round)"
         print(f"SuperLU's factors copied onto the tree (after each factorization, SuperLU handing them out included): "
@@ -151,7 +175,7 @@ def main(argv=None) -> dict:
         solve = 1e3 * statistics.median(times[f"{name}: solve"])
         res = float(np.abs(A @ x[name] - b).max() / np.abs(b).max())
         rows[name] = dict(factorization_ms=fact, solve_ms=solve, nnz=nnz[name], residual=res)
-        print(f"| {name} | {fact:.0f} | {solve:.1f} | {nnz[name]} | {res:.1e} |")
+        print(f"| {name} | {fact:.0f} | {solve:.1f} | {'–' if nnz[name] is None else nnz[name]} | {res:.1e} |")
     return rows
 
 

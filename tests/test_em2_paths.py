@@ -314,7 +314,8 @@ def test_the_direct_solvers_benchmark_runs_quick(capsys):
     """benchmarks/direct_solvers.py --quick: EM2's Newton matrix of the small steel part solved
     by SuperLU in double precision to round-off, with SuperLU's factors on their elimination
     tree to round-off at one and two threads, in single precision to its precision (and by
-    PARDISO to round-off where pypardiso is installed)."""
+    PARDISO, and by CHOLMOD's Cholesky of its symmetric part, to round-off where pypardiso and
+    cholespy are installed)."""
     spec = importlib.util.spec_from_file_location("direct_solvers", os.path.join(ROOT, "benchmarks", "direct_solvers.py"))
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
@@ -325,7 +326,7 @@ def test_the_direct_solvers_benchmark_runs_quick(capsys):
     assert {"SuperLU's factors on the tree, 1 thread(s)", "SuperLU's factors on the tree, 2 thread(s)"} <= set(rows)
     for name, row in rows.items():
         assert row["factorization_ms"] > 0 and row["solve_ms"] > 0
-        if name.startswith(("PARDISO", "SuperLU's factors on the tree")):
+        if name.startswith(("PARDISO", "SuperLU's factors on the tree", "CHOLMOD")):
             assert row["residual"] <= 1e-13
     assert "| SuperLU double |" in capsys.readouterr().out
 
