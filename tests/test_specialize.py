@@ -186,6 +186,9 @@ def test_a_pass_is_named_by_what_it_reads_not_by_its_variant():
     assert namespace_digest(_scaled, _ns(helper=_helper_thrice)) != base
     other_options = dict(_ns(), helper=njit(rebind(_helper_twice, "a", {})))
     assert namespace_digest(_scaled, other_options) != base
+    # and so do its own compile options
+    assert namespace_digest(_scaled, _ns(), {"parallel": True}) != base
+    assert namespace_digest(_scaled, _ns(), {"parallel": False}) == namespace_digest(_scaled, _ns(), {"parallel": False})
 
 
 def test_a_closure_value_and_a_global_array_are_part_of_the_name():

@@ -186,13 +186,14 @@ def _shared_pass(template, tag: str, ns: dict, parallel: bool, threaded: bool = 
     process; loaded from Numba's disk cache in the next) for every variant that differs only in
     those. A namespace the digest cannot hash keeps the variant's tag. ``threaded``: the
     template's own loops run in parallel with ``parallel`` (else only the passes it calls do)."""
+    options = dict(_OPTIONS, parallel=parallel and threaded)
     try:
-        tag = f"{'par' if parallel else 'ser'}_c{namespace_digest(template, ns)}"
+        tag = f"{'par' if parallel else 'ser'}_c{namespace_digest(template, ns, options)}"
     except TypeError:
         pass
     key = (template, tag)
     if key not in _SHARED_PASSES:
-        _SHARED_PASSES[key] = specialize(template, tag, ns, parallel=parallel and threaded, **_OPTIONS)
+        _SHARED_PASSES[key] = specialize(template, tag, ns, **options)
     return _SHARED_PASSES[key]
 
 

@@ -104,15 +104,16 @@ def function_fingerprint(*functions) -> str:
     return h.hexdigest()[:12]
 
 
-def namespace_digest(template, namespace: dict) -> str:
+def namespace_digest(template, namespace: dict, options: dict | None = None) -> str:
     """A short stable hash of what ``template`` reads when compiled with ``namespace`` over its
     globals: its code and, recursively, the code and compile options of every Numba function it
     calls and the values of the constants it reads — not the names the functions were compiled
     under. A pass that reads less than its kernel variant's whole namespace (no loads, no model)
     thus gets the same hash, so the same cache name, in every variant that compiles it the same
-    way. Raises TypeError for a global it cannot hash stably (the caller then names the pass by
-    its variant's tag)."""
-    h = hashlib.sha256()
+    way. ``options``: the jit options it is compiled with, hashed too (Numba's disk cache checks
+    only the template's file, not the caller's options). Raises TypeError for a global it cannot
+    hash stably (the caller then names the pass by its variant's tag)."""
+    h = hashlib.sha256(repr(sorted((options or {}).items())).encode())
     _content_digest(rebind(template, "", namespace), h, {})
     return h.hexdigest()[:12]
 
