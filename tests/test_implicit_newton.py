@@ -82,6 +82,9 @@ def test_newton_converges_quadratically(integrator):
     for a, b in above:
         assert b <= a**2, rho
     assert rho[-1] < 1e-15
+    # one compiled residual serves the compiled driver (sim.run) and this Python iteration: a
+    # literal argument from the driver would have compiled it a second time
+    assert len(st.kernels.residual.signatures) == 1, st.kernels.residual.signatures
 
 
 def test_absurd_step_fails_loudly_and_keeps_the_state():
