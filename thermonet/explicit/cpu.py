@@ -72,8 +72,8 @@ from ..kernels.exact import add_terms, normalize
 from ..kernels.reductions import NODE_SUMS, chunk_length, node_diagnostic_terms, rows_digest
 from ..kernels.copies import _copy_rows, _copy_values
 from ..kernels.records import KickDrift
-from ..kernels.specialize import (function_fingerprint, kernel_namespace, model_fingerprint, namespace_digest, rebind,
-                                  specialize)
+from ..kernels.specialize import (function_fingerprint, kernel_namespace, model_fingerprint, rebind, specialize,
+                                  specialize_by_content)
 from ..kernels.subflows import bind_subflows
 from ..loads.elements import bind_loads
 from .codes import FORCE_DEFERRED, FORCE_GATHER, FORCE_GATHER_KEEP, FORCE_KEPT
@@ -139,21 +139,24 @@ def splitting_kernels(model, parallel: bool, thermal: bool = True, uniform: bool
         ns["LOADS"] = bool(loads)
         if loads:
             tag += bind_loads(ns, tag, inline)
-        ns["spring_pass"] = _shared_pass(_spring_pass, tag, ns, parallel)
-        ns["node_pass"] = _shared_pass(_node_pass, tag, ns, parallel)
+        # the passes are named by what they read (specialize_by_content): a node pass reads no
+        # model or parameter layout, a spring pass no loads, so variants share them
+        threaded = dict(_OPTIONS, parallel=parallel)
+        ns["spring_pass"] = specialize_by_content(_spring_pass, tag, ns, **threaded)
+        ns["node_pass"] = specialize_by_content(_node_pass, tag, ns, **threaded)
         boundary = dict(ns, CLOSING=True)
         boundary["closing_node_kick"] = specialize(_closing_node_kick, tag + "_boundary", boundary, inline="always",
                                                    **_OPTIONS)
-        ns["boundary_spring_pass"] = _shared_pass(_spring_pass, tag + "_boundary", boundary, parallel)
-        ns["boundary_node_pass"] = _shared_pass(_node_pass, tag + "_boundary", boundary, parallel)
-        ns["thermal_kick"] = _shared_pass(_thermal_kick, tag, ns, parallel)
-        ns["copy_rows"] = _shared_pass(_copy_rows, tag, ns, parallel)
+        ns["boundary_spring_pass"] = specialize_by_content(_spring_pass, tag + "_boundary", boundary, **threaded)
+        ns["boundary_node_pass"] = specialize_by_content(_node_pass, tag + "_boundary", boundary, **threaded)
+        ns["thermal_kick"] = specialize_by_content(_thermal_kick, tag, ns, **threaded)
+        ns["copy_rows"] = specialize_by_content(_copy_rows, tag, ns, **threaded)
         for slot in range(4):
             if slot < len(flows):
                 update_ = flows[slot].update
                 if not hasattr(update_, "py_func"):
                     update_ = njit(inline="always", error_model="numpy", boundscheck=False)(update_)
-                fn = _shared_pass(_flow_pass, f"{tag}_{slot}", dict(ns, update=update_), parallel)
+                fn = specialize_by_content(_flow_pass, f"{tag}_{slot}", dict(ns, update=update_), **threaded)
             else:
                 fn = _no_flow
             ns[f"flow_pass_{slot}"] = fn
@@ -162,14 +165,11 @@ def splitting_kernels(model, parallel: bool, thermal: bool = True, uniform: bool
         if conduction:  # the conduction boundary and the kick it defers (thermonet.heat.passes)
             # (called, not inlined: each is called from two places once per cycle, and inlined
             # both copies would be compiled into the kernel)
-            ns["_deferred_kick"] = _shared_pass(deferred_kick, tag, ns, parallel, threaded=False)
-            ns["conduction_boundary"] = _shared_pass(conduction_boundary, tag, ns, parallel, threaded=False)
+            ns["_deferred_kick"] = specialize_by_content(deferred_kick, tag, ns, **_OPTIONS)
+            ns["conduction_boundary"] = specialize_by_content(conduction_boundary, tag, ns, **_OPTIONS)
         _CACHE[key] = specialize(_advance, tag, ns, **_OPTIONS)
         _PASSES[key] = ns
     return _CACHE[key]
-
-
-_SHARED_PASSES: dict = {}
 
 
 def variant_passes(model, **variant) -> dict:
@@ -177,24 +177,6 @@ def variant_passes(model, **variant) -> dict:
     ``variant`` (its passes by name; built, nothing compiled)."""
     kernel = splitting_kernels(model, **variant)
     return next(ns for key, ns in _PASSES.items() if _CACHE[key] is kernel)
-
-
-def _shared_pass(template, tag: str, ns: dict, parallel: bool, threaded: bool = True):
-    """``template`` compiled for ``ns``, named by what it reads
-    (:func:`~thermonet.kernels.specialize.namespace_digest`) rather than by its variant's ``tag``:
-    a pass that does not read the loads, the model or the heat flow is compiled once (per
-    process; loaded from Numba's disk cache in the next) for every variant that differs only in
-    those. A namespace the digest cannot hash keeps the variant's tag. ``threaded``: the
-    template's own loops run in parallel with ``parallel`` (else only the passes it calls do)."""
-    options = dict(_OPTIONS, parallel=parallel and threaded)
-    try:
-        tag = f"{'par' if parallel else 'ser'}_c{namespace_digest(template, ns, options)}"
-    except TypeError:
-        pass
-    key = (template, tag)
-    if key not in _SHARED_PASSES:
-        _SHARED_PASSES[key] = specialize(template, tag, ns, **options)
-    return _SHARED_PASSES[key]
 
 
 def _spring_pass(x, eta, phi, topology, springs, scratch, steps, run, keep, length, strain):

@@ -227,6 +227,25 @@ def specialize(template, tag: str, namespace: dict, **jit_options):
     return dispatcher
 
 
+_BY_CONTENT: dict = {}
+
+
+def specialize_by_content(template, tag: str, namespace: dict, **jit_options):
+    """:func:`specialize`, named by :func:`namespace_digest` (what ``template`` reads and the jit
+    options) rather than by ``tag``, and compiled once per process for that name: a pass that
+    reads less than its kernel variant's namespace is shared by every variant that compiles it
+    the same way (and loaded from Numba's disk cache under that one name in the next process).
+    ``tag`` names it where the namespace cannot be hashed stably."""
+    try:
+        tag = f"c{namespace_digest(template, namespace, jit_options)}"
+    except TypeError:
+        pass
+    key = (template, tag)
+    if key not in _BY_CONTENT:
+        _BY_CONTENT[key] = specialize(template, tag, namespace, **jit_options)
+    return _BY_CONTENT[key]
+
+
 def _compile_once_across_processes(dispatcher) -> None:
     """Make the processes that compile the same cached kernel at the same time (test workers,
     MPI ranks, Dask workers starting from a cold cache) take turns: the first compiles and

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..kernels.specialize import rebind
+from ..kernels.specialize import rebind, specialize_by_content
 from ..timefunctions import evaluate as evaluate_, evaluate_rate as evaluate_rate_
 
 gather_force = evaluate = evaluate_rate = None
@@ -162,31 +162,10 @@ def bind_loads(ns: dict, tag: str, compile_) -> str:
     ns["evaluate_rate"] = evaluate_rate_
     for name in SHARED:
         ns[name] = compile_(rebind(globals()[name], tag + suffix, ns))
-    ns.update(cpu_load_passes())
+    # the serial passes are called, not inlined at their several call sites in a kernel, and
+    # named by what they read (no model, threading or heat flow): one compiled copy serves every
+    # variant (inlined, they were most of what loads add to a kernel's compile time)
+    for name in CPU_PASSES:
+        ns[name] = specialize_by_content(globals()[name], tag + suffix, ns, cache=True, error_model="numpy",
+                                         boundscheck=False, _nrt=False)
     return suffix
-
-
-_CPU_PASSES: dict = {}
-
-
-def cpu_load_passes() -> dict:
-    """{name: compiled} of :data:`CPU_PASSES`, called (not inlined) by every CPU kernel variant
-    with loads: they read the loads, the time functions and the force gather, no model, threading
-    or heat flow, so one compiled copy, loaded from Numba's disk cache under one name, serves every
-    variant (inlined, each of their several call sites in a kernel would be compiled again with
-    it: most of the compile time loads add)."""
-    from numba import njit
-
-    from ..kernels import subflows
-    from ..kernels.specialize import function_fingerprint, specialize
-
-    tag = f"L{source_digest()}_s{subflows.source_digest()}_e{function_fingerprint(evaluate_, evaluate_rate_)}"
-    if tag not in _CPU_PASSES:
-        inline = njit(inline="always", error_model="numpy", boundscheck=False)
-        ns = {"evaluate": evaluate_, "evaluate_rate": evaluate_rate_}
-        ns["gather_force"] = inline(rebind(subflows.gather_force, tag, ns))
-        for name in SHARED:
-            ns[name] = inline(rebind(globals()[name], tag, ns))
-        _CPU_PASSES[tag] = {name: specialize(globals()[name], tag, ns, cache=True, error_model="numpy",
-                                             boundscheck=False, _nrt=False) for name in CPU_PASSES}
-    return _CPU_PASSES[tag]
