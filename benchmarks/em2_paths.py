@@ -9,8 +9,9 @@ gets through simulated time faster):
 
 - ``sweeps``: ``newton_path = "compiled"`` (inertia-preconditioned matrix-free sweeps);
 - ``splu``: ``newton_path = "sparse"``, ``linear_solver = "splu"`` (a factorization per iteration);
-- ``splu-reuse``: ``newton_path = "sparse"``, ``linear_solver = "splu-reuse"`` (kept factorizations;
-  on large nets solved on their elimination tree once one has made 200 solves);
+- ``splu-reuse``: ``newton_path = "sparse"``, ``linear_solver = "splu-reuse"`` (kept factorizations
+  in single precision; on large nets solved on their elimination tree once one has made 200 solves);
+- ``splu-reuse-double`` (not run unless named): the same with double-precision factors;
 - ``splu-reuse-superlu``, ``splu-reuse-tree`` (not run unless named): ``splu-reuse`` always with
   SuperLU's own solves, and switching to the tree on a net of any size (the tree solve's A/B);
 - ``auto``: the default.
@@ -63,6 +64,8 @@ PATHS = {
     "splu-reuse-superlu": dict(newton_path="sparse", linear_solver="splu-reuse"),
     # (the same switch after 200 solves on a net of any size: the A/B below TREE_MIN_UNKNOWNS)
     "splu-reuse-tree": dict(newton_path="sparse", linear_solver="splu-reuse"),
+    # (kept factors in double precision: the A/B of splu-reuse's single-precision factors)
+    "splu-reuse-double": dict(newton_path="sparse", linear_solver="splu-reuse-double"),
     "auto": {},
 }
 #: the paths measured unless --paths names others
@@ -298,6 +301,10 @@ def measure(nets, cells: int, factors, steps: int, paths=DEFAULT_PATHS, out=prin
     for net in nets:
         est = stable_step(make(net, cells, "co2", 1.0 if net == "lattice" else 1e-7))
         co2 = make(net, cells, "co2", CO2_FRACTION * est["h_max"])
+        # its stable-step guard off: in a run it spends at most 5 % of the run's time, here its
+        # budget would grow with the EM2 rounds in between and it would re-estimate ω_max at the
+        # end of every short CO2 call (a Lanczos run: 4× CO2's step time on the bracket)
+        co2.stability_guard.active = False
         n_co2 = max(20, 20 * steps)
         # warmed up by a whole round: its calls then start on multiples of n_co2, so that "auto"
         # conduction may take a cycle k dividing n_co2, as a run's would divide its output

@@ -157,6 +157,7 @@ PATHS = {
     "dense": dict(newton_path="compiled-dense"),
     "splu": dict(newton_path="sparse", linear_solver="splu"),
     "splu-reuse": dict(newton_path="sparse", linear_solver="splu-reuse"),
+    "splu-reuse-double": dict(newton_path="sparse", linear_solver="splu-reuse-double"),
     # (kept factors solved on their elimination tree from the first solve: the test sets
     # TREE_AFTER_SOLVES and TREE_MIN_UNKNOWNS to 0)
     "splu-reuse, tree": dict(newton_path="sparse", linear_solver="splu-reuse"),
@@ -435,4 +436,76 @@ def test_a_resumed_run_solving_on_the_elimination_tree_continues_bit_for_bit(tmp
     assert first.stepper.summary()["tree_solves"] > 0 and resumed.stepper.summary()["tree_solves"] > 0
     assert one.step == resumed.step == 12
     for name in ("positions", "momenta", "entropy", "thermal_displacement"):
+        assert np.array_equal(getattr(one.state, name), getattr(resumed.state, name)), name
+
+
+def free_lattice(factor: float, linear_solver: str) -> tn.Simulation:
+    """A 4³ 18-neighbour hencky lattice, hot and nowhere held (its rigid motions make the Newton
+    matrix's condition number 1 + (h ω_max)²/4), EM2 at ``factor`` × CO2's stable step on the
+    sparse path with ``linear_solver``."""
+    net = tn.lattice((4, 4, 4), neighbours=18, jitter=0.1, seed=2)
+    kw = dict(parameters=dict(c=100.0, beta=0.2, C0=5.0, theta0=300.0), model="hencky",
+              temperatures=np.random.default_rng(1).uniform(280.0, 360.0, net.n_springs), energy_tolerance=None,
+              stability_guard="off")
+    h = factor * stable_step(tn.Simulation(net, integrator="co2", h=1.0, **kw))["h_max"]
+    return tn.Simulation(net, integrator="em2", h=h, integrator_options=dict(newton_path="sparse",
+                                                                             linear_solver=linear_solver), **kw)
+
+
+def test_single_precision_factors_go_double_where_they_cannot_solve(tmp_path, monkeypatch):
+    """Kept factors are single precision; on a free net at 1e4× CO2's stable step (condition
+    number ~1e8) their first solve leaves a linear residual of the order of the right-hand side,
+    so the solver factorizes in double from there on, says why, and the run is the double
+    solver's bit for bit; a checkpoint carries the precision, so a resumed run continues bit for
+    bit. At 100× single factors solve, to the same root as double ones within the tolerance."""
+    import thermonet.solvers.direct as direct
+    from thermonet.cli.report import format_summary
+
+    monkeypatch.setattr(direct, "SINGLE_MIN_UNKNOWNS", 0)  # (single factors on this small net too)
+    from thermonet.io.checkpoint import load_checkpoint, save_checkpoint
+
+    double = free_lattice(1e4, "splu-reuse-double")
+    double.run(steps=4, diagnostics_every=2)
+    one = free_lattice(1e4, "splu-reuse")
+    one.run(steps=4, diagnostics_every=2)
+    s = one.stepper.summary()
+    assert s["factor_precision"] == "double" and "linear residual" in s["factor_precision_raised"]
+    assert double.stepper.summary()["factor_precision"] == "double"
+    assert "double precision" in format_summary(one, "em2")
+    for name in ("positions", "momenta", "entropy"):
+        assert np.array_equal(getattr(one.state, name), getattr(double.state, name)), name
+
+    first = free_lattice(1e4, "splu-reuse")
+    first.run(steps=2, diagnostics_every=2)
+    save_checkpoint(tmp_path / "c.npz", first.state, {})
+    state, _ = load_checkpoint(tmp_path / "c.npz")
+    assert state.extra["factorization_precision"][0] == 64.0
+    resumed = free_lattice(1e4, "splu-reuse")
+    resumed.load_state(state)
+    resumed.run(steps=2, diagnostics_every=2)
+    assert resumed.stepper.summary()["factor_precision"] == "double"
+    for name in ("positions", "momenta", "entropy"):
+        assert np.array_equal(getattr(one.state, name), getattr(resumed.state, name)), name
+
+    single, double = free_lattice(100, "splu-reuse"), free_lattice(100, "splu-reuse-double")
+    for sim in (single, double):
+        sim.run(steps=3, diagnostics_every=3)
+    assert single.stepper.summary()["factor_precision"] == "single"
+    x = double.state.positions
+    assert 0.0 < np.abs(single.state.positions - x).max() <= 1e-10 * np.abs(x).max()
+
+    # single factors carried from step to step, rebuilt on resume: the same bits
+    monkeypatch.setattr(direct, "KEPT_ANYWHERE_WORTH", 1.0)
+    one = free_lattice(100, "splu-reuse")
+    one.run(steps=4, diagnostics_every=2)
+    first = free_lattice(100, "splu-reuse")
+    first.run(steps=2, diagnostics_every=2)
+    save_checkpoint(tmp_path / "s.npz", first.state, {})
+    state, _ = load_checkpoint(tmp_path / "s.npz")
+    assert state.extra["factorization_precision"][0] == 32.0 and state.extra["factorization_solves"][0] > 0
+    resumed = free_lattice(100, "splu-reuse")
+    resumed.load_state(state)
+    resumed.run(steps=2, diagnostics_every=2)
+    assert resumed.stepper.summary()["reused_factorizations"] > 0
+    for name in ("positions", "momenta", "entropy"):
         assert np.array_equal(getattr(one.state, name), getattr(resumed.state, name)), name

@@ -9,7 +9,7 @@ import thermonet as tn
 import thermonet.solvers.direct as direct
 import thermonet.solvers.pattern as pattern_module
 from thermonet.solvers import BlockPattern
-from thermonet.solvers.direct import ReusedLU, SparseLU
+from thermonet.solvers.direct import ReusedLU, ReusedLUDouble, SparseLU
 from thermonet.implicit.core.newton_policy import FLOOR_STALL_FACTOR, floor_stall
 
 
@@ -134,23 +134,29 @@ def test_the_tree_solve_gives_superlus_and_a_dense_solution(monkeypatch):
 
     monkeypatch.setattr(direct, "TREE_AFTER_SOLVES", 2)
     monkeypatch.setattr(direct, "TREE_MIN_UNKNOWNS", 0)
-    kept = ReusedLU(p)
-    kept.factorize(data, 1.0)
-    xs = [kept.solve(b) for _ in range(4)]
-    assert kept.tree_solves == 2 and kept.tree_copies == 1
-    assert np.array_equal(xs[0], xs[1]) and np.array_equal(xs[2], xs[3])
-    assert np.abs(xs[3] - xs[0]).max() <= 1e-13 * scale
-    layout = kept._layout
-    other = diagonally_dominant_values(p, seed=5)  # a new factorization starts on SuperLU's solve again,
-    kept.factorize(other, 1.0)  # and its copy onto the tree reuses the layout of the same pattern
-    xs = [kept.solve(b) for _ in range(3)]
-    assert kept.tree_solves == 3 and kept.tree_copies == 2 and kept._layout is layout
-    direct_x = np.linalg.solve(p.matrix(other).toarray(), b)
-    assert np.abs(xs[2] - direct_x).max() <= 1e-13 * np.abs(direct_x).max()
-    fresh, _ = tree_factors(kept._lu, 2)  # (the same arrays as a copy made from scratch)
-    assert np.array_equal(fresh.lower_vals, kept._tree.lower_vals)
-    assert np.array_equal(fresh.upper_vals, kept._tree.upper_vals)
-    assert np.array_equal(fresh.diagonal, kept._tree.diagonal)
+    monkeypatch.setattr(direct, "SINGLE_MIN_UNKNOWNS", 0)
+    # kept factors in double and in single precision (the tree keeps their precision; its sums
+    # are double, SuperLU's single solve's single: they agree to single's rounding)
+    for kind, precision, tol in ((ReusedLUDouble, np.float64, 1e-13), (ReusedLU, np.float32, 1e-5)):
+        kept = kind(p)
+        kept.factorize(data, 1.0)
+        xs = [kept.solve(b) for _ in range(4)]
+        assert kept.tree_solves == 2 and kept.tree_copies == 1
+        assert kept._tree.lower_vals.dtype == precision and kept._tree.diagonal.dtype == precision
+        assert np.array_equal(xs[0], xs[1]) and np.array_equal(xs[2], xs[3])
+        assert np.abs(xs[3] - xs[0]).max() <= tol * scale
+        assert np.abs(xs[3] - dense).max() <= tol * scale
+        layout = kept._layout
+        other = diagonally_dominant_values(p, seed=5)  # a new factorization starts on SuperLU's solve again,
+        kept.factorize(other, 1.0)  # and its copy onto the tree reuses the layout of the same pattern
+        xs = [kept.solve(b) for _ in range(3)]
+        assert kept.tree_solves == 3 and kept.tree_copies == 2 and kept._layout is layout
+        direct_x = np.linalg.solve(p.matrix(other).toarray(), b)
+        assert np.abs(xs[2] - direct_x).max() <= tol * np.abs(direct_x).max()
+        fresh, _ = tree_factors(kept._lu, 2)  # (the same arrays as a copy made from scratch)
+        assert np.array_equal(fresh.lower_vals, kept._tree.lower_vals)
+        assert np.array_equal(fresh.upper_vals, kept._tree.upper_vals)
+        assert np.array_equal(fresh.diagonal, kept._tree.diagonal)
 
     swapped = data.copy()  # a zero diagonal entry: SuperLU swaps rows, the tree solve steps aside
     swapped[p.node_base[0]] = 0.0
@@ -158,3 +164,51 @@ def test_the_tree_solve_gives_superlus_and_a_dense_solution(monkeypatch):
     pivoted.factorize(swapped)
     assert not np.array_equal(pivoted._lu.perm_r, np.arange(p.size))
     assert tree_factors(pivoted._lu, 2) == (None, None)
+
+
+def test_kept_factors_are_single_and_checked_against_the_double_matrix(monkeypatch):
+    """splu-reuse keeps float32 factors: their first solve is checked against the double matrix
+    (a linear residual within SINGLE_MAX_LINEAR_RESIDUAL of the right-hand side), and later
+    solves with them contract like single precision. Where the check fails, the same matrix is
+    factorized in double, the solve is double's to round-off, and every later factorization is
+    double, with the reason kept. Small matrices are factorized in double."""
+    assert ReusedLU(lattice_pattern(4)).precision == "double"  # (fewer than SINGLE_MIN_UNKNOWNS unknowns)
+    monkeypatch.setattr(direct, "SINGLE_MIN_UNKNOWNS", 0)
+    p = lattice_pattern(4)
+    data = diagonally_dominant_values(p)
+    A = p.matrix(data)
+    b = np.random.default_rng(3).uniform(-1.0, 1.0, p.size)
+    exact = np.linalg.solve(A.toarray(), b)
+    scale = np.abs(exact).max()
+
+    single = ReusedLU(p)
+    single.factorize(data, 1.0)
+    assert single.precision == "single" and single._lu.L.dtype == np.float32
+    x = single.solve(b)
+    assert x.dtype == np.float64
+    assert 1e-12 * scale < np.abs(x - exact).max() <= 1e-5 * scale  # (single's rounding, not double's)
+    assert single._matrix is None and single.raised == ""  # (checked, then dropped)
+    # the right-hand side's scale does not reach float32's range limits (scaled by a power of two)
+    for factor in (1e-40, 1e40):
+        assert np.abs(single.solve(factor * b) / factor - exact).max() <= 1e-5 * scale
+
+    monkeypatch.setattr(direct, "SINGLE_MAX_LINEAR_RESIDUAL", 1e-12)
+    raised = ReusedLU(p)
+    raised.factorize(data, 1.0)
+    x = raised.solve(b)
+    assert raised.precision == "double" and raised._lu.L.dtype == np.float64
+    assert "linear residual" in raised.raised
+    assert np.abs(x - exact).max() <= 1e-13 * scale
+    raised.factorize(diagonally_dominant_values(p, seed=4), 1.0)
+    assert raised._lu.L.dtype == np.float64 and not raised._check
+
+    double = ReusedLUDouble(p)
+    double.factorize(data, 1.0)
+    assert double.precision == "double" and double._lu.L.dtype == np.float64
+    assert np.array_equal(double.solve(b), _splu_solution(p, data, b))
+
+
+def _splu_solution(p, data, b):
+    lu = SparseLU(p)
+    lu.factorize(data)
+    return lu.solve(b)

@@ -43,7 +43,10 @@ def newton_path_line(nw: dict | None) -> str:
     return (f"  Newton path: {path} ({nw['path_reason']}); substepped steps {100 * nw['substep_fraction']:.3g} %"
             + (f", {nw['continued_steps']} steps solved by continuation in h" if nw.get("continued_steps") else "")
             + (f", {nw['tree_solves']} solves with kept factors compiled on their elimination tree"
-               if nw.get("tree_solves") else ""))
+               if nw.get("tree_solves") else "")
+            + (f"; kept factors in {nw['factor_precision']} precision"
+               + (f" ({nw['factor_precision_raised']})" if nw.get("factor_precision_raised") else "")
+               if nw.get("factor_precision") and nw["newton_path"] != "compiled" else ""))
 
 
 def conserved_quantities(sim) -> set[str]:

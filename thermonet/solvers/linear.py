@@ -5,12 +5,13 @@ settled)``, and the choice "auto" makes.
 
 from __future__ import annotations
 
-from .direct import ReusedLU, SparseLU
+from .direct import ReusedLU, ReusedLUDouble, SparseLU
 from .krylov import Krylov
 from .matrix_free import MatrixFree
 from .pattern import BlockPattern
 
-LINEAR_SOLVERS = {"splu": SparseLU, "splu-reuse": ReusedLU, "matfree": MatrixFree, "gmres": Krylov}
+LINEAR_SOLVERS = {"splu": SparseLU, "splu-reuse": ReusedLU, "splu-reuse-double": ReusedLUDouble,
+                  "matfree": MatrixFree, "gmres": Krylov}
 
 #: "auto" uses the direct solver up to this many unknowns (measured crossover on 3D lattices:
 #: at ~200 unknowns SuperLU and an iterative solve cost the same, at ~1000 SuperLU is 10× slower)

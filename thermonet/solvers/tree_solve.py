@@ -478,8 +478,9 @@ class TreeLayout:
 
 @njit(**_OPTIONS)
 def _gather(data, source):
-    """(len(source),) data[source], 0 where source is −1."""
-    out = np.empty(len(source))
+    """(len(source),) data[source], 0 where source is −1, in data's precision (single factors
+    stay single: half the bytes a solve reads)."""
+    out = np.empty(len(source), dtype=data.dtype)
     for k in range(len(source)):
         out[k] = data[source[k]] if source[k] >= 0 else 0.0
     return out

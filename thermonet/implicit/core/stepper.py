@@ -323,9 +323,19 @@ class ImplicitStepper(Stepper):
     #: stage's τ/h, or none): it travels with the state, so a resumed run continues bit for bit
     CONTINUATION_KEY = "continuation_memory"
 
+    #: the key in ``state.extra`` of the precision of the factors a solver with kept factorizations
+    #: makes ((1,) float: 32 or 64; it goes from single to double where single factors fail their
+    #: check, :class:`thermonet.solvers.direct.ReusedLU`): a resumed run factorizes as the run did
+    PRECISION_KEY = "factorization_precision"
+
     def _history_from(self, state) -> None:
-        """The predictor's history, and the continuation's memory, from the state they belong to
-        (none there: none)."""
+        """The predictor's history, the continuation's memory and the kept factors' precision,
+        from the state they belong to (none there: none)."""
+        bits = state.extra.get(self.PRECISION_KEY)
+        if (isinstance(bits, np.ndarray) and bits.size == 1 and bits[0] == 64.0
+                and getattr(self.solver, "single", False)):
+            self.solver.single = False  # (the run that saved it had gone to double factors)
+            self.solver.raised = "double factors in the run this state comes from"
         if self.continuation:
             saved = state.extra.get(self.CONTINUATION_KEY)
             ok = isinstance(saved, np.ndarray) and saved.shape == (2,) and saved[0] > 0
@@ -341,6 +351,8 @@ class ImplicitStepper(Stepper):
             marker[0] = 0.0
 
     def _history_to(self, state) -> None:
+        if getattr(self.solver, "reuses_factorization", False):
+            state.extra[self.PRECISION_KEY] = np.array([32.0 if self.solver.single else 64.0])
         if self.continuation:
             state.extra[self.CONTINUATION_KEY] = np.array(self._hard if self._hard is not None else (0.0, 0.0))
         marker = self.work.start.history
@@ -512,6 +524,9 @@ class ImplicitStepper(Stepper):
         t["reused_factorizations"] = self.timers.reused_factorizations
         # (splu-reuse) solves with kept factors copied onto their elimination tree (solvers.tree_solve)
         t["tree_solves"] = getattr(self.solver, "tree_solves", 0)
+        # (splu-reuse) the precision of the kept factors, and why double where single was asked for
+        t["factor_precision"] = getattr(self.solver, "precision", None)
+        t["factor_precision_raised"] = getattr(self.solver, "raised", "")
         t["unknowns"] = self.pattern.size
         t["jacobian_nnz"] = self.pattern.nnz
         t["jacobi_steps"] = self.timers.jacobi_steps  # finishing steps u −= D⁻¹ R, not counted as iterations
