@@ -1,8 +1,9 @@
 """The sparse direct solvers EM2's kept factorizations could use, on EM2's own Newton matrix of
 the steel part (em2_paths.py's ``part``): SciPy's SuperLU in double precision (what
-``splu-reuse`` runs), SuperLU's factors solved on their elimination tree
+``splu-reuse-double`` runs), SuperLU's factors solved on their elimination tree
 (thermonet.solvers.tree_solve, what ``splu-reuse`` switches to once a factorization has lasted)
-at each ``--threads`` count, SuperLU in single precision, and, where pypardiso is installed,
+at each ``--threads`` count, SuperLU in single precision (what ``splu-reuse`` factorizes from
+1 000 unknowns) and its single factors on the tree, and, where pypardiso is installed,
 MKL PARDISO at each ``--threads`` count, and where cholespy is installed CHOLMOD's Cholesky. Prints each solver's factorization and solve times (the
 median of ``--rounds`` interleaved rounds, three solves a round), the nonzeros of its factors
 where it reports them, and the relative residual max |A x − b| / max |b| of a solve. The tree
@@ -138,6 +139,20 @@ def main(argv=None) -> dict:
         lu32 = timed("SuperLU single: factorization", lambda: superlu(A32))
         for _ in range(3):
             x["SuperLU single"] = timed("SuperLU single: solve", lambda: lu32.solve(b32).astype(np.float64))
+        # single factors on the tree (what splu-reuse solves with once a factorization has lasted)
+        tree32, layout = timed("tree single: copy", lambda: tree_factors(lu32, max(args.threads), layout))
+        for k in args.threads if tree32 is not None else ():
+            numba.set_num_threads(min(k, numba.config.NUMBA_NUM_THREADS))
+            name = f"SuperLU's single factors on the tree, {k} thread(s)"
+            times.setdefault(f"{name}: factorization", []).append(times["SuperLU single: factorization"][-1]
+                                                                  + times["tree single: copy"][-1])
+            for _ in range(3):
+                x[name] = timed(f"{name}: solve", lambda: tree_solve(tree32, b))
+            nnz[name] = len(tree32.lower_vals) + len(tree32.upper_vals) + tree32.size
+            for _ in range(3):  # SuperLU's single solve again, interleaved
+                x["SuperLU single"] = timed("SuperLU single: solve", lambda: lu32.solve(b32).astype(np.float64))
+        numba.set_num_threads(threads_before)
+        del tree32
         nnz["SuperLU double"] = nnz["SuperLU single"] = lu.L.nnz + lu.U.nnz
         if cholespy is not None:
             name = "CHOLMOD Cholesky (cholespy)"

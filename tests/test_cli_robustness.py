@@ -116,6 +116,31 @@ def test_the_guard_warns_between_0_9_and_1_5_h_max_and_stops_above():
         linear_spring(1.6, stability_guard="warn").run(steps=8, diagnostics_every=4)
 
 
+def test_the_guards_time_budget_is_a_share_of_the_running_time(monkeypatch):
+    """The stable-step guard keeps to GUARD_TIME_BUDGET of the time the simulation has spent
+    running: a program that runs it in short calls between other work (here: sleeps ten
+    thousand times as long as a call) does not give it that work's time too, so it skips the
+    stops beyond its budget instead of re-estimating at every one."""
+    import time
+
+    import thermonet.run_guards as guards
+
+    monkeypatch.setattr(guards, "GUARD_TIME_ALLOWANCE", 0.0)
+    net = tn.lattice((3, 3, 2), neighbours=18, jitter=0.3, seed=1)
+    sim = tn.Simulation(net, parameters=dict(c=50.0, beta=1.0), temperatures=400.0, h=1e-3, energy_tolerance=None)
+    sim.run(steps=2, diagnostics_every=2)  # (compiles)
+    check = sim.stability_guard._check
+    # a check as costly as on a large net (10 ms), next to calls of a few steps of a small one
+    monkeypatch.setattr(sim.stability_guard, "_check", lambda s: (time.sleep(0.01), check(s)))
+    checked = sim.stability_guard.checked
+    for _ in range(10):
+        time.sleep(0.05)
+        sim.run(steps=2, diagnostics_every=2)
+    guard = sim.stability_guard
+    assert guard.skipped >= 9 and guard.checked <= checked + 1
+    assert guard.seconds <= guards.GUARD_TIME_BUDGET * sim.runner.seconds_running() + 0.05
+
+
 def test_the_cheap_frequency_bound_is_an_upper_bound_of_the_largest_frequency():
     from thermonet.run_guards import frequency_bound
     from thermonet.stability import max_frequency

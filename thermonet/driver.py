@@ -37,6 +37,8 @@ class Runner:
 
     def __init__(self, sim):
         self.sim = sim
+        #: (start, compile watch) of the run in progress (None between runs)
+        self._running = None
         #: a copy of an earlier state of this run (explicit CPU runs; :meth:`_keep_backup`), and
         #: (state, h) it was taken of: a loaded state or a new h makes it useless for replays
         self.backup: State | None = None
@@ -110,6 +112,7 @@ class Runner:
         flushes = _flushes(cadences[1:])  # (observers may have been a generator: read once above)
         watch = CompileWatch(getattr(progress, "compiling", None))  # compile time kept out of rates
         t0 = _time.perf_counter()
+        self._running = (t0, watch)
         watch.__enter__()
         try:
             while sim._state.step < end:
@@ -133,6 +136,7 @@ class Runner:
             raise
         finally:
             watch.__exit__()
+            self._running = None
             sim.compile_time += watch.seconds
             if threads_before is not None:
                 numba.set_num_threads(threads_before)
@@ -141,6 +145,16 @@ class Runner:
         sim.wall_time += _time.perf_counter() - t0 - watch.seconds
         sim.steps_run += steps
         return sim.diagnostics
+
+    def seconds_running(self) -> float:
+        """Seconds the simulation has spent in ``run`` (compilation excluded), over all runs and
+        the current one so far: what the stable-step guard's time budget is a fraction of."""
+        sim = self.sim
+        running = self._running
+        if running is None:
+            return sim.wall_time
+        t0, watch = running
+        return sim.wall_time + _time.perf_counter() - t0 - watch.seconds
 
     def _conduction_cycle_wanted(self) -> int:
         """The conduction cycle this run would take with no output cadence to follow (1 without

@@ -42,8 +42,10 @@ ENTROPY_TOLERANCE = 1e-6
 
 GUARD_MODES = ("stop", "warn", "off")
 #: the stable-step guard skips diagnostics stops where needed so that its time stays below this
-#: fraction of the run's (a bound costs about two explicit steps of a large net; on small nets,
-#: whose steps are cheap next to a stop's fixed costs, every stop is checked)
+#: fraction of the time the simulation has spent running (a bound costs about two explicit steps
+#: of a large net; on small nets, whose steps are cheap next to a stop's fixed costs, every stop
+#: is checked). Running time, not time since its first check: a program that runs a simulation
+#: in short calls between other work would otherwise give it a budget of that work's time too.
 GUARD_TIME_BUDGET = 0.05
 #: seconds the guard may spend beyond that budget (its first checks, an accurate estimate)
 GUARD_TIME_ALLOWANCE = 0.1
@@ -147,14 +149,19 @@ class StabilityGuard:
 
     def check(self, sim) -> None:
         """Estimate the limit at ``sim``'s current state, unless this stop is skipped to keep
-        the guard within :data:`GUARD_TIME_BUDGET` of the time since its first check, plus
+        the guard within :data:`GUARD_TIME_BUDGET` of the simulation's running time, plus
         :data:`GUARD_TIME_ALLOWANCE`; warn or raise :class:`StabilityLimitExceeded`."""
         if not self.active:
             return
         now = time.perf_counter()
-        if self._since is None:
-            self._since = now
-        skip = self.seconds > GUARD_TIME_BUDGET * (now - self._since) + GUARD_TIME_ALLOWANCE
+        runner = getattr(sim, "runner", None)
+        if runner is not None:
+            running = runner.seconds_running()
+        else:  # (a simulation without a run loop: the time since the first check)
+            if self._since is None:
+                self._since = now
+            running = now - self._since
+        skip = self.seconds > GUARD_TIME_BUDGET * running + GUARD_TIME_ALLOWANCE
         comm = getattr(sim, "comm", None)
         if comm is not None:  # over MPI processes: rank 0's clock decides for all (the check reads
             skip = comm.bcast(skip, root=0)  # the state, which the processes put together jointly)

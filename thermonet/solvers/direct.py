@@ -83,8 +83,8 @@ TREE_AFTER_SOLVES = 200
 TREE_MIN_UNKNOWNS = 20_000
 #: Kept factors are single precision (float32) unless that fails: the residual and the
 #: convergence test stay double, so the root (and EM2's exact energy) is the same; a correction
-#: made with them contracts the residual about 1e-4 instead of 1e-5, and they cost about 0.4× a
-#: double factorization and 0.5× a double solve (they are half the bytes). A fresh single
+#: made with them contracts the residual about 1e-4 instead of 1e-5, and they cost 0.4–0.7× a
+#: double factorization and 0.5–0.8× a double solve (they are half the bytes). A fresh single
 #: factorization's first solve is checked against the double matrix: where its linear residual
 #: max |b − A x| / max |b| exceeds SINGLE_MAX_LINEAR_RESIDUAL (the matrix is too ill-conditioned
 #: for float32: a part free to move at steps far above the limit), or SuperLU finds the single
