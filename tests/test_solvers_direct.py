@@ -212,3 +212,64 @@ def _splu_solution(p, data, b):
     lu = SparseLU(p)
     lu.factorize(data)
     return lu.solve(b)
+
+
+class _ScriptedProblem:
+    """A Newton problem whose max |R| follows a script (scale 1: the scaled residual is max |R|)."""
+
+    def __init__(self, script, floor):
+        self.script = list(script)
+        self.residual_floor = floor
+        self.h = 1.0
+        self.data = np.zeros(1)
+        self.R = np.zeros(1)
+        self.Rabs = np.ones(1)
+        self.norms = None
+
+    def residual(self, u):
+        self.norms = (self.script.pop(0), 1.0)
+        return 0, -1
+
+    def jacobian(self, data):
+        pass
+
+
+class _KeptFactors:
+    """A solver keeping one factorization (modified Newton), of single or double precision."""
+
+    reuses_factorization = True
+    assembled = True
+
+    def __init__(self, single):
+        self.single_factors = single
+        self.stale = True
+
+    def factorize(self, data, h=None):
+        self.stale = False
+
+    def usable(self, h, rho, below):
+        return not self.stale
+
+    def judged_by_cost(self):
+        return True
+
+    def contraction_limit(self, rho, tolerance, least):
+        return 0.9
+
+    def solve(self, rhs, target=0.0, settled=0.0):
+        return np.ones_like(rhs)  # (a correction of 1: never at the unknowns' round-off)
+
+
+def test_a_residual_a_single_precision_correction_brings_to_its_floor_is_converged():
+    """Single factors contract the residual about 1e-4 per correction whatever its size: a
+    residual they bring under the rounding floor while still falling at that rate is converged
+    (two corrections from 1e-1: 1e-5, 1e-9 under a floor of 5e-9); double factors, whose fall at
+    the floor is the error's, confirm it with a third correction, as before."""
+    from thermonet.implicit.core.newton import NewtonOptions, NewtonTimers, newton
+
+    script = [1e-1, 1e-5, 1e-9, 1e-10, 1e-10]
+    for single, corrections in ((True, 2), (False, 3)):
+        result = newton(_ScriptedProblem(script, 5e-9), np.zeros(1), NewtonOptions(), _KeptFactors(single),
+                        NewtonTimers())
+        assert result.converged and result.iterations == corrections, (single, result)
+        assert result.history == script[:corrections + 1]

@@ -90,6 +90,8 @@ TREE_MIN_UNKNOWNS = 20_000
 #: for float32: a part free to move at steps far above the limit), or SuperLU finds the single
 #: matrix singular, the solver factorizes in double from then on (and says so in the summary).
 #: At 1e-2 a single correction contracts as much as two double ones at 1e-5 cost together.
+#: Newton's floor test knows them (``single_factors``): a residual at its rounding floor after a
+#: correction with single factors is converged, though it still fell by their contraction.
 SINGLE_MAX_LINEAR_RESIDUAL = 1e-2
 #: Below this many unknowns kept factors are double: a step there costs its Python and residuals
 #: more than its solves, and single factors only move where Newton stops near the residual's
@@ -237,6 +239,11 @@ class ReusedLU(SparseLU):
         self.solves = int(solves)
         if self.solves > 0:
             self._check = False
+
+    @property
+    def single_factors(self) -> bool:
+        """Whether the current factors are single precision (Newton's floor test reads it)."""
+        return self._single
 
     @property
     def precision(self) -> str:

@@ -142,10 +142,11 @@ def newton(problem, u: np.ndarray, options: NewtonOptions, solver, timers: Newto
     problem: ``residual(u) -> (status, spring)`` fills ``problem.R`` and ``problem.Rabs`` (and,
     optionally, ``problem.norms`` = (max |R|, max Rabs)) and whatever the Jacobian needs; an
     optional ``problem.residual_floor``: a max |R| at or below it that the last correction
-    reduced less than 2× (or FLOOR_STALL_FACTOR times less than the one before, newton_policy.floor_stall)
-    is converged whatever its scaled value (the rounding of the residual's
-    own terms; EM2's: a net at rest in exact equilibrium has a residual of round-off over a
-    scale of round-off);
+    reduced less than 2× (or FLOOR_STALL_FACTOR times less than the one before, newton_policy.floor_stall),
+    or that a correction with single-precision factors reached (``solver.single_factors``: their
+    contraction is the precision's, whatever the residual), is converged whatever its scaled
+    value (the rounding of the residual's own terms; EM2's: a net at rest in exact equilibrium
+    has a residual of round-off over a scale of round-off);
     ``jacobian(data)`` fills the CSR values at the last residual's point, ``data`` its value
     array (assembled solvers); ``linearize()`` the per-spring coefficients of a matrix-free
     product (:class:`MatrixFree`); optionally ``local_jacobi(u, fraction)``, a Jacobi step on
@@ -211,6 +212,13 @@ def newton(problem, u: np.ndarray, options: NewtonOptions, solver, timers: Newto
         verdict, floored, small = _convergence(
             it, rho, float(rmax), floor, history[-2] if it > 0 else 0.0, history[-3] if it > 1 else 0.0,
             increment, u, tolerance, rtol, atol)
+        if (floored and verdict != BELOW_TOLERANCE and last in (FULL, KEPT)
+                and getattr(solver, "single_factors", False)):
+            # single-precision factors contract the residual ~1e-4 per correction whatever its
+            # size, so a fall that continues at the floor is theirs, not a sign of error left
+            # above the rounding: the next correction would only confirm the floor (double
+            # factors stop there one correction later too, at a residual no smaller)
+            verdict = AT_FLOOR
         if verdict == BELOW_TOLERANCE or verdict == AT_FLOOR:
             # (AT_FLOOR: at the rounding floor of the residual's terms, and no longer falling)
             return NewtonResult(True, it, history, jacobi_steps=jacobi_steps, reused=reused)
