@@ -460,9 +460,9 @@ def test_single_precision_factors_go_double_where_they_cannot_solve(tmp_path, mo
     bit. At 100× single factors solve, to the same root as double ones within the tolerance."""
     import thermonet.solvers.direct as direct
     from thermonet.cli.report import format_summary
+    from thermonet.io.checkpoint import load_checkpoint, save_checkpoint
 
     monkeypatch.setattr(direct, "SINGLE_MIN_UNKNOWNS", 0)  # (single factors on this small net too)
-    from thermonet.io.checkpoint import load_checkpoint, save_checkpoint
 
     double = free_lattice(1e4, "splu-reuse-double")
     double.run(steps=4, diagnostics_every=2)
