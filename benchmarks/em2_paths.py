@@ -301,9 +301,9 @@ def measure(nets, cells: int, factors, steps: int, paths=DEFAULT_PATHS, out=prin
     for net in nets:
         est = stable_step(make(net, cells, "co2", 1.0 if net == "lattice" else 1e-7))
         co2 = make(net, cells, "co2", CO2_FRACTION * est["h_max"])
-        # its stable-step guard off: in a run it spends at most 5 % of the run's time, here its
-        # budget would grow with the EM2 rounds in between and it would re-estimate ω_max at the
-        # end of every short CO2 call (a Lanczos run: 4× CO2's step time on the bracket)
+        # its stable-step guard off: its 0.1 s allowance and 5 % of the running time are a large
+        # share of the few short calls timed here (a re-estimate of ω_max, a Lanczos run, cost 4×
+        # CO2's step time on the bracket)
         co2.stability_guard.active = False
         n_co2 = max(20, 20 * steps)
         # warmed up by a whole round: its calls then start on multiples of n_co2, so that "auto"

@@ -452,6 +452,21 @@ def free_lattice(factor: float, linear_solver: str) -> tn.Simulation:
                                                                              linear_solver=linear_solver), **kw)
 
 
+def resumed_halves(make, steps: int, path):
+    """``steps`` steps of a simulation ``make()`` makes, a checkpoint at ``path``, and a new one
+    resumed from it for ``steps`` more: (the checkpointed state, the resumed simulation)."""
+    from thermonet.io.checkpoint import load_checkpoint, save_checkpoint
+
+    first = make()
+    first.run(steps=steps, diagnostics_every=steps)
+    save_checkpoint(path, first.state, {})
+    state, _ = load_checkpoint(path)
+    resumed = make()
+    resumed.load_state(state)
+    resumed.run(steps=steps, diagnostics_every=steps)
+    return state, resumed
+
+
 def test_single_precision_factors_go_double_where_they_cannot_solve(tmp_path, monkeypatch):
     """Kept factors are single precision; on a free net at 1e4× CO2's stable step (condition
     number ~1e8) their first solve leaves a linear residual of the order of the right-hand side,
@@ -460,7 +475,6 @@ def test_single_precision_factors_go_double_where_they_cannot_solve(tmp_path, mo
     bit. At 100× single factors solve, to the same root as double ones within the tolerance."""
     import thermonet.solvers.direct as direct
     from thermonet.cli.report import format_summary
-    from thermonet.io.checkpoint import load_checkpoint, save_checkpoint
 
     monkeypatch.setattr(direct, "SINGLE_MIN_UNKNOWNS", 0)  # (single factors on this small net too)
 
@@ -475,14 +489,8 @@ def test_single_precision_factors_go_double_where_they_cannot_solve(tmp_path, mo
     for name in ("positions", "momenta", "entropy"):
         assert np.array_equal(getattr(one.state, name), getattr(double.state, name)), name
 
-    first = free_lattice(1e4, "splu-reuse")
-    first.run(steps=2, diagnostics_every=2)
-    save_checkpoint(tmp_path / "c.npz", first.state, {})
-    state, _ = load_checkpoint(tmp_path / "c.npz")
+    state, resumed = resumed_halves(lambda: free_lattice(1e4, "splu-reuse"), 2, tmp_path / "c.npz")
     assert state.extra["factorization_precision"][0] == 64.0
-    resumed = free_lattice(1e4, "splu-reuse")
-    resumed.load_state(state)
-    resumed.run(steps=2, diagnostics_every=2)
     assert resumed.stepper.summary()["factor_precision"] == "double"
     for name in ("positions", "momenta", "entropy"):
         assert np.array_equal(getattr(one.state, name), getattr(resumed.state, name)), name
@@ -498,14 +506,8 @@ def test_single_precision_factors_go_double_where_they_cannot_solve(tmp_path, mo
     monkeypatch.setattr(direct, "KEPT_ANYWHERE_WORTH", 1.0)
     one = free_lattice(100, "splu-reuse")
     one.run(steps=4, diagnostics_every=2)
-    first = free_lattice(100, "splu-reuse")
-    first.run(steps=2, diagnostics_every=2)
-    save_checkpoint(tmp_path / "s.npz", first.state, {})
-    state, _ = load_checkpoint(tmp_path / "s.npz")
+    state, resumed = resumed_halves(lambda: free_lattice(100, "splu-reuse"), 2, tmp_path / "s.npz")
     assert state.extra["factorization_precision"][0] == 32.0 and state.extra["factorization_solves"][0] > 0
-    resumed = free_lattice(100, "splu-reuse")
-    resumed.load_state(state)
-    resumed.run(steps=2, diagnostics_every=2)
     assert resumed.stepper.summary()["reused_factorizations"] > 0
     for name in ("positions", "momenta", "entropy"):
         assert np.array_equal(getattr(one.state, name), getattr(resumed.state, name)), name

@@ -145,7 +145,6 @@ class StabilityGuard:
         #: stops checked and skipped (to keep within :data:`GUARD_TIME_BUDGET`); seconds spent
         self.checked = self.skipped = 0
         self.seconds = 0.0
-        self._since = None
 
     def check(self, sim) -> None:
         """Estimate the limit at ``sim``'s current state, unless this stop is skipped to keep
@@ -154,14 +153,7 @@ class StabilityGuard:
         if not self.active:
             return
         now = time.perf_counter()
-        runner = getattr(sim, "runner", None)
-        if runner is not None:
-            running = runner.seconds_running()
-        else:  # (a simulation without a run loop: the time since the first check)
-            if self._since is None:
-                self._since = now
-            running = now - self._since
-        skip = self.seconds > GUARD_TIME_BUDGET * running + GUARD_TIME_ALLOWANCE
+        skip = self.seconds > GUARD_TIME_BUDGET * sim.runner.seconds_running() + GUARD_TIME_ALLOWANCE
         comm = getattr(sim, "comm", None)
         if comm is not None:  # over MPI processes: rank 0's clock decides for all (the check reads
             skip = comm.bcast(skip, root=0)  # the state, which the processes put together jointly)
