@@ -6,16 +6,18 @@ a row of L refers only to rows of its own subtree (forward substitution), a colu
 rows of its own subtree (backward substitution), so two sibling subtrees are independent. The
 factors are copied once per factorization, relabelled in a postorder of the tree (every subtree
 a contiguous range of rows), into blocks of rows that share their columns (a node's three
-unknowns: one pass over the shared columns serves the block's rows), and the tree is cut into
+unknowns: one pass over the shared columns serves the block's rows, each row's values
+contiguous so that the pass runs in vector lanes at memory speed), and the tree is cut into
 groups (2**TREE_DEPTH leaf subtrees at most and the separators above them). A solve runs the
 groups phase by phase, one parallel region per phase and direction: forward the leaves first,
 then each level of separators, a phase's groups in thread bins, each group whole on one thread;
 the top separator (a phase of one group) spreads its products with the subtrees below over the
 threads, block by block forward and one child subtree per thread backward.
 
-Every unknown's sums are taken in one fixed order whichever thread takes them, so the solution
-is the same bit for bit at any thread count (it differs from SuperLU's own solve in the last
-bits: another order of the same sums). It is compiled threaded only: on one thread its regions
+Every unknown's sums are taken in one order fixed by the factors alone (a forward product's
+vector lanes included) whichever thread takes them, so the solution is the same bit for bit at
+any thread count (it differs from SuperLU's own solve in the last bits: another order of the
+same sums). It is compiled threaded only: on one thread its regions
 run on the calling thread, and that compile ran faster than one without ``parallel=True``. Where SuperLU pivoted off
 the diagonal or reordered columns, or a group's rows would refer to a sibling's (checked entry
 by entry), :func:`tree_factors` returns None and the caller keeps SuperLU's solve.
@@ -46,8 +48,9 @@ class TreeFactors:
 
     order (n,) int64: the relabelling, new → old (row k here is row order[k] of A).
     lower_vals, upper_vals (nnz,): L's rows and U's columns, block by block: the |R| columns
-        (rows of U) that a block's rows s … e − 1 share, as an |R| × (e − s) array, then each
-        row's entries inside the block; block q's from lower_ptr[s].
+        (rows of U) that a block's rows s … e − 1 share, as an (e − s) × |R| array (each row's
+        shared values contiguous), then each row's entries inside the block; block q's from
+        lower_ptr[s].
     diagonal (n,): U's diagonal. lower_ptr (n+1,) int64: row i's entries (on the pattern).
     run_ptr (n+1,) int64, run_col (r,) int32, run_off (r+1,) int64: row i's columns in runs of
         consecutive columns, run k starting at column run_col[k] with entry run_off[k];
@@ -84,6 +87,11 @@ class TreeFactors:
 
 
 _OPTIONS = dict(cache=True, nogil=True, boundscheck=False, error_model="numpy")
+#: the forward products' sums may be reassociated: taken in vector lanes, the long rows of the
+#: factors (a few hundred shared columns) stream at memory speed instead of waiting on one chain
+#: of dependent additions; the order is fixed by the code and the data alone, so a solve is still
+#: the same bit for bit at any thread count
+_SUMS = {"reassoc", "nsz"}
 
 
 @njit(**_OPTIONS)
@@ -259,12 +267,13 @@ def _blocks(lp, lc, group_of):
 @njit(**_OPTIONS)
 def _block_place(lp, block_start, q, jn, t):
     """Where entry t of row jn (of block q) goes in the blocked layout: the columns R that the
-    block's rows s … e − 1 share, as an |R| × (e − s) array (row jn's value for R[t] at
-    [t, jn − s]), then each row's columns in the block, s … jn − 1."""
+    block's rows s … e − 1 share, as an (e − s) × |R| array (row jn's value for R[t] at
+    [jn − s, t]: each row's shared values contiguous, so that a product streams them), then each
+    row's columns in the block, s … jn − 1."""
     s, e = block_start[q], block_start[q + 1]
     shared = lp[s + 1] - lp[s]
     if t < shared:
-        return lp[s] + t * (e - s) + (jn - s)
+        return lp[s] + (jn - s) * shared + t
     return lp[s] + shared * (e - s) + (jn - s) * (jn - s - 1) // 2 + (t - shared)
 
 
@@ -547,49 +556,40 @@ def _tree_arrays(n: int, L, U, threads: int) -> TreeFactors | None:
                        np.array(phase_bins, dtype=np.int64))
 
 
-@njit(**_OPTIONS)
-def _lower_product(x, vals, lp, run_col, run_off, s, e, r0, r1):
+@njit(fastmath=_SUMS, **_OPTIONS)
+def _lower_product(x, vals, lp, run_col, run_off, s, e, r0, r1, gathered):
     """x[s + c] −= Σ_k L[s + c, col k] x[col k] for the block's rows s … e − 1 over the shared
-    columns in the runs r0 … r1 − 1 of row s (each one sum in column order; a block of three
-    rows, a node's, in one pass)."""
+    columns in the runs r0 … r1 − 1 of row s: those x first gathered into ``gathered`` (float64,
+    at least as long), then each row's sum over its contiguous values in vector lanes (_SUMS; a
+    block of three rows, a node's, in one pass)."""
     width = e - s
-    first = lp[s]
+    shared = lp[s + 1] - lp[s]  # (row c's value for row s's entry k: vals[k + c shared])
+    m = 0
+    for r in range(r0, r1):
+        c0 = np.int64(run_col[r])
+        n = run_off[r + 1] - run_off[r]
+        gathered[m:m + n] = x[c0:c0 + n]
+        m += n
+    k0 = run_off[r0] if r1 > r0 else lp[s]
     if width == 3:
+        v0 = vals[k0:k0 + m]
+        v1 = vals[k0 + shared:k0 + shared + m]
+        v2 = vals[k0 + 2 * shared:k0 + 2 * shared + m]
         a0 = a1 = a2 = 0.0
-        for r in range(r0, r1):
-            k0 = run_off[r]
-            shift = run_col[r] - k0
-            base = first + (k0 - first) * 3
-            for k in range(k0, run_off[r + 1]):
-                v = x[shift + k]
-                a0 += vals[base] * v
-                a1 += vals[base + 1] * v
-                a2 += vals[base + 2] * v
-                base += 3
+        for i in range(m):
+            v = gathered[i]
+            a0 += v0[i] * v
+            a1 += v1[i] * v
+            a2 += v2[i] * v
         x[s] -= a0
         x[s + 1] -= a1
         x[s + 2] -= a2
         return
-    if width == 2:
-        a0 = a1 = 0.0
-        for r in range(r0, r1):
-            k0 = run_off[r]
-            shift = run_col[r] - k0
-            base = first + (k0 - first) * 2
-            for k in range(k0, run_off[r + 1]):
-                v = x[shift + k]
-                a0 += vals[base] * v
-                a1 += vals[base + 1] * v
-                base += 2
-        x[s] -= a0
-        x[s + 1] -= a1
-        return
     for c in range(width):
+        row = vals[k0 + c * shared:k0 + c * shared + m]
         acc = 0.0
-        for r in range(r0, r1):
-            shift = run_col[r] - run_off[r]
-            for k in range(run_off[r], run_off[r + 1]):
-                acc += vals[first + (k - first) * width + c] * x[shift + k]
+        for i in range(m):
+            acc += row[i] * gathered[i]
         x[s + c] -= acc
 
 
@@ -608,36 +608,29 @@ def _lower_triangle(x, vals, lp, s, e):
 @njit(**_OPTIONS)
 def _upper_product(x, vals, lp, run_col, run_off, s, e, r0, r1):
     """x[r] −= Σ_c U[r, c] x[c] over a block's columns s … e − 1 and its shared rows r in the
-    runs r0 … r1 − 1 of row s (the columns in order; a block of three, a node's, read once)."""
+    runs r0 … r1 − 1 of row s (each column's values contiguous: a run's rows update as one
+    vector loop)."""
     width = e - s
-    first = lp[s]
+    shared = lp[s + 1] - lp[s]
     if width == 3:
         w0, w1, w2 = x[s], x[s + 1], x[s + 2]
         for r in range(r0, r1):
             k0 = run_off[r]
-            shift = run_col[r] - k0
-            base = first + (k0 - first) * 3
-            for k in range(k0, run_off[r + 1]):
-                x[shift + k] -= (vals[base] * w0 + vals[base + 1] * w1) + vals[base + 2] * w2
-                base += 3
-        return
-    if width == 2:
-        w0, w1 = x[s], x[s + 1]
-        for r in range(r0, r1):
-            k0 = run_off[r]
-            shift = run_col[r] - k0
-            base = first + (k0 - first) * 2
-            for k in range(k0, run_off[r + 1]):
-                x[shift + k] -= vals[base] * w0 + vals[base + 1] * w1
-                base += 2
+            n = run_off[r + 1] - k0
+            c0 = np.int64(run_col[r])
+            rows = x[c0:c0 + n]
+            v0 = vals[k0:k0 + n]
+            v1 = vals[k0 + shared:k0 + shared + n]
+            v2 = vals[k0 + 2 * shared:k0 + 2 * shared + n]
+            for i in range(n):
+                rows[i] -= (v0[i] * w0 + v1[i] * w1) + v2[i] * w2
         return
     for r in range(r0, r1):
         shift = run_col[r] - run_off[r]
         for k in range(run_off[r], run_off[r + 1]):
-            base = first + (k - first) * width
             acc = 0.0
             for c in range(width):
-                acc += vals[base + c] * x[s + c]
+                acc += vals[k + c * shared] * x[s + c]
             x[shift + k] -= acc
 
 
@@ -654,13 +647,25 @@ def _upper_triangle(x, vals, diagonal, lp, s, e):
 
 
 @njit(**_OPTIONS)
+def _widest(lp, block_start, q0, q1):
+    """The most shared columns of the blocks q0 … q1 − 1."""
+    most = 0
+    for q in range(q0, q1):
+        s = block_start[q]
+        most = max(most, lp[s + 1] - lp[s])
+    return most
+
+
+@njit(**_OPTIONS)
 def _forward_group(x, lv, lp, run_ptr, run_col, run_off, run_lo, block_start, q0, q1, below):
     """Forward substitution through a group's blocks q0 … q1 − 1: each block's products (with
     the subtrees below where ``below``, else only with the group's own rows) and its triangle.
     (``below`` is passed as ``np.bool_``: a literal would compile a copy per value.)"""
+    gathered = np.empty(_widest(lp, block_start, q0, q1))
     for q in range(q0, q1):
         s, e = block_start[q], block_start[q + 1]
-        _lower_product(x, lv, lp, run_col, run_off, s, e, run_ptr[s] if below else run_lo[s], run_ptr[s + 1])
+        _lower_product(x, lv, lp, run_col, run_off, s, e, run_ptr[s] if below else run_lo[s], run_ptr[s + 1],
+                       gathered)
         _lower_triangle(x, lv, lp, s, e)
 
 
@@ -694,7 +699,8 @@ def _solve(x, lv, uv, diagonal, lp, run_ptr, run_col, run_off, run_cut, run_lo, 
         for t in prange(t0, t1):
             if spread:  # block t's products with the subtrees below
                 s, e = block_start[t], block_start[t + 1]
-                _lower_product(x, lv, lp, run_col, run_off, s, e, run_ptr[s], run_lo[s])
+                _lower_product(x, lv, lp, run_col, run_off, s, e, run_ptr[s], run_lo[s],
+                               np.empty(lp[s + 1] - lp[s]))
             else:
                 for g in range(bin_start[t], bin_start[t + 1]):
                     _forward_group(x, lv, lp, run_ptr, run_col, run_off, run_lo, block_start, gb_lo[g], gb_hi[g],

@@ -51,6 +51,11 @@ MAX_ITERATIONS = 30
 #: a whole step's Newton solve does not always converge from the predictor: measured on the
 #: heated plate (scenes/lattice2d.toml) at 7.6× CO2's limit, 8 of 20 steps needed 2–4 substeps
 RETRY = 4
+#: with kept factorizations (far above the explicit limit) the last step's displacement is the
+#: guess, without weighing the own one, where its scaled residual max |R| / max Rabs is at most
+#: this: on the steel part at 100× and 1e4× CO2's stable step it is 3e-3–1e-1 and the own guess's
+#: 0.9–1.0 (the own guess won 0 of 200 steps after the first), so weighing it cost a residual a step
+PREVIOUS_TAKEN = 0.25
 #: without a given ``atol``, Newton's absolute increment tolerance is this many ulps of the
 #: largest coordinate: a correction below the positions' own rounding is noise (near rest, the
 #: forces' rounding, c ε per spring from ln(l/l0), can hold the scaled residual above 1e-12
@@ -216,8 +221,9 @@ class EM2Stepper(ImplicitStepper):
     def predict(self, u: np.ndarray) -> None:
         """The midpoint step of each node on its own springs' stiffness (implicit.em2.kernels), or, with
         kept factorizations and where the step before ended at this step's start with the same
-        h, that step's displacement again (constant velocity: a slowly moving part's) if its
-        residual is the smaller (max |R|); and the residual's rounding floor (``residual_floor``,
+        h, that step's displacement again (constant velocity: a slowly moving part's) where its
+        scaled residual is at most PREVIOUS_TAKEN, else the one of the two whose max |R| is
+        the smaller; and the residual's rounding floor (``residual_floor``,
         read by the Newton iteration): ATOL_ULPS ulps of the largest spring force that one ulp of length would make,
         (h/2) κ_e l⁰_e with κ_e the predictor's spring stiffness. A max |R| below it that a
         Newton correction no longer reduces (less than 2×) is the rounding of the force terms: a
@@ -233,18 +239,23 @@ class EM2Stepper(ImplicitStepper):
         if (before is None or before[0] != self.h or not getattr(self.solver, "reuses_factorization", False)
                 or not np.array_equal(before[2], self._step_start[0])):
             return
-        status, _ = self.residual(u)
-        own = self.norms[0] if status == 0 else math.inf
         status, spring = self.residual(before[1])
-        if status == 0 and self.norms[0] < own:
+        previous = self.norms[0] if status == 0 else math.inf
+        if status == 0 and self.norms[0] <= PREVIOUS_TAKEN * self.norms[1]:
             u[:] = before[1]
             # the residual's buffers now hold its value at u: Newton's first evaluation would
             # repeat it bit for bit (take_evaluated)
             self._evaluated = (before[1], status, spring)
+            return
+        status, spring = self.residual(u)
+        if status == 0 and self.norms[0] <= previous:
+            self._evaluated = (u.copy(), status, spring)
+        elif previous < math.inf:
+            u[:] = before[1]  # (Newton evaluates it again: the buffers hold the own guess's)
 
     def take_evaluated(self, u: np.ndarray):
         """(status, spring) of the last residual where predict left it evaluated at exactly u
-        (the last step's displacement chosen as the guess), once; else None."""
+        (the guess it chose, after weighing it), once; else None."""
         done, self._evaluated = self._evaluated, None
         if done is None or not np.array_equal(done[0], u):
             return None
