@@ -511,3 +511,28 @@ def test_single_precision_factors_go_double_where_they_cannot_solve(tmp_path, mo
     assert resumed.stepper.summary()["reused_factorizations"] > 0
     for name in ("positions", "momenta", "entropy"):
         assert np.array_equal(getattr(one.state, name), getattr(resumed.state, name)), name
+
+
+def test_a_close_last_displacement_is_taken_without_weighing_the_own_guess(monkeypatch):
+    """The steel part of benchmarks/em2_paths.py (coarse mesh) loaded and heated from rest, at
+    100× CO2's stable step (kept factorizations): where the last step's displacement leaves a
+    scaled residual at most PREVIOUS_TAKEN the predictor takes it without evaluating its own
+    guess (which it would not have taken): one residual evaluation a step fewer, the same
+    Newton corrections, the same root to the Newton tolerance. With PREVIOUS_TAKEN < 0 both
+    guesses are weighed at every step."""
+    from thermonet.implicit.em2 import stepper as em2_stepper
+
+    bench = _benchmark()
+    h = 100 * stable_step(bench.part_simulation(0.006, "co2", 1e-7))["h_max"]
+    sims = {}
+    for taken in (em2_stepper.PREVIOUS_TAKEN, -1.0):
+        monkeypatch.setattr(em2_stepper, "PREVIOUS_TAKEN", taken)
+        sim = bench.part_simulation(0.006, "em2", h, newton_path="sparse", linear_solver="splu-reuse")
+        sim.run(steps=12, diagnostics_every=10**9)
+        sims[taken > 0] = sim
+    close, weighed = sims[True], sims[False]
+    # (steps 2–12 may take it: measured 9 of them, the first ones still moving off rest)
+    assert close.stepper.timers.residuals <= weighed.stepper.timers.residuals - 8
+    assert close.stepper.summary()["iterations"] == weighed.stepper.summary()["iterations"]
+    scale = np.abs(weighed.state.positions).max()
+    assert np.abs(close.state.positions - weighed.state.positions).max() <= 1e-12 * scale

@@ -116,6 +116,8 @@ def test_the_tree_solve_gives_superlus_and_a_dense_solution(monkeypatch):
     lu.factorize(data)
     f, _ = tree_factors(lu._lu, 2)
     assert f is not None and f.separator.sum() >= 3 and (~f.separator).sum() >= 4
+    widths = np.diff(f.block_start)  # (a node's three rows, and wider blocks: both product loops run)
+    assert (widths == 3).any() and (widths > 3).any()
     threads = numba.get_num_threads()
     try:
         numba.set_num_threads(1)

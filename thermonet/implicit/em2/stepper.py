@@ -53,9 +53,11 @@ MAX_ITERATIONS = 30
 RETRY = 4
 #: with kept factorizations (far above the explicit limit) the last step's displacement is the
 #: guess, without weighing the own one, where its scaled residual max |R| / max Rabs is at most
-#: this: on the steel part at 100× and 1e4× CO2's stable step it is 3e-3–1e-1 and the own guess's
-#: 0.9–1.0 (the own guess won 0 of 200 steps after the first), so weighing it cost a residual a step
-PREVIOUS_TAKEN = 0.25
+#: this: on the steel part it is 5e-3–3e-2 at 100× CO2's stable step and 2e-2–1e-1 at 1e4× (10th to
+#: 90th percentile), the own guess's 0.9–1.0, which won no step after the first, so weighing it
+#: cost a residual a step; where neither guess is that close (a hot lattice ringing at 5×: both
+#: 0.25–0.8) the two are still weighed, and such runs take the iterations they took before
+PREVIOUS_TAKEN = 0.1
 #: without a given ``atol``, Newton's absolute increment tolerance is this many ulps of the
 #: largest coordinate: a correction below the positions' own rounding is noise (near rest, the
 #: forces' rounding, c ε per spring from ln(l/l0), can hold the scaled residual above 1e-12
