@@ -72,13 +72,14 @@ KEPT_ANYWHERE_WORTH = 50.0
 #: unknowns or more, solves from then on with its factors copied onto their elimination tree
 #: (:mod:`.tree_solve`: compiled threaded, its subtrees on separate threads, the same bits at any
 #: thread count, so a run gives the same numbers on one thread or two). The copy costs what tens
-#: to hundreds of solves save (at 47 637 unknowns 0.4 s by a kept layout, 2.8 s the first time,
-#: against 35 ms a solve), so it waits for a factorization that has lasted: at 100× CO2's stable
-#: step on the steel part one lasts the whole run, at 1e4× about 45 solves (the first copy, in a
-#: 45-step run there, made EM2 2.1–2.5× slower per step with the switch at 50 solves).
-#: On the steel part at 9 270 springs (5 172 unknowns) EM2's steps at 100× ran no faster on the
-#: tree (1.04–1.07× the time with SuperLU's solves, one and two threads, loaded machine), at
-#: 97 958 springs (47 637 unknowns) faster: hence the threshold between them.
+#: to hundreds of solves save (at 47 637 unknowns 0.3 s by a kept layout, 1.7 s the first time,
+#: against 10–18 ms a single-precision solve saves on one and two threads), so it waits for a
+#: factorization that has lasted: at 100× CO2's stable step on the steel part one lasts the whole
+#: run, at 1e4× about 45 solves (the first copy, in a 45-step run there, made EM2 2.1–2.5× slower
+#: per step with the switch at 50 solves). On the steel part at 9 270 springs (5 172 unknowns)
+#: EM2's steps at 100× ran no faster on the tree (1.24× the time with SuperLU's solves on one
+#: thread, 1.03× on two), at 97 958 springs (47 637 unknowns) faster (0.98×, 0.55×): hence the
+#: threshold between them.
 TREE_AFTER_SOLVES = 200
 TREE_MIN_UNKNOWNS = 20_000
 #: Kept factors are single precision (float32) unless that fails: the residual and the
