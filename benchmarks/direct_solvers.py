@@ -36,7 +36,6 @@ import warnings
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
@@ -61,7 +60,10 @@ def part_matrix(size: float, factor: float):
 
 
 def superlu(A):
-    return spla.splu(A, permc_spec="NATURAL", diag_pivot_thresh=0.1, options=dict(SymmetricMode=True))
+    """SuperLU's factors of A with the options thermonet's kept factorizations use."""
+    from thermonet.solvers.direct import _superlu
+
+    return _superlu(A)
 
 
 def main(argv=None) -> dict:

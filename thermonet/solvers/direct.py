@@ -241,6 +241,18 @@ class ReusedLU(SparseLU):
         if self.solves > 0:
             self._check = False
 
+    def restore_precision(self, bits: float) -> None:
+        """The run a resumed state comes from made its factors in ``bits`` (32 or 64) precision:
+        where it had gone to double factors, so does this solver (it factorizes as that run did)."""
+        if bits == 64.0 and self.single:
+            self.single = False
+            self.raised = "double factors in the run this state comes from"
+
+    @property
+    def bits(self) -> float:
+        """32.0 or 64.0: the precision of the factors it makes now, as a checkpoint keeps it."""
+        return 32.0 if self.single else 64.0
+
     @property
     def single_factors(self) -> bool:
         """Whether the current factors are single precision (Newton's floor test reads it)."""

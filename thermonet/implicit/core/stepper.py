@@ -332,10 +332,8 @@ class ImplicitStepper(Stepper):
         """The predictor's history, the continuation's memory and the kept factors' precision,
         from the state they belong to (none there: none)."""
         bits = state.extra.get(self.PRECISION_KEY)
-        if (isinstance(bits, np.ndarray) and bits.size == 1 and bits[0] == 64.0
-                and getattr(self.solver, "single", False)):
-            self.solver.single = False  # (the run that saved it had gone to double factors)
-            self.solver.raised = "double factors in the run this state comes from"
+        if isinstance(bits, np.ndarray) and bits.size == 1 and hasattr(self.solver, "restore_precision"):
+            self.solver.restore_precision(float(bits[0]))
         if self.continuation:
             saved = state.extra.get(self.CONTINUATION_KEY)
             ok = isinstance(saved, np.ndarray) and saved.shape == (2,) and saved[0] > 0
@@ -352,7 +350,7 @@ class ImplicitStepper(Stepper):
 
     def _history_to(self, state) -> None:
         if getattr(self.solver, "reuses_factorization", False):
-            state.extra[self.PRECISION_KEY] = np.array([32.0 if self.solver.single else 64.0])
+            state.extra[self.PRECISION_KEY] = np.array([self.solver.bits])
         if self.continuation:
             state.extra[self.CONTINUATION_KEY] = np.array(self._hard if self._hard is not None else (0.0, 0.0))
         marker = self.work.start.history
