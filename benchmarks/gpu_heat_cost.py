@@ -70,15 +70,25 @@ def rate(sim, cuda, seconds: float, fused: bool, quick: bool) -> float:
 
 
 def phases_per_step(sim) -> int:
-    """Grid-wide conduction phases of a step of ``sim`` (conduction every step, one sweep), as
-    the stepper runs them: the reverse row's but its start (the kick before it keeps θ as the
-    start), the forward row's but its start and finish (the reverse row's finish keeps the start;
-    the kick after it runs the finish), empty ones (no baths or sources) left out."""
+    """Grid-wide conduction phases of a step of ``sim`` inside a call (conduction every step, one
+    sweep), as the stepper runs them (:func:`thermonet.heat.cuda.conduction_plan`): the reverse
+    row's but its start (the kick before it keeps θ as the start) and finish (left to the forward
+    row after it), the forward row's but its start and finish (the kick after it runs the finish
+    of both), the meeting colours of the two as one phase where no baths or sources stand between
+    them, empty phases left out."""
+    from thermonet.heat.cuda import conduction_plan
     from thermonet.heat.rows import CONDUCTION_FORWARD, CONDUCTION_REVERSE
 
     heat = sim.stepper._heat
-    return (sum(1 for _, count in heat.phases(CONDUCTION_REVERSE)[1:] if count > 0)
-            + sum(1 for _, count in heat.phases(CONDUCTION_FORWARD)[1:-1] if count > 0))
+    n_colours, meet = len(heat.star_colour_ptr) - 1, heat.colours_meet(1)
+    total = 0
+    for code, finish_pending, joined, follows in ((CONDUCTION_REVERSE, False, False, True),
+                                                  (CONDUCTION_FORWARD, True, True, False)):
+        phases = heat.phases(code)
+        lo, hi, skip = conduction_plan(code, len(phases), n_colours, meet, True, finish_pending, joined, follows,
+                                       False)[:3]
+        total += sum(1 for phase, count in phases[lo:hi] if count > 0 and phase != skip)
+    return total
 
 
 def launch_profile(sim, cuda, repeats: int) -> list[dict]:
@@ -89,7 +99,7 @@ def launch_profile(sim, cuda, repeats: int) -> list[dict]:
     the device is synchronized) and the wall time (after it): wall ≈ host means the host
     bounds that launch, wall > host means the device does. The runs leave the state
     meaningless (phases repeated on their own), so this comes after the timed runs."""
-    from thermonet.heat.cuda import BLOCKS, BOUNDARY, FINISH, START, _phase_span
+    from thermonet.heat.cuda import BLOCKS, BOUNDARY, FINISH, JOINED, PLAIN, START, _phase_span
     from thermonet.heat.rows import CONDUCTION_FORWARD
 
     stepper, m = sim.stepper, sim.net.n_springs
@@ -110,6 +120,16 @@ def launch_profile(sim, cuda, repeats: int) -> list[dict]:
     launches += [("spring pass of a kick", m, spring_pass(False, False)),
                  ("the same, keeping θ and l for the sweep after it", m, spring_pass(True, False)),
                  ("the same, finishing the forward sweep before it", m, spring_pass(False, True))]
+    n = sim.net.n_nodes
+
+    def node_pass(split: bool):
+        return lambda: stepper._launch(k.node, k.blocks(n), k.threads, stepper._x, stepper._x_buf, stepper._p,
+                                       stepper._s, stepper._topology, stepper._nodes,
+                                       (0.5 * sim.h if split else 0.0, 0.5 * sim.h, sim.h, True, split), stepper._flag,
+                                       stepper._loads, stepper._heat.s_before if split else stepper._s)
+
+    launches += [("node pass of a kick and drift", n, node_pass(False)),
+                 ("the same, first the closing kick with the forces from before the sweep", n, node_pass(True))]
     kinds = {START: "θ start", BOUNDARY: "baths and sources", BLOCKS: "star colour", FINISH: "finish (η)"}
     dh = stepper._heat
     for phase, count in dh.phases(code):
@@ -117,7 +137,11 @@ def launch_profile(sim, cuda, repeats: int) -> list[dict]:
         if count > 0:
             launches.append((f"phase {phase}: {kinds[kind]}", count, lambda phase=phase, count=count: stepper._launch(
                 k.sweep, k.blocks(count), k.threads, code, phase, heat, tau, 0.0, stepper._phi, stepper._eta,
-                stepper._flag)))
+                stepper._flag, PLAIN)))
+    if dh.colours_meet(1):
+        launches.append(("phase 2 joined: star colour in reverse, then forward", dh.phases(code)[2][1],
+                         lambda: stepper._launch(k.sweep, k.blocks(dh.phases(code)[2][1]), k.threads, code, 2, heat,
+                                                 tau, 0.0, stepper._phi, stepper._eta, stepper._flag, JOINED)))
     rows = []
     for name, elements, launch in launches:
         launch()

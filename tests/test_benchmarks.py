@@ -48,17 +48,19 @@ def test_gpu_check_quick_mode_runs_its_benchmarks_under_the_cuda_simulator(monke
     assert row["gpu_rate_fused"] > 0 and row["gpu_rate_two_launch"] > 0
     assert 100 < row["bytes_per_spring_step"] < 150 and row["device_bytes_per_spring"] > 0
     assert "max relative difference 0.00e+00" in throughput["out"]  # the simulator runs the CPU's operations
-    # two launch modes × adiabatic, every step, "auto"'s k; conduction's phases per half sweep
-    # on the GPU: the lattice's node colours + 3
+    # two launch modes × adiabatic, every step, "auto"'s k; conduction's phases per step on the
+    # GPU: the lattice's two node colours a half sweep, the meeting ones run as one phase
     table = [line for line in heat["out"].splitlines() if line.startswith("| 54 |")]
     assert len(table) == 6 and len(heat["rows"]) == 6
     assert all(float(r.split("|")[5].strip().rstrip("×")) > 0 for r in table)
-    assert all(r.split("|")[6].strip() in ("–", "5") for r in table)
-    # the launch profile: the temperature pass, θ start, two star colours, finish, the whole step
+    assert all(r.split("|")[6].strip() in ("–", "3") for r in table)
+    # the launch profile: the temperature pass, θ start, two star colours and the joined one, finish,
+    # the whole step
     profile = [line.split("|")[1].strip() for line in heat["out"].splitlines()
                if line.startswith("| ") and line.split("|")[1].strip()[:5] in ("tempe", "phase", "whole")]
     assert profile[0] == "temperature pass" and profile[-1].startswith("whole step"), profile
-    assert sum("star colour" in name for name in profile) == 2 and any("finish" in name for name in profile)
+    assert sum(name.endswith("star colour") for name in profile) == 2 and any("finish" in name for name in profile)
+    assert any(name.startswith("phase 2 joined") for name in profile)  # the meeting colours as one phase
     out = capsys.readouterr().out
     assert "## GPU check" in out and "| throughput (this tree) | 0 |" in out
 

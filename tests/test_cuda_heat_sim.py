@@ -43,7 +43,8 @@ STATE_RTOL = 1e-13
 DIAG_RTOL = 1e-12
 HEAT_COLUMNS = ("entropy_produced", "heat_in", "entropy_in", "energy_balance", "entropy_balance")
 COLUMNS = ("energy", "kinetic", "internal", "entropy", "px", "Lz", "theta_min", "theta_max") + HEAT_COLUMNS
-LOGS = ("produced", "entry_heat", "entry_flux", "theta", "theta_ok", "length")
+LOGS = ("produced", "entry_heat", "entry_flux", "theta", "theta_ok", "length", "pending_eta", "pending_produced",
+        "pending_theta")
 
 
 def small_net(shape=(1, 1, 1), neighbours=6, seed=5):
@@ -54,20 +55,25 @@ def small_net(shape=(1, 1, 1), neighbours=6, seed=5):
     return net, rng.normal(0.0, 1.0, (net.n_nodes, 3)), 300.0 + 400.0 * rng.random(net.n_springs)
 
 
-def conduction_sim(backend, fused=True, bath=None, integrator="co2", net=None, every=1):
+def conduction_sim(backend, fused=True, bath=None, integrator="co2", net=None, every=1, entries=True):
     """Conduction with a bath on nodes 0, 1 (a sine in time unless ``bath`` is a number) and a
-    source on springs 3, 5, every ``every`` steps (k, or (k, j): j sub-sweeps); on the CPU swept
-    in the GPU's order."""
+    source on springs 3, 5 (neither unless ``entries``), every ``every`` steps (k, or (k, j): j
+    sub-sweeps); on the CPU swept in the GPU's order."""
     every, sweeps = every if isinstance(every, tuple) else (every, 1)
     net, v, temps = net or small_net()
     temperature = TimeFunction.sine(50.0, 3.0, 0.0, 500.0) if bath is None else bath
+    boundary = dict(baths={"hot": Bath([0, 1], temperature)},
+                    sources={"s": Source(SOURCE_SPRINGS, SOURCE_POWER)}) if entries else {}
     sim = tn.Simulation(net, parameters=dict(c=100, beta=1.0, C0=1.0, theta0=300, g=0.5), temperatures=temps,
-                        velocities=v, integrator=integrator, h=H, backend=backend,
-                        baths={"hot": Bath([0, 1], temperature)},
-                        sources={"s": Source(SOURCE_SPRINGS, SOURCE_POWER)}, conduction_every=every,
-                        conduction_sweeps=sweeps, **QUIET)
+                        velocities=v, integrator=integrator, h=H, backend=backend, conduction_every=every,
+                        conduction_sweeps=sweeps, **boundary, **QUIET)
     sim.system.heat.use_order_of("cuda")
     return _mode(sim, fused)
+
+
+def bare_conduction_sim(backend, fused=True, bath=None, net=None):
+    """:func:`conduction_sim` without baths and sources."""
+    return conduction_sim(backend, fused, bath=bath, net=net, entries=False)
 
 
 def waves_sim(backend, fused=True, integrator="co4", net=None):
@@ -108,6 +114,9 @@ CASES = {
     "conduction-multirate": (lambda backend, fused: conduction_sim(backend, fused, every=(STEPS, 2)), True),
     "conduction-multirate-two-launch": (lambda backend, fused: conduction_sim(backend, fused, every=(STEPS, 2)),
                                         False),
+    # (no baths or sources: at a cycle boundary the two half sweeps' meeting colours run as one phase)
+    "conduction-bare": (lambda backend, fused: conduction_sim(backend, fused, entries=False), True),
+    "conduction-bare-two-launch": (lambda backend, fused: conduction_sim(backend, fused, entries=False), False),
     "waves": (waves_sim, True),
     "waves-two-launch": (waves_sim, False),
 }
@@ -162,7 +171,17 @@ def main(path):
     sim.runner.advance(1)
     sim.record_diagnostics()
     record(out, "calls-multirate/cuda", sim)
+    # the same without baths and sources, cut into calls of 1 and 2 steps (two launches) or not
+    sim = conduction_sim("cuda", True, entries=False)
+    sim.run(steps=3, diagnostics_every=3)
+    record(out, "whole-bare/cuda", sim)
+    sim = conduction_sim("cuda", False, entries=False)
+    sim.run(steps=1, diagnostics_every=1)
+    sim.spring_fields()
+    sim.run(steps=2, diagnostics_every=2)
+    record(out, "calls-bare/cuda", sim)
     out["phase-launches"] = np.array([phase_launches(4), phase_launches(4, calls=2)])
+    out["phase-launches-bare"] = np.array([phase_launches(4, entries=False), phase_launches(4, calls=2, entries=False)])
     for name, fused in BLOWUPS.items():
         for backend in ("cpu", "cuda"):
             sim = blowup_sim(backend, fused)
@@ -182,13 +201,13 @@ def main(path):
     np.savez(path, **out)
 
 
-def phase_launches(steps, calls=1):
+def phase_launches(steps, calls=1, entries=True):
     """The two-launch path's heat launches in the last of ``calls`` calls of ``steps`` CO2 steps
     with conduction every step: (temperature passes, start phases, star colours, boundary
     phases, finish phases, star colours of the net)."""
     from thermonet.heat.cuda import BLOCKS, BOUNDARY, FINISH, START, _phase_span
 
-    sim = conduction_sim("cuda", False, bath=500.0)
+    sim = conduction_sim("cuda", False, bath=500.0, entries=entries)
     stepper, heat = sim.stepper, sim.stepper._heat
     counts = dict.fromkeys(("temperature", START, BLOCKS, BOUNDARY, FINISH), 0)
     launch = stepper._launch
@@ -234,10 +253,9 @@ def _close(a, b, rtol):
 def assert_states_agree(runs, a, b, rtol=STATE_RTOL):
     for field in ("positions", "momenta", "thermal_displacement", "entropy") + LOGS:
         x, y = runs[f"{a}/{field}"], runs[f"{b}/{field}"]
-        if field == "theta_ok":  # valid on both (2 on the CPU: a call ended with a reverse sweep)
-            assert (x[0] >= 1.0) == (y[0] >= 1.0), field
-        elif field == "produced":  # per spring a change of η: rounded at η's scale (the CPU takes
-            # one logarithm for a step boundary's two half sweeps, the device one for each)
+        if field == "theta_ok":  # 2 on both where a call ended with a reverse sweep, its update pending
+            assert x[0] == y[0], field
+        elif field in ("produced", "pending_produced"):  # per spring a change of η: rounded at η's scale
             scale = max(float(np.abs(runs[f"{a}/entropy"]).max()), 1e-300)
             assert float(np.max(np.abs(x - y), initial=0.0)) <= rtol * scale, field
         else:
@@ -264,7 +282,8 @@ def test_baths_and_sources_give_their_heat_on_the_device(runs, case):
     assert runs[f"{gpu}/col/heat_hot"][-1] != 0.0
     assert runs[f"{gpu}/produced"].sum() > 0.0  # (per spring it is ΔS less what entries brought: any sign)
     assert abs(runs[f"{gpu}/col/entropy_balance"][-1]) < 1e-12 * abs(runs[f"{gpu}/col/entropy"][-1])
-    assert runs[f"{gpu}/theta_ok"][0] == 1.0
+    # the call ended a cycle: the reverse half sweep's entropy update pending for the next call
+    assert runs[f"{gpu}/theta_ok"][0] == 2.0
 
 
 @pytest.mark.parametrize("case", ["waves", "waves-two-launch"])
@@ -275,7 +294,7 @@ def test_thermal_waves_keep_the_total_entropy_on_the_device(runs, case):
 
 
 @pytest.mark.parametrize("chunked, whole", [("calls", "whole"), ("launches", "whole"),
-                                           ("calls-multirate", "whole-multirate")])
+                                           ("calls-multirate", "whole-multirate"), ("calls-bare", "whole-bare")])
 def test_a_run_cut_into_calls_or_launches_equals_one_call(runs, chunked, whole):
     for field in ("positions", "momenta", "thermal_displacement", "entropy") + LOGS:
         np.testing.assert_array_equal(runs[f"{chunked}/cuda/{field}"], runs[f"{whole}/cuda/{field}"], err_msg=field)
@@ -286,16 +305,23 @@ def test_the_two_launch_path_cut_into_calls_equals_the_fused_call(runs):
         assert _close(runs[f"calls-two-launch/cuda/{field}"], runs[f"whole/cuda/{field}"], STATE_RTOL), field
 
 
-def test_the_device_runs_no_pass_the_pass_before_already_did(runs):
-    """Conduction every step with two launches: a call's first sweep starts from a temperature
-    pass (θ not valid: the first call) or a start phase (θ kept across calls), after that the kick
-    before each reverse sweep keeps θ and its start, the reverse row's finish keeps the forward
-    row's start, and the kick after the forward row runs its finish: per step the star colours
-    twice, the boundary phase twice, one finish (docs/gpu.md)."""
+@pytest.mark.parametrize("entries", [True, False])
+def test_the_device_runs_no_pass_the_pass_before_already_did(runs, entries):
+    """Conduction every step with two launches, 4 steps a call: a call's first sweep starts from
+    a temperature pass (θ not valid: the first call) or a start phase taking back the last
+    call's pending update (RESUME); after that the kick before each reverse sweep keeps θ and its
+    start, the reverse row leaves its finish to the forward row after it, whose start it keeps,
+    and the kick after the forward row runs the finish of both: per step the star colours twice,
+    the boundary phase twice, and one finish a call (the last reverse row's, which keeps its
+    update pending). Without baths and sources the reverse row's last colour and the forward
+    row's first run as one phase: 3 colours fewer in 4 steps (docs/gpu.md)."""
+    counts = runs["phase-launches" if entries else "phase-launches-bare"]
     for (temperature, start, colours, boundary, finish, n_colours), (want_temperature, want_start) in zip(
-            runs["phase-launches"], ((1, 0), (0, 1))):
+            counts, ((1, 0), (0, 1))):
+        assert n_colours > 1
         assert (temperature, start) == (want_temperature, want_start)
-        assert colours == 2 * n_colours * 4 and boundary == 2 * 4 and finish == 4
+        assert colours == 2 * n_colours * 4 - (0 if entries else 3)
+        assert boundary == (2 * 4 if entries else 0) and finish == 1
 
 
 @pytest.mark.parametrize("name", list(BLOWUPS))
@@ -386,11 +412,12 @@ def test_fused_kernel_with_heat_rows_compiles_for_h100_but_for_its_grid_barriers
 
 @pytest.mark.gpu
 @pytest.mark.skipif(not gpu_available(), reason="needs a CUDA GPU")
-@pytest.mark.parametrize("make", [conduction_sim, waves_sim], ids=["conduction", "waves"])
+@pytest.mark.parametrize("make", [conduction_sim, bare_conduction_sim, waves_sim], ids=["conduction", "bare", "waves"])
 def test_gpu_heat_flow_equals_cpu_and_launch_modes_agree(make):
     """On a GPU: CPU to 1e-10 after 40 steps (fused multiply-adds), the fused launch equal to two
     launches per stage bit for bit, cut into calls or not; every launch after a kernel's first
-    took the launcher's fast path (its arguments kept their types)."""
+    took the launcher's fast path (its arguments kept their types). ``bare``: no baths or
+    sources (the meeting colours of a cycle boundary as one phase)."""
     net = small_net((4, 4, 4), 18, seed=2)
     states = {}
     for backend, fused, chunks in (("cpu", True, (40,)), ("cuda", False, (40,)), ("cuda", True, (40,)),
@@ -409,8 +436,8 @@ def test_gpu_heat_flow_equals_cpu_and_launch_modes_agree(make):
         assert _close(getattr(cpu, field), getattr(reference, field), 1e-10), field
     for name in LOGS:
         x, y = cpu.extra["heat"][name], reference.extra["heat"][name]
-        if name == "theta_ok":  # valid on both (2 on the CPU: a call ended with a reverse sweep)
-            assert (x[0] >= 1.0) == (y[0] >= 1.0), name
+        if name == "theta_ok":  # 2 on both where a call ended with a reverse sweep, its update pending
+            assert x[0] == y[0], name
         else:
             assert _close(x, y, 1e-10), name
     for state in states.values():

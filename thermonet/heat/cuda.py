@@ -60,12 +60,16 @@ WAVES = False
 UNIFORM = False
 
 #: the record's logs (kept in the state) and working arrays, after its static fields
-LOGS = ("produced", "entry_heat", "entry_flux", "theta", "theta_ok", "length")
-#: logs only the CPU's explicit kernel uses (empty on the device)
-CPU_LOGS = ("pending_eta", "pending_produced", "pending_theta")
+LOGS = ("produced", "entry_heat", "entry_flux", "theta", "theta_ok", "length", "pending_eta", "pending_produced",
+        "pending_theta")
 WORK = ("s_before", "theta_start", "strain")
 #: what a phase runs over (see _phase_span)
 PAIRS, BLOCKS, BOUNDARY, START, FINISH = range(5)
+#: how a phase runs (:func:`_sweep_phase`'s ``mode``, see :func:`conduction_plan`): PLAIN; SAVE, a
+#: reverse row's finish that ends a call first keeps each spring's η, production log and start
+#: θ as pending (``theta_ok`` 2); RESUME, a forward row's start phase takes them back instead of
+#: θ as the start; JOINED, a colour phase runs each block in reverse, then forward
+PLAIN, SAVE, RESUME, JOINED = 0, 1, 2, 4
 #: the arrays of DeviceHeat.kept, by position
 KEPT_THETA, KEPT_LENGTH, KEPT_START, KEPT_CAPACITY, KEPT_PRODUCED = range(5)
 
@@ -121,10 +125,11 @@ def _phase_elements(code, phase, heat):
     return hi - lo
 
 
-def _sweep_phase(code, phase, heat, tau, t, phi, eta, first, stride):
+def _sweep_phase(code, phase, heat, tau, t, phi, eta, first, stride, mode):
     """The elements first, first + stride, ... of phase ``phase`` of heat row ``code`` at time
     t, the row over τ (a conduction row's half sweeps each over τ / heat.sweeps[0]; conduction
-    on heat.theta; see the module docstring). phi, eta: (m,)."""
+    on heat.theta; see the module docstring), run as ``mode`` says (PLAIN, SAVE, RESUME,
+    JOINED). phi, eta: (m,)."""
     sweeps = heat.sweeps[0]
     kind, lo, hi, reverse = phase_span(code, phase, heat.colour_ptr, heat.star_colour_ptr,
                                        heat.bound_spring.shape[0], heat.capacity.shape[0], sweeps)
@@ -132,20 +137,95 @@ def _sweep_phase(code, phase, heat, tau, t, phi, eta, first, stride):
         for k in range(lo + first, hi, stride):
             wave_exchange(k, heat.first, heat.second, heat.wave, tau, phi, eta)
     elif CONDUCTION and kind == BLOCKS:
+        joined = mode == JOINED
         for b in range(lo + first, hi, stride):
-            star_block(b, heat, reverse, heat.theta)
+            if joined:  # the reverse half's last colour, then the forward half's first
+                star_block(b, heat, True, heat.theta)
+            star_block(b, heat, reverse and not joined, heat.theta)
     elif CONDUCTION and kind == BOUNDARY:
         logs = (heat.produced, heat.entry_heat, heat.entry_flux)
         for j in range(lo + first, hi, stride):
             boundary_exchange(j, heat, tau / sweeps, t, reverse, heat.theta, logs)
     elif CONDUCTION and kind == START:
         for e in range(lo + first, hi, stride):
-            heat.theta_start[e] = heat.theta[e]
+            if mode == RESUME:  # the last call's reverse half sweep: its entropy update continues
+                heat.theta_start[e] = heat.pending_theta[e]
+                eta[e] = heat.pending_eta[e]
+                heat.produced[e] = heat.pending_produced[e]
+            else:
+                heat.theta_start[e] = heat.theta[e]
     elif CONDUCTION:
         for e in range(lo + first, hi, stride):
+            if mode == SAVE:
+                heat.pending_theta[e] = heat.theta_start[e]
+                heat.pending_eta[e] = eta[e]
+                heat.pending_produced[e] = heat.produced[e]
             finish_spring(e, heat.theta, heat.theta_start, eta, heat.capacity, heat.produced)
             if code == CONDUCTION_REVERSE:  # the forward row that follows starts from this θ
                 heat.theta_start[e] = heat.theta[e]
+
+
+def joined_boundary(table):
+    """Whether the reverse row ending a conduction cycle and the forward row starting the next
+    meet with nothing between them but a deferred closing kick's node pass: a table
+    ``[CF, stages…, CR]`` whose closing kick is deferred (:func:`deferred_closing`). Then, as the
+    CPU's kernel runs a cycle boundary, the two rows are one exchange: the springs' entropy
+    update covers both half sweeps (the reverse row's finish is left out, the forward row keeps
+    its start θ: one ``η += C ln(θ'/θ)`` instead of two), the meeting colours run as one phase
+    (:func:`colours_meet`), and a call that ends between them keeps the pending update for the
+    next call (SAVE, RESUME), so the bits do not depend on where calls end."""
+    code = table.code
+    n = code.shape[0]
+    return (n >= 3 and code[0] == CONDUCTION_FORWARD and code[1] == STAGE and code[n - 1] == CONDUCTION_REVERSE
+            and deferred_closing(table) == n - 2)
+
+
+def colours_meet(heat):
+    """Whether, at a joined boundary, the reverse half sweep's last colour and the forward one's
+    first (the same colour) run as one phase, each block in reverse then forward: one half sweep
+    a side (``sweeps`` 1), no baths or sources between them, more than one colour."""
+    return heat.sweeps[0] == 1 and heat.bound_spring.shape[0] == 0 and heat.star_colour_ptr.shape[0] > 2
+
+
+def conduction_plan(code, count, n_colours, meet, start_kept, finish_pending, joined, follows, resume):
+    """Which of the ``count`` phases of due conduction row ``code`` run, and how: (lo, hi, skip,
+    together, start_mode, finish_mode) — phases lo … hi − 1 but ``skip``, phase ``together``
+    JOINED, the start phase (0) as ``start_mode``, the finish as ``finish_mode``. ``n_colours``:
+    the star colours; ``meet``: :func:`colours_meet`. ``start_kept``: the pass
+    before wrote θ as the start (:func:`first_phase`); ``finish_pending``: the spring pass after
+    it finishes (:func:`finish_deferred`); at a joined boundary (:func:`joined_boundary`):
+    ``joined``, a forward row right after the reverse row that left it its update; ``follows``,
+    a reverse row whose forward row follows in this call (else it ends the call: SAVE);
+    ``resume``, a forward row at a call's start after a call that saved (RESUME)."""
+    lo = first_phase(code, start_kept)
+    hi = count - (1 if finish_pending else 0)
+    skip = -1
+    together = -1
+    start_mode = PLAIN
+    finish_mode = PLAIN
+    if code == CONDUCTION_REVERSE:
+        if follows:
+            hi = count - 1
+            if meet:
+                skip = n_colours  # its last colour (the forward row's first)
+        else:
+            finish_mode = SAVE
+    elif joined:
+        lo = 1  # theta_start is still the reverse row's start
+        if meet:
+            together = 2  # (phase 1 is its boundary entries, none here)
+    elif resume and lo == 0:
+        start_mode = RESUME
+    return lo, hi, skip, together, start_mode, finish_mode
+
+
+def phase_mode(phase, count, together, start_mode, finish_mode):
+    """The mode of phase ``phase`` of a conduction row of ``count`` phases (see :func:`conduction_plan`)."""
+    if phase == together:
+        return JOINED
+    if phase == 0:
+        return start_mode
+    return finish_mode if phase == count - 1 else PLAIN
 
 
 def _temperature_update(e, x, eta, edges, springs, heat):
@@ -181,6 +261,36 @@ def finish_deferred(table, r):
     return code[r] == CONDUCTION_FORWARD and r + 1 < code.shape[0] and code[r + 1] == STAGE and table.kick[r + 1] != 0.0
 
 
+def deferred_closing(table):
+    """The row of the closing kick the GPU defers past a step boundary's conduction rows, or −1.
+
+    A table with conduction rows at both ends of the step (``[CF, stages…, CR]``, no carry: the
+    sweeps stand between one step's last kick and the next one's first) ends each step with a
+    kick without drift. Where no sweep is due at a boundary (k > 1), that kick and the next
+    step's first act at the same positions and entropies: they run as one stage of two kicks
+    (two additions, as the carry of a table without heat rows). Where a sweep is due, the closing
+    kick's spring pass runs before it (its forces into ``heat.s_before``, θ and l kept for the
+    sweep) and its node pass joins the next stage's (:func:`thermonet.explicit.cuda.kernels._kick_split`):
+    the same operations on the same operands as two stages, one node pass fewer. A call's last
+    closing kick runs at its end. This is that row: the table's last stage, with a kick and no
+    drift, every row after it and before the first stage a conduction row; −1 for any other table.
+    """
+    code = table.code
+    first = -1
+    last = -1
+    for r in range(code.shape[0]):
+        if code[r] == STAGE:
+            if first < 0:
+                first = r
+            last = r
+    if last <= first or table.drift[last] != 0.0 or table.kick[last] == 0.0 or table.carry != 0.0:
+        return -1
+    for r in range(code.shape[0]):
+        if (r < first or r > last) and code[r] != CONDUCTION_FORWARD and code[r] != CONDUCTION_REVERSE:
+            return -1
+    return last
+
+
 def _sweep_follows(table, r, every, step_in_cycle):
     """Whether row r + 1 of the stage table is a conduction row due on this step (step
     ``step_in_cycle`` of a cycle of ``every`` steps): then the spring pass of row r, if its
@@ -202,10 +312,10 @@ def first_phase(code, start_kept):
     return 1 if code != THERMAL_WAVES and start_kept else 0
 
 
-def _sweep_kernel(code, phase, heat, tau, t, phi, eta, flag):
+def _sweep_kernel(code, phase, heat, tau, t, phi, eta, flag, mode):
     """Thread i: element i of the phase (see :func:`_sweep_phase`), unless the call stopped."""
     if flag[FLAG_SET] == 0:
-        sweep_phase(code, phase, heat, tau, t, phi, eta, cuda.grid(1), cuda.gridsize(1))
+        sweep_phase(code, phase, heat, tau, t, phi, eta, cuda.grid(1), cuda.gridsize(1), mode)
 
 
 def _temperature_kernel(x, eta, edges, springs, heat, flag):
@@ -234,7 +344,9 @@ def bind_device_heat(ns: dict, tag: str, inline) -> None:
                            ("temperature_update", _temperature_update), ("conduction_due", _conduction_due),
                            ("keep_temperature", _keep_temperature), ("sweep_follows", _sweep_follows),
                            ("first_phase", first_phase), ("finish_before_kick", _finish_before_kick),
-                           ("finish_deferred", finish_deferred)):
+                           ("finish_deferred", finish_deferred), ("deferred_closing", deferred_closing),
+                           ("joined_boundary", joined_boundary), ("colours_meet", colours_meet),
+                           ("conduction_plan", conduction_plan), ("phase_mode", phase_mode)):
         ns[name] = inline(rebind(template, tag, ns))
 
 
@@ -268,17 +380,18 @@ class DeviceHeat:
         self.star_colour_ptr = np.asarray(host.star_colour_ptr)
         self.n_bound = int(host.bound_spring.shape[0])
         self.m = int(host.capacity.shape[0])
-        n_static = len(Heat._fields) - len(LOGS) - len(CPU_LOGS) - len(WORK)
-        assert Heat._fields[n_static:] == LOGS + CPU_LOGS + WORK
+        n_static = len(Heat._fields) - len(LOGS) - len(WORK)
+        assert Heat._fields[n_static:] == LOGS + WORK
         self._static = [to_device(np.ascontiguousarray(a)) for a in host[:n_static]]
         self.logs = tuple(to_device(np.ascontiguousarray(getattr(host, k))) for k in LOGS)
-        self._cpu_logs = tuple(to_device(np.empty(0)) for _ in CPU_LOGS)
         self._work = tuple(to_device(np.zeros_like(getattr(host, k))) for k in WORK)
         #: (theta, length, theta_start, capacity, produced), positions KEPT_*: what a spring pass
         #: reads and writes when it keeps θ and l for the sweep after it or finishes the one before
         capacity = self._static[Heat._fields.index("capacity")]
         self.kept = (self.logs[LOGS.index("theta")], self.logs[LOGS.index("length")],
                      self._work[WORK.index("theta_start")], capacity, self.logs[LOGS.index("produced")])
+        #: (m,) T/l of a deferred closing kick, computed before the sweep (see deferred_closing)
+        self.s_before = self._work[WORK.index("s_before")]
         self._factor = (None, None)  # ((τ, j), device weight, decay, node scale, sweeps, bath decays)
 
     def record(self, h: float, every: int = 1, sweeps: int = 1) -> Heat:
@@ -294,7 +407,7 @@ class DeviceHeat:
             for name, value in zip(("weight", "decay", "factor_mask", "node_scale", "sweeps", "entry_decay"),
                                    self._factor[1]):
                 static[Heat._fields.index(name)] = value
-        return Heat(*static, *self.logs, *self._cpu_logs, *self._work)
+        return Heat(*static, *self.logs, *self._work)
 
     def upload(self, state) -> None:
         """The logs of ``state`` onto the device."""
@@ -318,12 +431,17 @@ class DeviceHeat:
             if source.size:
                 source.copy_to_host(logs[name])
 
-    def theta_ok(self) -> bool:
-        """Whether heat.theta holds the springs' temperatures where the last call ended."""
-        return self.setup is not None and bool(self.logs[LOGS.index("theta_ok")].copy_to_host()[0] >= 1.0)
+    def theta_ok(self) -> float:
+        """0: heat.theta is not valid; 1: it holds the springs' temperatures where the last call
+        ended; 2: and that call ended with a reverse row that kept its update pending (SAVE)."""
+        return float(self.logs[LOGS.index("theta_ok")].copy_to_host()[0]) if self.setup is not None else 0.0
 
-    def set_theta_ok(self, valid: bool) -> None:
-        self.logs[LOGS.index("theta_ok")].copy_to_device(np.array([1.0 if valid else 0.0]))
+    def set_theta_ok(self, value: float) -> None:
+        self.logs[LOGS.index("theta_ok")].copy_to_device(np.array([float(value)]))
+
+    def colours_meet(self, sweeps: int) -> bool:
+        """:func:`colours_meet` of the record with ``sweeps`` sub-sweeps, on the host."""
+        return sweeps == 1 and self.n_bound == 0 and len(self.star_colour_ptr) > 2
 
     def phases(self, code: int, sweeps: int = 1):
         """(phase, number of elements) of heat row ``code`` with ``sweeps`` sub-sweeps, in order
@@ -355,7 +473,7 @@ def compile_heat_ptx(model, uniform: bool = True, cc=(9, 0)) -> dict[str, str]:
     heat = sample_heat()
     springs = records.Springs(v, np.empty((len(model.parameters), 1)))
     flag = np.zeros(4, np.int64)
-    samples = {"sweep": (_sweep_kernel, (-2, 0, heat, 1.0, 0.0, v, v, flag)),
+    samples = {"sweep": (_sweep_kernel, (-2, 0, heat, 1.0, 0.0, v, v, flag, 0)),
                "temperature": (_temperature_kernel, (x, v, np.empty((1, 2), np.uint32), springs, heat, flag))}
     out = {}
     for name, (template, args) in samples.items():

@@ -55,7 +55,8 @@ gather_force = kick_momentum = drift_position = load_row = store_row = update = 
 flow_update_0 = flow_update_1 = flow_update_2 = flow_update_3 = None
 # --- heat flow (thermonet.heat.cuda): compiled in only with CONDUCTION / WAVES ---
 sweep_phase = temperature_update = phase_count = conduction_due = keep_temperature = sweep_follows = first_phase = None
-finish_before_kick = finish_deferred = phase_elements = None
+finish_before_kick = finish_deferred = phase_elements = deferred_closing = None
+joined_boundary = conduction_plan = phase_mode = colours_meet = None
 CONDUCTION = False
 WAVES = False
 # --- end heat flow ---
@@ -216,9 +217,12 @@ def _bind_no_heat(ns: dict, inline) -> None:
     ns["first_phase"] = inline(_no_first_phase)
     ns["finish_before_kick"], ns["finish_deferred"] = inline(_no_finish), inline(_no_deferred)
     ns["phase_elements"] = inline(_no_elements)
+    ns["deferred_closing"] = inline(_no_closing)
+    ns["joined_boundary"], ns["conduction_plan"] = inline(_no_joined), inline(_no_plan)
+    ns["phase_mode"], ns["colours_meet"] = inline(_no_mode), inline(_no_joined)
 
 
-def _no_sweep(code, phase, heat, tau, t, phi, eta, first, stride):
+def _no_sweep(code, phase, heat, tau, t, phi, eta, first, stride, mode):
     """No heat flow compiled in."""
     return None
 
@@ -263,6 +267,26 @@ def _no_deferred(table, r):
     return False
 
 
+def _no_joined(table):
+    """No heat flow compiled in."""
+    return False
+
+
+def _no_plan(code, count, n_colours, meet, start_kept, finish_pending, joined, follows, resume):
+    """No heat flow compiled in."""
+    return 0, 0, -1, -1, 0, 0
+
+
+def _no_mode(phase, count, together, start_mode, finish_mode):
+    """No heat flow compiled in."""
+    return 0
+
+
+def _no_closing(table):
+    """No heat flow compiled in: no closing kick is deferred."""
+    return -1
+
+
 def _no_elements(code, phase, heat):
     """No heat flow compiled in."""
     return 0
@@ -282,12 +306,12 @@ def _spring_kernel(x, eta, phi, springs, edges, s, steps, run, flag, where, kept
             _raise_flag(flag, where)
 
 
-def _node_kernel(x, x_new, p, s, topology, nodes, steps, flag, loads):
+def _node_kernel(x, x_new, p, s, topology, nodes, steps, flag, loads, s_first):
     """Thread a: :func:`_node_update` of node a, unless the call already stopped (``flag``);
-    steps: (kick1 h, kick2 h, drift h, with_force); loads: a LoadArrays record with LOADS."""
+    steps: (kick1 h, kick2 h, drift h, with_force, split); loads: a LoadArrays record with LOADS."""
     a = cuda.grid(1)
     if a < x.shape[0] and flag[FLAG_SET] == 0:
-        _node_update(a, x, x_new, p, s, topology, nodes, steps, loads)
+        _node_update(a, x, x_new, p, s, topology, nodes, steps, loads, s_first)
 
 
 def _flow_kernel(data, tau, t, x, p, phi, eta, flag):
@@ -303,8 +327,8 @@ def _steps_kernel(state, x_buf, s, topology, springs, nodes, table, flows, run, 
     over grid-stride loops, separated by grid-wide barriers, in the order and with the
     coefficients of :meth:`~thermonet.explicit.cuda.stepper.CudaSplittingStepper.advance`'s two-launch
     path (the same per-spring and per-node updates, so the same numbers), and the call's closing
-    kick. Positions alternate between ``state.x`` and ``x_buf`` stage by stage; the caller counts
-    the stages to know which holds the result. A spring outside the admissible states stops the
+    kick. Positions alternate between ``state.x`` and ``x_buf`` node pass by node pass; the caller
+    counts them to know which holds the result (:meth:`~thermonet.explicit.cuda.stepper.CudaSplittingStepper.node_passes`). A spring outside the admissible states stops the
     launch after its spring pass, with ``flag`` saying where. flows: (the extra sub-flows' data,
     the :class:`~thermonet.kernels.records.Heat` record); heat rows run their phases
     (:mod:`thermonet.heat.cuda`) between barriers.
@@ -327,10 +351,25 @@ def _steps_kernel(state, x_buf, s, topology, springs, nodes, table, flows, run, 
     edges = topology.edges
     pending = 0.0
     parity = 0
+    # the closing kick deferred past the step boundary (thermonet.heat.cuda.deferred_closing): its
+    # coefficient, and whether its forces were computed before a sweep (into heat.s_before)
+    closing = deferred_closing(table) if CONDUCTION else -1
+    deferred = 0.0
+    split = False
+    # a cycle boundary's two rows as one exchange (thermonet.heat.cuda.joined_boundary): joined,
+    # the reverse row left its update to the forward row; saved, the call ended with it pending;
+    # resume, the last call did and this one continues it
+    joined_layout = CONDUCTION and joined_boundary(table)
+    joined = saved = False
+    resume = joined_layout and heat.theta_ok[0] == 2.0
     for step in range(run.n_steps + 1):
         for r in range(n_rows):
             xs = x if parity == 0 else x_buf
             xn = x_buf if parity == 0 else x
+            row = r  # where a bad spring is reported (0: at the previous step's end positions)
+            s_first = s
+            split_kick = False
+            kick_first = 0.0
             if step < run.n_steps:
                 code = table.code[r]
                 if code >= FIRST_FLOW_SLOT:
@@ -358,21 +397,65 @@ def _steps_kernel(state, x_buf, s, topology, springs, nodes, table, flows, run, 
                     t = run.t0 + (step + table.drift[r]) * h
                     tau = table.kick[r] * h * (run.conduction_every if code != THERMAL_WAVES else 1)
                     finish_pending = CONDUCTION and finish_deferred(table, r)
-                    for phase in range(first_phase(code, start_kept),
-                                       phase_count(code, heat.colour_ptr, heat.star_colour_ptr, heat.sweeps[0])
-                                       - (1 if finish_pending else 0)):
-                        if phase_elements(code, phase, heat) > 0:
-                            sweep_phase(code, phase, heat, tau, t, phi, eta, first, stride)
+                    count = phase_count(code, heat.colour_ptr, heat.star_colour_ptr, heat.sweeps[0])
+                    lo, hi, skip, together, start_mode, finish_mode = 0, count, -1, -1, 0, 0
+                    if CONDUCTION and code != THERMAL_WAVES:
+                        follows = joined_layout and step + 1 < run.n_steps
+                        lo, hi, skip, together, start_mode, finish_mode = conduction_plan(
+                            code, count, heat.star_colour_ptr.shape[0] - 1, colours_meet(heat), start_kept,
+                            finish_pending, joined, follows, resume)
+                        joined = joined_layout and code == CONDUCTION_REVERSE and follows
+                        saved = joined_layout and code == CONDUCTION_REVERSE and not follows
+                        resume = False
+                    for phase in range(lo, hi):
+                        if phase != skip and phase_elements(code, phase, heat) > 0:
+                            sweep_phase(code, phase, heat, tau, t, phi, eta, first, stride,
+                                        phase_mode(phase, count, together, start_mode, finish_mode))
                             grid.sync()
-                    start_kept = code == CONDUCTION_REVERSE  # its finish kept θ as the start
+                    start_kept = code == CONDUCTION_REVERSE  # its finish kept θ as the start (or, joined, its start)
                     continue
                 k1 = pending if r == 0 else 0.0
                 k2 = table.kick[r]
                 d = table.drift[r]
+                if r == closing:  # deferred: a spring pass now if a sweep follows, the rest later
+                    deferred = k2
+                    split = sweep_follows(table, r, run.conduction_every,
+                                          (run.cycle_step + step) % run.conduction_every)
+                    if split:
+                        for e in range(first, edges.shape[0], stride):
+                            if _spring_update(e, xs, eta, phi, springs, edges, heat.s_before, (0.0, k2 * h), run, kept,
+                                              True, False):
+                                _raise_flag(flag, (step, r, parity))
+                        grid.sync()
+                        if flag[FLAG_SET] != 0:
+                            return
+                        theta_valid = start_kept = True
+                    continue
+                if deferred != 0.0:  # the first stage after a deferred closing kick
+                    if split:  # the node pass kicks with heat.s_before's forces first
+                        s_first = heat.s_before
+                        split_kick = True
+                        kick_first = deferred
+                    else:
+                        k1 = deferred
+                        row = 0
+                    deferred = 0.0
             elif r == 0 and pending != 0.0:  # after the last step: its closing kick
                 k1 = 0.0
                 k2 = pending
                 d = 0.0
+            elif r == 0 and deferred != 0.0:  # after the last step: its deferred closing kick
+                k1 = 0.0
+                k2 = deferred
+                d = 0.0
+                row = n_rows
+                if split:  # its forces are in heat.s_before: only the node pass is left
+                    for a in range(first, xs.shape[0], stride):
+                        _node_update(a, xs, xn, p, heat.s_before, topology, nodes, (0.0, k2 * h, 0.0, True, False),
+                                     nodes, s)
+                    grid.sync()
+                    parity = 1 - parity
+                    break
             else:
                 break
             with_force = k1 != 0.0 or k2 != 0.0
@@ -386,17 +469,19 @@ def _steps_kernel(state, x_buf, s, topology, springs, nodes, table, flows, run, 
             if with_force:
                 for e in range(first, edges.shape[0], stride):
                     if _spring_update(e, xs, eta, phi, springs, edges, s, (k1 * h, k2 * h), run, kept, keep, finish):
-                        _raise_flag(flag, (step, r if step < run.n_steps else n_rows, parity))
+                        _raise_flag(flag, (step, row if step < run.n_steps else n_rows, parity))
                 grid.sync()
                 if flag[FLAG_SET] != 0:
                     return
             for a in range(first, xs.shape[0], stride):
-                _node_update(a, xs, xn, p, s, topology, nodes, (k1 * h, k2 * h, d * h, with_force), nodes)
+                _node_update(a, xs, xn, p, s, topology, nodes,
+                             ((kick_first if split_kick else k1) * h, k2 * h, d * h, with_force, split_kick), nodes,
+                             s_first)
             grid.sync()
             parity = 1 - parity
         pending = table.carry
     if CONDUCTION and first == 0:
-        heat.theta_ok[0] = 1.0 if theta_valid else 0.0
+        heat.theta_ok[0] = (2.0 if saved else 1.0) if theta_valid else 0.0
 
 
 def _flow_grid(slot, effects, tau, t, x, p, phi, eta, first, stride):
@@ -452,16 +537,21 @@ def _spring_update(e, x, eta, phi, springs, edges, s, steps, run, kept, keep, fi
     return outside_admissible(l, rest, force, theta, run.stretch_min, run.stretch_max)
 
 
-def _node_update(a, x, x_new, p, s, topology, nodes, steps, loads):
+def _node_update(a, x, x_new, p, s, topology, nodes, steps, loads, s_first):
     """Node a: f = Σ s_e (x_b − x_a) (+ m g) (+ its load, with LOADS); p += kick1 f; p += kick2 f;
-    x_new = x + drift p/m, steps = (kick1, kick2, drift, with_force). x, x_new, p: (n, 3).
-    The fused kernel, never compiled with LOADS, passes a placeholder for ``loads``."""
+    x_new = x + drift p/m, steps = (kick1, kick2, drift, with_force, split); with ``split`` (heat
+    flow, never with LOADS) kick1's force is the one of T/l ``s_first`` (:func:`_kick_split`).
+    x, x_new, p: (n, 3); s, s_first: (m,). The fused kernel, never compiled with LOADS, passes a
+    placeholder for ``loads``."""
     xa0, xa1, xa2 = load_row(x, a)
     if nodes.anchored[a]:
         store_row(x_new, a, xa0, xa1, xa2)
         return
     p0, p1, p2 = load_row(p, a)
-    if steps[3]:
+    if CONDUCTION and steps[4]:
+        p0, p1, p2 = _kick_split(a, x, xa0, xa1, xa2, p0, p1, p2, s_first, s, topology, nodes, steps[0], steps[1])
+        store_row(p, a, p0, p1, p2)
+    elif steps[3]:
         f0, f1, f2 = gather_force(a, x, s, topology.inc_ptr, topology.inc_spring, topology.inc_other, nodes.masses,
                                   nodes.gravity, nodes.with_gravity)
         if LOADS:
@@ -470,6 +560,50 @@ def _node_update(a, x, x_new, p, s, topology, nodes, steps, loads):
         p0, p1, p2 = kick_momentum(p0, p1, p2, f0, f1, f2, steps[0], steps[1])
         store_row(p, a, p0, p1, p2)
     drift_position(x_new, a, xa0, xa1, xa2, p0, p1, p2, steps[2] * nodes.inv_mass[a])
+
+
+def _kick_split(a, x, xa0, xa1, xa2, p0, p1, p2, s_first, s, topology, nodes, kick1, kick2):
+    """Node a's momentum after two kicks at the same positions x with different forces: kick1
+    with T/l ``s_first`` (a closing kick's, computed before the conduction sweep between them:
+    :func:`thermonet.heat.cuda.deferred_closing`), then kick2 with ``s``: the operations of two
+    :func:`_node_update` s on the same operands (each force gathered in CSR order, m g added),
+    with one pass over the incidences. Returns (p0, p1, p2)."""
+    inc_ptr = topology.inc_ptr
+    inc_spring = topology.inc_spring
+    inc_other = topology.inc_other
+    g0 = 0.0
+    g1 = 0.0
+    g2 = 0.0
+    f0 = 0.0
+    f1 = 0.0
+    f2 = 0.0
+    for j in range(inc_ptr[a], inc_ptr[a + 1]):
+        ju = np.uint64(j)
+        e = inc_spring[ju]
+        b = inc_other[ju]
+        d0 = x[b, 0] - xa0
+        d1 = x[b, 1] - xa1
+        d2 = x[b, 2] - xa2
+        before = s_first[e]
+        after = s[e]
+        g0 += before * d0
+        g1 += before * d1
+        g2 += before * d2
+        f0 += after * d0
+        f1 += after * d1
+        f2 += after * d2
+    if nodes.with_gravity:
+        m = nodes.masses[a]
+        g0 += m * nodes.gravity[0]
+        g1 += m * nodes.gravity[1]
+        g2 += m * nodes.gravity[2]
+        f0 += m * nodes.gravity[0]
+        f1 += m * nodes.gravity[1]
+        f2 += m * nodes.gravity[2]
+    p0 = p0 + kick1 * g0
+    p1 = p1 + kick1 * g1
+    p2 = p2 + kick1 * g2
+    return p0 + kick2 * f0, p1 + kick2 * f1, p2 + kick2 * f2
 
 
 # ----------------------------------------------------------------------------------------------
@@ -583,7 +717,8 @@ def _combine(op, a, b):
 
 
 #: device functions the kernels share, bound per model before the kernels (callers after callees)
-_SHARED = (("_spring_length", _spring_length), ("_spring_update", _spring_update), ("_node_update", _node_update),
+_SHARED = (("_spring_length", _spring_length), ("_spring_update", _spring_update), ("_kick_split", _kick_split),
+           ("_node_update", _node_update),
            ("_raise_flag", _raise_flag), ("_flow_grid", _flow_grid))
 
 
@@ -613,7 +748,7 @@ def compile_ptx(model, thermal: bool = True, uniform: bool = False, cc=(9, 0)) -
     samples = {
         "spring": (_spring_kernel, (x, v, v, springs, topology.edges, v, (1.0, 1.0), run, flag, (0, 0, 0),
                                     (v, v, v, v, v), False, False)),
-        "node": (_node_kernel, (x, x, x, v, topology, nodes, (1.0, 1.0, 1.0, True), flag, nodes)),
+        "node": (_node_kernel, (x, x, x, v, topology, nodes, (1.0, 1.0, 1.0, True, False), flag, nodes, v)),
         "spring_sums": (_spring_sums_kernel, (x, v, v, springs.P, topology.edges, x)),
         "node_sums": (_node_sums_kernel, (x, x, v, nodes.anchored, v, v, x)),
         "finish": (_finish_kernel, (x, np.empty(1, np.int32), v)),

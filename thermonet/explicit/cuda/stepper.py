@@ -61,7 +61,7 @@ class CudaSplittingStepper(Stepper):
         require_cuda()
         from numba import cuda
 
-        from ...heat.cuda import DeviceHeat
+        from ...heat.cuda import DeviceHeat, deferred_closing
         from .kernels import NODE_OPS, SPRING_OPS, cuda_kernels
 
         self.integrator = integrator
@@ -82,6 +82,9 @@ class CudaSplittingStepper(Stepper):
         self._heat = DeviceHeat(system.heat if (conduction or waves) else None, integrator, dev)
         self._cycle = (1, 0, 1)  # (k, steps of the cycle made, sub-sweeps j) at the call's start
         self._k = cuda_kernels(system.model, system.thermal, uniform, flows, conduction, waves, self.loads is not None)
+        # the closing kick deferred past the step boundary's conduction rows (not with loads, whose
+        # work is accounted stage by stage): see thermonet.heat.cuda.deferred_closing
+        self._closing = deferred_closing(table) if conduction and self.loads is None else -1
         self._table = records_to_device(table, dev)
         self._rows = [(int(c), float(k), float(d)) for c, k, d in zip(table.code, table.kick, table.drift)]
         self._host_table = table  # (the heat rows' tests, asked on the host: finish_deferred, _sweep_follows)
@@ -154,19 +157,24 @@ class CudaSplittingStepper(Stepper):
     # stepping
 
     def _stage(self, k1: float, k2: float, drift: float, with_force: bool, run, where, keep: bool = False,
-               finish: bool = False) -> None:
+               finish: bool = False, kick_first: float | None = None, spring_pass: bool = True) -> None:
         """One stage: the spring pass (with ``finish``, first ending the forward conduction
         sweep before it; with ``keep``, keeping θ and l for the sweep after it), the node pass,
-        the loads' pass."""
+        the loads' pass. ``kick_first``: the node pass first kicks by it with the forces in
+        ``heat.s_before`` (a deferred closing kick's); ``spring_pass`` False: only the node pass,
+        kicking by k2 with those forces (a call's last deferred closing kick)."""
         k = self._k
         n, m = self.system.n_nodes, self.system.n_springs
-        if with_force and m > 0:
+        if with_force and m > 0 and spring_pass:
             self._launch(k.spring, k.blocks(m), k.threads, self._x, self._eta, self._phi, self._springs,
                          self._topology.edges, self._s, (k1, k2), run, self._flag, where, self._heat.kept, keep,
                          finish)
+        split = kick_first is not None
+        s = self._s if spring_pass else self._heat.s_before
         if n > 0:
-            self._launch(k.node, k.blocks(n), k.threads, self._x, self._x_buf, self._p, self._s, self._topology,
-                         self._nodes, (k1, k2, drift, with_force), self._flag, self._loads)
+            self._launch(k.node, k.blocks(n), k.threads, self._x, self._x_buf, self._p, s, self._topology,
+                         self._nodes, (kick_first if split else k1, k2, drift, with_force, split), self._flag,
+                         self._loads, self._heat.s_before if split else s)
         if self.loads is not None and (with_force or drift != 0.0):  # loads: work, then the drive at t_after
             self._launch(k.load_stage, 1, len(self.loads.arrays.work), self._x, self._x_buf, self._s, self._topology,
                          self._nodes, self._loads, (k1, k2, with_force, drift != 0.0), self._t_after)
@@ -204,7 +212,7 @@ class CudaSplittingStepper(Stepper):
     def _steps(self, t0: float, n_steps: int, h: float):
         """n_steps steps from time t0 on the device state; None, or where a launch stopped:
         (flag, steps completed before its launch sequence, positions buffer at that start)."""
-        from ...heat.cuda import _conduction_due, _sweep_follows, finish_deferred  # (the rows' own tests)
+        from ...heat.cuda import _conduction_due, _sweep_follows, finish_deferred, joined_boundary  # (the rows' own tests)
 
         lo, hi = self.system.stretch_bounds
         every, at, sweeps = self._cycle
@@ -223,12 +231,17 @@ class CudaSplittingStepper(Stepper):
             return None
         x_start = self._x
         pending = 0.0
-        stages = 0
+        stages = 0  # node passes made (which position buffer holds the current positions)
         heat = self._heat.record(h, every, sweeps) if self._heat.setup is not None else None
-        theta_valid = heat is not None and self._heat.theta_ok()
+        theta_ok = self._heat.theta_ok() if heat is not None else 0.0
+        theta_valid = theta_ok >= 1.0
         start_kept = finish = False  # as in _steps_kernel
+        joined_layout = self._closing >= 0 and bool(joined_boundary(self._host_table))
+        joined = saved = False
+        resume = joined_layout and theta_ok == 2.0
         conduction = heat is not None and self._heat.setup.conduction
         clock = self._load_clock(h)  # loads
+        deferred, split = 0.0, False  # a deferred closing kick (see _steps_kernel)
         for step in range(n_steps):
             t_step = t0 + step * h
             for r, (code, kick, drift) in enumerate(self._rows):
@@ -242,36 +255,63 @@ class CudaSplittingStepper(Stepper):
                         theta_valid = start_kept = False
                     elif _conduction_due(code, every, (at + step) % every):
                         finish = bool(finish_deferred(self._host_table, r))
+                        follows = joined_layout and step + 1 < n_steps
                         self._heat_row(heat, code, kick * every * h, t_step + drift * h, theta_valid, start_kept,
-                                       finish)
-                        theta_valid, start_kept = True, code == CONDUCTION_REVERSE
+                                       finish, (joined, follows, resume))
+                        joined = joined_layout and code == CONDUCTION_REVERSE and follows
+                        saved = joined_layout and code == CONDUCTION_REVERSE and not follows
+                        theta_valid, start_kept, resume = True, code == CONDUCTION_REVERSE, False
                     continue
                 if clock is not None:  # loads: the time at the end of this stage's drift
                     self._t_after = clock[0] + ((clock[1] + step) + self._drift_time[r]) * h
                 k1 = pending if r == 0 else 0.0
+                row, kick_first = r, None
+                if r == self._closing:  # deferred: a spring pass now if a sweep follows, the rest later
+                    deferred = kick
+                    split = bool(_sweep_follows(self._host_table, r, every, (at + step) % every))
+                    if split and self.system.n_springs > 0:
+                        self._launch(self._k.spring, self._k.blocks(self.system.n_springs), self._k.threads, self._x,
+                                     self._eta, self._phi, self._springs, self._topology.edges, self._heat.s_before,
+                                     (0.0, kick * h), run, self._flag, (step, r, stages), self._heat.kept, True, False)
+                    if split:
+                        theta_valid = start_kept = True
+                    continue
+                if deferred != 0.0:  # the first stage after a deferred closing kick
+                    if split:
+                        kick_first = deferred * h
+                    else:
+                        k1, row = deferred, 0  # (0: found at the previous step's end positions)
+                    deferred = 0.0
                 with_force = k1 != 0.0 or kick != 0.0
                 keep = conduction and with_force and drift == 0.0 and bool(
                     _sweep_follows(self._host_table, r, every, (at + step) % every))
-                self._stage(k1 * h, kick * h, drift * h, with_force, run, (step, r, stages), keep, finish)
+                self._stage(k1 * h, kick * h, drift * h, with_force, run, (step, row, stages), keep, finish, kick_first)
                 finish = False
                 if with_force or drift != 0.0:
                     theta_valid = start_kept = keep  # see _steps_kernel
                 stages += 1
             pending = self._carry
+        if deferred != 0.0 and not split:  # the call's last closing kick, a stage of its own
+            self._stage(0.0, deferred * h, 0.0, True, run, (n_steps, len(self._rows), stages))
+            theta_valid = False
+        elif deferred != 0.0:  # its forces computed before the sweep: only its node pass is left
+            self._stage(0.0, deferred * h, 0.0, True, run, (n_steps, len(self._rows), stages), spring_pass=False)
         if heat is not None and self._heat.setup.conduction:
-            self._heat.set_theta_ok(theta_valid)
+            self._heat.set_theta_ok((2.0 if saved else 1.0) if theta_valid else 0.0)
         if pending != 0.0:
             self._stage(0.0, pending * h, 0.0, True, run, (n_steps, len(self._rows), stages))
         flag = self._flag.copy_to_host()
         return (flag, 0, x_start) if flag[FLAG_SET] else None
 
     def _heat_row(self, heat, code: int, tau: float, t: float, theta_valid: bool, start_kept: bool,
-                  finish_deferred: bool = False) -> None:
+                  finish_deferred: bool = False, junction=(False, False, False)) -> None:
         """Heat row ``code`` over τ at time t, one launch per phase (:mod:`thermonet.heat.cuda`),
-        after a temperature pass when a conduction sweep has no valid θ; without the start phase
-        when the pass before kept θ as the start (``start_kept``, or after a temperature pass);
-        without the finish phase when the next spring pass runs it (``finish_deferred``)."""
-        from ...heat.cuda import first_phase
+        after a temperature pass when a conduction sweep has no valid θ; the phases
+        :func:`~thermonet.heat.cuda.conduction_plan` names, ``junction`` its (joined, follows,
+        resume): without the start phase when the pass before kept θ as the start
+        (``start_kept``, or after a temperature pass), without the finish phase when the next
+        spring pass runs it (``finish_deferred``)."""
+        from ...heat.cuda import conduction_plan, phase_mode
 
         k = self._k
         m = self.system.n_springs
@@ -281,10 +321,16 @@ class CudaSplittingStepper(Stepper):
                              self._springs, heat, self._flag)
             start_kept = True
         phases = self._heat.phases(code, self._cycle[2])
-        for phase, count in phases[first_phase(code, start_kept):len(phases) - (1 if finish_deferred else 0)]:
-            if count > 0:
+        lo, hi, skip, together, start_mode, finish_mode = 0, len(phases), -1, -1, 0, 0
+        if code != THERMAL_WAVES:
+            lo, hi, skip, together, start_mode, finish_mode = conduction_plan(
+                code, len(phases), len(self._heat.star_colour_ptr) - 1, self._heat.colours_meet(self._cycle[2]),
+                start_kept, finish_deferred, *junction)
+        for phase, count in phases[lo:hi]:
+            if count > 0 and phase != skip:
+                mode = int(phase_mode(phase, len(phases), together, start_mode, finish_mode))
                 self._launch(k.sweep, k.blocks(count), k.threads, code, phase, heat, tau, t, self._phi, self._eta,
-                             self._flag)
+                             self._flag, mode)
 
     def _launch(self, kernel, blocks: int, threads: int, *args) -> None:
         """``kernel[blocks, threads](*args)`` through its :class:`~thermonet.explicit.cuda.launch.Launcher`."""
@@ -316,9 +362,18 @@ class CudaSplittingStepper(Stepper):
         if self._fused_blocks is None:
             self._fused_blocks = self._cooperative_blocks(args)
         self._fused_kernel()[self._fused_blocks, k.threads](*args)
-        stages = run.n_steps * sum(1 for c, _, _ in self._rows if c == -1) + (1 if self._carry != 0.0 else 0)
-        if stages % 2:
+        if self.node_passes(run.n_steps) % 2:
             self._x, self._x_buf = self._x_buf, self._x
+
+    def node_passes(self, n_steps: int) -> int:
+        """Node passes of a call of ``n_steps`` steps (each writes the other position buffer):
+        one per stage, the carry's closing kick, and one fewer per step where the closing kick is
+        deferred (:func:`thermonet.heat.cuda.deferred_closing`: it joins the next step's first
+        stage, the call's last one runs at its end)."""
+        stages = sum(1 for c, _, _ in self._rows if c == -1)
+        if self._closing >= 0:
+            return n_steps * (stages - 1) + 1
+        return n_steps * stages + (1 if self._carry != 0.0 else 0)
 
     def _fused_kernel(self):
         """The fused kernel compiled for this net's size: on nets below :data:`SMALL_NET_SPRINGS`
