@@ -247,6 +247,12 @@ def _keep_temperature(e, l, theta, kept):
     kept[KEPT_START][e] = theta
 
 
+def _kept_length(e, kept):
+    """Spring e's length where the last conduction sweep ran (kept with its θ by the pass before
+    it). kept: :attr:`DeviceHeat.kept`."""
+    return kept[KEPT_LENGTH][e]
+
+
 def _finish_before_kick(e, eta, kept):
     """The finish of the forward sweep before this spring pass (:func:`finish_deferred`),
     spring e's ``η += C ln(θ'/θ)``, before the pass reads η. kept: :attr:`DeviceHeat.kept`."""
@@ -344,6 +350,7 @@ def bind_device_heat(ns: dict, tag: str, inline) -> None:
                            ("temperature_update", _temperature_update), ("conduction_due", _conduction_due),
                            ("keep_temperature", _keep_temperature), ("sweep_follows", _sweep_follows),
                            ("first_phase", first_phase), ("finish_before_kick", _finish_before_kick),
+                           ("kept_length", _kept_length),
                            ("finish_deferred", finish_deferred), ("deferred_closing", deferred_closing),
                            ("joined_boundary", joined_boundary), ("colours_meet", colours_meet),
                            ("conduction_plan", conduction_plan), ("phase_mode", phase_mode)):

@@ -56,7 +56,7 @@ flow_update_0 = flow_update_1 = flow_update_2 = flow_update_3 = None
 # --- heat flow (thermonet.heat.cuda): compiled in only with CONDUCTION / WAVES ---
 sweep_phase = temperature_update = phase_count = conduction_due = keep_temperature = sweep_follows = first_phase = None
 finish_before_kick = finish_deferred = phase_elements = deferred_closing = None
-joined_boundary = conduction_plan = phase_mode = colours_meet = None
+joined_boundary = conduction_plan = phase_mode = colours_meet = kept_length = None
 CONDUCTION = False
 WAVES = False
 # --- end heat flow ---
@@ -220,6 +220,7 @@ def _bind_no_heat(ns: dict, inline) -> None:
     ns["deferred_closing"] = inline(_no_closing)
     ns["joined_boundary"], ns["conduction_plan"] = inline(_no_joined), inline(_no_plan)
     ns["phase_mode"], ns["colours_meet"] = inline(_no_mode), inline(_no_joined)
+    ns["kept_length"] = inline(_no_length)
 
 
 def _no_sweep(code, phase, heat, tau, t, phi, eta, first, stride, mode):
@@ -280,6 +281,11 @@ def _no_plan(code, count, n_colours, meet, start_kept, finish_pending, joined, f
 def _no_mode(phase, count, together, start_mode, finish_mode):
     """No heat flow compiled in."""
     return 0
+
+
+def _no_length(e, kept):
+    """No heat flow compiled in."""
+    return 0.0
 
 
 def _no_closing(table):
@@ -519,13 +525,16 @@ def _spring_update(e, x, eta, phi, springs, edges, s, steps, run, kept, keep, fi
     spring is outside the admissible states. Heat flow (``kept``: the heat record's arrays,
     :attr:`thermonet.heat.cuda.DeviceHeat.kept`): with ``finish``, first the entropy update that
     ends the forward sweep before this stage; with ``keep`` (a stage without drift right before
-    a conduction sweep), θ and l kept for the sweep, in place of a temperature pass.
+    a conduction sweep), θ and l kept for the sweep, in place of a temperature pass. A sweep
+    keeps l with θ (the same function of the same x), so with ``finish`` l is read from there.
 
     x: (n, 3); eta, phi, s: (m,) (eta, phi empty when not THERMAL); edges: (m, 2) uint32.
     """
-    if CONDUCTION and finish:
+    if CONDUCTION and finish:  # at the sweep's positions, whose lengths it kept: x is not read
         finish_before_kick(e, eta, kept)
-    l = _spring_length(x, edges, e)
+        l = kept_length(e, kept)
+    else:
+        l = _spring_length(x, edges, e)
     c = 0 if UNIFORM else e
     rest = springs.rest[e]
     theta, force = spring_force(l, eta[e] if THERMAL else 0.0, rest, springs.P, c)
