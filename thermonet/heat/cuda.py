@@ -22,12 +22,17 @@ after a sweep, and across calls. Where θ is not valid, a temperature pass
 (:func:`_temperature_update`) computes θ(l, η) before the sweep; where the stage right before a
 due sweep does not drift (a kick), its spring pass keeps the θ it computed, and l, instead
 (:func:`_keep_temperature`, the same function of the same l and η, as the CPU reuses that θ).
-The kick after the sweeps evaluates θ(l, η) again where the CPU takes the swept θ and the stored
-length (``refresh_pass``): equal to round-off. Both keep the lengths in ``heat.length``, so the
-logs stay valid for a CPU run continuing from the state, and θ as the sweep's start
-(``theta_start``), as does a reverse row's finish for the forward row right after it: then the
-row skips its start phase (:func:`first_phase`). A call's first sweep without such a pass runs
-it, so the bits do not depend on where calls end.
+The kick after the sweeps evaluates θ(l, η) again, at the stored length, where the CPU takes
+the swept θ (``refresh_pass``): equal to round-off. Both keep the lengths in ``heat.length``, so
+the logs stay valid for a CPU run continuing from the state, and θ as the sweep's start
+(``theta_start``): then the row skips its start phase (:func:`first_phase`). A call's first sweep
+without such a pass runs it, so the bits do not depend on where calls end.
+
+A cycle boundary of a table ``[CF, stages…, CR]`` runs as the CPU's kernel runs it: the closing
+kick is deferred past it (:func:`deferred_closing`), and the reverse and forward rows are one
+exchange with one entropy update and their meeting colours one phase (:func:`joined_boundary`,
+:func:`conduction_plan`); a call that ends between them keeps the update pending in the state's
+``pending_*`` logs, as the CPU does.
 
 :class:`DeviceHeat` keeps the heat record and its logs on the device for the stepper.
 """
