@@ -16,8 +16,9 @@ exchange (the schedule's own cost: a refresh of the forces after the sweeps, the
 second force sum, the entropy update); "sweeps" times the two half sweeps of one step boundary
 alone (``conduction_sweep``, reverse then forward over h/2, on a copy of the state). Also
 reported: the grid-wide phases per step a GPU runs for conduction, with the earlier pairwise
-sweep (2 × (pair colours + 3)) and with node stars (2 × (j (node colours + 1) + 2), divided by
-k). On a part where "auto" takes sub-sweeps (j > 1), the cycle it would take with one sweep per
+sweep (2 × (pair colours + 3)) and with node stars as the GPU runs them (:func:`gpu_phases`:
+2 j node colours a boundary, less one where the two halves' meeting colours run as one phase,
+divided by k). On a part where "auto" takes sub-sweeps (j > 1), the cycle it would take with one sweep per
 boundary runs too, interleaved ("one sweep"). Targets: the whole step ≤ 2× the adiabatic thermal
 step with conduction every step, ≤ 1.25× with "auto" on the parts.
 """
@@ -126,12 +127,17 @@ class Sweeps:
 
 def gpu_phases(net: tn.Net, sim) -> tuple[int, int]:
     """Grid-wide phases per step of conduction on the GPU: (pairwise sweeps, node-star sweeps at
-    the run's k and sub-sweeps j: two rows per cycle of j (colours + 1) + 2 phases each)."""
+    the run's k and sub-sweeps j). A cycle boundary inside a call runs 2j half sweeps, each its
+    node colours and, where the net has baths or sources, their phase; with j = 1 and none, the
+    meeting colours of the reverse and forward half as one phase (thermonet.heat.cuda.conduction_plan);
+    no start or finish phases (the kicks' spring passes do their work); divided by k."""
     heat = sim.system.heat
     pairs = pair_graph(sim.system.layout, heat.conductance[None, :], junction=heat.bath_nodes < 0)
     stars = heat.star_order("cuda")
     k, j = (sim.conduction_cycle.k, sim.conduction_cycle.sweeps) if sim.conduction_cycle else (1, 1)
-    return 2 * (pairs.n_colours + 3), 2 * (j * (stars.n_colours + 1) + 2) / k
+    entries = 1 if len(heat.entry_spring) > 0 else 0
+    meet = 1 if j == 1 and not entries and stars.n_colours > 1 else 0
+    return 2 * (pairs.n_colours + 3), (2 * j * (stars.n_colours + entries) - meet) / k
 
 
 def measure(name: str, net: tn.Net, threads: int | None, steps: int, repeats: int) -> dict:
