@@ -180,6 +180,18 @@ def main(path):
     sim.spring_fields()
     sim.run(steps=2, diagnostics_every=2)
     record(out, "calls-bare/cuda", sim)
+    # a call that ends a cycle keeps its update pending (theta_ok 2): the other backend continues it
+    sim = conduction_sim("cpu", True, bath=500.0)
+    sim.run(steps=4, diagnostics_every=2)
+    record(out, "cross-whole/cpu", sim)
+    for first, second in (("cuda", "cpu"), ("cpu", "cuda")):
+        sim = conduction_sim(first, False, bath=500.0)
+        sim.run(steps=2, diagnostics_every=2)
+        out[f"cross/{first}-{second}/theta_ok_between"] = sim.state.extra["heat"]["theta_ok"].copy()
+        then = conduction_sim(second, False, bath=500.0)
+        then.load_state(sim.state)
+        then.run(steps=2, diagnostics_every=2)
+        record(out, f"cross/{first}-{second}", then)
     out["phase-launches"] = np.array([phase_launches(4), phase_launches(4, calls=2)])
     out["phase-launches-bare"] = np.array([phase_launches(4, entries=False), phase_launches(4, calls=2, entries=False)])
     for name, fused in BLOWUPS.items():
@@ -298,6 +310,17 @@ def test_thermal_waves_keep_the_total_entropy_on_the_device(runs, case):
 def test_a_run_cut_into_calls_or_launches_equals_one_call(runs, chunked, whole):
     for field in ("positions", "momenta", "thermal_displacement", "entropy") + LOGS:
         np.testing.assert_array_equal(runs[f"{chunked}/cuda/{field}"], runs[f"{whole}/cuda/{field}"], err_msg=field)
+
+
+@pytest.mark.parametrize("order", ["cuda-cpu", "cpu-cuda"])
+def test_a_call_ending_a_cycle_is_continued_by_the_other_backend(runs, order):
+    """2 steps on one backend (the call ends a cycle: its update pending, theta_ok 2, on both),
+    2 on the other from that state: the state of 4 steps on the CPU, to round-off."""
+    assert runs[f"cross/{order}/theta_ok_between"][0] == 2.0
+    for field in ("positions", "momenta", "thermal_displacement", "entropy", "produced"):
+        x, y = runs[f"cross-whole/cpu/{field}"], runs[f"cross/{order}/{field}"]
+        scale = max(float(np.abs(runs["cross-whole/cpu/entropy"] if field == "produced" else x).max()), 1e-300)
+        assert float(np.max(np.abs(x - y))) <= STATE_RTOL * scale, field
 
 
 def test_the_two_launch_path_cut_into_calls_equals_the_fused_call(runs):
