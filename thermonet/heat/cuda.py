@@ -201,7 +201,8 @@ def conduction_plan(code, count, n_colours, meet, start_kept, finish_pending, jo
     it finishes (:func:`finish_deferred`); at a joined boundary (:func:`joined_boundary`):
     ``joined``, a forward row right after the reverse row that left it its update; ``follows``,
     a reverse row whose forward row follows in this call (else it ends the call: SAVE);
-    ``resume``, a forward row at a call's start after a call that saved (RESUME)."""
+    ``resume``, a forward row at a call's first step after a call that saved (RESUME; as on the
+    CPU, a saved update is continued only there)."""
     lo = first_phase(code, start_kept)
     hi = count - (1 if finish_pending else 0)
     skip = -1

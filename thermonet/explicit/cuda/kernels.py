@@ -409,7 +409,7 @@ def _steps_kernel(state, x_buf, s, topology, springs, nodes, table, flows, run, 
                         follows = joined_layout and step + 1 < run.n_steps
                         lo, hi, skip, together, start_mode, finish_mode = conduction_plan(
                             code, count, heat.star_colour_ptr.shape[0] - 1, colours_meet(heat), start_kept,
-                            finish_pending, joined, follows, resume)
+                            finish_pending, joined, follows, resume and step == 0)
                         joined = joined_layout and code == CONDUCTION_REVERSE and follows
                         saved = joined_layout and code == CONDUCTION_REVERSE and not follows
                         resume = False

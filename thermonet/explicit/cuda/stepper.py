@@ -257,7 +257,7 @@ class CudaSplittingStepper(Stepper):
                         finish = bool(finish_deferred(self._host_table, r))
                         follows = joined_layout and step + 1 < n_steps
                         self._heat_row(heat, code, kick * every * h, t_step + drift * h, theta_valid, start_kept,
-                                       finish, (joined, follows, resume))
+                                       finish, (joined, follows, resume and step == 0))
                         joined = joined_layout and code == CONDUCTION_REVERSE and follows
                         saved = joined_layout and code == CONDUCTION_REVERSE and not follows
                         theta_valid, start_kept, resume = True, code == CONDUCTION_REVERSE, False
