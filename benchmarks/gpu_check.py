@@ -13,7 +13,7 @@ k steps against the adiabatic step); with ``--base DIR``, each benchmark also fr
 checkout (e.g. a copy of the main branch) right after this one's on the same card, so that a
 change is measured against a baseline of the same call; ``thermonet run`` of the three scenes with
 ``--set integrator.backend=cuda``. docs/gpu.md says how to carry the wheels to a GPU machine
-without the package index. About 5 minutes on one H100 or H200 (6.3 on an H200 with ``--base`` and
+without the package index. About 5 minutes on one H100 or H200 (6.2 on an H200 with ``--base`` and
 ``--heat-sizes 3e5,3e6``).
 
 ``--quick`` runs the two benchmarks' own quick modes (tiny nets; Numba's CUDA simulator allowed)
