@@ -172,8 +172,8 @@ def _sweep_phase(code, phase, heat, tau, t, phi, eta, first, stride, mode):
 
 def joined_boundary(table):
     """Whether the reverse row ending a conduction cycle and the forward row starting the next
-    meet with nothing between them but a deferred closing kick's node pass: a table
-    ``[CF, stages…, CR]`` whose closing kick is deferred (:func:`deferred_closing`). Then, as the
+    meet with nothing between them: a table ``[CF, stages…, CR]`` whose closing kick is deferred
+    past both (:func:`deferred_closing`). Then, as the
     CPU's kernel runs a cycle boundary, the two rows are one exchange: the springs' entropy
     update covers both half sweeps (the reverse row's finish is left out, the forward row keeps
     its start θ: one ``η += C ln(θ'/θ)`` instead of two), the meeting colours run as one phase
