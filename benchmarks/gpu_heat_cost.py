@@ -80,13 +80,13 @@ def phases_per_step(sim) -> int:
     from thermonet.heat.rows import CONDUCTION_FORWARD, CONDUCTION_REVERSE
 
     heat = sim.stepper._heat
-    n_colours, meet = len(heat.star_colour_ptr) - 1, heat.colours_meet(1)
+    n_colours = len(heat.star_colour_ptr) - 1
     total = 0
     for code, finish_pending, joined, follows in ((CONDUCTION_REVERSE, False, False, True),
                                                   (CONDUCTION_FORWARD, True, True, False)):
         phases = heat.phases(code)
-        lo, hi, skip = conduction_plan(code, len(phases), n_colours, meet, True, finish_pending, joined, follows,
-                                       False)[:3]
+        lo, hi, skip = conduction_plan(code, len(phases), n_colours, 1, heat.n_bound, True, finish_pending, joined,
+                                       follows, False)[:3]
         total += sum(1 for phase, count in phases[lo:hi] if count > 0 and phase != skip)
     return total
 
@@ -99,7 +99,7 @@ def launch_profile(sim, cuda, repeats: int) -> list[dict]:
     the device is synchronized) and the wall time (after it): wall ≈ host means the host
     bounds that launch, wall > host means the device does. The runs leave the state
     meaningless (phases repeated on their own), so this comes after the timed runs."""
-    from thermonet.heat.cuda import BLOCKS, BOUNDARY, FINISH, JOINED, PLAIN, START, _phase_span
+    from thermonet.heat.cuda import BLOCKS, BOUNDARY, FINISH, JOINED, PLAIN, START, _phase_span, colours_meet
     from thermonet.heat.rows import CONDUCTION_FORWARD
 
     stepper, m = sim.stepper, sim.net.n_springs
@@ -113,9 +113,7 @@ def launch_profile(sim, cuda, repeats: int) -> list[dict]:
     run = records.Run(sim.h, 0.0, 1, True, *(float(b) for b in sim.system.stretch_bounds), False, False, 1, 0)
 
     def spring_pass(keep: bool, finish: bool):
-        return lambda: stepper._launch(k.spring, k.blocks(m), k.threads, stepper._x, stepper._eta, stepper._phi,
-                                       stepper._springs, stepper._topology.edges, stepper._s, (0.5 * sim.h, 0.0), run,
-                                       stepper._flag, (0, 0, 0), stepper._heat.kept, keep, finish)
+        return lambda: stepper._spring_pass(stepper._s, (0.5 * sim.h, 0.0), run, (0, 0, 0), keep, finish)
 
     launches += [("spring pass of a kick", m, spring_pass(False, False)),
                  ("the same, keeping θ and l for the sweep after it", m, spring_pass(True, False)),
@@ -138,7 +136,7 @@ def launch_profile(sim, cuda, repeats: int) -> list[dict]:
             launches.append((f"phase {phase}: {kinds[kind]}", count, lambda phase=phase, count=count: stepper._launch(
                 k.sweep, k.blocks(count), k.threads, code, phase, heat, tau, 0.0, stepper._phi, stepper._eta,
                 stepper._flag, PLAIN)))
-    if dh.colours_meet(1):
+    if colours_meet(1, dh.n_bound, len(dh.star_colour_ptr) - 1):
         launches.append(("phase 2 joined: star colour in reverse, then forward", dh.phases(code)[2][1],
                          lambda: stepper._launch(k.sweep, k.blocks(dh.phases(code)[2][1]), k.threads, code, 2, heat,
                                                  tau, 0.0, stepper._phi, stepper._eta, stepper._flag, JOINED)))

@@ -406,7 +406,7 @@ def test_fused_kernel_with_heat_rows_compiles_for_h100_but_for_its_grid_barriers
     from thermonet.explicit.schedule import MAX_FLOWS, StageTable
     from thermonet.heat import cuda as device_heat
     from thermonet.kernels import records
-    from thermonet.kernels.specialize import kernel_namespace, rebind
+    from thermonet.kernels.specialize import kernel_namespace
     from thermonet.kernels.subflows import bind_subflows
 
     ns = kernel_namespace(tn.get_model("hencky"), True, True)
@@ -416,8 +416,7 @@ def test_fused_kernel_with_heat_rows_compiles_for_h100_but_for_its_grid_barriers
     device_heat.bind_device_heat(ns, tag, inline)
     for slot in range(MAX_FLOWS):
         ns[f"flow_update_{slot}"] = inline(kernels._no_update)
-    for name, template in kernels._SHARED:
-        ns[name] = inline(rebind(template, tag, ns))
+    kernels.bind_shared(ns, tag, inline)
     source = textwrap.dedent(inspect.getsource(kernels._steps_kernel))
     assert source.count("grid.sync()") >= 5
     source = source.replace("grid = cuda.cg.this_grid()", "pass").replace("grid.sync()", "cuda.syncthreads()")

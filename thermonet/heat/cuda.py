@@ -185,24 +185,27 @@ def joined_boundary(table):
             and deferred_closing(table) == n - 2)
 
 
-def colours_meet(heat):
+def colours_meet(sweeps, n_bound, n_colours):
     """Whether, at a joined boundary, the reverse half sweep's last colour and the forward one's
     first (the same colour) run as one phase, each block in reverse then forward: one half sweep
-    a side (``sweeps`` 1), no baths or sources between them, more than one colour."""
-    return heat.sweeps[0] == 1 and heat.bound_spring.shape[0] == 0 and heat.star_colour_ptr.shape[0] > 2
+    a side (``sweeps`` 1), no baths or sources between them (``n_bound`` boundary springs), more
+    than one colour."""
+    return sweeps == 1 and n_bound == 0 and n_colours > 1
 
 
-def conduction_plan(code, count, n_colours, meet, start_kept, finish_pending, joined, follows, resume):
+def conduction_plan(code, count, n_colours, sweeps, n_bound, start_kept, finish_pending, joined, follows, resume):
     """Which of the ``count`` phases of due conduction row ``code`` run, and how: (lo, hi, skip,
     together, start_mode, finish_mode) — phases lo … hi − 1 but ``skip``, phase ``together``
-    JOINED, the start phase (0) as ``start_mode``, the finish as ``finish_mode``. ``n_colours``:
-    the star colours; ``meet``: :func:`colours_meet`. ``start_kept``: the pass
+    JOINED, the start phase (0) as ``start_mode``, the finish as ``finish_mode``. ``n_colours``,
+    ``sweeps``, ``n_bound``: the star colours, sub-sweeps and boundary springs (:func:`colours_meet`).
+    ``start_kept``: the pass
     before wrote θ as the start (:func:`first_phase`); ``finish_pending``: the spring pass after
     it finishes (:func:`finish_deferred`); at a joined boundary (:func:`joined_boundary`):
     ``joined``, a forward row right after the reverse row that left it its update; ``follows``,
     a reverse row whose forward row follows in this call (else it ends the call: SAVE);
     ``resume``, a forward row at a call's first step after a call that saved (RESUME; as on the
     CPU, a saved update is continued only there)."""
+    meet = colours_meet(sweeps, n_bound, n_colours)
     lo = first_phase(code, start_kept)
     hi = count - (1 if finish_pending else 0)
     skip = -1
@@ -451,10 +454,6 @@ class DeviceHeat:
 
     def set_theta_ok(self, value: float) -> None:
         self.logs[LOGS.index("theta_ok")].copy_to_device(np.array([float(value)]))
-
-    def colours_meet(self, sweeps: int) -> bool:
-        """:func:`colours_meet` of the record with ``sweeps`` sub-sweeps, on the host."""
-        return sweeps == 1 and self.n_bound == 0 and len(self.star_colour_ptr) > 2
 
     def phases(self, code: int, sweeps: int = 1):
         """(phase, number of elements) of heat row ``code`` with ``sweeps`` sub-sweeps, in order

@@ -40,6 +40,7 @@ import numpy as np
 from numba import cuda, float64, njit
 
 from ...heat import exchange as heat_exchange
+from ...heat.passes import _gather_two_forces
 from ...heat.rows import CONDUCTION_FORWARD, CONDUCTION_REVERSE, THERMAL_WAVES
 from ...kernels import subflows
 from ...kernels.specialize import MODEL_FUNCTIONS, function_fingerprint, kernel_namespace, model_fingerprint, rebind
@@ -51,12 +52,12 @@ from . import FLAG_ROW, FLAG_SET, FLAG_STAGES, FLAG_STEP, simulator_enabled
 temperature = tension = internal_energy = free_energy = None
 spring_force = spring_energy = spring_temperature = outside_admissible = advance_thermal_displacement = None
 squared_length = None
-gather_force = kick_momentum = drift_position = load_row = store_row = update = None
+gather_force = kick_momentum = drift_position = load_row = store_row = update = gather_two_forces = None
 flow_update_0 = flow_update_1 = flow_update_2 = flow_update_3 = None
 # --- heat flow (thermonet.heat.cuda): compiled in only with CONDUCTION / WAVES ---
 sweep_phase = temperature_update = phase_count = conduction_due = keep_temperature = sweep_follows = first_phase = None
 finish_before_kick = finish_deferred = phase_elements = deferred_closing = None
-joined_boundary = conduction_plan = phase_mode = colours_meet = kept_length = None
+joined_boundary = conduction_plan = phase_mode = kept_length = None
 CONDUCTION = False
 WAVES = False
 # --- end heat flow ---
@@ -158,8 +159,7 @@ def cuda_kernels(model, thermal: bool = True, uniform: bool = False, flows=(), c
         for slot in range(MAX_FLOWS):
             update = _device_update(flows[slot].update, sim) if slot < len(flows) else inline(_no_update)
             ns[f"flow_update_{slot}"] = update  # (a device function even when empty: the fused kernel calls it)
-        for name, template in _SHARED:  # in order: later ones call earlier ones
-            ns[name] = inline(rebind(template, tag, ns))  # shared by the two-launch and the fused path
+        bind_shared(ns, tag, inline)  # shared by the two-launch and the fused path
 
         def compile_(template, namespace=ns, suffix="", compiler=jit):
             return compiler(rebind(template, tag + suffix, namespace))
@@ -219,7 +219,7 @@ def _bind_no_heat(ns: dict, inline) -> None:
     ns["phase_elements"] = inline(_no_elements)
     ns["deferred_closing"] = inline(_no_closing)
     ns["joined_boundary"], ns["conduction_plan"] = inline(_no_joined), inline(_no_plan)
-    ns["phase_mode"], ns["colours_meet"] = inline(_no_mode), inline(_no_joined)
+    ns["phase_mode"] = inline(_no_mode)
     ns["kept_length"] = inline(_no_length)
 
 
@@ -273,7 +273,7 @@ def _no_joined(table):
     return False
 
 
-def _no_plan(code, count, n_colours, meet, start_kept, finish_pending, joined, follows, resume):
+def _no_plan(code, count, n_colours, sweeps, n_bound, start_kept, finish_pending, joined, follows, resume):
     """No heat flow compiled in."""
     return 0, 0, -1, -1, 0, 0
 
@@ -408,8 +408,8 @@ def _steps_kernel(state, x_buf, s, topology, springs, nodes, table, flows, run, 
                     if CONDUCTION and code != THERMAL_WAVES:
                         follows = joined_layout and step + 1 < run.n_steps
                         lo, hi, skip, together, start_mode, finish_mode = conduction_plan(
-                            code, count, heat.star_colour_ptr.shape[0] - 1, colours_meet(heat), start_kept,
-                            finish_pending, joined, follows, resume and step == 0)
+                            code, count, heat.star_colour_ptr.shape[0] - 1, heat.sweeps[0], heat.bound_spring.shape[0],
+                            start_kept, finish_pending, joined, follows, resume and step == 0)
                         joined = joined_layout and code == CONDUCTION_REVERSE and follows
                         saved = joined_layout and code == CONDUCTION_REVERSE and not follows
                         resume = False
@@ -575,40 +575,10 @@ def _kick_split(a, x, xa0, xa1, xa2, p0, p1, p2, s_first, s, topology, nodes, ki
     """Node a's momentum after two kicks at the same positions x with different forces: kick1
     with T/l ``s_first`` (a closing kick's, computed before the conduction sweep between them:
     :func:`thermonet.heat.cuda.deferred_closing`), then kick2 with ``s``: the operations of two
-    :func:`_node_update` s on the same operands (each force gathered in CSR order, m g added),
-    with one pass over the incidences. Returns (p0, p1, p2)."""
-    inc_ptr = topology.inc_ptr
-    inc_spring = topology.inc_spring
-    inc_other = topology.inc_other
-    g0 = 0.0
-    g1 = 0.0
-    g2 = 0.0
-    f0 = 0.0
-    f1 = 0.0
-    f2 = 0.0
-    for j in range(inc_ptr[a], inc_ptr[a + 1]):
-        ju = np.uint64(j)
-        e = inc_spring[ju]
-        b = inc_other[ju]
-        d0 = x[b, 0] - xa0
-        d1 = x[b, 1] - xa1
-        d2 = x[b, 2] - xa2
-        before = s_first[e]
-        after = s[e]
-        g0 += before * d0
-        g1 += before * d1
-        g2 += before * d2
-        f0 += after * d0
-        f1 += after * d1
-        f2 += after * d2
-    if nodes.with_gravity:
-        m = nodes.masses[a]
-        g0 += m * nodes.gravity[0]
-        g1 += m * nodes.gravity[1]
-        g2 += m * nodes.gravity[2]
-        f0 += m * nodes.gravity[0]
-        f1 += m * nodes.gravity[1]
-        f2 += m * nodes.gravity[2]
+    :func:`_node_update` s on the same operands, both forces gathered in one pass over the
+    incidences (the CPU's ``gather_two_forces``, :mod:`thermonet.heat.passes`). Returns (p0, p1, p2)."""
+    g0, g1, g2, f0, f1, f2 = gather_two_forces(a, x, s_first, s, topology.inc_ptr, topology.inc_spring,
+                                               topology.inc_other, nodes.masses, nodes.gravity, nodes.with_gravity)
     p0 = p0 + kick1 * g0
     p1 = p1 + kick1 * g1
     p2 = p2 + kick1 * g2
@@ -731,6 +701,14 @@ _SHARED = (("_spring_length", _spring_length), ("_spring_update", _spring_update
            ("_raise_flag", _raise_flag), ("_flow_grid", _flow_grid))
 
 
+def bind_shared(ns: dict, tag: str, inline) -> None:
+    """Bind the device functions the kernels share (:data:`_SHARED`, and the CPU's
+    ``gather_two_forces`` that :func:`_kick_split` calls) into ``ns``, each compiled by ``inline``."""
+    ns["gather_two_forces"] = inline(rebind(_gather_two_forces, tag, ns))
+    for name, template in _SHARED:  # in order: later ones call earlier ones
+        ns[name] = inline(rebind(template, tag, ns))
+
+
 def compile_ptx(model, thermal: bool = True, uniform: bool = False, cc=(9, 0)) -> dict[str, str]:
     """PTX of every kernel for ``model`` and compute capability ``cc``, compiled as for a GPU (not
     the simulator). Needs numba-cuda's NVVM (the CUDA toolkit) but no GPU, so it checks that a
@@ -746,8 +724,7 @@ def compile_ptx(model, thermal: bool = True, uniform: bool = False, cc=(9, 0)) -
     tag = f"{model.name}_ptx"
     bind_subflows(ns, tag, njit(inline="always"))
     _bind_no_heat(ns, njit(inline="always"))
-    for name, template in _SHARED:
-        ns[name] = njit(inline="always")(rebind(template, tag, ns))
+    bind_shared(ns, tag, njit(inline="always"))
     v, x, u = np.empty(1), np.empty((1, 3)), np.empty(1, np.uint32)
     springs = records.Springs(v, np.empty((len(model.parameters), 1)))
     topology = records.Topology(np.empty((1, 2), np.uint32), np.empty(2, np.int64), u, u)

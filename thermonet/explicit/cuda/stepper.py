@@ -164,11 +164,9 @@ class CudaSplittingStepper(Stepper):
         ``heat.s_before`` (a deferred closing kick's); ``spring_pass`` False: only the node pass,
         kicking by k2 with those forces (a call's last deferred closing kick)."""
         k = self._k
-        n, m = self.system.n_nodes, self.system.n_springs
-        if with_force and m > 0 and spring_pass:
-            self._launch(k.spring, k.blocks(m), k.threads, self._x, self._eta, self._phi, self._springs,
-                         self._topology.edges, self._s, (k1, k2), run, self._flag, where, self._heat.kept, keep,
-                         finish)
+        n = self.system.n_nodes
+        if with_force and spring_pass:
+            self._spring_pass(self._s, (k1, k2), run, where, keep, finish)
         split = kick_first is not None
         s = self._s if spring_pass else self._heat.s_before
         if n > 0:
@@ -179,6 +177,14 @@ class CudaSplittingStepper(Stepper):
             self._launch(k.load_stage, 1, len(self.loads.arrays.work), self._x, self._x_buf, self._s, self._topology,
                          self._nodes, self._loads, (k1, k2, with_force, drift != 0.0), self._t_after)
         self._x, self._x_buf = self._x_buf, self._x
+
+    def _spring_pass(self, s, steps, run, where, keep: bool, finish: bool) -> None:
+        """T/l of every spring into ``s`` (:func:`~thermonet.explicit.cuda.kernels._spring_update`)."""
+        m = self.system.n_springs
+        if m > 0:
+            self._launch(self._k.spring, self._k.blocks(m), self._k.threads, self._x, self._eta, self._phi,
+                         self._springs, self._topology.edges, s, steps, run, self._flag, where, self._heat.kept, keep,
+                         finish)
 
     def _flow(self, slot: int, tau: float, t: float) -> None:
         data = self._effects[slot]
@@ -269,11 +275,8 @@ class CudaSplittingStepper(Stepper):
                 if r == self._closing:  # deferred: a spring pass now if a sweep follows, the rest later
                     deferred = kick
                     split = bool(_sweep_follows(self._host_table, r, every, (at + step) % every))
-                    if split and self.system.n_springs > 0:
-                        self._launch(self._k.spring, self._k.blocks(self.system.n_springs), self._k.threads, self._x,
-                                     self._eta, self._phi, self._springs, self._topology.edges, self._heat.s_before,
-                                     (0.0, kick * h), run, self._flag, (step, r, stages), self._heat.kept, True, False)
                     if split:
+                        self._spring_pass(self._heat.s_before, (0.0, kick * h), run, (step, r, stages), True, False)
                         theta_valid = start_kept = True
                     continue
                 if deferred != 0.0:  # the first stage after a deferred closing kick
@@ -324,7 +327,7 @@ class CudaSplittingStepper(Stepper):
         lo, hi, skip, together, start_mode, finish_mode = 0, len(phases), -1, -1, 0, 0
         if code != THERMAL_WAVES:
             lo, hi, skip, together, start_mode, finish_mode = conduction_plan(
-                code, len(phases), len(self._heat.star_colour_ptr) - 1, self._heat.colours_meet(self._cycle[2]),
+                code, len(phases), len(self._heat.star_colour_ptr) - 1, self._cycle[2], self._heat.n_bound,
                 start_kept, finish_deferred, *junction)
         for phase, count in phases[lo:hi]:
             if count > 0 and phase != skip:
