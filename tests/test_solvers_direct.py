@@ -168,6 +168,55 @@ def test_the_tree_solve_gives_superlus_and_a_dense_solution(monkeypatch):
     assert tree_factors(pivoted._lu, 2) == (None, None)
 
 
+def test_exact_zeros_in_the_factors_do_not_split_a_nodes_rows(monkeypatch):
+    """SuperLU's factors leave out entries that come out exactly 0 (a net at rest has such
+    Jacobian entries), so a node's three rows of L differ by a few columns; the tree pads them
+    back into one block (zeros stored) rather than solving them row by row on the slow path.
+    The solve stays the dense one's to round-off, the same bits on one and two threads."""
+    import numba
+
+    import thermonet.solvers.tree_solve as tree_module
+    from thermonet.solvers.tree_solve import tree_factors, tree_solve
+
+    monkeypatch.setattr(pattern_module, "METIS_MIN_NODES", 10)
+    p = lattice_pattern(6)
+    data = diagonally_dominant_values(p)
+    numbers = p.matrix(np.arange(1.0, p.nnz + 1.0)).tocoo()
+    between_nodes = (numbers.data[numbers.row // 3 != numbers.col // 3] - 1).astype(int)
+    rng = np.random.default_rng(3)
+    data[between_nodes[rng.uniform(size=between_nodes.size) < 0.3]] = 0.0
+    lu = SparseLU(p)
+    lu.factorize(data)
+    full = SparseLU(p)
+    full.factorize(diagonally_dominant_values(p))
+    assert lu._lu.L.nnz < full._lu.L.nnz  # (entries left out)
+
+    def width3_share(f):
+        widths = np.diff(f.block_start)
+        entries = widths * np.diff(f.lower_ptr)[f.block_start[:-1]]
+        return entries[widths == 3].sum() / entries.sum()
+
+    f, _ = tree_factors(lu._lu, 2)
+    with monkeypatch.context() as m:
+        m.setattr(tree_module, "AMALGAMATION_SLACK", 1.0)  # (no padding)
+        split, _ = tree_factors(lu._lu, 2)
+    assert width3_share(split) < 0.6 and width3_share(f) > 0.95
+    assert len(f.lower_vals) <= 1.05 * (lu._lu.L.nnz - p.size)
+    b = np.random.default_rng(1).uniform(-1.0, 1.0, p.size)
+    threads = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        x = tree_solve(f, b)
+        numba.set_num_threads(min(2, numba.config.NUMBA_NUM_THREADS))
+        two = tree_solve(f, b)
+    finally:
+        numba.set_num_threads(threads)
+    assert np.array_equal(two, x)
+    dense = np.linalg.solve(p.matrix(data).toarray(), b)
+    assert np.abs(x - dense).max() <= 1e-13 * np.abs(dense).max()
+    assert np.abs(tree_solve(split, b) - dense).max() <= 1e-13 * np.abs(dense).max()
+
+
 def test_kept_factors_are_single_and_checked_against_the_double_matrix(monkeypatch):
     """splu-reuse keeps float32 factors: their first solve is checked against the double matrix
     (a linear residual within SINGLE_MAX_LINEAR_RESIDUAL of the right-hand side), and later

@@ -50,7 +50,10 @@ class TreeFactors:
     lower_vals, upper_vals (nnz,): L's rows and U's columns, block by block: the |R| columns
         (rows of U) that a block's rows s … e − 1 share, as an (e − s) × |R| array (each row's
         shared values contiguous), then each row's entries inside the block; block q's from
-        lower_ptr[s].
+        lower_ptr[s] in lower_vals, from lower_ptr[s] + upper_shift[q] in upper_vals, whose
+        blocks lie in the opposite order (the backward substitution's, so that it streams
+        through memory forwards as the forward one does).
+    upper_shift (q,) int64: where block q's values start in upper_vals less where in lower_vals.
     diagonal (n,): U's diagonal. lower_ptr (n+1,) int64: row i's entries (on the pattern).
     run_ptr (n+1,) int64, run_col (r,) int32, run_off (r+1,) int64: row i's columns in runs of
         consecutive columns, run k starting at column run_col[k] with entry run_off[k];
@@ -68,6 +71,7 @@ class TreeFactors:
     lower_vals: np.ndarray
     upper_vals: np.ndarray
     diagonal: np.ndarray
+    upper_shift: np.ndarray
     lower_ptr: np.ndarray
     run_ptr: np.ndarray
     run_col: np.ndarray
@@ -85,6 +89,11 @@ class TreeFactors:
     def size(self) -> int:
         return len(self.diagonal)
 
+
+#: rows padded into blocks (:func:`_amalgamated`): up to a node's three, while the block stores
+#: at most this many times its rows' own entries
+AMALGAMATION_WIDTH = 3
+AMALGAMATION_SLACK = 1.5
 
 _OPTIONS = dict(cache=True, nogil=True, boundscheck=False, error_model="numpy")
 #: the forward products' sums may be reassociated: taken in vector lanes, the long rows of the
@@ -241,6 +250,100 @@ def _by_rows(n, indptr, indices, data, lower, order, new):
                 vals[q] = data[k]
                 fill[new[i]] = q + 1
     return ptr, cols, vals, diagonal, ok
+
+
+@njit(**_OPTIONS)
+def _amalgamated(lp, lc, lv, group_of, first, width, slack):
+    """L's rows (``lp``, ``lc``, ``lv``) padded into blocks of up to ``width`` consecutive rows
+    that share their columns below the block (zeros where a row lacks one) and hold every
+    column inside it (a dense triangle), where that stores at most ``slack`` times the rows'
+    own entries: what :func:`_blocks` then finds as blocks. (A factorization drops the
+    entries that come out exactly 0 — a net at rest has such Jacobian entries — and then a
+    node's three rows differ by a few columns: each would be a block of its own.) A row joins
+    the block of row s only where it is an ancestor of s in the tree, in s's group, and its
+    columns below s lie in s's subtree, so that a padded column is solved before every row
+    that reads it, on any thread. Returns (ptr, cols, vals), the same arrays where nothing is
+    padded."""
+    n = len(lp) - 1
+    mark = np.full(n, -1, dtype=np.int64)  # mark[c] == s: c is a shared column of block s
+    block_of = np.zeros(n, dtype=np.int64)
+    shared = np.zeros(n, dtype=np.int64)  # |R| of the block starting at s
+    s = 0
+    own = 0  # the block's rows' own entries
+    padded_any = False
+    for j in range(n):
+        fits = j > 0 and j - s < width and group_of[j] == group_of[s] and first[j] <= s
+        new = 0
+        if fits:
+            for k in range(lp[j], lp[j + 1]):
+                c = lc[k]
+                if c < s:
+                    if c < first[s]:
+                        fits = False
+                        break
+                    if mark[c] != s:
+                        new += 1
+        if fits:
+            rows = j - s + 1
+            total_shared = shared[s] + new
+            fits = rows * total_shared + rows * (rows - 1) // 2 <= slack * (own + lp[j + 1] - lp[j])
+        if not fits:
+            s = j
+            own = 0
+        block_of[j] = s
+        for k in range(lp[j], lp[j + 1]):
+            c = lc[k]
+            if c < s and mark[c] != s:
+                mark[c] = s
+                shared[s] += 1
+        own += lp[j + 1] - lp[j]
+    size = np.zeros(n + 1, dtype=np.int64)
+    for j in range(n):
+        size[j + 1] = shared[block_of[j]] + j - block_of[j]
+        padded_any = padded_any or size[j + 1] != lp[j + 1] - lp[j]
+    if not padded_any:
+        return lp, lc, lv
+    ptr = np.cumsum(size)
+    cols = np.empty(ptr[n], dtype=lc.dtype)
+    vals = np.zeros(ptr[n], dtype=lv.dtype)
+    place = np.full(n, -1, dtype=np.int64)  # a shared column's place in its block's rows
+    j = 0
+    while j < n:
+        s = j
+        e = s + 1
+        while e < n and block_of[e] == s:
+            e += 1
+        # the shared columns in ascending order: the rows' sorted lists merged one by one
+        m = 0
+        base = ptr[s]
+        for r in range(s, e):
+            for k in range(lp[r], lp[r + 1]):
+                c = lc[k]
+                if c < s and place[c] != s:  # (place doubles as the stamp here)
+                    place[c] = s
+                    cols[base + m] = c
+                    m += 1
+        merged = cols[base:base + m]
+        for a in range(1, m):  # (insertion: the lists are sorted, so it moves little)
+            c = merged[a]
+            b = a - 1
+            while b >= 0 and merged[b] > c:
+                merged[b + 1] = merged[b]
+                b -= 1
+            merged[b + 1] = c
+        for a in range(m):
+            mark[merged[a]] = a
+        for r in range(s, e):
+            q = ptr[r]
+            if r > s:
+                cols[q:q + m] = merged
+            for t in range(r - s):
+                cols[q + m + t] = s + t
+            for k in range(lp[r], lp[r + 1]):
+                c = lc[k]
+                vals[q + (mark[c] if c < s else m + c - s)] = lv[k]
+        j = e
+    return ptr, cols, vals
 
 
 @njit(**_OPTIONS)
@@ -518,6 +621,22 @@ def tree_factors(lu, threads: int, layout: TreeLayout | None = None):
     return layout.factors(L, U), layout
 
 
+@njit(**_OPTIONS)
+def _blocks_reversed(vals, starts):
+    """(vals with its blocks in the opposite order, (q,) int64 where each block moved by): block q
+    spans vals[starts[q] : starts[q + 1]] ((q+1,) ``starts``)."""
+    q = len(starts) - 1
+    out = np.empty_like(vals)
+    shift = np.empty(q, dtype=np.int64)
+    at = 0
+    for b in range(q - 1, -1, -1):
+        size = starts[b + 1] - starts[b]
+        out[at:at + size] = vals[starts[b]:starts[b + 1]]
+        shift[b] = at - starts[b]
+        at += size
+    return out, shift
+
+
 def _numbered(M):
     """M (CSC) with its entries' numbers + 1 as values."""
     return sp.csc_matrix((np.arange(1.0, M.nnz + 1.0), M.indices, M.indptr), shape=M.shape)
@@ -544,13 +663,16 @@ def _tree_arrays(n: int, L, U, threads: int) -> TreeFactors | None:
         group_of[lo[g]:hi[g]] = g
     if not _independent(lp, lc, group_of, cover_lo):
         return None
+    lp, lc, lv = _amalgamated(lp, lc, lv, group_of, first, AMALGAMATION_WIDTH, AMALGAMATION_SLACK)
     block_start = _blocks(lp, lc, group_of)
     uv, diagonal, upper_ok = _upper_blocked(U.indptr, U.indices, U.data, order, new, lp, lc, block_start)
     del L, U
     if not upper_ok:
         return None
     run_ptr, run_col, run_off, run_cut, run_lo = _runs(lp, lc, lo[group_of], mid[group_of])
-    return TreeFactors(order, _lower_blocked(lp, lv, block_start), uv, diagonal, lp, run_ptr, run_col, run_off,
+    uv, upper_shift = _blocks_reversed(uv, lp[block_start])
+    return TreeFactors(order, _lower_blocked(lp, lv, block_start), uv, diagonal, upper_shift, lp, run_ptr, run_col,
+                       run_off,
                        run_cut, run_lo, block_start, np.searchsorted(block_start, lo),
                        np.searchsorted(block_start, hi), sep.astype(np.bool_), np.array(bin_start, dtype=np.int64),
                        np.array(phase_bins, dtype=np.int64))
@@ -568,7 +690,9 @@ def _lower_product(x, vals, lp, run_col, run_off, s, e, r0, r1, gathered):
     for r in range(r0, r1):
         c0 = np.int64(run_col[r])
         n = run_off[r + 1] - run_off[r]
-        gathered[m:m + n] = x[c0:c0 + n]
+        source, target = x[c0:c0 + n], gathered[m:m + n]
+        for i in range(n):  # (a slice assignment would check the two for overlap: 10 % of a solve)
+            target[i] = source[i]
         m += n
     k0 = run_off[r0] if r1 > r0 else lp[s]
     if width == 3:
@@ -606,17 +730,17 @@ def _lower_triangle(x, vals, lp, s, e):
 
 
 @njit(**_OPTIONS)
-def _upper_product(x, vals, lp, run_col, run_off, s, e, r0, r1):
+def _upper_product(x, vals, lp, run_col, run_off, s, e, r0, r1, shift):
     """x[r] −= Σ_c U[r, c] x[c] over a block's columns s … e − 1 and its shared rows r in the
     runs r0 … r1 − 1 of row s (each column's values contiguous: a run's rows update as one
-    vector loop)."""
+    vector loop); the block's values from lp[s] + ``shift`` in ``vals``."""
     width = e - s
     shared = lp[s + 1] - lp[s]
     if width == 3:
         w0, w1, w2 = x[s], x[s + 1], x[s + 2]
         for r in range(r0, r1):
-            k0 = run_off[r]
-            n = run_off[r + 1] - k0
+            k0 = run_off[r] + shift
+            n = run_off[r + 1] - run_off[r]
             c0 = np.int64(run_col[r])
             rows = x[c0:c0 + n]
             v0 = vals[k0:k0 + n]
@@ -626,18 +750,19 @@ def _upper_product(x, vals, lp, run_col, run_off, s, e, r0, r1):
                 rows[i] -= (v0[i] * w0 + v1[i] * w1) + v2[i] * w2
         return
     for r in range(r0, r1):
-        shift = run_col[r] - run_off[r]
+        rows = run_col[r] - run_off[r]
         for k in range(run_off[r], run_off[r + 1]):
             acc = 0.0
             for c in range(width):
-                acc += vals[k + c * shared] * x[s + c]
-            x[shift + k] -= acc
+                acc += vals[k + shift + c * shared] * x[s + c]
+            x[rows + k] -= acc
 
 
 @njit(**_OPTIONS)
-def _upper_triangle(x, vals, diagonal, lp, s, e):
-    """The block's columns e − 1 … s: x[j] ← x[j] / U[j, j], then its column's rows s … j − 1."""
-    tri = lp[s] + (lp[s + 1] - lp[s]) * (e - s)
+def _upper_triangle(x, vals, diagonal, lp, s, e, shift):
+    """The block's columns e − 1 … s: x[j] ← x[j] / U[j, j], then its column's rows s … j − 1
+    (the block's values from lp[s] + ``shift``)."""
+    tri = lp[s] + (lp[s + 1] - lp[s]) * (e - s) + shift
     for j in range(e - 1, s - 1, -1):
         w = x[j] / diagonal[j]
         x[j] = w
@@ -670,16 +795,17 @@ def _forward_group(x, lv, lp, run_ptr, run_col, run_off, run_lo, block_start, q0
 
 
 @njit(**_OPTIONS)
-def _backward_group(x, uv, diagonal, lp, run_ptr, run_col, run_off, run_lo, block_start, q0, q1, below):
+def _backward_group(x, uv, diagonal, shift, lp, run_ptr, run_col, run_off, run_lo, block_start, q0, q1, below):
     """Backward substitution through a group's blocks q1 − 1 … q0: each block's triangle and its
     products (with the subtrees below where ``below``, else only with the group's own rows)."""
     for q in range(q1 - 1, q0 - 1, -1):
         s, e = block_start[q], block_start[q + 1]
-        _upper_triangle(x, uv, diagonal, lp, s, e)
-        _upper_product(x, uv, lp, run_col, run_off, s, e, run_ptr[s] if below else run_lo[s], run_ptr[s + 1])
+        _upper_triangle(x, uv, diagonal, lp, s, e, shift[q])
+        _upper_product(x, uv, lp, run_col, run_off, s, e, run_ptr[s] if below else run_lo[s], run_ptr[s + 1],
+                       shift[q])
 
 
-def _solve(x, lv, uv, diagonal, lp, run_ptr, run_col, run_off, run_cut, run_lo, block_start, gb_lo, gb_hi, sep,
+def _solve(x, lv, uv, diagonal, shift, lp, run_ptr, run_col, run_off, run_cut, run_lo, block_start, gb_lo, gb_hi, sep,
            bin_start, phase_bins):
     """x ← U⁻¹ L⁻¹ x in place (the arrays of :class:`TreeFactors`). One parallel region per
     phase and direction (a region waits for every thread to wake: on a loaded machine that can
@@ -713,8 +839,8 @@ def _solve(x, lv, uv, diagonal, lp, run_ptr, run_col, run_off, run_cut, run_lo, 
         g0 = bin_start[b0]
         spread = bin_start[b1] - g0 == 1 and sep[g0]
         if spread:
-            _backward_group(x, uv, diagonal, lp, run_ptr, run_col, run_off, run_lo, block_start, gb_lo[g0], gb_hi[g0],
-                            np.bool_(False))
+            _backward_group(x, uv, diagonal, shift, lp, run_ptr, run_col, run_off, run_lo, block_start, gb_lo[g0],
+                            gb_hi[g0], np.bool_(False))
         t0, t1 = b0, b1
         if spread:
             t0, t1 = 0, 2
@@ -723,11 +849,11 @@ def _solve(x, lv, uv, diagonal, lp, run_ptr, run_col, run_off, run_cut, run_lo, 
                 for q in range(gb_hi[g0] - 1, gb_lo[g0] - 1, -1):
                     s, e = block_start[q], block_start[q + 1]
                     _upper_product(x, uv, lp, run_col, run_off, s, e, run_ptr[s] if t == 0 else run_cut[s],
-                                   run_cut[s] if t == 0 else run_lo[s])
+                                   run_cut[s] if t == 0 else run_lo[s], shift[q])
             else:
                 for g in range(bin_start[t], bin_start[t + 1]):
-                    _backward_group(x, uv, diagonal, lp, run_ptr, run_col, run_off, run_lo, block_start, gb_lo[g],
-                                    gb_hi[g], np.bool_(True))
+                    _backward_group(x, uv, diagonal, shift, lp, run_ptr, run_col, run_off, run_lo, block_start,
+                                    gb_lo[g], gb_hi[g], np.bool_(True))
 
 
 # (compiled threaded only: on one thread its regions run on the calling thread, and a compile
@@ -741,7 +867,7 @@ def tree_solve(factors: TreeFactors, rhs: np.ndarray) -> np.ndarray:
     f = factors
     x = np.asarray(rhs, dtype=np.float64)[f.order]
     _parallel_solve(
-        x, f.lower_vals, f.upper_vals, f.diagonal, f.lower_ptr, f.run_ptr, f.run_col, f.run_off, f.run_cut,
+        x, f.lower_vals, f.upper_vals, f.diagonal, f.upper_shift, f.lower_ptr, f.run_ptr, f.run_col, f.run_off, f.run_cut,
         f.run_lo, f.block_start, f.group_block_lo, f.group_block_hi, f.separator, f.bin_start, f.phase_bins)
     out = np.empty_like(x)
     out[f.order] = x
