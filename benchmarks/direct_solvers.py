@@ -15,9 +15,10 @@ above the table).
     python benchmarks/direct_solvers.py --mesh-size 0.0012 --factor 100 --threads 1 2 --rounds 3
     python benchmarks/direct_solvers.py --quick      # the 1 954-spring part, one round (the test's)
 
-The matrix: the Jacobian of EM2's step equations at the end of the part's first step at
-h = ``--factor`` × CO2's stable step, in the fill-reducing order the pattern bakes in (METIS's
-nested dissection on large nets); the right-hand side: that step's last residual. SuperLU runs
+The matrix: the Jacobian of EM2's step equations that the part's first step at h = ``--factor``
+× CO2's stable step factorized and kept (at the step's predictor, from rest), in the
+fill-reducing order the pattern bakes in (METIS's nested dissection on large nets); the
+right-hand side: that step's last residual. SuperLU runs
 with the options of thermonet.solvers.direct (NATURAL order, diagonal pivoting preferred) and is
 single-threaded; PARDISO with its own METIS order, its real unsymmetric type (11), no iterative
 refinement, through pypardiso's ``factorize`` (analysis and numerical factorization) and
@@ -42,20 +43,31 @@ sys.path.insert(0, HERE)
 
 
 def part_matrix(size: float, factor: float):
-    """(A as CSC, b) of the part at mesh size ``size`` and step ``factor`` × CO2's stable step."""
+    """(A as CSC, b, springs) of the part at mesh size ``size`` and step ``factor`` × CO2's
+    stable step: A the Newton matrix EM2 factorized first and kept (its first step's, from rest:
+    the entries that are exactly 0 there are a run's too), b that step's last residual."""
     from em2_paths import part_simulation
 
     from thermonet.stability import stable_step
 
     est = stable_step(part_simulation(size, "co2", 1e-7))
     sim = part_simulation(size, "em2", factor * est["h_max"], newton_path="sparse", linear_solver="splu-reuse")
+    st = sim.stepper
+    solver = st.solver.inner
+    kept = []
+    factorize = solver.factorize
+
+    def keep(data, *args, **kwargs):
+        if not kept:
+            kept.append(np.array(data, copy=True))
+        return factorize(data, *args, **kwargs)
+
+    solver.factorize = keep
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
         sim.run(steps=1, diagnostics_every=10**9)
-    st = sim.stepper
-    p = st.solver.pattern
-    st.jacobian(st.data)
-    A = sp.csc_matrix((st.data[p.transpose], p.indices, p.indptr), shape=(p.size, p.size))
+    p = solver.pattern
+    A = sp.csc_matrix((kept[0][p.transpose], p.indices, p.indptr), shape=(p.size, p.size))
     return A, st.R.copy(), sim.net.n_springs
 
 

@@ -1,6 +1,7 @@
 """The direct solver's pieces: the pattern's transposed order (SuperLU solves A x = b without
 transposing), METIS's nested dissection on large nets, a factorization's worth read once per
-pivot sequence, and Newton's test of a residual at its rounding floor."""
+pivot sequence, the solve on the factors' elimination tree (its blocks padded where the factors
+left out exact zeros), and Newton's test of a residual at its rounding floor."""
 
 import numpy as np
 import scipy.sparse as sp

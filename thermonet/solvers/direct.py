@@ -76,12 +76,12 @@ KEPT_ANYWHERE_WORTH = 50.0
 #: against 10–18 ms a single-precision solve saves on one and two threads), so it waits for a
 #: factorization that has lasted: at 100× CO2's stable step on the steel part one lasts the whole
 #: run, at 1e4× about 45 solves (the first copy, in a 45-step run there, made EM2 2.1–2.5× slower
-#: per step with the switch at 50 solves). On the steel part at 9 270 springs (5 172 unknowns)
-#: EM2's steps at 100× ran no faster on the tree (1.24× the time with SuperLU's solves on one
-#: thread, 1.03× on two), at 97 958 springs (47 637 unknowns) faster (0.98×, 0.55×): hence the
-#: threshold between them.
+#: per step with the switch at 50 solves). EM2's steps at 100× on the steel part took 0.93× the
+#: time with SuperLU's solves on one thread and 0.72× on two at 9 270 springs (5 172 unknowns;
+#: benchmarks/README.md); the parts of 3 316 springs and fewer made no kept factorization there
+#: (each lasted one step), so no smaller net was measured: hence the threshold.
 TREE_AFTER_SOLVES = 200
-TREE_MIN_UNKNOWNS = 20_000
+TREE_MIN_UNKNOWNS = 5_000
 #: Kept factors are single precision (float32) unless that fails: the residual and the
 #: convergence test stay double, so the root (and EM2's exact energy) is the same; a correction
 #: made with them contracts the residual about 1e-4 instead of 1e-5, and they cost 0.4–0.7× a
