@@ -426,3 +426,42 @@ def test_conduction_around_em2_keeps_energy_exact_and_entropy_rising(every):
     assert np.max(np.abs(d.energy - d.energy[0])) < 1e-11 * abs(d.energy[0])
     assert np.all(np.diff(d.entropy) > -1e-12 * np.abs(d.entropy).max()) and d.entropy[-1] > d.entropy[0]
     assert np.max(np.abs(d.entropy_balance)) < 1e-10
+
+
+@pytest.mark.parametrize("failing", [0, 1])
+def test_a_step_that_fails_around_an_implicit_integrator_gives_back_entropy_and_logs(failing, monkeypatch):
+    """Conduction every 2 steps around EM2: the first step of a cycle opens it with a forward
+    half sweep before the inner step, the second closes it after. A step whose inner integrator
+    fails (the opening one, whose sweep already ran, or the closing one) leaves the state as the
+    step found it (η and every heat log, bit for bit), and the failure counts the steps done."""
+    from thermonet.heat.stepper import ConductionAround
+    from thermonet.integrators.base import StepFailure
+
+    net, theta = hot_jittered_net(23)
+    sim = tn.Simulation(net, parameters=dict(c=100, beta=1.0, C0=1.0, theta0=300, g=0.4), temperatures=theta,
+                        integrator="em2", h=0.01, **cycle(2), **QUIET)
+    sim.run(steps=2, diagnostics_every=2)
+    around = sim.stepper
+    while not isinstance(around, ConductionAround):
+        around = around.inner
+    state = sim.internal_state()
+    inner_advance = around.inner.advance
+    calls = []
+
+    def advance(s, n, h, measure=False):
+        calls.append(n)
+        if len(calls) == failing + 1:
+            raise StepFailure("made to fail")
+        return inner_advance(s, n, h)
+
+    monkeypatch.setattr(around.inner, "advance", advance)
+    if failing:  # (the opening step, done, is what the failing closing step starts from)
+        around.advance(state, 1, sim.h)
+        state.step, state.time = state.step + 1, state.time + sim.h
+    before = state.copy()
+    with pytest.raises(StepFailure) as failed:
+        around.advance(state, 1, sim.h)
+    assert failed.value.steps_done == 0
+    assert np.array_equal(state.entropy, before.entropy)
+    for key, value in before.extra["heat"].items():
+        assert np.array_equal(state.extra["heat"][key], value), key

@@ -71,9 +71,12 @@ class ConductionAround(Stepper):
         for i in range(int(n_steps)):
             t = t0 + i * h
             eta = state.entropy.copy()
-            logs = {k: v.copy() for k, v in heat_logs(state, self.heat).items()}
+            opens = (at + i) % every == 0
+            # (only a forward half sweep before the inner step changes the logs that a failed
+            # step must give back: copying them at every step cost 0.65 ms a step on 1e5 springs)
+            logs = {k: v.copy() for k, v in heat_logs(state, self.heat).items()} if opens else {}
             state.step, state.time = step0 + i, t
-            if (at + i) % every == 0:
+            if opens:
                 self._conduct(state, tau, t, FORWARD, sweeps)
             try:
                 stats = self.inner.advance(state, 1, h)
