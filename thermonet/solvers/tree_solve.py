@@ -306,7 +306,7 @@ def _amalgamated(lp, lc, lv, group_of, first, width, slack):
     ptr = np.cumsum(size)
     cols = np.empty(ptr[n], dtype=lc.dtype)
     vals = np.zeros(ptr[n], dtype=lv.dtype)
-    place = np.full(n, -1, dtype=np.int64)  # a shared column's place in its block's rows
+    seen = np.full(n, -1, dtype=np.int64)  # seen[c] == s: c already listed for block s
     j = 0
     while j < n:
         s = j
@@ -319,8 +319,8 @@ def _amalgamated(lp, lc, lv, group_of, first, width, slack):
         for r in range(s, e):
             for k in range(lp[r], lp[r + 1]):
                 c = lc[k]
-                if c < s and place[c] != s:  # (place doubles as the stamp here)
-                    place[c] = s
+                if c < s and seen[c] != s:
+                    seen[c] = s
                     cols[base + m] = c
                     m += 1
         merged = cols[base:base + m]
@@ -331,7 +331,7 @@ def _amalgamated(lp, lc, lv, group_of, first, width, slack):
                 merged[b + 1] = merged[b]
                 b -= 1
             merged[b + 1] = c
-        for a in range(m):
+        for a in range(m):  # (mark now: a shared column's place in the block's rows)
             mark[merged[a]] = a
         for r in range(s, e):
             q = ptr[r]
@@ -672,8 +672,7 @@ def _tree_arrays(n: int, L, U, threads: int) -> TreeFactors | None:
     run_ptr, run_col, run_off, run_cut, run_lo = _runs(lp, lc, lo[group_of], mid[group_of])
     uv, upper_shift = _blocks_reversed(uv, lp[block_start])
     return TreeFactors(order, _lower_blocked(lp, lv, block_start), uv, diagonal, upper_shift, lp, run_ptr, run_col,
-                       run_off,
-                       run_cut, run_lo, block_start, np.searchsorted(block_start, lo),
+                       run_off, run_cut, run_lo, block_start, np.searchsorted(block_start, lo),
                        np.searchsorted(block_start, hi), sep.astype(np.bool_), np.array(bin_start, dtype=np.int64),
                        np.array(phase_bins, dtype=np.int64))
 
@@ -691,7 +690,7 @@ def _lower_product(x, vals, lp, run_col, run_off, s, e, r0, r1, gathered):
         c0 = np.int64(run_col[r])
         n = run_off[r + 1] - run_off[r]
         source, target = x[c0:c0 + n], gathered[m:m + n]
-        for i in range(n):  # (a slice assignment would check the two for overlap: 10 % of a solve)
+        for i in range(n):  # (a slice assignment checks the two for overlap: about 10 % of a solve)
             target[i] = source[i]
         m += n
     k0 = run_off[r0] if r1 > r0 else lp[s]
@@ -867,8 +866,8 @@ def tree_solve(factors: TreeFactors, rhs: np.ndarray) -> np.ndarray:
     f = factors
     x = np.asarray(rhs, dtype=np.float64)[f.order]
     _parallel_solve(
-        x, f.lower_vals, f.upper_vals, f.diagonal, f.upper_shift, f.lower_ptr, f.run_ptr, f.run_col, f.run_off, f.run_cut,
-        f.run_lo, f.block_start, f.group_block_lo, f.group_block_hi, f.separator, f.bin_start, f.phase_bins)
+        x, f.lower_vals, f.upper_vals, f.diagonal, f.upper_shift, f.lower_ptr, f.run_ptr, f.run_col, f.run_off,
+        f.run_cut, f.run_lo, f.block_start, f.group_block_lo, f.group_block_hi, f.separator, f.bin_start, f.phase_bins)
     out = np.empty_like(x)
     out[f.order] = x
     return out
