@@ -97,15 +97,29 @@ def test_a_residual_at_its_floor_is_converged_once_a_correction_contracts_far_le
     assert _floor_stall([1e-6, 5e-7, 4e-7]) == 0.5
 
 
+def solves_on_one_and_two_threads(factors, b):
+    """(x on one thread, x on two) of the tree solve with ``factors``; Numba's thread count restored."""
+    import numba
+
+    from thermonet.solvers.tree_solve import tree_solve
+
+    threads = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        one = tree_solve(factors, b)
+        numba.set_num_threads(min(2, numba.config.NUMBA_NUM_THREADS))
+        return one, tree_solve(factors, b)
+    finally:
+        numba.set_num_threads(threads)
+
+
 def test_the_tree_solve_gives_superlus_and_a_dense_solution(monkeypatch):
     """On a lattice's matrix in nested-dissection order (nonsymmetric, diagonally dominant: no
     pivoting), the factors cut into leaf subtrees and separators solve as SuperLU and NumPy's
     dense solve do, to round-off; serial and on two threads bit for bit the same. A kept
     factorization (splu-reuse) switches to it after TREE_AFTER_SOLVES solves; where SuperLU
     pivoted off the diagonal, it keeps SuperLU's solve."""
-    import numba
-
-    from thermonet.solvers.tree_solve import tree_factors, tree_solve
+    from thermonet.solvers.tree_solve import tree_factors
 
     monkeypatch.setattr(pattern_module, "METIS_MIN_NODES", 10)
     p = lattice_pattern(6)  # 1 080 unknowns
@@ -119,16 +133,9 @@ def test_the_tree_solve_gives_superlus_and_a_dense_solution(monkeypatch):
     assert f is not None and f.separator.sum() >= 3 and (~f.separator).sum() >= 4
     widths = np.diff(f.block_start)  # (a node's three rows, and wider blocks: both product loops run)
     assert (widths == 3).any() and (widths > 3).any()
-    threads = numba.get_num_threads()
-    try:
-        numba.set_num_threads(1)
-        x = tree_solve(f, b)
-        numba.set_num_threads(min(2, numba.config.NUMBA_NUM_THREADS))
-        two = tree_solve(f, b)
-        binned_for_one, _ = tree_factors(lu._lu, 1)  # (its thread bins made for one thread)
-        other_bins = tree_solve(binned_for_one, b)
-    finally:
-        numba.set_num_threads(threads)
+    x, two = solves_on_one_and_two_threads(f, b)
+    binned_for_one, _ = tree_factors(lu._lu, 1)  # (its thread bins made for one thread)
+    _, other_bins = solves_on_one_and_two_threads(binned_for_one, b)
     assert np.array_equal(two, x) and np.array_equal(other_bins, x)
     dense = np.linalg.solve(A.toarray(), b)
     scale = np.abs(dense).max()
@@ -174,8 +181,6 @@ def test_exact_zeros_in_the_factors_do_not_split_a_nodes_rows(monkeypatch):
     Jacobian entries), so a node's three rows of L differ by a few columns; the tree pads them
     back into one block (zeros stored) rather than solving them row by row on the slow path.
     The solve stays the dense one's to round-off, the same bits on one and two threads."""
-    import numba
-
     import thermonet.solvers.tree_solve as tree_module
     from thermonet.solvers.tree_solve import tree_factors, tree_solve
 
@@ -204,14 +209,7 @@ def test_exact_zeros_in_the_factors_do_not_split_a_nodes_rows(monkeypatch):
     assert width3_share(split) < 0.6 and width3_share(f) > 0.95
     assert len(f.lower_vals) <= 1.05 * (lu._lu.L.nnz - p.size)
     b = np.random.default_rng(1).uniform(-1.0, 1.0, p.size)
-    threads = numba.get_num_threads()
-    try:
-        numba.set_num_threads(1)
-        x = tree_solve(f, b)
-        numba.set_num_threads(min(2, numba.config.NUMBA_NUM_THREADS))
-        two = tree_solve(f, b)
-    finally:
-        numba.set_num_threads(threads)
+    x, two = solves_on_one_and_two_threads(f, b)
     assert np.array_equal(two, x)
     dense = np.linalg.solve(p.matrix(data).toarray(), b)
     assert np.abs(x - dense).max() <= 1e-13 * np.abs(dense).max()
