@@ -88,7 +88,8 @@ from .schedule import FIRST_FLOW_SLOT
 # thermonet.kernels.subflows; the small passes (thermal_kick, ...) those of .passes, the row
 # copies those of thermonet.kernels.copies;
 # the loads' functions (node_load, cpu_*) those of thermonet.loads.elements, with LOADS.
-spring_pass = node_pass = boundary_spring_pass = boundary_node_pass = closing_node_kick = None
+spring_pass = node_pass = boundary_spring_pass = boundary_node_pass = closing_node_kick = spring_block = None
+node_block = closing_node_chunk = None
 thermal_kick = copy_rows = apply_flow = None
 spring_force = spring_energy = spring_temperature = outside_admissible = advance_thermal_displacement = None
 gather_force = kick_momentum = drift_position = load_row = store_row = None
@@ -142,11 +143,16 @@ def splitting_kernels(model, parallel: bool, thermal: bool = True, uniform: bool
         # the passes are named by what they read (specialize_by_content): a node pass reads no
         # model or parameter layout, a spring pass no loads, so variants share them
         threaded = dict(_OPTIONS, parallel=parallel)
+        ns["spring_block"] = specialize_by_content(_spring_block, tag, ns, **_OPTIONS)
         ns["spring_pass"] = specialize_by_content(_spring_pass, tag, ns, **threaded)
+        ns["node_block"] = specialize_by_content(_node_block, tag, ns, **_OPTIONS)
         ns["node_pass"] = specialize_by_content(_node_pass, tag, ns, **threaded)
         boundary = dict(ns, CLOSING=True)
+        boundary["spring_block"] = specialize_by_content(_spring_block, tag + "_boundary", boundary, **_OPTIONS)
         boundary["closing_node_kick"] = specialize(_closing_node_kick, tag + "_boundary", boundary, inline="always",
                                                    **_OPTIONS)
+        boundary["closing_node_chunk"] = specialize_by_content(_closing_node_chunk, tag + "_boundary", boundary,
+                                                               **_OPTIONS)
         ns["boundary_spring_pass"] = specialize_by_content(_spring_pass, tag + "_boundary", boundary, **threaded)
         ns["boundary_node_pass"] = specialize_by_content(_node_pass, tag + "_boundary", boundary, **threaded)
         ns["thermal_kick"] = specialize_by_content(_thermal_kick, tag, ns, **threaded)
@@ -186,11 +192,17 @@ def _spring_pass(x, eta, phi, topology, springs, scratch, steps, run, keep, leng
     diagnostics row sums exactly, and the range of θ.
 
     x: (n, 3); eta, phi: (m,); steps: (2,) tuple of floats. Returns (the number of springs
-    outside the admissible states, min θ, max θ); the range is inf, −inf unless summed. Compiled twice: with CLOSING for the calls' first and last kicks, and without (keep
-    and sums compiled out) for every other. With CONDUCTION and ``keep`` each spring's length
+    outside the admissible states, min θ, max θ); the range is inf, −inf unless summed. Compiled
+    twice: with CLOSING for the calls' first and last kicks, and without (keep and sums compiled
+    out) for every other. With CONDUCTION and ``keep`` each spring's length
     goes to length (m,), its strain (``Model.strain``) to strain (m,) and its θ to theta_keep,
     where the conduction sweeps and the refresh pass take them (a kick followed by no drift: θ,
     l and the strain stay valid).
+
+    The loop over blocks is all this pass does; a block's work is :func:`_spring_block`, a
+    serial function of its own: inlined into the parallel loop, Numba's parallel compiler
+    processed the whole block's code (with the model's) again, several times over, and took
+    four times as long as for the serial pass.
     """
     edges = topology.edges
     l0 = springs.rest
@@ -208,43 +220,58 @@ def _spring_pass(x, eta, phi, topology, springs, scratch, steps, run, keep, leng
     theta_min = math.inf
     theta_max = -math.inf
     for blk in prange((m + BLOCK - 1) // BLOCK):
-        lo = blk * BLOCK
+        lo = np.int64(blk) * BLOCK
         n = min(BLOCK, m - lo)
-        squared_lengths(x, edges, lo, n, s, lo)
+        block_bad, block_min, block_max = spring_block(lo, n, x, eta, phi, edges, l0, P, s, theta_keep, energy_buf,
+                                                       length, strain, keep, want_sums, track_phi, stretch_min,
+                                                       stretch_max, phi_h1, phi_h2)
+        bad += block_bad
+        if CLOSING:
+            theta_min = min(theta_min, block_min)
+            theta_max = max(theta_max, block_max)
+    return bad, theta_min, theta_max
+
+
+def _spring_block(lo, n, x, eta, phi, edges, l0, P, s, theta_keep, energy_buf, length, strain, keep, want_sums,
+                  track_phi, stretch_min, stretch_max, phi_h1, phi_h2):
+    """Springs lo … lo + n − 1 of :func:`_spring_pass` (n ≤ BLOCK): a scalar loop gathers the
+    squared lengths into s, a second loop over contiguous arrays does the arithmetic (and
+    vectorizes). Returns (how many are outside the admissible states, min θ, max θ of the block;
+    inf, −inf unless ``want_sums``)."""
+    squared_lengths(x, edges, lo, n, s, lo)
+    bad = 0
+    for i in range(n):
+        e = np.uint64(lo + i)
+        c = np.uint64(0) if UNIFORM else e
+        l = math.sqrt(s[e])
+        rest = l0[e]
+        theta, force = spring_force(l, eta[e] if THERMAL else 0.0, rest, P, c)
+        s[e] = force
+        bad += outside_admissible(l, rest, force, theta, stretch_min, stretch_max)
+        if CONDUCTION and keep:  # the conduction sweeps and the refresh pass start from θ and l
+            theta_keep[e] = theta
+            length[e] = l
+        if CLOSING:
+            if THERMAL and keep:
+                theta_keep[e] = theta
+            if want_sums:
+                energy_buf[e] = spring_energy(l, eta[e] if THERMAL else 0.0, theta, rest, P, c)
+        if THERMAL and track_phi:
+            advance_thermal_displacement(phi, e, theta, phi_h1, phi_h2)
+    if CONDUCTION and keep:  # after the loop: in it, the strain's log would be taken on every pass
         for i in range(n):
             e = np.uint64(lo + i)
-            c = np.uint64(0) if UNIFORM else e
-            l = math.sqrt(s[e])
-            rest = l0[e]
-            theta, force = spring_force(l, eta[e] if THERMAL else 0.0, rest, P, c)
-            s[e] = force
-            bad += outside_admissible(l, rest, force, theta, stretch_min, stretch_max)
-            if CONDUCTION and keep:  # the conduction sweeps and the refresh pass start from θ and l
-                theta_keep[e] = theta
-                length[e] = l
-            if CLOSING:
-                if THERMAL and keep:
-                    theta_keep[e] = theta
-                if want_sums:
-                    energy_buf[e] = spring_energy(l, eta[e] if THERMAL else 0.0, theta, rest, P, c)
-            if THERMAL and track_phi:
-                advance_thermal_displacement(phi, e, theta, phi_h1, phi_h2)
-        if CONDUCTION and keep:  # after the loop: in it, the strain's log would be taken on every pass
+            strain[e] = model_strain(length[e], l0[e])
+    block_min = math.inf
+    block_max = -math.inf
+    if CLOSING:
+        if want_sums:  # after the vectorized loop (a reduction inside it would keep it scalar)
             for i in range(n):
                 e = np.uint64(lo + i)
-                strain[e] = model_strain(length[e], l0[e])
-        if CLOSING:
-            if want_sums:  # after the vectorized loop (a reduction inside it would keep it scalar)
-                block_min = math.inf
-                block_max = -math.inf
-                for i in range(n):
-                    e = np.uint64(lo + i)
-                    th = theta_keep[e] if THERMAL else P[REFERENCE_TEMPERATURE, np.uint64(0) if UNIFORM else e]
-                    block_min = min(block_min, th)
-                    block_max = max(block_max, th)
-                theta_min = min(theta_min, block_min)
-                theta_max = max(theta_max, block_max)
-    return bad, theta_min, theta_max
+                th = theta_keep[e] if THERMAL else P[REFERENCE_TEMPERATURE, np.uint64(0) if UNIFORM else e]
+                block_min = min(block_min, th)
+                block_max = max(block_max, th)
+    return bad, block_min, block_max
 
 
 def _node_pass(x, x_new, p, topology, nodes, scratch, steps, force_source, want_sums, inputs):
@@ -293,45 +320,72 @@ def _node_pass(x, x_new, p, topology, nodes, scratch, steps, force_source, want_
     else:  # (placeholders, unread)
         node_force = node_weight = node_drive = load_value = load_free = s
     n_nodes = x.shape[0]
+    # (each parallel loop's body is one call of a serial function: see _spring_pass)
     if CLOSING:
         move = force_source != FORCE_GATHER_KEEP
         node_accs = scratch.node_accs
         node_terms = scratch.node_terms
         per_chunk = chunk_length(n_nodes)
         for c in prange((n_nodes + per_chunk - 1) // per_chunk):
-            terms = node_terms[c]
-            rest = terms[len(NODE_SUMS)]
-            if want_sums:
-                node_accs[c] = 0
-            for lo in range(c * per_chunk, min(n_nodes, (c + 1) * per_chunk), BLOCK):
-                k = min(BLOCK, n_nodes - lo)
-                for i in range(k):
-                    a = np.uint64(lo + i)  # (unsigned, as a prange index: no wraparound test per access)
-                    free, xa0, xa1, xa2, p0, p1, p2 = closing_node_kick(
-                        a, x, x_new, p, s, s_before, f_keep, inc_ptr, inc_spring, inc_other, masses, inv_mass,
-                        anchored, gravity, with_gravity, kick1, kick2, drift, with_force, force_source, move,
-                        node_force, node_weight, node_drive, load_value, load_free)
-                    if want_sums:  # (a node held still counts for nothing)
-                        kinetic, potential, l0_, l1_, l2_ = node_diagnostic_terms(xa0, xa1, xa2, p0, p1, p2,
-                                                                                  masses[a], gravity, ref)
-                        terms[0, i] = kinetic if free else 0.0
-                        terms[1, i] = potential if free else 0.0
-                        terms[2, i] = p0 if free else 0.0
-                        terms[3, i] = p1 if free else 0.0
-                        terms[4, i] = p2 if free else 0.0
-                        terms[5, i] = l0_ if free else 0.0
-                        terms[6, i] = l1_ if free else 0.0
-                        terms[7, i] = l2_ if free else 0.0
-                if want_sums:
-                    for q in range(len(NODE_SUMS)):
-                        add_terms(node_accs[c, q], terms[q], k, rest)
-            if want_sums:
-                for q in range(len(NODE_SUMS)):
-                    normalize(node_accs[c, q])
+            closing_node_chunk(np.int64(c), per_chunk, x, x_new, p, s, s_before, f_keep, inc_ptr, inc_spring,
+                               inc_other, masses, inv_mass, anchored, gravity, with_gravity, ref, kick1, kick2, drift,
+                               with_force, force_source, move, want_sums, node_accs, node_terms, node_force,
+                               node_weight, node_drive, load_value, load_free)
         return
+    for blk in prange((n_nodes + BLOCK - 1) // BLOCK):
+        lo = np.int64(blk) * BLOCK
+        node_block(lo, min(n_nodes, lo + BLOCK), x, x_new, p, s, s_before, inc_ptr, inc_spring, inc_other, masses,
+                   inv_mass, anchored, gravity, with_gravity, kick1, kick2, drift, with_force, force_source, node_force,
+                   node_weight, node_drive, load_value, load_free)
+
+
+def _closing_node_chunk(c, per_chunk, x, x_new, p, s, s_before, f_keep, inc_ptr, inc_spring, inc_other, masses,
+                        inv_mass, anchored, gravity, with_gravity, ref, kick1, kick2, drift, with_force, force_source,
+                        move, want_sums, node_accs, node_terms, node_force, node_weight, node_drive, load_value,
+                        load_free):
+    """Chunk c (nodes c·per_chunk … (c + 1)·per_chunk − 1, whole blocks) of a closing
+    :func:`_node_pass`: each node's :func:`_closing_node_kick` and, with ``want_sums``, the
+    chunk's sums into node_accs[c]."""
+    n_nodes = x.shape[0]
+    terms = node_terms[c]
+    rest = terms[len(NODE_SUMS)]
+    if want_sums:
+        node_accs[c] = 0
+    for lo in range(c * per_chunk, min(n_nodes, (c + 1) * per_chunk), BLOCK):
+        k = min(BLOCK, n_nodes - lo)
+        for i in range(k):
+            a = np.uint64(lo + i)  # (unsigned: no wraparound test per access)
+            free, xa0, xa1, xa2, p0, p1, p2 = closing_node_kick(
+                a, x, x_new, p, s, s_before, f_keep, inc_ptr, inc_spring, inc_other, masses, inv_mass,
+                anchored, gravity, with_gravity, kick1, kick2, drift, with_force, force_source, move,
+                node_force, node_weight, node_drive, load_value, load_free)
+            if want_sums:  # (a node held still counts for nothing)
+                kinetic, potential, l0_, l1_, l2_ = node_diagnostic_terms(xa0, xa1, xa2, p0, p1, p2,
+                                                                          masses[a], gravity, ref)
+                terms[0, i] = kinetic if free else 0.0
+                terms[1, i] = potential if free else 0.0
+                terms[2, i] = p0 if free else 0.0
+                terms[3, i] = p1 if free else 0.0
+                terms[4, i] = p2 if free else 0.0
+                terms[5, i] = l0_ if free else 0.0
+                terms[6, i] = l1_ if free else 0.0
+                terms[7, i] = l2_ if free else 0.0
+        if want_sums:
+            for q in range(len(NODE_SUMS)):
+                add_terms(node_accs[c, q], terms[q], k, rest)
+    if want_sums:
+        for q in range(len(NODE_SUMS)):
+            normalize(node_accs[c, q])
+
+
+def _node_block(start, stop, x, x_new, p, s, s_before, inc_ptr, inc_spring, inc_other, masses, inv_mass, anchored,
+                gravity, with_gravity, kick1, kick2, drift, with_force, force_source, node_force, node_weight,
+                node_drive, load_value, load_free):
+    """Nodes start … stop − 1 of a :func:`_node_pass` that does not close a call."""
     # (the node's work written out here rather than called like the closing kick's: as an inlined
     # call the stepping passes ran 6–8 % slower)
-    for a in prange(n_nodes):
+    for i in range(start, stop):
+        a = np.uint64(i)
         xa0, xa1, xa2 = load_row(x, a)
         if anchored[a]:
             store_row(x_new, a, xa0, xa1, xa2)
@@ -542,13 +596,14 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run
                                    np.bool_(False), (heat.s_before, loads))
             elif CONDUCTION and deferred != 0.0:
                 node_pass(cur, nxt, p, topology, nodes, scratch,
-                          KickDrift(deferred * h, k2 * h, table.drift[r] * h, True), FORCE_DEFERRED, False,
+                          KickDrift(deferred * h, k2 * h, table.drift[r] * h, True), np.int64(FORCE_DEFERRED), False,
                           (heat.s_before, loads))
                 if LOADS:
                     cpu_load_work(cur, heat.s_before, topology, nodes, loads, 0.0, deferred * h)
                 deferred = 0.0
             else:
-                node_pass(cur, nxt, p, topology, nodes, scratch, steps, FORCE_GATHER, False, (heat.s_before, loads))
+                node_pass(cur, nxt, p, topology, nodes, scratch, steps, np.int64(FORCE_GATHER), False,
+                          (heat.s_before, loads))
             if LOADS and with_force:
                 cpu_load_work(cur, scratch.s, topology, nodes, loads, k1 * h, k2 * h)
             cur, nxt = nxt, cur

@@ -491,8 +491,8 @@ def deferred_kick(x, x_new, p, topology, nodes, scratch, heat, loads, when, want
         boundary_node_pass(x, x_new, p, topology, nodes, scratch, KickDrift(tau, 0.0, 0.0, True),
                            np.int64(FORCE_DEFERRED), np.bool_(True), (heat.s_before, loads))
     else:
-        node_pass(x, x_new, p, topology, nodes, scratch, KickDrift(tau, 0.0, 0.0, True), FORCE_DEFERRED, False,
-                  (heat.s_before, loads))
+        node_pass(x, x_new, p, topology, nodes, scratch, KickDrift(tau, 0.0, 0.0, True), np.int64(FORCE_DEFERRED),
+                  False, (heat.s_before, loads))
     if LOADS:
         cpu_load_work(x, heat.s_before, topology, nodes, loads, 0.0, tau)
 

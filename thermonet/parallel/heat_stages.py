@@ -50,15 +50,15 @@ def _kick_drift(cur, nxt, state, topology, nodes, scratch, steps, s_before, load
     deferred past the sweep with those of s_before, then this stage's kick of s."""
     if deferred != 0.0:
         node_pass(cur, nxt, state.p, topology, nodes, scratch, KickDrift(deferred * h, kick * h, drift * h, True),
-                  FORCE_DEFERRED, False, (s_before, loads))
+                  np.int64(FORCE_DEFERRED), False, (s_before, loads))
     else:
-        node_pass(cur, nxt, state.p, topology, nodes, scratch, steps, FORCE_GATHER, False, (s_before, loads))
+        node_pass(cur, nxt, state.p, topology, nodes, scratch, steps, np.int64(FORCE_GATHER), False, (s_before, loads))
 
 
 def _deferred_alone(cur, nxt, state, topology, nodes, scratch, s_before, loads, tau):
     """The kick deferred past a call's last sweep, by itself (drift 0: the positions stay in cur)."""
-    node_pass(cur, nxt, state.p, topology, nodes, scratch, KickDrift(tau, 0.0, 0.0, True), FORCE_DEFERRED, False,
-              (s_before, loads))
+    node_pass(cur, nxt, state.p, topology, nodes, scratch, KickDrift(tau, 0.0, 0.0, True), np.int64(FORCE_DEFERRED),
+              False, (s_before, loads))
 
 
 def _closing(cur, nxt, state, topology, springs, nodes, scratch, kept, s_before, loads, pending, run):

@@ -32,7 +32,7 @@ def _stage(cur, nxt, state, topology, springs, nodes, scratch, steps, run, extra
                           False, extra[0], extra[0])[0]
         if bad > 0:
             return bad
-    node_pass(cur, nxt, state.p, topology, nodes, scratch, steps, FORCE_GATHER, False, extra[1])
+    node_pass(cur, nxt, state.p, topology, nodes, scratch, steps, np.int64(FORCE_GATHER), False, extra[1])
     return 0
 
 

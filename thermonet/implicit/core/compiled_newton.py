@@ -398,7 +398,8 @@ def _newton_steps(state, records, extra, linear, control, out):
                     continue
             if SWEEPS:
                 if use_jacobi:
-                    scheme_sweep(topo, node, work, h, du, R, r, True, True)
+                    # (np.bool_: the type of the other call's ``first``, so one compiled sweep serves both)
+                    scheme_sweep(topo, node, work, h, du, R, r, True, np.bool_(True))
                     jacobi_steps += 1
                     last = JACOBI
                 else:

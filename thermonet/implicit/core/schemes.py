@@ -69,8 +69,8 @@ from numba import njit, prange
 
 from .status import (BLOCK, COLLAPSED, NO_TEMPERATURE, NOT_FINITE, OK, STATUS_TEXT,  # noqa: F401 (re-exported)
                             _admissible, _first_flagged)
-from .start import _adiabatic_stiffness, _start
-from ...kernels.specialize import model_fingerprint, model_namespace, specialize
+from .start import _adiabatic_stiffness, _start, _start_springs
+from ...kernels.specialize import model_fingerprint, model_namespace, specialize, specialize_by_content
 
 # Bound per model by specialize(); listed so the templates read as ordinary code.
 temperature = tension = d2F_dl2 = d2F_dl_dtheta = d2F_dtheta2 = None
@@ -156,6 +156,8 @@ def implicit_kernels(model, scheme: str, parallel: bool = False, uniform: bool =
         ns["CAN_VANISH"] = bool(getattr(model, "temperature_can_vanish", False))
         ns["energy_quotient"] = model.energy_quotient if ns["EXACT_QUOTIENT"] else _no_energy_quotient
         ns["adiabatic_stiffness"] = specialize(_adiabatic_stiffness, tag, ns, **INLINE)
+        # (its spring blocks: serial, shared by the serial and the threaded start kernels)
+        ns["start_springs"] = specialize_by_content(_start_springs, f"{tag}_rate{int(rate)}", ns, **OPTIONS)
         start = specialize(_start, f"{ptag}_rate{int(rate)}{'_keep' if ns['KEEP_START'] else ''}"
                            f"{'_extrapolate' if ns['EXTRAPOLATE'] else ''}", ns, parallel=parallel, **OPTIONS)
         ns["finish_nodes"] = specialize(_finish_nodes, ptag, ns, parallel=parallel, **OPTIONS)

@@ -16,7 +16,7 @@ from numba import prange
 from .status import BLOCK, COLLAPSED, NO_TEMPERATURE, OK, _admissible, _first_flagged
 
 # Bound per model by specialize(); listed so the template reads as ordinary code.
-temperature = tension = d2F_dl2 = d2F_dl_dtheta = d2F_dtheta2 = adiabatic_stiffness = None
+temperature = tension = d2F_dl2 = d2F_dl_dtheta = d2F_dtheta2 = adiabatic_stiffness = start_springs = None
 #: compile-time constants bound per model and scheme (core.schemes.implicit_kernels): the
 #: acceleration's time derivatives the predictor uses (ImplicitStepper.rate), whether the start
 #: keeps per-spring values for the residuals (``keep``), one shared parameter column, and
@@ -81,97 +81,8 @@ def _start(step, topo, spring, node, work, coef, pred):
     if EXTRAPOLATE:
         nodal[last, 0] = 0.0  # pred is overwritten below
     for blk in prange((m + BLOCK - 1) // BLOCK):
-        lo = blk * BLOCK
-        n = min(BLOCK, m - lo)
-        for i in range(n):  # gather: spring vector and relative velocity
-            e = np.uint64(lo + i)
-            a = edges[e, 0]
-            b = edges[e, 1]
-            dir0[0, e] = x0[b, 0] - x0[a, 0]
-            dir0[1, e] = x0[b, 1] - x0[a, 1]
-            dir0[2, e] = x0[b, 2] - x0[a, 2]
-            if RATE > 0:
-                fs[3, e] = p[b, 0] * inv_mass[b] - p[a, 0] * inv_mass[a]
-                fs[4, e] = p[b, 1] * inv_mass[b] - p[a, 1] * inv_mass[a]
-                fs[5, e] = p[b, 2] * inv_mass[b] - p[a, 2] * inv_mass[a]
-        for i in range(n):  # arithmetic (vectorized)
-            e = np.uint64(lo + i)
-            pe = np.uint64(0) if UNIFORM else np.uint64(e)
-            dx = dir0[0, e]
-            dy = dir0[1, e]
-            dz = dir0[2, e]
-            l = math.sqrt(dx * dx + dy * dy + dz * dz)
-            il = 1.0 / l
-            nx = dx * il
-            ny = dy * il
-            nz = dz * il
-            len0[e] = l
-            dir0[0, e] = nx
-            dir0[1, e] = ny
-            dir0[2, e] = nz
-            rest = l0[e]
-            th = temperature(l, eta[e], rest, P, pe)
-            T = tension(l, th, rest, P, pe)
-            fs[0, e] = T * nx
-            fs[1, e] = T * ny
-            fs[2, e] = T * nz
-            if KEEP_START:
-                keep[0, e] = th
-                keep[1, e] = T
-            lok = (l > 0.0) & (l < math.inf)
-            code[e] = OK if (lok & _admissible(th)) else (NO_TEMPERATURE if lok else COLLAPSED)
-        # what KEEP_START and RATE add, each in a loop of its own: in one loop with the above
-        # LLVM vectorized none of it (HO4's start cost 17–21 CO2 steps instead of ≈ 3)
-        if KEEP_START:
-            for i in range(n):
-                e = np.uint64(lo + i)
-                pe = np.uint64(0) if UNIFORM else np.uint64(e)
-                l = len0[e]
-                rest = l0[e]
-                th = keep[0, e]
-                keep[2, e] = d2F_dl_dtheta(l, th, rest, P, pe)
-                keep[3, e] = -th * d2F_dtheta2(l, th, rest, P, pe)
-        if RATE > 0:
-            for i in range(n):
-                e = np.uint64(lo + i)
-                pe = np.uint64(0) if UNIFORM else np.uint64(e)
-                l = len0[e]
-                nx = dir0[0, e]
-                ny = dir0[1, e]
-                nz = dir0[2, e]
-                rest = l0[e]
-                if KEEP_START:  # what the loop above kept (the same values)
-                    th = keep[0, e]
-                    T = keep[1, e]
-                    flt = keep[2, e]
-                else:
-                    th = temperature(l, eta[e], rest, P, pe)
-                    T = tension(l, th, rest, P, pe)
-                    flt = d2F_dl_dtheta(l, th, rest, P, pe)
-                vx = fs[3, e]
-                vy = fs[4, e]
-                vz = fs[5, e]
-                ldot = nx * vx + ny * vy + nz * vz
-                Tl = d2F_dl2(l, th, rest, P, pe) - flt * flt / d2F_dtheta2(l, th, rest, P, pe)
-                Tdot = Tl * ldot
-                q = T / l
-                fs[3, e] = Tdot * nx + q * (vx - nx * ldot)
-                fs[4, e] = Tdot * ny + q * (vy - ny * ldot)
-                fs[5, e] = Tdot * nz + q * (vz - nz * ldot)
-                if RATE > 1:
-                    ws[0, e] = vx
-                    ws[1, e] = vy
-                    ws[2, e] = vz
-                    ws[3, e] = T
-                    ws[4, e] = Tl
-        if RATE > 1:
-            for i in range(n):
-                e = np.uint64(lo + i)
-                pe = np.uint64(0) if UNIFORM else np.uint64(e)
-                l = len0[e]
-                dl = STIFFNESS_STEP * l
-                ws[5, e] = (adiabatic_stiffness(l + dl, eta[e], l0[e], P, pe) - ws[4, e]) / dl
-        bad = min(bad, _first_flagged(code, lo, n, m))
+        lo = np.int64(blk) * BLOCK
+        bad = min(bad, start_springs(step, topo, spring, node, work, coef, pred, lo, min(BLOCK, m - lo)))
     if bad < m:
         return code[bad], bad
     J = coef.shape[0]
@@ -303,3 +214,104 @@ def _start(step, topo, spring, node, work, coef, pred):
                 q = coef[s, 0] * v + coef[s, 1] * acc + coef[s, 2] * jerk + coef[s, 3] * sn
                 pred[3 * J * k + 3 * s + i] = q + coef[s, 4] * d if EXTRAPOLATE else q
     return 0, -1
+
+
+def _start_springs(step, topo, spring, node, work, coef, pred, lo, n):
+    """Springs lo … lo + n − 1 of :func:`_start`'s first spring pass (n ≤ BLOCK), a serial
+    function called once per block: see thermonet.explicit.cpu._spring_pass. Returns the block's
+    first flagged spring (m if none)."""
+    x0, p, eta, h = step
+    edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
+    l0, P = spring
+    masses, inv_mass, anchored, gravity, with_gravity, reference = node
+    len0, dir0, keep, fs, ws, sweep, nodal, guess, code = work
+    m = edges.shape[0]
+    for i in range(n):  # gather: spring vector and relative velocity
+        e = np.uint64(lo + i)
+        a = edges[e, 0]
+        b = edges[e, 1]
+        dir0[0, e] = x0[b, 0] - x0[a, 0]
+        dir0[1, e] = x0[b, 1] - x0[a, 1]
+        dir0[2, e] = x0[b, 2] - x0[a, 2]
+        if RATE > 0:
+            fs[3, e] = p[b, 0] * inv_mass[b] - p[a, 0] * inv_mass[a]
+            fs[4, e] = p[b, 1] * inv_mass[b] - p[a, 1] * inv_mass[a]
+            fs[5, e] = p[b, 2] * inv_mass[b] - p[a, 2] * inv_mass[a]
+    for i in range(n):  # arithmetic (vectorized)
+        e = np.uint64(lo + i)
+        pe = np.uint64(0) if UNIFORM else np.uint64(e)
+        dx = dir0[0, e]
+        dy = dir0[1, e]
+        dz = dir0[2, e]
+        l = math.sqrt(dx * dx + dy * dy + dz * dz)
+        il = 1.0 / l
+        nx = dx * il
+        ny = dy * il
+        nz = dz * il
+        len0[e] = l
+        dir0[0, e] = nx
+        dir0[1, e] = ny
+        dir0[2, e] = nz
+        rest = l0[e]
+        th = temperature(l, eta[e], rest, P, pe)
+        T = tension(l, th, rest, P, pe)
+        fs[0, e] = T * nx
+        fs[1, e] = T * ny
+        fs[2, e] = T * nz
+        if KEEP_START:
+            keep[0, e] = th
+            keep[1, e] = T
+        lok = (l > 0.0) & (l < math.inf)
+        code[e] = OK if (lok & _admissible(th)) else (NO_TEMPERATURE if lok else COLLAPSED)
+    # what KEEP_START and RATE add, each in a loop of its own: in one loop with the above
+    # LLVM vectorized none of it (HO4's start cost 17–21 CO2 steps instead of ≈ 3)
+    if KEEP_START:
+        for i in range(n):
+            e = np.uint64(lo + i)
+            pe = np.uint64(0) if UNIFORM else np.uint64(e)
+            l = len0[e]
+            rest = l0[e]
+            th = keep[0, e]
+            keep[2, e] = d2F_dl_dtheta(l, th, rest, P, pe)
+            keep[3, e] = -th * d2F_dtheta2(l, th, rest, P, pe)
+    if RATE > 0:
+        for i in range(n):
+            e = np.uint64(lo + i)
+            pe = np.uint64(0) if UNIFORM else np.uint64(e)
+            l = len0[e]
+            nx = dir0[0, e]
+            ny = dir0[1, e]
+            nz = dir0[2, e]
+            rest = l0[e]
+            if KEEP_START:  # what the loop above kept (the same values)
+                th = keep[0, e]
+                T = keep[1, e]
+                flt = keep[2, e]
+            else:
+                th = temperature(l, eta[e], rest, P, pe)
+                T = tension(l, th, rest, P, pe)
+                flt = d2F_dl_dtheta(l, th, rest, P, pe)
+            vx = fs[3, e]
+            vy = fs[4, e]
+            vz = fs[5, e]
+            ldot = nx * vx + ny * vy + nz * vz
+            Tl = d2F_dl2(l, th, rest, P, pe) - flt * flt / d2F_dtheta2(l, th, rest, P, pe)
+            Tdot = Tl * ldot
+            q = T / l
+            fs[3, e] = Tdot * nx + q * (vx - nx * ldot)
+            fs[4, e] = Tdot * ny + q * (vy - ny * ldot)
+            fs[5, e] = Tdot * nz + q * (vz - nz * ldot)
+            if RATE > 1:
+                ws[0, e] = vx
+                ws[1, e] = vy
+                ws[2, e] = vz
+                ws[3, e] = T
+                ws[4, e] = Tl
+    if RATE > 1:
+        for i in range(n):
+            e = np.uint64(lo + i)
+            pe = np.uint64(0) if UNIFORM else np.uint64(e)
+            l = len0[e]
+            dl = STIFFNESS_STEP * l
+            ws[5, e] = (adiabatic_stiffness(l + dl, eta[e], l0[e], P, pe) - ws[4, e]) / dl
+    return _first_flagged(code, lo, n, m)

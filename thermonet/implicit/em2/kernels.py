@@ -50,7 +50,7 @@ from ..core.schemes import (BLOCK, COLLAPSED, INLINE, NO_TEMPERATURE, NOT_FINITE
 from .gradient import SWITCH, bind_gradient
 from ..core.records import StartWork
 from ..core.node_rows import inertia_blocks3, node_blocks, norm2, residual_rows3, spring_difference3, sweep_rows3
-from ...kernels.specialize import specialize
+from ...kernels.specialize import specialize, specialize_by_content
 
 # Bound per model by specialize(); listed so the templates read as ordinary code.
 temperature = tension = internal_energy = adiabatic_stiffness = energy_quotient = None
@@ -58,6 +58,7 @@ EXACT_QUOTIENT = False
 CAN_VANISH = True
 finish_nodes = em2_derivative = em2_spring_dslope = lobatto_value = lobatto_derivative = None
 em2_predict = em2_residual = em2_jacobian = em2_finish = em2_linearize = em2_step_scale = em2_damp = None
+em2_residual_springs = em2_finish_springs = None
 
 #: a Newton correction changes no spring's vector by more than this fraction of its length
 LENGTH_LIMIT = 0.5
@@ -103,6 +104,9 @@ def build(ns: dict, tag: str, ptag: str, parallel: bool) -> dict:
     """EM2's kernels for the model namespace ``ns`` (see core.schemes.register_scheme)."""
     alone = bind_gradient(ns, tag)
     ns["em2_spring_dslope"] = specialize(_em2_spring_dslope, tag, ns, **INLINE)
+    # (the spring blocks: serial, shared by the serial and the threaded kernels)
+    ns["em2_residual_springs"] = specialize_by_content(_em2_residual_springs, tag, ns, **OPTIONS)
+    ns["em2_finish_springs"] = specialize_by_content(_em2_finish_springs, tag, ns, **OPTIONS)
     kernels = dict(
         predict=specialize(_em2_predict, ptag, ns, parallel=parallel, **OPTIONS),
         residual=specialize(_em2_residual, ptag, ns, parallel=parallel, **OPTIONS),
@@ -208,77 +212,13 @@ def _em2_residual(step, topo, spring, node, work, u, res):
     m = edges.shape[0]
     half = 0.5 * h
     bad = m
+    # (the work record rebuilt in the loop: Numba cannot hand a record that holds a record to
+    # a parallel loop's body)
+    work_arrays = work[1:]
     for blk in prange((m + BLOCK - 1) // BLOCK):
-        lo = blk * BLOCK
-        n = min(BLOCK, m - lo)
-        for i in range(n):  # gather: the spring vectors at x⁰ and x¹
-            e = np.uint64(lo + i)
-            a = edges[e, 0]
-            b = edges[e, 1]
-            ka = free_index[a]
-            kb = free_index[b]
-            for j in range(3):
-                d0 = x0[b, j] - x0[a, j]
-                d1 = d0
-                if kb >= 0:
-                    d1 += u[3 * kb + j]
-                if ka >= 0:
-                    d1 -= u[3 * ka + j]
-                fs[j, e] = d1
-                mean[j, e] = 0.5 * (d0 + d1)
-        for i in range(n):  # per spring, Q in closed form or by the rule (branch-free: vectorized)
-            e = np.uint64(lo + i)
-            pe = np.uint64(0) if UNIFORM else np.uint64(e)
-            dx = fs[0, e]
-            dy = fs[1, e]
-            dz = fs[2, e]
-            l1 = math.sqrt(dx * dx + dy * dy + dz * dz)
-            len1[e] = l1
-            i1 = 1.0 / l1
-            dir1[0, e] = dx * i1
-            dir1[1, e] = dy * i1
-            dir1[2, e] = dz * i1
-            lok = (l1 > 0.0) & (l1 < math.inf)
-            if EXACT_QUOTIENT:
-                quotient[e] = energy_quotient(len0[e], l1, eta[e], temperature0[e], tension0[e], l0[e], P, pe)[0]
-                if CAN_VANISH:
-                    th1 = temperature(l1, eta[e], l0[e], P, pe)
-                    code[e] = OK if (lok & _admissible(th1)) else (COLLAPSED if not lok else NO_TEMPERATURE)
-                else:
-                    code[e] = OK if lok else COLLAPSED
-            else:
-                th1 = temperature(l1, eta[e], l0[e], P, pe)
-                T1 = tension(l1, th1, l0[e], P, pe)
-                quotient[e] = lobatto_value(len0[e], l1, eta[e], l0[e], P, pe, tension0[e], T1)
-                tension1[e] = T1
-                code[e] = OK if (lok & _admissible(th1)) else (COLLAPSED if not lok else NO_TEMPERATURE)
-        for i in range(n):  # s and the impulses (h/2) s d̄ (fewer arrays per loop: vectorized)
-            e = np.uint64(lo + i)
-            s = quotient[e] / (0.5 * (len0[e] + len1[e]))
-            slope[e] = s
-            g = half * s
-            fs[0, e] = g * mean[0, e]
-            fs[1, e] = g * mean[1, e]
-            fs[2, e] = g * mean[2, e]
-            code[e] = NOT_FINITE if ((code[e] == OK) & (not abs(s) < math.inf)) else code[e]
-        for i in range(0 if EXACT_QUOTIENT else n):  # the quotient ΔU/δ instead where |δ| > SWITCH l̄ (scalar)
-            e = np.uint64(lo + i)
-            l = len0[e]
-            l1 = len1[e]
-            if not abs(l1 - l) > SWITCH * (0.5 * (l + l1)):
-                continue
-            pe = np.uint64(0) if UNIFORM else np.uint64(e)
-            Q = (internal_energy(l1, eta[e], l0[e], P, pe) - energy0[e]) / (l1 - l)
-            quotient[e] = Q
-            s = Q / (0.5 * (l + l1))
-            slope[e] = s
-            g = half * s
-            fs[0, e] = g * mean[0, e]
-            fs[1, e] = g * mean[1, e]
-            fs[2, e] = g * mean[2, e]
-            if code[e] == OK or code[e] == NOT_FINITE:
-                code[e] = OK if abs(s) < math.inf else NOT_FINITE
-        bad = min(bad, _first_flagged(code, lo, n, m))
+        lo = np.int64(blk) * BLOCK
+        bad = min(bad, em2_residual_springs(step, topo, spring, node, (start,) + work_arrays, u, res, lo,
+                                            min(BLOCK, m - lo)))
     if bad < m:
         return code[bad], bad, math.inf, math.inf
     rmax = 0.0
@@ -288,6 +228,89 @@ def _em2_residual(step, topo, spring, node, work, u, res):
         rmax = max(rmax, big)
         smax = max(smax, scale)
     return 0, -1, rmax, smax
+
+
+def _em2_residual_springs(step, topo, spring, node, work, u, res, lo, n):
+    """Springs lo … lo + n − 1 of :func:`_em2_residual` (n ≤ BLOCK), a serial function called
+    once per block: see thermonet.explicit.cpu._spring_pass. Returns the block's first flagged
+    spring (m if none)."""
+    x0, p, eta, h = step
+    edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
+    l0, P = spring
+    masses, inv_mass, anchored, gravity, with_gravity, reference = node
+    start, len1, dir1, mean, slope, dslope, energy0, temperature0, tension0, jc, eta_step, quotient, tension1 = work
+    len0, dir0, keep, fs, ws, sweep, nodal, guess, code = start
+    R, Rabs, peak = res
+    m = edges.shape[0]
+    half = 0.5 * h
+    for i in range(n):  # gather: the spring vectors at x⁰ and x¹
+        e = np.uint64(lo + i)
+        a = edges[e, 0]
+        b = edges[e, 1]
+        ka = free_index[a]
+        kb = free_index[b]
+        for j in range(3):
+            d0 = x0[b, j] - x0[a, j]
+            d1 = d0
+            if kb >= 0:
+                d1 += u[3 * kb + j]
+            if ka >= 0:
+                d1 -= u[3 * ka + j]
+            fs[j, e] = d1
+            mean[j, e] = 0.5 * (d0 + d1)
+    for i in range(n):  # per spring, Q in closed form or by the rule (branch-free: vectorized)
+        e = np.uint64(lo + i)
+        pe = np.uint64(0) if UNIFORM else np.uint64(e)
+        dx = fs[0, e]
+        dy = fs[1, e]
+        dz = fs[2, e]
+        l1 = math.sqrt(dx * dx + dy * dy + dz * dz)
+        len1[e] = l1
+        i1 = 1.0 / l1
+        dir1[0, e] = dx * i1
+        dir1[1, e] = dy * i1
+        dir1[2, e] = dz * i1
+        lok = (l1 > 0.0) & (l1 < math.inf)
+        if EXACT_QUOTIENT:
+            quotient[e] = energy_quotient(len0[e], l1, eta[e], temperature0[e], tension0[e], l0[e], P, pe)[0]
+            if CAN_VANISH:
+                th1 = temperature(l1, eta[e], l0[e], P, pe)
+                code[e] = OK if (lok & _admissible(th1)) else (COLLAPSED if not lok else NO_TEMPERATURE)
+            else:
+                code[e] = OK if lok else COLLAPSED
+        else:
+            th1 = temperature(l1, eta[e], l0[e], P, pe)
+            T1 = tension(l1, th1, l0[e], P, pe)
+            quotient[e] = lobatto_value(len0[e], l1, eta[e], l0[e], P, pe, tension0[e], T1)
+            tension1[e] = T1
+            code[e] = OK if (lok & _admissible(th1)) else (COLLAPSED if not lok else NO_TEMPERATURE)
+    for i in range(n):  # s and the impulses (h/2) s d̄ (fewer arrays per loop: vectorized)
+        e = np.uint64(lo + i)
+        s = quotient[e] / (0.5 * (len0[e] + len1[e]))
+        slope[e] = s
+        g = half * s
+        fs[0, e] = g * mean[0, e]
+        fs[1, e] = g * mean[1, e]
+        fs[2, e] = g * mean[2, e]
+        code[e] = NOT_FINITE if ((code[e] == OK) & (not abs(s) < math.inf)) else code[e]
+    for i in range(0 if EXACT_QUOTIENT else n):  # the quotient ΔU/δ instead where |δ| > SWITCH l̄ (scalar)
+        e = np.uint64(lo + i)
+        l = len0[e]
+        l1 = len1[e]
+        if not abs(l1 - l) > SWITCH * (0.5 * (l + l1)):
+            continue
+        pe = np.uint64(0) if UNIFORM else np.uint64(e)
+        Q = (internal_energy(l1, eta[e], l0[e], P, pe) - energy0[e]) / (l1 - l)
+        quotient[e] = Q
+        s = Q / (0.5 * (l + l1))
+        slope[e] = s
+        g = half * s
+        fs[0, e] = g * mean[0, e]
+        fs[1, e] = g * mean[1, e]
+        fs[2, e] = g * mean[2, e]
+        if code[e] == OK or code[e] == NOT_FINITE:
+            code[e] = OK if abs(s) < math.inf else NOT_FINITE
+    return _first_flagged(code, lo, n, m)
 
 
 def _em2_linearize(spring, work, h):
@@ -357,26 +380,43 @@ def _em2_finish(step, topo, spring, node, work, u, phi, new):
     x_new, p_new, phi_new, eta_new = new
     m = edges.shape[0]
     bad = m
+    # (the work record rebuilt in the loop: Numba cannot hand a record that holds a record to
+    # a parallel loop's body)
+    work_arrays = work[1:]
     for blk in prange((m + BLOCK - 1) // BLOCK):
-        lo = blk * BLOCK
-        n = min(BLOCK, m - lo)
-        for i in range(n):
-            e = np.uint64(lo + i)
-            pe = np.uint64(0) if UNIFORM else np.uint64(e)
-            guess[e] = temperature(0.5 * (len0[e] + len1[e]), eta[e], l0[e], P, pe)
-        for i in range(n):  # the stores apart (with them, the loop above was scalar)
-            e = np.uint64(lo + i)
-            th = guess[e]
-            phi_new[e] = phi[e] + h * th
-            eta_new[e] = eta[e]
-            fs[0, e] *= 2.0
-            fs[1, e] *= 2.0
-            fs[2, e] *= 2.0
-            code[e] = OK if _admissible(th) else NO_TEMPERATURE
-        bad = min(bad, _first_flagged(code, lo, n, m))
+        lo = np.int64(blk) * BLOCK
+        bad = min(bad, em2_finish_springs(step, topo, spring, node, (start,) + work_arrays, u, phi, new, lo,
+                                          min(BLOCK, m - lo)))
     if bad < m:
         return code[bad], bad
     return finish_nodes(step, topo, node, fs, u, 3, 0, new)
+
+
+def _em2_finish_springs(step, topo, spring, node, work, u, phi, new, lo, n):
+    """Springs lo … lo + n − 1 of :func:`_em2_finish` (n ≤ BLOCK), a serial function called once
+    per block: see thermonet.explicit.cpu._spring_pass. Returns the block's first flagged spring
+    (m if none)."""
+    x0, p, eta, h = step
+    edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
+    l0, P = spring
+    start, len1, dir1, mean, slope, dslope, energy0, temperature0, tension0, jc, eta_step, quotient, tension1 = work
+    len0, dir0, keep, fs, ws, sweep, nodal, guess, code = start
+    x_new, p_new, phi_new, eta_new = new
+    m = edges.shape[0]
+    for i in range(n):
+        e = np.uint64(lo + i)
+        pe = np.uint64(0) if UNIFORM else np.uint64(e)
+        guess[e] = temperature(0.5 * (len0[e] + len1[e]), eta[e], l0[e], P, pe)
+    for i in range(n):  # the stores apart (with them, the loop above was scalar)
+        e = np.uint64(lo + i)
+        th = guess[e]
+        phi_new[e] = phi[e] + h * th
+        eta_new[e] = eta[e]
+        fs[0, e] *= 2.0
+        fs[1, e] *= 2.0
+        fs[2, e] *= 2.0
+        code[e] = OK if _admissible(th) else NO_TEMPERATURE
+    return _first_flagged(code, lo, n, m)
 
 
 def _em2_sweep(topo, node, work, h, du, R, r, update, first):

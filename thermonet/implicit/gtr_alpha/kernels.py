@@ -33,12 +33,13 @@ from ..core.schemes import (BLOCK, INLINE, KEEP_START, LOCAL_ITERATIONS, MAX_LOG
                             _usable, register_scheme, scatter_spring_block)
 from ..core.records import StartWork
 from ..core.node_rows import inertia_blocks3, node_blocks, residual_rows3, spring_difference3, sweep_rows3
-from ...kernels.specialize import specialize
+from ...kernels.specialize import specialize, specialize_by_content
 
 # Bound per model by specialize(); listed so the templates read as ordinary code.
 entropy = temperature = tension = d2F_dl_dtheta = d2F_dtheta2 = None
 gtr_thermal = gtr_thermal_vector = gtr_correct = finish_nodes = None
 gtr_residual = gtr_jacobian = gtr_finish = gtr_linearize = None
+gtr_residual_springs = gtr_finish_springs = None
 
 
 class GTRWork(NamedTuple):
@@ -62,6 +63,9 @@ def build(ns: dict, tag: str, ptag: str, parallel: bool) -> dict:
     ns["gtr_correct"] = specialize(_gtr_correct, tag, ns, **INLINE)
     ns["gtr_thermal"] = specialize(_gtr_thermal, tag, ns, **OPTIONS)
     ns["gtr_thermal_vector"] = specialize(_gtr_thermal_vector, tag, ns, **INLINE)
+    # (the spring blocks: serial, shared by the serial and the threaded kernels)
+    ns["gtr_residual_springs"] = specialize_by_content(_gtr_residual_springs, tag, ns, **OPTIONS)
+    ns["gtr_finish_springs"] = specialize_by_content(_gtr_finish_springs, tag, ns, **OPTIONS)
     residual = specialize(_gtr_residual, ptag, ns, parallel=parallel, **OPTIONS)
     jacobian = specialize(_gtr_jacobian, tag, ns, **OPTIONS)
     finish = specialize(_gtr_finish, ptag, ns, parallel=parallel, **OPTIONS)
@@ -155,89 +159,13 @@ def _gtr_residual(step, topo, spring, node, work, alpha, u, warm, res):
     R, Rabs, peak = res
     m = edges.shape[0]
     bad = m
+    # (the work record rebuilt in the loop: Numba cannot hand a record that holds a record to
+    # a parallel loop's body)
+    work_arrays = work[1:]
     for blk in prange((m + BLOCK - 1) // BLOCK):
-        lo = blk * BLOCK
-        n = min(BLOCK, m - lo)
-        for i in range(n):  # gather: the spring vector at x¹
-            e = np.uint64(lo + i)
-            a = edges[e, 0]
-            b = edges[e, 1]
-            ka = free_index[a]
-            kb = free_index[b]
-            dx = x0[b, 0] - x0[a, 0]
-            dy = x0[b, 1] - x0[a, 1]
-            dz = x0[b, 2] - x0[a, 2]
-            if kb >= 0:
-                dx += u[3 * kb]
-                dy += u[3 * kb + 1]
-                dz += u[3 * kb + 2]
-            if ka >= 0:
-                dx -= u[3 * ka]
-                dy -= u[3 * ka + 1]
-                dz -= u[3 * ka + 2]
-            fs[0, e] = dx
-            fs[1, e] = dy
-            fs[2, e] = dz
-        for i in range(n):  # geometry (vectorized)
-            e = np.uint64(lo + i)
-            dx = fs[0, e]
-            dy = fs[1, e]
-            dz = fs[2, e]
-            l1 = math.sqrt(dx * dx + dy * dy + dz * dz)
-            # read unconditionally: a conditional read of len1 before its store made LLVM's
-            # runtime alias check always fail (the loop ran its scalar version)
-            g = theta[e] + dtheta[e] * (l1 - len1[e])
-            g = g if warm else -1.0
-            guess[e] = g
-            len1[e] = l1
-            i1 = 1.0 / l1
-            dir1[0, e] = dx * i1
-            dir1[1, e] = dy * i1
-            dir1[2, e] = dz * i1
-        for i in range(n):  # thermal solve and impulses (vectorized; apart from the geometry,
-            # whose stores in the same loop kept LLVM from vectorizing it)
-            e = np.uint64(lo + i)
-            pe = np.uint64(0) if UNIFORM else np.uint64(e)
-            l1 = len1[e]
-            g = guess[e]
-            la = len0[e]
-            if KEEP_START:  # closed form (see the module doc), T affine in θ
-                A = keep[0, e]
-                C = keep[3, e]
-                th = A * exp_((1.0 - alpha) * (eta[e] - entropy(l1, A, l0[e], P, pe)) / C)
-                dth = (1.0 - alpha) * d2F_dl_dtheta(l1, th, l0[e], P, pe) * th / C
-                ok = 1 if _admissible(th) else 0
-                T = keep[1, e] + keep[2, e] * (th - A)
-            else:
-                th, dth, ok = gtr_thermal_vector(la, l1, eta[e], l0[e], P, pe, alpha, g)
-                T = tension(la, th, l0[e], P, pe)
-            theta[e] = th
-            dtheta[e] = dth
-            c = alpha * h * T
-            fs[0, e] = c * dir0[0, e]
-            fs[1, e] = c * dir0[1, e]
-            fs[2, e] = c * dir0[2, e]
-            code[e] = OK if ((ok != 0) & (l1 > 0.0) & (l1 < math.inf)) else NO_TEMPERATURE
-        for i in range(n):  # the scalar solve where the vectorized one did not converge
-            e = lo + i
-            pe = np.uint64(0) if UNIFORM else np.uint64(e)
-            if code[e] == OK:
-                continue
-            l1 = len1[e]
-            if not (l1 > 0.0 and l1 < math.inf):
-                code[e] = COLLAPSED
-                continue
-            la = len0[e]
-            th, dth, ok = gtr_thermal(la, l1, eta[e], l0[e], P, pe, alpha, guess[e])
-            if not ok:
-                continue
-            code[e] = OK
-            theta[e] = th
-            dtheta[e] = dth
-            c = alpha * h * tension(la, th, l0[e], P, pe)
-            for j in range(3):
-                fs[j, e] = c * dir0[j, e]
-        bad = min(bad, _first_flagged(code, lo, n, m))
+        lo = np.int64(blk) * BLOCK
+        bad = min(bad, gtr_residual_springs(step, topo, spring, node, (start,) + work_arrays, alpha, u, warm, res, lo,
+                                            min(BLOCK, m - lo)))
     if bad < m:
         return code[bad], bad, math.inf, math.inf
     rmax = 0.0
@@ -248,6 +176,100 @@ def _gtr_residual(step, topo, spring, node, work, alpha, u, warm, res):
         rmax = max(rmax, big)
         smax = max(smax, scale)
     return 0, -1, rmax, smax
+
+
+def _gtr_residual_springs(step, topo, spring, node, work, alpha, u, warm, res, lo, n):
+    """Springs lo … lo + n − 1 of :func:`_gtr_residual` (n ≤ BLOCK), a serial function called
+    once per block: see thermonet.explicit.cpu._spring_pass. Returns the block's first flagged
+    spring (m if none)."""
+    x0, p, eta, h = step
+    edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
+    l0, P = spring
+    masses, inv_mass, anchored, gravity, with_gravity, reference = node
+    start, len1, dir1, theta, dtheta, jc = work
+    len0, dir0, keep, fs, ws, sweep, nodal, guess, code = start
+    R, Rabs, peak = res
+    m = edges.shape[0]
+    for i in range(n):  # gather: the spring vector at x¹
+        e = np.uint64(lo + i)
+        a = edges[e, 0]
+        b = edges[e, 1]
+        ka = free_index[a]
+        kb = free_index[b]
+        dx = x0[b, 0] - x0[a, 0]
+        dy = x0[b, 1] - x0[a, 1]
+        dz = x0[b, 2] - x0[a, 2]
+        if kb >= 0:
+            dx += u[3 * kb]
+            dy += u[3 * kb + 1]
+            dz += u[3 * kb + 2]
+        if ka >= 0:
+            dx -= u[3 * ka]
+            dy -= u[3 * ka + 1]
+            dz -= u[3 * ka + 2]
+        fs[0, e] = dx
+        fs[1, e] = dy
+        fs[2, e] = dz
+    for i in range(n):  # geometry (vectorized)
+        e = np.uint64(lo + i)
+        dx = fs[0, e]
+        dy = fs[1, e]
+        dz = fs[2, e]
+        l1 = math.sqrt(dx * dx + dy * dy + dz * dz)
+        # read unconditionally: a conditional read of len1 before its store made LLVM's
+        # runtime alias check always fail (the loop ran its scalar version)
+        g = theta[e] + dtheta[e] * (l1 - len1[e])
+        g = g if warm else -1.0
+        guess[e] = g
+        len1[e] = l1
+        i1 = 1.0 / l1
+        dir1[0, e] = dx * i1
+        dir1[1, e] = dy * i1
+        dir1[2, e] = dz * i1
+    for i in range(n):  # thermal solve and impulses (vectorized; apart from the geometry,
+        # whose stores in the same loop kept LLVM from vectorizing it)
+        e = np.uint64(lo + i)
+        pe = np.uint64(0) if UNIFORM else np.uint64(e)
+        l1 = len1[e]
+        g = guess[e]
+        la = len0[e]
+        if KEEP_START:  # closed form (see the module doc), T affine in θ
+            A = keep[0, e]
+            C = keep[3, e]
+            th = A * exp_((1.0 - alpha) * (eta[e] - entropy(l1, A, l0[e], P, pe)) / C)
+            dth = (1.0 - alpha) * d2F_dl_dtheta(l1, th, l0[e], P, pe) * th / C
+            ok = 1 if _admissible(th) else 0
+            T = keep[1, e] + keep[2, e] * (th - A)
+        else:
+            th, dth, ok = gtr_thermal_vector(la, l1, eta[e], l0[e], P, pe, alpha, g)
+            T = tension(la, th, l0[e], P, pe)
+        theta[e] = th
+        dtheta[e] = dth
+        c = alpha * h * T
+        fs[0, e] = c * dir0[0, e]
+        fs[1, e] = c * dir0[1, e]
+        fs[2, e] = c * dir0[2, e]
+        code[e] = OK if ((ok != 0) & (l1 > 0.0) & (l1 < math.inf)) else NO_TEMPERATURE
+    for i in range(n):  # the scalar solve where the vectorized one did not converge
+        e = lo + i
+        pe = np.uint64(0) if UNIFORM else np.uint64(e)
+        if code[e] == OK:
+            continue
+        l1 = len1[e]
+        if not (l1 > 0.0 and l1 < math.inf):
+            code[e] = COLLAPSED
+            continue
+        la = len0[e]
+        th, dth, ok = gtr_thermal(la, l1, eta[e], l0[e], P, pe, alpha, guess[e])
+        if not ok:
+            continue
+        code[e] = OK
+        theta[e] = th
+        dtheta[e] = dth
+        c = alpha * h * tension(la, th, l0[e], P, pe)
+        for j in range(3):
+            fs[j, e] = c * dir0[j, e]
+    return _first_flagged(code, lo, n, m)
 
 
 def _gtr_linearize(spring, work, alpha, h):
@@ -303,28 +325,45 @@ def _gtr_finish(step, topo, spring, node, work, alpha, u, phi, new):
     x_new, p_new, phi_new, eta_new = new
     m = edges.shape[0]
     bad = m
+    # (the work record rebuilt in the loop: Numba cannot hand a record that holds a record to
+    # a parallel loop's body)
+    work_arrays = work[1:]
     for blk in prange((m + BLOCK - 1) // BLOCK):
-        lo = blk * BLOCK
-        n = min(BLOCK, m - lo)
-        for i in range(n):  # vectorized
-            e = np.uint64(lo + i)
-            pe = np.uint64(0) if UNIFORM else np.uint64(e)
-            th = theta[e]
-            phi_new[e] = phi[e] + h * th
-            l1 = len1[e]
-            eta1 = alpha * entropy(len0[e], th, l0[e], P, pe) + (1.0 - alpha) * entropy(l1, th, l0[e], P, pe)
-            eta_new[e] = eta1
-            th1 = temperature(l1, eta1, l0[e], P, pe)
-            c1 = (1.0 - alpha) * h * tension(l1, th, l0[e], P, pe)
-            fs[0, e] += c1 * dir1[0, e]  # fs holds α h T(l⁰, θ̄) n⁰ from the last residual
-            fs[1, e] += c1 * dir1[1, e]
-            fs[2, e] += c1 * dir1[2, e]
-            code[e] = (OK if _admissible(th1) else NO_TEMPERATURE) if abs(eta1) < math.inf else NOT_FINITE
-        bad = min(bad, _first_flagged(code, lo, n, m))
+        lo = np.int64(blk) * BLOCK
+        bad = min(bad, gtr_finish_springs(step, topo, spring, node, (start,) + work_arrays, alpha, u, phi, new, lo,
+                                          min(BLOCK, m - lo)))
     if bad < m:
         return code[bad], bad
     return finish_nodes(step, topo, node, fs, u, 3, 0, new)
 
+
+
+def _gtr_finish_springs(step, topo, spring, node, work, alpha, u, phi, new, lo, n):
+    """Springs lo … lo + n − 1 of :func:`_gtr_finish` (n ≤ BLOCK), a serial function called once
+    per block: see thermonet.explicit.cpu._spring_pass. Returns the block's first flagged spring
+    (m if none)."""
+    x0, p, eta, h = step
+    edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
+    l0, P = spring
+    start, len1, dir1, theta, dtheta, jc = work
+    len0, dir0, keep, fs, ws, sweep, nodal, guess, code = start
+    x_new, p_new, phi_new, eta_new = new
+    m = edges.shape[0]
+    for i in range(n):  # vectorized
+        e = np.uint64(lo + i)
+        pe = np.uint64(0) if UNIFORM else np.uint64(e)
+        th = theta[e]
+        phi_new[e] = phi[e] + h * th
+        l1 = len1[e]
+        eta1 = alpha * entropy(len0[e], th, l0[e], P, pe) + (1.0 - alpha) * entropy(l1, th, l0[e], P, pe)
+        eta_new[e] = eta1
+        th1 = temperature(l1, eta1, l0[e], P, pe)
+        c1 = (1.0 - alpha) * h * tension(l1, th, l0[e], P, pe)
+        fs[0, e] += c1 * dir1[0, e]  # fs holds α h T(l⁰, θ̄) n⁰ from the last residual
+        fs[1, e] += c1 * dir1[1, e]
+        fs[2, e] += c1 * dir1[2, e]
+        code[e] = (OK if _admissible(th1) else NO_TEMPERATURE) if abs(eta1) < math.inf else NOT_FINITE
+    return _first_flagged(code, lo, n, m)
 
 
 def _gtr_sweep(topo, node, work, h, du, R, r, update, first):

@@ -29,7 +29,7 @@ from ..core.schemes import (BLOCK, COLLAPSED, INLINE, LOG_AFFINE, NO_TEMPERATURE
                             _first_flagged_position, _listed_count, _listed_entry, _listed_position,
                             register_scheme)
 from ..core.records import StartWork
-from ...kernels.specialize import specialize
+from ...kernels.specialize import specialize, specialize_by_content
 from . import linear as _linear, thermal as _thermal
 from ..core import local_jacobi as _local
 
@@ -37,6 +37,7 @@ from ..core import local_jacobi as _local
 entropy = temperature = tension = d2F_dtheta2 = None
 ho4_thermal = ho4_thermal_vector = ho4_thermal_closed = finish_nodes = None
 ho4_residual = ho4_jacobian = ho4_finish = ho4_linearize = ho4_local_jacobi = None
+ho4_residual_springs = ho4_finish_springs = None
 #: the residual's index helpers, bound per variant (a kernel compiled with a conditional index
 #: ran 25 % slower): in the full kernel ``listed(indices, j)`` is j, ``listed_count(indices, n)``
 #: is n and ``first_flagged_listed`` is :func:`_first_flagged`; in the SUBSET kernel, which
@@ -78,6 +79,10 @@ def build(ns: dict, tag: str, ptag: str, parallel: bool) -> dict:
     ns["ho4_thermal_vector"] = specialize(t._ho4_thermal_vector, tag, ns, **INLINE)
     subset = dict(ns, listed=_listed_entry, listed_count=_listed_count, first_flagged_listed=_first_flagged_entry)
     ns.update(listed=_listed_position, listed_count=_all_count, first_flagged_listed=_first_flagged_position)
+    # (the spring blocks: serial, shared by the serial and the threaded kernels)
+    ns["ho4_residual_springs"] = specialize_by_content(_ho4_residual_springs, tag, ns, **OPTIONS)
+    subset["ho4_residual_springs"] = specialize_by_content(_ho4_residual_springs, f"{tag}_subset", subset, **OPTIONS)
+    ns["ho4_finish_springs"] = specialize_by_content(_ho4_finish_springs, tag, ns, **OPTIONS)
     residual = specialize(_ho4_residual, ptag, ns, parallel=parallel, **OPTIONS)
     jacobian = specialize(_linear._ho4_jacobian, tag, ns, **OPTIONS)
     finish = specialize(_ho4_finish, ptag, ns, parallel=parallel, **OPTIONS)
@@ -137,150 +142,13 @@ def _ho4_residual(step, topo, spring, node, work, u, warm, res, springs, nodes):
     none = edges.shape[0]
     m = listed_count(springs, none)
     bad = none
+    # (the work record rebuilt in the loop: Numba cannot hand a record that holds a record to
+    # a parallel loop's body)
+    work_arrays = work[1:]
     for blk in prange((m + BLOCK - 1) // BLOCK):
-        lo = blk * BLOCK
-        n = min(BLOCK, m - lo)
-        for i in range(n):  # gather: the spring vectors at x^½ and x¹
-            e = np.uint64(listed(springs, lo + i))
-            a = edges[e, 0]
-            b = edges[e, 1]
-            ka = free_index[a]
-            kb = free_index[b]
-            ex = x0[b, 0] - x0[a, 0]
-            ey = x0[b, 1] - x0[a, 1]
-            ez = x0[b, 2] - x0[a, 2]
-            hx = ex
-            hy = ey
-            hz = ez
-            if kb >= 0:
-                hx += u[6 * kb]
-                hy += u[6 * kb + 1]
-                hz += u[6 * kb + 2]
-                ex += u[6 * kb + 3]
-                ey += u[6 * kb + 4]
-                ez += u[6 * kb + 5]
-            if ka >= 0:
-                hx -= u[6 * ka]
-                hy -= u[6 * ka + 1]
-                hz -= u[6 * ka + 2]
-                ex -= u[6 * ka + 3]
-                ey -= u[6 * ka + 4]
-                ez -= u[6 * ka + 5]
-            fs[0, e] = hx
-            fs[1, e] = hy
-            fs[2, e] = hz
-            fs[3, e] = ex
-            fs[4, e] = ey
-            fs[5, e] = ez
-        for i in range(n):  # geometry (vectorized; a loop of its own: with the thermal solve's
-            # stores in the same loop, LLVM did not vectorize it)
-            e = np.uint64(listed(springs, lo + i))
-            pe = np.uint64(0) if UNIFORM else np.uint64(e)
-            hx = fs[0, e]
-            hy = fs[1, e]
-            hz = fs[2, e]
-            ex = fs[3, e]
-            ey = fs[4, e]
-            ez = fs[5, e]
-            lh = math.sqrt(hx * hx + hy * hy + hz * hz)
-            l1 = math.sqrt(ex * ex + ey * ey + ez * ez)
-            if not LOG_AFFINE:  # a seed (the closed form needs none): G = Γ(l⁰, θ⁰) moved along dG/dl
-                guess[e] = gs[e] - d2F_dtheta2(len0[e], th0[e], l0[e], P, pe) * (
-                    dth[0, e] * (lh - lenh[e]) + dth[1, e] * (l1 - len1[e]))
-            lenh[e] = lh
-            ih = 1.0 / lh
-            dirh[0, e] = hx * ih
-            dirh[1, e] = hy * ih
-            dirh[2, e] = hz * ih
-            len1[e] = l1
-            i1 = 1.0 / l1
-            dir1[0, e] = ex * i1
-            dir1[1, e] = ey * i1
-            dir1[2, e] = ez * i1
-        for i in range(n):  # thermal solve (vectorized; the forces in a loop of their own, as above)
-            e = np.uint64(listed(springs, lo + i))
-            pe = np.uint64(0) if UNIFORM else np.uint64(e)
-            lh = lenh[e]
-            l1 = len1[e]
-            rest = l0[e]
-            if LOG_AFFINE:
-                G, t0, t1 = ho4_thermal_closed(keep[0, e], temperature(l1, eta[e], rest, P, pe), keep[3, e], lh,
-                                               eta[e], rest, P, pe)
-            else:
-                G, t0, t1, d0h, d01, d1h, d11, ok = ho4_thermal_vector(len0[e], lh, l1, eta[e], rest, P, pe, guess[e],
-                                                                       warm)
-                # the warm seed and its derivatives (else recomputed where needed)
-                gs[e] = G
-                dth[0, e] = d0h
-                dth[1, e] = d01
-                dth[2, e] = d1h
-                dth[3, e] = d11
-                code[e] = ok  # the solve's success, read by the force loop
-            th0[e] = t0
-            th1[e] = t1
-        for i in range(n):  # forces (vectorized)
-            e = np.uint64(listed(springs, lo + i))
-            pe = np.uint64(0) if UNIFORM else np.uint64(e)
-            lh = lenh[e]
-            l1 = len1[e]
-            rest = l0[e]
-            t0 = th0[e]
-            t1 = th1[e]
-            if LOG_AFFINE:  # T(l⁰, θ⁰) = T(l⁰, A) + F_lθ(l⁰) (θ⁰ − A), exact (see the doc)
-                c0 = h / 6.0 * (keep[1, e] + keep[2, e] * (t0 - keep[0, e]))
-            else:
-                c0 = h / 6.0 * tension(len0[e], t0, rest, P, pe)
-            ch = h / 4.0 * tension(lh, 0.5 * (t0 + t1), rest, P, pe)
-            fs[0, e] = c0 * dir0[0, e]
-            fs[1, e] = c0 * dir0[1, e]
-            fs[2, e] = c0 * dir0[2, e]
-            fs[3, e] = ch * dirh[0, e]
-            fs[4, e] = ch * dirh[1, e]
-            fs[5, e] = ch * dirh[2, e]
-        for i in range(n):  # the springs' status, apart from the forces (in their loop, it kept
-            # LLVM from vectorizing it: the residual cost 1.6× as much)
-            e = np.uint64(listed(springs, lo + i))
-            lh = lenh[e]
-            l1 = len1[e]
-            if LOG_AFFINE:
-                ok = _admissible(th0[e]) & _admissible(th1[e])
-            else:
-                ok = code[e] != 0
-            lok = (lh > 0.0) & (lh < math.inf) & (l1 > 0.0) & (l1 < math.inf)
-            code[e] = OK if (ok & lok) else NO_TEMPERATURE
-        for i in range(n):  # the scalar solve where the vectorized one did not converge
-            e = listed(springs, lo + i)
-            pe = np.uint64(0) if UNIFORM else np.uint64(e)
-            if code[e] == OK:
-                continue
-            lh = lenh[e]
-            l1 = len1[e]
-            if not (lh > 0.0 and lh < math.inf and l1 > 0.0 and l1 < math.inf):
-                code[e] = COLLAPSED
-                continue
-            la = len0[e]
-            seed = guess[e]
-            if LOG_AFFINE:  # no seed was written: start from η
-                seed = eta[e]
-            G, t0, t1, d0h, d01, d1h, d11, ok = ho4_thermal(la, lh, l1, eta[e], l0[e], P, pe, seed, warm)
-            if not LOG_AFFINE:
-                gs[e] = G
-            if not ok:
-                continue
-            code[e] = OK
-            th0[e] = t0
-            th1[e] = t1
-            if not LOG_AFFINE:
-                dth[0, e] = d0h
-                dth[1, e] = d01
-                dth[2, e] = d1h
-                dth[3, e] = d11
-            c0 = h / 6.0 * tension(la, t0, l0[e], P, pe)
-            ch = h / 4.0 * tension(lh, 0.5 * (t0 + t1), l0[e], P, pe)
-            for j in range(3):
-                fs[j, e] = c0 * dir0[j, e]
-                fs[3 + j, e] = ch * dirh[j, e]
-        bad = min(bad, first_flagged_listed(code, springs, lo, n, none))
+        lo = np.int64(blk) * BLOCK
+        bad = min(bad, ho4_residual_springs(step, topo, spring, node, (start,) + work_arrays, u, warm, res, springs,
+                                            nodes, lo, min(BLOCK, m - lo)))
     if bad < none:
         return code[bad], bad, math.inf, math.inf
     rmax = 0.0
@@ -365,6 +233,162 @@ def _ho4_residual(step, topo, spring, node, work, u, warm, res, springs, nodes):
     return 0, -1, rmax, smax
 
 
+def _ho4_residual_springs(step, topo, spring, node, work, u, warm, res, springs, nodes, lo, n):
+    """Springs lo … lo + n − 1 (of the list ``springs`` where SUBSET) of :func:`_ho4_residual`
+    (n ≤ BLOCK), a serial function called once per block: see
+    thermonet.explicit.cpu._spring_pass. Returns the block's first flagged spring (m if
+    none)."""
+    x0, p, eta, h = step
+    edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
+    l0, P = spring
+    masses, inv_mass, anchored, gravity, with_gravity, reference = node
+    start, lenh, dirh, len1, dir1, th0, th1, dth, gs, jc = work
+    len0, dir0, keep, fs, ws, sweep, nodal, guess, code = start
+    R, Rabs, peak = res
+    none = edges.shape[0]
+    for i in range(n):  # gather: the spring vectors at x^½ and x¹
+        e = np.uint64(listed(springs, lo + i))
+        a = edges[e, 0]
+        b = edges[e, 1]
+        ka = free_index[a]
+        kb = free_index[b]
+        ex = x0[b, 0] - x0[a, 0]
+        ey = x0[b, 1] - x0[a, 1]
+        ez = x0[b, 2] - x0[a, 2]
+        hx = ex
+        hy = ey
+        hz = ez
+        if kb >= 0:
+            hx += u[6 * kb]
+            hy += u[6 * kb + 1]
+            hz += u[6 * kb + 2]
+            ex += u[6 * kb + 3]
+            ey += u[6 * kb + 4]
+            ez += u[6 * kb + 5]
+        if ka >= 0:
+            hx -= u[6 * ka]
+            hy -= u[6 * ka + 1]
+            hz -= u[6 * ka + 2]
+            ex -= u[6 * ka + 3]
+            ey -= u[6 * ka + 4]
+            ez -= u[6 * ka + 5]
+        fs[0, e] = hx
+        fs[1, e] = hy
+        fs[2, e] = hz
+        fs[3, e] = ex
+        fs[4, e] = ey
+        fs[5, e] = ez
+    for i in range(n):  # geometry (vectorized; a loop of its own: with the thermal solve's
+        # stores in the same loop, LLVM did not vectorize it)
+        e = np.uint64(listed(springs, lo + i))
+        pe = np.uint64(0) if UNIFORM else np.uint64(e)
+        hx = fs[0, e]
+        hy = fs[1, e]
+        hz = fs[2, e]
+        ex = fs[3, e]
+        ey = fs[4, e]
+        ez = fs[5, e]
+        lh = math.sqrt(hx * hx + hy * hy + hz * hz)
+        l1 = math.sqrt(ex * ex + ey * ey + ez * ez)
+        if not LOG_AFFINE:  # a seed (the closed form needs none): G = Γ(l⁰, θ⁰) moved along dG/dl
+            guess[e] = gs[e] - d2F_dtheta2(len0[e], th0[e], l0[e], P, pe) * (
+                dth[0, e] * (lh - lenh[e]) + dth[1, e] * (l1 - len1[e]))
+        lenh[e] = lh
+        ih = 1.0 / lh
+        dirh[0, e] = hx * ih
+        dirh[1, e] = hy * ih
+        dirh[2, e] = hz * ih
+        len1[e] = l1
+        i1 = 1.0 / l1
+        dir1[0, e] = ex * i1
+        dir1[1, e] = ey * i1
+        dir1[2, e] = ez * i1
+    for i in range(n):  # thermal solve (vectorized; the forces in a loop of their own, as above)
+        e = np.uint64(listed(springs, lo + i))
+        pe = np.uint64(0) if UNIFORM else np.uint64(e)
+        lh = lenh[e]
+        l1 = len1[e]
+        rest = l0[e]
+        if LOG_AFFINE:
+            G, t0, t1 = ho4_thermal_closed(keep[0, e], temperature(l1, eta[e], rest, P, pe), keep[3, e], lh,
+                                           eta[e], rest, P, pe)
+        else:
+            G, t0, t1, d0h, d01, d1h, d11, ok = ho4_thermal_vector(len0[e], lh, l1, eta[e], rest, P, pe, guess[e],
+                                                                   warm)
+            # the warm seed and its derivatives (else recomputed where needed)
+            gs[e] = G
+            dth[0, e] = d0h
+            dth[1, e] = d01
+            dth[2, e] = d1h
+            dth[3, e] = d11
+            code[e] = ok  # the solve's success, read by the force loop
+        th0[e] = t0
+        th1[e] = t1
+    for i in range(n):  # forces (vectorized)
+        e = np.uint64(listed(springs, lo + i))
+        pe = np.uint64(0) if UNIFORM else np.uint64(e)
+        lh = lenh[e]
+        l1 = len1[e]
+        rest = l0[e]
+        t0 = th0[e]
+        t1 = th1[e]
+        if LOG_AFFINE:  # T(l⁰, θ⁰) = T(l⁰, A) + F_lθ(l⁰) (θ⁰ − A), exact (see the doc)
+            c0 = h / 6.0 * (keep[1, e] + keep[2, e] * (t0 - keep[0, e]))
+        else:
+            c0 = h / 6.0 * tension(len0[e], t0, rest, P, pe)
+        ch = h / 4.0 * tension(lh, 0.5 * (t0 + t1), rest, P, pe)
+        fs[0, e] = c0 * dir0[0, e]
+        fs[1, e] = c0 * dir0[1, e]
+        fs[2, e] = c0 * dir0[2, e]
+        fs[3, e] = ch * dirh[0, e]
+        fs[4, e] = ch * dirh[1, e]
+        fs[5, e] = ch * dirh[2, e]
+    for i in range(n):  # the springs' status, apart from the forces (in their loop, it kept
+        # LLVM from vectorizing it: the residual cost 1.6× as much)
+        e = np.uint64(listed(springs, lo + i))
+        lh = lenh[e]
+        l1 = len1[e]
+        if LOG_AFFINE:
+            ok = _admissible(th0[e]) & _admissible(th1[e])
+        else:
+            ok = code[e] != 0
+        lok = (lh > 0.0) & (lh < math.inf) & (l1 > 0.0) & (l1 < math.inf)
+        code[e] = OK if (ok & lok) else NO_TEMPERATURE
+    for i in range(n):  # the scalar solve where the vectorized one did not converge
+        e = listed(springs, lo + i)
+        pe = np.uint64(0) if UNIFORM else np.uint64(e)
+        if code[e] == OK:
+            continue
+        lh = lenh[e]
+        l1 = len1[e]
+        if not (lh > 0.0 and lh < math.inf and l1 > 0.0 and l1 < math.inf):
+            code[e] = COLLAPSED
+            continue
+        la = len0[e]
+        seed = guess[e]
+        if LOG_AFFINE:  # no seed was written: start from η
+            seed = eta[e]
+        G, t0, t1, d0h, d01, d1h, d11, ok = ho4_thermal(la, lh, l1, eta[e], l0[e], P, pe, seed, warm)
+        if not LOG_AFFINE:
+            gs[e] = G
+        if not ok:
+            continue
+        code[e] = OK
+        th0[e] = t0
+        th1[e] = t1
+        if not LOG_AFFINE:
+            dth[0, e] = d0h
+            dth[1, e] = d01
+            dth[2, e] = d1h
+            dth[3, e] = d11
+        c0 = h / 6.0 * tension(la, t0, l0[e], P, pe)
+        ch = h / 4.0 * tension(lh, 0.5 * (t0 + t1), l0[e], P, pe)
+        for j in range(3):
+            fs[j, e] = c0 * dir0[j, e]
+            fs[3 + j, e] = ch * dirh[j, e]
+    return first_flagged_listed(code, springs, lo, n, none)
+
+
 def _ho4_finish(step, topo, spring, node, work, u, phi, new):
     """The next state from converged unknowns u into ``new`` (StateArrays; phi (m,) the step's
     start): x¹ = x⁰ + d¹; Φ¹ = Φ⁰ + h (θ⁰ + θ¹)/2; η¹ = (−Γ⁰ + 4Γ^½ + 3Γ¹)/6 measured (58d);
@@ -379,34 +403,51 @@ def _ho4_finish(step, topo, spring, node, work, u, phi, new):
     x_new, p_new, phi_new, eta_new = new
     m = edges.shape[0]
     bad = m
+    # (the work record rebuilt in the loop: Numba cannot hand a record that holds a record to
+    # a parallel loop's body)
+    work_arrays = work[1:]
     for blk in prange((m + BLOCK - 1) // BLOCK):
-        lo = blk * BLOCK
-        n = min(BLOCK, m - lo)
-        for i in range(n):  # vectorized
-            e = np.uint64(lo + i)
-            pe = np.uint64(0) if UNIFORM else np.uint64(e)
-            t0 = th0[e]
-            t1 = th1[e]
-            th = 0.5 * (t0 + t1)
-            phi_new[e] = phi[e] + h * th
-            rest = l0[e]
-            l1 = len1[e]
-            G0 = entropy(len0[e], t0, rest, P, pe)
-            Gh = entropy(lenh[e], th, rest, P, pe)
-            G1 = entropy(l1, t1, rest, P, pe)
-            eta1 = (-G0 + 4.0 * Gh + 3.0 * G1) / 6.0
-            eta_new[e] = eta1
-            th_end = temperature(l1, eta1, rest, P, pe)
-            c1 = h / 6.0 * tension(l1, t1, rest, P, pe)
-            # fs holds (h/6) T⁰ n⁰ and (h/4) T^½ n^½ from the last residual
-            fs[0, e] = fs[0, e] + 8.0 / 3.0 * fs[3, e] + c1 * dir1[0, e]
-            fs[1, e] = fs[1, e] + 8.0 / 3.0 * fs[4, e] + c1 * dir1[1, e]
-            fs[2, e] = fs[2, e] + 8.0 / 3.0 * fs[5, e] + c1 * dir1[2, e]
-            code[e] = (OK if _admissible(th_end) else NO_TEMPERATURE) if abs(eta1) < math.inf else NOT_FINITE
-        bad = min(bad, _first_flagged(code, lo, n, m))
+        lo = np.int64(blk) * BLOCK
+        bad = min(bad, ho4_finish_springs(step, topo, spring, node, (start,) + work_arrays, u, phi, new, lo,
+                                          min(BLOCK, m - lo)))
     if bad < m:
         return code[bad], bad
     return finish_nodes(step, topo, node, fs, u, 6, 3, new)
+
+
+def _ho4_finish_springs(step, topo, spring, node, work, u, phi, new, lo, n):
+    """Springs lo … lo + n − 1 of :func:`_ho4_finish` (n ≤ BLOCK), a serial function called once
+    per block: see thermonet.explicit.cpu._spring_pass. Returns the block's first flagged spring
+    (m if none)."""
+    x0, p, eta, h = step
+    edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
+    l0, P = spring
+    start, lenh, dirh, len1, dir1, th0, th1, dth, gs, jc = work
+    len0, dir0, keep, fs, ws, sweep, nodal, guess, code = start
+    x_new, p_new, phi_new, eta_new = new
+    m = edges.shape[0]
+    for i in range(n):  # vectorized
+        e = np.uint64(lo + i)
+        pe = np.uint64(0) if UNIFORM else np.uint64(e)
+        t0 = th0[e]
+        t1 = th1[e]
+        th = 0.5 * (t0 + t1)
+        phi_new[e] = phi[e] + h * th
+        rest = l0[e]
+        l1 = len1[e]
+        G0 = entropy(len0[e], t0, rest, P, pe)
+        Gh = entropy(lenh[e], th, rest, P, pe)
+        G1 = entropy(l1, t1, rest, P, pe)
+        eta1 = (-G0 + 4.0 * Gh + 3.0 * G1) / 6.0
+        eta_new[e] = eta1
+        th_end = temperature(l1, eta1, rest, P, pe)
+        c1 = h / 6.0 * tension(l1, t1, rest, P, pe)
+        # fs holds (h/6) T⁰ n⁰ and (h/4) T^½ n^½ from the last residual
+        fs[0, e] = fs[0, e] + 8.0 / 3.0 * fs[3, e] + c1 * dir1[0, e]
+        fs[1, e] = fs[1, e] + 8.0 / 3.0 * fs[4, e] + c1 * dir1[1, e]
+        fs[2, e] = fs[2, e] + 8.0 / 3.0 * fs[5, e] + c1 * dir1[2, e]
+        code[e] = (OK if _admissible(th_end) else NO_TEMPERATURE) if abs(eta1) < math.inf else NOT_FINITE
+    return _first_flagged(code, lo, n, m)
 
 
 def _ho4_compiled_residual(step, topo, spring, node, work, extra, u, warm, res):
