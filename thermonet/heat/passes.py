@@ -136,7 +136,10 @@ def bind_heat_passes(ns: dict, model, parallel: bool, uniform: bool) -> None:
     if tag not in _COMPILED:
         own = dict(ns)
         own["_refresh_spring"] = specialize(_refresh_spring, tag, own, inline="always", **_OPTIONS)
-        own["_refresh_block"] = specialize(_refresh_block, tag, own, inline="always", **_OPTIONS)
+        # (called, not inlined: the threaded passes' loop bodies are then one call, which Numba's
+        # parallel compiler processes in a fraction of the time; see explicit.cpu._spring_pass)
+        own["_refresh_block"] = specialize(_refresh_block, tag, own, **_OPTIONS)
+        own["_state_spring_block"] = specialize(_state_spring_block, tag, own, **_OPTIONS)
         _COMPILED[tag] = {name: specialize(template, tag, own, parallel=parallel, **_OPTIONS) for name, template in (
             ("temperature_pass", _temperature_pass), ("refresh_pass", _refresh_pass),
             ("finish_refresh_pass", _finish_refresh_pass), ("state_spring_sums", _state_spring_sums))}
@@ -150,8 +153,12 @@ def _sweeps(parallel: bool) -> dict:
     if tag not in _COMPILED:
         ns = {"PAIRED": not parallel}
         _bind_exchange(ns, tag, njit(inline="always", error_model="numpy", boundscheck=False))
+        # the block exchanges called, not inlined, from the colour's parallel loop: its body is then
+        # one call, which Numba's parallel compiler processes in a fraction of the time (see
+        # thermonet.explicit.cpu._spring_pass); one call per block costs nothing at run time
+        ns["star_block"] = specialize(exchange.star_block, tag, ns, **_OPTIONS)
         ns["_star_nodes"] = specialize(_star_nodes, tag, ns, inline="always", **_OPTIONS)
-        ns["_star_blocks"] = specialize(_star_blocks, tag, ns, inline="always", **_OPTIONS)
+        ns["_star_blocks"] = specialize(_star_blocks, tag, ns, **_OPTIONS)
         ns["_runs_direction"] = specialize(_runs_direction, tag, ns, inline="always", **_OPTIONS)
         # a function of its own, not inlined into the sweep (whose compile time it would add to;
         # one call per colour costs nothing at run time)
@@ -508,27 +515,32 @@ def _state_spring_sums(x, eta, topology, springs, energy, theta):
     m = edges.shape[0]
     theta_min = math.inf
     theta_max = -math.inf
-    for blk in prange((m + BLOCK - 1) // BLOCK):
-        lo = blk * BLOCK
-        n = min(BLOCK, m - lo)
-        for i in range(n):
-            theta[lo + i] = squared_length(x, edges, np.uint64(lo + i))
-        for i in range(n):
-            e = np.uint64(lo + i)
-            c = np.uint64(0) if UNIFORM else e
-            l = math.sqrt(theta[e])
-            th = spring_temperature(l, eta[e], l0[e], P, c)
-            theta[e] = th
-            energy[e] = spring_energy(l, eta[e], th, l0[e], P, c)
-        block_min = math.inf
-        block_max = -math.inf
-        for i in range(n):
-            e = np.uint64(lo + i)
-            block_min = min(block_min, theta[e])
-            block_max = max(block_max, theta[e])
+    for blk in prange((m + BLOCK - 1) // BLOCK):  # (the body one call: see _refresh_block)
+        lo = np.int64(blk) * BLOCK
+        block_min, block_max = _state_spring_block(x, eta, edges, l0, P, energy, theta, lo, min(BLOCK, m - lo))
         theta_min = min(theta_min, block_min)
         theta_max = max(theta_max, block_max)
     return theta_min, theta_max
+
+
+def _state_spring_block(x, eta, edges, l0, P, energy, theta, lo, n):
+    """Springs lo … lo + n − 1 of :func:`_state_spring_sums`; returns their range of θ."""
+    for i in range(n):
+        theta[lo + i] = squared_length(x, edges, np.uint64(lo + i))
+    for i in range(n):
+        e = np.uint64(lo + i)
+        c = np.uint64(0) if UNIFORM else e
+        l = math.sqrt(theta[e])
+        th = spring_temperature(l, eta[e], l0[e], P, c)
+        theta[e] = th
+        energy[e] = spring_energy(l, eta[e], th, l0[e], P, c)
+    block_min = math.inf
+    block_max = -math.inf
+    for i in range(n):
+        e = np.uint64(lo + i)
+        block_min = min(block_min, theta[e])
+        block_max = max(block_max, theta[e])
+    return block_min, block_max
 
 
 def _wave_sweep(heat, phi, eta, tau):

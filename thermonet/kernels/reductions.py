@@ -26,11 +26,12 @@ from . import exact, subflows
 from .subflows import bind_subflows
 from .blocks import BLOCK, squared_lengths
 from .exact import WIDTH, add_block, add_terms, normalize
-from .specialize import function_fingerprint, kernel_namespace, model_fingerprint, specialize
+from .specialize import function_fingerprint, kernel_namespace, model_fingerprint, specialize, specialize_by_content
 
 # Bound per model by specialize(); see thermonet.explicit.cpu for THERMAL / REFERENCE_TEMPERATURE /
 # UNIFORM.
 spring_temperature = spring_energy = None
+spring_energies_block = row_sums_chunk = None  # (bound by the kernel factories below)
 THERMAL = True
 REFERENCE_TEMPERATURE = 0
 UNIFORM = False
@@ -100,6 +101,9 @@ def diagnostic_sums_kernel(model, thermal: bool, parallel: bool, uniform: bool =
         tag = (f"{model.name}_{key[0]}_{'thermal' if thermal else 'mech'}_{'par' if parallel else 'ser'}"
                f"{'_uniform' if uniform else ''}_s{subflows.source_digest()}")
         bind_subflows(ns, tag, njit(inline="always", error_model="numpy", boundscheck=False))
+        # (the block function is serial, shared by the serial and the threaded kernel)
+        ns["spring_energies_block"] = specialize_by_content(_spring_energies_block, tag, ns, cache=True,
+                                                            error_model="numpy")
         _CACHE[key] = specialize(_spring_energies, tag, ns, cache=True, error_model="numpy", parallel=bool(parallel))
     return _CACHE[key]
 
@@ -114,28 +118,34 @@ def _spring_energies(x, eta, l0, P, edges, energy):
     m = edges.shape[0]
     theta_min = math.inf
     theta_max = -math.inf
-    for blk in prange((m + BLOCK - 1) // BLOCK):
-        lo = blk * BLOCK
-        n = min(BLOCK, m - lo)
-        length = np.empty(BLOCK)
-        theta = np.empty(BLOCK)
-        squared_lengths(x, edges, lo, n, length, 0)
-        for i in range(n):
-            e = np.uint64(lo + i)
-            k = np.uint64(0) if UNIFORM else e
-            l = math.sqrt(length[i])
-            eta_e = eta[e] if THERMAL else 0.0
-            th = spring_temperature(l, eta_e, l0[e], P, k)
-            theta[i] = th
-            energy[e] = spring_energy(l, eta_e, th, l0[e], P, k)
-        block_min = math.inf
-        block_max = -math.inf
-        for i in range(n):
-            block_min = min(block_min, theta[i])
-            block_max = max(block_max, theta[i])
+    for blk in prange((m + BLOCK - 1) // BLOCK):  # (the body one call of a serial function: see
+        # explicit.cpu._spring_pass)
+        lo = np.int64(blk) * BLOCK
+        block_min, block_max = spring_energies_block(x, eta, l0, P, edges, energy, lo, min(BLOCK, m - lo))
         theta_min = min(theta_min, block_min)
         theta_max = max(theta_max, block_max)
     return theta_min, theta_max
+
+
+def _spring_energies_block(x, eta, l0, P, edges, energy, lo, n):
+    """Springs lo … lo + n − 1 of :func:`_spring_energies`; returns their range of θ."""
+    length = np.empty(BLOCK)
+    theta = np.empty(BLOCK)
+    squared_lengths(x, edges, lo, n, length, 0)
+    for i in range(n):
+        e = np.uint64(lo + i)
+        k = np.uint64(0) if UNIFORM else e
+        l = math.sqrt(length[i])
+        eta_e = eta[e] if THERMAL else 0.0
+        th = spring_temperature(l, eta_e, l0[e], P, k)
+        theta[i] = th
+        energy[e] = spring_energy(l, eta_e, th, l0[e], P, k)
+    block_min = math.inf
+    block_max = -math.inf
+    for i in range(n):
+        block_min = min(block_min, theta[i])
+        block_max = max(block_max, theta[i])
+    return block_min, block_max
 
 
 def _row_sums(x, p, masses, anchored, ref, gravity, energy, eta, counted):
@@ -154,53 +164,63 @@ def _row_sums(x, p, masses, anchored, ref, gravity, energy, eta, counted):
     spring_chunks = (m + per_spring - 1) // per_spring
     chunks = spring_chunks + (n + per_node - 1) // per_node
     accs = np.zeros((chunks, ROW_SUMS, WIDTH), dtype=np.int64)
-    for c in prange(chunks):
-        terms = np.empty((8, BLOCK))
-        rest = np.empty(BLOCK)
-        if c < spring_chunks:
-            for lo in range(c * per_spring, min(m, (c + 1) * per_spring), BLOCK):
-                k = min(BLOCK, m - lo)
-                if every:  # (read in place)
-                    add_block(accs[c, 0], energy[lo:], k, rest)
-                    if thermal:
-                        add_block(accs[c, 1], eta[lo:], k, rest)
-                else:
-                    for i in range(k):
-                        skipped = not counted[lo + i]
-                        terms[0, i] = 0.0 if skipped else energy[lo + i]
-                        terms[1, i] = 0.0 if skipped or not thermal else eta[lo + i]
-                    for q in range(2 if thermal else 1):
-                        add_block(accs[c, q], terms[q], k, rest)
-        else:
-            b = c - spring_chunks
-            for lo in range(b * per_node, min(n, (b + 1) * per_node), BLOCK):
-                k = min(BLOCK, n - lo)
-                for i in range(k):  # (an anchor's terms are zeros, which add nothing: no branch in the loop)
-                    a = np.uint64(lo + i)
-                    p0 = p[a, 0]
-                    p1 = p[a, 1]
-                    p2 = p[a, 2]
-                    kin, pot, l0_, l1_, l2_ = node_diagnostic_terms(x[a, 0], x[a, 1], x[a, 2], p0, p1, p2,
-                                                                    masses[a], gravity, ref)
-                    held = anchored[a]
-                    j = np.uint64(i)
-                    terms[0, j] = 0.0 if held else kin
-                    terms[1, j] = 0.0 if held else pot
-                    terms[2, j] = 0.0 if held else p0
-                    terms[3, j] = 0.0 if held else p1
-                    terms[4, j] = 0.0 if held else p2
-                    terms[5, j] = 0.0 if held else l0_
-                    terms[6, j] = 0.0 if held else l1_
-                    terms[7, j] = 0.0 if held else l2_
-                for q in range(8):
-                    add_block(accs[c, 2 + q], terms[q], k, rest)
-        first, stop = (0, 2) if c < spring_chunks else (2, ROW_SUMS)  # (the accumulators it filled)
-        for q in range(first, stop):
-            normalize(accs[c, q])
+    for c in prange(chunks):  # (the body one call of a serial function: see explicit.cpu._spring_pass)
+        row_sums_chunk(np.int64(c), spring_chunks, per_spring, per_node, x, p, masses, anchored, ref, gravity, energy,
+                       eta, counted, every, thermal, accs)
     total = np.zeros((ROW_SUMS, WIDTH), dtype=np.int64)
     for c in range(chunks):
         total += accs[c]
     return total
+
+
+def _row_sums_chunk(c, spring_chunks, per_spring, per_node, x, p, masses, anchored, ref, gravity, energy, eta,
+                    counted, every, thermal, accs):
+    """Chunk c of :func:`_row_sums` into accs[c]: a chunk of springs (c < spring_chunks) or of
+    nodes."""
+    m = energy.shape[0]
+    n = x.shape[0]
+    terms = np.empty((8, BLOCK))
+    rest = np.empty(BLOCK)
+    if c < spring_chunks:
+        for lo in range(c * per_spring, min(m, (c + 1) * per_spring), BLOCK):
+            k = min(BLOCK, m - lo)
+            if every:  # (read in place)
+                add_block(accs[c, 0], energy[lo:], k, rest)
+                if thermal:
+                    add_block(accs[c, 1], eta[lo:], k, rest)
+            else:
+                for i in range(k):
+                    skipped = not counted[lo + i]
+                    terms[0, i] = 0.0 if skipped else energy[lo + i]
+                    terms[1, i] = 0.0 if skipped or not thermal else eta[lo + i]
+                for q in range(2 if thermal else 1):
+                    add_block(accs[c, q], terms[q], k, rest)
+    else:
+        b = c - spring_chunks
+        for lo in range(b * per_node, min(n, (b + 1) * per_node), BLOCK):
+            k = min(BLOCK, n - lo)
+            for i in range(k):  # (an anchor's terms are zeros, which add nothing: no branch in the loop)
+                a = np.uint64(lo + i)
+                p0 = p[a, 0]
+                p1 = p[a, 1]
+                p2 = p[a, 2]
+                kin, pot, l0_, l1_, l2_ = node_diagnostic_terms(x[a, 0], x[a, 1], x[a, 2], p0, p1, p2,
+                                                                masses[a], gravity, ref)
+                held = anchored[a]
+                j = np.uint64(i)
+                terms[0, j] = 0.0 if held else kin
+                terms[1, j] = 0.0 if held else pot
+                terms[2, j] = 0.0 if held else p0
+                terms[3, j] = 0.0 if held else p1
+                terms[4, j] = 0.0 if held else p2
+                terms[5, j] = 0.0 if held else l0_
+                terms[6, j] = 0.0 if held else l1_
+                terms[7, j] = 0.0 if held else l2_
+            for q in range(8):
+                add_block(accs[c, 2 + q], terms[q], k, rest)
+    first, stop = (0, 2) if c < spring_chunks else (2, ROW_SUMS)  # (the accumulators it filled)
+    for q in range(first, stop):
+        normalize(accs[c, q])
 
 
 _OPTIONS = dict(cache=True, error_model="numpy", boundscheck=False)
@@ -210,8 +230,9 @@ def row_sums_kernel(parallel: bool):
     """The compiled :func:`_row_sums` (model-independent), multi-threaded where ``parallel``."""
     key = ("row", bool(parallel))
     if key not in _CACHE:
+        chunk = specialize(_row_sums_chunk, f"x{_EXACT}", {}, **_OPTIONS)  # (serial: shared)
         tag = f"{'par' if parallel else 'ser'}_x{_EXACT}"
-        _CACHE[key] = specialize(_row_sums, tag, {}, parallel=bool(parallel), **_OPTIONS)
+        _CACHE[key] = specialize(_row_sums, tag, {"row_sums_chunk": chunk}, parallel=bool(parallel), **_OPTIONS)
     return _CACHE[key]
 
 

@@ -58,7 +58,7 @@ EXACT_QUOTIENT = False
 CAN_VANISH = True
 finish_nodes = em2_derivative = em2_spring_dslope = lobatto_value = lobatto_derivative = None
 em2_predict = em2_residual = em2_jacobian = em2_finish = em2_linearize = em2_step_scale = em2_damp = None
-em2_residual_springs = em2_finish_springs = None
+em2_predict_springs = em2_residual_springs = em2_finish_springs = em2_linearize_springs = None
 
 #: a Newton correction changes no spring's vector by more than this fraction of its length
 LENGTH_LIMIT = 0.5
@@ -105,7 +105,9 @@ def build(ns: dict, tag: str, ptag: str, parallel: bool) -> dict:
     alone = bind_gradient(ns, tag)
     ns["em2_spring_dslope"] = specialize(_em2_spring_dslope, tag, ns, **INLINE)
     # (the spring blocks: serial, shared by the serial and the threaded kernels)
+    ns["em2_predict_springs"] = specialize_by_content(_em2_predict_springs, tag, ns, **OPTIONS)
     ns["em2_residual_springs"] = specialize_by_content(_em2_residual_springs, tag, ns, **OPTIONS)
+    ns["em2_linearize_springs"] = specialize_by_content(_em2_linearize_springs, tag, ns, **OPTIONS)
     ns["em2_finish_springs"] = specialize_by_content(_em2_finish_springs, tag, ns, **OPTIONS)
     kernels = dict(
         predict=specialize(_em2_predict, ptag, ns, parallel=parallel, **OPTIONS),
@@ -169,21 +171,12 @@ def _em2_predict(step, topo, spring, node, work, accel, pred):
     start, len1, dir1, mean, slope, dslope, energy0, temperature0, tension0, jc, eta_step, quotient, tension1 = work
     len0, dir0, keep, fs, ws, sweep, nodal, stiff, code = start
     m = edges.shape[0]
+    # (the work record rebuilt in the loop: Numba cannot hand a record that holds a record to
+    # a parallel loop's body)
+    work_arrays = work[1:]
     for blk in prange((m + BLOCK - 1) // BLOCK):
-        lo = blk * BLOCK
-        for i in range(min(BLOCK, m - lo)):
-            e = np.uint64(lo + i)
-            pe = np.uint64(0) if UNIFORM else np.uint64(e)
-            l = len0[e]
-            th = temperature(l, eta[e], l0[e], P, pe)
-            T = tension(l, th, l0[e], P, pe)
-            if EXACT_QUOTIENT:
-                temperature0[e] = th
-            else:
-                energy0[e] = internal_energy(l, eta[e], l0[e], P, pe)
-            tension0[e] = T
-            eta_step[e] = eta[e]
-            stiff[e] = max(adiabatic_stiffness(l, eta[e], l0[e], P, pe), 0.0) + max(T / l, 0.0)
+        lo = np.int64(blk) * BLOCK
+        em2_predict_springs(eta, spring, (start,) + work_arrays, lo, min(BLOCK, m - lo))
     q = 0.25 * h * h
     for a in prange(x0.shape[0]):
         k = free_index[a]
@@ -195,6 +188,27 @@ def _em2_predict(step, topo, spring, node, work, accel, pred):
         damp = 1.0 / (1.0 + q * kappa * inv_mass[a])
         for i in range(3):
             pred[3 * k + i] = h * inv_mass[a] * p[a, i] + damp * 0.5 * h * h * accel[3 * k + i]
+
+
+def _em2_predict_springs(eta, spring, work, lo, n):
+    """Springs lo … lo + n − 1 of :func:`_em2_predict`'s spring loop (n ≤ BLOCK), a serial
+    function called once per block: see thermonet.explicit.cpu._spring_pass."""
+    l0, P = spring
+    start, len1, dir1, mean, slope, dslope, energy0, temperature0, tension0, jc, eta_step, quotient, tension1 = work
+    len0, dir0, keep, fs, ws, sweep, nodal, stiff, code = start
+    for i in range(n):
+        e = np.uint64(lo + i)
+        pe = np.uint64(0) if UNIFORM else np.uint64(e)
+        l = len0[e]
+        th = temperature(l, eta[e], l0[e], P, pe)
+        T = tension(l, th, l0[e], P, pe)
+        if EXACT_QUOTIENT:
+            temperature0[e] = th
+        else:
+            energy0[e] = internal_energy(l, eta[e], l0[e], P, pe)
+        tension0[e] = T
+        eta_step[e] = eta[e]
+        stiff[e] = max(adiabatic_stiffness(l, eta[e], l0[e], P, pe), 0.0) + max(T / l, 0.0)
 
 
 def _em2_residual(step, topo, spring, node, work, u, res):
@@ -318,34 +332,43 @@ def _em2_linearize(spring, work, h):
     jc (2, m) = (h s/4, h (ds/dl¹)/2), spring e's block being jc[0] I + jc[1] d̄ n¹ᵀ; ds/dl¹ as
     :func:`_em2_spring_dslope`, in a vectorized loop (the model's closed form, or the rule) and,
     for the generic forms, a scalar one where |δ| > SWITCH l̄ (as the residual)."""
+    start, len1, dir1, mean, slope, dslope, energy0, temperature0, tension0, jc, eta_step, quotient, tension1 = work
+    m = len1.shape[0]
+    # (the work record rebuilt in the loop: Numba cannot hand a record that holds a record to
+    # a parallel loop's body)
+    work_arrays = work[1:]
+    for blk in prange((m + BLOCK - 1) // BLOCK):
+        lo = np.int64(blk) * BLOCK
+        em2_linearize_springs(spring, (start,) + work_arrays, h, lo, min(BLOCK, m - lo))
+
+
+def _em2_linearize_springs(spring, work, h, lo, n):
+    """Springs lo … lo + n − 1 of :func:`_em2_linearize` (n ≤ BLOCK), a serial function called
+    once per block: see thermonet.explicit.cpu._spring_pass."""
     l0, P = spring
     start, len1, dir1, mean, slope, dslope, energy0, temperature0, tension0, jc, eta_step, quotient, tension1 = work
     len0 = start[0]
-    m = len1.shape[0]
-    for blk in prange((m + BLOCK - 1) // BLOCK):
-        lo = blk * BLOCK
-        n = min(BLOCK, m - lo)
-        for i in range(n):
-            e = np.uint64(lo + i)
-            pe = np.uint64(0) if UNIFORM else np.uint64(e)
-            l = len0[e]
-            l1 = len1[e]
-            if EXACT_QUOTIENT:
-                dQ = energy_quotient(l, l1, eta_step[e], temperature0[e], tension0[e], l0[e], P, pe)[1]
-            else:
-                dQ = lobatto_derivative(l, l1, eta_step[e], l0[e], P, pe)
-            ds = (dQ - 0.5 * slope[e]) / (0.5 * (l + l1))
+    for i in range(n):
+        e = np.uint64(lo + i)
+        pe = np.uint64(0) if UNIFORM else np.uint64(e)
+        l = len0[e]
+        l1 = len1[e]
+        if EXACT_QUOTIENT:
+            dQ = energy_quotient(l, l1, eta_step[e], temperature0[e], tension0[e], l0[e], P, pe)[1]
+        else:
+            dQ = lobatto_derivative(l, l1, eta_step[e], l0[e], P, pe)
+        ds = (dQ - 0.5 * slope[e]) / (0.5 * (l + l1))
+        dslope[e] = ds
+        jc[0, e] = 0.25 * h * slope[e]
+        jc[1, e] = 0.5 * h * ds
+    for i in range(0 if EXACT_QUOTIENT else n):
+        e = np.uint64(lo + i)
+        l = len0[e]
+        l1 = len1[e]
+        if abs(l1 - l) > SWITCH * (0.5 * (l + l1)):
+            ds = ((tension1[e] - quotient[e]) / (l1 - l) - 0.5 * slope[e]) / (0.5 * (l + l1))
             dslope[e] = ds
-            jc[0, e] = 0.25 * h * slope[e]
             jc[1, e] = 0.5 * h * ds
-        for i in range(0 if EXACT_QUOTIENT else n):
-            e = np.uint64(lo + i)
-            l = len0[e]
-            l1 = len1[e]
-            if abs(l1 - l) > SWITCH * (0.5 * (l + l1)):
-                ds = ((tension1[e] - quotient[e]) / (l1 - l) - 0.5 * slope[e]) / (0.5 * (l + l1))
-                dslope[e] = ds
-                jc[1, e] = 0.5 * h * ds
 
 
 def _em2_jacobian(topo, spring, node, work, places, h, data):
