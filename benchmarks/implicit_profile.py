@@ -51,7 +51,7 @@ TIMED = [
     ("predictor", "scheme_predict(step, topo, spring, node, work, extra, u)"),
     ("residual", "status, bad, rmax, scale = scheme_residual(step, topo, spring, node, work, extra, u, warm, res)"),
     ("local Jacobi step", "done, pending, pending_bad, lmax, lscale, change = scheme_local("),
-    ("Jacobi step", "scheme_sweep(topo, node, work, h, du, R, r, True, True)"),
+    ("Jacobi step", "scheme_sweep(topo, node, work, h, du, R, r, True, np.bool_(True))"),
     ("linearization", "scheme_linearize(spring, work, extra, h)"),
     ("linear solve", "contraction = _solve_sweeps(topo, node, work, h, du, R, r,"),
     ("damping", "evaluated, trial_max, trial_scale = scheme_damp(step, topo, spring, node, work, extra, res,"),
