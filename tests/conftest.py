@@ -17,17 +17,18 @@ from thermonet.paper import CHAIN_MOMENTA, CHAIN_PARAMETERS, CHAIN_TEMPERATURES 
 
 
 # Seconds each module took in a cold-cache run of the suite on 2 cores (mostly compiling its
-# kernels; commit fc585c4): the modules run longest first, so that the two workers finish
-# together instead of one running a long module alone at the end (the other idled for the last
-# 92 s of 973 in that run).
+# kernels; commit 3b87913): the modules run longest first, so that the two workers finish
+# together instead of one running a long module alone at the end (without an order, one worker
+# idled for the last 92 s of a 973 s run).
 # Only an order: a module missing here runs after these, in collection order.
 COLD_SECONDS = {
-    "test_implicit_newton.py": 178, "test_loads_heat.py": 166, "test_heat_flow.py": 151,
-    "test_implicit_compiled.py": 140, "test_em2.py": 132, "test_cuda_sim.py": 128,
-    "test_optimized_splittings.py": 106, "test_implicit_thermal.py": 101, "test_first_use.py": 70,
-    "test_cuda_heat_sim.py": 66, "test_scene.py": 63, "test_hard_cases.py": 62, "test_mpi.py": 62,
-    "test_benchmarks.py": 61, "test_study_scenes.py": 57, "test_loads.py": 56, "test_loads_cuda.py": 55,
-    "test_io.py": 49, "test_em2_paths.py": 40, "test_em2_quasi_static.py": 19,
+    "test_implicit_newton.py": 315, "test_loads_heat.py": 198, "test_em2.py": 189,
+    "test_implicit_thermal.py": 144, "test_mpi.py": 110, "test_benchmarks.py": 102,
+    "test_implicit_compiled.py": 99, "test_cuda_sim.py": 96, "test_heat_flow.py": 94,
+    "test_study_scenes.py": 93, "test_first_use.py": 68, "test_cuda_heat_sim.py": 60, "test_em2_paths.py": 57,
+    "test_optimized_splittings.py": 45, "test_io.py": 41, "test_loads_cuda.py": 29,
+    "test_implicit_conservation.py": 16, "test_examples.py": 16, "test_fuzz_inputs.py": 13,
+    "test_custom_model_example.py": 13,
 }
 
 
