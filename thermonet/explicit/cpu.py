@@ -200,9 +200,10 @@ def _spring_pass(x, eta, phi, topology, springs, scratch, steps, run, keep, leng
     l and the strain stay valid).
 
     The loop over blocks is all this pass does; a block's work is :func:`_spring_block`, a
-    serial function of its own: inlined into the parallel loop, Numba's parallel compiler
-    processed the whole block's code (with the model's) again, several times over, and took
-    four times as long as for the serial pass.
+    serial function of its own, shared with the serial variant: inlined into the parallel loop,
+    the block's code (with the model's) went through Numba's parallel compiler several times
+    over, and a threaded kernel variant took four to five times as long to compile as its
+    serial twin (docs/architecture.md).
     """
     edges = topology.edges
     l0 = springs.rest
