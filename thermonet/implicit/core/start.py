@@ -82,7 +82,7 @@ def _start(step, topo, spring, node, work, coef, pred):
         nodal[last, 0] = 0.0  # pred is overwritten below
     for blk in prange((m + BLOCK - 1) // BLOCK):
         lo = np.int64(blk) * BLOCK
-        bad = min(bad, start_springs(step, topo, spring, node, work, coef, pred, lo, min(BLOCK, m - lo)))
+        bad = min(bad, start_springs(step, topo, spring, node, work, lo, min(BLOCK, m - lo)))
     if bad < m:
         return code[bad], bad
     J = coef.shape[0]
@@ -216,7 +216,7 @@ def _start(step, topo, spring, node, work, coef, pred):
     return 0, -1
 
 
-def _start_springs(step, topo, spring, node, work, coef, pred, lo, n):
+def _start_springs(step, topo, spring, node, work, lo, n):
     """Springs lo … lo + n − 1 of :func:`_start`'s first spring pass (n ≤ BLOCK), a serial
     function called once per block: see thermonet.explicit.cpu._spring_pass. Returns the block's
     first flagged spring (m if none)."""

@@ -231,8 +231,7 @@ def _em2_residual(step, topo, spring, node, work, u, res):
     work_arrays = work[1:]
     for blk in prange((m + BLOCK - 1) // BLOCK):
         lo = np.int64(blk) * BLOCK
-        bad = min(bad, em2_residual_springs(step, topo, spring, node, (start,) + work_arrays, u, res, lo,
-                                            min(BLOCK, m - lo)))
+        bad = min(bad, em2_residual_springs(step, topo, spring, (start,) + work_arrays, u, lo, min(BLOCK, m - lo)))
     if bad < m:
         return code[bad], bad, math.inf, math.inf
     rmax = 0.0
@@ -244,17 +243,15 @@ def _em2_residual(step, topo, spring, node, work, u, res):
     return 0, -1, rmax, smax
 
 
-def _em2_residual_springs(step, topo, spring, node, work, u, res, lo, n):
+def _em2_residual_springs(step, topo, spring, work, u, lo, n):
     """Springs lo … lo + n − 1 of :func:`_em2_residual` (n ≤ BLOCK), a serial function called
     once per block: see thermonet.explicit.cpu._spring_pass. Returns the block's first flagged
     spring (m if none)."""
     x0, p, eta, h = step
     edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
     l0, P = spring
-    masses, inv_mass, anchored, gravity, with_gravity, reference = node
     start, len1, dir1, mean, slope, dslope, energy0, temperature0, tension0, jc, eta_step, quotient, tension1 = work
     len0, dir0, keep, fs, ws, sweep, nodal, guess, code = start
-    R, Rabs, peak = res
     m = edges.shape[0]
     half = 0.5 * h
     for i in range(n):  # gather: the spring vectors at x⁰ and x¹
@@ -408,14 +405,14 @@ def _em2_finish(step, topo, spring, node, work, u, phi, new):
     work_arrays = work[1:]
     for blk in prange((m + BLOCK - 1) // BLOCK):
         lo = np.int64(blk) * BLOCK
-        bad = min(bad, em2_finish_springs(step, topo, spring, node, (start,) + work_arrays, u, phi, new, lo,
+        bad = min(bad, em2_finish_springs(step, topo, spring, (start,) + work_arrays, phi, new, lo,
                                           min(BLOCK, m - lo)))
     if bad < m:
         return code[bad], bad
     return finish_nodes(step, topo, node, fs, u, 3, 0, new)
 
 
-def _em2_finish_springs(step, topo, spring, node, work, u, phi, new, lo, n):
+def _em2_finish_springs(step, topo, spring, work, phi, new, lo, n):
     """Springs lo … lo + n − 1 of :func:`_em2_finish` (n ≤ BLOCK), a serial function called once
     per block: see thermonet.explicit.cpu._spring_pass. Returns the block's first flagged spring
     (m if none)."""

@@ -164,7 +164,7 @@ def _gtr_residual(step, topo, spring, node, work, alpha, u, warm, res):
     work_arrays = work[1:]
     for blk in prange((m + BLOCK - 1) // BLOCK):
         lo = np.int64(blk) * BLOCK
-        bad = min(bad, gtr_residual_springs(step, topo, spring, node, (start,) + work_arrays, alpha, u, warm, res, lo,
+        bad = min(bad, gtr_residual_springs(step, topo, spring, (start,) + work_arrays, alpha, u, warm, lo,
                                             min(BLOCK, m - lo)))
     if bad < m:
         return code[bad], bad, math.inf, math.inf
@@ -178,17 +178,15 @@ def _gtr_residual(step, topo, spring, node, work, alpha, u, warm, res):
     return 0, -1, rmax, smax
 
 
-def _gtr_residual_springs(step, topo, spring, node, work, alpha, u, warm, res, lo, n):
+def _gtr_residual_springs(step, topo, spring, work, alpha, u, warm, lo, n):
     """Springs lo … lo + n − 1 of :func:`_gtr_residual` (n ≤ BLOCK), a serial function called
     once per block: see thermonet.explicit.cpu._spring_pass. Returns the block's first flagged
     spring (m if none)."""
     x0, p, eta, h = step
     edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
     l0, P = spring
-    masses, inv_mass, anchored, gravity, with_gravity, reference = node
     start, len1, dir1, theta, dtheta, jc = work
     len0, dir0, keep, fs, ws, sweep, nodal, guess, code = start
-    R, Rabs, peak = res
     m = edges.shape[0]
     for i in range(n):  # gather: the spring vector at x¹
         e = np.uint64(lo + i)
@@ -330,7 +328,7 @@ def _gtr_finish(step, topo, spring, node, work, alpha, u, phi, new):
     work_arrays = work[1:]
     for blk in prange((m + BLOCK - 1) // BLOCK):
         lo = np.int64(blk) * BLOCK
-        bad = min(bad, gtr_finish_springs(step, topo, spring, node, (start,) + work_arrays, alpha, u, phi, new, lo,
+        bad = min(bad, gtr_finish_springs(step, topo, spring, (start,) + work_arrays, alpha, phi, new, lo,
                                           min(BLOCK, m - lo)))
     if bad < m:
         return code[bad], bad
@@ -338,7 +336,7 @@ def _gtr_finish(step, topo, spring, node, work, alpha, u, phi, new):
 
 
 
-def _gtr_finish_springs(step, topo, spring, node, work, alpha, u, phi, new, lo, n):
+def _gtr_finish_springs(step, topo, spring, work, alpha, phi, new, lo, n):
     """Springs lo … lo + n − 1 of :func:`_gtr_finish` (n ≤ BLOCK), a serial function called once
     per block: see thermonet.explicit.cpu._spring_pass. Returns the block's first flagged spring
     (m if none)."""

@@ -147,8 +147,8 @@ def _ho4_residual(step, topo, spring, node, work, u, warm, res, springs, nodes):
     work_arrays = work[1:]
     for blk in prange((m + BLOCK - 1) // BLOCK):
         lo = np.int64(blk) * BLOCK
-        bad = min(bad, ho4_residual_springs(step, topo, spring, node, (start,) + work_arrays, u, warm, res, springs,
-                                            nodes, lo, min(BLOCK, m - lo)))
+        bad = min(bad, ho4_residual_springs(step, topo, spring, (start,) + work_arrays, u, warm, springs, lo,
+                                            min(BLOCK, m - lo)))
     if bad < none:
         return code[bad], bad, math.inf, math.inf
     rmax = 0.0
@@ -233,7 +233,7 @@ def _ho4_residual(step, topo, spring, node, work, u, warm, res, springs, nodes):
     return 0, -1, rmax, smax
 
 
-def _ho4_residual_springs(step, topo, spring, node, work, u, warm, res, springs, nodes, lo, n):
+def _ho4_residual_springs(step, topo, spring, work, u, warm, springs, lo, n):
     """Springs lo … lo + n − 1 (of the list ``springs`` where SUBSET) of :func:`_ho4_residual`
     (n ≤ BLOCK), a serial function called once per block: see
     thermonet.explicit.cpu._spring_pass. Returns the block's first flagged spring (m if
@@ -241,10 +241,8 @@ def _ho4_residual_springs(step, topo, spring, node, work, u, warm, res, springs,
     x0, p, eta, h = step
     edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
     l0, P = spring
-    masses, inv_mass, anchored, gravity, with_gravity, reference = node
     start, lenh, dirh, len1, dir1, th0, th1, dth, gs, jc = work
     len0, dir0, keep, fs, ws, sweep, nodal, guess, code = start
-    R, Rabs, peak = res
     none = edges.shape[0]
     for i in range(n):  # gather: the spring vectors at x^½ and x¹
         e = np.uint64(listed(springs, lo + i))
@@ -408,14 +406,14 @@ def _ho4_finish(step, topo, spring, node, work, u, phi, new):
     work_arrays = work[1:]
     for blk in prange((m + BLOCK - 1) // BLOCK):
         lo = np.int64(blk) * BLOCK
-        bad = min(bad, ho4_finish_springs(step, topo, spring, node, (start,) + work_arrays, u, phi, new, lo,
+        bad = min(bad, ho4_finish_springs(step, topo, spring, (start,) + work_arrays, phi, new, lo,
                                           min(BLOCK, m - lo)))
     if bad < m:
         return code[bad], bad
     return finish_nodes(step, topo, node, fs, u, 6, 3, new)
 
 
-def _ho4_finish_springs(step, topo, spring, node, work, u, phi, new, lo, n):
+def _ho4_finish_springs(step, topo, spring, work, phi, new, lo, n):
     """Springs lo … lo + n − 1 of :func:`_ho4_finish` (n ≤ BLOCK), a serial function called once
     per block: see thermonet.explicit.cpu._spring_pass. Returns the block's first flagged spring
     (m if none)."""
