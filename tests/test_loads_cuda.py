@@ -73,7 +73,11 @@ def test_the_simulated_gpu_runs_loads_with_heat_flow_as_the_cpu_does(runs):
     device runs the schedule as written: the same dynamics to round-off."""
     cpu, gpu = "heat/cpu", "heat/cuda"
     np.testing.assert_allclose(runs[f"{gpu}/positions"], runs[f"{cpu}/positions"], rtol=0, atol=1e-12)
-    np.testing.assert_allclose(runs[f"{gpu}/entropy"], runs[f"{cpu}/entropy"], rtol=1e-13, atol=0)
+    # (of the entropies' scale, as tests/test_cuda_heat_sim.py compares them: η's rounding follows
+    # the size of its changes, not of its value; a spring whose η the exchanges brought near 0
+    # keeps the rounding of the larger changes that took it there)
+    eta = runs[f"{cpu}/entropy"]
+    np.testing.assert_allclose(runs[f"{gpu}/entropy"], eta, rtol=0, atol=1e-13 * np.abs(eta).max())
     np.testing.assert_allclose(runs[f"{gpu}/load_work"], runs[f"{cpu}/load_work"], rtol=0, atol=1e-12)
     np.testing.assert_allclose(runs[f"{gpu}/energy_balance"], runs[f"{cpu}/energy_balance"], rtol=0, atol=1e-10)
     assert np.any(runs[f"{cpu}/load_work"] != 0.0)
