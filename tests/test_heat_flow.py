@@ -38,6 +38,31 @@ def test_junction_rule_on_a_star_and_the_colouring():
     assert graph.n_colours == 3  # K4's edges need exactly three colours
 
 
+@pytest.mark.parametrize("n_springs, n_pairs", [(50, 400), (20, 2000)])
+def test_pair_colouring_is_the_greedy_one_beyond_64_colours(n_springs, n_pairs):
+    """The compiled colouring (bit masks of 64 colours a word) against greedy colouring in plain
+    Python: each pair, in order, the smallest colour free at both its springs; on dense random
+    pair lists that need one word and several."""
+    from thermonet.heat.graph import colour_pairs
+
+    rng = np.random.default_rng(n_pairs)
+    first, second = rng.integers(0, n_springs, (2, n_pairs))
+    keep = first != second
+    first, second = first[keep], second[keep]
+    taken = [set() for _ in range(n_springs)]
+    expected = []
+    for e, f in zip(first.tolist(), second.tolist()):
+        c = 0
+        while c in taken[e] or c in taken[f]:
+            c += 1
+        taken[e].add(c)
+        taken[f].add(c)
+        expected.append(c)
+    colours = colour_pairs(first, second, n_springs)
+    assert colours.tolist() == expected
+    assert (max(expected) >= 128) == (n_springs == 20)
+
+
 def cycle(every) -> dict:
     """The Simulation's arguments for a conduction cycle ``every``: k, or (k, j) with j sub-sweeps."""
     k, j = every if isinstance(every, tuple) else (every, 1)
