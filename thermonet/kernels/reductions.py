@@ -230,7 +230,9 @@ def row_sums_kernel(parallel: bool):
     """The compiled :func:`_row_sums` (model-independent), multi-threaded where ``parallel``."""
     key = ("row", bool(parallel))
     if key not in _CACHE:
-        chunk = specialize(_row_sums_chunk, f"x{_EXACT}", {}, **_OPTIONS)  # (serial: shared)
+        if "row_chunk" not in _CACHE:  # (serial: one dispatcher shared by both kernels)
+            _CACHE["row_chunk"] = specialize(_row_sums_chunk, f"x{_EXACT}", {}, **_OPTIONS)
+        chunk = _CACHE["row_chunk"]
         tag = f"{'par' if parallel else 'ser'}_x{_EXACT}"
         _CACHE[key] = specialize(_row_sums, tag, {"row_sums_chunk": chunk}, parallel=bool(parallel), **_OPTIONS)
     return _CACHE[key]

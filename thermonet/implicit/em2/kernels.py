@@ -166,9 +166,8 @@ def _em2_predict(step, topo, spring, node, work, accel, pred):
     cluster moving as a body keeps its slow motion in the guess."""
     x0, p, eta, h = step
     edges, free_index, ends, inc_ptr, inc_spring, inc_sign = topo
-    l0, P = spring
     masses, inv_mass, anchored, gravity, with_gravity, reference = node
-    start, len1, dir1, mean, slope, dslope, energy0, temperature0, tension0, jc, eta_step, quotient, tension1 = work
+    start = work[0]
     len0, dir0, keep, fs, ws, sweep, nodal, stiff, code = start
     m = edges.shape[0]
     # (the work record rebuilt in the loop: Numba cannot hand a record that holds a record to
