@@ -77,3 +77,34 @@ def test_lattice_scene_is_the_cost_studys_net():
     assert (sim.net.n_nodes, sim.net.n_springs) == (729, 1944)
     theta = sim.temperatures()
     assert 250.0 <= theta.min() and theta.max() <= 350.0
+
+
+@pytest.mark.parametrize("model", ["hencky", "quadratic"])
+def test_a_mechanical_run_has_the_isothermal_right_hand_side(model):
+    """Thermal coupling off: every spring stays at θ0, so ṗ = −∇ Σ U(l) with the springs'
+    isothermal energies (½ c ln²(l/l0), or E (l − l0)² / 2 l0) and Φ̇ = θ0, on both right-hand sides."""
+    rng = np.random.default_rng(5)
+    net = tn.lattice((2, 2, 1), neighbours=18, jitter=0.2, seed=5)
+    m = net.n_springs
+    params = {k: v * rng.uniform(0.8, 1.2, m) for k, v in PARAMETERS[model].items()}
+    sim = tn.Simulation(net, model=model, parameters=params, thermal=False,
+                        velocities=rng.normal(0.0, 1.0, (net.n_nodes, 3)), integrator="co2", h=1e-3)
+    stiffness, l0 = params["c" if model == "hencky" else "E"], np.asarray(net.rest_lengths)
+
+    def energy(x):
+        l = np.linalg.norm(x[net.edges[:, 1]] - x[net.edges[:, 0]], axis=1)
+        return float(np.sum(0.5 * stiffness * np.log(l / l0) ** 2 if model == "hencky"
+                            else 0.5 * stiffness * (l - l0) ** 2 / l0))
+
+    for compiled in (False, True):
+        rhs, y0 = hamilton_rhs(sim, compiled=compiled)
+        k3 = 3 * rhs.k
+        y = y0 + np.concatenate([rng.normal(0, 0.05, k3), np.zeros(len(y0) - k3)])
+        dy = rhs(0.0, y)
+        grad = np.empty(k3)
+        for i in range(k3):
+            step = np.zeros(k3)
+            step[i] = 1e-6
+            grad[i] = (energy((y[:k3] + step).reshape(-1, 3)) - energy((y[:k3] - step).reshape(-1, 3))) / 2e-6
+        np.testing.assert_allclose(dy[k3:2 * k3], -grad, rtol=0, atol=1e-7 * np.abs(grad).max())
+        np.testing.assert_array_equal(dy[2 * k3:], params["theta0"])

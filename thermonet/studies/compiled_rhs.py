@@ -26,10 +26,11 @@ MODELS = {"hencky": (0, ("c", "beta", "C0", "theta0")), "quadratic": (1, ("E", "
 
 
 @njit(cache=True, fastmath=False)
-def hamilton_derivative(y, dy, model, edges, l0, P, eta, slot, x_anchor, inv_mass, weight, k):
+def hamilton_derivative(y, dy, model, thermal, edges, l0, P, eta, slot, x_anchor, inv_mass, weight, k):
     """dy ← ẏ at y (both (6k + m,)).
 
-    model: 0 hencky, 1 quadratic; edges: (m, 2) node indices; l0, eta: (m,); P: (n_params, m)
+    model: 0 hencky, 1 quadratic; thermal: False for a mechanical run (every spring at θ0, row 3
+    of P, whatever its length); edges: (m, 2) node indices; l0, eta: (m,); P: (n_params, m)
     parameters in :data:`MODELS` order; slot: (n,) index of each node among the free ones, −1 if
     anchored; x_anchor: (n, 3) positions used for anchored nodes; inv_mass: (k,) of the free
     nodes; weight: (3k,) m g of the free nodes (zeros without gravity).
@@ -49,11 +50,11 @@ def hamilton_derivative(y, dy, model, edges, l0, P, eta, slot, x_anchor, inv_mas
         l = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
         if model == 0:  # hencky: L = ln(l/l0), θ = θ0 exp((η − βL)/C0), T = (cL − β(θ − θ0))/l
             L = math.log(l / l0[e])
-            theta = P[3, e] * math.exp((eta[e] - P[1, e] * L) / P[2, e])
+            theta = P[3, e] * math.exp((eta[e] - P[1, e] * L) / P[2, e]) if thermal else P[3, e]
             tension = (P[0, e] * L - P[1, e] * (theta - P[3, e])) / l
         else:  # quadratic: d = l − l0, θ = θ0 + θ0/C0 (η − η0 − βd), T = E/l0 d − β(θ − θ0)
             dl = l - l0[e]
-            theta = P[3, e] + P[3, e] / P[2, e] * (eta[e] - P[4, e] - P[1, e] * dl)
+            theta = P[3, e] + P[3, e] / P[2, e] * (eta[e] - P[4, e] - P[1, e] * dl) if thermal else P[3, e]
             tension = P[0, e] / l0[e] * dl - P[1, e] * (theta - P[3, e])
         dy[2 * k3 + e] = theta
         s = tension / l
@@ -74,11 +75,12 @@ class CompiledHamiltonRHS(HamiltonRHS):
     """:class:`~thermonet.reference.HamiltonRHS` with its ``__call__`` compiled (see the module).
 
     net: a :class:`~thermonet.reference.ReferenceNet` whose law is one of the built-in models;
-    x_anchor: (n, 3); eta: (m,); gravity: (3,) or None.
+    x_anchor: (n, 3); eta: (m,); gravity: (3,) or None; thermal: False for a mechanical run.
     """
 
-    def __init__(self, net: ReferenceNet, x_anchor, eta, model: str, gravity=None):
+    def __init__(self, net: ReferenceNet, x_anchor, eta, model: str, gravity=None, thermal: bool = True):
         super().__init__(net, x_anchor, eta)
+        self._thermal = bool(thermal)
         if model not in MODELS:
             raise ValueError(f"no compiled right-hand side for model {model!r} (built-in: {', '.join(MODELS)})")
         self._model, names = MODELS[model]
@@ -94,6 +96,6 @@ class CompiledHamiltonRHS(HamiltonRHS):
 
     def __call__(self, t: float, y: np.ndarray) -> np.ndarray:
         dy = np.empty_like(y)
-        hamilton_derivative(np.ascontiguousarray(y, dtype=np.float64), dy, self._model, self._edges, self._l0,
-                            self._P, self.eta, self._slot, self.x_full, self._inv_mass, self._weight, self.k)
+        hamilton_derivative(np.ascontiguousarray(y, dtype=np.float64), dy, self._model, self._thermal, self._edges,
+                            self._l0, self._P, self.eta, self._slot, self.x_full, self._inv_mass, self._weight, self.k)
         return dy

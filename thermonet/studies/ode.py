@@ -42,6 +42,21 @@ class _MappedLaw:
         return out
 
 
+class _HeldAtReference:
+    """A law whose springs stay at their reference temperature whatever their length: what a
+    mechanical run (thermal coupling off) integrates. ``reference``: the key of θ_ref in the
+    parameters (a name, or a row of the (k, m) array of a mapped law)."""
+
+    def __init__(self, law, reference):
+        self.law, self.reference = law, reference
+
+    def temperature(self, l, eta, l0, P):
+        return np.broadcast_to(np.asarray(P[self.reference], dtype=np.float64), np.shape(l)).copy()
+
+    def tension(self, l, theta, l0, P):
+        return self.law.tension(l, theta, l0, P)
+
+
 class _GravityRHS(HamiltonRHS):
     """Hamilton's equations with a uniform acceleration g: ṗ = f_η(x) + m g on free nodes."""
 
@@ -65,6 +80,11 @@ def hamilton_rhs(sim, compiled: bool = False) -> tuple[HamiltonRHS, np.ndarray]:
     """
     net, system = sim.net, sim.system
     state = sim.state
+    # a mechanical run has no thermal arrays (its springs stay at θ_ref, below): η is unused and
+    # Φ, which nothing reads, is integrated from zero
+    zeros = np.zeros(net.n_springs)
+    entropy = zeros if state.entropy is None else state.entropy
+    phi = zeros if state.thermal_displacement is None else state.thermal_displacement
     # parameters back in the user's spring numbering: (k, m)
     P_user = sim.layout.springs_to_user(system.parameters.T).T
     builtin = sim.model.name in LAWS and get_model(sim.model.name) is sim.model
@@ -73,18 +93,22 @@ def hamilton_rhs(sim, compiled: bool = False) -> tuple[HamiltonRHS, np.ndarray]:
         parameters = {name: P_user[i].copy() for i, name in enumerate(sim.model.parameters)}
     else:
         law, parameters = _MappedLaw(sim.model), np.ascontiguousarray(P_user)
+    if not system.thermal:
+        reference = sim.model.reference_temperature
+        law = _HeldAtReference(law, reference if builtin else sim.model.parameter_index(reference))
     ref_net = ReferenceNet(np.asarray(net.edges), np.asarray(net.rest_lengths, dtype=np.float64),
                            np.asarray(net.masses, dtype=np.float64), np.asarray(net.anchored, dtype=bool),
                            law, parameters)
     if compiled and builtin:
         from .compiled_rhs import CompiledHamiltonRHS
 
-        rhs = CompiledHamiltonRHS(ref_net, state.positions, state.entropy, sim.model.name, system.gravity)
+        rhs = CompiledHamiltonRHS(ref_net, state.positions, entropy, sim.model.name, system.gravity,
+                                  thermal=system.thermal)
     elif system.gravity is not None:
-        rhs = _GravityRHS(ref_net, state.positions, state.entropy, system.gravity)
+        rhs = _GravityRHS(ref_net, state.positions, entropy, system.gravity)
     else:
-        rhs = HamiltonRHS(ref_net, state.positions, state.entropy)
-    return rhs, rhs.pack(state.positions, state.momenta, state.thermal_displacement)
+        rhs = HamiltonRHS(ref_net, state.positions, entropy)
+    return rhs, rhs.pack(state.positions, state.momenta, phi)
 
 
 @dataclass
