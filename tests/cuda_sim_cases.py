@@ -158,4 +158,7 @@ def blowups(out):
 
 
 if __name__ == "__main__":
+    from simulator_pace import pace
+
+    pace()
     main(sys.argv[1])

@@ -69,4 +69,7 @@ def main(path, steps):
 
 
 if __name__ == "__main__":
+    from simulator_pace import pace
+
+    pace()
     main(sys.argv[1], int(sys.argv[2]) if len(sys.argv) > 2 else 6)

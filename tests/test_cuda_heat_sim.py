@@ -472,4 +472,7 @@ def test_gpu_heat_flow_equals_cpu_and_launch_modes_agree(make):
 
 
 if __name__ == "__main__":
+    from simulator_pace import pace
+
+    pace()
     main(sys.argv[1])

@@ -136,6 +136,8 @@ _CUDA_SIM_SCRIPT = textwrap.dedent("""
     sys.path[:0] = [sys.argv[1], sys.argv[1] + "/tests"]
     import thermonet as tn
     from cuda_sim_cases import free_net, quadratic_parameters
+    from simulator_pace import pace
+    pace()
     net, v, temps = free_net()
     out = {}
     for model in ("hencky", "quadratic"):

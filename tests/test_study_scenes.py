@@ -115,9 +115,9 @@ def test_a_dask_study_from_a_partly_cold_numba_cache_runs(tmp_path):
     cli = [sys.executable, "-m", "thermonet.cli.main"]
     subprocess.run(cli + ["run", str(scene), "--quiet", "--set", "integrator.steps=2", "--out", str(tmp_path / "run")],
                    env=env, check=True, capture_output=True, cwd=tmp_path)
-    done = subprocess.run(cli + ["study", "cost", str(scene), "--integrators", "co2", "--halvings", "0", "--repeats", "1",
-                                 "--scipy", "DOP853:1e-6..1e-6", "--check", "none", "--workers", "1", "--quiet",
-                                 "--out", str(tmp_path / "study")],
+    done = subprocess.run(cli + ["study", "cost", str(scene), "--integrators", "co2", "--halvings", "0",
+                                 "--repeats", "1", "--scipy", "DOP853:1e-6..1e-6", "--check", "none", "--workers", "1",
+                                 "--quiet", "--out", str(tmp_path / "study")],
                           env=env, capture_output=True, text=True, cwd=tmp_path)
     assert done.returncode == 0 and "Traceback" not in done.stderr, done.stderr[-3000:]
     with open(tmp_path / "study" / "cost.csv") as f:
