@@ -49,7 +49,7 @@ def test_a_convergence_study_of_a_scene_with_heat_flow_or_loads_includes_them_an
     assert main(["study", "convergence", os.path.join(SCENES, scene), "--serial", "--integrators", "co2",
                  *argv, "--out", str(out)]) == 0
     text = capsys.readouterr().out
-    assert f"reference co4 h=" in text and f"(the scene's {named} are not in Hamilton's equations" in text
+    assert "reference co4 h=" in text and f"(the scene's {named} are not in Hamilton's equations" in text
     assert "DOP853 rtol" not in text and " no position slope" not in text
     assert ("every integrator is second order with it" in text) == ("conduction" in named)
     fitted = slopes(out)
