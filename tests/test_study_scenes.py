@@ -5,6 +5,7 @@ import csv
 import os
 import subprocess
 import sys
+import warnings
 
 import pytest
 
@@ -125,6 +126,34 @@ def test_a_dask_study_from_a_partly_cold_numba_cache_runs(tmp_path):
     assert [(r["solver"], r["status"]) for r in rows] == [("co2", "ok"), ("scipy-DOP853", "ok")]
     # the SciPy run solved the mechanical net's equations (springs held at θ0) to its tolerance
     assert float(rows[1]["error_position"]) < 1e-5 and float(rows[1]["error_temperature"]) == 0.0
+
+
+def test_a_study_of_a_mechanical_scene_leaves_out_the_implicit_integrators_and_says_why(tmp_path, capsys):
+    """Without thermal coupling the default integrators that need it (the implicit ones) are left
+    out, named; SciPy's reference solves the mechanical equations (springs at θ0), so CO2's
+    positions converge at order 2 and the temperatures, held, have no slope to fit."""
+    scene = tmp_path / "tiny.toml"
+    scene.write_text(TINY + "[effects]\nthermal = false\n")
+    out = tmp_path / "study"
+    assert main(["study", "convergence", str(scene), "--serial", "--halvings", "2", "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "(left out gtr-1/2, ho4: implicit integrators need thermal coupling, which the scene switches off)" in text
+    assert "no temperature slopes: every run's temperature equals the reference's exactly" in text
+    assert "no temperature slope for" not in text
+    fitted = slopes(out)
+    assert {name for name, _ in fitted} == {"gtr-0", "gtr-1", "co2", "co4", "omf4"}
+    assert abs(fitted[("co2", "position")] - 2.0) < 0.1 and abs(fitted[("co4", "position")] - 4.0) < 0.2
+    # an implicit integrator named on the command line is refused, with the reason
+    assert main(["study", "convergence", str(scene), "--serial", "--integrators", "ho4", "--out", str(out)]) == 2
+    assert "tiny.toml: integrator ho4 needs thermal coupling" in capsys.readouterr().err
+    # the energy study: no entropy to report (a dash, not nan) or to draw (no empty legend)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UserWarning)
+        assert main(["study", "energy", str(scene), "--serial", "--integrators", "co2", "--out",
+                     str(tmp_path / "energy")]) == 0
+    (row,) = [line.split() for line in capsys.readouterr().out.splitlines() if line.startswith("  co2 ")]
+    # (row[2], the zoom window's range, is nan: 0.08 s of run has no diagnostics row in it)
+    assert row[4] == "—" and "nan" not in (row[1], row[3], row[5], row[6])
 
 
 def test_the_default_study_integrators_include_the_methods_the_readme_recommends():

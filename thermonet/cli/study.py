@@ -12,7 +12,7 @@ import os
 import sys
 
 from ..errors import InputError, UnknownNameError
-from ..integrators import available_integrators
+from ..integrators import available_integrators, get_integrator
 from ..step_policy import StepWarning
 
 HELP = "convergence, cost (work-precision) and long-run energy studies of the integrators"
@@ -124,6 +124,9 @@ def handle(args) -> int:
     warnings.simplefilter("ignore", StepWarning)  # a run near its limit is measured, and reported if it fails
     with Runner(serial=args.serial, scheduler=args.scheduler, n_workers=args.workers) as runner:
         say(f"{args.study} study of {args.scene}: {', '.join(integrators)}; runs on {runner.description}")
+        if plan["left_out"]:
+            say(f"(left out {', '.join(plan['left_out'])}: implicit integrators need thermal coupling, which the "
+                "scene switches off)")
         if args.study in ("convergence", "cost"):
             check = f"{plan['check'][0]} h={plan['check'][1]:g}" if plan["check"] else "none"
             if plan["effects"]:
@@ -159,15 +162,18 @@ def _plan(args) -> dict:
     integrators' stability limits), in this process, before a Dask cluster starts or a run is
     made: any problem is an InputError naming the argument."""
     from ..studies.convergence import default_check, default_time_step, time_steps
-    from ..studies.scenes import check_scene, scene_effects, scene_time
+    from ..studies.scenes import check_scene, scene_effects, scene_is_thermal, scene_time
     from ..studies.tasks import check_steps
 
     check_scene(args.scene)
     scene_h, scene_t_end = scene_time(args.scene)
     effects = scene_effects(args.scene)
-    plan = {"integrators": _integrators(args.integrators, args.study)}
+    plan = {"integrators": _integrators(args.integrators, args.study), "left_out": []}
     if not plan["integrators"]:
         raise InputError("--integrators: none of the given integrators exists in this installation")
+    if args.integrators is None and not scene_is_thermal(args.scene):  # (named ones: the run says why not)
+        plan["left_out"] = [n for n in plan["integrators"] if not get_integrator(n).explicit]
+        plan["integrators"] = [n for n in plan["integrators"] if get_integrator(n).explicit]
     if args.workers is not None and args.workers < 1:
         raise InputError(f"--workers must be >= 1, got {args.workers}")
     if args.study in ("convergence", "cost"):

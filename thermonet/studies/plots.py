@@ -131,13 +131,16 @@ def energy_figures(study, out_dir, prefix: str = "energy") -> list[str]:
             axes[1].plot(c["time"], np.linalg.norm(np.column_stack([c["px"], c["py"], c["pz"]]) -
                                                    np.array([c["px"][0], c["py"][0], c["pz"][0]]), axis=1), lw=0.8)
         axes[2].plot(c["time"], np.linalg.norm(np.column_stack([c["Lx"], c["Ly"], c["Lz"]]) -
-                                               np.array([c["Lx"][0], c["Ly"][0], c["Lz"][0]]), axis=1), lw=0.8)
+                                               np.array([c["Lx"][0], c["Ly"][0], c["Lz"][0]]), axis=1), lw=0.8,
+                     label=display_name(name))
     p_title = "linear momentum: not conserved (anchored)" if study.anchored else "|linear momentum − initial|"
-    for ax, title in zip(axes, ("total entropy − initial", p_title, "|angular momentum − initial|")):
+    thermal = any("entropy" in study.histories[name] for name in names)
+    s_title = "total entropy − initial" if thermal else "entropy: none (no thermal coupling)"
+    for ax, title in zip(axes, (s_title, p_title, "|angular momentum − initial|")):
         ax.set_title(title, fontsize=9)
         ax.set_xlabel("time")
         ax.grid(True, alpha=0.3)
-    axes[0].legend(fontsize=7)
+    (axes[0] if thermal else axes[2]).legend(fontsize=7)
     fig.tight_layout()
     path = os.path.join(out_dir, f"{prefix}_invariants.png")
     fig.savefig(path)
