@@ -66,7 +66,7 @@ class EnergyStudy:
                  f"  {'integrator':<10} {'range':>10} {'range in [%g, %g]' % self.window:>18} {'drift':>10} "
                  f"{'Δentropy':>10} {'Δ|P|':>10} {'Δ|L|':>10}"]
         for name, s in stats.items():
-            entropy = f"{s['entropy_change']:>10.1e}" if s["entropy_change"] == s["entropy_change"] else f"{'—':>10}"
+            entropy = f"{s['entropy_change']:>10.1e}" if np.isfinite(s["entropy_change"]) else f"{'—':>10}"  # (mechanical)
             lines.append(f"  {name:<10} {s['energy_range']:>10.3e} {s['energy_range_window']:>18.3e} {s['energy_drift']:>10.2e} "
                          f"{entropy} {s['linear_momentum_change']:>10.1e} {s['angular_momentum_change']:>10.1e}")
         for name, st in self.status.items():
