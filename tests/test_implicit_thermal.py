@@ -95,7 +95,8 @@ def test_residual_falls_back_to_the_scalar_solve_for_flagged_springs(integrator,
                         momenta=rng.normal(0.0, 1.0, (net.n_nodes, 3)), integrator=integrator, h=0.01,
                         parallel=parallel, integrator_options=dict(linear_solver="matfree"))
     st, s = sim.stepper, sim._state
-    st._subset_compiled = True  # (no local Jacobi step here: begin() need not compile one)
+    if integrator == "ho4":  # (no local Jacobi step here: begin() need not compile one)
+        st._subset_compiled = True
     assert net.n_springs > 3 * 512
     st.begin(s.positions, s.momenta, s.entropy, sim.h)
     st.predict(st.u)

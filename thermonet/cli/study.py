@@ -162,16 +162,17 @@ def _plan(args) -> dict:
     integrators' stability limits), in this process, before a Dask cluster starts or a run is
     made: any problem is an InputError naming the argument."""
     from ..studies.convergence import default_check, default_time_step, time_steps
-    from ..studies.scenes import check_scene, scene_effects, scene_is_thermal, scene_time
+    from ..studies.scenes import check_scene, effects_beyond_hamilton, make_simulation, scene_time
     from ..studies.tasks import check_steps
 
     check_scene(args.scene)
     scene_h, scene_t_end = scene_time(args.scene)
-    effects = scene_effects(args.scene)
+    probe = make_simulation(args.scene, "co2", 1.0)  # (what the scene switches on)
+    effects = effects_beyond_hamilton(probe)
     plan = {"integrators": _integrators(args.integrators, args.study), "left_out": []}
     if not plan["integrators"]:
         raise InputError("--integrators: none of the given integrators exists in this installation")
-    if args.integrators is None and not scene_is_thermal(args.scene):  # (named ones: the run says why not)
+    if args.integrators is None and not probe.system.thermal:  # (named ones: the run says why not)
         plan["left_out"] = [n for n in plan["integrators"] if not get_integrator(n).explicit]
         plan["integrators"] = [n for n in plan["integrators"] if get_integrator(n).explicit]
     if args.workers is not None and args.workers < 1:

@@ -77,12 +77,6 @@ def scene_effects(scene: str) -> list[str]:
     return effects_beyond_hamilton(make_simulation(scene, "co2", 1.0))
 
 
-def scene_is_thermal(scene: str) -> bool:
-    """Whether ``scene`` couples heat to the mechanics (``effects.thermal``): the implicit
-    integrators need it."""
-    return bool(make_simulation(scene, "co2", 1.0).system.thermal)
-
-
 def scene_time(scene: str) -> tuple[float, float | None]:
     """(h, t_end) of a scene file (t_end = steps · h when the scene gives steps); (PAPER_DT,
     None) for a built-in scene, which has no end of its own."""
