@@ -241,28 +241,40 @@ def _spring_block(lo, n, x, eta, phi, edges, l0, P, s, theta_keep, energy_buf, l
     inf, −inf unless ``want_sums``)."""
     squared_lengths(x, edges, lo, n, s, lo)
     bad = 0
-    for i in range(n):
-        e = np.uint64(lo + i)
-        c = np.uint64(0) if UNIFORM else e
-        l = math.sqrt(s[e])
-        rest = l0[e]
-        theta, force = spring_force(l, eta[e] if THERMAL else 0.0, rest, P, c)
-        s[e] = force
-        bad += outside_admissible(l, rest, force, theta, stretch_min, stretch_max)
-        if CONDUCTION and keep:  # the conduction sweeps and the refresh pass start from θ and l
-            theta_keep[e] = theta
-            length[e] = l
-        if CLOSING:
-            if THERMAL and keep:
-                theta_keep[e] = theta
-            if want_sums:
-                energy_buf[e] = spring_energy(l, eta[e] if THERMAL else 0.0, theta, rest, P, c)
-        if THERMAL and track_phi:
-            advance_thermal_displacement(phi, e, theta, phi_h1, phi_h2)
-    if CONDUCTION and keep:  # after the loop: in it, the strain's log would be taken on every pass
+    if CONDUCTION and keep:  # the conduction sweeps and the refresh pass start from θ, l and the strain
+        # (a loop of its own: model_strain's logarithm is spring_force's, computed once; a branch
+        # on keep inside the loop below would take it on every pass)
         for i in range(n):
             e = np.uint64(lo + i)
-            strain[e] = model_strain(length[e], l0[e])
+            c = np.uint64(0) if UNIFORM else e
+            l = math.sqrt(s[e])
+            rest = l0[e]
+            theta, force = spring_force(l, eta[e] if THERMAL else 0.0, rest, P, c)
+            s[e] = force
+            bad += outside_admissible(l, rest, force, theta, stretch_min, stretch_max)
+            theta_keep[e] = theta
+            length[e] = l
+            strain[e] = model_strain(l, rest)
+            if CLOSING and want_sums:
+                energy_buf[e] = spring_energy(l, eta[e] if THERMAL else 0.0, theta, rest, P, c)
+            if THERMAL and track_phi:
+                advance_thermal_displacement(phi, e, theta, phi_h1, phi_h2)
+    else:
+        for i in range(n):
+            e = np.uint64(lo + i)
+            c = np.uint64(0) if UNIFORM else e
+            l = math.sqrt(s[e])
+            rest = l0[e]
+            theta, force = spring_force(l, eta[e] if THERMAL else 0.0, rest, P, c)
+            s[e] = force
+            bad += outside_admissible(l, rest, force, theta, stretch_min, stretch_max)
+            if CLOSING:
+                if THERMAL and keep:
+                    theta_keep[e] = theta
+                if want_sums:
+                    energy_buf[e] = spring_energy(l, eta[e] if THERMAL else 0.0, theta, rest, P, c)
+            if THERMAL and track_phi:
+                advance_thermal_displacement(phi, e, theta, phi_h1, phi_h2)
     block_min = math.inf
     block_max = -math.inf
     if CLOSING:
