@@ -580,9 +580,9 @@ def _advance(state, scratch, topology, springs, nodes, table, effects, heat, run
                 if THERMAL and run.track_phi:
                     thermal_kick(phi, scratch.theta_keep, k2 * h)
             elif with_force:
-                if CONDUCTION and unfinished:
-                    bad = finish_refresh_pass(heat, scratch.theta_keep, eta, phi, springs, scratch.s, (k1 * h, k2 * h),
-                                              run, strain_ok)
+                if CONDUCTION and unfinished:  # (k1 = 0: the pending kick was deferred past the sweeps)
+                    bad = finish_refresh_pass(heat, scratch.theta_keep, eta, phi, springs, scratch.s,
+                                              (deferred * h, k2 * h), run, strain_ok)
                     unfinished = False
                 elif CONDUCTION and theta_valid:
                     bad = refresh_pass(scratch.theta_keep, heat.length, heat.strain, strain_ok, phi, springs, scratch.s,

@@ -27,7 +27,7 @@ import numba
 from numba import njit, prange
 
 from ..explicit.codes import FORCE_DEFERRED
-from ..kernels.records import KickDrift, Scratch
+from ..kernels.records import KickDrift, Run, Scratch
 from ..kernels.specialize import kernel_namespace, model_fingerprint, rebind, specialize
 from . import exchange
 
@@ -140,6 +140,7 @@ def bind_heat_passes(ns: dict, model, parallel: bool, uniform: bool) -> None:
         # parallel compiler processes in a fraction of the time; see explicit.cpu._spring_pass)
         own["_refresh_block"] = specialize(_refresh_block, tag, own, **_OPTIONS)
         own["_state_spring_block"] = specialize(_state_spring_block, tag, own, **_OPTIONS)
+        own["_finish_block_shared"] = specialize(_finish_block_shared, tag, own, inline="always", **_OPTIONS)
         _COMPILED[tag] = {name: specialize(template, tag, own, parallel=parallel, **_OPTIONS) for name, template in (
             ("temperature_pass", _temperature_pass), ("refresh_pass", _refresh_pass),
             ("finish_refresh_pass", _finish_refresh_pass), ("state_spring_sums", _state_spring_sums))}
@@ -275,21 +276,46 @@ def _finish_refresh_pass(heat, theta, eta, phi, springs, s, steps, run, strain_o
     """The sweeps' entropy update left to the caller (DEFER_FINISH: :func:`finish_spring` from
     heat.theta_start, heat.capacity into eta and heat.produced) and :func:`_refresh_pass` (the
     lengths and strains heat.length, heat.strain) in one pass over the springs: the same
-    operations per spring, the same bits. Returns the number of springs outside the admissible
-    states."""
+    operations per spring, the same bits. steps = (τ0, τ2): the deferred kick's Φ += τ0 θ from the
+    temperatures before the sweeps (heat.theta_start: its spring pass left Φ to this pass, which
+    reads them anyway), then the refresh's Φ += τ2 θ. Returns the number of springs outside the
+    admissible states."""
     theta_start = heat.theta_start
     capacity = heat.capacity
     produced = heat.produced
     length = heat.length
     strain = heat.strain
+    deferred = steps[0]
+    track = run.track_phi and deferred != 0.0
+    # every spring's capacity is one value where the sweep's factors are (factor_mask 0): read
+    # once, not per spring (the same operands, the same bits)
+    shared = heat.factor_mask[0] == 0
     bad = 0
     m = theta.shape[0]
     for blk in prange((m + BLOCK - 1) // BLOCK):
         lo = blk * BLOCK
-        for i in range(min(BLOCK, m - lo)):  # (two loops over a block: each vectorizes, one would not)
-            finish_spring(np.uint64(lo + i), theta, theta_start, eta, capacity, produced)
-        bad += _refresh_block(lo, min(BLOCK, m - lo), theta, length, strain, strain_ok, phi, springs, s, steps, run)
+        n = min(BLOCK, m - lo)
+        # (loops of their own over a block: each vectorizes, one would not)
+        if shared:
+            _finish_block_shared(lo, n, theta, theta_start, eta, capacity[0], produced)
+        else:
+            for i in range(n):
+                finish_spring(np.uint64(lo + i), theta, theta_start, eta, capacity, produced)
+        if track:
+            for i in range(n):
+                e = np.uint64(lo + i)
+                phi[e] += deferred * theta_start[e]
+        bad += _refresh_block(lo, n, theta, length, strain, strain_ok, phi, springs, s, (0.0, steps[1]), run)
     return bad
+
+
+def _finish_block_shared(lo, n, theta, theta_start, eta, capacity, produced):
+    """:func:`finish_spring` of springs lo … lo + n − 1 with one capacity for all."""
+    for i in range(n):
+        e = np.uint64(lo + i)
+        change = capacity * log(theta[e] / theta_start[e])
+        eta[e] += change
+        produced[e] += change
 
 
 def _star_nodes(i1, i2, inc_ptr, inc_spring, weight, decay, node_scale, theta):
@@ -474,9 +500,13 @@ def conduction_boundary(state, cur, topology, springs, scratch, heat, run, pendi
     if pending != 0.0:  # (its T/l straight into heat.s_before)
         before = Scratch(scratch.x_buf, heat.s_before, scratch.f_keep, scratch.theta_keep, scratch.energy_buf,
                          scratch.sums, scratch.node_accs, scratch.node_terms)
+        # with DEFER_FINISH the entropy update's pass (finish_refresh_pass) adds this kick's Φ
+        # += τ θ, from the same θ and in the same order: one read and write of Φ less
+        own_phi = Run(run.h, run.t0, run.n_steps, run.track_phi and (directions & DEFER_FINISH) == 0, run.stretch_min,
+                      run.stretch_max, run.reuse_boundary, run.want_sums, run.conduction_every, run.cycle_step)
         # keep = (pending != 0.0), True here, as a run-time bool: the literal True would compile
         # a second spring pass, differing from the step's only in a branch outside its loops
-        bad = spring_pass(cur, state.eta, state.phi, topology, springs, before, (0.0, pending * run.h), run,
+        bad = spring_pass(cur, state.eta, state.phi, topology, springs, before, (0.0, pending * run.h), own_phi,
                           pending != 0.0, heat.length, heat.strain)[0]
         if bad > 0:
             return bad
