@@ -6,6 +6,7 @@ the explicit stable step and the thermal-shock scene.
 
     python benchmarks/heat_cost.py [--cells 32] [--mesh-size 0.06] [--steps 200] [--repeats 5]
     python benchmarks/heat_cost.py --cells 69 --mesh-size 0.03 --steps 20 --repeats 3   # ~1e6
+    python benchmarks/heat_cost.py --nets lattice,tetra --passes 9   # and each pass of a conducting step alone
     python benchmarks/heat_cost.py --quick        # a smoke run (tests/test_benchmarks.py runs it)
 
 Per net and thread count the runs alternate once per repeat after a warm-up (adiabatic,
@@ -19,7 +20,10 @@ reported: the grid-wide phases per step a GPU runs for conduction, with the earl
 sweep (2 × (pair colours + 3)) and with node stars as the GPU runs them (:func:`gpu_phases`:
 2 j node colours a boundary, less one where the two halves' meeting colours run as one phase,
 divided by k). On a part where "auto" takes sub-sweeps (j > 1), the cycle it would take with one sweep per
-boundary runs too, interleaved ("one sweep"). Targets: the whole step ≤ 2× the adiabatic thermal
+boundary runs too, interleaved ("one sweep"). With ``--passes ROUNDS`` each pass of the conducting
+step (spring pass, with and without keeping θ, l and the strain; node pass with one and two force
+sums; the star exchanges; the refresh; the entropy update) is also timed alone, interleaved
+(:func:`pass_seconds`), with what a step boundary adds by its passes, in adiabatic steps. Targets: the whole step ≤ 2× the adiabatic thermal
 step with conduction every step, ≤ 1.25× with "auto" on the parts.
 """
 
@@ -37,7 +41,8 @@ import numpy as np
 
 import thermonet as tn
 from thermonet.heat.graph import pair_graph, pairs_per_spring
-from thermonet.heat.passes import FORWARD, REVERSE, heat_kernels
+from thermonet.explicit.codes import FORCE_DEFERRED, FORCE_GATHER
+from thermonet.heat.passes import DEFER_FINISH, FORWARD, REVERSE, heat_kernels
 from thermonet.kernels import records
 from thermonet.scenes.scene import load_scene
 from thermonet.stability import stable_step
@@ -125,6 +130,74 @@ class Sweeps:
         return time.perf_counter() - t0
 
 
+#: the passes :func:`pass_seconds` times, in the order of its table
+PASSES = ("spring pass", "spring pass keeping θ, l, L", "node pass", "node pass, deferred kick", "star exchanges",
+          "exchanges + θ copy + entropy update", "refresh", "entropy update + refresh")
+
+
+def pass_seconds(sim, rounds: int, calls: int) -> dict:
+    """Each pass of a conducting CO2 step of ``sim`` (conduction every step) called alone, from the
+    arguments its kernel took in a step (so the kernel variant its runs compiled): seconds per
+    call, the median over ``rounds`` rounds of ``calls`` calls of each in turn. Kicks and drifts
+    of 0 (momenta and positions stay; θ, η and the scratch change, so ``sim`` is spent
+    afterwards). Keys: :data:`PASSES`."""
+    from thermonet.explicit.cpu import kernel_passes
+
+    stepper = sim.stepper
+    kernel = stepper._advance
+    taken = []
+    stepper._advance = lambda *a: taken.append(a) or kernel(*a)
+    try:
+        sim.run(steps=2, diagnostics_every=2)
+    finally:
+        stepper._advance = kernel
+    state, scratch, topology, springs, nodes, _, _, heat, run, loads = taken[-1]
+    ns = kernel_passes(kernel)
+    x, x_new, p, eta, phi = state.x, scratch.x_buf, state.p, state.eta, state.phi
+    none = records.KickDrift(0.0, 0.0, 0.0, True)
+    tau = 0.5 * run.h
+    theta, start = scratch.theta_keep, heat.theta_start
+    calls_of = {
+        "spring pass": lambda: ns["spring_pass"](x, eta, phi, topology, springs, scratch, (0.0, 0.0), run, False,
+                                                 heat.length, heat.strain),
+        "spring pass keeping θ, l, L": lambda: ns["spring_pass"](x, eta, phi, topology, springs, scratch, (0.0, 0.0),
+                                                                 run, True, heat.length, heat.strain),
+        "node pass": lambda: ns["node_pass"](x, x_new, p, topology, nodes, scratch, none, np.int64(FORCE_GATHER),
+                                             False, (heat.s_before, loads)),
+        "node pass, deferred kick": lambda: ns["node_pass"](x, x_new, p, topology, nodes, scratch, none,
+                                                            np.int64(FORCE_DEFERRED), False, (heat.s_before, loads)),
+        "star exchanges": lambda: ns["conduction_sweep"](heat, theta, start, eta, tau, 0.0,
+                                                         FORWARD | REVERSE | DEFER_FINISH),
+        "exchanges + θ copy + entropy update": lambda: ns["conduction_sweep"](heat, theta, start, eta, tau, 0.0,
+                                                                              FORWARD | REVERSE),
+        "refresh": lambda: ns["refresh_pass"](theta, heat.length, heat.strain, True, phi, springs, scratch.s,
+                                              (0.0, 0.0), run),
+        "entropy update + refresh": lambda: ns["finish_refresh_pass"](heat, theta, eta, phi, springs, scratch.s,
+                                                                      (0.0, 0.0), run, True),
+    }
+    for name in PASSES:  # (a first call from Python may compile or load its entry point)
+        calls_of[name]()
+    samples = {name: [] for name in PASSES}
+    for _ in range(rounds):
+        for name in PASSES:
+            call = calls_of[name]
+            t0 = time.perf_counter()
+            for _ in range(calls):
+                call()
+            samples[name].append((time.perf_counter() - t0) / calls)
+    return {name: statistics.median(v) for name, v in samples.items()}
+
+
+def boundary_in_steps(passes: dict) -> float:
+    """What a step boundary adds by its passes alone, in adiabatic steps (spring pass + node pass):
+    keeping θ, l, L; the star exchanges; the entropy update fused with the refresh; the deferred
+    kick's second force sum."""
+    step = passes["spring pass"] + passes["node pass"]
+    extra = (passes["spring pass keeping θ, l, L"] - passes["spring pass"] + passes["star exchanges"]
+             + passes["entropy update + refresh"] + passes["node pass, deferred kick"] - passes["node pass"])
+    return extra / step
+
+
 def gpu_phases(net: tn.Net, sim) -> tuple[int, int]:
     """Grid-wide phases per step of conduction on the GPU: (pairwise sweeps, node-star sweeps at
     the run's k and sub-sweeps j). A cycle boundary inside a call runs 2j half sweeps, each its
@@ -140,7 +213,10 @@ def gpu_phases(net: tn.Net, sim) -> tuple[int, int]:
     return 2 * (pairs.n_colours + 3), (2 * j * (stars.n_colours + entries) - meet) / k
 
 
-def measure(name: str, net: tn.Net, threads: int | None, steps: int, repeats: int) -> dict:
+def measure(name: str, net: tn.Net, threads: int | None, steps: int, repeats: int, passes: int = 0) -> dict:
+    """The runs of one net at one thread count, interleaved; with ``passes`` > 0 also each pass
+    of the conducting step alone (:func:`pass_seconds`, that many rounds, afterwards: it spends
+    the conducting simulation)."""
     adiabatic, conduction, empty, auto = simulations(net, threads)
     sweeps = Sweeps(conduction)
     runs = {"adiabatic": adiabatic, "conduction": conduction, "schedule": empty, "auto": auto}
@@ -154,7 +230,9 @@ def measure(name: str, net: tn.Net, threads: int | None, steps: int, repeats: in
         samples["sweeps"].append(statistics.median(sweeps.seconds() for _ in range(3)))
     order = conduction.system.heat.star_order("cpu")
     pair_phases, star_phases = gpu_phases(net, auto)
+    timed_passes = pass_seconds(conduction, passes, 10) if passes else None
     return {
+        "passes": timed_passes,
         "net": name, "springs": net.n_springs, "threads": threads or numba.config.NUMBA_NUM_THREADS,
         "kernels": "parallel" if conduction.parallel else "serial",
         "blocks": order.n_blocks, "colours": order.n_colours, "k": auto.conduction_cycle.k,
@@ -230,10 +308,14 @@ def main(argv=None) -> tuple[list, list]:
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--threads", default="1,default", help="comma-separated thread counts ('default': Numba's)")
     ap.add_argument("--nets", default="lattice,tetra,steel,shock")
+    ap.add_argument("--passes", type=int, default=0, metavar="ROUNDS",
+                    help="also time each pass of a conducting step alone on the lattice and tetrahedra "
+                         "(ROUNDS rounds of 10 calls each, interleaved; 9 is enough)")
     ap.add_argument("--quick", action="store_true", help="small nets, few steps, one repeat (a smoke run)")
     args = ap.parse_args(argv)
     if args.quick:
         args.cells, args.mesh_size, args.steps, args.repeats, args.threads = 6, 0.5, 20, 1, "1"
+        args.passes = args.passes or 1
     steel_h = None
     rows, parts = [], []
     for which in args.nets.split(","):
@@ -246,7 +328,8 @@ def main(argv=None) -> tuple[list, list]:
                 net, name = tetra_bar(args.mesh_size), f"gmsh tetra bar, size {args.mesh_size:g}"
             print(f"built {which}: {net.n_springs} springs in {time.perf_counter() - t0:.1f} s", flush=True)
             for t in args.threads.split(","):
-                rows.append(measure(name, net, None if t == "default" else int(t), args.steps, args.repeats))
+                rows.append(measure(name, net, None if t == "default" else int(t), args.steps, args.repeats,
+                                    args.passes))
                 print(rows[-1], flush=True)
             continue
         if which == "steel":  # the bracket in steel at 0.9× the explicit stable step
@@ -278,6 +361,16 @@ def main(argv=None) -> tuple[list, list]:
                   f"{1e3 * r['schedule']:.3g} | {1e3 * r['sweeps']:.3g} | {r['k']} ({r['sweeps_auto']}) | "
                   f"{r['auto_ratio']:.2f}× | "
                   f"{r['gpu_pair_phases']} → {r['gpu_star_phases']:.3g} |")
+    timed = [r for r in rows if r["passes"]]
+    if timed:
+        print("\nEach pass of a conducting step alone, ms per call (median of the rounds; the kernel variant the "
+              "runs above compiled):\n")
+        print("| net | threads | " + " | ".join(PASSES) + " | a boundary by its passes, adiabatic steps |")
+        print("|---|---:|" + "---:|" * (len(PASSES) + 1))
+        for r in timed:
+            print(f"| {r['net']} | {r['threads']} ({r['kernels']}) | "
+                  + " | ".join(f"{1e3 * r['passes'][name]:.3g}" for name in PASSES)
+                  + f" | {boundary_in_steps(r['passes']):.2f} |")
     if parts:
         print("\nconduction_every = \"auto\" on parts run as users run them:\n")
         print("| part | springs | threads | h | k (j) | adiabatic ms/step | auto ms/step | ratio "

@@ -18,15 +18,19 @@ def load(name: str):
 def test_heat_cost_quick_mode_runs_and_reports_the_conduction_cycle(capsys):
     rows, parts = load("heat_cost").main(["--quick"])
     assert {r["net"].split()[0] for r in rows} == {"lattice", "gmsh"}
+    passes = load("heat_cost").PASSES
     for r in rows:
         assert all(math.isfinite(r[k]) and r[k] > 0 for k in ("adiabatic", "conduction", "schedule", "sweeps", "auto"))
         assert r["colours"] >= 1 and r["gpu_pair_phases"] > r["gpu_star_phases"] > 0
+        # each pass of the conducting step timed alone (the quick mode runs one round)
+        assert set(r["passes"]) == set(passes) and all(math.isfinite(t) and t > 0 for t in r["passes"].values())
     steel, shock = parts
     # the steel part at its explicit stable step: heat is slow, conduction runs every many steps
     assert steel["k"] >= 10 and "auto: fastest conduction rate" in steel["why"]
     assert shock["k"] >= 1 and shock["springs"] == 673
     text = capsys.readouterr().out
     assert "| steel bracket" in text and "| scenes/thermal_shock.toml" in text
+    assert "Each pass of a conducting step alone" in text
 
 
 def test_gpu_check_quick_mode_runs_its_benchmarks_under_the_cuda_simulator(monkeypatch, capsys):

@@ -181,7 +181,12 @@ def splitting_kernels(model, parallel: bool, thermal: bool = True, uniform: bool
 def variant_passes(model, **variant) -> dict:
     """The namespace of the kernel variant :func:`splitting_kernels` makes for ``model`` and
     ``variant`` (its passes by name; built, nothing compiled)."""
-    kernel = splitting_kernels(model, **variant)
+    return kernel_passes(splitting_kernels(model, **variant))
+
+
+def kernel_passes(kernel) -> dict:
+    """The namespace of the kernel variant whose step is ``kernel`` (a stepper's ``_advance``):
+    its passes by name, to time them one at a time (benchmarks/heat_cost.py --passes)."""
     return next(ns for key, ns in _PASSES.items() if _CACHE[key] is kernel)
 
 
