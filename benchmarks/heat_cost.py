@@ -40,8 +40,8 @@ import numba
 import numpy as np
 
 import thermonet as tn
-from thermonet.heat.graph import pair_graph, pairs_per_spring
 from thermonet.explicit.codes import FORCE_DEFERRED, FORCE_GATHER
+from thermonet.heat.graph import pair_graph, pairs_per_spring
 from thermonet.heat.passes import DEFER_FINISH, FORWARD, REVERSE, heat_kernels
 from thermonet.kernels import records
 from thermonet.scenes.scene import load_scene
