@@ -89,6 +89,7 @@ from .schedule import FIRST_FLOW_SLOT
 # copies those of thermonet.kernels.copies;
 # the loads' functions (node_load, cpu_*) those of thermonet.loads.elements, with LOADS.
 spring_pass = node_pass = boundary_spring_pass = boundary_node_pass = closing_node_kick = spring_block = None
+spring_at = None
 node_block = closing_node_chunk = None
 thermal_kick = copy_rows = apply_flow = None
 spring_force = spring_energy = spring_temperature = outside_admissible = advance_thermal_displacement = None
@@ -143,6 +144,7 @@ def splitting_kernels(model, parallel: bool, thermal: bool = True, uniform: bool
         # the passes are named by what they read (specialize_by_content): a node pass reads no
         # model or parameter layout, a spring pass no loads, so variants share them
         threaded = dict(_OPTIONS, parallel=parallel)
+        ns["spring_at"] = specialize_by_content(_spring_at, tag, ns, inline="always", **_OPTIONS)
         ns["spring_block"] = specialize_by_content(_spring_block, tag, ns, **_OPTIONS)
         ns["spring_pass"] = specialize_by_content(_spring_pass, tag, ns, **threaded)
         ns["node_block"] = specialize_by_content(_node_block, tag, ns, **_OPTIONS)
@@ -250,13 +252,8 @@ def _spring_block(lo, n, x, eta, phi, edges, l0, P, s, theta_keep, energy_buf, l
         # (a loop of its own: model_strain's logarithm is spring_force's, computed once; a branch
         # on keep inside the loop below would take it on every pass)
         for i in range(n):
-            e = np.uint64(lo + i)
-            c = np.uint64(0) if UNIFORM else e
-            l = math.sqrt(s[e])
-            rest = l0[e]
-            theta, force = spring_force(l, eta[e] if THERMAL else 0.0, rest, P, c)
-            s[e] = force
-            bad += outside_admissible(l, rest, force, theta, stretch_min, stretch_max)
+            e, c, l, rest, theta, outside = spring_at(lo + i, eta, l0, P, s, stretch_min, stretch_max)
+            bad += outside
             theta_keep[e] = theta
             length[e] = l
             strain[e] = model_strain(l, rest)
@@ -266,13 +263,8 @@ def _spring_block(lo, n, x, eta, phi, edges, l0, P, s, theta_keep, energy_buf, l
                 advance_thermal_displacement(phi, e, theta, phi_h1, phi_h2)
     else:
         for i in range(n):
-            e = np.uint64(lo + i)
-            c = np.uint64(0) if UNIFORM else e
-            l = math.sqrt(s[e])
-            rest = l0[e]
-            theta, force = spring_force(l, eta[e] if THERMAL else 0.0, rest, P, c)
-            s[e] = force
-            bad += outside_admissible(l, rest, force, theta, stretch_min, stretch_max)
+            e, c, l, rest, theta, outside = spring_at(lo + i, eta, l0, P, s, stretch_min, stretch_max)
+            bad += outside
             if CLOSING:
                 if THERMAL and keep:
                     theta_keep[e] = theta
@@ -290,6 +282,18 @@ def _spring_block(lo, n, x, eta, phi, edges, l0, P, s, theta_keep, energy_buf, l
                 block_min = min(block_min, th)
                 block_max = max(block_max, th)
     return bad, block_min, block_max
+
+
+def _spring_at(k, eta, l0, P, s, stretch_min, stretch_max):
+    """Spring e = k of :func:`_spring_block`, its squared length in s[e]: T/l into s[e]. Returns
+    (e, its parameter column c, l, rest length, θ, whether it is outside the admissible states)."""
+    e = np.uint64(k)
+    c = np.uint64(0) if UNIFORM else e
+    l = math.sqrt(s[e])
+    rest = l0[e]
+    theta, force = spring_force(l, eta[e] if THERMAL else 0.0, rest, P, c)
+    s[e] = force
+    return e, c, l, rest, theta, outside_admissible(l, rest, force, theta, stretch_min, stretch_max)
 
 
 def _node_pass(x, x_new, p, topology, nodes, scratch, steps, force_source, want_sums, inputs):
