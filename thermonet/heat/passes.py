@@ -140,7 +140,6 @@ def bind_heat_passes(ns: dict, model, parallel: bool, uniform: bool) -> None:
         # parallel compiler processes in a fraction of the time; see explicit.cpu._spring_pass)
         own["_refresh_block"] = specialize(_refresh_block, tag, own, **_OPTIONS)
         own["_state_spring_block"] = specialize(_state_spring_block, tag, own, **_OPTIONS)
-        own["_finish_block_shared"] = specialize(_finish_block_shared, tag, own, inline="always", **_OPTIONS)
         _COMPILED[tag] = {name: specialize(template, tag, own, parallel=parallel, **_OPTIONS) for name, template in (
             ("temperature_pass", _temperature_pass), ("refresh_pass", _refresh_pass),
             ("finish_refresh_pass", _finish_refresh_pass), ("state_spring_sums", _state_spring_sums))}
@@ -287,35 +286,19 @@ def _finish_refresh_pass(heat, theta, eta, phi, springs, s, steps, run, strain_o
     strain = heat.strain
     deferred = steps[0]
     track = run.track_phi and deferred != 0.0
-    # every spring's capacity is one value where the sweep's factors are (factor_mask 0): read
-    # once, not per spring (the same operands, the same bits)
-    shared = heat.factor_mask[0] == 0
     bad = 0
     m = theta.shape[0]
     for blk in prange((m + BLOCK - 1) // BLOCK):
         lo = blk * BLOCK
         n = min(BLOCK, m - lo)
-        # (loops of their own over a block: each vectorizes, one would not)
-        if shared:
-            _finish_block_shared(lo, n, theta, theta_start, eta, capacity[0], produced)
-        else:
-            for i in range(n):
-                finish_spring(np.uint64(lo + i), theta, theta_start, eta, capacity, produced)
+        for i in range(n):  # (loops of their own over a block: each vectorizes, one would not)
+            finish_spring(np.uint64(lo + i), theta, theta_start, eta, capacity, produced)
         if track:
             for i in range(n):
                 e = np.uint64(lo + i)
                 phi[e] += deferred * theta_start[e]
         bad += _refresh_block(lo, n, theta, length, strain, strain_ok, phi, springs, s, (0.0, steps[1]), run)
     return bad
-
-
-def _finish_block_shared(lo, n, theta, theta_start, eta, capacity, produced):
-    """:func:`finish_spring` of springs lo … lo + n − 1 with one capacity for all."""
-    for i in range(n):
-        e = np.uint64(lo + i)
-        change = capacity * log(theta[e] / theta_start[e])
-        eta[e] += change
-        produced[e] += change
 
 
 def _star_nodes(i1, i2, inc_ptr, inc_spring, weight, decay, node_scale, theta):
