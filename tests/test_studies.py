@@ -56,6 +56,28 @@ def test_runner_keeps_task_order_on_dask(dask_client):
         assert runner.map(check_steps, tasks[:3], one_at_a_time=True) == [7, 3, 11]
 
 
+def _distributed_log_level():
+    import logging
+
+    return logging.getLogger("distributed").getEffectiveLevel()
+
+
+def test_a_runner_closes_its_own_cluster_with_the_workers_logs_silenced():
+    """Closing a local cluster on a loaded machine can let a worker's heartbeat meet the
+    scheduler already gone, and the worker then logs an error with a traceback after a study
+    that succeeded; the runner silences the cluster's logs first and gives this process's back."""
+    import logging
+
+    pytest.importorskip("distributed")
+    ours = _distributed_log_level()
+    runner = Runner(n_workers=1)
+    assert runner.client.run(_distributed_log_level) and runner.map(_distributed_log_level, [{}]) == [ours]
+    runner._silence_workers()
+    assert set(runner.client.run(_distributed_log_level).values()) == {logging.CRITICAL}
+    runner.close()
+    assert runner._cluster is None and _distributed_log_level() == ours
+
+
 def test_cost_study_csv_has_every_requested_run(tmp_path):
     from thermonet.cli.main import main
 

@@ -32,6 +32,7 @@ class Runner:
         self.n_workers = n_workers or os.cpu_count() or 1
         self._client = client
         self._owned: list = []
+        self._cluster = None  # the local cluster this runner started, if any
 
     # -- lifecycle ---------------------------------------------------------------------------
     def __enter__(self) -> "Runner":
@@ -41,12 +42,35 @@ class Runner:
         self.close()
 
     def close(self) -> None:
-        """Close the client and cluster this runner started (never a client it was given)."""
-        for thing in reversed(self._owned):
-            thing.close()
+        """Close the client and cluster this runner started (never a client it was given).
+
+        A local cluster's logs are silenced while it closes: every result is in by then, and a
+        worker whose periodic heartbeat meets the scheduler already gone (a race in closing a
+        cluster on a loaded machine) logs an error with a traceback that a user would take for
+        a failed study. Errors of the runs themselves reach the caller through their results.
+        """
+        import logging
+
+        ours = logging.getLogger("distributed")  # the nannies live in this process
+        level = ours.level
+        if self._cluster is not None:
+            self._silence_workers()
+            _silence_distributed_logs()
+        try:
+            for thing in reversed(self._owned):
+                thing.close()
+        finally:
+            ours.setLevel(level)
         if self._owned:
             self._client = None
         self._owned.clear()
+        self._cluster = None
+
+    def _silence_workers(self) -> None:
+        try:
+            self._client.run(_silence_distributed_logs)
+        except Exception:  # a worker already gone has nothing left to log
+            pass
 
     @property
     def client(self):
@@ -67,6 +91,7 @@ class Runner:
                                             "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"})
                 self._client = Client(cluster)
                 self._owned += [cluster, self._client]
+                self._cluster = cluster
         return self._client
 
     @property
@@ -112,3 +137,9 @@ class Runner:
             if progress:
                 progress(done, total)
         return out
+
+
+def _silence_distributed_logs() -> None:
+    import logging
+
+    logging.getLogger("distributed").setLevel(logging.CRITICAL)
