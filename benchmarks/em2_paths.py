@@ -262,6 +262,7 @@ def run_paths(net: str, cells: int, h: float, paths, steps: int, rounds: int, co
     sims = {path: make(net, cells, "em2", h, **PATHS[path]) for path in paths}
     if "splu-reuse-superlu" in sims:
         sims["splu-reuse-superlu"].stepper.solver.tree_after = math.inf
+        sims["splu-reuse-superlu"].stepper.solver.tree_after_renewed = math.inf
     if "splu-reuse-tree" in sims:
         sims["splu-reuse-tree"].stepper.solver.tree_min_unknowns = 0
     times = {path: [] for path in paths}

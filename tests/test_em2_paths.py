@@ -4,6 +4,7 @@ the Newton tolerance, full steps found by continuation in the step instead of su
 benchmark that measures the paths (its --quick mode)."""
 
 import importlib.util
+import math
 import os
 import warnings
 
@@ -437,6 +438,79 @@ def test_a_resumed_run_solving_on_the_elimination_tree_continues_bit_for_bit(tmp
     assert one.step == resumed.step == 12
     for name in ("positions", "momenta", "entropy", "thermal_displacement"):
         assert np.array_equal(getattr(one.state, name), getattr(resumed.state, name)), name
+
+
+def small_part(factor: float) -> tn.Simulation:
+    """benchmarks/em2_paths.py's steel part at mesh size 8 mm (1 244 springs), heated and pushed
+    slowly from rest, EM2 on the path "auto" takes at ``factor`` × CO2's stable step."""
+    bench = _benchmark()
+    h = stable_step(bench.part_simulation(0.008, "co2", 1.0, threads=1))["h_max"]
+    return bench.part_simulation(0.008, "em2", factor * h, threads=1, **bench.PATHS["auto"])
+
+
+def test_the_staleness_count_renews_a_factorization_only_where_its_steps_take_more_corrections():
+    """The rule of solvers.direct.STALE_SHARE on a kept factorization, one step at a time: the
+    step that made it is not counted, the next STALE_BASELINE_STEPS set the baseline, steps
+    that take as many corrections never renew it, steps that take more renew it once their
+    excess reaches STALE_SHARE × worth, and a fresh factorization starts the count again."""
+    import thermonet.solvers.direct as direct
+
+    sim = small_part(100)
+    sim.run(steps=1, diagnostics_every=10**9)
+    solver = sim.stepper.solver.inner
+
+    def step(corrections: int) -> bool:
+        solver.staleness[3] = corrections  # (the solves of the step that ends)
+        solver.new_step()
+        return solver.stale
+
+    solver.factorize(sim.stepper.data, solver.h)
+    solver.worth = 100.0  # (so carried from step to step, and renewed after 0.2 × 100 extra corrections)
+    assert list(solver.staleness) == [-1.0, 0.0, 0.0, 0.0]
+    assert not step(1)  # the step that made it (its solves before the factorization not seen)
+    assert [step(c) for c in (2, 2, 3)] == [False] * 3 and solver.staleness[1] == 7.0
+    assert not any(step(c) for c in [2, 3, 2] * 100)  # as many as the baseline's mean: never
+    beyond = solver.staleness[2]
+    renewals = solver.stale_refactorizations
+    taken = [step(4) for _ in range(20)]
+    assert taken.index(True) == math.ceil((direct.STALE_SHARE * 100.0 - beyond) / (4 - 7 / 3)) - 1
+    assert solver.stale_refactorizations == renewals + 1
+    solver.factorize(sim.stepper.data, solver.h)
+    solver.worth = 100.0
+    assert list(solver.staleness) == [-1.0, 0.0, 0.0, 0.0] and not solver.stale
+    assert solver.solves_before_tree == direct.TREE_AFTER_RENEWED  # (the layout of the last one is kept)
+
+
+def test_a_resumed_run_renews_a_stale_factorization_where_one_run_does(tmp_path, monkeypatch):
+    """The steel part at 8 mm, 100× the explicit limit, its factorization carried from step to
+    step (at this size only where told to) and renewed when stale: 60 steps in one run, and 30 +
+    a checkpoint (the count of staleness and the factorization's worth with it) + 30 resumed,
+    give the same bits; the renewals save corrections, and the energy balance is that of a run
+    without them to the Newton tolerance."""
+    import thermonet.solvers.direct as direct
+
+    monkeypatch.setattr(direct, "KEPT_ANYWHERE_WORTH", 1.0)
+    one = small_part(100)
+    one.run(steps=60, diagnostics_every=30)
+    done = one.stepper.summary()
+    assert done["stale_refactorizations"] >= 2
+    monkeypatch.setattr(direct, "STALE_SHARE", math.inf)
+    never = small_part(100)
+    never.run(steps=60, diagnostics_every=30)
+    assert never.stepper.summary()["stale_refactorizations"] == 0
+    assert done["iterations"] < never.stepper.summary()["iterations"]
+    monkeypatch.undo()
+    monkeypatch.setattr(direct, "KEPT_ANYWHERE_WORTH", 1.0)
+    state, resumed = resumed_halves(lambda: small_part(100), 30, tmp_path / "c.npz")
+    assert state.extra["factorization_staleness"][0] > 0  # (a count under way goes with the state)
+    assert resumed.stepper.summary()["stale_refactorizations"] >= 1
+    assert one.step == resumed.step == 60
+    for name in ("positions", "momenta", "entropy", "thermal_displacement"):
+        assert np.array_equal(getattr(one.state, name), getattr(resumed.state, name)), name
+    # the energy balance (4.4e-9 J of the 0.01 J the bath gives, with or without renewals) moves
+    # only at the level of the Newton tolerance (measured 1.6e-13 J)
+    balance, balance_never = one.diagnostics.column("energy_balance"), never.diagnostics.column("energy_balance")
+    assert np.max(np.abs(balance - balance_never)) < 1e-10 * np.max(np.abs(one.diagnostics.column("heat_in")))
 
 
 def free_lattice(factor: float, linear_solver: str) -> tn.Simulation:

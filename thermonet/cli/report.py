@@ -44,6 +44,8 @@ def newton_path_line(nw: dict | None) -> str:
             + (f", {nw['continued_steps']} steps solved by continuation in h" if nw.get("continued_steps") else "")
             + (f", {nw['tree_solves']} solves with kept factors compiled on their elimination tree"
                if nw.get("tree_solves") else "")
+            + (f", {nw['factorizations']} factorizations ({nw['stale_refactorizations']} because the kept one had "
+               f"grown stale)" if nw.get("stale_refactorizations") else "")
             + (f"; kept factors in {nw['factor_precision']} precision"
                + (f" ({nw['factor_precision_raised']})" if nw.get("factor_precision_raised") else "")
                if nw.get("factor_precision") and nw["newton_path"] != "compiled" else ""))

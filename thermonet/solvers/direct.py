@@ -82,6 +82,11 @@ KEPT_ANYWHERE_WORTH = 50.0
 #: (each lasted one step), so no smaller net was measured: hence the threshold.
 TREE_AFTER_SOLVES = 200
 TREE_MIN_UNKNOWNS = 5_000
+#: A factorization renewed for staleness (STALE_SHARE) goes on the tree after this many solves:
+#: its factors have the structure of the one before, whose layout is kept, so the copy costs
+#: what 5–30 solves save (3–16 ms against 0.9 ms a solve saves at 5 172 unknowns, 0.3 s against
+#: 10–18 ms at 47 637), and a renewed factorization lasts about as long as the one it renews.
+TREE_AFTER_RENEWED = 20
 #: Kept factors are single precision (float32) unless that fails: the residual and the
 #: convergence test stay double, so the root (and EM2's exact energy) is the same; a correction
 #: made with them contracts the residual about 1e-4 instead of 1e-5, and they cost 0.4–0.7× a
@@ -99,6 +104,19 @@ SINGLE_MAX_LINEAR_RESIDUAL = 1e-2
 #: rounding floor (a single spring at h ω = 100: energy drift 1.07e-12 over 200 steps against
 #: 8.9e-13 with double factors).
 SINGLE_MIN_UNKNOWNS = 1000
+#: A factorization carried from step to step grows stale as the net moves on from where it was
+#: made: its corrections contract less and the steps take more of them (the steel part of 9 270
+#: springs at 100× the explicit limit: 2.0 a step over the first 75 steps, 3.0 by step 150, 4.0 by
+#: step 450; a fresh factorization at step 400 brought them back to 2.1). So the solver counts the
+#: corrections each step takes beyond the mean of the first STALE_BASELINE_STEPS steps of the
+#: factorization (not counting the step that made it: the solves it made before it may differ),
+#: and once they add up to STALE_SHARE × ``worth`` it refactorizes at the next step's start (ski
+#: rental: the corrections lost to staleness have then cost about what a factorization costs). ``worth`` counts multiply-adds; SuperLU does a factorization's in dense
+#: blocks, several times faster per operation than a solve does its: on that part (worth 79) a
+#: fresh factorization made its step 41 ms longer, about 14 corrections (solve, residual, line
+#: search) of the 3 ms each that an extra correction took there, and 0.2 × 79 is 16.
+STALE_BASELINE_STEPS = 3
+STALE_SHARE = 0.2
 
 
 def factorization_worth(lu) -> float:
@@ -157,9 +175,16 @@ class ReusedLU(SparseLU):
         self._tree = None  # its factors on the elimination tree (TREE_AFTER_SOLVES), or False
         self._layout = None  # where the last factors went on the tree (kept for the next ones)
         self.tree_after = TREE_AFTER_SOLVES  # (a benchmark may set these per solver)
+        self.tree_after_renewed = TREE_AFTER_RENEWED
         self.tree_min_unknowns = TREE_MIN_UNKNOWNS
         self.tree_solves = 0  # made by tree_solve, and the factorizations copied for it
         self.tree_copies = 0
+        #: how stale the kept factorization has grown (STALE_SHARE): [steps in its baseline,
+        #: their corrections, the corrections beyond the baseline since, this step's so far]
+        self.staleness = np.zeros(4)
+        self.stale_refactorizations = 0  # refactorizations for staleness (STALE_SHARE)
+        self._renewing = False  # the next factorization renews a stale one
+        self.solves_before_tree = self.tree_after  # of the current factorization
 
     def factorize(self, data: np.ndarray, h: float | None = None) -> None:
         try:
@@ -175,28 +200,33 @@ class ReusedLU(SparseLU):
         self.h = h
         self.stale = False
         self.carried = False
+        self.staleness[:] = -1.0, 0.0, 0.0, 0.0  # (-1: the step that made it is not counted)
+        self.solves_before_tree = self.tree_after_renewed if self._renewing else self.tree_after
+        self._renewing = False
         point = getattr(self.problem, "jacobian_point", None)
         self.point = point() if point is not None else None
         self.factorizations += 1
 
     def _read_worth(self) -> None:
         """``worth`` of the current factors. Their structure follows from the pattern and the
-        row pivots alone: where those are the last ones', so is the worth (reading it copies the
-        factors out of SuperLU: 2 s at 47 637 unknowns, about what the factorization itself
-        costs)."""
+        row pivots (but for entries that come out exactly zero): where those are the last ones',
+        the last worth is taken (reading it copies the factors out of SuperLU: 2 s at 47 637
+        unknowns, about what the factorization itself costs)."""
         perm = self._lu.perm_r
         if self._worth_of is None or not np.array_equal(perm, self._worth_of[0]):
             self._worth_of = (perm.copy(), factorization_worth(self._lu))
         self.worth = self._worth_of[1]
 
     def solve(self, rhs: np.ndarray, target: float = 0.0, settled: float = 0.0) -> np.ndarray:
-        """SuperLU's solve, or, once the factorization has made ``tree_after`` solves on a large
-        enough net (TREE_AFTER_SOLVES, TREE_MIN_UNKNOWNS), the compiled one on its elimination
-        tree (the same bits at any thread count; where SuperLU pivoted off the diagonal,
+        """SuperLU's solve, or, once the factorization has made ``solves_before_tree`` solves on a
+        large enough net (TREE_AFTER_SOLVES, TREE_AFTER_RENEWED, TREE_MIN_UNKNOWNS), the compiled
+        one on its elimination tree (the same bits at any thread count; where SuperLU pivoted off the diagonal,
         SuperLU's solve throughout)."""
+        self.staleness[3] += 1.0
         if self._check:
             return self._checked_solve(rhs)
-        if self._tree is None and self.solves >= self.tree_after and self.pattern.size >= self.tree_min_unknowns:
+        if (self._tree is None and self.solves >= self.solves_before_tree
+                and self.pattern.size >= self.tree_min_unknowns):
             tree, self._layout = tree_factors(self._lu, numba.get_num_threads(), self._layout)
             self._tree = tree if tree is not None else False
             self.tree_copies += tree is not None
@@ -234,12 +264,26 @@ class ReusedLU(SparseLU):
         self._tree = None
         self._read_worth()
 
-    def restore_solves(self, solves: int) -> None:
-        """The kept factorization rebuilt on resume has made ``solves`` solves (so it solves on
-        as it did in the run that saved it; single factors passed their check there)."""
+    def restore_solves(self, solves: int, before_tree: float | None = None, worth: float | None = None) -> None:
+        """The kept factorization rebuilt on resume has made ``solves`` solves, goes on the
+        tree after ``before_tree`` and is worth ``worth`` solves, as in the run that saved it
+        (single factors passed their check there). The worth read from factors of the same row
+        pivots is taken for the next ones too; SuperLU leaves out entries that come out exactly
+        zero, so the worth read from the rebuilt factors can differ from the one that run had
+        kept (on the 8 mm part 21.77 against 20.92), and with it when the run refactorizes."""
         self.solves = int(solves)
+        if before_tree is not None:
+            self.solves_before_tree = float(before_tree)
+        if worth is not None:
+            self.worth = float(worth)
+            self._worth_of = (self._lu.perm_r.copy(), self.worth)
         if self.solves > 0:
             self._check = False
+
+    def restore_staleness(self, staleness: np.ndarray) -> None:
+        """The kept factorization rebuilt on resume had grown as stale as ``staleness`` says (so
+        it is refactorized at the step the run that saved it would have)."""
+        self.staleness[:] = staleness
 
     def restore_precision(self, bits: float) -> None:
         """The run a resumed state comes from made its factors in ``bits`` (32 or 64) precision:
@@ -276,8 +320,28 @@ class ReusedLU(SparseLU):
         h ω = 100, 5.8e-13 of the energy drifted over 200 steps with, 1.2e-12 without)."""
         if self.carries_factorization:
             self.carried = True
+            self._count_staleness()
         else:
             self.stale = True
+        self.staleness[3] = 0.0
+
+    def _count_staleness(self) -> None:
+        """The last step's corrections: into the baseline (its first STALE_BASELINE_STEPS), or
+        beyond it, refactorizing at this step where those add up to STALE_SHARE × worth."""
+        counted, baseline, beyond, last = self.staleness
+        if self.stale or self._lu is None:
+            return
+        if counted < 0.0:
+            self.staleness[0] = 0.0
+            return
+        if counted < STALE_BASELINE_STEPS:
+            self.staleness[:2] = counted + 1.0, baseline + last
+            return
+        beyond += last - baseline / counted
+        self.staleness[2] = beyond
+        if beyond >= STALE_SHARE * self.worth:
+            self.stale = self._renewing = True
+            self.stale_refactorizations += 1
 
     def contraction_limit(self, rho: float, tolerance: float, least: float) -> float:
         """The largest contraction per correction for which the kept factorization still pays:

@@ -520,6 +520,8 @@ class ImplicitStepper(Stepper):
         t["substep_fraction"] = t["retried_steps"] / t["steps"] if t["steps"] else 0.0
         t["factorizations"] = self.timers.factorizations  # (splu-reuse) made, and iterations that kept one
         t["reused_factorizations"] = self.timers.reused_factorizations
+        # (splu-reuse) of the factorizations, those made because a carried one had grown stale
+        t["stale_refactorizations"] = getattr(self.solver, "stale_refactorizations", 0)
         # (splu-reuse) solves with kept factors copied onto their elimination tree (solvers.tree_solve)
         t["tree_solves"] = getattr(self.solver, "tree_solves", 0)
         # (splu-reuse) the precision of the kept factors, and why double where single was asked for

@@ -143,8 +143,12 @@ class EM2Stepper(ImplicitStepper):
     #: the key in ``state.extra`` of the point where the kept factorization was made (solvers.
     #: direct.ReusedLU): (h, x⁰, p⁰, η, u) flattened; absent where none is kept
     FACTORIZATION_KEY = "factorization_point"
-    #: the key of the number of solves it had made ((1,) float: which solver solves the next)
+    #: the key of the number of solves it had made, the number after which it solves on the
+    #: elimination tree and what it is worth in solves ((3,) float: which solver solves the next,
+    #: and when it is refactorized)
     SOLVES_KEY = "factorization_solves"
+    #: the key of how stale it had grown ((4,) float: solvers.direct.ReusedLU.staleness)
+    STALENESS_KEY = "factorization_staleness"
 
     def jacobian_point(self) -> np.ndarray:
         """Where the Jacobian is being made: the step (h, x⁰, p⁰, η) and the unknowns u of the
@@ -198,8 +202,13 @@ class EM2Stepper(ImplicitStepper):
                 not solver.stale and solver.point is not None and np.array_equal(saved, solver.point)):
             self.refactorize_at(saved)  # resumed, or rewound: the factorization this state was left with
             solves = state.extra.get(self.SOLVES_KEY)
-            if isinstance(solves, np.ndarray) and solves.size == 1:
-                solver.restore_solves(int(solves[0]))
+            if solver.stale:
+                return
+            if isinstance(solves, np.ndarray) and 1 <= solves.size <= 3:
+                solver.restore_solves(int(solves[0]), *(float(v) for v in solves[1:]))
+            staleness = state.extra.get(self.STALENESS_KEY)
+            if isinstance(staleness, np.ndarray) and staleness.size == solver.staleness.size:
+                solver.restore_staleness(staleness)
 
     def _history_to(self, state) -> None:
         super()._history_to(state)
@@ -211,10 +220,12 @@ class EM2Stepper(ImplicitStepper):
         solver = self.solver
         if getattr(solver, "carries_factorization", False) and not solver.stale and solver.point is not None:
             state.extra[self.FACTORIZATION_KEY] = solver.point
-            state.extra[self.SOLVES_KEY] = np.array([float(solver.solves)])
+            state.extra[self.SOLVES_KEY] = np.array([float(solver.solves), float(solver.solves_before_tree),
+                                                     float(solver.worth)])
+            state.extra[self.STALENESS_KEY] = solver.staleness.copy()
         else:
-            state.extra.pop(self.FACTORIZATION_KEY, None)
-            state.extra.pop(self.SOLVES_KEY, None)
+            for key in (self.FACTORIZATION_KEY, self.SOLVES_KEY, self.STALENESS_KEY):
+                state.extra.pop(key, None)
 
     def predictor_coefficients(self, h: float) -> np.ndarray:
         """The start kernel's output is the acceleration a (the predictor is EM2's own)."""
