@@ -494,6 +494,10 @@ def test_a_resumed_run_renews_a_stale_factorization_where_one_run_does(tmp_path,
     one.run(steps=60, diagnostics_every=30)
     done = one.stepper.summary()
     assert done["stale_refactorizations"] >= 2
+    from thermonet.cli.report import newton_path_line
+
+    assert (f"{done['factorizations']} factorizations ({done['stale_refactorizations']} because the kept one had "
+            f"grown stale)") in newton_path_line(done)
     monkeypatch.setattr(direct, "STALE_SHARE", math.inf)
     never = small_part(100)
     never.run(steps=60, diagnostics_every=30)
