@@ -75,7 +75,7 @@ KEPT_ANYWHERE_WORTH = 50.0
 #: to hundreds of solves save (at 47 637 unknowns 0.3 s by a kept layout, 1.7 s the first time,
 #: against 10–18 ms a single-precision solve saves on one and two threads), so it waits for a
 #: factorization that has lasted: at 100× CO2's stable step on the steel part one lasts until it
-#: grows stale (STALE_SHARE: 100–230 steps at 9 270 springs), at 1e4× about 45 solves (the first copy, in a 45-step run there, made EM2 2.1–2.5× slower
+#: grows stale (STALE_SHARE: about 115 steps at 9 270 springs), at 1e4× about 45 solves (the first copy, in a 45-step run there, made EM2 2.1–2.5× slower
 #: per step with the switch at 50 solves). EM2's steps at 100× on the steel part took 0.93× the
 #: time with SuperLU's solves on one thread and 0.72× on two at 9 270 springs (5 172 unknowns;
 #: benchmarks/README.md); the parts of 3 316 springs and fewer made no kept factorization there
