@@ -85,7 +85,9 @@ class Runner:
                 self._owned.append(self._client)
             else:
                 cluster = LocalCluster(n_workers=self.n_workers, threads_per_worker=1, processes=True,
-                                       dashboard_address=":0",  # (any free port: studies side by side do not contend for 8787)
+                                       # (its HTTP server on any free port: two studies at once
+                                       # do not contend for 8787)
+                                       dashboard_address=":0",
                                        # one numba/BLAS thread per worker: one core per run
                                        env={"NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1",
                                             "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"})
