@@ -71,15 +71,16 @@ KEPT_ANYWHERE_WORTH = 50.0
 #: A kept factorization that has made TREE_AFTER_SOLVES solves, on a net of TREE_MIN_UNKNOWNS
 #: unknowns or more, solves from then on with its factors copied onto their elimination tree
 #: (:mod:`.tree_solve`: compiled threaded, its subtrees on separate threads, the same bits at any
-#: thread count, so a run gives the same numbers on one thread or two). The copy costs what tens
-#: to hundreds of solves save (at 47 637 unknowns 0.3 s by a kept layout, 1.7 s the first time,
-#: against 10–18 ms a single-precision solve saves on one and two threads), so it waits for a
-#: factorization that has lasted: at 100× CO2's stable step on the steel part one lasts until it
-#: grows stale (STALE_SHARE: about 115 steps at 9 270 springs), at 1e4× about 45 solves (the first copy, in a 45-step run there, made EM2 2.1–2.5× slower
-#: per step with the switch at 50 solves). EM2's steps at 100× on the steel part took 0.93× the
-#: time with SuperLU's solves on one thread and 0.72× on two at 9 270 springs (5 172 unknowns;
-#: benchmarks/README.md); the parts of 3 316 springs and fewer made no kept factorization there
-#: (each lasted one step), so no smaller net was measured: hence the threshold.
+#: thread count, so a run gives the same numbers on one thread or two). The copy costs what tens to
+#: hundreds of solves save (at 47 637 unknowns 0.3 s by a kept layout, 1.7 s the first time, against
+#: 10–18 ms a single-precision solve saves on one and two threads), so it waits for a factorization
+#: that has lasted: at 100× CO2's stable step on the steel part one lasts until it grows stale
+#: (STALE_SHARE: about 115 steps at 9 270 springs), at 1e4× about 45 solves (the first copy, in a
+#: 45-step run there, made EM2 2.1–2.5× slower per step with the switch at 50 solves). EM2's steps
+#: at 100× on the steel part took 0.93× the time with SuperLU's solves on one thread and 0.72× on
+#: two at 9 270 springs (5 172 unknowns; benchmarks/README.md); the parts of 3 316 springs and fewer
+#: made no kept factorization there (each lasted one step), so no smaller net was measured: hence
+#: the threshold.
 TREE_AFTER_SOLVES = 200
 TREE_MIN_UNKNOWNS = 5_000
 #: A factorization renewed for staleness (STALE_SHARE) goes on the tree after this many solves:
@@ -104,17 +105,18 @@ SINGLE_MAX_LINEAR_RESIDUAL = 1e-2
 #: rounding floor (a single spring at h ω = 100: energy drift 1.07e-12 over 200 steps against
 #: 8.9e-13 with double factors).
 SINGLE_MIN_UNKNOWNS = 1000
-#: A factorization carried from step to step grows stale as the net moves on from where it was
-#: made: its corrections contract less and the steps take more of them (the steel part of 9 270
-#: springs at 100× the explicit limit: 2.0 a step over the first 75 steps, 3.0 by step 150, 4.0 by
-#: step 450; a fresh factorization at step 400 brought them back to 2.1). So the solver counts the
-#: corrections each step takes beyond the mean of the first STALE_BASELINE_STEPS steps of the
-#: factorization (not counting the step that made it: the solves it made before it may differ),
-#: and once they add up to STALE_SHARE × ``worth`` it refactorizes at the next step's start (ski
-#: rental: the corrections lost to staleness have then cost about what a factorization costs). ``worth`` counts multiply-adds; SuperLU does a factorization's in dense
-#: blocks, several times faster per operation than a solve does its: on that part (worth 79) a
-#: fresh factorization made its step 41 ms longer, about 14 corrections (solve, residual, line
-#: search) of the 3 ms each that an extra correction took there, and 0.2 × 79 is 16.
+#: A factorization carried from step to step grows stale as the net moves on from where it was made:
+#: its corrections contract less and the steps take more of them (the steel part of 9 270 springs at
+#: 100× the explicit limit: 2.0 a step over the first 75 steps, 3.0 by step 150, 4.0 by step 450; a
+#: fresh factorization at step 400 brought them back to 2.1). So the solver counts the corrections
+#: each step takes beyond the mean of the first STALE_BASELINE_STEPS steps of the factorization (not
+#: counting the step that made it: the solves it made before it may differ), and once they add up to
+#: STALE_SHARE × ``worth`` it refactorizes at the next step's start (ski rental: the corrections
+#: lost to staleness have then cost about what a factorization costs). ``worth`` counts
+#: multiply-adds; SuperLU does a factorization's in dense blocks, several times faster per operation
+#: than a solve does its: on that part (worth 79) a fresh factorization made its step 41 ms longer,
+#: about 14 corrections (solve, residual, line search) of the 3 ms each that an extra correction
+#: took there, and 0.2 × 79 is 16.
 STALE_BASELINE_STEPS = 3
 STALE_SHARE = 0.2
 
