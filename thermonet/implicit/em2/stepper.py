@@ -201,9 +201,9 @@ class EM2Stepper(ImplicitStepper):
         elif saved is not solver.point and not (
                 not solver.stale and solver.point is not None and np.array_equal(saved, solver.point)):
             self.refactorize_at(saved)  # resumed, or rewound: the factorization this state was left with
-            solves = state.extra.get(self.SOLVES_KEY)
-            if solver.stale:
+            if solver.stale:  # (its residual there was not admissible: the next step factorizes)
                 return
+            solves = state.extra.get(self.SOLVES_KEY)
             if isinstance(solves, np.ndarray) and 1 <= solves.size <= 3:
                 solver.restore_solves(int(solves[0]), *(float(v) for v in solves[1:]))
             staleness = state.extra.get(self.STALENESS_KEY)
