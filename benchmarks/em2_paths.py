@@ -10,7 +10,8 @@ gets through simulated time faster):
 - ``sweeps``: ``newton_path = "compiled"`` (inertia-preconditioned matrix-free sweeps);
 - ``splu``: ``newton_path = "sparse"``, ``linear_solver = "splu"`` (a factorization per iteration);
 - ``splu-reuse``: ``newton_path = "sparse"``, ``linear_solver = "splu-reuse"`` (kept factorizations
-  in single precision; on large nets solved on their elimination tree once one has made 200 solves);
+  in single precision; on large nets solved on their elimination tree once the run has made 60
+  solves with SuperLU's own solve);
 - ``splu-reuse-double`` (not run unless named): the same with double-precision factors;
 - ``splu-reuse-superlu``, ``splu-reuse-tree`` (not run unless named): ``splu-reuse`` always with
   SuperLU's own solves, and switching to the tree on a net of any size (the tree solve's A/B);
@@ -60,9 +61,9 @@ PATHS = {
     "splu": dict(newton_path="sparse", linear_solver="splu"),
     "splu-reuse": dict(newton_path="sparse", linear_solver="splu-reuse"),
     # (the kept factors never solved on their elimination tree, thermonet.solvers.tree_solve,
-    # always SuperLU's own solve: the A/B against splu-reuse, which switches after 200 solves)
+    # always SuperLU's own solve: the A/B against splu-reuse, which switches to it)
     "splu-reuse-superlu": dict(newton_path="sparse", linear_solver="splu-reuse"),
-    # (the same switch after 200 solves on a net of any size: the A/B below TREE_MIN_UNKNOWNS)
+    # (the same switch on a net of any size: the A/B below TREE_MIN_UNKNOWNS)
     "splu-reuse-tree": dict(newton_path="sparse", linear_solver="splu-reuse"),
     # (kept factors in double precision: the A/B of splu-reuse's single-precision factors)
     "splu-reuse-double": dict(newton_path="sparse", linear_solver="splu-reuse-double"),
@@ -262,7 +263,7 @@ def run_paths(net: str, cells: int, h: float, paths, steps: int, rounds: int, co
     sims = {path: make(net, cells, "em2", h, **PATHS[path]) for path in paths}
     if "splu-reuse-superlu" in sims:
         sims["splu-reuse-superlu"].stepper.solver.tree_after = math.inf
-        sims["splu-reuse-superlu"].stepper.solver.tree_after_renewed = math.inf
+        sims["splu-reuse-superlu"].stepper.solver.tree_after_laid_out = math.inf
     if "splu-reuse-tree" in sims:
         sims["splu-reuse-tree"].stepper.solver.tree_min_unknowns = 0
     times = {path: [] for path in paths}

@@ -297,3 +297,14 @@ def test_implicit_profile_quick_mode_times_the_drivers_kernels(capsys):
     text = capsys.readouterr().out
     assert "gtr-1/2, lattice 2³ (54 springs), 1 thread(s), 4 steps" in text
     assert "| kernel | calls/step | CO2 steps per step |" in text
+
+
+def test_em2_run_quick_mode_times_a_whole_run_from_rest(capsys):
+    """benchmarks/em2_run.py --quick: the small steel part at 100×, every call timed, the ratio
+    to CO2 over the run and by windows."""
+    (row,) = load("em2_run").main(["--quick"])
+    assert row["springs"] == 1954 and row["steps"] == 20 and len(row["call_s"]) == 4
+    assert all(t > 0 for t in row["call_s"]) and row["co2_ms"] > 0 and row["ratio"] > 0
+    assert row["factorizations"] >= 1 and 1.0 <= row["corrections"] <= 10.0
+    text = capsys.readouterr().out
+    assert "the whole run:" in text and "steps 1–5" in text

@@ -431,10 +431,15 @@ def test_a_resumed_run_solving_on_the_elimination_tree_continues_bit_for_bit(tmp
     save_checkpoint(tmp_path / "c.npz", first.state, {})
     state, _ = load_checkpoint(tmp_path / "c.npz")
     assert state.extra["factorization_solves"][0] >= 3
+    count = state.extra["factorization_tree"]  # (SuperLU's solves toward the first layout; one made)
+    assert count[0] >= 3 and count[1] == 1.0
     resumed, _ = scene_simulation("lattice2d", 10, 12)
     resumed.load_state(state)
     resumed.run(steps=6, diagnostics_every=6)
     assert first.stepper.summary()["tree_solves"] > 0 and resumed.stepper.summary()["tree_solves"] > 0
+    assert resumed.stepper.solver.factorizations > 1  # (those made after the resume go on the tree as laid out)
+    for name in ("superlu_solves", "laid_out"):
+        assert getattr(resumed.stepper.solver, name) == getattr(one.stepper.solver, name), name
     assert one.step == resumed.step == 12
     for name in ("positions", "momenta", "entropy", "thermal_displacement"):
         assert np.array_equal(getattr(one.state, name), getattr(resumed.state, name)), name
@@ -478,7 +483,6 @@ def test_the_staleness_count_renews_a_factorization_only_where_its_steps_take_mo
     solver.factorize(sim.stepper.data, solver.h)
     solver.worth = 100.0
     assert list(solver.staleness) == [-1.0, 0.0, 0.0, 0.0] and not solver.stale
-    assert solver.solves_before_tree == direct.TREE_AFTER_RENEWED  # (the layout of the last one is kept)
 
 
 def test_a_resumed_run_renews_a_stale_factorization_where_one_run_does(tmp_path, monkeypatch):

@@ -143,6 +143,7 @@ def test_the_tree_solve_gives_superlus_and_a_dense_solution(monkeypatch):
     assert np.abs(x - dense).max() <= 1e-13 * scale
 
     monkeypatch.setattr(direct, "TREE_AFTER_SOLVES", 2)
+    monkeypatch.setattr(direct, "TREE_AFTER_LAID_OUT", 1)
     monkeypatch.setattr(direct, "TREE_MIN_UNKNOWNS", 0)
     monkeypatch.setattr(direct, "SINGLE_MIN_UNKNOWNS", 0)
     # kept factors in double and in single precision (the tree keeps their precision; its sums
@@ -157,10 +158,11 @@ def test_the_tree_solve_gives_superlus_and_a_dense_solution(monkeypatch):
         assert np.abs(xs[3] - xs[0]).max() <= tol * scale
         assert np.abs(xs[3] - dense).max() <= tol * scale
         layout = kept._layout
+        assert kept.laid_out and kept.tree_layouts == 1
         other = diagonally_dominant_values(p, seed=5)  # a new factorization starts on SuperLU's solve again,
-        kept.factorize(other, 1.0)  # and its copy onto the tree reuses the layout of the same pattern
-        xs = [kept.solve(b) for _ in range(3)]
-        assert kept.tree_solves == 3 and kept.tree_copies == 2 and kept._layout is layout
+        kept.factorize(other, 1.0)  # for TREE_AFTER_LAID_OUT solves, and its copy onto the tree
+        xs = [kept.solve(b) for _ in range(3)]  # reuses the layout of the same pattern
+        assert kept.tree_solves == 4 and kept.tree_copies == 2 and kept._layout is layout and kept.tree_layouts == 1
         direct_x = np.linalg.solve(p.matrix(other).toarray(), b)
         assert np.abs(xs[2] - direct_x).max() <= tol * np.abs(direct_x).max()
         fresh, _ = tree_factors(kept._lu, 2)  # (the same arrays as a copy made from scratch)
@@ -174,6 +176,39 @@ def test_the_tree_solve_gives_superlus_and_a_dense_solution(monkeypatch):
     pivoted.factorize(swapped)
     assert not np.array_equal(pivoted._lu.perm_r, np.arange(p.size))
     assert tree_factors(pivoted._lu, 2) == (None, None)
+
+
+def test_kept_factorizations_go_on_the_tree_once_the_runs_solves_pay_for_the_first_layout(monkeypatch):
+    """The switch onto the elimination tree (solvers.direct.TREE_AFTER_SOLVES,
+    TREE_AFTER_LAID_OUT): SuperLU's solves count toward the first layout over all the kept
+    factorizations, not each one's alone; once laid out, every later factorization goes on the
+    tree after TREE_AFTER_LAID_OUT solves by the kept layout; a factorization the tree refuses
+    (SuperLU pivoted off the diagonal) starts the count again."""
+    monkeypatch.setattr(pattern_module, "METIS_MIN_NODES", 10)
+    monkeypatch.setattr(direct, "TREE_AFTER_SOLVES", 5)
+    monkeypatch.setattr(direct, "TREE_AFTER_LAID_OUT", 2)
+    monkeypatch.setattr(direct, "TREE_MIN_UNKNOWNS", 0)
+    p = lattice_pattern(6)
+    data, other = diagonally_dominant_values(p), diagonally_dominant_values(p, seed=5)
+    b = np.random.default_rng(1).uniform(-1.0, 1.0, p.size)
+    kept = ReusedLUDouble(p)
+
+    def solves(values, count):
+        kept.factorize(values, 1.0)
+        before = kept.tree_solves
+        for _ in range(count):
+            kept.solve(b)
+        return kept.tree_solves - before
+
+    assert solves(data, 3) == 0 and kept.superlu_solves == 3 and not kept.laid_out
+    assert kept.solves_before_tree == 5
+    assert solves(other, 3) == 1  # (2 more SuperLU solves make 5: the third is on the tree)
+    assert kept.laid_out and kept.tree_layouts == 1 and kept.superlu_solves == 5
+    assert solves(data, 4) == 2 and kept.tree_copies == 2 and kept.tree_layouts == 1  # (by the kept layout)
+    swapped = data.copy()  # a zero diagonal entry: SuperLU swaps rows, the tree refuses the factors
+    swapped[p.node_base[0]] = 0.0
+    assert solves(swapped, 4) == 0 and not kept.laid_out and kept.superlu_solves == 2
+    assert solves(data, 4) == 1 and kept.laid_out  # (3 more make 5)
 
 
 def test_exact_zeros_in_the_factors_do_not_split_a_nodes_rows(monkeypatch):

@@ -68,26 +68,25 @@ KEPT_MAX_CONTRACTION = 0.9
 #: a factorization worth at least this many solves is tried at any scaled residual, in the step
 #: that made it too (a few line-search residuals wasted cost less than refactorizing)
 KEPT_ANYWHERE_WORTH = 50.0
-#: A kept factorization that has made TREE_AFTER_SOLVES solves, on a net of TREE_MIN_UNKNOWNS
-#: unknowns or more, solves from then on with its factors copied onto their elimination tree
-#: (:mod:`.tree_solve`: compiled threaded, its subtrees on separate threads, the same bits at any
-#: thread count, so a run gives the same numbers on one thread or two). The copy costs what tens to
-#: hundreds of solves save (at 47 637 unknowns 0.3 s by a kept layout, 1.7 s the first time, against
-#: 10–18 ms a single-precision solve saves on one and two threads), so it waits for a factorization
-#: that has lasted: at 100× CO2's stable step on the steel part one lasts until it grows stale
-#: (STALE_SHARE: about 115 steps at 9 270 springs), at 1e4× about 45 solves (the first copy, in a
-#: 45-step run there, made EM2 2.1–2.5× slower per step with the switch at 50 solves). EM2's steps
-#: at 100× on the steel part took 0.93× the time with SuperLU's solves on one thread and 0.72× on
-#: two at 9 270 springs (5 172 unknowns; benchmarks/README.md); the parts of 3 316 springs and fewer
-#: made no kept factorization there (each lasted one step), so no smaller net was measured: hence
-#: the threshold.
-TREE_AFTER_SOLVES = 200
+#: Kept factors solve on their elimination tree (:mod:`.tree_solve`: compiled threaded, its
+#: subtrees on separate threads, the same bits at any thread count, so a run gives the same numbers
+#: on one thread or two) on nets of TREE_MIN_UNKNOWNS unknowns or more, once the copy onto the tree
+#: has paid. The first copy lays the factors out on the tree (a layout kept for later factors of the
+#: same structure, which gather by it) and costs what 30–120 solves on the tree save (at 5 172
+#: unknowns 46–58 ms against 0.6–1.5 ms a solve saves on one and two threads; at 47 637 unknowns
+#: 1.5–2.1 s against 18–23 ms): so it waits until the run has made TREE_AFTER_SOLVES solves with
+#: SuperLU's solve, over all its kept factorizations (ski rental: a run that stops sooner lost
+#: at most about what the copy would have cost, one that goes on has paid for it by then). A layout
+#: serves every later factorization: at 1e4× CO2's stable step each factorization lasts about 45
+#: solves, and waiting for 200 solves of one factorization, as the switch first did, put none on
+#: the tree there. Once laid out, each factorization goes on the tree after TREE_AFTER_LAID_OUT
+#: solves: a copy by the kept layout costs what 2–8 solves save (2.4 ms at 5 172 unknowns, 0.14 s
+#: at 47 637). The switch counts solves only, so where it happens is the same at any thread count
+#: and in a resumed run (the counts go with a checkpoint). Where a copy is refused (SuperLU
+#: pivoted off the diagonal, or the tree does not split), the count starts again.
+TREE_AFTER_SOLVES = 60
 TREE_MIN_UNKNOWNS = 5_000
-#: A factorization renewed for staleness (STALE_SHARE) goes on the tree after this many solves:
-#: its factors have the structure of the one before, whose layout is kept, so the copy costs
-#: what 5–30 solves save (3–16 ms against 0.9 ms a solve saves at 5 172 unknowns, 0.3 s against
-#: 10–18 ms at 47 637), and a renewed factorization lasts about as long as the one it renews.
-TREE_AFTER_RENEWED = 20
+TREE_AFTER_LAID_OUT = 6
 #: Kept factors are single precision (float32) unless that fails: the residual and the
 #: convergence test stay double, so the root (and EM2's exact energy) is the same; a correction
 #: made with them contracts the residual about 1e-4 instead of 1e-5, and they cost 0.4–0.7× a
@@ -177,15 +176,18 @@ class ReusedLU(SparseLU):
         self._tree = None  # its factors on the elimination tree (TREE_AFTER_SOLVES), or False
         self._layout = None  # where the last factors went on the tree (kept for the next ones)
         self.tree_after = TREE_AFTER_SOLVES  # (a benchmark may set these per solver)
-        self.tree_after_renewed = TREE_AFTER_RENEWED
+        self.tree_after_laid_out = TREE_AFTER_LAID_OUT
+        #: SuperLU solves toward the first layout (TREE_AFTER_SOLVES), and whether one was made
+        self.superlu_solves = 0
+        self.laid_out = False
         self.tree_min_unknowns = TREE_MIN_UNKNOWNS
         self.tree_solves = 0  # made by tree_solve, and the factorizations copied for it
         self.tree_copies = 0
+        self.tree_layouts = 0  # of those, copies that laid the factors out anew
         #: how stale the kept factorization has grown (STALE_SHARE): [steps in its baseline,
         #: their corrections, the corrections beyond the baseline since, this step's so far]
         self.staleness = np.zeros(4)
         self.stale_refactorizations = 0  # refactorizations for staleness (STALE_SHARE)
-        self._renewing = False  # the next factorization renews a stale one
         self.solves_before_tree = self.tree_after  # of the current factorization
 
     def factorize(self, data: np.ndarray, h: float | None = None) -> None:
@@ -203,8 +205,8 @@ class ReusedLU(SparseLU):
         self.stale = False
         self.carried = False
         self.staleness[:] = -1.0, 0.0, 0.0, 0.0  # (-1: the step that made it is not counted)
-        self.solves_before_tree = self.tree_after_renewed if self._renewing else self.tree_after
-        self._renewing = False
+        self.solves_before_tree = (self.tree_after_laid_out if self.laid_out
+                                   else max(0.0, self.tree_after - self.superlu_solves))
         point = getattr(self.problem, "jacobian_point", None)
         self.point = point() if point is not None else None
         self.factorizations += 1
@@ -221,7 +223,7 @@ class ReusedLU(SparseLU):
 
     def solve(self, rhs: np.ndarray, target: float = 0.0, settled: float = 0.0) -> np.ndarray:
         """SuperLU's solve, or, once the factorization has made ``solves_before_tree`` solves on a
-        large enough net (TREE_AFTER_SOLVES, TREE_AFTER_RENEWED, TREE_MIN_UNKNOWNS), the compiled
+        large enough net (TREE_AFTER_SOLVES, TREE_AFTER_LAID_OUT, TREE_MIN_UNKNOWNS), the compiled
         one on its elimination tree (the same bits at any thread count; where SuperLU pivoted off the diagonal,
         SuperLU's solve throughout)."""
         self.staleness[3] += 1.0
@@ -229,20 +231,41 @@ class ReusedLU(SparseLU):
             return self._checked_solve(rhs)
         if (self._tree is None and self.solves >= self.solves_before_tree
                 and self.pattern.size >= self.tree_min_unknowns):
-            tree, self._layout = tree_factors(self._lu, numba.get_num_threads(), self._layout)
-            self._tree = tree if tree is not None else False
-            self.tree_copies += tree is not None
+            self._copy_to_tree()
         self.solves += 1
         if self._tree:
             self.tree_solves += 1
             return tree_solve(self._tree, rhs)
+        self.superlu_solves += not self.laid_out
         return super().solve(rhs)
+
+    def _copy_to_tree(self) -> None:
+        """The current factors onto their elimination tree (by the kept layout where it fits);
+        where the tree refuses them, SuperLU's solve goes on and the count toward a layout
+        starts again."""
+        layout = self._layout
+        tree, self._layout = tree_factors(self._lu, numba.get_num_threads(), layout)
+        self._tree = tree if tree is not None else False
+        if tree is None:
+            self.laid_out = False
+            self.superlu_solves = 0
+            return
+        self.laid_out = True
+        self.tree_copies += 1
+        self.tree_layouts += self._layout is not layout
+
+    def restore_tree_count(self, count: np.ndarray) -> None:
+        """(superlu_solves, laid_out) as the run a resumed state comes from had them (so its
+        factorizations go on the tree where that run's did)."""
+        self.superlu_solves = int(count[0])
+        self.laid_out = bool(count[1])
 
     def _checked_solve(self, rhs: np.ndarray) -> np.ndarray:
         """The first solve with fresh single factors, checked against the double matrix (see
         SINGLE_MAX_LINEAR_RESIDUAL); where they fail, double factors of the same matrix solve."""
         self._check = False
         self.solves += 1
+        self.superlu_solves += not self.laid_out
         x = super().solve(rhs)
         scale = float(np.abs(rhs).max(initial=0.0))
         left = float(np.abs(rhs - self._matrix @ x).max(initial=0.0))
@@ -342,7 +365,7 @@ class ReusedLU(SparseLU):
         beyond += last - baseline / counted
         self.staleness[2] = beyond
         if beyond >= STALE_SHARE * self.worth:
-            self.stale = self._renewing = True
+            self.stale = True
             self.stale_refactorizations += 1
 
     def contraction_limit(self, rho: float, tolerance: float, least: float) -> float:

@@ -149,6 +149,10 @@ class EM2Stepper(ImplicitStepper):
     SOLVES_KEY = "factorization_solves"
     #: the key of how stale it had grown ((4,) float: solvers.direct.ReusedLU.staleness)
     STALENESS_KEY = "factorization_staleness"
+    #: the key of the solver's count toward its first copy onto the elimination tree and whether
+    #: it made one ((2,) float: ReusedLU.superlu_solves, laid_out), kept with or without a kept
+    #: factorization
+    TREE_KEY = "factorization_tree"
 
     def jacobian_point(self) -> np.ndarray:
         """Where the Jacobian is being made: the step (h, x⁰, p⁰, η) and the unknowns u of the
@@ -195,6 +199,9 @@ class EM2Stepper(ImplicitStepper):
         solver = self.solver
         if not getattr(solver, "reuses_factorization", False):
             return
+        count = state.extra.get(self.TREE_KEY)
+        if isinstance(count, np.ndarray) and count.size == 2:
+            solver.restore_tree_count(count)
         saved = state.extra.get(self.FACTORIZATION_KEY)  # (only of one carried from step to step)
         if not isinstance(saved, np.ndarray) or saved.size < 2:
             solver.stale = True  # none kept with this state: the next step factorizes
@@ -218,6 +225,8 @@ class EM2Stepper(ImplicitStepper):
         else:
             state.extra.pop(self.PREVIOUS_KEY, None)
         solver = self.solver
+        if getattr(solver, "reuses_factorization", False):
+            state.extra[self.TREE_KEY] = np.array([float(solver.superlu_solves), float(solver.laid_out)])
         if getattr(solver, "carries_factorization", False) and not solver.stale and solver.point is not None:
             state.extra[self.FACTORIZATION_KEY] = solver.point
             state.extra[self.SOLVES_KEY] = np.array([float(solver.solves), float(solver.solves_before_tree),
