@@ -483,6 +483,8 @@ def test_the_staleness_count_renews_a_factorization_only_where_its_steps_take_mo
     solver.factorize(sim.stepper.data, solver.h)
     solver.worth = 100.0
     assert list(solver.staleness) == [-1.0, 0.0, 0.0, 0.0] and not solver.stale
+    # (a renewed factorization waits for the tree as any other: the run's count toward a layout)
+    assert not solver.laid_out and solver.solves_before_tree == max(0, direct.TREE_AFTER_SOLVES - solver.superlu_solves)
 
 
 def test_a_resumed_run_renews_a_stale_factorization_where_one_run_does(tmp_path, monkeypatch):
