@@ -1,6 +1,6 @@
 """EM2's whole run from rest against CO2, as a user runs it: the steel part of em2_paths.py
 (heated through its base, pushed on its flange, with conduction) at h = ``--factor`` × CO2's
-stable step, ``--steps`` steps in calls of ``--call`` steps, every step timed, the first
+stable step, ``--steps`` steps in calls of ``--call`` steps, every call timed, the first
 factorization and every copy of the kept factors onto their elimination tree included (only
 the kernels' compilation is not: a throwaway run loads them first). CO2 at 0.9× its stable step
 ("auto" conduction, calls of 200 steps) runs in the same process between EM2's calls, so that
@@ -26,6 +26,7 @@ import sys
 import time
 import warnings
 
+import numba
 import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -84,15 +85,9 @@ def _load_tree_kernels(sim) -> None:
     lu = getattr(sim.stepper.solver, "_lu", None)
     if lu is None:
         return
-    tree, _ = tree_factors(lu, _threads())
+    tree, _ = tree_factors(lu, numba.get_num_threads())
     if tree is not None:
         tree_solve(tree, np.zeros(lu.shape[0]))
-
-
-def _threads() -> int:
-    import numba
-
-    return numba.get_num_threads()
 
 
 def windows(row: dict, count: int = 6) -> list[tuple[int, int, float]]:
@@ -129,8 +124,6 @@ def main(argv=None) -> list[dict]:
     args = ap.parse_args(argv)
     if args.quick:
         args.mesh_size, args.factor, args.steps, args.call, args.threads = [0.006], [100.0], 20, 5, [1]
-    import numba
-
     rows = []
     for size in args.mesh_size:
         for threads in args.threads:
