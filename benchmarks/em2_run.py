@@ -32,8 +32,8 @@ import numpy as np
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
 
-#: CO2's step: this fraction of its stable step (as em2_paths.py)
-CO2_FRACTION = 0.9
+from em2_paths import CO2_FRACTION  # noqa: E402  (CO2's step: this fraction of its stable step)
+
 #: CO2's steps per call (its "auto" conduction takes a cycle dividing it)
 CO2_CALL = 200
 

@@ -188,7 +188,6 @@ class ReusedLU(SparseLU):
         #: their corrections, the corrections beyond the baseline since, this step's so far]
         self.staleness = np.zeros(4)
         self.stale_refactorizations = 0  # refactorizations for staleness (STALE_SHARE)
-        self.solves_before_tree = self.tree_after  # of the current factorization
 
     def factorize(self, data: np.ndarray, h: float | None = None) -> None:
         try:
@@ -205,8 +204,6 @@ class ReusedLU(SparseLU):
         self.stale = False
         self.carried = False
         self.staleness[:] = -1.0, 0.0, 0.0, 0.0  # (-1: the step that made it is not counted)
-        self.solves_before_tree = (self.tree_after_laid_out if self.laid_out
-                                   else max(0.0, self.tree_after - self.superlu_solves))
         point = getattr(self.problem, "jacobian_point", None)
         self.point = point() if point is not None else None
         self.factorizations += 1
@@ -215,11 +212,20 @@ class ReusedLU(SparseLU):
         """``worth`` of the current factors. Their structure follows from the pattern and the
         row pivots (but for entries that come out exactly zero): where those are the last ones',
         the last worth is taken (reading it copies the factors out of SuperLU: 2 s at 47 637
-        unknowns, about what the factorization itself costs)."""
+        unknowns, 0.5–0.8 s, about half what the factorization itself costs)."""
         perm = self._lu.perm_r
         if self._worth_of is None or not np.array_equal(perm, self._worth_of[0]):
             self._worth_of = (perm.copy(), factorization_worth(self._lu))
         self.worth = self._worth_of[1]
+
+    @property
+    def solves_before_tree(self) -> float:
+        """The solves of the current factorization after which it goes on the elimination tree:
+        TREE_AFTER_LAID_OUT once the run has laid factors out; before that, those that bring the
+        run's SuperLU solves to TREE_AFTER_SOLVES (until then every solve of it is SuperLU's)."""
+        if self.laid_out:
+            return self.tree_after_laid_out
+        return self.solves + max(0.0, self.tree_after - self.superlu_solves)
 
     def solve(self, rhs: np.ndarray, target: float = 0.0, settled: float = 0.0) -> np.ndarray:
         """SuperLU's solve, or, once the factorization has made ``solves_before_tree`` solves on a
@@ -289,16 +295,14 @@ class ReusedLU(SparseLU):
         self._tree = None
         self._read_worth()
 
-    def restore_solves(self, solves: int, before_tree: float | None = None, worth: float | None = None) -> None:
-        """The kept factorization rebuilt on resume has made ``solves`` solves, goes on the
-        tree after ``before_tree`` and is worth ``worth`` solves, as in the run that saved it
-        (single factors passed their check there). The worth read from factors of the same row
+    def restore_solves(self, solves: int, worth: float | None = None) -> None:
+        """The kept factorization rebuilt on resume has made ``solves`` solves and is worth
+        ``worth`` solves, as in the run that saved it (single factors passed their check there;
+        where it goes on the tree follows from these and :meth:`restore_tree_count`). The worth read from factors of the same row
         pivots is taken for the next ones too; SuperLU leaves out entries that come out exactly
         zero, so the worth read from the rebuilt factors can differ from the one that run had
         kept (on the 8 mm part 21.77 against 20.92), and with it when the run refactorizes."""
         self.solves = int(solves)
-        if before_tree is not None:
-            self.solves_before_tree = float(before_tree)
         if worth is not None:
             self.worth = float(worth)
             self._worth_of = (self._lu.perm_r.copy(), self.worth)

@@ -143,9 +143,9 @@ class EM2Stepper(ImplicitStepper):
     #: the key in ``state.extra`` of the point where the kept factorization was made (solvers.
     #: direct.ReusedLU): (h, x⁰, p⁰, η, u) flattened; absent where none is kept
     FACTORIZATION_KEY = "factorization_point"
-    #: the key of the number of solves it had made, the number after which it solves on the
-    #: elimination tree and what it is worth in solves ((3,) float: which solver solves the next,
-    #: and when it is refactorized)
+    #: the key of the number of solves it had made and what it is worth in solves ((2,) float:
+    #: which solver solves the next, and when it is refactorized; a (3,) key of an older run holds
+    #: the worth last)
     SOLVES_KEY = "factorization_solves"
     #: the key of how stale it had grown ((4,) float: solvers.direct.ReusedLU.staleness)
     STALENESS_KEY = "factorization_staleness"
@@ -212,7 +212,7 @@ class EM2Stepper(ImplicitStepper):
                 return
             solves = state.extra.get(self.SOLVES_KEY)
             if isinstance(solves, np.ndarray) and 1 <= solves.size <= 3:
-                solver.restore_solves(int(solves[0]), *(float(v) for v in solves[1:]))
+                solver.restore_solves(int(solves[0]), float(solves[-1]) if solves.size > 1 else None)
             staleness = state.extra.get(self.STALENESS_KEY)
             if isinstance(staleness, np.ndarray) and staleness.size == solver.staleness.size:
                 solver.restore_staleness(staleness)
@@ -229,8 +229,7 @@ class EM2Stepper(ImplicitStepper):
             state.extra[self.TREE_KEY] = np.array([float(solver.superlu_solves), float(solver.laid_out)])
         if getattr(solver, "carries_factorization", False) and not solver.stale and solver.point is not None:
             state.extra[self.FACTORIZATION_KEY] = solver.point
-            state.extra[self.SOLVES_KEY] = np.array([float(solver.solves), float(solver.solves_before_tree),
-                                                     float(solver.worth)])
+            state.extra[self.SOLVES_KEY] = np.array([float(solver.solves), float(solver.worth)])
             state.extra[self.STALENESS_KEY] = solver.staleness.copy()
         else:
             for key in (self.FACTORIZATION_KEY, self.SOLVES_KEY, self.STALENESS_KEY):
