@@ -14,10 +14,14 @@ then each level of separators, a phase's groups in thread bins, each group whole
 the top separator (a phase of one group) spreads its products with the subtrees below over the
 threads, block by block forward and one child subtree per thread backward.
 
-Every unknown's sums are taken in one order fixed by the factors alone (a forward product's
-vector lanes included) whichever thread takes them, so the solution is the same bit for bit at
-any thread count (it differs from SuperLU's own solve in the last bits: another order of the
-same sums). It is compiled threaded only: on one thread its regions
+Every unknown's sums are taken in one order fixed by the factors and the compiled code
+whichever thread takes them, so the solution is the same bit for bit at any thread count (it
+differs from SuperLU's own solve in the last bits: another order of the same sums). The forward
+products' vector lanes are the compiler's (their sums may be reassociated): the kernel compiled
+in a process and the same kernel loaded from Numba's cache were seen to give different last bits
+(the steel part's 5 172-unknown factors; with the sums in lanes written out in the source the
+two agreed, but the solve took 1.1–1.2× the time on two threads), so a run that compiled its
+kernels and one that loaded them can part in the last bits once they solve on the tree. It is compiled threaded only: on one thread its regions
 run on the calling thread, and that compile ran faster than one without ``parallel=True``. Where SuperLU pivoted off
 the diagonal or reordered columns, or a group's rows would refer to a sibling's (checked entry
 by entry), :func:`tree_factors` returns None and the caller keeps SuperLU's solve.
