@@ -20,7 +20,7 @@ differs from SuperLU's own solve in the last bits: another order of the same sum
 products' vector lanes are the compiler's (their sums may be reassociated): the kernel compiled
 in a process and the same kernel loaded from Numba's cache were seen to give different last bits
 (the steel part's 5 172-unknown factors; with the sums in lanes written out in the source the
-two agreed, but the solve took 1.1–1.2× the time on two threads), so a run that compiled its
+two agreed, but the solve took 1.02–1.30× the time on two threads at 47 637 unknowns), so a run that compiled its
 kernels and one that loaded them can part in the last bits once they solve on the tree. It is compiled threaded only: on one thread its regions
 run on the calling thread, and that compile ran faster than one without ``parallel=True``. Where SuperLU pivoted off
 the diagonal or reordered columns, or a group's rows would refer to a sibling's (checked entry
